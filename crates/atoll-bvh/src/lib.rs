@@ -1,0 +1,1 @@
+//! BVH builders, layouts and CPU traversal.

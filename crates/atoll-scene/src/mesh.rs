@@ -1,0 +1,81 @@
+//! Triangle meshes: the only geometric primitive the renderer traces.
+
+use glam::{Vec2, Vec3};
+
+use crate::{AreaEmission, MaterialId};
+
+/// Index of a mesh in [`crate::Scene::meshes`].
+pub type MeshId = u32;
+
+/// An indexed triangle mesh in the space of the object that owns it.
+#[derive(Clone, Debug, Default)]
+pub struct TriangleMesh {
+    /// Where it came from (file name or "trianglemesh"), for messages and `atoll info`.
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    /// Per-vertex shading normals; empty when the mesh has none.
+    pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates; empty when the mesh has none.
+    pub uvs: Vec<Vec2>,
+    pub indices: Vec<[u32; 3]>,
+    pub material: MaterialId,
+    /// Diffuse area emission (pbrt's `AreaLightSource "diffuse"`), if any.
+    pub emission: Option<AreaEmission>,
+    /// Flip the geometric normal: pbrt's `ReverseOrientation` XOR "the
+    /// transform in effect swaps handedness". The geometric normal is
+    /// `normalize(cross(p0 - p2, p1 - p2))`, negated when this is set
+    /// (pbrt-v4's convention, which decides which side a one-sided light emits on).
+    pub flip_normals: bool,
+}
+
+impl TriangleMesh {
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// The three corner positions of triangle `t`.
+    #[inline]
+    pub fn triangle(&self, t: usize) -> [Vec3; 3] {
+        let [a, b, c] = self.indices[t];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Unnormalised geometric normal of triangle `t` following pbrt-v4's
+    /// orientation rule (see [`TriangleMesh::flip_normals`]).
+    #[inline]
+    pub fn geometric_normal(&self, t: usize) -> Vec3 {
+        let [p0, p1, p2] = self.triangle(t);
+        let n = (p0 - p2).cross(p1 - p2);
+        if self.flip_normals {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// Bytes this mesh occupies in memory (positions, normals, uvs, indices).
+    pub fn memory_bytes(&self) -> u64 {
+        (self.positions.len() * 12 + self.normals.len() * 12 + self.uvs.len() * 8 + self.indices.len() * 12)
+            as u64
+    }
+
+    /// Checks indices and attribute lengths; returns a message on the first problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let n = self.positions.len();
+        if !self.normals.is_empty() && self.normals.len() != n {
+            return Err(format!("{} normals for {} positions", self.normals.len(), n));
+        }
+        if !self.uvs.is_empty() && self.uvs.len() != n {
+            return Err(format!("{} uvs for {} positions", self.uvs.len(), n));
+        }
+        for (t, tri) in self.indices.iter().enumerate() {
+            if let Some(&bad) = tri.iter().find(|&&i| i as usize >= n) {
+                return Err(format!("triangle {t} uses vertex {bad} but the mesh has {n} vertices"));
+            }
+        }
+        if let Some(p) = self.positions.iter().find(|p| !p.is_finite()) {
+            return Err(format!("non-finite vertex position {p}"));
+        }
+        Ok(())
+    }
+}

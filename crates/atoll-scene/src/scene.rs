@@ -1,0 +1,146 @@
+//! The two-level scene: meshes grouped into objects, objects placed by instances.
+
+use glam::{Affine3A, Vec3};
+
+use crate::{Light, Material, MeshId, RenderSettings, TriangleMesh};
+
+/// Index of an object in [`Scene::objects`].
+pub type ObjectId = u32;
+
+/// A named group of meshes sharing one object space (pbrt's `ObjectBegin`).
+#[derive(Clone, Debug, Default)]
+pub struct Object {
+    pub name: String,
+    pub meshes: Vec<MeshId>,
+}
+
+/// One placement of an object in the world.
+#[derive(Clone, Copy, Debug)]
+pub struct Instance {
+    pub object: crate::ObjectId,
+    pub object_to_world: Affine3A,
+}
+
+/// A complete scene as loaded, before any device sees it.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub settings: RenderSettings,
+    pub meshes: Vec<TriangleMesh>,
+    pub objects: Vec<Object>,
+    pub instances: Vec<Instance>,
+    pub materials: Vec<Material>,
+    /// Lights not attached to geometry; area lights live on their meshes.
+    pub lights: Vec<Light>,
+}
+
+/// Counts and sizes for `atoll info` and memory planning.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneStats {
+    pub meshes: usize,
+    pub objects: usize,
+    pub instances: usize,
+    /// Triangles stored once per mesh.
+    pub unique_triangles: u64,
+    /// Triangles as seen by rays: each instance counts its object's triangles.
+    pub instanced_triangles: u64,
+    pub emissive_triangles: u64,
+    pub lights: usize,
+    pub materials: usize,
+    /// Bytes of mesh data (positions, normals, uvs, indices).
+    pub geometry_bytes: u64,
+    pub bounds_min: Vec3,
+    pub bounds_max: Vec3,
+}
+
+impl Scene {
+    /// Adds a material and returns its id.
+    pub fn add_material(&mut self, material: Material) -> crate::MaterialId {
+        self.materials.push(material);
+        (self.materials.len() - 1) as crate::MaterialId
+    }
+
+    /// Adds a mesh and returns its id.
+    pub fn add_mesh(&mut self, mesh: TriangleMesh) -> MeshId {
+        self.meshes.push(mesh);
+        (self.meshes.len() - 1) as MeshId
+    }
+
+    /// Adds an object and returns its id.
+    pub fn add_object(&mut self, object: Object) -> crate::ObjectId {
+        self.objects.push(object);
+        (self.objects.len() - 1) as crate::ObjectId
+    }
+
+    /// Triangles of one object (summed over its meshes).
+    pub fn object_triangles(&self, object: crate::ObjectId) -> u64 {
+        self.objects[object as usize]
+            .meshes
+            .iter()
+            .map(|&m| self.meshes[m as usize].indices.len() as u64)
+            .sum()
+    }
+
+    /// Object-space bounds of one object; `None` when it has no vertices.
+    pub fn object_bounds(&self, object: crate::ObjectId) -> Option<(Vec3, Vec3)> {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for &m in &self.objects[object as usize].meshes {
+            for &p in &self.meshes[m as usize].positions {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// World-space bounds of all instances; `None` for an empty scene.
+    pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let object_bounds: Vec<_> = (0..self.objects.len() as u32).map(|o| self.object_bounds(o)).collect();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for inst in &self.instances {
+            if let Some((a, b)) = object_bounds[inst.object as usize] {
+                for i in 0..8 {
+                    let corner = Vec3::new(
+                        if i & 1 == 0 { a.x } else { b.x },
+                        if i & 2 == 0 { a.y } else { b.y },
+                        if i & 4 == 0 { a.z } else { b.z },
+                    );
+                    let p = inst.object_to_world.transform_point3(corner);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    pub fn stats(&self) -> SceneStats {
+        let (bounds_min, bounds_max) = self.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        let per_object: Vec<u64> = (0..self.objects.len() as u32).map(|o| self.object_triangles(o)).collect();
+        SceneStats {
+            meshes: self.meshes.len(),
+            objects: self.objects.len(),
+            instances: self.instances.len(),
+            unique_triangles: self.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+            instanced_triangles: self.instances.iter().map(|i| per_object[i.object as usize]).sum(),
+            emissive_triangles: self.emissive_triangle_count(),
+            lights: self.lights.len(),
+            materials: self.materials.len(),
+            geometry_bytes: self.meshes.iter().map(|m| m.memory_bytes()).sum(),
+            bounds_min,
+            bounds_max,
+        }
+    }
+
+    /// Emissive triangles as instanced into the world (each is a light).
+    pub fn emissive_triangle_count(&self) -> u64 {
+        self.instances
+            .iter()
+            .flat_map(|inst| self.objects[inst.object as usize].meshes.iter())
+            .map(|&m| &self.meshes[m as usize])
+            .filter(|m| m.emission.is_some())
+            .map(|m| m.indices.len() as u64)
+            .sum()
+    }
+}
