@@ -1,1 +1,58 @@
-//! BVH builders, layouts and CPU traversal.
+//! BVH builders, layouts and CPU traversal for atoll.
+//!
+//! - [`Bvh2::build`]: parallel binned-SAH builder (and a median-split one for
+//!   comparison) over primitive boxes, producing the canonical binary layout
+//!   [`Bvh2`]. Other layouts are converted from it ([`Bvh4Cpu`]).
+//! - [`SceneBvh`]: two-level BVH over a [`atoll_scene::Scene`] (or a
+//!   [`ScenePart`] of one): one bottom-level BVH per object, one top-level
+//!   BVH over the instances. Closest-hit ([`SceneBvh::intersect`]) and
+//!   any-hit ([`SceneBvh::occluded`]) queries, safe to call from many threads.
+//! - [`bench`]: the traversal benchmark behind `atoll bench`, and the export
+//!   of its data for the Embree comparison (`scripts/bench-embree.py`).
+
+pub mod aabb;
+pub mod bench;
+pub mod build;
+pub mod bvh2;
+pub mod bvh4;
+pub mod layout;
+pub mod scene_bvh;
+pub mod triangle;
+
+use glam::Vec3;
+
+pub use aabb::Aabb;
+pub use build::{BuildOptions, SplitMethod};
+pub use bvh2::{Bvh2, Bvh2Node};
+pub use bvh4::{Bvh4Cpu, Bvh4CpuNode};
+pub use layout::{BvhLayout, BvhStats, TraversalRay, MAX_DEPTH};
+pub use scene_bvh::{MeshRange, SceneBvh, SceneBvhStats, ScenePart};
+pub use triangle::TriAccel;
+
+/// A ray in world space. Hits count for `0 < t < t_max`: callers offset
+/// origins of secondary rays themselves. `direction` need not be normalised;
+/// `t` is in units of its length.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub direction: Vec3,
+    pub t_max: f32,
+}
+
+/// The closest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Distance along the ray, in units of the direction's length.
+    pub t: f32,
+    /// Barycentrics of the triangle's second and third vertices: the hit point
+    /// is `(1-u-v)*p0 + u*p1 + v*p2` with `(p0, p1, p2)` in index order.
+    pub u: f32,
+    pub v: f32,
+    /// Index into `scene.instances`.
+    pub instance: u32,
+    /// Index into `scene.meshes`.
+    pub mesh: u32,
+    /// Triangle index within that mesh.
+    pub triangle: u32,
+}

@@ -1,2 +1,23 @@
 //! The renderer: ray record, sampling, camera, BSDFs, lights, film, the
 //! wavefront integrator and the `Device` trait with its CPU implementation.
+
+pub mod bsdf;
+pub mod camera;
+pub mod cpu;
+pub mod device;
+pub mod film;
+pub mod frame;
+pub mod integrator;
+pub mod lights;
+pub mod material_coeffs;
+pub mod record;
+pub mod rng;
+pub mod sampling;
+pub mod stages;
+
+pub use cpu::CpuDevice;
+pub use device::{Device, DeviceError, Queue};
+pub use film::Film;
+pub use frame::{FrameContext, RenderOptions, Wave};
+pub use integrator::{render, RenderOutput};
+pub use record::RayRecord;

@@ -1,1 +1,66 @@
-fn main() {}
+//! `atoll`: render, inspect and benchmark scenes.
+
+mod bench;
+mod info;
+mod load;
+mod render;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// A path tracer for scenes too large for one GPU.
+#[derive(Parser)]
+#[command(name = "atoll", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene (the built-in Cornell box when none is given).
+    Render(render::RenderArgs),
+    /// Print counts, bounds, memory estimate and BVH statistics of a scene.
+    Info(info::InfoArgs),
+    /// Measure BVH build, traversal and path-tracing speed.
+    Bench(bench::BenchArgs),
+}
+
+/// Failures the command line reports, with their exit codes.
+#[derive(Debug)]
+pub enum CliError {
+    /// The scene (or an argument naming it) is wrong: exit code 2.
+    Input(String),
+    /// Anything else (device, output): exit code 1.
+    Runtime(String),
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("ATOLL_LOG").unwrap_or_else(|_| "warn".into()),
+        )
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .without_time()
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Some(Command::Render(args)) => render::run(args),
+        Some(Command::Info(args)) => info::run(args),
+        Some(Command::Bench(args)) => bench::run(args),
+        None => render::run(render::RenderArgs::default()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(CliError::Input(message)) => {
+            eprintln!("error: {message}");
+            ExitCode::from(2)
+        }
+        Err(CliError::Runtime(message)) => {
+            eprintln!("error: {message}");
+            ExitCode::from(1)
+        }
+    }
+}

@@ -1,0 +1,260 @@
+//! The two-level BVH over a scene: one bottom-level BVH (BLAS) per object in
+//! object space, one top-level BVH (TLAS) over the instances in world space.
+
+use std::ops::Range;
+use std::time::Instant;
+
+use atoll_scene::{MeshId, ObjectId, Scene};
+use glam::Affine3A;
+use rayon::prelude::*;
+
+use crate::{Aabb, BuildOptions, Bvh2, Bvh4Cpu, BvhLayout, BvhStats, Hit, Ray, TraversalRay, TriAccel};
+
+/// Some triangles of one mesh.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MeshRange {
+    pub mesh: MeshId,
+    pub triangles: Range<u32>,
+}
+
+/// The subset of a scene a BVH is built over: the unit a distribution
+/// strategy hands to one device.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ScenePart {
+    /// Indices into `scene.instances` to include.
+    pub instances: Vec<u32>,
+    /// Objects included only in part, with the triangle ranges to keep (their
+    /// meshes not listed are left out). Unlisted objects are included whole.
+    pub object_subsets: Vec<(ObjectId, Vec<MeshRange>)>,
+}
+
+impl ScenePart {
+    /// Every instance of the scene, every triangle.
+    pub fn whole(scene: &Scene) -> Self {
+        ScenePart { instances: (0..scene.instances.len() as u32).collect(), object_subsets: Vec::new() }
+    }
+
+    /// The triangles of `object` this part includes.
+    pub fn object_ranges(&self, scene: &Scene, object: ObjectId) -> Vec<MeshRange> {
+        if let Some((_, ranges)) = self.object_subsets.iter().find(|(o, _)| *o == object) {
+            return ranges.clone();
+        }
+        let meshes = &scene.objects[object as usize].meshes;
+        meshes
+            .iter()
+            .map(|&mesh| MeshRange { mesh, triangles: 0..scene.meshes[mesh as usize].indices.len() as u32 })
+            .collect()
+    }
+}
+
+/// Sizes and build times of both levels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SceneBvhStats {
+    pub tlas: BvhStats,
+    /// All BLASes together: counts, bytes and build times summed (the
+    /// builds overlap, so `build_ms` is CPU time, not wall time), depth the
+    /// deepest, SAH cost the mean weighted by triangle count.
+    pub blas: BvhStats,
+    pub blas_count: usize,
+    /// Instances in the TLAS.
+    pub instances: usize,
+    /// Triangles stored in the BLASes (each once).
+    pub triangles: u64,
+    /// Triangles as rays see them (each instance counts its object's).
+    pub instanced_triangles: u64,
+    /// Both levels: nodes, triangle data, instance records.
+    pub bytes: usize,
+    /// Wall-clock time of the whole build.
+    pub build_ms: f64,
+}
+
+/// Which triangle a leaf position holds (8 bytes).
+#[derive(Clone, Copy, Debug)]
+struct PrimId {
+    mesh: MeshId,
+    triangle: u32,
+}
+
+/// One object's triangles with their BVH; primitive arrays in leaf order.
+struct Blas<L> {
+    bvh: L,
+    tris: Vec<TriAccel>,
+    prims: Vec<PrimId>,
+    stats: BvhStats,
+}
+
+impl<L: BvhLayout> Blas<L> {
+    /// `None` when the ranges hold no triangle.
+    fn build(scene: &Scene, ranges: &[MeshRange]) -> Option<Self> {
+        let start = Instant::now();
+        let prims: Vec<PrimId> = ranges
+            .iter()
+            .flat_map(|r| r.triangles.clone().map(|triangle| PrimId { mesh: r.mesh, triangle }))
+            .collect();
+        if prims.is_empty() {
+            return None;
+        }
+        let corners = |p: &PrimId| scene.meshes[p.mesh as usize].triangle(p.triangle as usize);
+        let boxes: Vec<Aabb> = prims.par_iter().map(|p| Aabb::from_points(corners(p))).collect();
+        let bvh2 = Bvh2::build(&boxes, &BuildOptions::TRIANGLES);
+        let prims: Vec<PrimId> = bvh2.prim_order.par_iter().map(|&i| prims[i as usize]).collect();
+        let tris: Vec<TriAccel> = prims.par_iter().map(|p| TriAccel::new(corners(p))).collect();
+        let bvh = L::from_bvh2(bvh2);
+        let mut stats = bvh.stats();
+        stats.bytes += std::mem::size_of_val(&tris[..]) + std::mem::size_of_val(&prims[..]);
+        stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        Some(Blas { bvh, tris, prims, stats })
+    }
+}
+
+/// A TLAS leaf: an instance with its world-to-object transform (80 bytes).
+#[derive(Clone, Copy, Debug)]
+struct TlasInstance {
+    world_to_object: Affine3A,
+    blas: u32,
+    /// Index into `scene.instances`.
+    instance: u32,
+}
+
+/// Two-level BVH over a scene or a part of one. `L` is the node layout of
+/// both levels; the default, [`Bvh4Cpu`], measured faster than [`Bvh2`]
+/// (see the benchmark in [`crate::bench`]).
+pub struct SceneBvh<L: BvhLayout = Bvh4Cpu> {
+    tlas: L,
+    /// In TLAS leaf order.
+    instances: Vec<TlasInstance>,
+    blases: Vec<Blas<L>>,
+    stats: SceneBvhStats,
+}
+
+/// The closest (or any) hit as traversal finds it: `(t, TLAS leaf, BLAS leaf position, u, v)`.
+type RawHit = (f32, u32, u32, f32, f32);
+
+impl<L: BvhLayout> SceneBvh<L> {
+    /// Builds over the whole scene. Objects without triangles, and their
+    /// instances, are left out.
+    pub fn build(scene: &Scene) -> Self {
+        Self::build_part(scene, &ScenePart::whole(scene))
+    }
+
+    /// Builds over a part of the scene; hits still report scene-wide
+    /// instance, mesh and triangle indices.
+    pub fn build_part(scene: &Scene, part: &ScenePart) -> Self {
+        let start = Instant::now();
+        let mut objects: Vec<ObjectId> =
+            part.instances.iter().map(|&i| scene.instances[i as usize].object).collect();
+        objects.sort_unstable();
+        objects.dedup();
+        // All BLASes at once; each build is parallel inside as well.
+        let built: Vec<Option<Blas<L>>> =
+            objects.par_iter().map(|&o| Blas::build(scene, &part.object_ranges(scene, o))).collect();
+        let mut blas_of = vec![u32::MAX; scene.objects.len()];
+        let mut blases = Vec::new();
+        for (&o, blas) in objects.iter().zip(built) {
+            if let Some(blas) = blas {
+                blas_of[o as usize] = blases.len() as u32;
+                blases.push(blas);
+            }
+        }
+        // Singular transforms flatten an object to nothing: leave those out too.
+        let entries: Vec<(TlasInstance, Aabb)> = part
+            .instances
+            .iter()
+            .filter_map(|&i| {
+                let inst = &scene.instances[i as usize];
+                let blas = blas_of[inst.object as usize];
+                let world_to_object = inst.object_to_world.inverse();
+                (blas != u32::MAX && world_to_object.is_finite()).then(|| {
+                    let bounds = blases[blas as usize].bvh.bounds().transformed(&inst.object_to_world);
+                    (TlasInstance { world_to_object, blas, instance: i }, bounds)
+                })
+            })
+            .collect();
+        let boxes: Vec<Aabb> = entries.iter().map(|e| e.1).collect();
+        let tlas2 = Bvh2::build(&boxes, &BuildOptions::INSTANCES);
+        let tlas_ms = tlas2.build_ms;
+        let instances: Vec<TlasInstance> = tlas2.prim_order.iter().map(|&i| entries[i as usize].0).collect();
+        let tlas = L::from_bvh2(tlas2);
+
+        let mut stats = SceneBvhStats {
+            tlas: BvhStats { build_ms: tlas_ms, ..tlas.stats() },
+            blas_count: blases.len(),
+            instances: instances.len(),
+            ..Default::default()
+        };
+        stats.tlas.bytes += std::mem::size_of_val(&instances[..]);
+        let mut weighted_sah = 0.0;
+        for b in &blases {
+            let s = &b.stats;
+            stats.blas.nodes += s.nodes;
+            stats.blas.leaves += s.leaves;
+            stats.blas.max_depth = stats.blas.max_depth.max(s.max_depth);
+            stats.blas.bytes += s.bytes;
+            stats.blas.build_ms += s.build_ms;
+            stats.triangles += b.tris.len() as u64;
+            weighted_sah += s.sah_cost as f64 * b.tris.len() as f64;
+        }
+        stats.blas.sah_cost = (weighted_sah / stats.triangles.max(1) as f64) as f32;
+        stats.instanced_triangles = instances.iter().map(|i| blases[i.blas as usize].tris.len() as u64).sum();
+        stats.bytes = stats.tlas.bytes + stats.blas.bytes;
+        stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
+        SceneBvh { tlas, instances, blases, stats }
+    }
+
+    /// The closest hit with `0 < t < ray.t_max`.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let (t, leaf, prim, u, v) = self.trace::<false>(ray)?;
+        let inst = &self.instances[leaf as usize];
+        let id = self.blases[inst.blas as usize].prims[prim as usize];
+        Some(Hit { t, u, v, instance: inst.instance, mesh: id.mesh, triangle: id.triangle })
+    }
+
+    /// Whether anything is hit with `0 < t < ray.t_max`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.trace::<true>(ray).is_some()
+    }
+
+    /// Sizes, quality and build times.
+    pub fn stats(&self) -> SceneBvhStats {
+        self.stats
+    }
+
+    /// Both queries in one: with `ANY`, the first hit found ends the search.
+    #[inline]
+    fn trace<const ANY: bool>(&self, ray: &Ray) -> Option<RawHit> {
+        let world = TraversalRay::new(ray.origin.into(), ray.direction.into());
+        let mut t_max = ray.t_max;
+        let mut best: Option<RawHit> = None;
+        self.tlas.traverse::<ANY>(&world, &mut t_max, |first, count, t_max| {
+            let mut hit = false;
+            for leaf in first..first + count {
+                let inst = &self.instances[leaf as usize];
+                let blas = &self.blases[inst.blas as usize];
+                // Not normalised: t stays the same in both spaces.
+                let m = &inst.world_to_object;
+                let ray =
+                    TraversalRay::new(m.transform_point3a(world.origin), m.transform_vector3a(world.dir));
+                hit |= blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+                    let mut hit = false;
+                    for prim in first..first + count {
+                        let tri = &blas.tris[prim as usize];
+                        if let Some((t, u, v)) = tri.intersect(ray.origin, ray.dir, *t_max) {
+                            *t_max = t;
+                            best = Some((t, leaf, prim, u, v));
+                            hit = true;
+                            if ANY {
+                                break;
+                            }
+                        }
+                    }
+                    hit
+                });
+                if ANY && hit {
+                    break;
+                }
+            }
+            hit
+        });
+        best
+    }
+}

@@ -1,0 +1,55 @@
+//! Camera rays (pbrt-v4's perspective camera with a thin lens).
+
+use atoll_scene::Camera;
+use glam::{Mat4, UVec2, Vec2, Vec3};
+
+use crate::sampling::sample_uniform_disk_concentric;
+
+/// A camera prepared for a given image size.
+#[derive(Clone, Debug)]
+pub struct CameraRays {
+    camera_to_world: Mat4,
+    /// Screen window scaled by tan(fov/2): camera-space x/y at z = 1.
+    window_min: Vec2,
+    window_max: Vec2,
+    resolution: Vec2,
+    lens_radius: f32,
+    focal_distance: f32,
+}
+
+impl CameraRays {
+    pub fn new(camera: &Camera, resolution: UVec2) -> Self {
+        // pbrt: the fov spans the shorter image axis.
+        let aspect = resolution.x as f32 / resolution.y as f32;
+        let (sx, sy) = if aspect > 1.0 { (aspect, 1.0) } else { (1.0, 1.0 / aspect) };
+        let tan_half = (camera.fov_degrees.to_radians() * 0.5).tan();
+        CameraRays {
+            camera_to_world: camera.camera_to_world,
+            window_min: Vec2::new(-sx, -sy) * tan_half,
+            window_max: Vec2::new(sx, sy) * tan_half,
+            resolution: resolution.as_vec2(),
+            lens_radius: camera.lens_radius,
+            focal_distance: camera.focal_distance,
+        }
+    }
+
+    /// World-space ray through raster position `raster` (pixels, y down),
+    /// with lens sample `u_lens`. Returns (origin, unit direction).
+    pub fn ray(&self, raster: Vec2, u_lens: Vec2) -> (Vec3, Vec3) {
+        let t = raster / self.resolution;
+        // Raster y grows downwards, camera y upwards.
+        let x = self.window_min.x + t.x * (self.window_max.x - self.window_min.x);
+        let y = self.window_max.y - t.y * (self.window_max.y - self.window_min.y);
+        let mut dir = Vec3::new(x, y, 1.0);
+        let mut origin = Vec3::ZERO;
+        if self.lens_radius > 0.0 {
+            let lens = self.lens_radius * sample_uniform_disk_concentric(u_lens);
+            let focus = dir * self.focal_distance;
+            origin = Vec3::new(lens.x, lens.y, 0.0);
+            dir = focus - origin;
+        }
+        let o = self.camera_to_world.transform_point3(origin);
+        let d = self.camera_to_world.transform_vector3(dir).normalize();
+        (o, d)
+    }
+}

@@ -1,0 +1,297 @@
+//! The CPU device: queues in host memory, stages mapped over them with rayon.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use atoll_bvh::{Hit, Ray, SceneBvh};
+use atoll_scene::Scene;
+use glam::{Affine3A, Mat3A, Vec3};
+use rayon::prelude::*;
+
+use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
+use crate::film::Film;
+use crate::frame::{FrameContext, Wave};
+use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
+use crate::stages::{generate::camera_record, shade::shade};
+
+/// Records per rayon task: big enough to amortise scheduling.
+const CHUNK: usize = 256;
+
+/// Scene data resident on a CPU device.
+struct Resident {
+    scene: Arc<Scene>,
+    bvh: SceneBvh,
+    /// Per instance: the matrix taking object-space normals to world space.
+    normal_to_world: Vec<Mat3A>,
+}
+
+/// A device that runs every stage on the host's cores.
+pub struct CpuDevice {
+    name: String,
+    pool: Option<Arc<rayon::ThreadPool>>,
+    memory_budget: Option<u64>,
+    resident: Option<Resident>,
+    frame: Option<Arc<FrameContext>>,
+    paths: Vec<RayRecord>,
+    shadows: Vec<RayRecord>,
+    film: Film,
+    stats: DeviceStats,
+}
+
+impl CpuDevice {
+    /// A CPU device using rayon's global pool (all cores, or `--threads`).
+    pub fn new() -> Self {
+        CpuDevice {
+            name: "cpu".into(),
+            pool: None,
+            memory_budget: None,
+            resident: None,
+            frame: None,
+            paths: Vec::new(),
+            shadows: Vec::new(),
+            film: Film::new(glam::UVec2::ZERO),
+            stats: DeviceStats::default(),
+        }
+    }
+
+    /// Runs this device's stages on a dedicated pool of `threads` threads.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self, DeviceError> {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| {
+            DeviceError::Other { device: self.name.clone(), message: format!("thread pool: {e}") }
+        })?;
+        self.pool = Some(Arc::new(pool));
+        Ok(self)
+    }
+
+    /// Limits the scene bytes this device may hold.
+    pub fn with_memory_budget(mut self, bytes: u64) -> Self {
+        self.memory_budget = Some(bytes);
+        self
+    }
+
+    pub fn with_name(mut self, name: impl Into<String>) -> Self {
+        self.name = name.into();
+        self
+    }
+
+    /// Worker threads this device's stages use.
+    pub fn threads(&self) -> usize {
+        self.pool.as_ref().map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
+    }
+
+    fn run<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(pool) => pool.install(f),
+            None => f(),
+        }
+    }
+
+    fn frame(&self) -> &FrameContext {
+        self.frame.as_ref().expect("CpuDevice used before prepare()")
+    }
+
+    fn resident(&self) -> &Resident {
+        self.resident.as_ref().expect("CpuDevice used before prepare()")
+    }
+}
+
+impl Default for CpuDevice {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Fills the hit fields of `r` from a BVH hit.
+fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext) {
+    let scene = &res.scene;
+    let instance = &scene.instances[hit.instance as usize];
+    let mesh = &scene.meshes[hit.mesh as usize];
+    let to_world: &Affine3A = &instance.object_to_world;
+    let normal_to_world = res.normal_to_world[hit.instance as usize];
+    let [i0, i1, i2] = mesh.indices[hit.triangle as usize].map(|i| i as usize);
+    let (b1, b2) = (hit.u, hit.v);
+    let b0 = 1.0 - b1 - b2;
+    // Interpolating the vertices is more precise than origin + t * direction.
+    let p_obj = mesh.positions[i0] * b0 + mesh.positions[i1] * b1 + mesh.positions[i2] * b2;
+    let p = to_world.transform_point3(p_obj);
+    let mut ng = (normal_to_world * mesh.geometric_normal(hit.triangle as usize)).normalize_or_zero();
+    let ns = if mesh.normals.is_empty() {
+        ng
+    } else {
+        let n = mesh.normals[i0] * b0 + mesh.normals[i1] * b1 + mesh.normals[i2] * b2;
+        let ns = (normal_to_world * n).normalize_or_zero();
+        // pbrt: interpolated normals are authoritative for orientation.
+        if ns != Vec3::ZERO && ng.dot(ns) < 0.0 {
+            ng = -ng;
+        }
+        if ns == Vec3::ZERO {
+            ng
+        } else {
+            ns
+        }
+    };
+    r.t_max = hit.t;
+    r.flags |= flags::HIT;
+    r.position = p.to_array();
+    r.instance = hit.instance;
+    r.geometric_normal = to_f16x3(ng);
+    r.shading_normal = to_f16x3(ns);
+    r.light = if mesh.emission.is_some() {
+        frame.lights.triangle_light(hit.instance, hit.mesh, hit.triangle).unwrap_or(NO_LIGHT)
+    } else {
+        NO_LIGHT
+    };
+    frame.materials[mesh.material as usize].store(r);
+}
+
+fn ray_of(r: &RayRecord) -> Ray {
+    Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max }
+}
+
+impl Device for CpuDevice {
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn prepare(
+        &mut self,
+        scene: &Arc<Scene>,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError> {
+        let geometry = scene.stats().geometry_bytes;
+        // A binary BVH has < 2 nodes per triangle of 32 bytes, plus the
+        // reordered triangle data; estimate before building.
+        let estimate = geometry + scene.stats().unique_triangles * (64 + 48);
+        if let Some(budget) = self.memory_budget {
+            if estimate > budget {
+                return Err(DeviceError::OutOfMemory { device: self.name(), needed: estimate, budget });
+            }
+        }
+        let start = Instant::now();
+        let bvh = self.run(|| SceneBvh::build(scene));
+        let build = start.elapsed().as_secs_f64();
+        let bvh_stats = bvh.stats();
+        let normal_to_world = scene
+            .instances
+            .iter()
+            .map(|i| Mat3A::from(i.object_to_world.matrix3).inverse().transpose())
+            .collect();
+        self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
+        self.film = Film::new(frame.options.resolution);
+        self.frame = Some(frame.clone());
+        self.stats = DeviceStats::default();
+        let wave = frame.options.wave_size.min(frame.options.pixel_count()) as u64;
+        Ok(PrepareStats {
+            scene_bytes: geometry + bvh_stats.bytes as u64,
+            frame_bytes: 2 * wave * std::mem::size_of::<RayRecord>() as u64
+                + self.film.pixel_count() as u64 * 12,
+            bvh_build_seconds: build,
+            bvh_sah_cost: bvh_stats.blas.sah_cost,
+        })
+    }
+
+    fn generate(&mut self, wave: &Wave) {
+        let start = Instant::now();
+        let frame = self.frame().clone();
+        let paths = self.run(|| {
+            (wave.first_pixel..wave.first_pixel + wave.pixel_count)
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map(|pixel| camera_record(&frame, pixel, wave.sample))
+                .collect()
+        });
+        self.paths = paths;
+        self.stats.busy_seconds += start.elapsed().as_secs_f64();
+    }
+
+    fn trace_paths(&mut self) {
+        let start = Instant::now();
+        let mut paths = std::mem::take(&mut self.paths);
+        let (res, frame) = (self.resident(), self.frame());
+        self.run(|| {
+            paths.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
+                if let Some(hit) = res.bvh.intersect(&ray_of(r)) {
+                    write_hit(r, &hit, res, frame);
+                }
+            })
+        });
+        self.stats.rays_traced += paths.len() as u64;
+        self.paths = paths;
+        self.stats.busy_seconds += start.elapsed().as_secs_f64();
+    }
+
+    fn shade(&mut self) {
+        let start = Instant::now();
+        let frame = self.frame().clone();
+        let outcomes: Vec<_> =
+            self.run(|| self.paths.par_iter().with_min_len(CHUNK).map(|r| shade(&frame, r)).collect());
+        // Applied in queue order: each pixel appears once per wave, so this
+        // is deterministic whatever the thread count.
+        let mut next = Vec::with_capacity(self.paths.len());
+        self.shadows.clear();
+        for (r, o) in self.paths.iter().zip(&outcomes) {
+            if o.emitted != Vec3::ZERO {
+                self.film.add(r.pixel, o.emitted);
+            }
+            self.shadows.extend(o.shadow);
+            next.extend(o.next);
+        }
+        self.paths = next;
+        self.stats.busy_seconds += start.elapsed().as_secs_f64();
+    }
+
+    fn trace_shadows(&mut self) {
+        let start = Instant::now();
+        let mut shadows = std::mem::take(&mut self.shadows);
+        let res = self.resident();
+        self.run(|| {
+            shadows.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
+                if !r.has(flags::OCCLUDED) && res.bvh.occluded(&ray_of(r)) {
+                    r.flags |= flags::OCCLUDED;
+                }
+            })
+        });
+        self.stats.shadow_rays_traced += shadows.len() as u64;
+        self.shadows = shadows;
+        self.stats.busy_seconds += start.elapsed().as_secs_f64();
+    }
+
+    fn resolve_shadows(&mut self) {
+        for r in self.shadows.drain(..) {
+            if !r.has(flags::OCCLUDED) {
+                self.film.add(r.pixel, r.throughput());
+            }
+        }
+    }
+
+    fn queue_len(&self, queue: Queue) -> usize {
+        match queue {
+            Queue::Paths => self.paths.len(),
+            Queue::Shadows => self.shadows.len(),
+        }
+    }
+
+    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
+        match queue {
+            Queue::Paths => self.paths.clone(),
+            Queue::Shadows => self.shadows.clone(),
+        }
+    }
+
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
+        let q = match queue {
+            Queue::Paths => &mut self.paths,
+            Queue::Shadows => &mut self.shadows,
+        };
+        q.clear();
+        q.extend_from_slice(records);
+    }
+
+    fn film(&self) -> Film {
+        self.film.clone()
+    }
+
+    fn stats(&self) -> DeviceStats {
+        self.stats.clone()
+    }
+}

@@ -1,0 +1,89 @@
+//! The `Device` trait: what every device (CPU, CUDA GPU) does, shaped like
+//! the integrator's stages. A device knows nothing of other devices;
+//! distribution strategies move queues between devices through
+//! [`Device::read_queue`] / [`Device::write_queue`] (or faster paths of
+//! their own for devices that share memory).
+
+use std::sync::Arc;
+
+use atoll_scene::Scene;
+
+use crate::film::Film;
+use crate::frame::{FrameContext, Wave};
+use crate::record::RayRecord;
+
+/// The two queues of ray records a device holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Queue {
+    /// Path segments: traced for closest hits, then shaded.
+    Paths,
+    /// Shadow/AO rays: traced for any hit, then resolved into the film.
+    Shadows,
+}
+
+/// Errors a device reports.
+#[derive(Debug, thiserror::Error)]
+pub enum DeviceError {
+    #[error("{device}: scene needs {needed} bytes but the memory budget is {budget} bytes")]
+    OutOfMemory { device: String, needed: u64, budget: u64 },
+    #[error("{device}: {message}")]
+    Other { device: String, message: String },
+}
+
+/// What preparing a device cost.
+#[derive(Clone, Debug, Default)]
+pub struct PrepareStats {
+    /// Bytes of scene data (geometry + BVH) resident on the device.
+    pub scene_bytes: u64,
+    /// Bytes of queues and film.
+    pub frame_bytes: u64,
+    pub bvh_build_seconds: f64,
+    pub bvh_sah_cost: f32,
+}
+
+/// Counters a device keeps over a frame.
+#[derive(Clone, Debug, Default)]
+pub struct DeviceStats {
+    pub rays_traced: u64,
+    pub shadow_rays_traced: u64,
+    /// Seconds spent inside stage calls.
+    pub busy_seconds: f64,
+}
+
+/// One renderer back-end.
+pub trait Device: Send {
+    /// A short name such as `cpu` or `cuda:0`.
+    fn name(&self) -> String;
+
+    /// Makes the scene resident (upload, BVH build) and allocates queues and
+    /// film for `frame`. Fails before allocating when the memory budget
+    /// cannot hold it.
+    fn prepare(&mut self, scene: &Arc<Scene>, frame: &Arc<FrameContext>)
+        -> Result<PrepareStats, DeviceError>;
+
+    /// Replaces the path queue with the camera rays of `wave`.
+    fn generate(&mut self, wave: &Wave);
+
+    /// Closest-hit tracing of the path queue. Hits farther than a record's
+    /// `t_max` (e.g. found earlier on another device) are left alone.
+    fn trace_paths(&mut self);
+
+    /// Shades the path queue: emission goes to the film, next-event rays to
+    /// the shadow queue, and continuing paths replace the path queue.
+    fn shade(&mut self);
+
+    /// Any-hit tracing of the shadow queue (records already occluded are skipped).
+    fn trace_shadows(&mut self);
+
+    /// Adds unoccluded shadow contributions to the film; empties the shadow queue.
+    fn resolve_shadows(&mut self);
+
+    fn queue_len(&self, queue: Queue) -> usize;
+    fn read_queue(&self, queue: Queue) -> Vec<RayRecord>;
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]);
+
+    /// The radiance sums this device accumulated.
+    fn film(&self) -> Film;
+
+    fn stats(&self) -> DeviceStats;
+}

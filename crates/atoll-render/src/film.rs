@@ -1,0 +1,154 @@
+//! The film: per-pixel radiance sums with a one-pixel box filter, and image output.
+
+use std::path::Path;
+
+use glam::{UVec2, Vec3};
+
+/// Radiance sums over the samples taken so far (box filter: each sample
+/// lands in exactly the pixel it was generated for).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    pub resolution: UVec2,
+    /// Row-major, `resolution.x * resolution.y` entries.
+    pub sum: Vec<Vec3>,
+    /// Samples per pixel accumulated in `sum`.
+    pub spp: u32,
+}
+
+/// Errors writing an image.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    #[error("{path}: unsupported image extension (use .exr or .png)")]
+    UnknownFormat { path: String },
+    #[error("{path}: {message}")]
+    Write { path: String, message: String },
+}
+
+impl Film {
+    pub fn new(resolution: UVec2) -> Self {
+        Film { resolution, sum: vec![Vec3::ZERO; (resolution.x * resolution.y) as usize], spp: 0 }
+    }
+
+    pub fn pixel_count(&self) -> usize {
+        self.sum.len()
+    }
+
+    /// Adds `radiance` to pixel `pixel` (linear index).
+    #[inline]
+    pub fn add(&mut self, pixel: u32, radiance: Vec3) {
+        self.sum[pixel as usize] += radiance;
+    }
+
+    /// Adds another film's sums (same resolution) — merging devices.
+    pub fn merge(&mut self, other: &Film) {
+        assert_eq!(self.resolution, other.resolution, "films of different sizes");
+        for (a, b) in self.sum.iter_mut().zip(&other.sum) {
+            *a += *b;
+        }
+    }
+
+    /// Mean radiance per pixel (sum / spp).
+    pub fn pixels(&self) -> Vec<Vec3> {
+        let scale = if self.spp > 0 { 1.0 / self.spp as f32 } else { 0.0 };
+        self.sum.iter().map(|s| *s * scale).collect()
+    }
+
+    /// Mean over all pixels per channel (tests and summaries).
+    pub fn mean(&self) -> Vec3 {
+        let total: glam::DVec3 = self.pixels().iter().map(|p| p.as_dvec3()).sum();
+        (total / self.pixel_count().max(1) as f64).as_vec3()
+    }
+
+    /// Writes the image; the format follows the extension (`.exr` linear
+    /// float, `.png` sRGB 8-bit). The file is written to a temporary name
+    /// next to the target and renamed, so an existing image is never left
+    /// truncated by a failed write.
+    pub fn write(&self, path: &Path) -> Result<(), ImageError> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        let display = path.display().to_string();
+        let tmp = path.with_extension(format!("partial.{}", ext.as_deref().unwrap_or("")));
+        let result = match ext.as_deref() {
+            Some("exr") => self.write_exr(&tmp),
+            Some("png") => self.write_png(&tmp),
+            _ => return Err(ImageError::UnknownFormat { path: display }),
+        };
+        result.and_then(|_| std::fs::rename(&tmp, path).map_err(|e| e.to_string())).map_err(|message| {
+            let _ = std::fs::remove_file(&tmp);
+            ImageError::Write { path: display, message }
+        })
+    }
+
+    fn write_exr(&self, path: &Path) -> Result<(), String> {
+        let pixels = self.pixels();
+        let width = self.resolution.x as usize;
+        exr::prelude::write_rgb_file(path, width, self.resolution.y as usize, |x, y| {
+            let p = pixels[y * width + x];
+            (p.x, p.y, p.z)
+        })
+        .map_err(|e| e.to_string())
+    }
+
+    fn write_png(&self, path: &Path) -> Result<(), String> {
+        let bytes: Vec<u8> = self
+            .pixels()
+            .iter()
+            .flat_map(|p| [p.x, p.y, p.z])
+            .map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)
+            .collect();
+        image::save_buffer_with_format(
+            path,
+            &bytes,
+            self.resolution.x,
+            self.resolution.y,
+            image::ColorType::Rgb8,
+            image::ImageFormat::Png,
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
+/// sRGB transfer function with clamping to [0, 1] (NaN → 0).
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_endpoints() {
+        assert_eq!(linear_to_srgb(0.0), 0.0);
+        assert!((linear_to_srgb(1.0) - 1.0).abs() < 1e-6);
+        assert!((linear_to_srgb(0.5) - 0.7354).abs() < 1e-3);
+        assert_eq!(linear_to_srgb(f32::NAN), 0.0);
+    }
+
+    #[test]
+    fn exr_round_trip_and_failed_write_keeps_old_file() {
+        let dir = std::env::temp_dir().join(format!("atoll-film-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut film = Film::new(UVec2::new(3, 2));
+        film.add(4, Vec3::new(1.5, 2.0, 0.25));
+        film.spp = 1;
+        let path = dir.join("a.exr");
+        film.write(&path).unwrap();
+        let img = exr::prelude::read_first_rgba_layer_from_file(
+            &path,
+            |res, _| vec![[0f32; 3]; res.width() * res.height()],
+            |px: &mut Vec<[f32; 3]>, pos, (r, g, b, _a): (f32, f32, f32, f32)| {
+                px[pos.y() * 3 + pos.x()] = [r, g, b]
+            },
+        )
+        .unwrap();
+        assert_eq!(img.layer_data.channel_data.pixels[4], [1.5, 2.0, 0.25]);
+        let bad = dir.join("b.tga");
+        assert!(matches!(film.write(&bad), Err(ImageError::UnknownFormat { .. })));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

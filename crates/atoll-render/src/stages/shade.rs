@@ -1,0 +1,183 @@
+//! Shading a traced path record: emission, next-event estimation with MIS,
+//! BSDF sampling and Russian roulette (pbrt-v4's PathIntegrator, one vertex
+//! at a time), and the ambient-occlusion variant.
+
+use atoll_scene::IntegratorSettings;
+use glam::{Vec2, Vec3};
+
+use super::offset_origin;
+use crate::bsdf::Frame;
+use crate::frame::FrameContext;
+use crate::material_coeffs::bsdf_from_record;
+use crate::record::{flags, RayRecord, NO_LIGHT};
+use crate::rng::{BounceDim, SampleStream};
+use crate::sampling::{power_heuristic, sample_cosine_hemisphere};
+
+/// What shading one record produces.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ShadeOutcome {
+    /// Radiance to add to the record's pixel now (emission found by this segment).
+    pub emitted: Vec3,
+    /// A shadow ray carrying the radiance it adds if unoccluded.
+    pub shadow: Option<RayRecord>,
+    /// The path's next segment.
+    pub next: Option<RayRecord>,
+}
+
+/// Shades `r` with the frame's integrator.
+pub fn shade(ctx: &FrameContext, r: &RayRecord) -> ShadeOutcome {
+    match ctx.options.integrator {
+        IntegratorSettings::Path { max_depth } => shade_path(ctx, r, max_depth),
+        IntegratorSettings::AmbientOcclusion { max_distance } => {
+            shade_ambient_occlusion(ctx, r, max_distance)
+        }
+    }
+}
+
+/// A new segment of the same path leaving `p` in unit direction `w`.
+fn continuation(r: &RayRecord, p: Vec3, ng: Vec3, w: Vec3) -> RayRecord {
+    let mut next = *r;
+    next.origin = offset_origin(p, ng, w).to_array();
+    next.direction = w.to_array();
+    next.t_max = f32::INFINITY;
+    next.flags &= !flags::HIT;
+    next.light = NO_LIGHT;
+    next
+}
+
+/// A shadow ray from `p` towards `w`, reaching `distance` (infinite for
+/// lights at infinity), that adds `radiance` to the pixel if unoccluded.
+fn shadow_ray(r: &RayRecord, p: Vec3, ng: Vec3, w: Vec3, distance: f32, radiance: Vec3) -> RayRecord {
+    let mut s = continuation(r, p, ng, w);
+    let origin = Vec3::from(s.origin);
+    // Stop just short of the light so it does not occlude itself.
+    s.t_max = if distance.is_finite() { (distance - (origin - p).length()) * (1.0 - 1e-4) } else { distance };
+    s.throughput = radiance.to_array();
+    s.flags = flags::SHADOW;
+    s
+}
+
+fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome {
+    let lights = &ctx.lights;
+    let beta = r.throughput();
+    let dir = r.direction();
+    let specular = r.has(flags::SPECULAR);
+    let mut out = ShadeOutcome::default();
+
+    // Escaped: environment lights, MIS-weighted against light sampling.
+    if !r.has(flags::HIT) {
+        for &i in lights.infinite_lights() {
+            let le = lights.environment_radiance(i, dir);
+            let w = if specular { 1.0 } else { power_heuristic(r.bsdf_pdf, lights.pdf_environment(i, dir)) };
+            out.emitted += beta * le * w;
+        }
+        return out;
+    }
+
+    // Emission of the surface hit, MIS-weighted against light sampling.
+    if r.light != NO_LIGHT {
+        let le = lights.emitted(r.light, -dir);
+        if le != Vec3::ZERO {
+            let w = if specular {
+                1.0
+            } else {
+                power_heuristic(r.bsdf_pdf, lights.pdf_triangle(r.light, dir, r.t_max))
+            };
+            out.emitted += beta * le * w;
+        }
+    }
+
+    let p = Vec3::from(r.position);
+    let ng = r.geometric_normal().normalize_or_zero();
+    let Some(bsdf) = bsdf_from_record(r) else {
+        // A surface that only bounds a medium: continue straight through.
+        out.next = Some(continuation(r, p, ng, dir));
+        return out;
+    };
+    let depth = r.depth as u32;
+    if depth >= max_depth {
+        return out;
+    }
+    let frame = Frame::from_z(r.shading_normal().normalize_or_zero());
+    let wo = frame.to_local(-dir);
+    if wo.z == 0.0 {
+        return out;
+    }
+    let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+
+    // Next-event estimation.
+    if !bsdf.is_delta() {
+        let u_light = Vec2::new(
+            rng.bounce(depth, BounceDim::LightPosition, 0),
+            rng.bounce(depth, BounceDim::LightPosition, 1),
+        );
+        if let Some(ls) = lights.sample(p, rng.bounce(depth, BounceDim::LightSelect, 0), u_light) {
+            let wi = frame.to_local(ls.wi);
+            let f = bsdf.eval(wo, wi) * wi.z.abs();
+            if ls.pdf > 0.0 && f != Vec3::ZERO && ls.radiance != Vec3::ZERO {
+                let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
+                let contribution = beta * f * ls.radiance * (w / ls.pdf);
+                out.shadow = Some(shadow_ray(r, p, ng, ls.wi, ls.distance, contribution));
+            }
+        }
+    }
+
+    // Sample the BSDF for the next segment.
+    let u_dir = Vec2::new(
+        rng.bounce(depth, BounceDim::BsdfDirection, 0),
+        rng.bounce(depth, BounceDim::BsdfDirection, 1),
+    );
+    let Some(bs) = bsdf.sample(wo, rng.bounce(depth, BounceDim::BsdfLobe, 0), u_dir) else {
+        return out;
+    };
+    if bs.pdf <= 0.0 || bs.f == Vec3::ZERO {
+        return out;
+    }
+    let mut beta = beta * bs.f * (bs.wi.z.abs() / bs.pdf);
+    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`).
+    if ctx.options.russian_roulette && depth >= 1 {
+        let max = beta.max_element();
+        if max < 1.0 {
+            let q = (1.0 - max).max(0.0);
+            if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {
+                return out;
+            }
+            beta /= 1.0 - q;
+        }
+    }
+    if !beta.is_finite() {
+        return out;
+    }
+    let wi = frame.from_local(bs.wi).normalize();
+    let mut next = continuation(r, p, ng, wi);
+    next.throughput = beta.to_array();
+    next.bsdf_pdf = bs.pdf;
+    next.depth += 1;
+    next.flags = if bs.delta { flags::SPECULAR } else { 0 };
+    out.next = Some(next);
+    out
+}
+
+/// pbrt-v4's `ambientocclusion` with cosine sampling: each unoccluded
+/// direction contributes exactly 1 (cos / (π · cos/π)).
+fn shade_ambient_occlusion(ctx: &FrameContext, r: &RayRecord, max_distance: f32) -> ShadeOutcome {
+    let mut out = ShadeOutcome::default();
+    if !r.has(flags::HIT) {
+        return out;
+    }
+    let p = Vec3::from(r.position);
+    let dir = r.direction();
+    let mut ng = r.geometric_normal().normalize_or_zero();
+    if bsdf_from_record(r).is_none() {
+        out.next = Some(continuation(r, p, ng, dir));
+        return out;
+    }
+    if ng.dot(dir) > 0.0 {
+        ng = -ng;
+    }
+    let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+    let u = Vec2::new(rng.bounce(0, BounceDim::BsdfDirection, 0), rng.bounce(0, BounceDim::BsdfDirection, 1));
+    let w = Frame::from_z(ng).from_local(sample_cosine_hemisphere(u)).normalize();
+    out.shadow = Some(shadow_ray(r, p, ng, w, max_distance, Vec3::ONE));
+    out
+}

@@ -1,0 +1,111 @@
+//! The one error type of this crate and the warnings loaders collect.
+//!
+//! Both carry a source location so that every message a user sees points at
+//! the offending statement: `file:line:col: message` (pbrt-v4's `FileLoc`).
+
+use std::fmt;
+use std::sync::Arc;
+
+/// A position in a scene file. Lines and columns count from 1; line 0 means
+/// "the file as a whole" (e.g. it could not be opened).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FileLoc {
+    /// The file as the user named it (or as it was resolved for `Include`).
+    pub file: Arc<str>,
+    /// Line, from 1 (0: the whole file).
+    pub line: u32,
+    /// Column in characters, from 1.
+    pub col: u32,
+}
+
+impl FileLoc {
+    /// A location at `line`:`col` of `file`.
+    pub fn new(file: impl Into<Arc<str>>, line: u32, col: u32) -> Self {
+        FileLoc { file: file.into(), line, col }
+    }
+
+    /// The location of a whole file (no line), for errors such as "cannot open".
+    pub fn whole_file(file: impl Into<Arc<str>>) -> Self {
+        FileLoc { file: file.into(), line: 0, col: 0 }
+    }
+}
+
+impl fmt::Display for FileLoc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.line == 0 {
+            write!(f, "{}", self.file)
+        } else {
+            write!(f, "{}:{}:{}", self.file, self.line, self.col)
+        }
+    }
+}
+
+/// Why a scene could not be loaded. Displays as `file:line:col: message`
+/// (just `file: message` when the problem concerns the whole file).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{}: {message}", self.loc())]
+pub struct SceneError {
+    /// The file, as named by the user or resolved for `Include`.
+    pub file: String,
+    /// Line, from 1 (0: the whole file).
+    pub line: u32,
+    /// Column, from 1.
+    pub col: u32,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl SceneError {
+    /// An error at `loc`.
+    pub fn at(loc: &FileLoc, message: impl Into<String>) -> Self {
+        SceneError { file: loc.file.to_string(), line: loc.line, col: loc.col, message: message.into() }
+    }
+
+    /// Where the error is, as a [`FileLoc`].
+    pub fn loc(&self) -> FileLoc {
+        FileLoc::new(self.file.as_str(), self.line, self.col)
+    }
+}
+
+/// Something in a scene that atoll ignored or approximated. Loaders collect
+/// these and also emit each one with `tracing::warn!`.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Warning {
+    /// The file, as named by the user or resolved for `Include`.
+    pub file: String,
+    /// Line, from 1 (0: the whole file).
+    pub line: u32,
+    /// Column, from 1.
+    pub col: u32,
+    /// What was ignored or approximated.
+    pub message: String,
+}
+
+impl Warning {
+    /// A warning at `loc`.
+    pub fn at(loc: &FileLoc, message: impl Into<String>) -> Self {
+        Warning { file: loc.file.to_string(), line: loc.line, col: loc.col, message: message.into() }
+    }
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let loc = FileLoc::new(self.file.as_str(), self.line, self.col);
+        write!(f, "{loc}: {}", self.message)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_has_file_line_col() {
+        let e = SceneError::at(&FileLoc::new("a.pbrt", 3, 7), "bad number");
+        assert_eq!(e.to_string(), "a.pbrt:3:7: bad number");
+        let w = Warning::at(&FileLoc::new("b.pbrt", 1, 2), "ignored");
+        assert_eq!(w.to_string(), "b.pbrt:1:2: ignored");
+        let whole = SceneError::at(&FileLoc::whole_file("c.pbrt"), "cannot open");
+        assert_eq!(whole.to_string(), "c.pbrt: cannot open");
+    }
+}

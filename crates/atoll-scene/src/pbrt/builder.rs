@@ -1,0 +1,711 @@
+//! Runs PBRT directives against pbrt-v4's graphics state and builds the
+//! [`Scene`] (`BasicSceneBuilder` in pbrt-v4's `scene.cpp`).
+//!
+//! The rules that matter for geometry, as pbrt-v4 has them:
+//! - Transform directives post-multiply the CTM (`ctm = ctm * T`).
+//! - A shape's vertices go through the CTM in effect at its `Shape`, inside
+//!   `ObjectBegin` too; an `ObjectInstance` places the object with the CTM in
+//!   effect at the instance. World shapes are stored in world space in the
+//!   world object (object 0, one identity instance).
+//! - `flip_normals` = `ReverseOrientation` XOR "the CTM swaps handedness";
+//!   shading normals go through the inverse transpose and are negated under
+//!   `ReverseOrientation`.
+//! - Named materials and object instances are resolved at the end, so they
+//!   may be used before they are defined.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Affine3A, DMat3, DMat4, DVec3, UVec2};
+
+use crate::error::{FileLoc, SceneError};
+use crate::{
+    AreaEmission, Instance, IntegratorSettings, Material, MaterialId, MeshId, Object, Scene, TriangleMesh,
+};
+
+use super::params::{Param, ParamList};
+use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
+use super::shapes::{self, ShapeMesh};
+use super::tokenizer::Tokenizer;
+use super::{entities, transform, LoadedScene, WarningSink};
+
+/// Which material the graphics state refers to.
+#[derive(Clone, Debug)]
+enum MaterialRef {
+    /// None set yet: pbrt's default diffuse 0.5.
+    Default,
+    /// Index into `Builder::anonymous` (a `Material` directive).
+    Anonymous(usize),
+    /// `NamedMaterial`, resolved when a shape uses it (or at the end).
+    Named(String, FileLoc),
+}
+
+/// Which of pbrt's two motion-blur transforms the transform directives change.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ActiveTransform {
+    All,
+    Start,
+    End,
+}
+
+/// pbrt's `GraphicsState`: what `AttributeBegin` saves and `AttributeEnd` restores.
+#[derive(Clone, Debug)]
+struct GraphicsState {
+    ctm: DMat4,
+    active: ActiveTransform,
+    reverse_orientation: bool,
+    material: MaterialRef,
+    area_light: Option<AreaEmission>,
+    shape_attributes: Vec<Param>,
+    light_attributes: Vec<Param>,
+    material_attributes: Vec<Param>,
+}
+
+impl Default for GraphicsState {
+    fn default() -> Self {
+        GraphicsState {
+            ctm: DMat4::IDENTITY,
+            active: ActiveTransform::All,
+            reverse_orientation: false,
+            material: MaterialRef::Default,
+            area_light: None,
+            shape_attributes: Vec::new(),
+            light_attributes: Vec::new(),
+            material_attributes: Vec::new(),
+        }
+    }
+}
+
+/// Why a graphics state was pushed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Block {
+    Attribute,
+    Object,
+}
+
+/// An `ObjectBegin` definition.
+struct ObjectDef {
+    name: String,
+    meshes: Vec<MeshId>,
+}
+
+/// A material waiting for its id until a shape uses it.
+struct MaterialSlot {
+    material: Material,
+    id: Option<MaterialId>,
+}
+
+/// Loader state for one scene.
+pub struct Builder {
+    base_dir: PathBuf,
+    scene: Scene,
+    warnings: WarningSink,
+    gs: GraphicsState,
+    pushed: Vec<(GraphicsState, Block, FileLoc)>,
+    named_coordinate_systems: HashMap<String, DMat4>,
+    in_world: bool,
+    /// Open files, innermost last, with their canonical paths for cycle checks.
+    parsers: Vec<(Parser, Option<PathBuf>)>,
+    anonymous: Vec<MaterialSlot>,
+    named_materials: HashMap<String, MaterialSlot>,
+    default_material: Option<MaterialId>,
+    /// Meshes whose `NamedMaterial` was not defined yet when they were created.
+    pending_materials: Vec<(MeshId, String, FileLoc)>,
+    world_meshes: Vec<MeshId>,
+    objects: Vec<ObjectDef>,
+    object_names: HashMap<String, usize>,
+    active_object: Option<usize>,
+    instance_uses: Vec<(String, DMat4, FileLoc)>,
+    warned_transform_begin: bool,
+}
+
+impl Builder {
+    /// A builder resolving relative file names against `base_dir`.
+    pub fn new(base_dir: &Path) -> Self {
+        let mut scene = Scene::default();
+        // pbrt-v4's default sampler takes 16 samples per pixel.
+        scene.settings.spp = 16;
+        Builder {
+            base_dir: base_dir.to_path_buf(),
+            scene,
+            warnings: WarningSink::default(),
+            gs: GraphicsState::default(),
+            pushed: Vec::new(),
+            named_coordinate_systems: HashMap::new(),
+            in_world: false,
+            parsers: Vec::new(),
+            anonymous: Vec::new(),
+            named_materials: HashMap::new(),
+            default_material: None,
+            pending_materials: Vec::new(),
+            world_meshes: Vec::new(),
+            objects: Vec::new(),
+            object_names: HashMap::new(),
+            active_object: None,
+            instance_uses: Vec::new(),
+            warned_transform_begin: false,
+        }
+    }
+
+    /// Parses `bytes` (the main file, called `name`) and everything it includes.
+    pub fn load(
+        mut self,
+        bytes: Vec<u8>,
+        name: &str,
+        canonical: Option<PathBuf>,
+    ) -> Result<LoadedScene, SceneError> {
+        self.parsers.push((Parser::new(Tokenizer::new(name, bytes)?), canonical));
+        let mut last_loc = FileLoc::whole_file(name);
+        while let Some((parser, _)) = self.parsers.last_mut() {
+            match parser.next_directive()? {
+                Some(d) => {
+                    last_loc = d.loc.clone();
+                    self.directive(d)?;
+                }
+                None => {
+                    self.parsers.pop();
+                }
+            }
+        }
+        self.finish(&last_loc)
+    }
+
+    fn warn(&mut self, loc: &FileLoc, msg: impl Into<String>) {
+        self.warnings.warn(loc, msg);
+    }
+
+    fn require_world(&self, what: &str, loc: &FileLoc) -> Result<(), SceneError> {
+        if self.in_world {
+            Ok(())
+        } else {
+            Err(SceneError::at(loc, format!("{what} is not allowed before WorldBegin")))
+        }
+    }
+
+    fn require_options(&self, what: &str, loc: &FileLoc) -> Result<(), SceneError> {
+        if self.in_world {
+            Err(SceneError::at(
+                loc,
+                format!("{what} is not allowed after WorldBegin (it is a rendering option)"),
+            ))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Applies a transform directive: `ctm = ctm * m` (or `ctm = m`).
+    fn transform(&mut self, m: DMat4, replace: bool) {
+        // We keep only the start transform of pbrt's motion-blur pair.
+        if self.gs.active == ActiveTransform::End {
+            return;
+        }
+        self.gs.ctm = if replace { m } else { self.gs.ctm * m };
+    }
+
+    fn params(&mut self, raw: Vec<RawParam>) -> Result<ParamList, SceneError> {
+        let warnings = &mut self.warnings;
+        ParamList::new(raw, &mut |loc, msg| warnings.warn(loc, msg))
+    }
+
+    /// Warns about every parameter the directive did not look up.
+    fn warn_unused(&mut self, p: &ParamList, what: &str) {
+        let unused: Vec<_> = p.unused().map(|u| (u.loc.clone(), u.decl.clone())).collect();
+        for (loc, decl) in unused {
+            self.warn(&loc, format!("{what}: unused parameter \"{decl}\""));
+        }
+    }
+
+    fn directive(&mut self, d: Directive) -> Result<(), SceneError> {
+        let loc = d.loc;
+        use Statement as S;
+        match d.statement {
+            S::Include(f) => self.include(&f, &loc)?,
+            S::Import(f) => {
+                self.require_world("Import", &loc)?;
+                self.include(&f, &loc)?
+            }
+            S::WorldBegin => {
+                self.require_options("WorldBegin", &loc)?;
+                self.in_world = true;
+                self.gs.ctm = DMat4::IDENTITY;
+                self.gs.active = ActiveTransform::All;
+                self.named_coordinate_systems.insert("world".into(), DMat4::IDENTITY);
+            }
+            S::WorldEnd => self.warn(&loc, "WorldEnd is pbrt-v3 syntax; ignored"),
+            S::AttributeBegin => {
+                self.require_world("AttributeBegin", &loc)?;
+                self.pushed.push((self.gs.clone(), Block::Attribute, loc));
+            }
+            S::AttributeEnd => {
+                self.require_world("AttributeEnd", &loc)?;
+                self.pop_attributes("AttributeEnd", &loc)?;
+            }
+            S::TransformBegin => {
+                // pbrt-v4 runs these as AttributeBegin/End (but also allows them
+                // before WorldBegin, as pbrt-v3 scenes use them there).
+                if !self.warned_transform_begin {
+                    self.warned_transform_begin = true;
+                    self.warn(
+                        &loc,
+                        "TransformBegin/End are deprecated; treated as AttributeBegin/End (as pbrt-v4 does)",
+                    );
+                }
+                self.pushed.push((self.gs.clone(), Block::Attribute, loc));
+            }
+            S::TransformEnd => self.pop_attributes("TransformEnd", &loc)?,
+            S::ObjectBegin(name) => self.object_begin(name, loc)?,
+            S::ObjectEnd => self.object_end(&loc)?,
+            S::ObjectInstance(name) => {
+                self.require_world("ObjectInstance", &loc)?;
+                if self.active_object.is_some() {
+                    return Err(SceneError::at(
+                        &loc,
+                        "ObjectInstance is not allowed inside ObjectBegin/ObjectEnd",
+                    ));
+                }
+                self.instance_uses.push((name, self.gs.ctm, loc));
+            }
+            S::Identity => self.transform(DMat4::IDENTITY, true),
+            S::Translate(v) => self.transform(DMat4::from_translation(DVec3::from(v)), false),
+            S::Scale(v) => self.transform(DMat4::from_scale(DVec3::from(v)), false),
+            S::Rotate([angle, x, y, z]) => match transform::rotate(angle, DVec3::new(x, y, z)) {
+                Some(r) => self.transform(r, false),
+                None => self.warn(&loc, "Rotate about a zero axis; ignored"),
+            },
+            S::LookAt(v) => {
+                let [e, l, u] = [0, 3, 6].map(|i| DVec3::new(v[i], v[i + 1], v[i + 2]));
+                match transform::look_at(e, l, u) {
+                    Ok(m) => self.transform(m, false),
+                    Err(msg) => self.warn(&loc, format!("{msg}; ignored")),
+                }
+            }
+            S::Transform(m) => self.transform(transform::from_pbrt_numbers(&m), true),
+            S::ConcatTransform(m) => self.transform(transform::from_pbrt_numbers(&m), false),
+            S::CoordinateSystem(name) => {
+                self.named_coordinate_systems.insert(name, self.gs.ctm);
+            }
+            S::CoordSysTransform(name) => match self.named_coordinate_systems.get(&name) {
+                Some(m) => self.gs.ctm = *m,
+                None => self.warn(&loc, format!("unknown coordinate system \"{name}\"; ignored")),
+            },
+            S::ActiveTransform(which) => {
+                self.gs.active = match which.as_str() {
+                    "All" => ActiveTransform::All,
+                    "StartTime" => ActiveTransform::Start,
+                    "EndTime" => ActiveTransform::End,
+                    _ => {
+                        return Err(SceneError::at(
+                            &loc,
+                            format!("ActiveTransform: expected All, StartTime or EndTime, found '{which}'"),
+                        ))
+                    }
+                };
+                if self.gs.active != ActiveTransform::All {
+                    self.warn(&loc, "motion blur is not supported; only the start transform is used");
+                }
+            }
+            S::TransformTimes(_) => self.require_options("TransformTimes", &loc)?,
+            S::ReverseOrientation => {
+                self.require_world("ReverseOrientation", &loc)?;
+                self.gs.reverse_orientation = !self.gs.reverse_orientation;
+            }
+            S::NamedMaterial(name) => {
+                self.require_world("NamedMaterial", &loc)?;
+                self.gs.material = MaterialRef::Named(name, loc);
+            }
+            S::ColorSpace(name) => {
+                if name != "srgb" {
+                    self.warn(&loc, format!("color space \"{name}\" is not supported; using sRGB"));
+                }
+            }
+            S::Option(name, _) => self.warn(&loc, format!("Option \"{name}\" is not supported; ignored")),
+            S::MediumInterface(inside, outside) => {
+                if !inside.is_empty() || !outside.is_empty() {
+                    self.warn(&loc, "participating media are not supported; MediumInterface ignored");
+                }
+            }
+            S::Texture { name, .. } => {
+                self.require_world("Texture", &loc)?;
+                self.warn(&loc, format!("textures are not supported yet; texture \"{name}\" ignored"));
+            }
+            S::Entity { kind, name, params } => self.entity(kind, name, params, loc)?,
+        }
+        Ok(())
+    }
+
+    fn pop_attributes(&mut self, what: &str, loc: &FileLoc) -> Result<(), SceneError> {
+        match self.pushed.pop() {
+            None => Err(SceneError::at(loc, format!("{what} without a matching AttributeBegin"))),
+            Some((_, Block::Object, open)) => Err(SceneError::at(
+                loc,
+                format!("{what} inside the object definition opened at {open} (missing ObjectEnd)"),
+            )),
+            Some((gs, Block::Attribute, _)) => {
+                self.gs = gs;
+                Ok(())
+            }
+        }
+    }
+
+    fn include(&mut self, file: &str, loc: &FileLoc) -> Result<(), SceneError> {
+        let path = self.base_dir.join(file);
+        let canonical = path.canonicalize().map_err(|e| {
+            SceneError::at(loc, format!("cannot read included file '{}': {e}", path.display()))
+        })?;
+        if let Some(i) = self.parsers.iter().position(|(_, c)| c.as_ref() == Some(&canonical)) {
+            let chain: Vec<&str> = self.parsers[i..].iter().map(|(p, _)| p.file()).collect();
+            return Err(SceneError::at(
+                loc,
+                format!("cyclic Include: {} -> {}", chain.join(" -> "), path.display()),
+            ));
+        }
+        let bytes = super::read_scene_file(&path)
+            .map_err(|e| SceneError::at(loc, format!("Include '{}': {e}", path.display())))?;
+        let name = path.display().to_string();
+        self.parsers.push((Parser::new(Tokenizer::new(name, bytes)?), Some(canonical)));
+        Ok(())
+    }
+
+    fn object_begin(&mut self, name: String, loc: FileLoc) -> Result<(), SceneError> {
+        self.require_world("ObjectBegin", &loc)?;
+        if let Some(active) = self.active_object {
+            let open = &self.objects[active].name;
+            return Err(SceneError::at(
+                &loc,
+                format!("ObjectBegin inside the definition of object \"{open}\""),
+            ));
+        }
+        if self.object_names.contains_key(&name) {
+            return Err(SceneError::at(&loc, format!("object \"{name}\" is defined twice")));
+        }
+        self.pushed.push((self.gs.clone(), Block::Object, loc));
+        self.object_names.insert(name.clone(), self.objects.len());
+        self.active_object = Some(self.objects.len());
+        self.objects.push(ObjectDef { name, meshes: Vec::new() });
+        Ok(())
+    }
+
+    fn object_end(&mut self, loc: &FileLoc) -> Result<(), SceneError> {
+        self.require_world("ObjectEnd", loc)?;
+        if self.active_object.is_none() {
+            return Err(SceneError::at(loc, "ObjectEnd without a matching ObjectBegin"));
+        }
+        match self.pushed.pop() {
+            Some((gs, Block::Object, _)) => {
+                self.gs = gs;
+                self.active_object = None;
+                Ok(())
+            }
+            Some((_, Block::Attribute, open)) => Err(SceneError::at(
+                loc,
+                format!("ObjectEnd while the AttributeBegin at {open} is still open"),
+            )),
+            None => Err(SceneError::at(loc, "ObjectEnd without a matching ObjectBegin")),
+        }
+    }
+
+    fn entity(
+        &mut self,
+        kind: EntityKind,
+        name: String,
+        raw: Vec<RawParam>,
+        loc: FileLoc,
+    ) -> Result<(), SceneError> {
+        use EntityKind as E;
+        let keyword = kind.keyword();
+        match kind {
+            E::Camera | E::Film | E::Sampler | E::Integrator | E::PixelFilter | E::Accelerator => {
+                self.require_options(keyword, &loc)?
+            }
+            E::Shape | E::Material | E::MakeNamedMaterial | E::LightSource | E::AreaLightSource => {
+                self.require_world(keyword, &loc)?
+            }
+            E::MakeNamedMedium | E::Attribute => {}
+        }
+        if kind == E::Attribute {
+            return self.attribute(&name, raw, &loc);
+        }
+        let mut p = self.params(raw)?;
+        match kind {
+            E::Shape => p = p.with_defaults(&self.gs.shape_attributes),
+            E::LightSource | E::AreaLightSource => p = p.with_defaults(&self.gs.light_attributes),
+            E::Material | E::MakeNamedMaterial => p = p.with_defaults(&self.gs.material_attributes),
+            _ => {}
+        }
+        let w = &mut self.warnings;
+        match kind {
+            E::Shape => {
+                if let Some(mesh) = shapes::shape_mesh(&name, &p, &loc, &self.base_dir, w)? {
+                    self.add_shape(mesh, &loc)?;
+                }
+            }
+            E::Material => {
+                let material = entities::material(&name, &p, &loc, w)?;
+                self.anonymous.push(MaterialSlot { material, id: None });
+                self.gs.material = MaterialRef::Anonymous(self.anonymous.len() - 1);
+            }
+            E::MakeNamedMaterial => {
+                let Some(ty) = p.string("type")? else {
+                    return Err(SceneError::at(
+                        &loc,
+                        format!("named material \"{name}\": \"string type\" is missing"),
+                    ));
+                };
+                if self.named_materials.contains_key(&name) {
+                    return Err(SceneError::at(&loc, format!("named material \"{name}\" is defined twice")));
+                }
+                let material = entities::material(&ty, &p, &loc, w)?;
+                self.named_materials.insert(name.clone(), MaterialSlot { material, id: None });
+            }
+            E::LightSource => {
+                if let Some(light) = entities::light(&name, &p, &self.gs.ctm, &loc, w)? {
+                    self.scene.lights.push(light);
+                }
+            }
+            E::AreaLightSource => self.gs.area_light = entities::area_light(&name, &p, &loc, w)?,
+            E::Camera => self.camera(&name, &p, &loc)?,
+            E::Film => {
+                let res = |v: Option<i64>, d: u32| -> Result<u32, SceneError> {
+                    match v {
+                        None => Ok(d),
+                        Some(r) if r > 0 => Ok(r as u32),
+                        Some(r) => {
+                            Err(SceneError::at(&loc, format!("Film: resolution {r} must be positive")))
+                        }
+                    }
+                };
+                let d = self.scene.settings.film.resolution;
+                let x = res(p.int("xresolution")?, d.x)?;
+                let y = res(p.int("yresolution")?, d.y)?;
+                self.scene.settings.film.resolution = UVec2::new(x, y);
+                self.scene.settings.film.filename = p.string("filename")?;
+            }
+            E::Sampler => {
+                if let Some(n) = p.int("pixelsamples")? {
+                    if n <= 0 {
+                        return Err(SceneError::at(
+                            &loc,
+                            format!("Sampler: pixelsamples {n} must be positive"),
+                        ));
+                    }
+                    self.scene.settings.spp = n as u32;
+                }
+            }
+            E::Integrator => self.integrator(&name, &p, &loc)?,
+            E::PixelFilter => {
+                if name == "box" {
+                    let rx = p.float_or("xradius", 0.5)?;
+                    let ry = p.float_or("yradius", 0.5)?;
+                    if rx != 0.5 || ry != 0.5 {
+                        self.warn(
+                            &loc,
+                            format!("box filter radius ({rx}, {ry}) is not supported; using 0.5"),
+                        );
+                    }
+                } else {
+                    p.mark_all_used();
+                    self.warn(&loc, format!("pixel filter \"{name}\" is not supported; using \"box\""));
+                }
+            }
+            E::Accelerator => p.mark_all_used(),
+            E::MakeNamedMedium => {
+                p.mark_all_used();
+                self.warn(&loc, format!("participating media are not supported; medium \"{name}\" ignored"));
+            }
+            E::Attribute => unreachable!("handled above"),
+        }
+        self.warn_unused(&p, &format!("{keyword} \"{name}\""));
+        Ok(())
+    }
+
+    /// `Attribute "shape"|"light"|"material" params`: defaults for later directives.
+    fn attribute(&mut self, target: &str, raw: Vec<RawParam>, loc: &FileLoc) -> Result<(), SceneError> {
+        let p = self.params(raw)?;
+        p.mark_all_used();
+        // The latest Attribute wins: put its parameters first.
+        let params = p.into_params();
+        match target {
+            "shape" => self.gs.shape_attributes.splice(0..0, params),
+            "light" => self.gs.light_attributes.splice(0..0, params),
+            "material" => self.gs.material_attributes.splice(0..0, params),
+            "medium" | "texture" => {
+                self.warn(loc, format!("Attribute \"{target}\": {target}s are not supported; ignored"));
+                return Ok(());
+            }
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("unknown Attribute target \"{target}\" (expected shape, light, material, medium or texture)"),
+                ))
+            }
+        };
+        Ok(())
+    }
+
+    fn camera(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        let det = self.gs.ctm.determinant();
+        if det == 0.0 || !det.is_finite() {
+            return Err(SceneError::at(loc, "Camera: the current transform is not invertible"));
+        }
+        let world_from_camera = self.gs.ctm.inverse();
+        self.named_coordinate_systems.insert("camera".into(), world_from_camera);
+        let cam = &mut self.scene.settings.camera;
+        cam.camera_to_world = transform::to_f32(&world_from_camera);
+        if name != "perspective" {
+            p.mark_all_used();
+            self.warn(loc, format!("camera \"{name}\" is not supported; using a perspective camera"));
+            return Ok(());
+        }
+        cam.fov_degrees = p.float_or("fov", 90.0)?;
+        cam.lens_radius = p.float_or("lensradius", 0.0)?;
+        cam.focal_distance = p.float_or("focaldistance", 1e6)?;
+        Ok(())
+    }
+
+    fn integrator(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        self.scene.settings.integrator = if name == "ambientocclusion" {
+            let max_distance = p.float_or("maxdistance", f32::INFINITY)?;
+            IntegratorSettings::AmbientOcclusion { max_distance }
+        } else {
+            let depth = p.int("maxdepth")?.unwrap_or(5);
+            if depth < 0 {
+                return Err(SceneError::at(
+                    loc,
+                    format!("Integrator: maxdepth {depth} must not be negative"),
+                ));
+            }
+            if name != "path" && name != "volpath" {
+                p.mark_all_used();
+                self.warn(loc, format!("integrator \"{name}\" is not supported; rendering with \"path\""));
+            }
+            IntegratorSettings::Path { max_depth: depth as u32 }
+        };
+        Ok(())
+    }
+
+    /// The material id for the current graphics state (`None`: a named
+    /// material not defined yet).
+    fn current_material(&mut self) -> Option<MaterialId> {
+        let scene = &mut self.scene;
+        match &self.gs.material {
+            MaterialRef::Default => Some(
+                *self.default_material.get_or_insert_with(|| scene.add_material(Material::default_diffuse())),
+            ),
+            MaterialRef::Anonymous(i) => {
+                let slot = &mut self.anonymous[*i];
+                Some(*slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone())))
+            }
+            MaterialRef::Named(name, _) => {
+                let slot = self.named_materials.get_mut(name)?;
+                Some(*slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone())))
+            }
+        }
+    }
+
+    /// Transforms a shape's mesh by the CTM and adds it to the world or to the
+    /// object being defined.
+    fn add_shape(&mut self, shape: ShapeMesh, loc: &FileLoc) -> Result<(), SceneError> {
+        if shape.indices.is_empty() {
+            self.warn(loc, format!("shape \"{}\" has no triangles; skipped", shape.name));
+            return Ok(());
+        }
+        let ctm = self.gs.ctm;
+        let reverse = self.gs.reverse_orientation;
+        let positions =
+            shape.positions.iter().map(|p| transform::point(&ctm, p.as_dvec3()).as_vec3()).collect();
+        let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
+        let normals = shape
+            .normals
+            .iter()
+            .map(|n| {
+                let n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
+                if reverse {
+                    -n
+                } else {
+                    n
+                }
+            })
+            .collect();
+        let mut emission = self.gs.area_light;
+        if emission.is_some() && self.active_object.is_some() {
+            self.warn(
+                loc,
+                "area lights are not supported in object instances (as in pbrt-v4); emission dropped",
+            );
+            emission = None;
+        }
+        let material = self.current_material();
+        let mesh = TriangleMesh {
+            name: shape.name,
+            positions,
+            normals,
+            uvs: shape.uvs,
+            indices: shape.indices,
+            material: material.unwrap_or(0),
+            emission,
+            flip_normals: reverse ^ transform::swaps_handedness(&ctm),
+        };
+        mesh.validate().map_err(|m| SceneError::at(loc, format!("shape \"{}\": {m}", mesh.name)))?;
+        let id = self.scene.add_mesh(mesh);
+        if material.is_none() {
+            if let MaterialRef::Named(name, at) = &self.gs.material {
+                self.pending_materials.push((id, name.clone(), at.clone()));
+            }
+        }
+        match self.active_object {
+            Some(o) => self.objects[o].meshes.push(id),
+            None => self.world_meshes.push(id),
+        }
+        Ok(())
+    }
+
+    /// End of input: close open blocks, resolve names, assemble objects and instances.
+    fn finish(mut self, last: &FileLoc) -> Result<LoadedScene, SceneError> {
+        if !self.in_world {
+            return Err(SceneError::at(last, "end of file before WorldBegin"));
+        }
+        for (_, block, open) in std::mem::take(&mut self.pushed).into_iter().rev() {
+            let what = if block == Block::Object {
+                "ObjectBegin has no ObjectEnd"
+            } else {
+                "AttributeBegin has no AttributeEnd"
+            };
+            self.warn(&open, format!("{what} at the end of the file"));
+        }
+        for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {
+            let Some(slot) = self.named_materials.get_mut(&name) else {
+                return Err(SceneError::at(
+                    &loc,
+                    format!("NamedMaterial: material \"{name}\" is not defined"),
+                ));
+            };
+            let scene = &mut self.scene;
+            let id = *slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone()));
+            scene.meshes[mesh as usize].material = id;
+        }
+        if !self.world_meshes.is_empty() {
+            let id = self
+                .scene
+                .add_object(Object { name: "world".into(), meshes: std::mem::take(&mut self.world_meshes) });
+            self.scene.instances.push(Instance { object: id, object_to_world: Affine3A::IDENTITY });
+        }
+        let mut ids = Vec::with_capacity(self.objects.len());
+        for def in std::mem::take(&mut self.objects) {
+            ids.push(self.scene.add_object(Object { name: def.name, meshes: def.meshes }));
+        }
+        for (name, ctm, loc) in std::mem::take(&mut self.instance_uses) {
+            let Some(&i) = self.object_names.get(&name) else {
+                return Err(SceneError::at(
+                    &loc,
+                    format!("ObjectInstance: object \"{name}\" is not defined"),
+                ));
+            };
+            // pbrt-v4 drops instances of empty objects.
+            if !self.scene.objects[ids[i] as usize].meshes.is_empty() {
+                let object_to_world = Affine3A::from_mat4(transform::to_f32(&ctm));
+                self.scene.instances.push(Instance { object: ids[i], object_to_world });
+            }
+        }
+        Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list })
+    }
+}

@@ -1,0 +1,265 @@
+//! Turns the parameter lists of `Material`, `MakeNamedMaterial`,
+//! `AreaLightSource` and `LightSource` into scene values, following
+//! pbrt-v4's `*::Create` functions (`materials.cpp`, `lights.cpp`) for names,
+//! defaults and errors, with RGB instead of spectra.
+
+use glam::{DMat4, DVec3, Vec3};
+
+use crate::error::{FileLoc, SceneError};
+use crate::{AreaEmission, Light, Material, Rgb};
+
+use super::params::{FloatOrTexture, ParamList, SpectrumParam};
+use super::spectrum;
+use super::transform;
+use super::WarningSink;
+
+/// A reflectance-like spectrum as RGB; `None` (after a warning) for textures
+/// and names we cannot turn into a colour, so the caller uses its default.
+fn reflectance_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Option<Rgb> {
+    match sp {
+        SpectrumParam::Rgb(c) => Some(c),
+        SpectrumParam::Constant(c) => Some(Rgb::splat(c)),
+        SpectrumParam::Sampled(s) => Some(spectrum::sampled_rgb(&s)),
+        SpectrumParam::Blackbody(t) => Some(spectrum::blackbody_rgb(t)),
+        SpectrumParam::Named(n) => match spectrum::named_metal(&n) {
+            Some(c) => Some(c),
+            None => {
+                w.warn(loc, format!("{what}: unknown named spectrum \"{n}\"; using the default"));
+                None
+            }
+        },
+        SpectrumParam::Texture(t) => {
+            w.warn(
+                loc,
+                format!("{what}: textures are not supported yet; texture \"{t}\" replaced by the default"),
+            );
+            None
+        }
+    }
+}
+
+/// A float parameter that may be a texture (unsupported: warn, use default).
+fn float_param(
+    p: &ParamList,
+    name: &str,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<f32>, SceneError> {
+    Ok(match p.float_or_texture(name)? {
+        Some(FloatOrTexture::Value(v)) => Some(v),
+        Some(FloatOrTexture::Texture(t)) => {
+            w.warn(loc, format!("{what}: textures are not supported yet; texture \"{t}\" for \"{name}\" replaced by the default"));
+            None
+        }
+        None => None,
+    })
+}
+
+/// pbrt's roughness parameters: `uroughness`/`vroughness` default to
+/// `roughness` (default 0), remapped to GGX alpha unless `remaproughness` is false.
+fn alphas(p: &ParamList, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result<(f32, f32), SceneError> {
+    let r = float_param(p, "roughness", what, loc, w)?.unwrap_or(0.0);
+    let u = float_param(p, "uroughness", what, loc, w)?.unwrap_or(r);
+    let v = float_param(p, "vroughness", what, loc, w)?.unwrap_or(r);
+    if p.bool_or("remaproughness", true)? {
+        Ok((Material::roughness_to_alpha(u), Material::roughness_to_alpha(v)))
+    } else {
+        Ok((u, v))
+    }
+}
+
+/// A material of pbrt type `ty` (`MakeNamedMaterial` passes its `string type`).
+pub fn material(ty: &str, p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<Material, SceneError> {
+    let what = format!("material \"{ty}\"");
+    Ok(match ty {
+        "diffuse" => {
+            let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
+            Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
+        }
+        "conductor" => {
+            let eta = p.spectrum("eta", true)?;
+            let k = p.spectrum("k", true)?;
+            let reflectance = p.spectrum("reflectance", true)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, loc, w)?;
+            if reflectance.is_some() && (eta.is_some() || k.is_some()) {
+                return Err(SceneError::at(
+                    loc,
+                    "conductor: \"reflectance\" cannot be given together with \"eta\" and \"k\"",
+                ));
+            }
+            let (cu_eta, cu_k) = (spectrum::CU_ETA, spectrum::CU_K);
+            if let Some(r) = reflectance {
+                let r = reflectance_rgb(r, &what, loc, w).unwrap_or(Rgb::ONE);
+                Material::Conductor {
+                    eta: Rgb::ONE,
+                    k: Material::conductor_k_from_reflectance(r),
+                    alpha_x,
+                    alpha_y,
+                }
+            } else {
+                let mut metal = |sp: Option<SpectrumParam>, default: Rgb, name: &str| match sp {
+                    None => default,
+                    Some(SpectrumParam::Named(n)) => spectrum::named_metal(&n).unwrap_or_else(|| {
+                        w.warn(
+                            loc,
+                            format!("{what}: unknown named spectrum \"{n}\" for \"{name}\"; using copper"),
+                        );
+                        default
+                    }),
+                    Some(s) => reflectance_rgb(s, &what, loc, w).unwrap_or(default),
+                };
+                let eta = metal(eta, cu_eta, "eta");
+                let k = metal(k, cu_k, "k");
+                Material::Conductor { eta, k, alpha_x, alpha_y }
+            }
+        }
+        "dielectric" => {
+            let eta = match p.spectrum("eta", true)? {
+                None => 1.5,
+                Some(SpectrumParam::Constant(e)) => e,
+                Some(SpectrumParam::Named(n)) => spectrum::named_glass(&n).unwrap_or_else(|| {
+                    w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"eta\"; using 1.5"));
+                    1.5
+                }),
+                Some(SpectrumParam::Sampled(s)) => {
+                    // pbrt disperses light with a varying eta; we take its value mid-spectrum.
+                    w.warn(
+                        loc,
+                        format!("{what}: spectrally varying \"eta\" is approximated by its value at 550 nm"),
+                    );
+                    spectrum::sampled_at(&s, 550.0)
+                }
+                Some(other) => {
+                    w.warn(loc, format!("{what}: \"eta\" given as {other:?} is not supported; using 1.5"));
+                    1.5
+                }
+            };
+            let (alpha_x, alpha_y) = alphas(p, &what, loc, w)?;
+            Material::Dielectric { eta, alpha_x, alpha_y }
+        }
+        "interface" | "" | "none" => Material::Interface,
+        "coateddiffuse" => {
+            let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
+            p.mark_all_used();
+            w.warn(
+                loc,
+                "material \"coateddiffuse\" is not supported yet; rendered as diffuse with its reflectance",
+            );
+            Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
+        }
+        _ => {
+            p.mark_all_used();
+            w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5"));
+            Material::default_diffuse()
+        }
+    })
+}
+
+/// A light spectrum as RGB. pbrt-v4 divides every light spectrum by its
+/// luminance (so `scale` alone sets brightness); for RGB values that
+/// normalisation is by the colour space's white, which leaves them unchanged.
+fn light_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Rgb {
+    let luminance_one = |c: Rgb| {
+        let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        if y > 0.0 {
+            c / y
+        } else {
+            c
+        }
+    };
+    match sp {
+        SpectrumParam::Rgb(c) => c,
+        SpectrumParam::Constant(c) => Rgb::splat(c),
+        SpectrumParam::Blackbody(t) => spectrum::blackbody_rgb(t),
+        SpectrumParam::Sampled(s) => luminance_one(spectrum::sampled_rgb(&s)),
+        SpectrumParam::Named(n) => spectrum::named_illuminant(&n).unwrap_or_else(|| {
+            w.warn(loc, format!("{what}: unknown named spectrum \"{n}\"; using white"));
+            Rgb::ONE
+        }),
+        SpectrumParam::Texture(t) => {
+            w.warn(loc, format!("{what}: texture \"{t}\" is not a valid light spectrum; using white"));
+            Rgb::ONE
+        }
+    }
+}
+
+/// `AreaLightSource "diffuse"`; `None` (after a warning) for other types.
+pub fn area_light(
+    ty: &str,
+    p: &ParamList,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<AreaEmission>, SceneError> {
+    if ty != "diffuse" {
+        p.mark_all_used();
+        w.warn(loc, format!("area light \"{ty}\" is not supported; shapes get no emission"));
+        return Ok(None);
+    }
+    let what = "area light \"diffuse\"";
+    let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).unwrap_or(Rgb::ONE);
+    let scale = p.float_or("scale", 1.0)?;
+    let two_sided = p.bool_or("twosided", false)?;
+    if let Some(f) = p.string("filename")? {
+        w.warn(loc, format!("{what}: image emission \"{f}\" is not supported yet; using \"L\""));
+    }
+    Ok(Some(AreaEmission { radiance: l * scale, two_sided }))
+}
+
+/// `LightSource`; `None` (after a warning) for unsupported types. `ctm` is
+/// the light-to-world transform in effect.
+pub fn light(
+    ty: &str,
+    p: &ParamList,
+    ctm: &DMat4,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<Light>, SceneError> {
+    let what = format!("light \"{ty}\"");
+    let p3 =
+        |name: &str, d: Vec3| -> Result<DVec3, SceneError> { Ok(p.point3(name)?.unwrap_or(d).as_dvec3()) };
+    Ok(Some(match ty {
+        "point" => {
+            let i = p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let scale = p.float_or("scale", 1.0)?;
+            let position = transform::point(ctm, p3("from", Vec3::ZERO)?).as_vec3();
+            Light::Point { position, intensity: i * scale }
+        }
+        "distant" => {
+            let l = p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let scale = p.float_or("scale", 1.0)?;
+            let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
+            // pbrt stores the direction towards the light (from - to); ours is the way light travels.
+            let Some(direction) = ctm.transform_vector3(to - from).try_normalize() else {
+                return Err(SceneError::at(loc, "light \"distant\": \"from\" and \"to\" give no direction"));
+            };
+            Light::Distant { direction: direction.as_vec3(), radiance: l * scale }
+        }
+        "infinite" => {
+            let l = p.spectrum("L", false)?;
+            let scale = p.float_or("scale", 1.0)?;
+            let filename = p.string("filename")?;
+            if l.is_some() && filename.is_some() {
+                return Err(SceneError::at(
+                    loc,
+                    "light \"infinite\": cannot give both \"L\" and \"filename\"",
+                ));
+            }
+            if let Some(f) = filename {
+                w.warn(
+                    loc,
+                    format!(
+                        "{what}: environment maps are not supported yet; \"{f}\" replaced by constant white"
+                    ),
+                );
+            }
+            let radiance = l.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE) * scale;
+            Light::Infinite { radiance }
+        }
+        _ => {
+            p.mark_all_used();
+            w.warn(loc, format!("{what} is not supported; skipped"));
+            return Ok(None);
+        }
+    }))
+}

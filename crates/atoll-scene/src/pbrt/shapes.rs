@@ -1,0 +1,202 @@
+//! `Shape` directives as triangle meshes in object space (before the CTM):
+//! `trianglemesh`, `plymesh` and `sphere` (tessellated). Other pbrt shapes are
+//! skipped with a warning. Checks follow pbrt-v4's `Triangle::CreateMesh`.
+
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+
+use crate::error::{FileLoc, SceneError};
+use crate::ply;
+
+use super::params::ParamList;
+use super::WarningSink;
+
+/// A shape's triangles in object space.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShapeMesh {
+    /// For messages and `atoll info`: the PLY file name or the shape type.
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub uvs: Vec<Vec2>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// Longitude and latitude steps of a tessellated sphere.
+pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
+
+/// The mesh of `Shape "ty" params`; `None` (after a warning) for shapes we skip.
+/// Relative file names resolve against `base_dir` (the main scene file's directory).
+pub fn shape_mesh(
+    ty: &str,
+    p: &ParamList,
+    loc: &FileLoc,
+    base_dir: &Path,
+    w: &mut WarningSink,
+) -> Result<Option<ShapeMesh>, SceneError> {
+    match ty {
+        "trianglemesh" => triangle_mesh(p, loc, w).map(Some),
+        "plymesh" => ply_mesh(p, loc, base_dir, w).map(Some),
+        "sphere" => {
+            let radius = p.float_or("radius", 1.0)?;
+            let zmin = p.float_or("zmin", -radius)?;
+            let zmax = p.float_or("zmax", radius)?;
+            let phimax = p.float_or("phimax", 360.0)?;
+            if zmin > -radius || zmax < radius || phimax < 360.0 {
+                w.warn(
+                    loc,
+                    "sphere: partial spheres (zmin, zmax, phimax) are not supported; using the full sphere",
+                );
+            }
+            Ok(Some(sphere(radius, SPHERE_SEGMENTS.0, SPHERE_SEGMENTS.1)))
+        }
+        _ => {
+            p.mark_all_used();
+            w.warn(loc, format!("unsupported shape \"{ty}\" skipped"));
+            Ok(None)
+        }
+    }
+}
+
+fn triangle_mesh(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMesh, SceneError> {
+    let positions = p.point3s("P").unwrap_or_default();
+    if positions.is_empty() {
+        return Err(SceneError::at(loc, "trianglemesh: vertex positions \"point3 P\" must be given"));
+    }
+    let n = positions.len();
+    let mut flat: Vec<f64> = match p.ints("indices") {
+        Some(i) => i.to_vec(),
+        None if n == 3 => vec![0.0, 1.0, 2.0],
+        None => return Err(SceneError::at(
+            loc,
+            "trianglemesh: vertex \"integer indices\" must be given (unless there are exactly 3 vertices)",
+        )),
+    };
+    let excess = flat.len() % 3;
+    if excess > 0 {
+        w.warn(
+            loc,
+            format!("trianglemesh: {} indices are not a multiple of 3; the excess is discarded", flat.len()),
+        );
+        flat.truncate(flat.len() - excess);
+    }
+    if let Some(bad) = flat.iter().find(|&&i| i < 0.0 || i as usize >= n) {
+        return Err(SceneError::at(
+            loc,
+            format!("trianglemesh: vertex index {bad} out of range ({n} \"P\" values were given)"),
+        ));
+    }
+    let indices = flat.chunks_exact(3).map(|c| [c[0] as u32, c[1] as u32, c[2] as u32]).collect();
+    let mut normals = p.normals("N").unwrap_or_default();
+    if !normals.is_empty() && normals.len() != n {
+        w.warn(
+            loc,
+            format!("trianglemesh: {} normals \"N\" for {n} vertices; discarding them", normals.len()),
+        );
+        normals.clear();
+    }
+    let mut uvs = p.point2s("uv").or_else(|| p.point2s("st")).unwrap_or_default();
+    if !uvs.is_empty() && uvs.len() != n {
+        w.warn(loc, format!("trianglemesh: {} \"uv\"s for {n} vertices; discarding them", uvs.len()));
+        uvs.clear();
+    }
+    Ok(ShapeMesh { name: "trianglemesh".into(), positions, normals, uvs, indices })
+}
+
+fn ply_mesh(
+    p: &ParamList,
+    loc: &FileLoc,
+    base_dir: &Path,
+    w: &mut WarningSink,
+) -> Result<ShapeMesh, SceneError> {
+    let Some(filename) = p.string("filename")? else {
+        return Err(SceneError::at(loc, "plymesh: \"string filename\" must be given"));
+    };
+    let path = base_dir.join(&filename);
+    let m = ply::read_ply(&path).map_err(|e| match e {
+        ply::PlyError::Io { source, .. } => {
+            SceneError::at(loc, format!("plymesh: cannot read PLY file '{}': {source}", path.display()))
+        }
+        ply::PlyError::Invalid(msg) => {
+            SceneError::at(loc, format!("plymesh: bad PLY file '{}': {msg}", path.display()))
+        }
+    })?;
+    if m.skipped_faces > 0 {
+        w.warn(
+            loc,
+            format!(
+                "plymesh '{filename}': {} faces that are neither triangles nor quads skipped",
+                m.skipped_faces
+            ),
+        );
+    }
+    Ok(ShapeMesh {
+        name: filename,
+        positions: m.positions,
+        normals: m.normals,
+        uvs: m.uvs,
+        indices: m.indices,
+    })
+}
+
+/// A UV sphere about the z axis (pbrt's sphere pole axis) with smooth normals
+/// and pbrt's (u, v) = (phi / 2pi, theta / pi). Triangles wind so that the
+/// geometric normal (see [`crate::TriangleMesh::geometric_normal`]) points out.
+pub fn sphere(radius: f32, n_phi: u32, n_theta: u32) -> ShapeMesh {
+    let mut m = ShapeMesh { name: "sphere".into(), ..Default::default() };
+    for i in 0..=n_theta {
+        let v = i as f32 / n_theta as f32;
+        let theta = v * std::f32::consts::PI;
+        for j in 0..=n_phi {
+            let u = j as f32 / n_phi as f32;
+            let phi = u * std::f32::consts::TAU;
+            // Exact poles and seam, so the mesh closes without cracks.
+            let n = if i == 0 {
+                Vec3::Z
+            } else if i == n_theta {
+                -Vec3::Z
+            } else if j == n_phi {
+                Vec3::new(theta.sin(), 0.0, theta.cos())
+            } else {
+                Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+            };
+            m.positions.push(n * radius);
+            m.normals.push(if radius < 0.0 { -n } else { n });
+            m.uvs.push(Vec2::new(u, v));
+        }
+    }
+    let idx = |i: u32, j: u32| i * (n_phi + 1) + j;
+    for i in 0..n_theta {
+        for j in 0..n_phi {
+            let (a, b, c, d) = (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1));
+            // Skip the triangle that collapses at each pole.
+            if i + 1 < n_theta {
+                m.indices.push([a, b, c]);
+            }
+            if i > 0 {
+                m.indices.push([a, c, d]);
+            }
+        }
+    }
+    m
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sphere_is_closed_and_faces_out() {
+        let s = sphere(2.0, 16, 8);
+        assert_eq!(s.indices.len(), 16 * 8 * 2 - 2 * 16);
+        for t in &s.indices {
+            let [p0, p1, p2] = t.map(|i| s.positions[i as usize]);
+            let n = (p0 - p2).cross(p1 - p2);
+            assert!(n.length() > 0.0);
+            assert!(n.dot(p0 + p1 + p2) > 0.0, "triangle {t:?} faces inwards");
+        }
+        assert!(s.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-5));
+        assert!(s.normals.iter().zip(&s.positions).all(|(n, p)| (*n * 2.0 - *p).length() < 1e-5));
+    }
+}

@@ -1,0 +1,137 @@
+//! The spectral values a PBRT file can name, reduced to what atoll renders
+//! with: linear sRGB triples and (for dielectrics) one index of refraction.
+//! pbrt-v4 renders spectrally; these are the RGB approximations we use instead.
+
+use glam::Vec3;
+
+/// Copper's index of refraction (`metal-Cu-eta`), pbrt-v4's default conductor.
+pub const CU_ETA: Vec3 = Vec3::new(0.200438, 0.924033, 1.10221);
+/// Copper's absorption coefficient (`metal-Cu-k`).
+pub const CU_K: Vec3 = Vec3::new(3.91295, 2.45285, 2.14219);
+
+/// RGB approximations of pbrt-v4's named metal spectra (`metal-Cu-eta`, ...).
+pub fn named_metal(name: &str) -> Option<Vec3> {
+    Some(match name {
+        "metal-Cu-eta" => CU_ETA,
+        "metal-Cu-k" => CU_K,
+        "metal-Au-eta" => Vec3::new(0.143119, 0.374957, 1.44248),
+        "metal-Au-k" => Vec3::new(3.98316, 2.38572, 1.60322),
+        "metal-Ag-eta" => Vec3::new(0.155265, 0.116723, 0.138342),
+        "metal-Ag-k" => Vec3::new(4.82835, 3.12225, 2.14696),
+        "metal-Al-eta" => Vec3::new(1.65746, 0.880369, 0.521229),
+        "metal-Al-k" => Vec3::new(9.22387, 6.26952, 4.837),
+        _ => return None,
+    })
+}
+
+/// Index of refraction at the d line (587.6 nm) of pbrt-v4's named glasses
+/// (`glass-F5`, `-F10`, `-F11` are Schott SF5, SF10, SF11 there).
+pub fn named_glass(name: &str) -> Option<f32> {
+    Some(match name {
+        "glass-BK7" => 1.5168,
+        "glass-BAF10" => 1.6700,
+        "glass-FK51A" => 1.4866,
+        "glass-LASF9" => 1.8503,
+        "glass-F5" => 1.6727,
+        "glass-F10" => 1.7283,
+        "glass-F11" => 1.7847,
+        _ => return None,
+    })
+}
+
+/// Named illuminants: pbrt normalises light spectra to unit luminance, and
+/// D65 is the white point of sRGB, so it becomes RGB white.
+pub fn named_illuminant(name: &str) -> Option<Vec3> {
+    (name == "stdillum-D65").then_some(Vec3::ONE)
+}
+
+/// Value of a piecewise-linear spectrum at `lambda` (clamped at the ends).
+pub fn sampled_at(pairs: &[(f32, f32)], lambda: f32) -> f32 {
+    match pairs {
+        [] => 0.0,
+        [(_, v)] => *v,
+        _ => {
+            let i = pairs.partition_point(|&(l, _)| l < lambda);
+            if i == 0 {
+                return pairs[0].1;
+            }
+            if i == pairs.len() {
+                return pairs[pairs.len() - 1].1;
+            }
+            let ((l0, v0), (l1, v1)) = (pairs[i - 1], pairs[i]);
+            let t = if l1 > l0 { (lambda - l0) / (l1 - l0) } else { 0.0 };
+            v0 + t * (v1 - v0)
+        }
+    }
+}
+
+/// A crude RGB for a sampled reflectance-like spectrum: its averages over the
+/// blue (400–500 nm), green (500–600 nm) and red (600–700 nm) bands. Exact
+/// for constant spectra, which is what scenes mostly give this way.
+pub fn sampled_rgb(pairs: &[(f32, f32)]) -> Vec3 {
+    let band = |lo: f32| (0..10).map(|i| sampled_at(pairs, lo + 5.0 + 10.0 * i as f32)).sum::<f32>() / 10.0;
+    Vec3::new(band(600.0), band(500.0), band(400.0))
+}
+
+/// Linear-sRGB colour of a blackbody at `kelvin`, normalised to luminance 1
+/// (pbrt-v4 divides light spectra by their luminance, so only the colour of a
+/// blackbody matters; `scale` sets the brightness). Integrates Planck's law
+/// against the analytic CIE 1931 fit of Wyman, Sloan and Shirley (2013).
+pub fn blackbody_rgb(kelvin: f32) -> Vec3 {
+    if kelvin <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let t = kelvin as f64;
+    let g = |x: f64, mu: f64, s1: f64, s2: f64| {
+        let s = if x < mu { s1 } else { s2 };
+        (-(x - mu) * (x - mu) / (2.0 * s * s)).exp()
+    };
+    let (mut x, mut y, mut z) = (0.0, 0.0, 0.0);
+    for i in 0..=470 {
+        let l = 360.0 + i as f64;
+        // Planck's law up to a constant factor (removed by the normalisation).
+        let lm = l * 1e-9;
+        let b = 1.0 / (lm.powi(5) * ((0.014387769 / (lm * t)).exp() - 1.0));
+        x += b
+            * (1.056 * g(l, 599.8, 37.9, 31.0) + 0.362 * g(l, 442.0, 16.0, 26.7)
+                - 0.065 * g(l, 501.1, 20.4, 26.2));
+        y += b * (0.821 * g(l, 568.8, 46.9, 40.5) + 0.286 * g(l, 530.9, 16.3, 31.1));
+        z += b * (1.217 * g(l, 437.0, 11.8, 36.0) + 0.681 * g(l, 459.0, 26.0, 13.8));
+    }
+    if y <= 0.0 || !y.is_finite() {
+        return Vec3::ZERO;
+    }
+    let (x, z) = (x / y, z / y);
+    let rgb = Vec3::new(
+        (3.2404542 * x - 1.5371385 - 0.4985314 * z) as f32,
+        (-0.9692660 * x + 1.8760108 + 0.0415560 * z) as f32,
+        (0.0556434 * x - 0.2040259 + 1.0572252 * z) as f32,
+    );
+    rgb.max(Vec3::ZERO)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sampled_spectra() {
+        let s = [(400.0, 1.0), (500.0, 2.0), (700.0, 4.0)];
+        assert_eq!(sampled_at(&s, 300.0), 1.0);
+        assert_eq!(sampled_at(&s, 450.0), 1.5);
+        assert_eq!(sampled_at(&s, 600.0), 3.0);
+        assert_eq!(sampled_at(&s, 800.0), 4.0);
+        assert!((sampled_rgb(&[(300.0, 0.5), (800.0, 0.5)]) - Vec3::splat(0.5)).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn blackbody_colours() {
+        // Near the sRGB white point, roughly white; warm light is red-heavy.
+        let d65ish = blackbody_rgb(6504.0);
+        assert!((d65ish - Vec3::ONE).abs().max_element() < 0.15, "{d65ish}");
+        let warm = blackbody_rgb(2700.0);
+        assert!(warm.x > warm.y && warm.y > warm.z, "{warm}");
+        let lum = 0.2126 * warm.x + 0.7152 * warm.y + 0.0722 * warm.z;
+        assert!((lum - 1.0).abs() < 0.02, "{lum}");
+    }
+}

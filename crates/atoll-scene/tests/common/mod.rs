@@ -1,0 +1,46 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU32, Ordering};
+
+use atoll_scene::pbrt::{load_str, LoadedScene};
+use atoll_scene::SceneError;
+
+/// A fresh, empty directory under the system temp dir.
+pub fn temp_dir(tag: &str) -> PathBuf {
+    static COUNTER: AtomicU32 = AtomicU32::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let nanos = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().subsec_nanos();
+    let dir = std::env::temp_dir().join(format!("atoll-scene-{tag}-{}-{n}-{nanos}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Writes `contents` to `dir/name` and returns the path.
+pub fn write(dir: &Path, name: &str, contents: impl AsRef<[u8]>) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, contents).unwrap();
+    path
+}
+
+/// The shared test scenes (`/work/shared/scenes` next to the repository).
+pub fn shared_scene(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes").join(rel)
+}
+
+/// Loads a world-block fragment (options first, then `WorldBegin` and `world`).
+pub fn load_world(options: &str, world: &str) -> Result<LoadedScene, SceneError> {
+    load_str(&format!("{options}\nWorldBegin\n{world}\n"), "test.pbrt", Path::new("."))
+}
+
+/// A one-triangle mesh statement with the given vertices.
+pub fn tri(p: [[f32; 3]; 3]) -> String {
+    let v: Vec<String> = p.iter().flatten().map(|x| x.to_string()).collect();
+    format!("Shape \"trianglemesh\" \"point3 P\" [ {} ] \"integer indices\" [ 0 1 2 ]", v.join(" "))
+}
+
+/// Asserts two vectors agree to `eps`.
+pub fn assert_close(a: glam::Vec3, b: glam::Vec3, eps: f32) {
+    assert!((a - b).abs().max_element() <= eps, "{a} != {b}");
+}

@@ -1,0 +1,317 @@
+//! pbrt-v4 semantics of the loader: transforms, orientation, instancing,
+//! materials, lights and warnings.
+
+mod common;
+
+use atoll_scene::{AreaEmission, IntegratorSettings, Light, Material, Rgb};
+use common::{assert_close, load_world, tri};
+use glam::Vec3;
+
+const UNIT_TRI: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
+#[test]
+fn mirrored_look_at_camera() {
+    let s = load_world(
+        "Scale -1 1 1\nLookAt 0 1 -3.9  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" 45",
+        "",
+    )
+    .unwrap()
+    .scene;
+    let c2w = s.settings.camera.camera_to_world;
+    assert_close(c2w.transform_point3(Vec3::ZERO), Vec3::new(0.0, 1.0, -3.9), 1e-6);
+    assert_close(c2w.transform_vector3(Vec3::Z), Vec3::Z, 1e-6);
+    assert_close(c2w.transform_vector3(Vec3::Y), Vec3::Y, 1e-6);
+    assert_close(c2w.transform_vector3(Vec3::X), -Vec3::X, 1e-6);
+    assert!(c2w.determinant() < 0.0);
+    assert_eq!(s.settings.camera.fov_degrees, 45.0);
+}
+
+#[test]
+fn defaults_follow_pbrt() {
+    let s = load_world("", "").unwrap().scene;
+    assert_eq!(s.settings.spp, 16);
+    assert_eq!(s.settings.film.resolution, glam::UVec2::new(1280, 720));
+    assert_eq!(s.settings.integrator, IntegratorSettings::Path { max_depth: 5 });
+    assert_eq!(s.settings.camera.fov_degrees, 90.0);
+    assert!(s.objects.is_empty() && s.instances.is_empty());
+    let s = load_world("Integrator \"ambientocclusion\"", "").unwrap().scene;
+    assert_eq!(s.settings.integrator, IntegratorSettings::AmbientOcclusion { max_distance: f32::INFINITY });
+    let loaded = load_world("Integrator \"bdpt\" \"integer maxdepth\" 3", "").unwrap();
+    assert_eq!(loaded.scene.settings.integrator, IntegratorSettings::Path { max_depth: 3 });
+    assert!(loaded.warnings[0].message.contains("\"bdpt\" is not supported"));
+}
+
+#[test]
+fn rotate_maps_x_to_y() {
+    let s = load_world("", &format!("Rotate 90 0 0 1\n{}", tri(UNIT_TRI))).unwrap().scene;
+    let p = &s.meshes[0].positions;
+    assert_close(p[0], Vec3::Y, 1e-6);
+    assert_close(p[1], -Vec3::X, 1e-6);
+    assert_close(p[2], Vec3::Z, 1e-6);
+}
+
+#[test]
+fn transforms_post_multiply() {
+    // Translate then Scale: the scale applies first to the shape's points.
+    let s = load_world("", &format!("Translate 1 0 0\nScale 2 2 2\n{}", tri(UNIT_TRI))).unwrap().scene;
+    assert_close(s.meshes[0].positions[0], Vec3::new(3.0, 0.0, 0.0), 1e-6);
+    let s = load_world("", &format!("Scale 2 2 2\nTranslate 1 0 0\n{}", tri(UNIT_TRI))).unwrap().scene;
+    assert_close(s.meshes[0].positions[0], Vec3::new(4.0, 0.0, 0.0), 1e-6);
+}
+
+#[test]
+fn transform_matrices_are_column_major() {
+    let translate = "Transform [ 1 0 0 0  0 1 0 0  0 0 1 0  5 6 7 1 ]";
+    let s = load_world("", &format!("Scale 9 9 9\n{translate}\n{}", tri(UNIT_TRI))).unwrap().scene;
+    assert_close(s.meshes[0].positions[0], Vec3::new(6.0, 6.0, 7.0), 1e-6);
+    // ConcatTransform post-multiplies: scale first, then translate.
+    let concat = "ConcatTransform [ 2 0 0 0  0 2 0 0  0 0 2 0  0 0 0 1 ]";
+    let s = load_world("", &format!("Translate 1 0 0\n{concat}\n{}", tri(UNIT_TRI))).unwrap().scene;
+    assert_close(s.meshes[0].positions[0], Vec3::new(3.0, 0.0, 0.0), 1e-6);
+    // A shear shows the layout: column 1 (the image of y) is (1, 1, 0).
+    let shear = "ConcatTransform [ 1 0 0 0  1 1 0 0  0 0 1 0  0 0 0 1 ]";
+    let s = load_world("", &format!("{shear}\n{}", tri(UNIT_TRI))).unwrap().scene;
+    assert_close(s.meshes[0].positions[1], Vec3::new(1.0, 1.0, 0.0), 1e-6);
+}
+
+#[test]
+fn named_coordinate_systems_round_trip() {
+    let world = format!(
+        "Translate 1 2 3\nRotate 30 1 1 0\nCoordinateSystem \"mine\"\nIdentity\nTranslate 100 0 0\n\
+         CoordSysTransform \"mine\"\n{}\nCoordSysTransform \"camera\"\n{}\nCoordSysTransform \"world\"\n{}",
+        tri(UNIT_TRI),
+        tri(UNIT_TRI),
+        tri(UNIT_TRI)
+    );
+    let s = load_world("LookAt 0 0 -5  0 0 0  0 1 0\nCamera \"perspective\"", &world).unwrap().scene;
+    let expected = glam::Mat4::from_translation(Vec3::new(1.0, 2.0, 3.0))
+        * glam::Mat4::from_axis_angle(Vec3::new(1.0, 1.0, 0.0).normalize(), 30f32.to_radians());
+    assert_close(s.meshes[0].positions[0], expected.transform_point3(Vec3::X), 1e-5);
+    // "camera" is the camera-to-world transform: camera-space x lands next to the eye.
+    assert_close(s.meshes[1].positions[0], Vec3::new(1.0, 0.0, -5.0), 1e-6);
+    assert_close(s.meshes[2].positions[0], Vec3::X, 0.0);
+}
+
+#[test]
+fn flip_normals_follows_handedness_and_reverse_orientation() {
+    let world = format!(
+        "AttributeBegin\n{t}\nAttributeEnd\n\
+         AttributeBegin\nScale -1 1 1\n{t}\nAttributeEnd\n\
+         AttributeBegin\nReverseOrientation\n{t}\nAttributeEnd\n\
+         AttributeBegin\nReverseOrientation\nScale 1 -1 1\n{t}\nAttributeEnd\n\
+         AttributeBegin\nScale -1 -1 1\n{t}\nAttributeEnd\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let s = load_world("", &world).unwrap().scene;
+    let flips: Vec<bool> = s.meshes.iter().map(|m| m.flip_normals).collect();
+    assert_eq!(flips, [false, true, true, false, false, false]);
+    // Under a mirror the winding reverses, and the flip restores the object-space facing.
+    let n0 = s.meshes[0].geometric_normal(0);
+    let n1 = s.meshes[1].geometric_normal(0);
+    assert_close(n1, n0 * Vec3::new(-1.0, 1.0, 1.0), 1e-6);
+}
+
+#[test]
+fn shading_normals_use_the_inverse_transpose() {
+    let mesh = "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"normal N\" [1 1 0 1 1 0 1 1 0] \"point2 uv\" [0 0 1 0 0 1]";
+    let s = load_world("", &format!("Scale 2 1 1\n{mesh}\nReverseOrientation\n{mesh}")).unwrap().scene;
+    assert_close(s.meshes[0].normals[0], Vec3::new(0.5, 1.0, 0.0).normalize(), 1e-6);
+    assert_close(s.meshes[1].normals[0], -Vec3::new(0.5, 1.0, 0.0).normalize(), 1e-6);
+    assert_eq!(s.meshes[0].uvs[2], glam::Vec2::new(0.0, 1.0));
+}
+
+#[test]
+fn instancing_shares_meshes() {
+    let world = format!(
+        "AttributeBegin\nTranslate 0 0 5\nObjectBegin \"thing\"\n{t}\n{t}\nObjectEnd\nAttributeEnd\n\
+         {instances}\n{t}",
+        t = tri(UNIT_TRI),
+        instances = (0..4)
+            .map(|i| format!("AttributeBegin\nTranslate {i} 0 0\nObjectInstance \"thing\"\nAttributeEnd\n"))
+            .collect::<String>()
+    );
+    let s = load_world("", &world).unwrap().scene;
+    assert_eq!(s.meshes.len(), 3);
+    assert_eq!(s.objects.len(), 2);
+    // The world object comes first, with one identity instance.
+    assert_eq!(s.objects[0].name, "world");
+    assert_eq!(s.objects[0].meshes, vec![2]);
+    assert_eq!(s.objects[1].name, "thing");
+    assert_eq!(s.objects[1].meshes, vec![0, 1]);
+    assert_eq!(s.instances.len(), 5);
+    assert_eq!(s.instances[0].object, 0);
+    for (i, inst) in s.instances[1..].iter().enumerate() {
+        assert_eq!(inst.object, 1);
+        assert_close(inst.object_to_world.transform_point3(Vec3::ZERO), Vec3::new(i as f32, 0.0, 0.0), 0.0);
+    }
+    // Object shapes keep the CTM of their definition (pbrt-v4): here Translate 0 0 5.
+    assert_close(s.meshes[0].positions[0], Vec3::new(1.0, 0.0, 5.0), 0.0);
+    assert_eq!(s.stats().instanced_triangles, 4 * 2 + 1);
+    assert_eq!(s.stats().unique_triangles, 3);
+}
+
+#[test]
+fn instances_may_precede_definitions_and_drop_area_lights() {
+    let world = format!(
+        "ObjectInstance \"later\"\nAttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n\
+         ObjectBegin \"later\"\n{t}\nObjectEnd\n{t}\nAttributeEnd\nObjectBegin \"empty\"\nObjectEnd\nObjectInstance \"empty\"",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    assert_eq!(s.instances.len(), 2, "the empty object's instance is dropped");
+    let object_mesh = &s.meshes[s.objects[1].meshes[0] as usize];
+    assert_eq!(object_mesh.emission, None);
+    assert!(s.meshes[1].emission.is_some());
+    assert!(loaded
+        .warnings
+        .iter()
+        .any(|w| w.message.contains("area lights are not supported in object instances")));
+}
+
+#[test]
+fn materials() {
+    let world = format!(
+        "MakeNamedMaterial \"gold\" \"string type\" \"conductor\" \"spectrum eta\" \"metal-Au-eta\" \
+         \"spectrum k\" \"metal-Au-k\" \"float roughness\" 0.25\n\
+         NamedMaterial \"late\"\n{t}\n\
+         Material \"conductor\" \"float uroughness\" 0.04 \"float vroughness\" 0.09 \"bool remaproughness\" false\n{t}\n\
+         Material \"conductor\" \"rgb reflectance\" [0.5 0.5 0.5]\n{t}\n\
+         Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n{t}\n\
+         Material \"interface\"\n{t}\nMaterial \"\"\n{t}\n\
+         Material \"hair\" \"float eumelanin\" 1\n{t}\n\
+         NamedMaterial \"gold\"\n{t}\n\
+         MakeNamedMaterial \"late\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]\n\
+         AttributeBegin\nMaterial \"dielectric\"\nAttributeEnd\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    assert_eq!(*m[0], Material::Diffuse { reflectance: Rgb::new(0.1, 0.2, 0.3) });
+    let cu_eta = Rgb::new(0.200438, 0.924033, 1.10221);
+    let cu_k = Rgb::new(3.91295, 2.45285, 2.14219);
+    assert_eq!(*m[1], Material::Conductor { eta: cu_eta, k: cu_k, alpha_x: 0.04, alpha_y: 0.09 });
+    let k = Material::conductor_k_from_reflectance(Rgb::splat(0.5));
+    assert_eq!(*m[2], Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.0, alpha_y: 0.0 });
+    assert_eq!(*m[3], Material::Dielectric { eta: 1.5168, alpha_x: 0.0, alpha_y: 0.0 });
+    assert_eq!(*m[4], Material::Interface);
+    assert_eq!(*m[5], Material::Interface);
+    assert_eq!(*m[6], Material::default_diffuse());
+    let au = (Rgb::new(0.143119, 0.374957, 1.44248), Rgb::new(3.98316, 2.38572, 1.60322));
+    assert_eq!(*m[7], Material::Conductor { eta: au.0, k: au.1, alpha_x: 0.5, alpha_y: 0.5 });
+    // AttributeEnd restored the named material.
+    assert_eq!(s.meshes[8].material, s.meshes[7].material);
+    assert!(loaded.warnings.iter().any(|w| w.message.contains("material \"hair\" is not supported")));
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    // Materials are stored once however many shapes use them.
+    assert_eq!(s.materials.len(), 8);
+}
+
+#[test]
+fn default_material_and_texture_references() {
+    let world = format!(
+        "{t}\nTexture \"checks\" \"spectrum\" \"checkerboard\"\nMaterial \"diffuse\" \"texture reflectance\" \"checks\"\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    assert_eq!(s.materials[s.meshes[0].material as usize], Material::default_diffuse());
+    assert_eq!(s.materials[s.meshes[1].material as usize], Material::default_diffuse());
+    assert_eq!(loaded.warnings.len(), 2, "{:?}", loaded.warnings);
+    assert!(loaded.warnings[0].message.contains("texture \"checks\" ignored"));
+    assert!(loaded.warnings[1].message.contains("texture \"checks\" replaced by the default"));
+}
+
+#[test]
+fn area_lights() {
+    let world = format!(
+        "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 2 3] \"float scale\" 2 \"bool twosided\" true\n{t}\nAttributeEnd\n\
+         {t}\nAttributeBegin\nAreaLightSource \"diffuse\" \"blackbody L\" 6500\n{t}\nAttributeEnd",
+        t = tri(UNIT_TRI)
+    );
+    let s = load_world("", &world).unwrap().scene;
+    assert_eq!(
+        s.meshes[0].emission,
+        Some(AreaEmission { radiance: Rgb::new(2.0, 4.0, 6.0), two_sided: true })
+    );
+    assert_eq!(s.meshes[1].emission, None);
+    let bb = s.meshes[2].emission.unwrap().radiance;
+    assert!((bb - Rgb::ONE).abs().max_element() < 0.15, "{bb}");
+}
+
+#[test]
+fn light_sources() {
+    let world = "AttributeBegin\nTranslate 0 5 0\nLightSource \"point\" \"rgb I\" [1 1 1] \"float scale\" 3 \"point3 from\" [1 0 0]\nAttributeEnd\n\
+                 AttributeBegin\nRotate 90 1 0 0\nLightSource \"distant\" \"rgb L\" [2 2 2]\nAttributeEnd\n\
+                 LightSource \"distant\" \"point3 from\" [0 10 0] \"point3 to\" [0 0 0]\n\
+                 LightSource \"infinite\" \"rgb L\" [0.5 0.5 0.5] \"float scale\" 2\n\
+                 LightSource \"infinite\" \"string filename\" \"sky.exr\"\n\
+                 LightSource \"spot\" \"float coneangle\" 30";
+    let loaded = load_world("", world).unwrap();
+    let l = &loaded.scene.lights;
+    assert_eq!(l.len(), 5);
+    assert_eq!(l[0], Light::Point { position: Vec3::new(1.0, 5.0, 0.0), intensity: Rgb::splat(3.0) });
+    // Default from (0,0,0) to (0,0,1): light travels along +z; Rotate 90 about x maps +z to -y.
+    let Light::Distant { direction, radiance } = l[1] else { panic!() };
+    assert_close(direction, -Vec3::Y, 1e-6);
+    assert_eq!(radiance, Rgb::splat(2.0));
+    let Light::Distant { direction, .. } = l[2] else { panic!() };
+    assert_close(direction, -Vec3::Y, 1e-6);
+    assert_eq!(l[3], Light::Infinite { radiance: Rgb::ONE });
+    assert_eq!(l[4], Light::Infinite { radiance: Rgb::ONE });
+    let msgs: Vec<_> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert!(msgs.iter().any(|m| m.contains("environment maps are not supported")), "{msgs:?}");
+    assert!(msgs.iter().any(|m| m.contains("light \"spot\" is not supported")), "{msgs:?}");
+}
+
+#[test]
+fn spheres_and_unsupported_shapes() {
+    let loaded = load_world(
+        "",
+        "Translate 0 2 0\nShape \"sphere\" \"float radius\" 0.5\nShape \"disk\" \"float radius\" 2\nShape \"curve\"",
+    )
+    .unwrap();
+    let s = &loaded.scene;
+    assert_eq!(s.meshes.len(), 1);
+    let sphere = &s.meshes[0];
+    assert_eq!(sphere.triangle_count(), 64 * 32 * 2 - 2 * 64);
+    assert!(sphere.positions.iter().all(|p| ((*p - Vec3::new(0.0, 2.0, 0.0)).length() - 0.5).abs() < 1e-5));
+    assert_eq!(sphere.normals.len(), sphere.positions.len());
+    let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        w,
+        [
+            "test.pbrt:5:1: unsupported shape \"disk\" skipped",
+            "test.pbrt:6:1: unsupported shape \"curve\" skipped"
+        ]
+    );
+}
+
+#[test]
+fn unused_parameters_and_ignored_directives_warn() {
+    let loaded = load_str_warnings(
+        "Camera \"perspective\" \"float fov\" 30 \"float fovv\" 2\nPixelFilter \"gaussian\"\nWorldBegin\n\
+         MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
+    );
+    let w: Vec<String> = loaded.iter().map(|w| w.to_string()).collect();
+    assert_eq!(w[0], "u.pbrt:1:37: Camera \"perspective\": unused parameter \"float fovv\"");
+    assert!(w[1].starts_with("u.pbrt:2:1: pixel filter \"gaussian\" is not supported"), "{w:?}");
+    assert!(w[2].starts_with("u.pbrt:4:1: participating media are not supported"), "{w:?}");
+    assert!(w[3].starts_with("u.pbrt:6:1: TransformBegin/End are deprecated"), "{w:?}");
+    assert!(w[4].starts_with("u.pbrt:5:1: AttributeBegin has no AttributeEnd"), "{w:?}");
+    assert_eq!(w.len(), 5);
+}
+
+fn load_str_warnings(text: &str) -> Vec<atoll_scene::Warning> {
+    atoll_scene::pbrt::load_str(text, "u.pbrt", std::path::Path::new(".")).unwrap().warnings
+}
+
+#[test]
+fn transform_begin_restores_the_graphics_state() {
+    let world =
+        format!("TransformBegin\nTranslate 1 0 0\nMaterial \"dielectric\"\nTransformEnd\n{}", tri(UNIT_TRI));
+    let s = load_world("", &world).unwrap().scene;
+    assert_close(s.meshes[0].positions[0], Vec3::X, 0.0);
+    assert_eq!(s.materials[s.meshes[0].material as usize], Material::default_diffuse());
+}

@@ -1,0 +1,119 @@
+//! `atoll render`.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use atoll_render::{render, CpuDevice, RenderOptions};
+use atoll_scene::IntegratorSettings;
+use clap::Args;
+use glam::UVec2;
+use indicatif::{ProgressBar, ProgressStyle};
+
+use crate::load::load_scene;
+use crate::CliError;
+
+#[derive(Args, Default)]
+pub struct RenderArgs {
+    /// Scene file (.pbrt); the built-in Cornell box when omitted.
+    pub scene: Option<PathBuf>,
+    /// Output image (.exr linear, .png sRGB); default: the scene's Film filename, else atoll.png.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Samples per pixel (overrides the scene).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Resolution WxH (overrides the scene).
+    #[arg(long, value_parser = parse_resolution)]
+    pub res: Option<UVec2>,
+    /// Maximum number of bounces (overrides the scene's path integrator).
+    #[arg(long)]
+    pub max_depth: Option<u32>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Random seed; different seeds give independent images.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+    /// Disable Russian roulette (fixed-length paths).
+    #[arg(long)]
+    pub no_rr: bool,
+    /// Render ambient occlusion instead of the scene's integrator, with this max distance.
+    #[arg(long)]
+    pub ao: Option<f32>,
+    /// Hide the progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+fn parse_resolution(s: &str) -> Result<UVec2, String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 512x512")?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
+    let res = UVec2::new(parse(w)?, parse(h)?);
+    if res.x == 0 || res.y == 0 {
+        return Err("resolution must be at least 1x1".into());
+    }
+    Ok(res)
+}
+
+pub fn run(args: RenderArgs) -> Result<(), CliError> {
+    let scene = load_scene(args.scene.as_deref())?;
+    let mut options = RenderOptions::from_scene(&scene);
+    if let Some(spp) = args.spp {
+        options.spp = spp.max(1);
+    }
+    if let Some(res) = args.res {
+        options.resolution = res;
+    }
+    if let Some(depth) = args.max_depth {
+        options.integrator = IntegratorSettings::Path { max_depth: depth };
+    }
+    if let Some(distance) = args.ao {
+        options.integrator = IntegratorSettings::AmbientOcclusion { max_distance: distance };
+    }
+    options.seed = args.seed;
+    options.russian_roulette = !args.no_rr;
+    let output = args.output.clone().unwrap_or_else(|| {
+        PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
+    });
+    // Refuse a bad output name before spending the render time.
+    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("exr") | Some("png") => {}
+        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
+    }
+
+    let mut device = CpuDevice::new();
+    if let Some(threads) = args.threads {
+        device = device.with_threads(threads.max(1)).map_err(|e| CliError::Runtime(e.to_string()))?;
+    }
+    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
+            .expect("valid template"),
+    );
+    let scene = Arc::new(scene);
+    let out = render(&mut device, &scene, options.clone(), &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
+    bar.finish_and_clear();
+    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    println!(
+        "{}: {}x{} {} spp on {} in {:.2} s (prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
+        output.display(),
+        options.resolution.x,
+        options.resolution.y,
+        options.spp,
+        device_name(&device),
+        out.render_seconds,
+        out.prepare_seconds,
+        out.samples_per_second() / 1e6,
+        out.rays_per_second() / 1e6,
+    );
+    Ok(())
+}
+
+fn device_name(device: &CpuDevice) -> String {
+    use atoll_render::Device;
+    format!("{} ({} threads)", device.name(), device.threads())
+}
