@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release -p atoll-bvh --example bench -- \
-//!     [--triangles 2000000] [--instanced] [--threads 1,2] [--runs 5] [--resolution 1024] [--export DIR]
+//!     [--triangles 2000000] [--instanced] [--threads 1,2] [--runs 5] [--builds 3]
+//!     [--resolution 1024] [--export DIR]
 //! ```
 //! Without `--instanced` the scene is flattened to world-space triangles,
 //! the fair comparison with a single-level Embree scene.
@@ -27,6 +28,7 @@ fn main() {
             "--instanced" => instanced = true,
             "--threads" => opts.threads = value().split(',').map(parse).collect(),
             "--runs" => opts.runs = parse(&value()),
+            "--builds" => opts.builds = parse(&value()),
             "--resolution" => opts.resolution = Some(UVec2::splat(parse(&value()) as u32)),
             "--export" => export = Some(value().into()),
             _ => fail(&format!("unknown argument {arg}")),

@@ -95,8 +95,11 @@ impl TraversalRay {
     pub fn box_entry(&self, min: Vec3A, max: Vec3A, t_max: f32) -> f32 {
         let t0 = min * self.inv_dir - self.origin_inv;
         let t1 = max * self.inv_dir - self.origin_inv;
-        let near = t0.min(t1).max_element().max(0.0);
-        let far = t0.max(t1).min_element().min(t_max);
+        // Plain comparisons rather than f32::max/min, whose NaN rules cost instructions.
+        let near = t0.min(t1).max_element();
+        let near = if near > 0.0 { near } else { 0.0 };
+        let far = t0.max(t1).min_element();
+        let far = if far < t_max { far } else { t_max };
         if near <= far {
             near
         } else {

@@ -111,6 +111,8 @@ impl<L: BvhLayout> Blas<L> {
 #[derive(Clone, Copy, Debug)]
 struct TlasInstance {
     world_to_object: Affine3A,
+    /// Skips transforming rays (the world object's instance is the identity).
+    identity: bool,
     blas: u32,
     /// Index into `scene.instances`.
     instance: u32,
@@ -166,7 +168,8 @@ impl<L: BvhLayout> SceneBvh<L> {
                 let world_to_object = inst.object_to_world.inverse();
                 (blas != u32::MAX && world_to_object.is_finite()).then(|| {
                     let bounds = blases[blas as usize].bvh.bounds().transformed(&inst.object_to_world);
-                    (TlasInstance { world_to_object, blas, instance: i }, bounds)
+                    let identity = inst.object_to_world == Affine3A::IDENTITY;
+                    (TlasInstance { world_to_object, identity, blas, instance: i }, bounds)
                 })
             })
             .collect();
@@ -225,36 +228,48 @@ impl<L: BvhLayout> SceneBvh<L> {
         let world = TraversalRay::new(ray.origin.into(), ray.direction.into());
         let mut t_max = ray.t_max;
         let mut best: Option<RawHit> = None;
-        self.tlas.traverse::<ANY>(&world, &mut t_max, |first, count, t_max| {
-            let mut hit = false;
-            for leaf in first..first + count {
-                let inst = &self.instances[leaf as usize];
-                let blas = &self.blases[inst.blas as usize];
-                // Not normalised: t stays the same in both spaces.
-                let m = &inst.world_to_object;
-                let ray =
-                    TraversalRay::new(m.transform_point3a(world.origin), m.transform_vector3a(world.dir));
-                hit |= blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
-                    let mut hit = false;
-                    for prim in first..first + count {
-                        let tri = &blas.tris[prim as usize];
-                        if let Some((t, u, v)) = tri.intersect(ray.origin, ray.dir, *t_max) {
-                            *t_max = t;
-                            best = Some((t, leaf, prim, u, v));
-                            hit = true;
-                            if ANY {
-                                break;
-                            }
+        let mut visit = |leaf: u32, t_max: &mut f32| {
+            let inst = &self.instances[leaf as usize];
+            let blas = &self.blases[inst.blas as usize];
+            // Not normalised: t stays the same in both spaces.
+            let m = &inst.world_to_object;
+            let ray = if inst.identity {
+                world
+            } else {
+                TraversalRay::new(m.transform_point3a(world.origin), m.transform_vector3a(world.dir))
+            };
+            blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+                let mut hit = false;
+                for prim in first..first + count {
+                    let tri = &blas.tris[prim as usize];
+                    if let Some((t, u, v)) = tri.intersect(ray.origin, ray.dir, *t_max) {
+                        *t_max = t;
+                        best = Some((t, leaf, prim, u, v));
+                        hit = true;
+                        if ANY {
+                            break;
                         }
                     }
-                    hit
-                });
-                if ANY && hit {
-                    break;
                 }
-            }
-            hit
-        });
+                hit
+            })
+        };
+        if self.instances.len() == 1 {
+            // One instance (a scene without instancing): its BLAS root box
+            // culls as well as the TLAS would.
+            visit(0, &mut t_max);
+        } else {
+            self.tlas.traverse::<ANY>(&world, &mut t_max, |first, count, t_max| {
+                let mut hit = false;
+                for leaf in first..first + count {
+                    hit |= visit(leaf, t_max);
+                    if ANY && hit {
+                        break;
+                    }
+                }
+                hit
+            });
+        }
         best
     }
 }

@@ -12,7 +12,7 @@ use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, Wave};
 use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
-use crate::stages::{generate::camera_record, shade::shade};
+use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
 
 /// Records per rayon task: big enough to amortise scheduling.
 const CHUNK: usize = 256;
@@ -34,6 +34,10 @@ pub struct CpuDevice {
     frame: Option<Arc<FrameContext>>,
     paths: Vec<RayRecord>,
     shadows: Vec<RayRecord>,
+    /// Buffers reused across bounces: fresh multi-megabyte allocations per
+    /// stage cost more in page faults than the stage itself.
+    outcomes: Vec<ShadeOutcome>,
+    spare_paths: Vec<RayRecord>,
     film: Film,
     stats: DeviceStats,
 }
@@ -49,6 +53,8 @@ impl CpuDevice {
             frame: None,
             paths: Vec::new(),
             shadows: Vec::new(),
+            outcomes: Vec::new(),
+            spare_paths: Vec::new(),
             film: Film::new(glam::UVec2::ZERO),
             stats: DeviceStats::default(),
         }
@@ -171,11 +177,8 @@ impl Device for CpuDevice {
         let bvh = self.run(|| SceneBvh::build(scene));
         let build = start.elapsed().as_secs_f64();
         let bvh_stats = bvh.stats();
-        let normal_to_world = scene
-            .instances
-            .iter()
-            .map(|i| Mat3A::from(i.object_to_world.matrix3).inverse().transpose())
-            .collect();
+        let normal_to_world =
+            scene.instances.iter().map(|i| i.object_to_world.matrix3.inverse().transpose()).collect();
         self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
         self.film = Film::new(frame.options.resolution);
         self.frame = Some(frame.clone());
@@ -193,12 +196,13 @@ impl Device for CpuDevice {
     fn generate(&mut self, wave: &Wave) {
         let start = Instant::now();
         let frame = self.frame().clone();
-        let paths = self.run(|| {
+        let mut paths = std::mem::take(&mut self.paths);
+        self.run(|| {
             (wave.first_pixel..wave.first_pixel + wave.pixel_count)
                 .into_par_iter()
                 .with_min_len(CHUNK)
                 .map(|pixel| camera_record(&frame, pixel, wave.sample))
-                .collect()
+                .collect_into_vec(&mut paths)
         });
         self.paths = paths;
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
@@ -223,20 +227,32 @@ impl Device for CpuDevice {
     fn shade(&mut self) {
         let start = Instant::now();
         let frame = self.frame().clone();
-        let outcomes: Vec<_> =
-            self.run(|| self.paths.par_iter().with_min_len(CHUNK).map(|r| shade(&frame, r)).collect());
-        // Applied in queue order: each pixel appears once per wave, so this
-        // is deterministic whatever the thread count.
-        let mut next = Vec::with_capacity(self.paths.len());
-        self.shadows.clear();
+        let mut outcomes = std::mem::take(&mut self.outcomes);
+        self.run(|| {
+            self.paths
+                .par_iter()
+                .with_min_len(CHUNK)
+                .map(|r| shade(&frame, r))
+                .collect_into_vec(&mut outcomes)
+        });
+        // Film updates and queue compaction keep queue order: each pixel
+        // appears once per wave, so the image is the same for any thread count.
         for (r, o) in self.paths.iter().zip(&outcomes) {
             if o.emitted != Vec3::ZERO {
                 self.film.add(r.pixel, o.emitted);
             }
-            self.shadows.extend(o.shadow);
-            next.extend(o.next);
         }
-        self.paths = next;
+        let mut next = std::mem::take(&mut self.spare_paths);
+        let mut shadows = std::mem::take(&mut self.shadows);
+        next.clear();
+        shadows.clear();
+        self.run(|| {
+            next.par_extend(outcomes.par_iter().with_min_len(CHUNK).filter_map(|o| o.next));
+            shadows.par_extend(outcomes.par_iter().with_min_len(CHUNK).filter_map(|o| o.shadow));
+        });
+        self.shadows = shadows;
+        self.outcomes = outcomes;
+        self.spare_paths = std::mem::replace(&mut self.paths, next);
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
     }
 

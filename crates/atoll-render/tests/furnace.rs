@@ -53,8 +53,7 @@ fn sphere(material: u32) -> TriangleMesh {
 }
 
 fn scene_with(meshes: Vec<TriangleMesh>, materials: Vec<Material>, eye: Vec3, target: Vec3) -> Scene {
-    let mut scene = Scene::default();
-    scene.materials = materials;
+    let mut scene = Scene { materials, ..Default::default() };
     let ids = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
     let object = scene.add_object(Object { name: "world".into(), meshes: ids });
     scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });

@@ -104,6 +104,7 @@ fn builtin_cornell_box_equals_the_shared_diffuse_scene() {
     let shared = load_file(&shared_scene("cbox/diffuse/scene.pbrt")).unwrap().scene;
     let mut settings = shared.settings.clone();
     settings.film.filename = None;
+    settings.spp = 64;
     assert_eq!(builtin.settings, settings);
     assert_eq!(builtin.meshes.len(), shared.meshes.len());
     for (b, s) in builtin.meshes.iter().zip(&shared.meshes) {

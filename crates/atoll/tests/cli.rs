@@ -1,0 +1,113 @@
+//! The `atoll` binary end to end: outputs, exit codes and error messages.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn atoll(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
+}
+
+/// A fresh scratch directory per test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("atoll-cli-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn shared(rel: &str) -> String {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes").join(rel).display().to_string()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn renders_builtin_box_to_default_png() {
+    let dir = scratch("default");
+    let out = atoll(&dir, &["render", "--spp", "1", "--res", "24x16", "--quiet"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("M samples/s") && stdout.contains("M rays/s"), "summary line: {stdout}");
+    let png = std::fs::read(dir.join("atoll.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+}
+
+#[test]
+fn writes_linear_exr_with_the_light_radiance() {
+    let dir = scratch("exr");
+    let scene = shared("cbox/diffuse/scene.pbrt");
+    let out = atoll(&dir, &["render", &scene, "--spp", "2", "--res", "32x32", "-o", "out.exr", "--quiet"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        dir.join("out.exr"),
+        |res, _| (res.width(), Vec::<[f32; 3]>::with_capacity(res.width() * res.height())),
+        |(_, px): &mut (usize, Vec<[f32; 3]>), _pos, (r, g, b, _a): (f32, f32, f32, f32)| px.push([r, g, b]),
+    )
+    .unwrap();
+    let pixels = &image.layer_data.channel_data.pixels.1;
+    assert_eq!(pixels.len(), 32 * 32);
+    // The brightest pixels look straight at the light: exactly its radiance.
+    let max_red = pixels.iter().map(|p| p[0]).fold(0.0, f32::max);
+    assert_eq!(max_red, 17.0);
+}
+
+#[test]
+fn info_reports_counts() {
+    let dir = scratch("info");
+    let out = atoll(&dir, &["info", &shared("cbox/spec/scene.pbrt")]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("20504 unique"), "{stdout}");
+    assert!(stdout.contains("SAH cost"), "{stdout}");
+}
+
+/// Each malformed scene: exit code 2, a `file:line:` message, no panic, and
+/// an image already at the output path left untouched.
+#[test]
+fn malformed_scenes_exit_2_with_location() {
+    let dir = scratch("malformed");
+    let cases: &[(&str, &str, &str)] = &[
+        (
+            "truncated.pbrt",
+            "WorldBegin\nShape \"trianglemesh\" \"point3 P\" [ 0 0 0 1 0",
+            "truncated.pbrt:2:",
+        ),
+        (
+            "badnumber.pbrt",
+            "Camera \"perspective\"\n  \"float fov\" [ 3x.5 ]\nWorldBegin\n",
+            "badnumber.pbrt:2:",
+        ),
+        (
+            "missingply.pbrt",
+            "WorldBegin\n\nShape \"plymesh\" \"string filename\" \"nope.ply\"\n",
+            "missingply.pbrt:3:",
+        ),
+        ("unknownmat.pbrt", "WorldBegin\nNamedMaterial \"gold\"\nShape \"sphere\"\n", "unknownmat.pbrt:2:"),
+        ("cycle_a.pbrt", "WorldBegin\nInclude \"cycle_b.pbrt\"\n", "cycle_b.pbrt:1:"),
+    ];
+    std::fs::write(dir.join("cycle_b.pbrt"), "Include \"cycle_a.pbrt\"\n").unwrap();
+    std::fs::write(dir.join("keep.png"), b"precious").unwrap();
+    for (file, text, location) in cases {
+        std::fs::write(dir.join(file), text).unwrap();
+        let out = atoll(&dir, &["render", file, "-o", "keep.png", "--spp", "1", "--quiet"]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{file}: {err}");
+        assert!(err.contains(location), "{file}: expected {location} in {err}");
+        assert!(!err.contains("panicked"), "{file}: {err}");
+        assert_eq!(std::fs::read(dir.join("keep.png")).unwrap(), b"precious");
+    }
+}
+
+#[test]
+fn bad_arguments_exit_2() {
+    let dir = scratch("args");
+    let out = atoll(&dir, &["render", "--res", "0x5"]);
+    assert_eq!(out.status.code(), Some(2));
+    let out = atoll(&dir, &["render", "-o", "image.tga"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("image.tga"));
+    let out = atoll(&dir, &["render", "scene.xyz"]);
+    assert_eq!(out.status.code(), Some(2));
+}
