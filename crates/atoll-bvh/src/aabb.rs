@@ -6,7 +6,9 @@ use glam::{Affine3A, Vec3, Vec3A};
 /// growing it by anything gives that thing.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
+    /// Smallest corner.
     pub min: Vec3A,
+    /// Largest corner.
     pub max: Vec3A,
 }
 
@@ -25,6 +27,7 @@ impl Aabb {
         points.into_iter().fold(Self::EMPTY, |b, p| b.grow_point(p.into()))
     }
 
+    /// This box grown to contain `p`.
     #[inline]
     pub fn grow_point(self, p: Vec3A) -> Self {
         Aabb { min: self.min.min(p), max: self.max.max(p) }

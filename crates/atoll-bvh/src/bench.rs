@@ -19,7 +19,7 @@ use atoll_scene::Scene;
 use glam::{UVec2, Vec3};
 use rayon::prelude::*;
 
-use crate::{Bvh2, Bvh4Cpu, BvhLayout, Hit, Ray, SceneBvh, SceneBvhStats};
+use crate::{Bvh2, Bvh4Cpu, BvhLayout, Hit, Ray, SceneBvh, SceneBvhStats, ScenePart};
 
 /// What to measure and how often.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,20 +45,24 @@ impl Default for BenchOptions {
 /// Build speed and size of one layout.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildResult {
+    /// [`BvhLayout::NAME`] of the layout built.
     pub layout: &'static str,
     /// Median wall-clock build time.
     pub build_ms: f64,
     /// Triangles built (each stored triangle once) per second, in millions.
     pub mtris_per_s: f64,
+    /// Sizes and quality of the last build.
     pub stats: SceneBvhStats,
 }
 
 /// One timed traversal: a batch, a layout, a thread count.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Measurement {
+    /// [`BvhLayout::NAME`] of the layout traced.
     pub layout: &'static str,
     /// Threads actually used.
     pub threads: usize,
+    /// Rays per second (median run), in millions.
     pub mrays_per_s: f64,
     /// Rays that hit (closest-hit batches) or were occluded (shadow).
     pub hits: usize,
@@ -67,10 +71,13 @@ pub struct Measurement {
 /// All measurements of one ray batch.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BatchResult {
+    /// `primary`, `shadow` or `diffuse`.
     pub name: &'static str,
     /// `intersect` or `occluded`.
     pub query: &'static str,
+    /// Rays in the batch.
     pub rays: usize,
+    /// One per layout and thread count.
     pub measurements: Vec<Measurement>,
 }
 
@@ -86,17 +93,24 @@ impl BatchResult {
 pub struct BenchReport {
     /// Triangles as rays see them (instanced).
     pub triangles: u64,
+    /// Instances in the scene.
     pub instances: usize,
+    /// Primary rays per axis.
     pub resolution: UVec2,
+    /// One per layout.
     pub builds: Vec<BuildResult>,
+    /// Primary, shadow and diffuse.
     pub batches: Vec<BatchResult>,
 }
 
 /// The three ray batches.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RayBatches {
+    /// One per pixel, row by row from the top left.
     pub primary: Vec<Ray>,
+    /// One per primary hit (occlusion queries).
     pub shadow: Vec<Ray>,
+    /// One per primary hit (closest-hit queries).
     pub diffuse: Vec<Ray>,
 }
 
@@ -141,10 +155,11 @@ pub fn run_traversal_bench(scene: &Scene, opts: &BenchOptions) -> BenchReport {
 /// Builds `builds` times (at least once) and keeps the last BVH.
 fn timed_build<L: BvhLayout>(scene: &Scene, builds: usize) -> (BuildResult, SceneBvh<L>) {
     let mut times = Vec::new();
-    let mut bvh = SceneBvh::<L>::build(scene);
+    let whole = ScenePart::whole(scene);
+    let mut bvh = SceneBvh::<L>::build_layout(scene, &whole);
     times.push(bvh.stats().build_ms);
     for _ in 1..builds {
-        bvh = SceneBvh::<L>::build(scene);
+        bvh = SceneBvh::<L>::build_layout(scene, &whole);
         times.push(bvh.stats().build_ms);
     }
     let build_ms = median(times);
@@ -293,7 +308,7 @@ pub fn export_bench_data(scene: &Scene, opts: &BenchOptions, dir: &Path) -> io::
         }
     }
     write_f32(&dir.join("triangles.f32"), bytemuck::cast_slice(&triangles))?;
-    let rays = generate_rays(scene, &SceneBvh::<Bvh4Cpu>::build(scene), opts);
+    let rays = generate_rays(scene, &SceneBvh::build(scene), opts);
     for (name, batch) in [("primary", &rays.primary), ("shadow", &rays.shadow), ("diffuse", &rays.diffuse)] {
         write_f32(&dir.join(format!("{name}.f32")), bytemuck::cast_slice(batch))?;
     }

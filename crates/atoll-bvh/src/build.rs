@@ -39,39 +39,58 @@ pub enum SplitMethod {
 
 /// Builder settings. The SAH cost of a tree is
 /// `sum over interior nodes of traversal_cost * area(node)` plus
-/// `sum over leaves of intersection_cost * count * area(leaf)`,
-/// divided by the root's area.
+/// `sum over leaves of intersection_cost * blocks(count) * area(leaf)`,
+/// divided by the root's area, where `blocks(n) = ceil(n / block)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {
+    /// How split planes are chosen.
     pub split: SplitMethod,
     /// Bins per axis (2..=[`MAX_BINS`]).
     pub bins: usize,
     /// Leaves never hold more primitives than this.
     pub max_leaf: u32,
+    /// Primitives tested together (a [`crate::Tri4`] block holds 4; a power
+    /// of two): a leaf costs one intersection per started block.
+    pub block: u32,
     /// SAH cost of visiting a node: its box tests and the stack work.
     pub traversal_cost: f32,
-    /// SAH cost of one primitive test.
+    /// SAH cost of one block test.
     pub intersection_cost: f32,
 }
 
 impl BuildOptions {
-    /// Triangle BVHs. A Möller–Trumbore test costs about as much as visiting a
-    /// node (a box test plus ordering and stack work), hence equal costs;
-    /// the SAH then stops splitting at about 2–4 triangles.
+    /// Triangle BVHs with [`crate::Tri4`] leaves. A 4-wide triangle test costs
+    /// about as much as a node visit (a 4-wide box test plus ordering and
+    /// stack work), hence equal costs; leaves then hold 2–4 triangles, rarely
+    /// more than one block.
     pub const TRIANGLES: BuildOptions = BuildOptions {
         split: SplitMethod::BinnedSah,
         bins: 16,
         max_leaf: 8,
+        block: 4,
         traversal_cost: 1.0,
         intersection_cost: 1.0,
     };
 
     /// Instance BVHs: "intersecting" an instance means a whole bottom-level
     /// traversal, so every instance gets its own leaf.
-    pub const INSTANCES: BuildOptions = BuildOptions { max_leaf: 1, bins: 32, ..Self::TRIANGLES };
+    pub const INSTANCES: BuildOptions = BuildOptions { max_leaf: 1, block: 1, bins: 32, ..Self::TRIANGLES };
+
+    /// The constants the reported SAH costs use ([`crate::BvhStats`]): the
+    /// conventional per-primitive SAH (traversal and intersection cost 1,
+    /// one intersection per primitive), comparable across builders, layouts
+    /// and devices whatever block size a build optimised for.
+    pub const METRIC: BuildOptions = BuildOptions { block: 1, ..Self::TRIANGLES };
 
     /// Same leaves, median splits: fast to build, worse to trace.
     pub const QUICK: BuildOptions = BuildOptions { split: SplitMethod::Median, ..Self::TRIANGLES };
+
+    /// Block tests a leaf of `count` primitives costs (`block` is a power
+    /// of two: a shift, not a division, in the builder's inner loop).
+    #[inline(always)]
+    pub fn blocks(&self, count: u32) -> f32 {
+        ((count + self.block - 1) >> self.block.trailing_zeros()) as f32
+    }
 }
 
 /// One primitive's box with its index in the builder's input (32 bytes).
@@ -111,6 +130,7 @@ impl Bvh2 {
     pub fn build(prims: &[Aabb], options: &BuildOptions) -> Bvh2 {
         let start = Instant::now();
         assert!((2..=MAX_BINS).contains(&options.bins) && options.max_leaf >= 1);
+        assert!(options.block.is_power_of_two(), "blocks of {} primitives", options.block);
         assert!(prims.len() < (u32::MAX / 2) as usize, "too many primitives for u32 node indices");
         if prims.is_empty() {
             return Bvh2 { nodes: Vec::new(), prim_order: Vec::new(), build_ms: 0.0 };
@@ -135,6 +155,29 @@ impl Bvh2 {
 struct Bounds {
     prims: Aabb,
     centroids: Aabb,
+}
+
+impl Bvh2 {
+    /// Moves every leaf's range to start at a multiple of `block`, so leaves
+    /// are runs of whole blocks (e.g. of [`crate::Tri4`]). Padding slots get
+    /// `u32::MAX` in [`Bvh2::prim_order`]; leaves keep their depth-first order.
+    pub fn align_leaves(&mut self, block: u32) {
+        let mut order = Vec::with_capacity(self.prim_order.len() * 3 / 2);
+        let mut todo = if self.nodes.is_empty() { vec![] } else { vec![0usize] };
+        while let Some(i) = todo.pop() {
+            let node = &mut self.nodes[i];
+            if node.is_leaf() {
+                let old = node.left_or_first as usize..(node.left_or_first + node.count) as usize;
+                node.left_or_first = order.len() as u32;
+                order.extend_from_slice(&self.prim_order[old]);
+                order.resize(order.len().next_multiple_of(block as usize), u32::MAX);
+            } else {
+                let left = node.left_or_first as usize;
+                todo.extend([left + 1, left]);
+            }
+        }
+        self.prim_order = order;
+    }
 }
 
 /// Builds the subtree over `refs` (primitives `first..` of the final order)
@@ -218,14 +261,14 @@ fn split(
     }
     // More bins than about twice the primitives buys nothing.
     let binning = Binning::new(o.bins.min(2 * n), &bounds.centroids);
-    let Some(best) = best_sah_split(&binning, refs, &bounds.centroids) else {
+    let Some(best) = best_sah_split(o, &binning, refs, &bounds.centroids) else {
         // All centroids coincide: nothing to choose, halve if too many.
         return (!may_be_leaf).then(|| halve(refs, n / 2));
     };
     // Compare unnormalised costs (times the node's area): a flat node has
     // area 0, where both sides are 0 and a leaf wins.
     let area = bounds.prims.area();
-    let leaf_cost = o.intersection_cost * n as f32 * area;
+    let leaf_cost = o.intersection_cost * o.blocks(n as u32) * area;
     let split_cost = o.traversal_cost * area + o.intersection_cost * best.cost;
     if may_be_leaf && leaf_cost <= split_cost {
         return None;
@@ -259,52 +302,65 @@ struct Binning {
 impl Binning {
     fn new(bins: usize, centroids: &Aabb) -> Self {
         let extent = centroids.max - centroids.min;
-        // Slightly less than bins/extent so the largest centroid lands in the
-        // last bin, not one past it; axes without extent map to bin 0.
-        let scale = Vec3A::select(
-            extent.cmpgt(Vec3A::ZERO),
-            Vec3A::splat(bins as f32 * (1.0 - 1e-5)) / extent,
-            Vec3A::ZERO,
-        );
+        // Bin i holds what rounds to i after scaling the centroid range to
+        // [0, bins - 1] (the end bins are half as wide); axes without extent
+        // map to bin 0.
+        let scale =
+            Vec3A::select(extent.cmpgt(Vec3A::ZERO), Vec3A::splat((bins - 1) as f32) / extent, Vec3A::ZERO);
         Binning { bins, origin: centroids.min, scale, last: Vec3A::splat((bins - 1) as f32) }
     }
 
+    /// Per axis, the bin of a doubled centroid. Rounds by adding 2^23, which
+    /// leaves the nearest integer in the low mantissa bits: no float-to-int
+    /// conversions, which cost more than the rest of the binning.
     #[inline(always)]
     fn bin(&self, centroid2: Vec3A) -> [usize; 3] {
-        let b = ((centroid2 - self.origin) * self.scale).min(self.last).max(Vec3A::ZERO).as_uvec3();
-        [b.x as usize, b.y as usize, b.z as usize]
+        let x = ((centroid2 - self.origin) * self.scale).min(self.last).max(Vec3A::ZERO);
+        let bits: [u32; 4] = bytemuck::cast(x + Vec3A::splat(8_388_608.0));
+        // The mask also proves to the compiler that indices are in range.
+        [0, 1, 2].map(|axis| (bits[axis] & 0x7f_ffff) as usize & (MAX_BINS - 1))
     }
 
-    /// Per axis and bin, the count and box of `refs`: bin `i` of axis `a` is
-    /// at `a * bins + i`.
-    fn fill(&self, refs: &[PrimRef]) -> Vec<Bin> {
-        let mut bins = vec![Bin::EMPTY; 3 * self.bins];
+    /// Per axis and bin, the count and box of `refs`.
+    fn fill(&self, refs: &[PrimRef]) -> Bins {
+        let mut bins = Bins::EMPTY;
         for r in refs {
             let b = self.bin(r.centroid2());
             let aabb = r.aabb();
             for (axis, &i) in b.iter().enumerate() {
-                let bin = &mut bins[axis * self.bins + i];
-                bin.count += 1;
-                bin.bounds = bin.bounds.union(aabb);
+                bins.count[axis][i] += 1;
+                bins.bounds[axis][i] = bins.bounds[axis][i].union(aabb);
             }
         }
         bins
     }
 }
 
+/// Per axis and bin: primitive count and box (3.4 KB, on the stack: cheaper
+/// to clear than to allocate per node).
 #[derive(Clone, Copy)]
-struct Bin {
-    bounds: Aabb,
-    count: u32,
+struct Bins {
+    count: [[u32; MAX_BINS]; 3],
+    bounds: [[Aabb; MAX_BINS]; 3],
 }
 
-impl Bin {
-    const EMPTY: Bin = Bin { bounds: Aabb::EMPTY, count: 0 };
+impl Bins {
+    const EMPTY: Bins = Bins { count: [[0; MAX_BINS]; 3], bounds: [[Aabb::EMPTY; MAX_BINS]; 3] };
+
+    fn merge(mut self, other: Bins) -> Bins {
+        for axis in 0..3 {
+            for i in 0..MAX_BINS {
+                self.count[axis][i] += other.count[axis][i];
+                self.bounds[axis][i] = self.bounds[axis][i].union(other.bounds[axis][i]);
+            }
+        }
+        self
+    }
 }
 
 /// The chosen split: between bins `bin` and `bin + 1` of `axis`.
 struct Best {
-    /// Sum over both sides of area times primitive count.
+    /// Sum over both sides of area times block count.
     cost: f32,
     axis: usize,
     bin: usize,
@@ -313,58 +369,47 @@ struct Best {
 }
 
 /// The cheapest split plane over all axes and bin boundaries.
-fn best_sah_split(binning: &Binning, refs: &[PrimRef], centroids: &Aabb) -> Option<Best> {
+fn best_sah_split(o: &BuildOptions, binning: &Binning, refs: &[PrimRef], centroids: &Aabb) -> Option<Best> {
     let bins = if refs.len() >= PARALLEL_BINNING {
-        refs.par_chunks(CHUNK).map(|c| binning.fill(c)).reduce_with(|mut a, b| {
-            for (x, y) in a.iter_mut().zip(b) {
-                *x = Bin { bounds: x.bounds.union(y.bounds), count: x.count + y.count };
-            }
-            a
-        })?
+        refs.par_chunks(CHUNK).map(|c| binning.fill(c)).reduce(|| Bins::EMPTY, Bins::merge)
     } else {
         binning.fill(refs)
     };
     let nb = binning.bins;
-    let mut best: Option<(f32, usize, usize)> = None;
+    let (mut best_cost, mut best_axis, mut best_bin) = (f32::INFINITY, 0, usize::MAX);
     for axis in 0..3 {
         if centroids.max[axis] <= centroids.min[axis] {
             continue;
         }
-        let bins = &bins[axis * nb..(axis + 1) * nb];
+        let (counts, boxes) = (&bins.count[axis], &bins.bounds[axis]);
         // Sweep from the right, recording the right side of each boundary...
         let mut right_cost = [0.0f32; MAX_BINS];
         let mut right_count = [0u32; MAX_BINS];
         let (mut acc, mut count) = (Aabb::EMPTY, 0);
         for i in (1..nb).rev() {
-            acc = acc.union(bins[i].bounds);
-            count += bins[i].count;
-            right_cost[i - 1] = acc.area() * count as f32;
+            acc = acc.union(boxes[i]);
+            count += counts[i];
+            right_cost[i - 1] = acc.area() * o.blocks(count);
             right_count[i - 1] = count;
         }
         // ...then from the left, combining.
         let (mut acc, mut count) = (Aabb::EMPTY, 0);
         for i in 0..nb - 1 {
-            acc = acc.union(bins[i].bounds);
-            count += bins[i].count;
-            if count == 0 || right_count[i] == 0 {
-                continue;
-            }
-            let cost = acc.area() * count as f32 + right_cost[i];
-            if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, i));
+            acc = acc.union(boxes[i]);
+            count += counts[i];
+            let cost = acc.area() * o.blocks(count) + right_cost[i];
+            if count > 0 && right_count[i] > 0 && cost < best_cost {
+                (best_cost, best_axis, best_bin) = (cost, axis, i);
             }
         }
     }
-    let (cost, axis, bin) = best?;
-    let side =
-        |range: std::ops::Range<usize>| bins[range].iter().fold(Aabb::EMPTY, |b, bin| b.union(bin.bounds));
-    Some(Best {
-        cost,
-        axis,
-        bin,
-        left: side(axis * nb..axis * nb + bin + 1),
-        right: side(axis * nb + bin + 1..(axis + 1) * nb),
-    })
+    if best_bin == usize::MAX {
+        return None;
+    }
+    let boxes = &bins.bounds[best_axis];
+    let side = |range: std::ops::Range<usize>| boxes[range].iter().fold(Aabb::EMPTY, |b, &a| b.union(a));
+    let (left, right) = (side(0..best_bin + 1), side(best_bin + 1..nb));
+    Some(Best { cost: best_cost, axis: best_axis, bin: best_bin, left, right })
 }
 
 /// Moves the elements satisfying `left` to the front; returns their count

@@ -28,11 +28,13 @@ impl Bvh2Node {
         Bvh2Node { min: b.min.into(), left_or_first, max: b.max.into(), count }
     }
 
+    /// The node's box.
     #[inline(always)]
     pub fn aabb(&self) -> Aabb {
         Aabb { min: Vec3A::from_array(self.min), max: Vec3A::from_array(self.max) }
     }
 
+    /// Whether the node holds primitives rather than children.
     #[inline(always)]
     pub fn is_leaf(&self) -> bool {
         self.count > 0
@@ -43,6 +45,7 @@ impl Bvh2Node {
 /// root is node 0. Empty when built over no primitives.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh2 {
+    /// The nodes; the root is node 0.
     pub nodes: Vec<Bvh2Node>,
     /// For each position in leaf order, the index of the builder's input
     /// primitive stored there: callers permute their primitive data by it.
@@ -62,7 +65,7 @@ impl Bvh2 {
             .map(|n| {
                 let per_area = match n.count {
                     0 => options.traversal_cost,
-                    c => options.intersection_cost * c as f32,
+                    c => options.intersection_cost * options.blocks(c),
                 };
                 (per_area * n.aabb().area()) as f64
             })
@@ -97,12 +100,12 @@ impl BvhLayout for Bvh2 {
         self.nodes.first().map_or(Aabb::EMPTY, Bvh2Node::aabb)
     }
 
-    fn stats(&self) -> BvhStats {
+    fn stats(&self, options: &BuildOptions) -> BvhStats {
         BvhStats {
             nodes: self.nodes.len(),
             leaves: self.nodes.iter().filter(|n| n.is_leaf()).count(),
             max_depth: self.max_depth(),
-            sah_cost: self.sah_cost(&BuildOptions::TRIANGLES),
+            sah_cost: self.sah_cost(options),
             build_ms: 0.0,
             bytes: std::mem::size_of_val(&self.nodes[..]),
         }

@@ -3,7 +3,7 @@
 //! is tested against four boxes with a handful of 4-wide SIMD operations
 //! (glam's `Vec4` is an SSE register on x86-64 and a NEON one on aarch64).
 
-use glam::{Vec3A, Vec4};
+use glam::{BVec4A, Vec3A, Vec4};
 
 use crate::layout::{BvhLayout, BvhStats, Stack, TraversalRay, MAX_DEPTH};
 use crate::{Aabb, BuildOptions, Bvh2};
@@ -55,24 +55,22 @@ impl Bvh4CpuNode {
 /// primitives keep the order of the [`Bvh2`] this was collapsed from.
 #[derive(Clone, Debug, Default)]
 pub struct Bvh4Cpu {
+    /// The nodes; the root is node 0.
     pub nodes: Vec<Bvh4CpuNode>,
     /// The root's box (the root node stores only its children's).
     pub bounds: Aabb,
 }
 
-/// The hit lanes (set bits of `mask`) sorted by entry distance, nearest
-/// first, each as one `u32`: the distance's bits with the lane in the two
-/// lowest. Entry distances are never negative, so their bits order like the
-/// floats, and dropping two mantissa bits only rounds them down (a popped
-/// entry is then at worst visited when it could have been skipped). Misses
-/// sort last. A 5-comparator network: branch-free, no loops.
+/// The hit lanes sorted by entry distance, nearest first, each as one
+/// `u32`: the distance's bits with the lane in the two lowest. Entry
+/// distances are never negative, so their bits order like the floats, and
+/// dropping two mantissa bits only rounds them down (a popped entry is then
+/// at worst visited when it could have been skipped). Missed lanes get an
+/// infinite distance and sort last. A 5-comparator network: no branches.
 #[inline(always)]
-fn sort_keys(t_near: Vec4, mask: u32) -> [u32; 4] {
-    let bits = t_near.to_array().map(f32::to_bits);
-    let mut k: [u32; 4] =
-        std::array::from_fn(
-            |lane| if mask >> lane & 1 != 0 { (bits[lane] & !3) | lane as u32 } else { u32::MAX },
-        );
+fn sort_keys(t_near: Vec4, hit: BVec4A) -> [u32; 4] {
+    let dist = Vec4::select(hit, t_near, Vec4::INFINITY).to_array();
+    let mut k: [u32; 4] = std::array::from_fn(|lane| (dist[lane].to_bits() & !3) | lane as u32);
     for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
         let (lo, hi) = (k[a].min(k[b]), k[a].max(k[b]));
         (k[a], k[b]) = (lo, hi);
@@ -139,8 +137,7 @@ impl BvhLayout for Bvh4Cpu {
         self.bounds
     }
 
-    fn stats(&self) -> BvhStats {
-        let o = BuildOptions::TRIANGLES;
+    fn stats(&self, o: &BuildOptions) -> BvhStats {
         let mut s = BvhStats { nodes: self.nodes.len(), ..Default::default() };
         if self.nodes.is_empty() {
             return s;
@@ -154,7 +151,7 @@ impl BvhLayout for Bvh4Cpu {
                 let area = n.lane(lane).area();
                 if n.count[lane] > 0 {
                     s.leaves += 1;
-                    cost += (o.intersection_cost * n.count[lane] as f32 * area) as f64;
+                    cost += (o.intersection_cost * o.blocks(n.count[lane]) * area) as f64;
                 } else if !n.lane(lane).is_empty() {
                     cost += (o.traversal_cost * area) as f64;
                     todo.push((n.child[lane] as usize, depth + 1));
@@ -201,7 +198,8 @@ impl BvhLayout for Bvh4Cpu {
                 let t_near = slab(near[0], 0).max(slab(near[1], 1)).max(slab(near[2], 2).max(Vec4::ZERO));
                 let t_far =
                     slab(far[0], 0).min(slab(far[1], 1)).min(slab(far[2], 2).min(Vec4::splat(*t_max)));
-                let mask = t_near.cmple(t_far).bitmask();
+                let hit_lanes = t_near.cmple(t_far);
+                let mask = hit_lanes.bitmask();
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
                     if mask & (mask - 1) == 0 {
@@ -210,7 +208,7 @@ impl BvhLayout for Bvh4Cpu {
                     }
                     // Several children: sort them near to far, visit the
                     // nearest next and push the others farthest first.
-                    let keys = sort_keys(t_near, mask);
+                    let keys = sort_keys(t_near, hit_lanes);
                     for &key in keys[1..mask.count_ones() as usize].iter().rev() {
                         let lane = (key & 3) as usize;
                         stack.push((node.child[lane], node.count[lane], f32::from_bits(key & !3)));

@@ -5,7 +5,7 @@ use std::mem::MaybeUninit;
 
 use glam::Vec3A;
 
-use crate::{Aabb, Bvh2};
+use crate::{Aabb, BuildOptions, Bvh2};
 
 /// Deepest tree the builders make (they switch to median splits below
 /// [`crate::build::SAH_DEPTH_LIMIT`], which bounds the depth by 32 + log2(n)).
@@ -37,8 +37,9 @@ pub trait BvhLayout: Send + Sync + Sized + 'static {
     /// The box of everything in the tree (`Aabb::EMPTY` when empty).
     fn bounds(&self) -> Aabb;
 
-    /// Node counts, depth, SAH cost and node bytes (`build_ms` left 0).
-    fn stats(&self) -> BvhStats;
+    /// Node counts, depth, SAH cost (with the constants of `options`) and
+    /// node bytes (`build_ms` left 0).
+    fn stats(&self, options: &BuildOptions) -> BvhStats;
 }
 
 /// Size and quality of one BVH.
@@ -50,7 +51,8 @@ pub struct BvhStats {
     pub leaves: usize,
     /// Longest root-to-leaf path in nodes (a lone leaf root has depth 1).
     pub max_depth: u32,
-    /// SAH cost with the builder's constants, relative to the root's area.
+    /// SAH cost, relative to the root's area ([`BuildOptions::METRIC`] in
+    /// [`crate::SceneBvhStats`]).
     pub sah_cost: f32,
     /// Build time including conversion to this layout.
     pub build_ms: f64,
@@ -63,8 +65,11 @@ pub struct BvhStats {
 /// makes a NaN), and per axis whether the ray goes towards negative values.
 #[derive(Clone, Copy, Debug)]
 pub struct TraversalRay {
+    /// Where the ray starts.
     pub origin: Vec3A,
+    /// Its direction (not normalised).
     pub dir: Vec3A,
+    /// `1 / dir` per component, with tiny components replaced (see [`TraversalRay::new`]).
     pub inv_dir: Vec3A,
     /// `origin * inv_dir`, so a slab distance is one multiply and one subtract.
     pub origin_inv: Vec3A,
@@ -73,6 +78,7 @@ pub struct TraversalRay {
 }
 
 impl TraversalRay {
+    /// Prepares a ray for box tests.
     #[inline]
     pub fn new(origin: Vec3A, dir: Vec3A) -> Self {
         // Components below 1e-20 become +-1e-20: inv_dir stays finite (so no

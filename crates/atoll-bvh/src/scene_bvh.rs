@@ -8,12 +8,16 @@ use atoll_scene::{MeshId, ObjectId, Scene};
 use glam::Affine3A;
 use rayon::prelude::*;
 
-use crate::{Aabb, BuildOptions, Bvh2, Bvh4Cpu, BvhLayout, BvhStats, Hit, Ray, TraversalRay, TriAccel};
+use crate::{
+    Aabb, BuildOptions, Bvh2, Bvh4Cpu, BvhLayout, BvhStats, Hit, Ray, Ray4, TraversalRay, Tri4, TriAccel,
+};
 
 /// Some triangles of one mesh.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MeshRange {
+    /// Index into `scene.meshes`.
     pub mesh: MeshId,
+    /// Triangle indices within the mesh.
     pub triangles: Range<u32>,
 }
 
@@ -23,8 +27,9 @@ pub struct MeshRange {
 pub struct ScenePart {
     /// Indices into `scene.instances` to include.
     pub instances: Vec<u32>,
-    /// Objects included only in part, with the triangle ranges to keep (their
-    /// meshes not listed are left out). Unlisted objects are included whole.
+    /// Objects included only in part, with the triangle ranges to keep (of
+    /// the object's own meshes; meshes not listed are left out), for every
+    /// instance of the object in the part. Unlisted objects are included whole.
     pub object_subsets: Vec<(ObjectId, Vec<MeshRange>)>,
 }
 
@@ -50,11 +55,13 @@ impl ScenePart {
 /// Sizes and build times of both levels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SceneBvhStats {
+    /// The instance level.
     pub tlas: BvhStats,
-    /// All BLASes together: counts, bytes and build times summed (the
-    /// builds overlap, so `build_ms` is CPU time, not wall time), depth the
-    /// deepest, SAH cost the mean weighted by triangle count.
+    /// All BLASes together: counts, bytes and build times summed (BLASes
+    /// build concurrently, so the summed `build_ms` may exceed the wall
+    /// time), depth the deepest, SAH cost the mean weighted by triangle count.
     pub blas: BvhStats,
+    /// Objects with a BLAS (those with triangles in the part).
     pub blas_count: usize,
     /// Instances in the TLAS.
     pub instances: usize,
@@ -68,17 +75,18 @@ pub struct SceneBvhStats {
     pub build_ms: f64,
 }
 
-/// Which triangle a leaf position holds (8 bytes).
+/// Which triangle a leaf position holds (8 bytes); padding slots hold `u32::MAX`s.
 #[derive(Clone, Copy, Debug)]
 struct PrimId {
     mesh: MeshId,
     triangle: u32,
 }
 
-/// One object's triangles with their BVH; primitive arrays in leaf order.
+/// One object's triangles with their BVH; leaves are runs of whole
+/// [`Tri4`] blocks, and `prims` names the triangle in each block lane.
 struct Blas<L> {
     bvh: L,
-    tris: Vec<TriAccel>,
+    tris: Vec<Tri4>,
     prims: Vec<PrimId>,
     stats: BvhStats,
 }
@@ -96,14 +104,37 @@ impl<L: BvhLayout> Blas<L> {
         }
         let corners = |p: &PrimId| scene.meshes[p.mesh as usize].triangle(p.triangle as usize);
         let boxes: Vec<Aabb> = prims.par_iter().map(|p| Aabb::from_points(corners(p))).collect();
-        let bvh2 = Bvh2::build(&boxes, &BuildOptions::TRIANGLES);
-        let prims: Vec<PrimId> = bvh2.prim_order.par_iter().map(|&i| prims[i as usize]).collect();
-        let tris: Vec<TriAccel> = prims.par_iter().map(|p| TriAccel::new(corners(p))).collect();
+        let options = BuildOptions::TRIANGLES;
+        let mut bvh2 = Bvh2::build(&boxes, &options);
+        bvh2.align_leaves(Tri4::LANES as u32);
+        let padding = PrimId { mesh: u32::MAX, triangle: u32::MAX };
+        let prims: Vec<PrimId> = bvh2
+            .prim_order
+            .par_iter()
+            .map(|&i| if i == u32::MAX { padding } else { prims[i as usize] })
+            .collect();
+        let tris: Vec<Tri4> = prims
+            .par_chunks(Tri4::LANES)
+            .map(|block| {
+                // Padding only ever follows a leaf's triangles.
+                let lanes = block.iter().take_while(|p| p.mesh != u32::MAX).count();
+                let mut tris = [TriAccel::default(); Tri4::LANES];
+                for (tri, p) in tris.iter_mut().zip(&block[..lanes]) {
+                    *tri = TriAccel::new(corners(p));
+                }
+                Tri4::new(&tris[..lanes])
+            })
+            .collect();
         let bvh = L::from_bvh2(bvh2);
-        let mut stats = bvh.stats();
+        let mut stats = bvh.stats(&BuildOptions::METRIC);
         stats.bytes += std::mem::size_of_val(&tris[..]) + std::mem::size_of_val(&prims[..]);
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
         Some(Blas { bvh, tris, prims, stats })
+    }
+
+    /// Triangles stored (padding excluded).
+    fn triangles(&self) -> u64 {
+        self.prims.iter().filter(|p| p.mesh != u32::MAX).count() as u64
     }
 }
 
@@ -119,8 +150,9 @@ struct TlasInstance {
 }
 
 /// Two-level BVH over a scene or a part of one. `L` is the node layout of
-/// both levels; the default, [`Bvh4Cpu`], measured faster than [`Bvh2`]
-/// (see the benchmark in [`crate::bench`]).
+/// both levels. The default, [`Bvh4Cpu`], measured 1.3x (primary), 2.3x
+/// (shadow) and 1.4x (diffuse) faster than [`Bvh2`] on the 2M-triangle
+/// benchmark landscape (see [`crate::bench`]).
 pub struct SceneBvh<L: BvhLayout = Bvh4Cpu> {
     tlas: L,
     /// In TLAS leaf order.
@@ -129,19 +161,30 @@ pub struct SceneBvh<L: BvhLayout = Bvh4Cpu> {
     stats: SceneBvhStats,
 }
 
-/// The closest (or any) hit as traversal finds it: `(t, TLAS leaf, BLAS leaf position, u, v)`.
+/// The closest (or any) hit as traversal finds it: `(t, TLAS leaf, BLAS
+/// primitive slot, u, v)`; `occluded` fills in only the leaf and slot.
 type RawHit = (f32, u32, u32, f32, f32);
 
-impl<L: BvhLayout> SceneBvh<L> {
+/// The constructors with the default layout (in their own `impl`, because a
+/// default type parameter does not guide type inference: `SceneBvh::build`
+/// would otherwise need the layout spelt out).
+impl SceneBvh {
     /// Builds over the whole scene. Objects without triangles, and their
     /// instances, are left out.
     pub fn build(scene: &Scene) -> Self {
-        Self::build_part(scene, &ScenePart::whole(scene))
+        Self::build_layout(scene, &ScenePart::whole(scene))
     }
 
     /// Builds over a part of the scene; hits still report scene-wide
     /// instance, mesh and triangle indices.
     pub fn build_part(scene: &Scene, part: &ScenePart) -> Self {
+        Self::build_layout(scene, part)
+    }
+}
+
+impl<L: BvhLayout> SceneBvh<L> {
+    /// [`SceneBvh::build_part`] for any layout: `SceneBvh::<Bvh2>::build_layout(..)`.
+    pub fn build_layout(scene: &Scene, part: &ScenePart) -> Self {
         let start = Instant::now();
         let mut objects: Vec<ObjectId> =
             part.instances.iter().map(|&i| scene.instances[i as usize].object).collect();
@@ -180,25 +223,26 @@ impl<L: BvhLayout> SceneBvh<L> {
         let tlas = L::from_bvh2(tlas2);
 
         let mut stats = SceneBvhStats {
-            tlas: BvhStats { build_ms: tlas_ms, ..tlas.stats() },
+            tlas: BvhStats { build_ms: tlas_ms, ..tlas.stats(&BuildOptions::METRIC) },
             blas_count: blases.len(),
             instances: instances.len(),
             ..Default::default()
         };
         stats.tlas.bytes += std::mem::size_of_val(&instances[..]);
         let mut weighted_sah = 0.0;
-        for b in &blases {
+        let triangles: Vec<u64> = blases.iter().map(Blas::triangles).collect();
+        for (b, &tris) in blases.iter().zip(&triangles) {
             let s = &b.stats;
             stats.blas.nodes += s.nodes;
             stats.blas.leaves += s.leaves;
             stats.blas.max_depth = stats.blas.max_depth.max(s.max_depth);
             stats.blas.bytes += s.bytes;
             stats.blas.build_ms += s.build_ms;
-            stats.triangles += b.tris.len() as u64;
-            weighted_sah += s.sah_cost as f64 * b.tris.len() as f64;
+            stats.triangles += tris;
+            weighted_sah += s.sah_cost as f64 * tris as f64;
         }
         stats.blas.sah_cost = (weighted_sah / stats.triangles.max(1) as f64) as f32;
-        stats.instanced_triangles = instances.iter().map(|i| blases[i.blas as usize].tris.len() as u64).sum();
+        stats.instanced_triangles = instances.iter().map(|i| triangles[i.blas as usize]).sum();
         stats.bytes = stats.tlas.bytes + stats.blas.bytes;
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
         SceneBvh { tlas, instances, blases, stats }
@@ -238,17 +282,22 @@ impl<L: BvhLayout> SceneBvh<L> {
             } else {
                 TraversalRay::new(m.transform_point3a(world.origin), m.transform_vector3a(world.dir))
             };
+            let ray4 = Ray4::new(ray.origin, ray.dir);
             blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
                 let mut hit = false;
-                for prim in first..first + count {
-                    let tri = &blas.tris[prim as usize];
-                    if let Some((t, u, v)) = tri.intersect(ray.origin, ray.dir, *t_max) {
-                        *t_max = t;
-                        best = Some((t, leaf, prim, u, v));
-                        hit = true;
-                        if ANY {
-                            break;
+                let lanes = Tri4::LANES as u32;
+                for block in first / lanes..(first + count).div_ceil(lanes) {
+                    let tris = &blas.tris[block as usize];
+                    if ANY {
+                        let mask = tris.test(&ray4, *t_max).0;
+                        if mask != 0 {
+                            best = Some((0.0, leaf, block * lanes + mask.trailing_zeros(), 0.0, 0.0));
+                            return true;
                         }
+                    } else if let Some((lane, t, u, v)) = tris.intersect(&ray4, *t_max) {
+                        *t_max = t;
+                        best = Some((t, leaf, block * lanes + lane as u32, u, v));
+                        hit = true;
                     }
                 }
                 hit

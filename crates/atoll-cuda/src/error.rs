@@ -112,7 +112,9 @@ impl CudaError {
                 needed,
                 budget: budget.min(free),
             },
-            other => atoll_render::DeviceError::Other { device: device.to_string(), message: other.to_string() },
+            other => {
+                atoll_render::DeviceError::Other { device: device.to_string(), message: other.to_string() }
+            }
         }
     }
 }

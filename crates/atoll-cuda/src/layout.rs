@@ -4,6 +4,26 @@
 
 use bytemuck::{Pod, Zeroable};
 
+/// `(name, offset, size)` of every field of a struct, in declaration order:
+/// what [`crate::header`] turns into the kernels' `static_assert`s.
+pub type FieldLayout = Vec<(&'static str, usize, usize)>;
+
+/// The [`FieldLayout`] of `$t` (a `Zeroable` struct) from the listed fields.
+macro_rules! field_layout {
+    ($t:ty { $($field:ident),* $(,)? }) => {{
+        let value = <$t as bytemuck::Zeroable>::zeroed();
+        vec![$((
+            stringify!($field),
+            std::mem::offset_of!($t, $field),
+            std::mem::size_of_val(&value.$field),
+        )),*]
+    }};
+}
+pub(crate) use field_layout;
+
+/// `HitRef::instance` of a ray for which traversal found no hit.
+pub const HIT_NONE: u32 = u32::MAX;
+
 /// Per-mesh flags in [`GpuMesh::flags`].
 pub mod mesh_flags {
     /// The mesh has per-vertex normals in the `normals` table.
@@ -70,9 +90,66 @@ pub struct HitRef {
     pub triangle: u32,
 }
 
+impl GpuMesh {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuMesh {
+            first_triangle,
+            triangle_count,
+            first_vertex,
+            vertex_count,
+            material,
+            flags,
+            scene_mesh,
+            pad
+        })
+    }
+}
+
+impl GpuObject {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuObject { first_triangle, triangle_count, first_mesh, mesh_count })
+    }
+}
+
+impl GpuInstance {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuInstance { object_to_world, world_to_object, normal_to_world, object, pad })
+    }
+}
+
+impl HitRef {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(HitRef { u, v, instance, triangle })
+    }
+}
+
 const _: () = {
     assert!(std::mem::size_of::<GpuMesh>() == 32);
     assert!(std::mem::size_of::<GpuObject>() == 16);
     assert!(std::mem::size_of::<GpuInstance>() == 144);
     assert!(std::mem::size_of::<HitRef>() == 16);
 };
+
+/// [`atoll_render::RayRecord`] as a device element type. cudarc's typed
+/// allocations and copies need `DeviceRepr`, which the orphan rule forbids
+/// implementing here for the render crate's type; this transparent wrapper
+/// has the same layout (`bytemuck::cast_slice` converts slices for free).
+#[repr(transparent)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct GpuRecord(pub atoll_render::RayRecord);
+
+// SAFETY (all five): plain-old-data `#[repr(C)]`/transparent structs (Pod),
+// so any bit pattern, including all zeros, is a valid value and they can be
+// copied to and from the device byte for byte.
+unsafe impl cudarc::driver::DeviceRepr for GpuRecord {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuRecord {}
+unsafe impl cudarc::driver::DeviceRepr for GpuMesh {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuMesh {}
+unsafe impl cudarc::driver::DeviceRepr for GpuObject {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuObject {}
+unsafe impl cudarc::driver::DeviceRepr for GpuInstance {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuInstance {}
+unsafe impl cudarc::driver::DeviceRepr for HitRef {}
+unsafe impl cudarc::driver::ValidAsZeroBits for HitRef {}
+
+const _: () = assert!(std::mem::size_of::<GpuRecord>() == 128);

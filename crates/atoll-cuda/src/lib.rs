@@ -8,10 +8,20 @@
 //!   `#include "x.cuh"` is resolved by [`compile`] itself.
 //! - [`layout`]: `#[repr(C)]` structs shared with the kernels (scene tables,
 //!   hit references); `kernels/layout.cuh` mirrors them with `static_assert`s.
-//! - `compile`: NVRTC compilation with an on-disk cache; `gpu`: context,
-//!   stream, modules; `scene`: the scene uploaded as flat device tables;
-//!   `bvh`: GPU BVH build and layouts; `trace`: traversal kernels' host side;
-//!   `device`: [`atoll_render::Device`] for CUDA GPUs.
+//! - [`error`]: [`CudaError`], and the library checks every entry point
+//!   makes first (cudarc panics when `libcuda`/`libnvrtc` are missing).
+//! - [`compile`]: the kernel registry, `#include` splicing and NVRTC;
+//!   [`kernel_cache`]: compiled kernels on disk; [`gpu`]: context, stream,
+//!   modules, timers; [`scene`]: the scene as flat device tables and the
+//!   memory plan; `bvh`: GPU BVH build and layouts; `trace`: traversal
+//!   kernels' host side; `params`: the frame's parameters and tables;
+//!   [`queues`]: ray queues with device-side lengths; [`device`]:
+//!   [`atoll_render::Device`] for CUDA GPUs.
+//!
+//! Run time (not build time) needs the NVIDIA driver and NVRTC 13:
+//! `Gpu::open` reports what is missing. `ATOLL_KERNEL_DIR` reads kernels
+//! from a directory instead of the built-in copies; `ATOLL_KERNEL_CACHE`
+//! moves (or with `off` disables) the compiled-kernel cache.
 //!
 //! The GPU scene (built by `scene`, read by `bvh`, `trace` and the surface
 //! kernel) is a set of flat tables:
@@ -24,4 +34,21 @@
 //! - `objects`: [`layout::GpuObject`] (triangle range) per object;
 //! - `instances`: [`layout::GpuInstance`] per instance.
 
+pub mod bench;
+pub mod bvh;
+pub mod compile;
+pub mod device;
+pub mod error;
+pub mod gpu;
+pub mod header;
+pub mod kernel_cache;
 pub mod layout;
+pub mod params;
+pub mod queues;
+pub mod scene;
+pub mod trace;
+
+pub use device::CudaDevice;
+pub use error::CudaError;
+pub use gpu::{device_count, Gpu};
+pub use scene::GpuScene;

@@ -33,6 +33,26 @@ impl CameraRays {
         }
     }
 
+    /// Camera space to world space.
+    pub fn camera_to_world(&self) -> Mat4 {
+        self.camera_to_world
+    }
+
+    /// Screen window (camera-space x/y at z = 1): (min, max).
+    pub fn window(&self) -> (Vec2, Vec2) {
+        (self.window_min, self.window_max)
+    }
+
+    /// Image size in pixels, as floats (what [`Self::ray`] divides by).
+    pub fn raster_size(&self) -> Vec2 {
+        self.resolution
+    }
+
+    /// Thin-lens aperture radius (0: pinhole) and focal distance.
+    pub fn lens(&self) -> (f32, f32) {
+        (self.lens_radius, self.focal_distance)
+    }
+
     /// World-space ray through raster position `raster` (pixels, y down),
     /// with lens sample `u_lens`. Returns (origin, unit direction).
     pub fn ray(&self, raster: Vec2, u_lens: Vec2) -> (Vec3, Vec3) {

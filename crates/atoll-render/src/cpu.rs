@@ -178,7 +178,7 @@ impl Device for CpuDevice {
         let build = start.elapsed().as_secs_f64();
         let bvh_stats = bvh.stats();
         let normal_to_world =
-            scene.instances.iter().map(|i| i.object_to_world.matrix3.inverse().transpose()).collect();
+            scene.instances.iter().map(|i| i.normal_to_world()).collect();
         self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
         self.film = Film::new(frame.options.resolution);
         self.frame = Some(frame.clone());

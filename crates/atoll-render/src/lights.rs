@@ -3,8 +3,6 @@
 //! chosen in proportion to power. The table is small and replicated on every
 //! device, so any device can do next-event estimation and MIS for any path.
 
-use std::collections::HashMap;
-
 use atoll_scene::{Light, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
@@ -57,10 +55,20 @@ pub struct LightSet {
     pmf: Vec<f32>,
     /// Cumulative distribution (len = emitters + 1, last = 1).
     cdf: Vec<f32>,
-    /// First emitter index of each emissive (instance, mesh) pair.
-    triangle_base: HashMap<(u32, u32), u32>,
+    /// Emissive (instance, mesh) pairs as sorted [`triangle_key`]s; the
+    /// CUDA kernels binary-search the same table.
+    triangle_keys: Vec<u64>,
+    /// First emitter index of the pair `triangle_keys[i]`.
+    triangle_bases: Vec<u32>,
     /// Indices of infinite lights (a path that escapes sees all of them).
     infinite: Vec<u32>,
+}
+
+/// The key of an (instance, mesh) pair in [`LightSet`]'s sorted triangle
+/// table: `instance << 32 | mesh`.
+#[inline]
+pub fn triangle_key(instance: u32, mesh: u32) -> u64 {
+    (instance as u64) << 32 | mesh as u64
 }
 
 fn luminance(c: Rgb) -> f32 {
@@ -72,6 +80,7 @@ impl LightSet {
         let (lo, hi) = scene.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let scene_radius = 0.5 * (hi - lo).length().max(1e-3);
         let mut set = LightSet::default();
+        let mut triangle_base = Vec::new();
         for light in &scene.lights {
             set.emitters.push(match *light {
                 Light::Point { position, intensity } => Emitter::Point { position, intensity },
@@ -85,16 +94,16 @@ impl LightSet {
             for &mesh_id in &scene.objects[instance.object as usize].meshes {
                 let mesh = &scene.meshes[mesh_id as usize];
                 let Some(emission) = mesh.emission else { continue };
-                set.triangle_base.insert((instance_id as u32, mesh_id), set.emitters.len() as u32);
+                triangle_base.push((triangle_key(instance_id as u32, mesh_id), set.emitters.len() as u32));
+                let normal_to_world = instance.normal_to_world();
                 for t in 0..mesh.triangle_count() {
                     let p = mesh.triangle(t).map(|v| instance.object_to_world.transform_point3(v));
-                    // pbrt's orientation rule, evaluated in world space: the
-                    // transform's handedness flips the cross product.
-                    let mut n = (p[0] - p[2]).cross(p[1] - p[2]);
-                    let area = 0.5 * n.length();
-                    if mesh.flip_normals {
-                        n = -n;
-                    }
+                    let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
+                    // Oriented exactly like the geometric normal of a hit
+                    // (see the CPU device's `write_hit`), so one-sidedness
+                    // agrees between light sampling and emitter hits even
+                    // under mirroring instance transforms.
+                    let n = normal_to_world * mesh.geometric_normal(t);
                     set.emitters.push(Emitter::Triangle {
                         p,
                         normal: n.normalize_or_zero(),
@@ -138,6 +147,16 @@ impl LightSet {
         if let Some(last) = set.cdf.last_mut() {
             *last = 1.0;
         }
+        // Sorted for binary search. A mesh listed twice in one object keeps
+        // its last base (stable sort, last of each run), as a map insert would.
+        triangle_base.sort_by_key(|&(key, _)| key);
+        for (i, &(key, base)) in triangle_base.iter().enumerate() {
+            if triangle_base.get(i + 1).is_some_and(|next| next.0 == key) {
+                continue;
+            }
+            set.triangle_keys.push(key);
+            set.triangle_bases.push(base);
+        }
         set.infinite = (0..set.emitters.len() as u32)
             .filter(|&i| matches!(set.emitters[i as usize], Emitter::Infinite { .. }))
             .collect();
@@ -150,7 +169,29 @@ impl LightSet {
 
     /// Global light index of triangle `triangle` of `mesh` in `instance`, if it emits.
     pub fn triangle_light(&self, instance: u32, mesh: u32, triangle: u32) -> Option<u32> {
-        self.triangle_base.get(&(instance, mesh)).map(|base| base + triangle)
+        let i = self.triangle_keys.binary_search(&triangle_key(instance, mesh)).ok()?;
+        Some(self.triangle_bases[i] + triangle)
+    }
+
+    /// The sorted [`triangle_key`]s of the emissive (instance, mesh) pairs.
+    pub fn triangle_keys(&self) -> &[u64] {
+        &self.triangle_keys
+    }
+
+    /// First global light index of each pair of [`Self::triangle_keys`].
+    pub fn triangle_bases(&self) -> &[u32] {
+        &self.triangle_bases
+    }
+
+    /// Selection probability of every emitter.
+    pub fn pmfs(&self) -> &[f32] {
+        &self.pmf
+    }
+
+    /// Cumulative selection distribution: `emitters + 1` entries, the last
+    /// exactly 1, non-decreasing ([`Self::select`] searches it).
+    pub fn cdf(&self) -> &[f32] {
+        &self.cdf
     }
 
     /// Indices of the infinite (environment) lights.
@@ -345,6 +386,18 @@ mod tests {
         assert!(set.sample(Vec3::new(0.0, 2.0, 0.0), 0.3, Vec2::new(0.2, 0.4)).is_none());
     }
 
+    /// pbrt transforms an instance's normals with the inverse transpose, so a
+    /// mirrored instance of a downward-facing light still faces down (the
+    /// world-space cross product of its mirrored vertices would point up).
+    #[test]
+    fn mirrored_instance_keeps_its_emitting_side() {
+        let mut scene = square_light(1.0, 1.0, Rgb::ONE);
+        scene.instances[0].object_to_world = Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0));
+        let set = LightSet::new(&scene);
+        assert!(set.sample(Vec3::ZERO, 0.3, Vec2::new(0.2, 0.4)).is_some());
+        assert!(set.sample(Vec3::new(0.0, 2.0, 0.0), 0.3, Vec2::new(0.2, 0.4)).is_none());
+    }
+
     #[test]
     fn selection_is_proportional_to_power() {
         let mut scene = square_light(1.0, 1.0, Rgb::ONE);
@@ -361,5 +414,53 @@ mod tests {
         let picked_point =
             (0..n).filter(|&i| set.select((i as f32 + 0.5) / n as f32).unwrap().0 == 0).count();
         assert!((picked_point as f32 / n as f32 - 1.0 / total).abs() < 1e-3);
+    }
+
+    #[test]
+    fn triangle_lights_are_found_through_sorted_keys() {
+        // A plain instance, two instances of the light object, and an object
+        // listing a new emissive mesh before the light mesh (so its keys are
+        // produced out of order and must be sorted).
+        let mut scene = square_light(1.0, 1.0, Rgb::ONE);
+        let light_mesh = 0;
+        let plain = scene.add_mesh(TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            ..Default::default()
+        });
+        let lamp = scene.add_mesh(TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            emission: Some(AreaEmission { radiance: Rgb::ONE, two_sided: true }),
+            ..Default::default()
+        });
+        let light_object = scene.instances[0].object;
+        let plain_object = scene.add_object(Object { name: "plain".into(), meshes: vec![plain] });
+        let mixed = scene.add_object(Object { name: "mixed".into(), meshes: vec![lamp, light_mesh] });
+        scene.instances.insert(0, Instance { object: plain_object, object_to_world: Affine3A::IDENTITY });
+        scene.instances.push(Instance {
+            object: light_object,
+            object_to_world: Affine3A::from_translation(Vec3::new(3.0, 0.0, 0.0)),
+        });
+        scene.instances.push(Instance { object: mixed, object_to_world: Affine3A::IDENTITY });
+        let set = LightSet::new(&scene);
+        // Instance 1: 2 triangles, instance 2: 2, instance 3: lamp 1 then light 2.
+        assert_eq!(set.emitters.len(), 7);
+        let keys = [triangle_key(1, 0), triangle_key(2, 0), triangle_key(3, 0), triangle_key(3, lamp)];
+        assert_eq!(set.triangle_keys(), &keys);
+        assert_eq!(set.triangle_bases(), &[0, 2, 5, 4]);
+        assert_eq!(set.triangle_light(1, 0, 1), Some(1));
+        assert_eq!(set.triangle_light(2, 0, 0), Some(2));
+        assert_eq!(set.triangle_light(3, lamp, 0), Some(4));
+        assert_eq!(set.triangle_light(3, light_mesh, 1), Some(6));
+        assert_eq!(set.triangle_light(0, plain, 0), None);
+        assert_eq!(set.triangle_light(4, 0, 0), None);
+        // The second instance's triangles are the translated copies.
+        match set.emitters[2] {
+            Emitter::Triangle { p, .. } => assert_eq!(p[0].x, -0.5 + 3.0),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(set.cdf().len(), 8);
+        assert_eq!(set.pmfs().len(), 7);
     }
 }

@@ -1,5 +1,7 @@
-//! The scene model of atoll and everything that produces one: the PBRT loader,
-//! the PLY reader, the built-in Cornell box and (later) procedural scenes.
+//! The scene model of atoll and everything that produces one: the loaders
+//! (PBRT v4 and v3, OBJ/MTL, glTF 2.0, PLY, OFF; [`load_any`] picks one by
+//! extension), default framing for files without a camera, the built-in
+//! Cornell box and procedural scenes.
 //!
 //! A [`Scene`] is two-level: [`Object`]s are groups of [`TriangleMesh`]es, and
 //! [`Instance`]s place objects in the world with an affine transform. Geometry
@@ -9,9 +11,14 @@
 pub mod camera;
 pub mod cornell;
 pub mod error;
+pub mod framing;
+pub mod gltf;
 pub mod light;
+pub mod load;
 pub mod material;
 pub mod mesh;
+pub mod obj;
+pub mod off;
 pub mod pbrt;
 pub mod ply;
 pub mod procedural;
@@ -20,9 +27,9 @@ pub mod scene;
 pub use camera::{Camera, FilmSettings, IntegratorSettings, RenderSettings};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
+pub use load::{load_any, LoadedScene, TextureRef};
 pub use material::{Material, MaterialId};
 pub use mesh::{MeshId, TriangleMesh};
-pub use pbrt::LoadedScene;
 pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).

@@ -21,6 +21,15 @@ pub struct Instance {
     pub object_to_world: Affine3A,
 }
 
+impl Instance {
+    /// The matrix taking object-space normals to world space (inverse
+    /// transpose of the linear part). Under a mirroring transform it keeps an
+    /// object's orientation, as pbrt does for transformed interactions.
+    pub fn normal_to_world(&self) -> glam::Mat3A {
+        self.object_to_world.matrix3.inverse().transpose()
+    }
+}
+
 /// A complete scene as loaded, before any device sees it.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {

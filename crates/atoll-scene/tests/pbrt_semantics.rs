@@ -219,7 +219,12 @@ fn default_material_and_texture_references() {
     assert_eq!(s.materials[s.meshes[0].material as usize], Material::default_diffuse());
     assert_eq!(s.materials[s.meshes[1].material as usize], Material::default_diffuse());
     assert_eq!(loaded.warnings.len(), 2, "{:?}", loaded.warnings);
-    assert!(loaded.warnings[0].message.contains("texture \"checks\" ignored"));
+    assert!(loaded.warnings[0].message.contains("texture \"checks\" recorded"), "{:?}", loaded.warnings);
+    assert_eq!(loaded.textures.len(), 1);
+    assert_eq!(
+        (loaded.textures[0].name.as_str(), loaded.textures[0].class.as_str()),
+        ("checks", "checkerboard")
+    );
     assert!(loaded.warnings[1].message.contains("texture \"checks\" replaced by the default"));
 }
 

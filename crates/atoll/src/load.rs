@@ -1,4 +1,5 @@
-//! Scene loading for every subcommand: a file by extension, or the built-in Cornell box.
+//! Scene loading for every subcommand: a file of any supported format (chosen
+//! by extension, see `atoll_scene::load_any`), or the built-in Cornell box.
 
 use std::path::Path;
 
@@ -12,11 +13,5 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
     let Some(path) = path else {
         return Ok(atoll_scene::cornell::builtin_cornell_box());
     };
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
-    match ext.as_str() {
-        "pbrt" => {
-            atoll_scene::pbrt::load_file(path).map(|l| l.scene).map_err(|e| CliError::Input(e.to_string()))
-        }
-        _ => Err(CliError::Input(format!("{}: unknown scene format (expected .pbrt)", path.display()))),
-    }
+    atoll_scene::load_any(path).map(|l| l.scene).map_err(|e| CliError::Input(e.to_string()))
 }

@@ -1,6 +1,8 @@
 //! `atoll`: render, inspect and benchmark scenes.
 
 mod bench;
+mod compare;
+mod device;
 mod info;
 mod load;
 mod render;
@@ -25,6 +27,8 @@ enum Command {
     Info(info::InfoArgs),
     /// Measure BVH build, traversal and path-tracing speed.
     Bench(bench::BenchArgs),
+    /// Compare two EXR renders: channel means and per-pixel relative errors.
+    Compare(compare::CompareArgs),
 }
 
 /// Failures the command line reports, with their exit codes.
@@ -50,6 +54,7 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => render::run(args),
         Some(Command::Info(args)) => info::run(args),
         Some(Command::Bench(args)) => bench::run(args),
+        Some(Command::Compare(args)) => compare::run(args),
         None => render::run(render::RenderArgs::default()),
     };
     match result {

@@ -3,12 +3,13 @@
 use std::path::PathBuf;
 use std::sync::Arc;
 
-use atoll_render::{render, CpuDevice, RenderOptions};
+use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
 use clap::Args;
 use glam::UVec2;
 use indicatif::{ProgressBar, ProgressStyle};
 
+use crate::device::{select, DeviceArgs};
 use crate::load::load_scene;
 use crate::CliError;
 
@@ -28,9 +29,11 @@ pub struct RenderArgs {
     /// Maximum number of bounces (overrides the scene's path integrator).
     #[arg(long)]
     pub max_depth: Option<u32>,
-    /// Worker threads (default: all cores).
+    /// Worker threads of the CPU device (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
+    #[command(flatten)]
+    pub device: DeviceArgs,
     /// Random seed; different seeds give independent images.
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
@@ -81,22 +84,20 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
     }
 
-    let mut device = CpuDevice::new();
-    if let Some(threads) = args.threads {
-        device = device.with_threads(threads.max(1)).map_err(|e| CliError::Runtime(e.to_string()))?;
-    }
+    let mut selected = select(&args.device, args.threads)?;
     let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
             .expect("valid template"),
     );
     let scene = Arc::new(scene);
-    let out = render(&mut device, &scene, options.clone(), &mut |done, total| {
+    let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
+    selected.check()?;
     out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
     println!(
         "{}: {}x{} {} spp on {} in {:.2} s (prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
@@ -104,16 +105,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         options.resolution.x,
         options.resolution.y,
         options.spp,
-        device_name(&device),
+        selected.description,
         out.render_seconds,
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
         out.rays_per_second() / 1e6,
     );
     Ok(())
-}
-
-fn device_name(device: &CpuDevice) -> String {
-    use atoll_render::Device;
-    format!("{} ({} threads)", device.name(), device.threads())
 }

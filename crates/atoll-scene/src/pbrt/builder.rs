@@ -23,7 +23,7 @@ use crate::{
     AreaEmission, Instance, IntegratorSettings, Material, MaterialId, MeshId, Object, Scene, TriangleMesh,
 };
 
-use super::params::{Param, ParamList};
+use super::params::{Param, ParamList, ParamType};
 use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
 use super::shapes::{self, ShapeMesh};
 use super::tokenizer::Tokenizer;
@@ -117,6 +117,12 @@ pub struct Builder {
     active_object: Option<usize>,
     instance_uses: Vec<(String, DMat4, FileLoc)>,
     warned_transform_begin: bool,
+    /// `Texture` statements, recorded for the texture step (not rendered yet).
+    textures: Vec<crate::TextureRef>,
+    /// Unsupported shape types: how many were skipped, and where the first was.
+    skipped_shapes: Vec<(String, u64, FileLoc)>,
+    /// pbrt-v3 spellings already warned about.
+    v3_spellings_warned: std::collections::HashSet<String>,
 }
 
 impl Builder {
@@ -144,6 +150,9 @@ impl Builder {
             active_object: None,
             instance_uses: Vec::new(),
             warned_transform_begin: false,
+            textures: Vec::new(),
+            skipped_shapes: Vec::new(),
+            v3_spellings_warned: Default::default(),
         }
     }
 
@@ -204,7 +213,13 @@ impl Builder {
 
     fn params(&mut self, raw: Vec<RawParam>) -> Result<ParamList, SceneError> {
         let warnings = &mut self.warnings;
-        ParamList::new(raw, &mut |loc, msg| warnings.warn(loc, msg))
+        let seen = &mut self.v3_spellings_warned;
+        // pbrt-v3 files use the same spellings millions of times: warn once each.
+        ParamList::new(raw, &mut |loc, msg| {
+            if seen.insert(msg.clone()) {
+                warnings.warn(loc, format!("{msg} (reported once)"));
+            }
+        })
     }
 
     /// Warns about every parameter the directive did not look up.
@@ -324,10 +339,7 @@ impl Builder {
                     self.warn(&loc, "participating media are not supported; MediumInterface ignored");
                 }
             }
-            S::Texture { name, .. } => {
-                self.require_world("Texture", &loc)?;
-                self.warn(&loc, format!("textures are not supported yet; texture \"{name}\" ignored"));
-            }
+            S::Texture { name, ty, class, params } => self.texture(name, &ty, class, params, &loc)?,
             S::Entity { kind, name, params } => self.entity(kind, name, params, loc)?,
         }
         Ok(())
@@ -434,10 +446,18 @@ impl Builder {
         }
         let w = &mut self.warnings;
         match kind {
+            E::Shape if !shapes::SUPPORTED.contains(&name.as_str()) => {
+                p.mark_all_used();
+                self.skip_shape(&name, &loc);
+            }
             E::Shape => {
                 if let Some(mesh) = shapes::shape_mesh(&name, &p, &loc, &self.base_dir, w)? {
                     self.add_shape(mesh, &loc)?;
                 }
+            }
+            E::Material if name == "mix" => {
+                let first = self.mix_first(&p, &loc)?;
+                self.gs.material = MaterialRef::Named(first, loc.clone());
             }
             E::Material => {
                 let material = entities::material(&name, &p, &loc, w)?;
@@ -454,7 +474,19 @@ impl Builder {
                 if self.named_materials.contains_key(&name) {
                     return Err(SceneError::at(&loc, format!("named material \"{name}\" is defined twice")));
                 }
-                let material = entities::material(&ty, &p, &loc, w)?;
+                let material = if ty == "mix" {
+                    let first = self.mix_first(&p, &loc)?;
+                    match self.named_materials.get(&first) {
+                        Some(slot) => slot.material.clone(),
+                        None => {
+                            let msg = format!("mix \"{name}\": material \"{first}\" is not defined before it; using diffuse 0.5");
+                            self.warn(&loc, msg);
+                            Material::default_diffuse()
+                        }
+                    }
+                } else {
+                    entities::material(&ty, &p, &loc, w)?
+                };
                 self.named_materials.insert(name.clone(), MaterialSlot { material, id: None });
             }
             E::LightSource => {
@@ -518,6 +550,50 @@ impl Builder {
         Ok(())
     }
 
+    /// Skips a shape type atoll cannot tessellate. The first of each type is
+    /// warned about where it is; the rest are counted (the Moana island has
+    /// millions of curves) and summed up at the end.
+    fn skip_shape(&mut self, ty: &str, loc: &FileLoc) {
+        match self.skipped_shapes.iter_mut().find(|(t, _, _)| t == ty) {
+            Some((_, n, _)) => *n += 1,
+            None => {
+                self.skipped_shapes.push((ty.to_string(), 1, loc.clone()));
+                self.warn(loc, format!("unsupported shape \"{ty}\" skipped"));
+            }
+        }
+    }
+
+    /// The first material of a `mix` (pbrt-v4's `string materials`, pbrt-v3's
+    /// `string namedmaterial1`), which stands for the whole mix for now.
+    fn mix_first(&mut self, p: &ParamList, loc: &FileLoc) -> Result<String, SceneError> {
+        let first = super::v3::mix_first(p, loc)?;
+        self.warn(loc, format!("material \"mix\" is not supported; using its first material \"{first}\""));
+        Ok(first)
+    }
+
+    /// `Texture "name" "float"|"spectrum"|"color" "class" params`: recorded for
+    /// the texture step. Materials that use a texture keep their parameter's
+    /// default (they warn about it); this warns once a file that textures are
+    /// not rendered yet.
+    fn texture(
+        &mut self,
+        name: String,
+        ty: &str,
+        class: String,
+        raw: Vec<RawParam>,
+        loc: &FileLoc,
+    ) -> Result<(), SceneError> {
+        self.require_world("Texture", loc)?;
+        let p = self.params(raw)?;
+        let texture = super::v3::texture(name, ty, class, &p, &self.base_dir, loc)?;
+        if self.textures.is_empty() {
+            let msg = format!("texture \"{}\" recorded; textures are not rendered yet, so the material parameters using them keep their defaults (warned once)", texture.name);
+            self.warn(loc, msg);
+        }
+        self.textures.push(texture);
+        Ok(())
+    }
+
     /// `Attribute "shape"|"light"|"material" params`: defaults for later directives.
     fn attribute(&mut self, target: &str, raw: Vec<RawParam>, loc: &FileLoc) -> Result<(), SceneError> {
         let p = self.params(raw)?;
@@ -557,6 +633,14 @@ impl Builder {
             return Ok(());
         }
         cam.fov_degrees = p.float_or("fov", 90.0)?;
+        for (param, ty) in [("frameaspectratio", ParamType::Float), ("screenwindow", ParamType::Float)] {
+            if p.find(param, &[ty]).is_some() {
+                let msg = format!(
+                    "Camera: \"{param}\" is not supported; the image's aspect ratio and the fov are used"
+                );
+                self.warnings.warn(loc, msg);
+            }
+        }
         cam.lens_radius = p.float_or("lensradius", 0.0)?;
         cam.focal_distance = p.float_or("focaldistance", 1e6)?;
         Ok(())
@@ -672,6 +756,14 @@ impl Builder {
             };
             self.warn(&open, format!("{what} at the end of the file"));
         }
+        for (ty, n, first) in std::mem::take(&mut self.skipped_shapes) {
+            if n > 1 {
+                self.warn(
+                    &first,
+                    format!("{n} unsupported \"{ty}\" shapes skipped in all (the first is here)"),
+                );
+            }
+        }
         for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {
             let Some(slot) = self.named_materials.get_mut(&name) else {
                 return Err(SceneError::at(
@@ -706,6 +798,6 @@ impl Builder {
                 self.scene.instances.push(Instance { object: ids[i], object_to_world });
             }
         }
-        Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list })
+        Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list, textures: self.textures })
     }
 }

@@ -8,14 +8,19 @@ use glam::{DMat4, DVec3, Vec3};
 use crate::error::{FileLoc, SceneError};
 use crate::{AreaEmission, Light, Material, Rgb};
 
-use super::params::{FloatOrTexture, ParamList, SpectrumParam};
+use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
 use super::spectrum;
 use super::transform;
 use super::WarningSink;
 
 /// A reflectance-like spectrum as RGB; `None` (after a warning) for textures
 /// and names we cannot turn into a colour, so the caller uses its default.
-fn reflectance_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Option<Rgb> {
+pub(super) fn reflectance_rgb(
+    sp: SpectrumParam,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Option<Rgb> {
     match sp {
         SpectrumParam::Rgb(c) => Some(c),
         SpectrumParam::Constant(c) => Some(Rgb::splat(c)),
@@ -57,9 +62,16 @@ fn float_param(
 }
 
 /// pbrt's roughness parameters: `uroughness`/`vroughness` default to
-/// `roughness` (default 0), remapped to GGX alpha unless `remaproughness` is false.
-fn alphas(p: &ParamList, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result<(f32, f32), SceneError> {
-    let r = float_param(p, "roughness", what, loc, w)?.unwrap_or(0.0);
+/// `roughness` (default `default`: 0 in pbrt-v4), remapped to GGX alpha
+/// unless `remaproughness` is false.
+pub(super) fn alphas(
+    p: &ParamList,
+    what: &str,
+    default: f32,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<(f32, f32), SceneError> {
+    let r = float_param(p, "roughness", what, loc, w)?.unwrap_or(default);
     let u = float_param(p, "uroughness", what, loc, w)?.unwrap_or(r);
     let v = float_param(p, "vroughness", what, loc, w)?.unwrap_or(r);
     if p.bool_or("remaproughness", true)? {
@@ -77,65 +89,10 @@ pub fn material(ty: &str, p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> 
             let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
             Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
         }
-        "conductor" => {
-            let eta = p.spectrum("eta", true)?;
-            let k = p.spectrum("k", true)?;
-            let reflectance = p.spectrum("reflectance", true)?;
-            let (alpha_x, alpha_y) = alphas(p, &what, loc, w)?;
-            if reflectance.is_some() && (eta.is_some() || k.is_some()) {
-                return Err(SceneError::at(
-                    loc,
-                    "conductor: \"reflectance\" cannot be given together with \"eta\" and \"k\"",
-                ));
-            }
-            let (cu_eta, cu_k) = (spectrum::CU_ETA, spectrum::CU_K);
-            if let Some(r) = reflectance {
-                let r = reflectance_rgb(r, &what, loc, w).unwrap_or(Rgb::ONE);
-                Material::Conductor {
-                    eta: Rgb::ONE,
-                    k: Material::conductor_k_from_reflectance(r),
-                    alpha_x,
-                    alpha_y,
-                }
-            } else {
-                let mut metal = |sp: Option<SpectrumParam>, default: Rgb, name: &str| match sp {
-                    None => default,
-                    Some(SpectrumParam::Named(n)) => spectrum::named_metal(&n).unwrap_or_else(|| {
-                        w.warn(
-                            loc,
-                            format!("{what}: unknown named spectrum \"{n}\" for \"{name}\"; using copper"),
-                        );
-                        default
-                    }),
-                    Some(s) => reflectance_rgb(s, &what, loc, w).unwrap_or(default),
-                };
-                let eta = metal(eta, cu_eta, "eta");
-                let k = metal(k, cu_k, "k");
-                Material::Conductor { eta, k, alpha_x, alpha_y }
-            }
-        }
+        "conductor" => conductor(p, &what, 0.0, loc, w)?,
         "dielectric" => {
-            let eta = match p.spectrum("eta", true)? {
-                None => 1.5,
-                Some(SpectrumParam::Constant(e)) => e,
-                Some(SpectrumParam::Named(n)) => spectrum::named_glass(&n).unwrap_or_else(|| {
-                    w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"eta\"; using 1.5"));
-                    1.5
-                }),
-                Some(SpectrumParam::Sampled(s)) => {
-                    // pbrt disperses light with a varying eta; we take its value mid-spectrum.
-                    w.warn(
-                        loc,
-                        format!("{what}: spectrally varying \"eta\" is approximated by its value at 550 nm"),
-                    );
-                    spectrum::sampled_at(&s, 550.0)
-                }
-                Some(other) => {
-                    w.warn(loc, format!("{what}: \"eta\" given as {other:?} is not supported; using 1.5"));
-                    1.5
-                }
-            };
-            let (alpha_x, alpha_y) = alphas(p, &what, loc, w)?;
+            let eta = dielectric_eta(p, &what, loc, w)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w)?;
             Material::Dielectric { eta, alpha_x, alpha_y }
         }
         "interface" | "" | "none" => Material::Interface,
@@ -148,10 +105,81 @@ pub fn material(ty: &str, p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> 
             );
             Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
         }
-        _ => {
-            p.mark_all_used();
-            w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5"));
-            Material::default_diffuse()
+        _ => match super::v3::material(ty, p, loc, w)? {
+            Some(m) => m,
+            None => {
+                p.mark_all_used();
+                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5"));
+                Material::default_diffuse()
+            }
+        },
+    })
+}
+
+/// pbrt-v4's `conductor` (also pbrt-v3's `metal`, whose default roughness
+/// differs): `reflectance`, or `eta` and `k` (copper by default).
+pub(super) fn conductor(
+    p: &ParamList,
+    what: &str,
+    default_roughness: f32,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Material, SceneError> {
+    let eta = p.spectrum("eta", true)?;
+    let k = p.spectrum("k", true)?;
+    let reflectance = p.spectrum("reflectance", true)?;
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w)?;
+    if reflectance.is_some() && (eta.is_some() || k.is_some()) {
+        return Err(SceneError::at(
+            loc,
+            "conductor: \"reflectance\" cannot be given together with \"eta\" and \"k\"",
+        ));
+    }
+    let (cu_eta, cu_k) = (spectrum::CU_ETA, spectrum::CU_K);
+    if let Some(r) = reflectance {
+        let r = reflectance_rgb(r, what, loc, w).unwrap_or(Rgb::ONE);
+        return Ok(Material::Conductor {
+            eta: Rgb::ONE,
+            k: Material::conductor_k_from_reflectance(r),
+            alpha_x,
+            alpha_y,
+        });
+    }
+    let mut metal = |sp: Option<SpectrumParam>, default: Rgb, name: &str| match sp {
+        None => default,
+        Some(SpectrumParam::Named(n)) => spectrum::named_metal(&n).unwrap_or_else(|| {
+            w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"{name}\"; using copper"));
+            default
+        }),
+        Some(s) => reflectance_rgb(s, what, loc, w).unwrap_or(default),
+    };
+    let eta = metal(eta, cu_eta, "eta");
+    let k = metal(k, cu_k, "k");
+    Ok(Material::Conductor { eta, k, alpha_x, alpha_y })
+}
+
+/// A dielectric's `eta` in any of its spellings (default 1.5).
+pub(super) fn dielectric_eta(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<f32, SceneError> {
+    Ok(match p.spectrum("eta", true)? {
+        None => 1.5,
+        Some(SpectrumParam::Constant(e)) => e,
+        Some(SpectrumParam::Named(n)) => spectrum::named_glass(&n).unwrap_or_else(|| {
+            w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"eta\"; using 1.5"));
+            1.5
+        }),
+        Some(SpectrumParam::Sampled(s)) => {
+            // pbrt disperses light with a varying eta; we take its value mid-spectrum.
+            w.warn(loc, format!("{what}: spectrally varying \"eta\" is approximated by its value at 550 nm"));
+            spectrum::sampled_at(&s, 550.0)
+        }
+        Some(other) => {
+            w.warn(loc, format!("{what}: \"eta\" given as {other:?} is not supported; using 1.5"));
+            1.5
         }
     })
 }
@@ -197,6 +225,7 @@ pub fn area_light(
         return Ok(None);
     }
     let what = "area light \"diffuse\"";
+    p.find("nsamples", &[ParamType::Integer]);
     let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).unwrap_or(Rgb::ONE);
     let scale = p.float_or("scale", 1.0)?;
     let two_sided = p.bool_or("twosided", false)?;
@@ -216,6 +245,8 @@ pub fn light(
     w: &mut WarningSink,
 ) -> Result<Option<Light>, SceneError> {
     let what = format!("light \"{ty}\"");
+    // pbrt-v3's sample-count hint means nothing to a path tracer with light sampling.
+    p.find("nsamples", &[ParamType::Integer]);
     let p3 =
         |name: &str, d: Vec3| -> Result<DVec3, SceneError> { Ok(p.point3(name)?.unwrap_or(d).as_dvec3()) };
     Ok(Some(match ty {
@@ -238,7 +269,11 @@ pub fn light(
         "infinite" => {
             let l = p.spectrum("L", false)?;
             let scale = p.float_or("scale", 1.0)?;
-            let filename = p.string("filename")?;
+            // pbrt-v3 called the environment map "mapname".
+            let filename = match p.string("filename")? {
+                Some(f) => Some(f),
+                None => p.string("mapname")?,
+            };
             if l.is_some() && filename.is_some() {
                 return Err(SceneError::at(
                     loc,

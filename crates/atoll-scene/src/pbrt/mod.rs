@@ -8,6 +8,12 @@
 //! materials, lights and meshes. Every error is a [`SceneError`] that points at
 //! a file, line and column; everything ignored or approximated is a
 //! [`Warning`], also emitted with `tracing::warn!`.
+//!
+//! pbrt-v3 files load too: v3 type spellings (`point`, `color`, Booleans as
+//! strings), `Texture` statements (recorded in [`LoadedScene::textures`], not
+//! rendered yet), v3 materials mapped by [`v3`], `mix` resolved to its first
+//! material, `WorldEnd`, `Film "image"`, two-value `blackbody`, the infinite
+//! light's `mapname`; what cannot be honoured is warned about.
 
 pub mod builder;
 pub mod entities;
@@ -17,20 +23,12 @@ pub mod shapes;
 pub mod spectrum;
 pub mod tokenizer;
 pub mod transform;
+pub mod v3;
 
 use std::path::{Path, PathBuf};
 
 use crate::error::{FileLoc, SceneError, Warning};
-use crate::Scene;
-
-/// A loaded scene with everything the loader had to warn about.
-#[derive(Clone, Debug)]
-pub struct LoadedScene {
-    /// The scene.
-    pub scene: Scene,
-    /// Everything ignored or approximated, in file order.
-    pub warnings: Vec<Warning>,
-}
+pub use crate::load::LoadedScene;
 
 /// Loads a `.pbrt` (or `.pbrt.gz`) file. Relative paths inside it (`Include`,
 /// `plymesh` file names) resolve against the file's directory, as pbrt-v4 does.

@@ -23,6 +23,9 @@ pub struct ShapeMesh {
     pub indices: Vec<[u32; 3]>,
 }
 
+/// The shape types [`shape_mesh`] turns into triangles.
+pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere"];
+
 /// Longitude and latitude steps of a tessellated sphere.
 pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
 

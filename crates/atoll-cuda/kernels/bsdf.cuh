@@ -1,0 +1,489 @@
+// BSDFs: the mirror of `atoll_render::bsdf` (and its `fresnel`,
+// `microfacet`, `conductor`, `dielectric` modules) with pbrt-v4 semantics.
+// Conventions as in bsdf.rs: local shading frame with the normal along +z,
+// `wo`/`wi` point away from the surface, `f` excludes the cosine, a
+// dielectric's `eta` is inside/outside, transmission in radiance mode, delta
+// lobes only through `bsdf_sample`. Every function names the Rust one it
+// ports; the arithmetic is the same, operation by operation.
+#pragma once
+
+#include "common.cuh"
+#include "record.cuh"
+#include "sampling.cuh"
+
+// ---------------------------------------------------------------------------
+// Frame (bsdf.rs `Frame`)
+// ---------------------------------------------------------------------------
+
+/// An orthonormal basis around a unit normal `z`. Mirrors `bsdf::Frame`.
+struct Frame {
+    float3 x, y, z;
+};
+
+/// Mirrors `Frame::from_z` (Duff et al. 2017).
+__device__ __forceinline__ Frame frame_from_z(float3 n) {
+    const float sign = copysignf(1.0f, n.z);
+    const float a = -1.0f / (sign + n.z);
+    const float b = n.x * n.y * a;
+    Frame f;
+    f.x = make_float3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    f.y = make_float3(b, sign + n.y * n.y * a, -n.y);
+    f.z = n;
+    return f;
+}
+
+/// Mirrors `Frame::to_local`.
+__device__ __forceinline__ float3 frame_to_local(const Frame& f, float3 v) {
+    return make_float3(dot3(v, f.x), dot3(v, f.y), dot3(v, f.z));
+}
+
+/// Mirrors `Frame::from_local`: `x*v.x + y*v.y + z*v.z`.
+__device__ __forceinline__ float3 frame_from_local(const Frame& f, float3 v) {
+    return f.x * v.x + f.y * v.y + f.z * v.z;
+}
+
+/// Mirrors `bsdf::same_hemisphere`.
+__device__ __forceinline__ bool same_hemisphere(float3 a, float3 b) { return a.z * b.z > 0.0f; }
+
+// ---------------------------------------------------------------------------
+// Fresnel and the laws of reflection/refraction (bsdf/fresnel.rs)
+// ---------------------------------------------------------------------------
+
+/// Mirrors `fresnel::reflect`: `-wo + 2 (wo.n) n`.
+__device__ __forceinline__ float3 reflect3(float3 wo, float3 n) { return -wo + 2.0f * dot3(wo, n) * n; }
+
+/// Mirrors `fresnel::refract`. Returns false on total internal reflection;
+/// else writes the transmitted direction and the relative index used.
+__device__ __forceinline__ bool refract3(float3 wi, float3 n, float eta, float3* wt, float* etap) {
+    float cos_i = dot3(n, wi);
+    if (cos_i < 0.0f) {
+        eta = 1.0f / eta;
+        cos_i = -cos_i;
+        n = -n;
+    }
+    // Snell's law in terms of squared sines.
+    const float sin2_i = fmaxf(1.0f - cos_i * cos_i, 0.0f);
+    const float sin2_t = sin2_i / (eta * eta);
+    if (sin2_t >= 1.0f) return false;
+    const float cos_t = sqrtf(fmaxf(1.0f - sin2_t, 0.0f));
+    *wt = -wi / eta + (cos_i / eta - cos_t) * n;
+    *etap = eta;
+    return true;
+}
+
+/// Mirrors `fresnel::fr_dielectric`.
+__device__ __forceinline__ float fr_dielectric(float cos_theta_i, float eta) {
+    float cos_i = clampf(cos_theta_i, -1.0f, 1.0f);
+    if (cos_i < 0.0f) {
+        eta = 1.0f / eta;
+        cos_i = -cos_i;
+    }
+    const float sin2_i = 1.0f - cos_i * cos_i;
+    const float sin2_t = sin2_i / (eta * eta);
+    if (sin2_t >= 1.0f) return 1.0f;
+    const float cos_t = sqrtf(fmaxf(1.0f - sin2_t, 0.0f));
+    const float r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    const float r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    return (r_parl * r_parl + r_perp * r_perp) / 2.0f;
+}
+
+/// Mirrors fresnel.rs's private `Complex`.
+struct Complex {
+    float re, im;
+};
+
+__device__ __forceinline__ Complex cplx(float re, float im) {
+    Complex c;
+    c.re = re;
+    c.im = im;
+    return c;
+}
+__device__ __forceinline__ Complex cadd(Complex a, Complex o) { return cplx(a.re + o.re, a.im + o.im); }
+__device__ __forceinline__ Complex csub(Complex a, Complex o) { return cplx(a.re - o.re, a.im - o.im); }
+__device__ __forceinline__ Complex cmul(Complex a, Complex o) {
+    return cplx(a.re * o.re - a.im * o.im, a.re * o.im + a.im * o.re);
+}
+__device__ __forceinline__ Complex cscale(Complex a, float s) { return cplx(a.re * s, a.im * s); }
+/// Squared magnitude (pbrt's `norm`).
+__device__ __forceinline__ float cnorm(Complex a) { return a.re * a.re + a.im * a.im; }
+__device__ __forceinline__ Complex cdiv(Complex a, Complex o) {
+    const float s = 1.0f / cnorm(o);
+    return cplx((a.re * o.re + a.im * o.im) * s, (a.im * o.re - a.re * o.im) * s);
+}
+/// Mirrors `Complex::sqrt` (pbrt-v4's `pstd::sqrt(complex)`).
+__device__ __forceinline__ Complex csqrt(Complex a) {
+    const float n = sqrtf(cnorm(a));
+    if (n == 0.0f) return cplx(0.0f, 0.0f);
+    const float t1 = sqrtf(0.5f * (n + fabsf(a.re)));
+    const float t2 = 0.5f * a.im / t1;
+    if (a.re >= 0.0f) return cplx(t1, t2);
+    return cplx(fabsf(t2), copysignf(t1, a.im));
+}
+
+/// Mirrors `fresnel::fr_complex`.
+__device__ __forceinline__ float fr_complex(float cos_theta_i, float eta_re, float k) {
+    const float cos_i = clampf(cos_theta_i, 0.0f, 1.0f);
+    const Complex eta = cplx(eta_re, k);
+    const float sin2_i = 1.0f - cos_i * cos_i;
+    const Complex sin2_t = cdiv(cplx(sin2_i, 0.0f), cmul(eta, eta));
+    const Complex cos_t = csqrt(csub(cplx(1.0f, 0.0f), sin2_t));
+    const Complex ci = cplx(cos_i, 0.0f);
+    const Complex eci = cscale(eta, cos_i);
+    const Complex r_parl = cdiv(csub(eci, cos_t), cadd(eci, cos_t));
+    const Complex ect = cmul(eta, cos_t);
+    const Complex r_perp = cdiv(csub(ci, ect), cadd(ci, ect));
+    return (cnorm(r_parl) + cnorm(r_perp)) / 2.0f;
+}
+
+/// Mirrors `fresnel::fr_complex_rgb`.
+__device__ __forceinline__ float3 fr_complex_rgb(float cos_theta_i, float3 eta, float3 k) {
+    return make_float3(fr_complex(cos_theta_i, eta.x, k.x), fr_complex(cos_theta_i, eta.y, k.y),
+                       fr_complex(cos_theta_i, eta.z, k.z));
+}
+
+// ---------------------------------------------------------------------------
+// Trowbridge-Reitz (GGX) microfacet distribution (bsdf/microfacet.rs)
+// ---------------------------------------------------------------------------
+
+/// Mirrors `microfacet::TrowbridgeReitz`.
+struct TrowbridgeReitz {
+    float alpha_x, alpha_y;
+};
+
+/// Mirrors `TrowbridgeReitz::effectively_smooth`.
+__device__ __forceinline__ bool tr_effectively_smooth(TrowbridgeReitz d) {
+    return fmaxf(d.alpha_x, d.alpha_y) < SMOOTH_ALPHA;
+}
+
+/// Mirrors `TrowbridgeReitz::new` (alphas clamped to 1e-4 when rough).
+__device__ __forceinline__ TrowbridgeReitz trowbridge_reitz(float alpha_x, float alpha_y) {
+    TrowbridgeReitz d;
+    d.alpha_x = alpha_x;
+    d.alpha_y = alpha_y;
+    if (!tr_effectively_smooth(d)) {
+        d.alpha_x = fmaxf(d.alpha_x, 1e-4f);
+        d.alpha_y = fmaxf(d.alpha_y, 1e-4f);
+    }
+    return d;
+}
+
+/// Mirrors `TrowbridgeReitz::d`.
+__device__ __forceinline__ float tr_d(TrowbridgeReitz d, float3 wm) {
+    const float sx = wm.x / d.alpha_x;
+    const float sy = wm.y / d.alpha_y;
+    const float q = sx * sx + sy * sy + wm.z * wm.z;
+    return 1.0f / (PI * d.alpha_x * d.alpha_y * q * q);
+}
+
+/// Mirrors `TrowbridgeReitz::lambda`.
+__device__ __forceinline__ float tr_lambda(TrowbridgeReitz d, float3 w) {
+    const float ax = d.alpha_x * w.x;
+    const float ay = d.alpha_y * w.y;
+    const float a2_tan2 = (ax * ax + ay * ay) / (w.z * w.z);
+    return (sqrtf(1.0f + a2_tan2) - 1.0f) / 2.0f;
+}
+
+/// Mirrors `TrowbridgeReitz::g1`.
+__device__ __forceinline__ float tr_g1(TrowbridgeReitz d, float3 w) { return 1.0f / (1.0f + tr_lambda(d, w)); }
+
+/// Mirrors `TrowbridgeReitz::g`.
+__device__ __forceinline__ float tr_g(TrowbridgeReitz d, float3 wo, float3 wi) {
+    return 1.0f / (1.0f + tr_lambda(d, wo) + tr_lambda(d, wi));
+}
+
+/// Mirrors `TrowbridgeReitz::pdf` (= `d_visible`).
+__device__ __forceinline__ float tr_pdf(TrowbridgeReitz d, float3 w, float3 wm) {
+    return tr_g1(d, w) / fabsf(w.z) * tr_d(d, wm) * fabsf(dot3(w, wm));
+}
+
+/// Mirrors `TrowbridgeReitz::sample_wm` (Heitz 2018 visible normals).
+__device__ __forceinline__ float3 tr_sample_wm(TrowbridgeReitz d, float3 w, float2 u) {
+    float3 wh = normalize3(make_float3(d.alpha_x * w.x, d.alpha_y * w.y, w.z));
+    if (wh.z < 0.0f) wh = -wh;
+    // Orthonormal basis around wh; at normal incidence any tangent works.
+    const float3 t1 =
+        wh.z < 0.99999f ? normalize3(cross3(make_float3(0.0f, 0.0f, 1.0f), wh)) : make_float3(1.0f, 0.0f, 0.0f);
+    const float3 t2 = cross3(wh, t1);
+    float2 p = sample_uniform_disk_polar(u);
+    // Squash the lower half of the disk onto the visible hemisphere's projection.
+    const float h = sqrtf(fmaxf(1.0f - p.x * p.x, 0.0f));
+    const float s = (1.0f + wh.z) / 2.0f;
+    p.y = (1.0f - s) * h + s * p.y;
+    const float pz = sqrtf(fmaxf(1.0f - length_squared2(p), 0.0f));
+    const float3 nh = p.x * t1 + p.y * t2 + pz * wh;
+    return normalize3(make_float3(d.alpha_x * nh.x, d.alpha_y * nh.y, fmaxf(nh.z, 1e-6f)));
+}
+
+// ---------------------------------------------------------------------------
+// The BSDF (bsdf.rs `Bsdf`, `BsdfSample`)
+// ---------------------------------------------------------------------------
+
+/// Mirrors `bsdf::Bsdf`. `kind` is a `MATERIAL_*` constant; the fields used
+/// per kind: Diffuse `a` = reflectance; Conductor `a` = eta, `b` = k,
+/// alphas; Dielectric `eta`, alphas. `MATERIAL_NONE` means "no BSDF"
+/// (Rust's `None` from `bsdf_from_record`).
+struct Bsdf {
+    unsigned int kind;
+    float3 a, b;
+    float eta, alpha_x, alpha_y;
+};
+
+/// Mirrors `bsdf::BsdfSample`.
+struct BsdfSample {
+    float3 f;
+    float3 wi;
+    float pdf;
+    float eta;
+    bool delta;
+    bool transmission;
+};
+
+__device__ __forceinline__ BsdfSample make_bsdf_sample(float3 f, float3 wi, float pdf, float eta, bool delta,
+                                                       bool transmission) {
+    BsdfSample s;
+    s.f = f;
+    s.wi = wi;
+    s.pdf = pdf;
+    s.eta = eta;
+    s.delta = delta;
+    s.transmission = transmission;
+    return s;
+}
+
+/// Mirrors `material_coeffs::bsdf_from_record`.
+__device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
+    Bsdf b;
+    b.kind = r.material;
+    b.a = zero3();
+    b.b = zero3();
+    b.eta = 0.0f;
+    b.alpha_x = 0.0f;
+    b.alpha_y = 0.0f;
+    if (r.material == MATERIAL_DIFFUSE) {
+        b.a = load_f16x3(&r.coeffs[0]);
+    } else if (r.material == MATERIAL_CONDUCTOR) {
+        b.a = load_f16x3(&r.coeffs[0]);
+        b.b = load_f16x3(&r.coeffs[3]);
+        b.alpha_x = f16_to_f32(r.coeffs[6]);
+        b.alpha_y = f16_to_f32(r.coeffs[7]);
+    } else if (r.material == MATERIAL_DIELECTRIC) {
+        b.eta = f16_to_f32(r.coeffs[0]);
+        b.alpha_x = f16_to_f32(r.coeffs[1]);
+        b.alpha_y = f16_to_f32(r.coeffs[2]);
+    } else {
+        b.kind = MATERIAL_NONE;
+    }
+    return b;
+}
+
+// --- conductor (bsdf/conductor.rs) ---
+
+/// Mirrors `conductor::eval`.
+__device__ __forceinline__ float3 conductor_eval(float3 eta, float3 k, TrowbridgeReitz mf, float3 wo, float3 wi) {
+    if (!same_hemisphere(wo, wi) || tr_effectively_smooth(mf)) return zero3();
+    const float cos_o = fabsf(wo.z), cos_i = fabsf(wi.z);
+    float3 wm = wi + wo;
+    if (cos_i == 0.0f || cos_o == 0.0f || length_squared3(wm) == 0.0f) return zero3();
+    wm = normalize3(wm);
+    const float3 f = fr_complex_rgb(fabsf(dot3(wo, wm)), eta, k);
+    return f * (tr_d(mf, wm) * tr_g(mf, wo, wi) / (4.0f * cos_i * cos_o));
+}
+
+/// Mirrors `conductor::pdf`.
+__device__ __forceinline__ float conductor_pdf(TrowbridgeReitz mf, float3 wo, float3 wi) {
+    if (!same_hemisphere(wo, wi) || tr_effectively_smooth(mf) || wo.z == 0.0f) return 0.0f;
+    float3 wm = wo + wi;
+    if (length_squared3(wm) == 0.0f) return 0.0f;
+    // Face forward so the normal is in the distribution's (upper) hemisphere.
+    wm = normalize3(wm) * signumf(wm.z);
+    return tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm)));
+}
+
+/// Mirrors `conductor::sample`; false for Rust's `None`.
+__device__ __forceinline__ bool conductor_sample(float3 eta, float3 k, TrowbridgeReitz mf, float3 wo, float2 u,
+                                                 BsdfSample* out) {
+    if (wo.z == 0.0f) return false;
+    if (tr_effectively_smooth(mf)) {
+        const float3 wi = make_float3(-wo.x, -wo.y, wo.z);
+        const float c = fabsf(wi.z);
+        const float3 f = fr_complex_rgb(c, eta, k) / c;
+        *out = make_bsdf_sample(f, wi, 1.0f, 1.0f, true, false);
+        return true;
+    }
+    const float3 wm = tr_sample_wm(mf, wo, u);
+    const float3 wi = reflect3(wo, wm);
+    if (!same_hemisphere(wo, wi)) return false;
+    const float cos_o = fabsf(wo.z), cos_i = fabsf(wi.z);
+    if (cos_i == 0.0f) return false;
+    const float pdf = tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm)));
+    const float3 f =
+        fr_complex_rgb(fabsf(dot3(wo, wm)), eta, k) * (tr_d(mf, wm) * tr_g(mf, wo, wi) / (4.0f * cos_i * cos_o));
+    *out = make_bsdf_sample(f, wi, pdf, 1.0f, false, false);
+    return true;
+}
+
+// --- dielectric (bsdf/dielectric.rs) ---
+
+/// Mirrors `dielectric::is_specular`.
+__device__ __forceinline__ bool dielectric_is_specular(float eta, TrowbridgeReitz mf) {
+    return eta == 1.0f || tr_effectively_smooth(mf);
+}
+
+/// Mirrors dielectric.rs's `half_vector`; false for `None`.
+__device__ __forceinline__ bool dielectric_half_vector(float eta, float3 wo, float3 wi, float3* wm_out,
+                                                       float* etap_out, bool* reflect_out) {
+    const float cos_o = wo.z, cos_i = wi.z;
+    const bool reflect = cos_i * cos_o > 0.0f;
+    const float etap = reflect ? 1.0f : (cos_o > 0.0f ? eta : 1.0f / eta);
+    float3 wm = wi * etap + wo;
+    if (cos_i == 0.0f || cos_o == 0.0f || length_squared3(wm) == 0.0f) return false;
+    wm = normalize3(wm) * signumf(wm.z);
+    // Discard back-facing microfacets.
+    if (dot3(wm, wi) * cos_i < 0.0f || dot3(wm, wo) * cos_o < 0.0f) return false;
+    *wm_out = wm;
+    *etap_out = etap;
+    *reflect_out = reflect;
+    return true;
+}
+
+/// Mirrors `dielectric::eval` (radiance mode).
+__device__ __forceinline__ float3 dielectric_eval(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+    if (dielectric_is_specular(eta, mf)) return zero3();
+    float3 wm;
+    float etap;
+    bool reflect;
+    if (!dielectric_half_vector(eta, wo, wi, &wm, &etap, &reflect)) return zero3();
+    const float fr = fr_dielectric(dot3(wo, wm), eta);
+    const float cos_o = wo.z, cos_i = wi.z;
+    float f;
+    if (reflect) {
+        f = tr_d(mf, wm) * tr_g(mf, wo, wi) * fr / fabsf(4.0f * cos_i * cos_o);
+    } else {
+        const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
+        const float denom = sq * sq * cos_i * cos_o;
+        const float ft = tr_d(mf, wm) * (1.0f - fr) * tr_g(mf, wo, wi) * fabsf(dot3(wi, wm) * dot3(wo, wm) / denom);
+        f = ft / (etap * etap);
+    }
+    return make_float3(f, f, f);
+}
+
+/// Mirrors `dielectric::pdf`.
+__device__ __forceinline__ float dielectric_pdf(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+    if (dielectric_is_specular(eta, mf)) return 0.0f;
+    float3 wm;
+    float etap;
+    bool reflect;
+    if (!dielectric_half_vector(eta, wo, wi, &wm, &etap, &reflect)) return 0.0f;
+    const float r = fr_dielectric(dot3(wo, wm), eta);
+    const float t = 1.0f - r;
+    if (reflect) return tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * r / (r + t);
+    // Jacobian of the generalised half vector with respect to wi.
+    const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
+    const float denom = sq * sq;
+    const float dwm_dwi = fabsf(dot3(wi, wm)) / denom;
+    return tr_pdf(mf, wo, wm) * dwm_dwi * t / (r + t);
+}
+
+/// Mirrors `dielectric::sample`; false for `None`.
+__device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf, float3 wo, float uc, float2 u,
+                                                  BsdfSample* out) {
+    if (wo.z == 0.0f) return false;
+    if (eta == 1.0f) {
+        // Index-matched: the surface is invisible, light passes straight on.
+        const float3 wi = -wo;
+        const float v = 1.0f / fabsf(wi.z);
+        *out = make_bsdf_sample(make_float3(v, v, v), wi, 1.0f, 1.0f, true, true);
+        return true;
+    }
+    if (tr_effectively_smooth(mf)) {
+        const float r = fr_dielectric(wo.z, eta);
+        const float t = 1.0f - r;
+        const float pr = r / (r + t);
+        if (uc < pr) {
+            const float3 wi = make_float3(-wo.x, -wo.y, wo.z);
+            const float v = r / fabsf(wi.z);
+            *out = make_bsdf_sample(make_float3(v, v, v), wi, pr, 1.0f, true, false);
+            return true;
+        }
+        float3 wi;
+        float etap;
+        if (!refract3(wo, make_float3(0.0f, 0.0f, 1.0f), eta, &wi, &etap)) return false;
+        if (wi.z == 0.0f) return false;
+        const float v = t / fabsf(wi.z) / (etap * etap);
+        *out = make_bsdf_sample(make_float3(v, v, v), wi, t / (r + t), etap, true, true);
+        return true;
+    }
+
+    const float3 wm = tr_sample_wm(mf, wo, u);
+    const float r = fr_dielectric(dot3(wo, wm), eta);
+    const float t = 1.0f - r;
+    const float pr = r / (r + t);
+    if (uc < pr) {
+        const float3 wi = reflect3(wo, wm);
+        if (!same_hemisphere(wo, wi)) return false;
+        const float pdf = tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * pr;
+        const float f = tr_d(mf, wm) * tr_g(mf, wo, wi) * r / fabsf(4.0f * wi.z * wo.z);
+        *out = make_bsdf_sample(make_float3(f, f, f), wi, pdf, 1.0f, false, false);
+        return true;
+    }
+    float3 wi;
+    float etap;
+    if (!refract3(wo, wm, eta, &wi, &etap)) return false;
+    if (same_hemisphere(wo, wi) || wi.z == 0.0f) return false;
+    const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
+    const float denom = sq * sq;
+    const float dwm_dwi = fabsf(dot3(wi, wm)) / denom;
+    const float pdf = tr_pdf(mf, wo, wm) * dwm_dwi * (t / (r + t));
+    const float ft =
+        t * tr_d(mf, wm) * tr_g(mf, wo, wi) * fabsf(dot3(wi, wm) * dot3(wo, wm) / (wi.z * wo.z * denom));
+    const float f = ft / (etap * etap);
+    *out = make_bsdf_sample(make_float3(f, f, f), wi, pdf, etap, false, true);
+    return true;
+}
+
+// --- dispatch (bsdf.rs `impl Bsdf`) ---
+
+/// Mirrors `Bsdf::eval`. `b.kind` must not be `MATERIAL_NONE`.
+__device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi) {
+    if (b.kind == MATERIAL_DIFFUSE) return same_hemisphere(wo, wi) ? b.a * FRAC_1_PI : zero3();
+    if (b.kind == MATERIAL_CONDUCTOR) return conductor_eval(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+    return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+}
+
+/// Mirrors `Bsdf::pdf`.
+__device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
+    if (b.kind == MATERIAL_DIFFUSE) return same_hemisphere(wo, wi) ? cosine_hemisphere_pdf(fabsf(wi.z)) : 0.0f;
+    if (b.kind == MATERIAL_CONDUCTOR) return conductor_pdf(trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+    return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+}
+
+/// Mirrors `Bsdf::sample`; false for `None`.
+__device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, float2 u, BsdfSample* out) {
+    // Grazing wo: no side to scatter on (and eval would return 0).
+    if (wo.z == 0.0f) return false;
+    BsdfSample s;
+    if (b.kind == MATERIAL_DIFFUSE) {
+        // Cosine-weighted on wo's side (pbrt flips z for wo below).
+        float3 wi = sample_cosine_hemisphere(u);
+        if (wo.z < 0.0f) wi.z = -wi.z;
+        const float pdf = cosine_hemisphere_pdf(fabsf(wi.z));
+        s = make_bsdf_sample(b.a * FRAC_1_PI, wi, pdf, 1.0f, false, false);
+    } else if (b.kind == MATERIAL_CONDUCTOR) {
+        if (!conductor_sample(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, u, &s)) return false;
+    } else {
+        if (!dielectric_sample(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, uc, u, &s)) return false;
+    }
+    // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
+    if (s.pdf > 0.0f && s.wi.z != 0.0f && is_finite3(s.f)) {
+        *out = s;
+        return true;
+    }
+    return false;
+}
+
+/// Mirrors `Bsdf::is_delta`.
+__device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
+    if (b.kind == MATERIAL_DIFFUSE) return false;
+    if (b.kind == MATERIAL_CONDUCTOR) return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y));
+    return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
+}

@@ -1,0 +1,146 @@
+// Light sampling: the mirror of `atoll_render::lights::LightSet` over the
+// flat tables of `FrameParams` (emitters, pmf, cdf, infinite list, sorted
+// triangle-light keys). Same selection (`partition_point` on the cdf), same
+// arithmetic.
+#pragma once
+
+#include "common.cuh"
+#include "params.cuh"
+#include "record.cuh"
+#include "sampling.cuh"
+
+/// Mirrors `lights::LightSample`.
+struct LightSample {
+    float3 wi;
+    float distance;
+    float3 radiance;
+    float pdf;
+    bool delta;
+};
+
+/// Mirrors `LightSet::triangle_light`: global light index of triangle
+/// `triangle` of scene mesh `mesh` in instance `instance`, or `NO_LIGHT`.
+/// Binary search of the sorted `(instance << 32) | mesh` keys.
+__device__ __forceinline__ unsigned int light_triangle_index(const FrameParams& p, unsigned int instance,
+                                                             unsigned int mesh, unsigned int triangle) {
+    const unsigned long long key = ((unsigned long long)instance << 32) | (unsigned long long)mesh;
+    unsigned int lo = 0, hi = p.triangle_key_count;
+    while (lo < hi) {
+        const unsigned int mid = lo + (hi - lo) / 2;
+        if (p.triangle_keys[mid] < key) {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    if (lo < p.triangle_key_count && p.triangle_keys[lo] == key) return p.triangle_bases[lo] + triangle;
+    return NO_LIGHT;
+}
+
+/// Mirrors `LightSet::select`: picks an emitter with `u` in [0, 1). Returns
+/// false when there are no emitters; else writes (index, probability).
+__device__ __forceinline__ bool light_select(const FrameParams& p, float u, unsigned int* index, float* pmf) {
+    const unsigned int n = p.light_count;
+    if (n == 0) return false;
+    // partition_point(|c| c <= u) over cdf[0..=n]: the first entry > u.
+    unsigned int lo = 0, hi = n + 1;
+    while (lo < hi) {
+        const unsigned int mid = lo + (hi - lo) / 2;
+        if (p.light_cdf[mid] <= u) {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    // Minus one (saturating), at most the last emitter; skips zero-probability emitters.
+    unsigned int i = lo == 0 ? 0 : lo - 1;
+    if (i > n - 1) i = n - 1;
+    *index = i;
+    *pmf = p.light_pmf[i];
+    return true;
+}
+
+/// Mirrors `LightSet::sample`: incident light at `pos` with selection number
+/// `u_select` and position numbers `u`. False for Rust's `None`.
+__device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, float u_select, float2 u,
+                                             LightSample* out) {
+    unsigned int index;
+    float pmf;
+    if (!light_select(p, u_select, &index, &pmf)) return false;
+    if (pmf <= 0.0f) return false;
+    const GpuEmitter& e = p.emitters[index];
+    if (e.kind == EMITTER_POINT) {
+        const float3 d = load3(&e.p[0]) - pos;
+        const float dist2 = length_squared3(d);
+        const float distance = sqrtf(dist2);
+        out->wi = d / distance;
+        out->distance = distance;
+        out->radiance = load3(e.radiance) / dist2;
+        out->pdf = pmf;
+        out->delta = true;
+        return true;
+    }
+    if (e.kind == EMITTER_DISTANT) {
+        out->wi = -load3(&e.p[0]);
+        out->distance = f32_infinity();
+        out->radiance = load3(e.radiance);
+        out->pdf = pmf;
+        out->delta = true;
+        return true;
+    }
+    if (e.kind == EMITTER_INFINITE) {
+        out->wi = sample_uniform_sphere(u);
+        out->distance = f32_infinity();
+        out->radiance = load3(e.radiance);
+        out->pdf = pmf * UNIFORM_SPHERE_PDF;
+        out->delta = false;
+        return true;
+    }
+    // Triangle.
+    const float3 b = sample_uniform_triangle(u);
+    const float3 q = load3(&e.p[0]) * b.x + load3(&e.p[3]) * b.y + load3(&e.p[6]) * b.z;
+    const float3 d = q - pos;
+    const float dist2 = length_squared3(d);
+    if (dist2 == 0.0f || e.area == 0.0f) return false;
+    const float distance = sqrtf(dist2);
+    const float3 wi = d / distance;
+    const float cos_light = dot3(load3(e.normal), -wi);
+    if (cos_light == 0.0f || (!e.two_sided && cos_light < 0.0f)) return false;
+    out->wi = wi;
+    out->distance = distance;
+    out->radiance = load3(e.radiance);
+    out->pdf = pmf * dist2 / (fabsf(cos_light) * e.area);
+    out->delta = false;
+    return true;
+}
+
+/// Mirrors `LightSet::emitted`: radiance leaving emissive triangle `index`
+/// towards `w` (pointing away from the surface).
+__device__ __forceinline__ float3 light_emitted(const FrameParams& p, unsigned int index, float3 w) {
+    const GpuEmitter& e = p.emitters[index];
+    if (e.kind != EMITTER_TRIANGLE) return zero3();
+    if (e.two_sided || dot3(load3(e.normal), w) > 0.0f) return load3(e.radiance);
+    return zero3();
+}
+
+/// Mirrors `LightSet::pdf_triangle`: the light-sampling density of the point
+/// at `distance` along `wi` on emissive triangle `index`.
+__device__ __forceinline__ float light_pdf_triangle(const FrameParams& p, unsigned int index, float3 wi,
+                                                    float distance) {
+    const GpuEmitter& e = p.emitters[index];
+    if (e.kind != EMITTER_TRIANGLE) return 0.0f;
+    const float c = fabsf(dot3(load3(e.normal), wi));
+    if (c == 0.0f || e.area == 0.0f) return 0.0f;
+    return p.light_pmf[index] * distance * distance / (c * e.area);
+}
+
+/// Mirrors `LightSet::environment_radiance`.
+__device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3) {
+    const GpuEmitter& e = p.emitters[index];
+    return e.kind == EMITTER_INFINITE ? load3(e.radiance) : zero3();
+}
+
+/// Mirrors `LightSet::pdf_environment`.
+__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, unsigned int index, float3) {
+    return p.light_pmf[index] * UNIFORM_SPHERE_PDF;
+}

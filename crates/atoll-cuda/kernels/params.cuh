@@ -1,0 +1,138 @@
+// What the wavefront kernels are launched with: the frame's parameters
+// (camera, options, light and material tables) and the scene tables' device
+// pointers. Mirrors `atoll_cuda::params`; the generated block asserts every
+// offset and size against the Rust structs and defines their constants.
+#pragma once
+
+#include "layout.cuh"
+
+/// Mirror of `params::GpuEmitter` (80 bytes), one `lights::Emitter`. By
+/// `kind` (`EMITTER_*`): point: `p[0..3]` position, `radiance` intensity;
+/// distant: `p[0..3]` direction of travel; infinite: `radiance` only;
+/// triangle: `p` the three world-space vertices, `normal`, `area`,
+/// `two_sided`.
+struct GpuEmitter {
+    unsigned int kind;
+    unsigned int two_sided;
+    float area;
+    unsigned int pad;
+    float p[9];
+    float normal[3];
+    float radiance[3];
+    unsigned int pad2;
+};
+
+/// Mirror of `params::GpuMaterial` (48 bytes): a `PackedMaterial`, f16 bits.
+struct __align__(16) GpuMaterial {
+    unsigned short coeffs[16];
+    unsigned int kind;
+    unsigned int pad[3];
+};
+
+/// Mirror of `params::FrameParams`: everything shading needs, identical on
+/// every device (`atoll_render::FrameContext` flattened).
+struct FrameParams {
+    // CameraRays (camera.rs): row-major 3x4 camera-to-world, screen window.
+    float camera_to_world[12];
+    float window_min[2];
+    float window_max[2];
+    float raster_size[2];
+    float lens_radius;
+    float focal_distance;
+    // RenderOptions.
+    unsigned int resolution[2];
+    unsigned int seed;
+    unsigned int integrator;
+    unsigned int max_depth;
+    float ao_max_distance;
+    unsigned int russian_roulette;
+    // Table sizes.
+    unsigned int light_count;
+    unsigned int infinite_count;
+    unsigned int triangle_key_count;
+    unsigned int material_count;
+    unsigned int pad;
+    // LightSet: emitters, pmf (light_count), cdf (light_count + 1), infinite
+    // light indices, sorted (instance << 32 | mesh) keys and their base
+    // light indices; the packed materials.
+    const GpuEmitter* emitters;
+    const float* light_pmf;
+    const float* light_cdf;
+    const unsigned int* infinite_lights;
+    const unsigned long long* triangle_keys;
+    const unsigned int* triangle_bases;
+    const GpuMaterial* materials;
+};
+
+/// Mirror of `params::SceneView`: device pointers of the GPU scene tables
+/// (crate docs in lib.rs describe them) and their sizes.
+struct SceneView {
+    const float* vertices;
+    const float* normals;
+    const unsigned int* triangles;
+    const unsigned int* triangle_mesh;
+    const GpuMesh* meshes;
+    const GpuInstance* instances;
+    unsigned int triangle_count;
+    unsigned int mesh_count;
+    unsigned int instance_count;
+    unsigned int vertex_count;
+};
+
+// BEGIN GENERATED params (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
+inline constexpr unsigned int EMITTER_POINT = 0u;
+inline constexpr unsigned int EMITTER_DISTANT = 1u;
+inline constexpr unsigned int EMITTER_INFINITE = 2u;
+inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
+inline constexpr unsigned int INTEGRATOR_PATH = 0u;
+inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
+static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, two_sided) == 4 && sizeof(GpuEmitter::two_sided) == 4, "GpuEmitter.two_sided: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, area) == 8 && sizeof(GpuEmitter::area) == 4, "GpuEmitter.area: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, pad) == 12 && sizeof(GpuEmitter::pad) == 4, "GpuEmitter.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, p) == 16 && sizeof(GpuEmitter::p) == 36, "GpuEmitter.p: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, normal) == 52 && sizeof(GpuEmitter::normal) == 12, "GpuEmitter.normal: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, radiance) == 64 && sizeof(GpuEmitter::radiance) == 12, "GpuEmitter.radiance: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, pad2) == 76 && sizeof(GpuEmitter::pad2) == 4, "GpuEmitter.pad2: offset or size differs from Rust");
+static_assert(sizeof(GpuMaterial) == 48, "GpuMaterial: size differs from Rust");
+static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial::coeffs) == 32, "GpuMaterial.coeffs: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
+static_assert(sizeof(FrameParams) == 184, "FrameParams: size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, window_max) == 56 && sizeof(FrameParams::window_max) == 8, "FrameParams.window_max: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, raster_size) == 64 && sizeof(FrameParams::raster_size) == 8, "FrameParams.raster_size: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, lens_radius) == 72 && sizeof(FrameParams::lens_radius) == 4, "FrameParams.lens_radius: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, focal_distance) == 76 && sizeof(FrameParams::focal_distance) == 4, "FrameParams.focal_distance: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, resolution) == 80 && sizeof(FrameParams::resolution) == 8, "FrameParams.resolution: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, seed) == 88 && sizeof(FrameParams::seed) == 4, "FrameParams.seed: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, integrator) == 92 && sizeof(FrameParams::integrator) == 4, "FrameParams.integrator: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, max_depth) == 96 && sizeof(FrameParams::max_depth) == 4, "FrameParams.max_depth: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, ao_max_distance) == 100 && sizeof(FrameParams::ao_max_distance) == 4, "FrameParams.ao_max_distance: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, russian_roulette) == 104 && sizeof(FrameParams::russian_roulette) == 4, "FrameParams.russian_roulette: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_count) == 108 && sizeof(FrameParams::light_count) == 4, "FrameParams.light_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, infinite_count) == 112 && sizeof(FrameParams::infinite_count) == 4, "FrameParams.infinite_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, triangle_key_count) == 116 && sizeof(FrameParams::triangle_key_count) == 4, "FrameParams.triangle_key_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, material_count) == 120 && sizeof(FrameParams::material_count) == 4, "FrameParams.material_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, pad) == 124 && sizeof(FrameParams::pad) == 4, "FrameParams.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, emitters) == 128 && sizeof(FrameParams::emitters) == 8, "FrameParams.emitters: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_pmf) == 136 && sizeof(FrameParams::light_pmf) == 8, "FrameParams.light_pmf: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_cdf) == 144 && sizeof(FrameParams::light_cdf) == 8, "FrameParams.light_cdf: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, infinite_lights) == 152 && sizeof(FrameParams::infinite_lights) == 8, "FrameParams.infinite_lights: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, triangle_keys) == 160 && sizeof(FrameParams::triangle_keys) == 8, "FrameParams.triangle_keys: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, triangle_bases) == 168 && sizeof(FrameParams::triangle_bases) == 8, "FrameParams.triangle_bases: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, materials) == 176 && sizeof(FrameParams::materials) == 8, "FrameParams.materials: offset or size differs from Rust");
+static_assert(sizeof(SceneView) == 64, "SceneView: size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, vertices) == 0 && sizeof(SceneView::vertices) == 8, "SceneView.vertices: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, normals) == 8 && sizeof(SceneView::normals) == 8, "SceneView.normals: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, triangles) == 16 && sizeof(SceneView::triangles) == 8, "SceneView.triangles: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, triangle_mesh) == 24 && sizeof(SceneView::triangle_mesh) == 8, "SceneView.triangle_mesh: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, meshes) == 32 && sizeof(SceneView::meshes) == 8, "SceneView.meshes: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, instances) == 40 && sizeof(SceneView::instances) == 8, "SceneView.instances: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, triangle_count) == 48 && sizeof(SceneView::triangle_count) == 4, "SceneView.triangle_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, mesh_count) == 52 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, instance_count) == 56 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, vertex_count) == 60 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
+// END GENERATED params

@@ -1,0 +1,62 @@
+// The ray record (mirror of `atoll_render::record`): one path segment or
+// shadow ray plus, after tracing, its full hit. 128 bytes; the generated
+// block below asserts every offset and size against the Rust struct, and
+// defines the flag and material-kind constants from the Rust ones.
+#pragma once
+
+/// Mirror of `atoll_render::record::RayRecord` (field docs there). f16
+/// fields are `unsigned short` bit patterns: read them with `load_f16x3` /
+/// `f16_to_f32` (common.cuh). 16-byte aligned so a record moves as 8 vector
+/// loads; the Rust side only needs 4, and device allocations are 256-aligned.
+struct __align__(16) RayRecord {
+    float origin[3];
+    float t_max;
+    float direction[3];
+    unsigned int pixel;
+    float throughput[3];
+    unsigned int sample;
+    float bsdf_pdf;
+    unsigned short depth;
+    unsigned short flags;
+    unsigned int light;
+    unsigned int instance;
+    float position[3];
+    unsigned int reserved;
+    unsigned short geometric_normal[3];
+    unsigned short material;
+    unsigned short shading_normal[3];
+    unsigned short reserved2;
+    unsigned short coeffs[16];
+};
+
+// BEGIN GENERATED record (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
+inline constexpr unsigned int NO_LIGHT = 4294967295u;
+inline constexpr unsigned int MATERIAL_COEFFS = 16u;
+inline constexpr unsigned short FLAG_SHADOW = 1;
+inline constexpr unsigned short FLAG_OCCLUDED = 2;
+inline constexpr unsigned short FLAG_HIT = 4;
+inline constexpr unsigned short FLAG_SPECULAR = 8;
+inline constexpr unsigned int MATERIAL_NONE = 0u;
+inline constexpr unsigned int MATERIAL_DIFFUSE = 1u;
+inline constexpr unsigned int MATERIAL_CONDUCTOR = 2u;
+inline constexpr unsigned int MATERIAL_DIELECTRIC = 3u;
+static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, t_max) == 12 && sizeof(RayRecord::t_max) == 4, "RayRecord.t_max: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, direction) == 16 && sizeof(RayRecord::direction) == 12, "RayRecord.direction: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, pixel) == 28 && sizeof(RayRecord::pixel) == 4, "RayRecord.pixel: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, throughput) == 32 && sizeof(RayRecord::throughput) == 12, "RayRecord.throughput: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, sample) == 44 && sizeof(RayRecord::sample) == 4, "RayRecord.sample: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, bsdf_pdf) == 48 && sizeof(RayRecord::bsdf_pdf) == 4, "RayRecord.bsdf_pdf: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, depth) == 52 && sizeof(RayRecord::depth) == 2, "RayRecord.depth: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, flags) == 54 && sizeof(RayRecord::flags) == 2, "RayRecord.flags: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, light) == 56 && sizeof(RayRecord::light) == 4, "RayRecord.light: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, instance) == 60 && sizeof(RayRecord::instance) == 4, "RayRecord.instance: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, position) == 64 && sizeof(RayRecord::position) == 12, "RayRecord.position: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, reserved) == 76 && sizeof(RayRecord::reserved) == 4, "RayRecord.reserved: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, geometric_normal) == 80 && sizeof(RayRecord::geometric_normal) == 6, "RayRecord.geometric_normal: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, material) == 86 && sizeof(RayRecord::material) == 2, "RayRecord.material: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, shading_normal) == 88 && sizeof(RayRecord::shading_normal) == 6, "RayRecord.shading_normal: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, reserved2) == 94 && sizeof(RayRecord::reserved2) == 2, "RayRecord.reserved2: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 32, "RayRecord.coeffs: offset or size differs from Rust");
+// END GENERATED record

@@ -1,0 +1,113 @@
+// Ray traversal kernels (host side: src/trace.rs). Rays are read straight
+// from the RayRecord array (origin + t_max, then direction: two 16-byte
+// loads); results go back into it:
+// - trace_closest_*: on a hit with t < t_max, t_max becomes t and hits[i]
+//   gets (u, v, instance, global triangle); otherwise hits[i].instance is
+//   HIT_NONE (the record is left as it was);
+// - trace_any_*: records already FLAG_OCCLUDED are skipped; a hit sets it.
+//
+// Variants (Aila & Laine 2009), one kernel each, chosen by the host:
+// - ww: while-while, one thread per ray;
+// - pt: persistent threads: just enough warps to fill the GPU, each
+//   fetching 32 rays at a time from a global counter until none are left
+//   (`*work` must be 0 at launch);
+// - sp: speculative while-while, one thread per ray;
+// - ptsp: persistent threads with speculative traversal.
+// and two triangle tests: exact (Möller–Trumbore bit-identical to the CPU)
+// and woop (unit-triangle test).
+
+#include "record.cuh"
+#include "layout.cuh"
+#include "bvh.cuh"
+
+#define TRACE_THREADS 128
+
+/// Traces ray `i` (when `i < count`) and writes its result. All 32 lanes
+/// of the warp call this together (the speculative traversal votes).
+template <int TRI, bool ANY, bool SPECULATIVE>
+__device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* records, HitRef* hits,
+                                          unsigned long long i, unsigned int count) {
+    bool valid = i < count;
+    RayRecord* rec = records + (valid ? i : 0);
+    float4 a = make_float4(0.0f, 0.0f, 0.0f, 0.0f), b = a;
+    if (valid) {
+        a = *reinterpret_cast<const float4*>(rec);
+        b = *(reinterpret_cast<const float4*>(rec) + 1);
+        if (ANY && (rec->flags & FLAG_OCCLUDED)) valid = false;
+    }
+    const unsigned int mask = __ballot_sync(0xffffffffu, valid);
+    if (!valid) return;
+    const float3 o = make_float3(a.x, a.y, a.z), d = make_float3(b.x, b.y, b.z);
+    const TraversalHit h = SPECULATIVE ? traverse_speculative<TRI, ANY>(v, o, d, a.w, mask)
+                                       : traverse_while_while<TRI, ANY>(v, o, d, a.w);
+    if (ANY) {
+        if (h.hit) rec->flags |= FLAG_OCCLUDED;
+        return;
+    }
+    HitRef out;
+    if (h.hit) {
+        rec->t_max = h.t;
+        out.u = h.u;
+        out.v = h.v;
+        out.instance = __ldg(&v.instances[h.slot].instance);
+        out.triangle = __ldg(v.tri_ids + h.tri);
+    } else {
+        out.u = out.v = 0.0f;
+        out.instance = HIT_NONE;
+        out.triangle = HIT_NONE;
+    }
+    hits[i] = out;
+}
+
+/// One thread per ray.
+template <int TRI, bool ANY, bool SPECULATIVE>
+__device__ __forceinline__ void trace_grid(const SceneBvhView& v, RayRecord* records, HitRef* hits,
+                                           unsigned int count) {
+    const unsigned long long i = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
+    trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, i, count);
+}
+
+/// Persistent threads: warps take batches of 32 rays from `*work`.
+template <int TRI, bool ANY, bool SPECULATIVE>
+__device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecord* records, HitRef* hits,
+                                                 unsigned int count, unsigned int* work) {
+    const unsigned int lane = threadIdx.x & 31u;
+    for (;;) {
+        unsigned int base = 0;
+        if (lane == 0) base = atomicAdd(work, 32u);
+        base = __shfl_sync(0xffffffffu, base, 0);
+        if (base >= count) return;
+        trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, (unsigned long long)base + lane, count);
+        __syncwarp();
+    }
+}
+
+#define TRACE_ARGS                                                                                           \
+    const BvhNode *tlas_nodes, const BvhNode *blas_nodes, const TriRecord *tris, const unsigned int *tri_ids, \
+        const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
+        unsigned int *work
+#define TRACE_VIEW SceneBvhView v = {tlas_nodes, blas_nodes, tris, tri_ids, instances, tlas_root}
+
+// One extern "C" kernel per (query, loop, triangle test).
+#define TRACE_KERNELS(query, any, test, tri)                                                                      \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ww_##test(TRACE_ARGS) {          \
+        TRACE_VIEW;                                                                                               \
+        trace_grid<tri, any, false>(v, records, hits, count);                                                     \
+    }                                                                                                             \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_sp_##test(TRACE_ARGS) {          \
+        TRACE_VIEW;                                                                                               \
+        trace_grid<tri, any, true>(v, records, hits, count);                                                      \
+    }                                                                                                             \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_pt_##test(TRACE_ARGS) {          \
+        TRACE_VIEW;                                                                                               \
+        trace_persistent<tri, any, false>(v, records, hits, count, work);                                         \
+    }                                                                                                             \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptsp_##test(TRACE_ARGS) {        \
+        TRACE_VIEW;                                                                                               \
+        trace_persistent<tri, any, true>(v, records, hits, count, work);                                          \
+    }
+
+TRACE_KERNELS(closest, false, exact, TRI_EXACT)
+TRACE_KERNELS(closest, false, woop, TRI_WOOP)
+TRACE_KERNELS(any, true, exact, TRI_EXACT)
+TRACE_KERNELS(any, true, woop, TRI_WOOP)

@@ -1,0 +1,220 @@
+// Two-level BVH traversal (included by bvh.cuh; instantiated by trace.cu).
+//
+// One stack serves both levels: on reaching a TLAS leaf, LINK_INSTANCE_END
+// is pushed, the ray is moved into object space with the instance's
+// world_to_object (direction not renormalised, so t means the same in both
+// spaces) and traversal continues at the BLAS root; popping the marker
+// restores the world ray and the TLAS node array.
+//
+// Two loop structures from Aila & Laine 2009:
+// - while-while: descend inner nodes until a leaf, then test leaves until
+//   an inner node is popped (threads of a warp test triangles together);
+// - speculative while-while: a thread that reaches a leaf postpones it and
+//   keeps descending until every thread of the warp has a leaf (__any_sync),
+//   so the warp stays busy in the inner loop. Its warp votes need every
+//   lane of `mask` to run the outer and inner loops in step: those loops
+//   are written with warp-uniform trip counts.
+#pragma once
+
+/// Per-thread traversal state, in registers; the stack it points to is a
+/// separate array in local memory (a struct holding the array would be put
+/// in local memory whole).
+struct Traversal {
+    TraversalRay ray;    // in the current space
+    TraversalRay world;  // the world ray, restored when leaving an instance
+    const BvhNode* nodes;
+    bool in_blas;
+    unsigned int slot;   // TLAS instance record being traversed
+    int sp;
+    int* stack;
+
+    __device__ __forceinline__ void push(int link) {
+        if (sp < TRAVERSAL_STACK - 1) stack[++sp] = link;
+    }
+    /// Pops the next link; the bottom entry LINK_DONE stays (popping it again returns it again).
+    __device__ __forceinline__ int pop() {
+        const int link = stack[sp];
+        sp = sp > 0 ? sp - 1 : 0;
+        return link;
+    }
+
+    /// Moves into instance record `s`; returns its BLAS root link.
+    __device__ __forceinline__ int enter_instance(const SceneBvhView& v, unsigned int s) {
+        const float4* p = reinterpret_cast<const float4*>(v.instances + s);
+        const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
+        if (meta.z == 0) {
+            const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
+            const float3 o = world.o, d = world.d;
+            // glam's Affine3A::transform_point3a / transform_vector3a, rounding included.
+            ray = make_traversal_ray(
+                make_float3(affine_row_rn(m0, o, true), affine_row_rn(m1, o, true), affine_row_rn(m2, o, true)),
+                make_float3(affine_row_rn(m0, d, false), affine_row_rn(m1, d, false), affine_row_rn(m2, d, false)));
+        }
+        nodes = v.blas_nodes;
+        in_blas = true;
+        slot = s;
+        return meta.x;
+    }
+
+    __device__ __forceinline__ void leave_instance(const SceneBvhView& v) {
+        ray = world;
+        nodes = v.tlas_nodes;
+        in_blas = false;
+    }
+
+    /// One inner-node step: visit the nearer hit child, push the farther,
+    /// or pop when neither is hit.
+    __device__ __forceinline__ int step(int node, float t_max) {
+        const BvhNode n = load_node(nodes, node);
+        bool hit_left, hit_right;
+        float near_left, near_right;
+        intersect_children(n, ray, t_max, hit_left, hit_right, near_left, near_right);
+        if (!hit_left && !hit_right) return pop();
+        int next = hit_left ? n.links.x : n.links.y;
+        if (hit_left && hit_right) {
+            int other = n.links.y;
+            if (near_right < near_left) {
+                next = n.links.y;
+                other = n.links.x;
+            }
+            push(other);
+        }
+        return next;
+    }
+};
+
+__device__ __forceinline__ void init_traversal(Traversal& tr, int* stack, const SceneBvhView& v, float3 o,
+                                               float3 d) {
+    tr.stack = stack;
+    tr.world = make_traversal_ray(o, d);
+    tr.ray = tr.world;
+    tr.nodes = v.tlas_nodes;
+    tr.in_blas = false;
+    tr.slot = 0;
+    tr.sp = 0;
+    tr.stack[0] = LINK_DONE;
+}
+
+/// Tests the triangles of BLAS leaf `leaf`; returns whether one was hit
+/// (with ANY, stops at the first).
+template <int TRI, bool ANY>
+__device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal& tr, int leaf, TraversalHit& h) {
+    const unsigned int first = leaf_first(leaf), count = leaf_count(leaf);
+    bool any = false;
+    for (unsigned int k = 0; k < count; ++k) {
+        const TriRecord tri = load_tri(v.tris, first + k);
+        float t, u, w;
+        const bool hit = TRI == TRI_EXACT ? intersect_exact(tri, tr.ray.o, tr.ray.d, h.t, t, u, w)
+                                          : intersect_woop(tri, tr.ray.o, tr.ray.d, h.t, t, u, w);
+        if (hit) {
+            h.t = t;
+            h.u = u;
+            h.v = w;
+            h.tri = first + k;
+            h.slot = tr.slot;
+            h.hit = true;
+            any = true;
+            if (ANY) break;
+        }
+    }
+    return any;
+}
+
+/// While-while traversal of the ray (o, d) with hits in (0, t_max).
+template <int TRI, bool ANY>
+__device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, float3 d, float t_max) {
+    TraversalHit h;
+    h.t = t_max;
+    h.u = h.v = 0.0f;
+    h.tri = h.slot = 0;
+    h.hit = false;
+    int stack[TRAVERSAL_STACK];
+    Traversal tr;
+    init_traversal(tr, stack, v, o, d);
+    int node = v.tlas_root;
+    while (node != LINK_DONE) {
+        // Inner nodes (0 <= node < LINK_DONE) until a leaf or a marker.
+        while ((unsigned int)node < (unsigned int)LINK_DONE) node = tr.step(node, h.t);
+        // Leaves until an inner node or a marker comes off the stack.
+        while (node < 0) {
+            if (!tr.in_blas) {
+                tr.push(LINK_INSTANCE_END);
+                node = tr.enter_instance(v, leaf_first(node));
+                continue;
+            }
+            if (test_leaf<TRI, ANY>(v, tr, node, h) && ANY) return h;
+            node = tr.pop();
+        }
+        if (node == LINK_INSTANCE_END) {
+            tr.leave_instance(v);
+            node = tr.pop();
+        }
+    }
+    return h;
+}
+
+/// Speculative while-while traversal (Aila & Laine 2009, section 4): like
+/// `traverse_while_while`, but a lane that finds a leaf postpones it and
+/// keeps traversing until all lanes of `mask` (the lanes calling this,
+/// together) hold a leaf. Every lane of `mask` must call it.
+template <int TRI, bool ANY>
+__device__ TraversalHit traverse_speculative(const SceneBvhView& v, float3 o, float3 d, float t_max,
+                                             unsigned int mask) {
+    TraversalHit h;
+    h.t = t_max;
+    h.u = h.v = 0.0f;
+    h.tri = h.slot = 0;
+    h.hit = false;
+    int stack[TRAVERSAL_STACK];
+    Traversal tr;
+    init_traversal(tr, stack, v, o, d);
+    int node = v.tlas_root;
+    int leaf = 0;  // the postponed leaf link; >= 0 means none
+    while (__any_sync(mask, node != LINK_DONE || leaf < 0)) {
+        // A leaf popped from the stack (or a root that is a leaf) becomes the postponed leaf.
+        if (node < 0 && leaf >= 0) {
+            leaf = node;
+            node = tr.pop();
+        }
+        bool searching = true;
+        for (;;) {
+            const bool inner = (unsigned int)node < (unsigned int)LINK_DONE;
+            if (!__any_sync(mask, inner && searching)) break;
+            if (inner) {
+                node = tr.step(node, h.t);
+                if (node < 0 && leaf >= 0) {
+                    searching = false;
+                    leaf = node;
+                    node = tr.pop();
+                }
+            }
+        }
+        while (leaf < 0) {
+            if (!tr.in_blas) {
+                // Enter the instance; the TLAS continues later from `node`.
+                tr.push(node);
+                tr.push(LINK_INSTANCE_END);
+                node = tr.enter_instance(v, leaf_first(leaf));
+                leaf = 0;
+                if (node < 0) {
+                    leaf = node;
+                    node = tr.pop();
+                }
+                continue;
+            }
+            if (test_leaf<TRI, ANY>(v, tr, leaf, h) && ANY) {
+                // Done, but keep voting with the other lanes until they are.
+                node = LINK_DONE;
+                leaf = 0;
+                break;
+            }
+            leaf = node;
+            if (node < 0) node = tr.pop();
+        }
+        if (node == LINK_INSTANCE_END) {
+            tr.leave_instance(v);
+            node = tr.pop();
+        }
+    }
+    return h;
+}

@@ -1,0 +1,235 @@
+// The LBVH's quality pass (host side: src/bvh/lbvh.rs): treelet
+// restructuring, Karras & Aila 2013, "Fast parallel construction of
+// high-quality bounding volume hierarchies".
+//
+// One launch is one round: a bottom-up pass like lbvh_bounds (one thread
+// per leaf, the second thread to reach a node goes on), and every node
+// with at least `gamma` primitives becomes the root of a treelet of 7
+// leaves (grown by repeatedly opening the leaf with the largest surface
+// area), whose topology is replaced by the SAH-optimal one over those 7
+// subtrees. The optimum comes from dynamic programming over the 127
+// non-empty subsets of the leaves, by increasing size; the costs include
+// the option of collapsing a subset into one leaf (<= max_leaf
+// primitives), so the tree is optimised for the collapse that follows.
+// A treelet is processed by a whole warp: lanes that have a treelet root
+// queue it (__ballot_sync) and the warp takes them one at a time.
+
+#include "lbvh.cuh"
+
+#define TREELET_THREADS 128
+#define TREELET_WARPS (TREELET_THREADS / 32)
+#define TREELET_LEAVES 7
+#define TREELET_SUBSETS (1 << TREELET_LEAVES)
+
+/// The non-empty subsets of 7 leaves ordered by size; those of size k are
+/// at [SUBSET_START[k], SUBSET_START[k + 1]).
+__constant__ unsigned char SUBSETS_BY_SIZE[TREELET_SUBSETS - 1] = {
+    1,   2,   4,   8,   16,  32,  64,  3,   5,   6,   9,   10,  12,  17,  18,  20,  24,  33,  34,  36,  40,  48,
+    65,  66,  68,  72,  80,  96,  7,   11,  13,  14,  19,  21,  22,  25,  26,  28,  35,  37,  38,  41,  42,  44,
+    49,  50,  52,  56,  67,  69,  70,  73,  74,  76,  81,  82,  84,  88,  97,  98,  100, 104, 112, 15,  23,  27,
+    29,  30,  39,  43,  45,  46,  51,  53,  54,  57,  58,  60,  71,  75,  77,  78,  83,  85,  86,  89,  90,  92,
+    99,  101, 102, 105, 106, 108, 113, 114, 116, 120, 31,  47,  55,  59,  61,  62,  79,  87,  91,  93,  94,  103,
+    107, 109, 110, 115, 117, 118, 121, 122, 124, 63,  95,  111, 119, 123, 125, 126, 127};
+__constant__ unsigned char SUBSET_START[TREELET_LEAVES + 2] = {0, 0, 7, 28, 63, 98, 119, 126, 127};
+
+/// One warp's scratch for the treelet it is restructuring.
+struct TreeletScratch {
+    float area[TREELET_SUBSETS];
+    float cost[TREELET_SUBSETS];
+    unsigned int count[TREELET_SUBSETS];
+    unsigned char partition[TREELET_SUBSETS];  // the best left side of each subset
+    unsigned char as_leaf[TREELET_SUBSETS];
+    unsigned int leaf_node[TREELET_LEAVES];
+    unsigned int inner_node[TREELET_LEAVES - 1];
+    float4 lo[TREELET_LEAVES], hi[TREELET_LEAVES];  // w: subtree cost / packed count
+    int leaves;
+};
+
+/// Records the best split `best_left` (cost `children`) of subset `s`.
+__device__ __forceinline__ void finish_subset(TreeletScratch& sh, unsigned int s, float children,
+                                              unsigned int best_left, unsigned int max_leaf, float ci, float ct) {
+    unsigned int packed;
+    sh.cost[s] = sah_node_cost(sh.area[s], sh.count[s], children, max_leaf, ci, ct, packed);
+    sh.partition[s] = (unsigned char)best_left;
+    sh.as_leaf[s] = (packed & BUILD_LEAF_BIT) ? 1 : 0;
+}
+
+/// The cheapest split of subset `s` (at least 2 leaves): every partition
+/// once, by fixing its highest leaf on the left.
+__device__ __forceinline__ void evaluate_subset(TreeletScratch& sh, unsigned int s, unsigned int max_leaf, float ci,
+                                                float ct) {
+    const unsigned int high = 1u << (31 - __clz(s));
+    const unsigned int rest = s ^ high;
+    float best = __int_as_float(0x7f800000);
+    unsigned int best_left = high;
+    for (unsigned int q = (rest - 1u) & rest;; q = (q - 1u) & rest) {
+        const unsigned int left = high | q;
+        const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
+        if (c < best) {
+            best = c;
+            best_left = left;
+        }
+        if (q == 0) break;
+    }
+    finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
+}
+
+/// Loads node `n`'s box (through L2: other warps wrote it in this launch).
+__device__ __forceinline__ void load_treelet_leaf(TreeletScratch& sh, int k, unsigned int n, const float4* node_lo,
+                                                  const float4* node_hi) {
+    sh.leaf_node[k] = n;
+    sh.lo[k] = __ldcg(node_lo + n);
+    sh.hi[k] = __ldcg(node_hi + n);
+}
+
+/// Restructures the treelet rooted at `root`; called by all 32 lanes.
+__device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int P, uint2* child,
+                            unsigned int* parent, float4* node_lo, float4* node_hi, unsigned int max_leaf, float ci,
+                            float ct) {
+    const unsigned int lane = threadIdx.x & 31u;
+    // Form the treelet: open the largest-area leaf until there are 7.
+    if (lane == 0) {
+        const uint2 c = __ldcg(child + root);
+        sh.inner_node[0] = root;
+        load_treelet_leaf(sh, 0, c.x, node_lo, node_hi);
+        load_treelet_leaf(sh, 1, c.y, node_lo, node_hi);
+        int leaves = 2, inner = 1;
+        while (leaves < TREELET_LEAVES) {
+            int best = -1;
+            float best_area = -1.0f;
+            for (int k = 0; k < leaves; ++k) {
+                if (sh.leaf_node[k] >= P) continue;
+                const float a = box_area(xyz(sh.lo[k]), xyz(sh.hi[k]));
+                if (a > best_area) {
+                    best_area = a;
+                    best = k;
+                }
+            }
+            if (best < 0) break;
+            const unsigned int opened = sh.leaf_node[best];
+            const uint2 oc = __ldcg(child + opened);
+            sh.inner_node[inner++] = opened;
+            load_treelet_leaf(sh, best, oc.x, node_lo, node_hi);
+            load_treelet_leaf(sh, leaves++, oc.y, node_lo, node_hi);
+        }
+        sh.leaves = leaves;
+    }
+    __syncwarp();
+    if (sh.leaves < TREELET_LEAVES) return;  // fewer than 7 primitives (gamma < 7)
+
+    // Boxes, areas and primitive counts of all subsets; costs of single leaves.
+    for (unsigned int s = lane + 1; s < TREELET_SUBSETS; s += 32) {
+        const float inf = __int_as_float(0x7f800000);
+        float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
+        unsigned int count = 0;
+        for (int k = 0; k < TREELET_LEAVES; ++k) {
+            if (!((s >> k) & 1u)) continue;
+            lo = min3f(lo, xyz(sh.lo[k]));
+            hi = max3f(hi, xyz(sh.hi[k]));
+            count += __float_as_uint(sh.hi[k].w) & BUILD_COUNT_MASK;
+        }
+        sh.area[s] = box_area(lo, hi);
+        sh.count[s] = count;
+        if (__popc(s) == 1) sh.cost[s] = sh.lo[__ffs(s) - 1].w;
+    }
+    __syncwarp();
+
+    // Optimal splits by increasing subset size: sizes 2..6 one subset per lane...
+    for (int size = 2; size < TREELET_LEAVES; ++size) {
+        for (unsigned int i = SUBSET_START[size] + lane; i < SUBSET_START[size + 1]; i += 32)
+            evaluate_subset(sh, SUBSETS_BY_SIZE[i], max_leaf, ci, ct);
+        __syncwarp();
+    }
+    // ...and the whole treelet with its 63 partitions spread over the lanes.
+    {
+        const unsigned int all = TREELET_SUBSETS - 1, high = 1u << (TREELET_LEAVES - 1);
+        float best = __int_as_float(0x7f800000);
+        unsigned int best_left = high;
+        for (unsigned int q = lane; q < high - 1; q += 32) {
+            const unsigned int left = high | q;
+            const float c = __fadd_rn(sh.cost[left], sh.cost[all ^ left]);
+            if (c < best) {
+                best = c;
+                best_left = left;
+            }
+        }
+        for (int d = 16; d >= 1; d >>= 1) {
+            const float other = __shfl_xor_sync(0xffffffffu, best, d);
+            const unsigned int other_left = __shfl_xor_sync(0xffffffffu, best_left, d);
+            if (other < best || (other == best && other_left < best_left)) {
+                best = other;
+                best_left = other_left;
+            }
+        }
+        if (lane == 0) finish_subset(sh, all, best, best_left, max_leaf, ci, ct);
+    }
+    __syncwarp();
+
+    // Rebuild the treelet's inner nodes (same node slots, root first) top-down.
+    if (lane == 0) {
+        unsigned int stack_set[TREELET_LEAVES - 1], stack_node[TREELET_LEAVES - 1];
+        int sp = 0, next_inner = 1;
+        stack_set[sp] = TREELET_SUBSETS - 1;
+        stack_node[sp++] = root;
+        while (sp > 0) {
+            --sp;
+            const unsigned int s = stack_set[sp], n = stack_node[sp];
+            const unsigned int sides[2] = {sh.partition[s], s ^ sh.partition[s]};
+            unsigned int ids[2];
+            for (int k = 0; k < 2; ++k) {
+                if (__popc(sides[k]) == 1) {
+                    ids[k] = sh.leaf_node[__ffs(sides[k]) - 1];
+                } else {
+                    ids[k] = sh.inner_node[next_inner++];
+                    stack_set[sp] = sides[k];
+                    stack_node[sp++] = ids[k];
+                }
+                parent[ids[k]] = n;
+            }
+            child[n] = make_uint2(ids[0], ids[1]);
+            const float inf = __int_as_float(0x7f800000);
+            float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
+            for (int k = 0; k < TREELET_LEAVES; ++k) {
+                if (!((s >> k) & 1u)) continue;
+                lo = min3f(lo, xyz(sh.lo[k]));
+                hi = max3f(hi, xyz(sh.hi[k]));
+            }
+            node_lo[n] = make_float4(lo.x, lo.y, lo.z, sh.cost[s]);
+            node_hi[n] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(sh.count[s] | (sh.as_leaf[s] ? BUILD_LEAF_BIT : 0u)));
+        }
+        __threadfence();
+    }
+    __syncwarp();
+}
+
+// One round of treelet restructuring over every segment of the build.
+// `counter` must be zero at launch.
+extern "C" __global__ void __launch_bounds__(TREELET_THREADS)
+    lbvh_treelet(unsigned int P, uint2* child, unsigned int* parent, float4* node_lo, float4* node_hi,
+                 unsigned int* counter, unsigned int gamma, unsigned int max_leaf, float ci, float ct) {
+    __shared__ TreeletScratch scratch[TREELET_WARPS];
+    TreeletScratch& sh = scratch[threadIdx.x >> 5];
+    const unsigned long long j = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
+    unsigned int node = j < P ? __ldcg(parent + P + j) : BUILD_NONE;
+    bool active = node != BUILD_NONE;
+    while (__any_sync(0xffffffffu, active)) {
+        bool process = false;
+        if (active) {
+            if (atomicAdd(counter + node, 1u) == 0) {
+                active = false;  // the other child's thread goes on
+            } else {
+                __threadfence();
+                process = (__float_as_uint(__ldcg(node_hi + node).w) & BUILD_COUNT_MASK) >= gamma;
+            }
+        }
+        for (unsigned int pending = __ballot_sync(0xffffffffu, process); pending; pending &= pending - 1) {
+            const unsigned int root = __shfl_sync(0xffffffffu, node, __ffs(pending) - 1);
+            restructure(sh, root, P, child, parent, node_lo, node_hi, max_leaf, ci, ct);
+        }
+        if (active) {
+            __threadfence();
+            node = __ldcg(parent + node);
+            active = node != BUILD_NONE;
+        }
+    }
+}

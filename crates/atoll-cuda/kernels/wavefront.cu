@@ -1,0 +1,383 @@
+// The wavefront path tracer's stages on the GPU: generate, surface (hit
+// attributes after traversal), shade and resolve_shadows. Each kernel ports
+// the CPU stage of the same name (atoll-render `stages/*.rs`, `cpu.rs`)
+// operation by operation, so CPU and GPU images agree pixel by pixel up to
+// float rounding.
+//
+// Queue protocol (pbrt-v4's): every queue kernel is launched over the
+// queue's *capacity* and reads the queue's length from device memory,
+// returning early past it; the host never reads lengths back between stages.
+// Appending kernels (shade) bump a device counter with atomics: the host
+// zeroes `next_count` and `shadow_count` before launching `shade` (a memset,
+// or the `reset_queue_counts` kernel below).
+//
+// Film order per bounce matches the CPU device: `shade` adds emission, then
+// `resolve_shadows` adds unoccluded shadow rays. Within a wave every pixel
+// appears at most once per queue, so the film's atomics never collide and
+// the sums are deterministic.
+
+#include "common.cuh"
+#include "record.cuh"
+#include "layout.cuh"
+#include "params.cuh"
+#include "rng.cuh"
+#include "sampling.cuh"
+#include "bsdf.cuh"
+#include "lights.cuh"
+#include "camera.cuh"
+
+__device__ __forceinline__ unsigned int global_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
+
+__device__ __forceinline__ unsigned int lane_id() {
+    unsigned int lane;
+    asm("mov.u32 %0, %%laneid;" : "=r"(lane));
+    return lane;
+}
+
+/// Slot of this thread in a queue whose length is `*counter`, for threads
+/// with `want`; one atomic per warp (warp-aggregated). Every thread of the
+/// warp that reaches this call must call it (with `want` true or false).
+__device__ __forceinline__ unsigned int warp_append(unsigned int* counter, bool want) {
+    const unsigned int active = __activemask();
+    const unsigned int mask = __ballot_sync(active, want);
+    if (!want) return 0xffffffffu;
+    const unsigned int lane = lane_id();
+    const unsigned int leader = __ffs(mask) - 1;
+    unsigned int base = 0;
+    if (lane == leader) base = atomicAdd(counter, (unsigned int)__popc(mask));
+    base = __shfl_sync(mask, base, leader);
+    return base + __popc(mask & ((1u << lane) - 1u));
+}
+
+/// Adds `c` to pixel `pixel` of the RGB f32 film. Mirrors `Film::add`.
+__device__ __forceinline__ void film_add(float* film, unsigned int pixel, float3 c) {
+    float* px = film + 3ull * pixel;
+    atomicAdd(px + 0, c.x);
+    atomicAdd(px + 1, c.y);
+    atomicAdd(px + 2, c.z);
+}
+
+// ---------------------------------------------------------------------------
+// generate (stages/generate.rs)
+// ---------------------------------------------------------------------------
+
+/// Mirrors `generate::camera_record`.
+__device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigned int pixel, unsigned int sample) {
+    const unsigned int res_x = p.resolution[0];
+    const SampleStream rng = sample_stream(p.seed, pixel, sample);
+    // Box filter one pixel wide: a uniform jitter inside the pixel.
+    const float2 raster =
+        make_float2((float)(pixel % res_x) + stream_get(rng, 0), (float)(pixel / res_x) + stream_get(rng, 1));
+    float3 origin, direction;
+    camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
+    RayRecord r = {};
+    store3(r.origin, origin);
+    store3(r.direction, direction);
+    r.t_max = f32_infinity();
+    r.pixel = pixel;
+    r.sample = sample;
+    r.throughput[0] = 1.0f;
+    r.throughput[1] = 1.0f;
+    r.throughput[2] = 1.0f;
+    // Emitters seen directly count in full, like after a specular bounce.
+    r.flags = FLAG_SPECULAR;
+    return r;
+}
+
+/// Camera rays for pixels `first_pixel .. first_pixel + count`, sample
+/// `sample`: thread i writes `paths[i]`; thread 0 sets `*path_count = count`.
+/// Mirrors `CpuDevice::generate`.
+extern "C" __global__ void generate(const FrameParams* __restrict__ params, unsigned int first_pixel,
+                                    unsigned int count, unsigned int sample, RayRecord* __restrict__ paths,
+                                    unsigned int* __restrict__ path_count) {
+    const unsigned int i = global_index();
+    if (i == 0) *path_count = count;
+    if (i >= count) return;
+    paths[i] = camera_record(*params, first_pixel + i, sample);
+}
+
+// ---------------------------------------------------------------------------
+// surface (cpu.rs `write_hit`)
+// ---------------------------------------------------------------------------
+
+/// Fills the hit fields of `paths[i]` from `hits[i]` for every record whose
+/// trace found a hit (`instance != HIT_NONE`); other records are left as
+/// they are. `t_max` was already shrunk by traversal. Mirrors `write_hit`.
+extern "C" __global__ void surface(const FrameParams* __restrict__ params, const SceneView* __restrict__ scene,
+                                   RayRecord* __restrict__ paths, const HitRef* __restrict__ hits,
+                                   const unsigned int* __restrict__ path_count) {
+    const unsigned int i = global_index();
+    if (i >= *path_count) return;
+    const HitRef hit = hits[i];
+    if (hit.instance == HIT_NONE) return;
+    const FrameParams& p = *params;
+    const SceneView& s = *scene;
+    const GpuInstance& instance = s.instances[hit.instance];
+    const GpuMesh& mesh = s.meshes[s.triangle_mesh[hit.triangle]];
+    const unsigned int i0 = s.triangles[3ull * hit.triangle + 0];
+    const unsigned int i1 = s.triangles[3ull * hit.triangle + 1];
+    const unsigned int i2 = s.triangles[3ull * hit.triangle + 2];
+    const float b1 = hit.u, b2 = hit.v;
+    const float b0 = 1.0f - b1 - b2;
+    // Interpolating the vertices is more precise than origin + t * direction.
+    const float3 p0 = load3(s.vertices + 3ull * i0);
+    const float3 p1 = load3(s.vertices + 3ull * i1);
+    const float3 p2 = load3(s.vertices + 3ull * i2);
+    const float3 p_obj = p0 * b0 + p1 * b1 + p2 * b2;
+    const float3 position = affine_point(instance.object_to_world, p_obj);
+    // TriangleMesh::geometric_normal: pbrt's orientation rule.
+    float3 n_obj = cross3(p0 - p2, p1 - p2);
+    if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
+    float3 ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
+    float3 ns = ng;
+    if (mesh.flags & MESH_HAS_NORMALS) {
+        const float3 n = load3(s.normals + 3ull * i0) * b0 + load3(s.normals + 3ull * i1) * b1 +
+                         load3(s.normals + 3ull * i2) * b2;
+        const float3 shading = normalize_or_zero3(mat3_mul(instance.normal_to_world, n));
+        // pbrt: interpolated normals are authoritative for orientation.
+        if (!is_zero3(shading) && dot3(ng, shading) < 0.0f) ng = -ng;
+        ns = is_zero3(shading) ? ng : shading;
+    }
+    RayRecord& r = paths[i];
+    r.flags |= FLAG_HIT;
+    store3(r.position, position);
+    r.instance = hit.instance;
+    store_f16x3(r.geometric_normal, ng);
+    store_f16x3(r.shading_normal, ns);
+    r.light = (mesh.flags & MESH_EMISSIVE)
+                  ? light_triangle_index(p, hit.instance, mesh.scene_mesh, hit.triangle - mesh.first_triangle)
+                  : NO_LIGHT;
+    // PackedMaterial::store.
+    const GpuMaterial& m = p.materials[mesh.material];
+    r.material = (unsigned short)m.kind;
+    const uint4* src = reinterpret_cast<const uint4*>(m.coeffs);
+    uint4* dst = reinterpret_cast<uint4*>(r.coeffs);
+    dst[0] = src[0];
+    dst[1] = src[1];
+}
+
+// ---------------------------------------------------------------------------
+// shade (stages/shade.rs)
+// ---------------------------------------------------------------------------
+
+/// Mirrors `shade::ShadeOutcome`, storing only what differs from the shaded
+/// record: the next segment and the shadow ray are copies of it with these
+/// fields replaced (as `continuation` and `shadow_ray` build them).
+struct ShadeOutcome {
+    float3 emitted;
+    bool has_next;
+    float3 next_origin, next_direction, next_throughput;
+    float next_pdf;
+    unsigned short next_depth, next_flags;
+    bool has_shadow;
+    float3 shadow_origin, shadow_direction, shadow_radiance;
+    float shadow_t_max;
+};
+
+/// Mirrors `stages::offset_origin`.
+__device__ __forceinline__ float3 offset_origin(float3 p, float3 ng, float3 w) {
+    const float eps = 1e-4f * (1.0f + max_element3(abs3(p)));
+    const float3 n = dot3(ng, w) < 0.0f ? -ng : ng;
+    return p + n * eps;
+}
+
+/// Mirrors shade.rs's `continuation`: the path goes on from `p` along `w`
+/// with the record's throughput, pdf, depth and flags (less HIT).
+__device__ __forceinline__ void set_continuation(ShadeOutcome& o, const RayRecord& r, float3 p, float3 ng, float3 w) {
+    o.has_next = true;
+    o.next_origin = offset_origin(p, ng, w);
+    o.next_direction = w;
+    o.next_throughput = load3(r.throughput);
+    o.next_pdf = r.bsdf_pdf;
+    o.next_depth = r.depth;
+    o.next_flags = (unsigned short)(r.flags & ~FLAG_HIT);
+}
+
+/// Mirrors shade.rs's `shadow_ray`.
+__device__ __forceinline__ void set_shadow(ShadeOutcome& o, float3 p, float3 ng, float3 w, float distance,
+                                           float3 radiance) {
+    o.has_shadow = true;
+    const float3 origin = offset_origin(p, ng, w);
+    o.shadow_origin = origin;
+    o.shadow_direction = w;
+    // Stop just short of the light so it does not occlude itself.
+    o.shadow_t_max = is_finitef(distance) ? (distance - length3(origin - p)) * (1.0f - 1e-4f) : distance;
+    o.shadow_radiance = radiance;
+}
+
+/// Mirrors `shade::shade_path`.
+__device__ __forceinline__ void shade_path(const FrameParams& params, const RayRecord& r, ShadeOutcome& out) {
+    const float3 beta = load3(r.throughput);
+    const float3 dir = load3(r.direction);
+    const bool specular = (r.flags & FLAG_SPECULAR) != 0;
+
+    // Escaped: environment lights, MIS-weighted against light sampling.
+    if (!(r.flags & FLAG_HIT)) {
+        for (unsigned int k = 0; k < params.infinite_count; ++k) {
+            const unsigned int i = params.infinite_lights[k];
+            const float3 le = light_environment_radiance(params, i, dir);
+            const float w = specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_environment(params, i, dir));
+            out.emitted = out.emitted + beta * le * w;
+        }
+        return;
+    }
+
+    // Emission of the surface hit, MIS-weighted against light sampling.
+    if (r.light != NO_LIGHT) {
+        const float3 le = light_emitted(params, r.light, -dir);
+        if (!is_zero3(le)) {
+            const float w =
+                specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_triangle(params, r.light, dir, r.t_max));
+            out.emitted = out.emitted + beta * le * w;
+        }
+    }
+
+    const float3 p = load3(r.position);
+    const float3 ng = normalize_or_zero3(load_f16x3(r.geometric_normal));
+    const Bsdf bsdf = bsdf_from_record(r);
+    if (bsdf.kind == MATERIAL_NONE) {
+        // A surface that only bounds a medium: continue straight through.
+        set_continuation(out, r, p, ng, dir);
+        return;
+    }
+    const unsigned int depth = r.depth;
+    if (depth >= params.max_depth) return;
+    const Frame frame = frame_from_z(normalize_or_zero3(load_f16x3(r.shading_normal)));
+    const float3 wo = frame_to_local(frame, -dir);
+    if (wo.z == 0.0f) return;
+    const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+
+    // Next-event estimation.
+    if (!bsdf_is_delta(bsdf)) {
+        const float2 u_light = make_float2(stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_POSITION, 0),
+                                           stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_POSITION, 1));
+        LightSample ls;
+        if (light_sample(params, p, stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
+            const float3 wi = frame_to_local(frame, ls.wi);
+            const float3 f = bsdf_eval(bsdf, wo, wi) * fabsf(wi.z);
+            if (ls.pdf > 0.0f && !is_zero3(f) && !is_zero3(ls.radiance)) {
+                const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf(bsdf, wo, wi));
+                const float3 contribution = beta * f * ls.radiance * (w / ls.pdf);
+                set_shadow(out, p, ng, ls.wi, ls.distance, contribution);
+            }
+        }
+    }
+
+    // Sample the BSDF for the next segment.
+    const float2 u_dir = make_float2(stream_bounce(rng, depth, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_bounce(rng, depth, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    BsdfSample bs;
+    if (!bsdf_sample(bsdf, wo, stream_bounce(rng, depth, BOUNCE_DIM_BSDF_LOBE, 0), u_dir, &bs)) return;
+    if (bs.pdf <= 0.0f || is_zero3(bs.f)) return;
+    float3 next_beta = beta * bs.f * (fabsf(bs.wi.z) / bs.pdf);
+    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`).
+    if (params.russian_roulette && depth >= 1) {
+        const float m = max_element3(next_beta);
+        if (m < 1.0f) {
+            const float q = fmaxf(1.0f - m, 0.0f);
+            if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
+            next_beta = next_beta / (1.0f - q);
+        }
+    }
+    if (!is_finite3(next_beta)) return;
+    const float3 wi = normalize3(frame_from_local(frame, bs.wi));
+    set_continuation(out, r, p, ng, wi);
+    out.next_throughput = next_beta;
+    out.next_pdf = bs.pdf;
+    out.next_depth = (unsigned short)(r.depth + 1);
+    out.next_flags = bs.delta ? FLAG_SPECULAR : 0;
+}
+
+/// Mirrors `shade::shade_ambient_occlusion` (cosine-sampled AO: each
+/// unoccluded shadow ray adds exactly 1).
+__device__ __forceinline__ void shade_ambient_occlusion(const FrameParams& params, const RayRecord& r,
+                                                        ShadeOutcome& out) {
+    if (!(r.flags & FLAG_HIT)) return;
+    const float3 p = load3(r.position);
+    const float3 dir = load3(r.direction);
+    float3 ng = normalize_or_zero3(load_f16x3(r.geometric_normal));
+    if (bsdf_from_record(r).kind == MATERIAL_NONE) {
+        set_continuation(out, r, p, ng, dir);
+        return;
+    }
+    if (dot3(ng, dir) > 0.0f) ng = -ng;
+    const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+    const float2 u = make_float2(stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                 stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    const float3 w = normalize3(frame_from_local(frame_from_z(ng), sample_cosine_hemisphere(u)));
+    set_shadow(out, p, ng, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
+}
+
+/// Shades `paths[0 .. *path_count]` with the frame's integrator: adds
+/// emission to `film` (RGB f32 sums per pixel), appends next segments to
+/// `next` and shadow rays to `shadows`. The host zeroes `*next_count` and
+/// `*shadow_count` before the launch. Mirrors `CpuDevice::shade`.
+extern "C" __global__ void shade(const FrameParams* __restrict__ params, const RayRecord* __restrict__ paths,
+                                 const unsigned int* __restrict__ path_count, RayRecord* __restrict__ next,
+                                 unsigned int* __restrict__ next_count, RayRecord* __restrict__ shadows,
+                                 unsigned int* __restrict__ shadow_count, float* __restrict__ film) {
+    const unsigned int i = global_index();
+    if (i >= *path_count) return;
+    const FrameParams& p = *params;
+    const RayRecord r = paths[i];
+    ShadeOutcome out;
+    out.emitted = zero3();
+    out.has_next = false;
+    out.has_shadow = false;
+    if (p.integrator == INTEGRATOR_AMBIENT_OCCLUSION) {
+        shade_ambient_occlusion(p, r, out);
+    } else {
+        shade_path(p, r, out);
+    }
+
+    if (!is_zero3(out.emitted)) film_add(film, r.pixel, out.emitted);
+
+    const unsigned int next_slot = warp_append(next_count, out.has_next);
+    if (out.has_next) {
+        RayRecord n = r;
+        store3(n.origin, out.next_origin);
+        store3(n.direction, out.next_direction);
+        n.t_max = f32_infinity();
+        store3(n.throughput, out.next_throughput);
+        n.bsdf_pdf = out.next_pdf;
+        n.depth = out.next_depth;
+        n.flags = out.next_flags;
+        n.light = NO_LIGHT;
+        next[next_slot] = n;
+    }
+    const unsigned int shadow_slot = warp_append(shadow_count, out.has_shadow);
+    if (out.has_shadow) {
+        RayRecord s = r;
+        store3(s.origin, out.shadow_origin);
+        store3(s.direction, out.shadow_direction);
+        s.t_max = out.shadow_t_max;
+        store3(s.throughput, out.shadow_radiance);
+        s.flags = FLAG_SHADOW;
+        s.light = NO_LIGHT;
+        shadows[shadow_slot] = s;
+    }
+}
+
+// ---------------------------------------------------------------------------
+// resolve_shadows (cpu.rs `resolve_shadows`) and queue bookkeeping
+// ---------------------------------------------------------------------------
+
+/// Adds the radiance of every unoccluded shadow ray in
+/// `shadows[0 .. *shadow_count]` to its pixel. Mirrors `CpuDevice::resolve_shadows`.
+extern "C" __global__ void resolve_shadows(const RayRecord* __restrict__ shadows,
+                                           const unsigned int* __restrict__ shadow_count, float* __restrict__ film) {
+    const unsigned int i = global_index();
+    if (i >= *shadow_count) return;
+    const RayRecord& r = shadows[i];
+    if (r.flags & FLAG_OCCLUDED) return;
+    film_add(film, r.pixel, load3(r.throughput));
+}
+
+/// Zeroes the two append counters of `shade` (launch with one thread); the
+/// host may use memsets instead.
+extern "C" __global__ void reset_queue_counts(unsigned int* next_count, unsigned int* shadow_count) {
+    if (global_index() == 0) {
+        *next_count = 0;
+        *shadow_count = 0;
+    }
+}

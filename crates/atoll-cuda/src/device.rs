@@ -1,0 +1,467 @@
+//! The CUDA device: [`atoll_render::Device`] on one GPU, stage for stage
+//! what [`atoll_render::CpuDevice`] does on the host.
+//!
+//! | stage            | CPU device                        | here                                         |
+//! |------------------|-----------------------------------|----------------------------------------------|
+//! | prepare          | `SceneBvh::build`                 | memory plan, table upload, GPU BVH build, frame tables |
+//! | generate         | `camera_record` per pixel         | `generate` (wavefront.cu)                    |
+//! | trace_paths      | `bvh.intersect` + `write_hit`     | `trace::trace_closest` + `surface`           |
+//! | shade            | `shade` + film / queue appends    | `shade` (appends with atomics)               |
+//! | trace_shadows    | `bvh.occluded`                    | `trace::trace_any`                           |
+//! | resolve_shadows  | film adds                         | `resolve_shadows`                            |
+//!
+//! The trait's stage methods cannot fail, but a GPU can (a driver error, a
+//! kernel fault). The first error is kept in an [`ErrorSlot`]: it is logged
+//! at once, every later stage does nothing and the queues read as empty, so
+//! the integrator's loop ends; callers check the slot after rendering (the
+//! CLI does) instead of getting a silently wrong image.
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use atoll_render::device::{DeviceStats, PrepareStats};
+use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Wave};
+use atoll_scene::Scene;
+use cudarc::driver::{CudaFunction, CudaSlice, PushKernelArg};
+use glam::Vec3;
+
+use crate::error::CudaError;
+use crate::gpu::{launch_1d, Gpu, Timer};
+use crate::params::{FrameParamsHost, FrameTables, SceneView};
+use crate::queues::{queue_bytes, Queues};
+use crate::scene::GpuScene;
+use crate::{bvh, trace};
+
+/// Threads per block of the wavefront kernels.
+const BLOCK: u32 = 128;
+/// The kernel file of the wavefront stages.
+const WAVEFRONT: &str = "wavefront.cu";
+
+/// The first error a device met, shared with whoever needs to check it.
+#[derive(Clone, Debug, Default)]
+pub struct ErrorSlot(Arc<Mutex<Option<String>>>);
+
+impl ErrorSlot {
+    /// The error message, if any.
+    pub fn get(&self) -> Option<String> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// Keeps `message` unless an earlier error is already kept.
+    fn set(&self, message: String) {
+        let mut slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        if slot.is_none() {
+            tracing::error!("{message}");
+            *slot = Some(message);
+        }
+    }
+
+    fn is_set(&self) -> bool {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).is_some()
+    }
+}
+
+/// The wavefront kernels, loaded once per prepare.
+struct Kernels {
+    generate: CudaFunction,
+    surface: CudaFunction,
+    shade: CudaFunction,
+    resolve_shadows: CudaFunction,
+}
+
+impl Kernels {
+    fn load(gpu: &Gpu) -> Result<Self, CudaError> {
+        Ok(Kernels {
+            generate: gpu.function(WAVEFRONT, "generate")?,
+            surface: gpu.function(WAVEFRONT, "surface")?,
+            shade: gpu.function(WAVEFRONT, "shade")?,
+            resolve_shadows: gpu.function(WAVEFRONT, "resolve_shadows")?,
+        })
+    }
+}
+
+/// What `prepare` made resident.
+struct Resident {
+    frame: Arc<FrameContext>,
+    scene: GpuScene,
+    bvh: bvh::GpuSceneBvh,
+    params: FrameParamsHost,
+    /// One [`SceneView`] on the device (the `surface` kernel's argument).
+    scene_view: CudaSlice<SceneView>,
+    kernels: Kernels,
+    queues: Queues,
+    /// RGB f32 radiance sums per pixel.
+    film: CudaSlice<f32>,
+}
+
+/// Device time of the stages: timers are collected as stages are queued
+/// and summed once their work has finished (no waiting per stage).
+#[derive(Default)]
+struct BusyTime {
+    finished_ms: f64,
+    pending: Vec<Timer>,
+}
+
+impl BusyTime {
+    /// Adds the timers whose work has finished (all of them when `wait`).
+    fn collect(&mut self, wait: bool) -> Result<(), CudaError> {
+        let mut still = Vec::new();
+        for timer in self.pending.drain(..) {
+            if wait || timer.is_done() {
+                self.finished_ms += timer.elapsed_ms()? as f64;
+            } else {
+                still.push(timer);
+            }
+        }
+        self.pending = still;
+        Ok(())
+    }
+}
+
+/// A device that runs every stage on one CUDA GPU.
+pub struct CudaDevice {
+    gpu: Arc<Gpu>,
+    memory_budget: Option<u64>,
+    resident: Option<Resident>,
+    errors: ErrorSlot,
+    stats: DeviceStats,
+    busy: Mutex<BusyTime>,
+}
+
+impl CudaDevice {
+    /// A device on GPU `ordinal` (opened now: fails without a driver, GPU or NVRTC).
+    pub fn new(ordinal: usize) -> Result<Self, CudaError> {
+        Ok(Self::on(Gpu::open(ordinal)?))
+    }
+
+    /// A device on an already opened GPU.
+    pub fn on(gpu: Arc<Gpu>) -> Self {
+        CudaDevice {
+            gpu,
+            memory_budget: None,
+            resident: None,
+            errors: ErrorSlot::default(),
+            stats: DeviceStats::default(),
+            busy: Mutex::new(BusyTime::default()),
+        }
+    }
+
+    /// Limits the bytes this device may allocate (scene, BVH, queues, film).
+    pub fn with_memory_budget(mut self, bytes: u64) -> Self {
+        self.memory_budget = Some(bytes);
+        self
+    }
+
+    pub fn gpu(&self) -> &Arc<Gpu> {
+        &self.gpu
+    }
+
+    /// Where the first failure of a stage is kept (see the module docs).
+    pub fn errors(&self) -> ErrorSlot {
+        self.errors.clone()
+    }
+
+    /// Runs a fallible stage, keeping its error; a no-op after an error.
+    fn stage(&mut self, name: &str, f: impl FnOnce(&mut Self) -> Result<(), CudaError>) {
+        if self.errors.is_set() {
+            return;
+        }
+        if let Err(e) = f(self) {
+            self.errors.set(format!("{} {name}: {e}", self.gpu.label()));
+        }
+    }
+
+    fn resident(&mut self) -> Result<&mut Resident, CudaError> {
+        self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
+    }
+
+    /// Queues `launch` between timing events.
+    fn timed(&mut self, launch: impl FnOnce(&mut Self) -> Result<(), CudaError>) -> Result<(), CudaError> {
+        let mut timer = self.gpu.start_timer()?;
+        launch(self)?;
+        timer.stop(&self.gpu)?;
+        self.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
+        Ok(())
+    }
+
+    fn try_prepare(
+        &mut self,
+        scene: &Arc<Scene>,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, CudaError> {
+        // Free the previous frame's buffers before planning the new one.
+        self.resident = None;
+        self.stats = DeviceStats::default();
+        *self.busy.lock().unwrap_or_else(|p| p.into_inner()) = BusyTime::default();
+        let gpu = self.gpu.clone();
+        let options = &frame.options;
+        let capacity = options.wave_size.min(options.pixel_count()).max(1);
+        let film_bytes = options.pixel_count() as u64 * 12;
+        let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
+        let frame_bytes = queue_bytes(capacity) + film_bytes + params_bytes;
+
+        // Compile (or load from the cache) before the clock of the first wave starts.
+        let kernels = Kernels::load(&gpu)?;
+        let gpu_scene = GpuScene::upload(&gpu, scene, self.memory_budget, frame_bytes)?;
+        let start = Instant::now();
+        let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
+        gpu.synchronize()?;
+        let bvh_build_seconds = start.elapsed().as_secs_f64();
+        let params = FrameParamsHost::new(&gpu, frame)?;
+        let view = [SceneView::of(&gpu_scene)];
+        let scene_view =
+            gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"))?;
+        let queues = Queues::new(&gpu, capacity)?;
+        let film = gpu
+            .stream
+            .alloc_zeros::<f32>(options.pixel_count().max(1) as usize * 3)
+            .map_err(CudaError::driver(format!("{}: allocating the film", gpu.label())))?;
+        gpu.synchronize()?;
+        let stats = PrepareStats {
+            scene_bytes: gpu_scene.bytes() + bvh.bytes(),
+            frame_bytes: queue_bytes(capacity) + film_bytes + params.bytes(),
+            bvh_build_seconds,
+            bvh_sah_cost: bvh.sah_cost(),
+        };
+        self.resident = Some(Resident {
+            frame: frame.clone(),
+            scene: gpu_scene,
+            bvh,
+            params,
+            scene_view,
+            kernels,
+            queues,
+            film,
+        });
+        Ok(stats)
+    }
+
+    fn try_generate(&mut self, wave: &Wave) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        self.resident()?.queues.ensure_capacity(&gpu, wave.pixel_count)?;
+        self.timed(|d| {
+            let r = d.resident()?;
+            let count = wave.pixel_count;
+            let mut launch = gpu.stream.launch_builder(&r.kernels.generate);
+            launch
+                .arg(&r.params.device)
+                .arg(&wave.first_pixel)
+                .arg(&count)
+                .arg(&wave.sample)
+                .arg(&mut r.queues.paths)
+                .arg(&mut r.queues.path_count);
+            // SAFETY: the arguments match `generate(const FrameParams*, unsigned first_pixel,
+            // unsigned count, unsigned sample, RayRecord* paths, unsigned* path_count)` in
+            // wavefront.cu; `paths` holds at least `count` records (ensured above) and
+            // every buffer lives until the stream has run the kernel (they are owned by `r`).
+            unsafe { launch.launch(launch_1d(count, BLOCK)) }
+                .map_err(CudaError::driver("launching generate"))?;
+            r.queues.set_known_len(Queue::Paths, Some(count));
+            Ok(())
+        })
+    }
+
+    fn try_trace_paths(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        let count = {
+            let r = self.resident()?;
+            r.queues.len(&gpu, Queue::Paths)?
+        };
+        if count == 0 {
+            return Ok(());
+        }
+        self.timed(|d| {
+            let r = d.resident()?;
+            let q = &mut r.queues;
+            trace::trace_closest(&gpu, &r.scene, &r.bvh, &mut q.paths, count, &mut q.hits)?;
+            let mut launch = gpu.stream.launch_builder(&r.kernels.surface);
+            launch.arg(&r.params.device).arg(&r.scene_view).arg(&mut q.paths).arg(&q.hits).arg(&q.path_count);
+            // SAFETY: matches `surface(const FrameParams*, const SceneView*, RayRecord* paths,
+            // const HitRef* hits, const unsigned* path_count)`; `paths` and `hits` hold
+            // `capacity >= count` entries and the kernel stops at `*path_count`; the scene
+            // tables the view points into are owned by `r.scene` for the device's lifetime.
+            unsafe { launch.launch(launch_1d(count, BLOCK)) }
+                .map_err(CudaError::driver("launching surface"))?;
+            Ok(())
+        })?;
+        self.stats.rays_traced += count as u64;
+        Ok(())
+    }
+
+    fn try_shade(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        self.timed(|d| {
+            let r = d.resident()?;
+            let q = &mut r.queues;
+            let threads = q.launch_len(Queue::Paths);
+            let context = || format!("{}: clearing queue counters", gpu.label());
+            gpu.stream.memset_zeros(&mut q.next_count).map_err(CudaError::driver(context()))?;
+            gpu.stream.memset_zeros(&mut q.shadow_count).map_err(CudaError::driver(context()))?;
+            let mut launch = gpu.stream.launch_builder(&r.kernels.shade);
+            launch
+                .arg(&r.params.device)
+                .arg(&q.paths)
+                .arg(&q.path_count)
+                .arg(&mut q.next)
+                .arg(&mut q.next_count)
+                .arg(&mut q.shadows)
+                .arg(&mut q.shadow_count)
+                .arg(&mut r.film);
+            // SAFETY: matches `shade(const FrameParams*, const RayRecord* paths, const unsigned*
+            // path_count, RayRecord* next, unsigned* next_count, RayRecord* shadows, unsigned*
+            // shadow_count, float* film)`. Each path appends at most one record to `next` and
+            // one to `shadows`, which have the same capacity as `paths`, so appends stay in
+            // bounds; both counters were zeroed just above on the same stream; `film` holds
+            // 3 floats per pixel and records only name pixels of this frame.
+            unsafe { launch.launch(launch_1d(threads, BLOCK)) }
+                .map_err(CudaError::driver("launching shade"))?;
+            q.swap_paths();
+            q.set_known_len(Queue::Shadows, None);
+            Ok(())
+        })
+    }
+
+    fn try_trace_shadows(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        let count = self.resident()?.queues.len(&gpu, Queue::Shadows)?;
+        if count == 0 {
+            return Ok(());
+        }
+        self.timed(|d| {
+            let r = d.resident()?;
+            trace::trace_any(&gpu, &r.scene, &r.bvh, &mut r.queues.shadows, count)
+        })?;
+        self.stats.shadow_rays_traced += count as u64;
+        Ok(())
+    }
+
+    fn try_resolve_shadows(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        self.timed(|d| {
+            let r = d.resident()?;
+            let q = &mut r.queues;
+            if q.known_len(Queue::Shadows) != Some(0) {
+                let threads = q.launch_len(Queue::Shadows);
+                let mut launch = gpu.stream.launch_builder(&r.kernels.resolve_shadows);
+                launch.arg(&q.shadows).arg(&q.shadow_count).arg(&mut r.film);
+                // SAFETY: matches `resolve_shadows(const RayRecord* shadows, const unsigned*
+                // shadow_count, float* film)`; the kernel stops at `*shadow_count <= capacity`
+                // and records only name pixels of this frame's film.
+                unsafe { launch.launch(launch_1d(threads, BLOCK)) }
+                    .map_err(CudaError::driver("launching resolve_shadows"))?;
+            }
+            // Like the CPU device, resolving empties the shadow queue.
+            q.clear(&gpu, Queue::Shadows)
+        })
+    }
+
+    fn try_film(&self) -> Result<Film, CudaError> {
+        let r = self
+            .resident
+            .as_ref()
+            .ok_or_else(|| CudaError::Usage("CudaDevice::film before prepare()".into()))?;
+        let sums = self
+            .gpu
+            .stream
+            .clone_dtoh(&r.film)
+            .map_err(CudaError::driver(format!("{}: downloading the film", self.gpu.label())))?;
+        let mut film = Film::new(r.frame.options.resolution);
+        for (pixel, rgb) in film.sum.iter_mut().zip(sums.chunks_exact(3)) {
+            *pixel = Vec3::new(rgb[0], rgb[1], rgb[2]);
+        }
+        Ok(film)
+    }
+
+    fn try_busy_seconds(&self) -> Result<f64, CudaError> {
+        let mut busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
+        busy.collect(true)?;
+        Ok(busy.finished_ms / 1e3)
+    }
+}
+
+impl Device for CudaDevice {
+    fn name(&self) -> String {
+        self.gpu.label()
+    }
+
+    fn prepare(
+        &mut self,
+        scene: &Arc<Scene>,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError> {
+        self.try_prepare(scene, frame).map_err(|e| {
+            self.resident = None;
+            e.into_device_error(&self.gpu.label())
+        })
+    }
+
+    fn generate(&mut self, wave: &Wave) {
+        self.stage("generate", |d| d.try_generate(wave));
+    }
+
+    fn trace_paths(&mut self) {
+        self.stage("trace_paths", |d| d.try_trace_paths());
+    }
+
+    fn shade(&mut self) {
+        self.stage("shade", |d| d.try_shade());
+    }
+
+    fn trace_shadows(&mut self) {
+        self.stage("trace_shadows", |d| d.try_trace_shadows());
+    }
+
+    fn resolve_shadows(&mut self) {
+        self.stage("resolve_shadows", |d| d.try_resolve_shadows());
+    }
+
+    fn queue_len(&self, queue: Queue) -> usize {
+        if self.errors.is_set() {
+            return 0;
+        }
+        let Some(r) = &self.resident else { return 0 };
+        let len = r.queues.len(&self.gpu, queue);
+        // Sum the timers that are done (all of them after a read-back),
+        // so the pending list stays short; this never waits.
+        if let Err(e) = self.busy.lock().unwrap_or_else(|p| p.into_inner()).collect(false) {
+            self.errors.set(format!("{} timing: {e}", self.gpu.label()));
+        }
+        len.unwrap_or_else(|e| {
+            self.errors.set(format!("{} queue_len: {e}", self.gpu.label()));
+            0
+        }) as usize
+    }
+
+    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
+        if self.errors.is_set() {
+            return Vec::new();
+        }
+        let Some(r) = &self.resident else { return Vec::new() };
+        r.queues.read(&self.gpu, queue).unwrap_or_else(|e| {
+            self.errors.set(format!("{} read_queue: {e}", self.gpu.label()));
+            Vec::new()
+        })
+    }
+
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
+        let gpu = self.gpu.clone();
+        self.stage("write_queue", |d| d.resident()?.queues.write(&gpu, queue, records));
+    }
+
+    fn film(&self) -> Film {
+        self.try_film().unwrap_or_else(|e| {
+            self.errors.set(format!("{} film: {e}", self.gpu.label()));
+            let resolution = self.resident.as_ref().map_or(glam::UVec2::ZERO, |r| r.frame.options.resolution);
+            Film::new(resolution)
+        })
+    }
+
+    fn stats(&self) -> DeviceStats {
+        let mut stats = self.stats.clone();
+        match self.try_busy_seconds() {
+            Ok(seconds) => stats.busy_seconds = seconds,
+            Err(e) => self.errors.set(format!("{} stats: {e}", self.gpu.label())),
+        }
+        stats
+    }
+}

@@ -1,0 +1,231 @@
+//! One opened GPU: its context, the stream all of atoll's work goes on, its
+//! properties, and the kernel modules loaded into it.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use cudarc::driver::sys::{CUdevice_attribute, CUevent_flags};
+use cudarc::driver::{CudaContext, CudaEvent, CudaFunction, CudaModule, CudaStream, LaunchConfig};
+use cudarc::nvrtc::Ptx;
+
+use crate::compile::{compile, CompileOptions, Output};
+use crate::error::{require_driver, require_nvrtc, CudaError};
+
+/// Number of CUDA GPUs, `Err(NoDriver)` without a driver library. A driver
+/// that loads but finds no GPU (or is not initialisable) counts as 0.
+pub fn device_count() -> Result<usize, CudaError> {
+    require_driver()?;
+    match CudaContext::device_count() {
+        Ok(n) => Ok(n.max(0) as usize),
+        // cuInit fails with NO_DEVICE on a machine without GPUs.
+        Err(e) if e.0 == cudarc::driver::sys::CUresult::CUDA_ERROR_NO_DEVICE => Ok(0),
+        Err(e) => Err(CudaError::Driver { context: "counting CUDA GPUs".into(), source: e }),
+    }
+}
+
+/// An opened GPU. Cheap to share (`Arc<Gpu>`); everything atoll does on it
+/// is queued on [`Gpu::stream`], in order.
+pub struct Gpu {
+    pub ordinal: usize,
+    pub ctx: Arc<CudaContext>,
+    /// atoll's one stream on this GPU: every allocation, copy and kernel
+    /// goes here, in order. A dedicated (non-null) stream, so that work on
+    /// other streams (copies, NCCL) can overlap with it later; cudarc's
+    /// event tracking is off, so such streams must be ordered with events
+    /// explicitly.
+    pub stream: Arc<CudaStream>,
+    /// e.g. "NVIDIA H200".
+    pub name: String,
+    /// (major, minor), e.g. (9, 0).
+    pub compute_capability: (u32, u32),
+    pub total_memory: u64,
+    pub multiprocessors: u32,
+    /// Loaded modules by kernel file name: each file is compiled and loaded
+    /// once per GPU, on first use.
+    modules: Mutex<HashMap<String, Arc<CudaModule>>>,
+    /// Extra NVRTC options for every kernel of this GPU (e.g. fast math).
+    compile_options: CompileOptions,
+}
+
+impl std::fmt::Debug for Gpu {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Gpu")
+            .field("ordinal", &self.ordinal)
+            .field("name", &self.name)
+            .field("compute_capability", &self.compute_capability)
+            .field("total_memory", &self.total_memory)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Gpu {
+    /// Opens GPU `ordinal` (its primary context) and a stream on it. Fails
+    /// cleanly without a driver, without NVRTC (every kernel needs it), or
+    /// for an ordinal the machine does not have.
+    pub fn open(ordinal: usize) -> Result<Arc<Gpu>, CudaError> {
+        let count = device_count()?;
+        if count == 0 {
+            return Err(CudaError::NoGpu);
+        }
+        if ordinal >= count {
+            return Err(CudaError::BadOrdinal { ordinal, count });
+        }
+        require_nvrtc()?;
+        let what = |w: &str| format!("cuda:{ordinal}: {w}");
+        let ctx = CudaContext::new(ordinal).map_err(CudaError::driver(what("creating the context")))?;
+        // SAFETY: atoll queues all of its work on `stream`, in order, so no
+        // buffer is ever used on two streams and cudarc's per-buffer events
+        // (a record and a wait per kernel argument: ~10% of a small bounce)
+        // are not needed. Code that adds streams must order them itself.
+        unsafe { ctx.disable_event_tracking() };
+        let stream = ctx.new_stream().map_err(CudaError::driver(what("creating a stream")))?;
+        let name = ctx.name().map_err(CudaError::driver(what("reading the name")))?;
+        let (major, minor) =
+            ctx.compute_capability().map_err(CudaError::driver(what("reading the compute capability")))?;
+        let total_memory =
+            ctx.total_mem().map_err(CudaError::driver(what("reading the memory size")))? as u64;
+        let multiprocessors = ctx
+            .attribute(CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT)
+            .map_err(CudaError::driver(what("reading the multiprocessor count")))?;
+        let compute_capability = (major as u32, minor as u32);
+        Ok(Arc::new(Gpu {
+            ordinal,
+            ctx,
+            stream,
+            name,
+            compute_capability,
+            total_memory,
+            multiprocessors: multiprocessors.max(1) as u32,
+            modules: Mutex::new(HashMap::new()),
+            // Machine code for exactly this GPU: nothing left for the
+            // driver to JIT, and no dependency on the driver's PTX version.
+            compile_options: CompileOptions::cubin(compute_capability),
+        }))
+    }
+
+    /// `cuda:N`.
+    pub fn label(&self) -> String {
+        format!("cuda:{}", self.ordinal)
+    }
+
+    /// Bytes currently free on the GPU (all processes).
+    pub fn free_memory(&self) -> Result<u64, CudaError> {
+        let (free, _total) = self
+            .ctx
+            .mem_get_info()
+            .map_err(CudaError::driver(format!("{}: reading free memory", self.label())))?;
+        Ok(free as u64)
+    }
+
+    /// The options kernels are compiled with on this GPU.
+    pub fn compile_options(&self) -> &CompileOptions {
+        &self.compile_options
+    }
+
+    /// The module of kernel file `file`, compiled (or taken from the disk
+    /// cache) and loaded on first use.
+    pub fn module(&self, file: &str) -> Result<Arc<CudaModule>, CudaError> {
+        let mut modules = self.modules.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        if let Some(module) = modules.get(file) {
+            return Ok(module.clone());
+        }
+        let compiled = compile(file, &self.compile_options)?;
+        if !compiled.log.trim().is_empty() {
+            tracing::debug!("{file}: NVRTC log:\n{}", compiled.log);
+        }
+        let image = match self.compile_options.output {
+            Output::Cubin => Ptx::from_binary(compiled.image),
+            Output::Ptx => Ptx::from_src(String::from_utf8_lossy(&compiled.image).into_owned()),
+        };
+        let module = self
+            .ctx
+            .load_module(image)
+            .map_err(CudaError::driver(format!("{}: loading kernel module {file}", self.label())))?;
+        modules.insert(file.to_string(), module.clone());
+        Ok(module)
+    }
+
+    /// Kernel `name` of kernel file `file` (an `extern "C" __global__` function).
+    pub fn function(&self, file: &str, name: &str) -> Result<CudaFunction, CudaError> {
+        self.module(file)?
+            .load_function(name)
+            .map_err(CudaError::driver(format!("{}: kernel {name} in {file}", self.label())))
+    }
+
+    /// Waits for all work queued on the stream.
+    pub fn synchronize(&self) -> Result<(), CudaError> {
+        self.stream.synchronize().map_err(CudaError::driver(format!("{}: synchronizing", self.label())))
+    }
+
+    /// A timing event pair recording from now on the stream; call
+    /// [`Timer::stop`] after queuing the work to time.
+    pub fn start_timer(&self) -> Result<Timer, CudaError> {
+        let timing = Some(CUevent_flags::CU_EVENT_DEFAULT);
+        let context = || format!("{}: timing event", self.label());
+        let start = self.ctx.new_event(timing).map_err(CudaError::driver(context()))?;
+        let end = self.ctx.new_event(timing).map_err(CudaError::driver(context()))?;
+        start.record(&self.stream).map_err(CudaError::driver(context()))?;
+        Ok(Timer { start, end, stopped: false })
+    }
+}
+
+/// A pair of CUDA events around work on a stream: device time, not host time.
+#[derive(Debug)]
+pub struct Timer {
+    start: CudaEvent,
+    end: CudaEvent,
+    stopped: bool,
+}
+
+impl Timer {
+    /// Marks the end of the timed work (queued; does not wait).
+    pub fn stop(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
+        self.end.record(&gpu.stream).map_err(CudaError::driver(format!("{}: timing event", gpu.label())))?;
+        self.stopped = true;
+        Ok(())
+    }
+
+    /// Whether the timed work has finished (never blocks).
+    pub fn is_done(&self) -> bool {
+        self.stopped && self.end.is_complete()
+    }
+
+    /// Milliseconds between start and stop; waits for the work to finish.
+    pub fn elapsed_ms(&self) -> Result<f32, CudaError> {
+        if !self.stopped {
+            return Err(CudaError::Usage("Timer::elapsed_ms before stop".into()));
+        }
+        self.start.elapsed_ms(&self.end).map_err(CudaError::driver("reading a timing event"))
+    }
+}
+
+/// A 1-D launch of `threads` threads in blocks of `block` (at least one
+/// block, so kernels that read their count on the device always run).
+pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
+    LaunchConfig {
+        grid_dim: (threads.div_ceil(block).max(1), 1, 1),
+        block_dim: (block, 1, 1),
+        shared_mem_bytes: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn launch_shapes() {
+        assert_eq!(launch_1d(0, 256).grid_dim, (1, 1, 1));
+        assert_eq!(launch_1d(257, 256).grid_dim, (2, 1, 1));
+        assert_eq!(launch_1d(1 << 18, 128).grid_dim, (2048, 1, 1));
+    }
+
+    #[test]
+    fn without_a_driver_open_is_an_error_not_a_panic() {
+        if crate::error::driver_present() {
+            return; // a real driver: covered by tests/gpu_basic.rs
+        }
+        assert!(matches!(device_count(), Err(CudaError::NoDriver)));
+        assert!(matches!(Gpu::open(0), Err(CudaError::NoDriver)));
+    }
+}

@@ -1,0 +1,279 @@
+//! Generated parts of the kernel headers: constants defined once in Rust
+//! and the `static_assert`s that pin every shared struct's size and field
+//! offsets to Rust's `offset_of!`.
+//!
+//! Each [`Block`] is text between two marker lines of a `kernels/*.cuh` file:
+//!
+//! ```text
+//! // BEGIN GENERATED record (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
+//! ...generated...
+//! // END GENERATED record
+//! ```
+//!
+//! The committed headers hold the generated text (NVRTC needs no Rust at
+//! run time); the test `header::tests::header_blocks_are_current` fails when
+//! one is stale and rewrites them all with `ATOLL_BLESS=1`.
+
+use std::fmt::Write;
+
+use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
+use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
+use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
+use atoll_render::sampling::UNIFORM_SPHERE_PDF;
+
+use crate::layout::{mesh_flags, FieldLayout, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE};
+use crate::params::{emitter_kind, integrator_kind, FrameParams, GpuEmitter, GpuMaterial, SceneView};
+
+/// How to regenerate, repeated in every marker line.
+pub const REGENERATE: &str = "src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header";
+
+/// One generated block: `file` (in `kernels/`) holds the text of
+/// `generate()` between the markers named `name`.
+#[derive(Clone, Copy, Debug)]
+pub struct Block {
+    pub file: &'static str,
+    pub name: &'static str,
+    pub generate: fn() -> String,
+}
+
+/// Every generated block of the kernel headers.
+pub fn blocks() -> Vec<Block> {
+    vec![
+        Block { file: "common.cuh", name: "constants", generate: math_constants },
+        Block { file: "record.cuh", name: "record", generate: record_asserts },
+        Block { file: "rng.cuh", name: "rng", generate: rng_constants },
+        Block { file: "layout.cuh", name: "layout", generate: layout_asserts },
+        Block { file: "params.cuh", name: "params", generate: params_asserts },
+        Block { file: "bvh.cuh", name: "bvh", generate: crate::bvh::layout::header_block },
+        Block { file: "lbvh.cuh", name: "lbvh", generate: crate::bvh::layout::build_header_block },
+    ]
+}
+
+/// `static_assert`s of `name`'s size and of every field's offset and size.
+pub fn struct_asserts(name: &str, size: usize, fields: &[(&str, usize, usize)]) -> String {
+    let mut s = format!("static_assert(sizeof({name}) == {size}, \"{name}: size differs from Rust\");\n");
+    for (field, offset, field_size) in fields {
+        let _ = writeln!(
+            s,
+            "static_assert(__builtin_offsetof({name}, {field}) == {offset} && sizeof({name}::{field}) == {field_size}, \
+             \"{name}.{field}: offset or size differs from Rust\");"
+        );
+    }
+    s
+}
+
+fn assert_struct<T>(name: &str, fields: FieldLayout) -> String {
+    struct_asserts(name, std::mem::size_of::<T>(), &fields)
+}
+
+/// `inline constexpr` integer constant (`inline`: no "never referenced"
+/// warnings from NVRTC for constants a kernel file does not use).
+fn const_uint(ty: &str, name: &str, value: u64) -> String {
+    let suffix = if ty == "unsigned int" { "u" } else { "" };
+    format!("inline constexpr {ty} {name} = {value}{suffix};\n")
+}
+
+/// `constexpr float`; Rust's shortest round-trip formatting parses back to
+/// the same f32.
+fn const_float(name: &str, value: f32) -> String {
+    format!("inline constexpr float {name} = {value:?}f;\n")
+}
+
+/// Float constants of `sampling`, `bsdf` and `std::f32::consts`.
+pub fn math_constants() -> String {
+    use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+    [
+        const_float("PI", PI),
+        const_float("FRAC_1_PI", FRAC_1_PI),
+        const_float("FRAC_PI_2", FRAC_PI_2),
+        const_float("FRAC_PI_4", FRAC_PI_4),
+        const_float("UNIFORM_SPHERE_PDF", UNIFORM_SPHERE_PDF),
+        const_float("SMOOTH_ALPHA", SMOOTH_ALPHA),
+    ]
+    .concat()
+}
+
+/// `record` constants (flags, material kinds, `NO_LIGHT`) and the
+/// `RayRecord` asserts.
+pub fn record_asserts() -> String {
+    let mut s = String::new();
+    s += &const_uint("unsigned int", "NO_LIGHT", NO_LIGHT as u64);
+    s += &const_uint("unsigned int", "MATERIAL_COEFFS", MATERIAL_COEFFS as u64);
+    for (name, value) in [
+        ("FLAG_SHADOW", flags::SHADOW),
+        ("FLAG_OCCLUDED", flags::OCCLUDED),
+        ("FLAG_HIT", flags::HIT),
+        ("FLAG_SPECULAR", flags::SPECULAR),
+    ] {
+        s += &const_uint("unsigned short", name, value as u64);
+    }
+    for (name, kind) in [
+        ("MATERIAL_NONE", MaterialKind::None),
+        ("MATERIAL_DIFFUSE", MaterialKind::Diffuse),
+        ("MATERIAL_CONDUCTOR", MaterialKind::Conductor),
+        ("MATERIAL_DIELECTRIC", MaterialKind::Dielectric),
+    ] {
+        s += &const_uint("unsigned int", name, kind as u64);
+    }
+    s + &assert_struct::<RayRecord>("RayRecord", record::field_layout())
+}
+
+/// The random-number dimension layout of `rng`.
+pub fn rng_constants() -> String {
+    let mut s = const_uint("unsigned int", "CAMERA_DIMENSIONS", CAMERA_DIMENSIONS as u64);
+    s += &const_uint("unsigned int", "DIMENSIONS_PER_BOUNCE", DIMENSIONS_PER_BOUNCE as u64);
+    for (name, dim) in [
+        ("BOUNCE_DIM_LIGHT_SELECT", BounceDim::LightSelect),
+        ("BOUNCE_DIM_LIGHT_POSITION", BounceDim::LightPosition),
+        ("BOUNCE_DIM_BSDF_LOBE", BounceDim::BsdfLobe),
+        ("BOUNCE_DIM_BSDF_DIRECTION", BounceDim::BsdfDirection),
+        ("BOUNCE_DIM_RUSSIAN_ROULETTE", BounceDim::RussianRoulette),
+    ] {
+        s += &const_uint("unsigned int", name, dim as u64);
+    }
+    s
+}
+
+/// Mesh flags, `HIT_NONE` and the asserts of the scene-table structs.
+pub fn layout_asserts() -> String {
+    let mut s = const_uint("unsigned int", "HIT_NONE", HIT_NONE as u64);
+    for (name, value) in [
+        ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
+        ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
+        ("MESH_EMISSIVE", mesh_flags::EMISSIVE),
+    ] {
+        s += &const_uint("unsigned int", name, value as u64);
+    }
+    s += &assert_struct::<GpuMesh>("GpuMesh", GpuMesh::field_layout());
+    s += &assert_struct::<GpuObject>("GpuObject", GpuObject::field_layout());
+    s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
+    s + &assert_struct::<HitRef>("HitRef", HitRef::field_layout())
+}
+
+/// Emitter and integrator kinds and the asserts of the kernel parameters.
+pub fn params_asserts() -> String {
+    let mut s = String::new();
+    for (name, value) in [
+        ("EMITTER_POINT", emitter_kind::POINT),
+        ("EMITTER_DISTANT", emitter_kind::DISTANT),
+        ("EMITTER_INFINITE", emitter_kind::INFINITE),
+        ("EMITTER_TRIANGLE", emitter_kind::TRIANGLE),
+        ("INTEGRATOR_PATH", integrator_kind::PATH),
+        ("INTEGRATOR_AMBIENT_OCCLUSION", integrator_kind::AMBIENT_OCCLUSION),
+    ] {
+        s += &const_uint("unsigned int", name, value as u64);
+    }
+    s += &assert_struct::<GpuEmitter>("GpuEmitter", GpuEmitter::field_layout());
+    s += &assert_struct::<GpuMaterial>("GpuMaterial", GpuMaterial::field_layout());
+    s += &assert_struct::<FrameParams>("FrameParams", FrameParams::field_layout());
+    s + &assert_struct::<SceneView>("SceneView", SceneView::field_layout())
+}
+
+/// `source` with the block `name` replaced by `text` (markers rewritten
+/// too); `None` when the markers are missing or out of order.
+pub fn splice_block(source: &str, name: &str, text: &str) -> Option<String> {
+    let begin = format!("// BEGIN GENERATED {name} ");
+    let end = format!("// END GENERATED {name}");
+    let lines: Vec<&str> = source.lines().collect();
+    let b = lines.iter().position(|l| l.starts_with(&begin))?;
+    let e = b + lines[b..].iter().position(|l| l.trim_end() == end)?;
+    let mut out = String::with_capacity(source.len() + text.len());
+    for line in &lines[..b] {
+        out.push_str(line);
+        out.push('\n');
+    }
+    let _ = writeln!(out, "// BEGIN GENERATED {name} ({REGENERATE})");
+    out.push_str(text);
+    if !text.is_empty() && !text.ends_with('\n') {
+        out.push('\n');
+    }
+    out.push_str(&end);
+    out.push('\n');
+    for line in &lines[e + 1..] {
+        out.push_str(line);
+        out.push('\n');
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::PathBuf;
+
+    fn kernel_dir() -> PathBuf {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("kernels")
+    }
+
+    #[test]
+    fn header_blocks_are_current() {
+        let bless = std::env::var_os("ATOLL_BLESS").is_some_and(|v| !v.is_empty() && v != "0");
+        let mut stale = Vec::new();
+        for block in blocks() {
+            let path = kernel_dir().join(block.file);
+            let source = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            let fresh = splice_block(&source, block.name, &(block.generate)()).unwrap_or_else(|| {
+                panic!("{}: no `// BEGIN/END GENERATED {}` markers", block.file, block.name)
+            });
+            if fresh != source {
+                if bless {
+                    std::fs::write(&path, fresh).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                } else {
+                    stale.push(format!("{} ({})", block.file, block.name));
+                }
+            }
+        }
+        assert!(
+            stale.is_empty(),
+            "generated kernel header blocks are stale: {}; rewrite them with `ATOLL_BLESS=1 cargo test -p atoll-cuda \
+             header` and commit the result",
+            stale.join(", ")
+        );
+    }
+
+    /// Every layout lists every field: consecutive, no gaps, covering the
+    /// struct (all shared structs carry explicit padding fields).
+    #[test]
+    fn header_layouts_cover_their_structs() {
+        let all: [(&str, usize, FieldLayout); 9] = [
+            ("RayRecord", std::mem::size_of::<RayRecord>(), record::field_layout()),
+            ("GpuMesh", std::mem::size_of::<GpuMesh>(), GpuMesh::field_layout()),
+            ("GpuObject", std::mem::size_of::<GpuObject>(), GpuObject::field_layout()),
+            ("GpuInstance", std::mem::size_of::<GpuInstance>(), GpuInstance::field_layout()),
+            ("HitRef", std::mem::size_of::<HitRef>(), HitRef::field_layout()),
+            ("GpuEmitter", std::mem::size_of::<GpuEmitter>(), GpuEmitter::field_layout()),
+            ("GpuMaterial", std::mem::size_of::<GpuMaterial>(), GpuMaterial::field_layout()),
+            ("FrameParams", std::mem::size_of::<FrameParams>(), FrameParams::field_layout()),
+            ("SceneView", std::mem::size_of::<SceneView>(), SceneView::field_layout()),
+        ];
+        for (name, size, fields) in all {
+            let mut end = 0;
+            for (field, offset, field_size) in &fields {
+                assert_eq!(*offset, end, "{name}: gap or overlap before {field}");
+                end = offset + field_size;
+            }
+            assert_eq!(end, size, "{name}: fields do not cover the struct");
+        }
+    }
+
+    #[test]
+    fn header_text_forms() {
+        let s = struct_asserts("A", 8, &[("x", 0, 4), ("y", 4, 4)]);
+        assert!(s.starts_with("static_assert(sizeof(A) == 8,"), "{s}");
+        assert!(s.contains("__builtin_offsetof(A, y) == 4 && sizeof(A::y) == 4"), "{s}");
+        assert_eq!(const_float("X", 0.5), "inline constexpr float X = 0.5f;\n");
+        assert_eq!(const_float("Y", 1.0), "inline constexpr float Y = 1.0f;\n");
+        assert_eq!(const_uint("unsigned int", "N", 7), "inline constexpr unsigned int N = 7u;\n");
+        // Every float constant parses back to the same f32.
+        for line in math_constants().lines() {
+            let value = line.split(" = ").nth(1).unwrap().trim_end_matches(";").trim_end_matches('f');
+            let parsed: f32 = value.parse().unwrap();
+            assert!(line.contains(&format!("{parsed:?}f")), "{line}");
+        }
+        let src = "a\n// BEGIN GENERATED x (old)\nstale\n// END GENERATED x\nb\n";
+        let out = splice_block(src, "x", "new\n").unwrap();
+        assert_eq!(out, format!("a\n// BEGIN GENERATED x ({REGENERATE})\nnew\n// END GENERATED x\nb\n"));
+        assert_eq!(splice_block(&out, "x", "new\n").unwrap(), out, "idempotent");
+        assert!(splice_block("a\n", "x", "").is_none());
+    }
+}

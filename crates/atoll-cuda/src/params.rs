@@ -1,0 +1,437 @@
+//! What the wavefront kernels (`kernels/wavefront.cu`) are launched with:
+//! [`FrameParams`], the frame's [`FrameContext`] flattened into one
+//! `#[repr(C)]` struct of values and device pointers (camera, options, the
+//! light tables, the packed materials), and [`SceneView`], the device
+//! pointers of a [`GpuScene`]'s tables. `kernels/params.cuh` mirrors every
+//! struct here; its `static_assert`s are generated from [`FieldLayout`]s by
+//! [`crate::header`].
+//!
+//! [`FrameTables`] is the host side of the light and material tables (a pure
+//! function of the frame, tested without a GPU); [`FrameParamsHost`] uploads
+//! them and owns the device buffers the pointers in its [`FrameParams`]
+//! point into.
+
+use std::sync::Arc;
+
+use atoll_render::lights::Emitter;
+use atoll_render::material_coeffs::PackedMaterial;
+use atoll_render::record::MATERIAL_COEFFS;
+use atoll_render::FrameContext;
+use atoll_scene::IntegratorSettings;
+use bytemuck::{Pod, Zeroable};
+use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
+
+use crate::error::CudaError;
+use crate::gpu::Gpu;
+use crate::layout::{field_layout, FieldLayout};
+use crate::scene::GpuScene;
+
+/// [`GpuEmitter::kind`] values, one per [`Emitter`] variant.
+pub mod emitter_kind {
+    pub const POINT: u32 = 0;
+    pub const DISTANT: u32 = 1;
+    pub const INFINITE: u32 = 2;
+    pub const TRIANGLE: u32 = 3;
+}
+
+/// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
+pub mod integrator_kind {
+    pub const PATH: u32 = 0;
+    pub const AMBIENT_OCCLUSION: u32 = 1;
+}
+
+/// One [`Emitter`] on the device (80 bytes). By `kind`: point: `p[0..3]`
+/// position, `radiance` intensity; distant: `p[0..3]` the direction light
+/// travels, `radiance`; infinite: `radiance`; triangle: `p` the three
+/// world-space vertices, `normal`, `area`, `radiance`, `two_sided`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuEmitter {
+    /// [`emitter_kind`].
+    pub kind: u32,
+    /// 1 when a triangle emits on both sides.
+    pub two_sided: u32,
+    pub area: f32,
+    pub pad: u32,
+    pub p: [f32; 9],
+    pub normal: [f32; 3],
+    pub radiance: [f32; 3],
+    pub pad2: u32,
+}
+
+impl GpuEmitter {
+    /// The device form of `e`.
+    pub fn new(e: &Emitter) -> Self {
+        let mut g = GpuEmitter::zeroed();
+        match *e {
+            Emitter::Point { position, intensity } => {
+                g.kind = emitter_kind::POINT;
+                g.p[..3].copy_from_slice(&position.to_array());
+                g.radiance = intensity.to_array();
+            }
+            Emitter::Distant { direction, radiance } => {
+                g.kind = emitter_kind::DISTANT;
+                g.p[..3].copy_from_slice(&direction.to_array());
+                g.radiance = radiance.to_array();
+            }
+            Emitter::Infinite { radiance } => {
+                g.kind = emitter_kind::INFINITE;
+                g.radiance = radiance.to_array();
+            }
+            Emitter::Triangle { p, normal, area, radiance, two_sided } => {
+                g.kind = emitter_kind::TRIANGLE;
+                for (k, v) in p.iter().enumerate() {
+                    g.p[3 * k..3 * k + 3].copy_from_slice(&v.to_array());
+                }
+                g.normal = normal.to_array();
+                g.area = area;
+                g.radiance = radiance.to_array();
+                g.two_sided = two_sided as u32;
+            }
+        }
+        g
+    }
+
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuEmitter { kind, two_sided, area, pad, p, normal, radiance, pad2 })
+    }
+}
+
+/// A [`PackedMaterial`] on the device (48 bytes, 16-aligned in the table
+/// so the kernels copy the coefficients as two 16-byte words).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuMaterial {
+    /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`].
+    pub coeffs: [u16; MATERIAL_COEFFS],
+    /// [`atoll_render::record::MaterialKind`] as u32.
+    pub kind: u32,
+    pub pad: [u32; 3],
+}
+
+impl GpuMaterial {
+    pub fn new(m: &PackedMaterial) -> Self {
+        GpuMaterial { coeffs: m.coeffs.map(|c| c.to_bits()), kind: m.kind as u32, pad: [0; 3] }
+    }
+
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuMaterial { coeffs, kind, pad })
+    }
+}
+
+/// Everything shading needs, identical on every device: the
+/// [`FrameContext`] flattened (184 bytes). Pointers are device addresses
+/// (0 until uploaded: see [`FrameParamsHost`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct FrameParams {
+    /// `CameraRays` camera-to-world, row-major 3×4 (`m[r*4 + c]`).
+    pub camera_to_world: [f32; 12],
+    pub window_min: [f32; 2],
+    pub window_max: [f32; 2],
+    /// Image size as floats (what camera rays divide raster positions by).
+    pub raster_size: [f32; 2],
+    pub lens_radius: f32,
+    pub focal_distance: f32,
+    pub resolution: [u32; 2],
+    pub seed: u32,
+    /// [`integrator_kind`].
+    pub integrator: u32,
+    /// Path integrator's maximum depth (0 for ambient occlusion).
+    pub max_depth: u32,
+    /// Ambient occlusion's ray length (0 for the path integrator).
+    pub ao_max_distance: f32,
+    /// 1 when Russian roulette is on.
+    pub russian_roulette: u32,
+    /// Entries of `emitters` and `light_pmf` (`light_cdf` has one more).
+    pub light_count: u32,
+    pub infinite_count: u32,
+    pub triangle_key_count: u32,
+    pub material_count: u32,
+    pub pad: u32,
+    /// `GpuEmitter[light_count]`.
+    pub emitters: u64,
+    /// `f32[light_count]`: selection probability per emitter.
+    pub light_pmf: u64,
+    /// `f32[light_count + 1]`: cumulative distribution, last entry 1.
+    pub light_cdf: u64,
+    /// `u32[infinite_count]`: indices of the infinite lights.
+    pub infinite_lights: u64,
+    /// `u64[triangle_key_count]`: sorted `instance << 32 | mesh` keys.
+    pub triangle_keys: u64,
+    /// `u32[triangle_key_count]`: first light index per key.
+    pub triangle_bases: u64,
+    /// `GpuMaterial[material_count]`, by scene material id.
+    pub materials: u64,
+}
+
+impl FrameParams {
+    /// The values of `frame` (table pointers left 0; table counts set).
+    pub fn from_frame(frame: &FrameContext) -> Self {
+        let camera = &frame.camera;
+        let m = camera.camera_to_world();
+        let mut camera_to_world = [0.0; 12];
+        for r in 0..3 {
+            camera_to_world[r * 4..r * 4 + 4].copy_from_slice(&m.row(r).to_array());
+        }
+        let (window_min, window_max) = camera.window();
+        let (lens_radius, focal_distance) = camera.lens();
+        let (integrator, max_depth, ao_max_distance) = match frame.options.integrator {
+            IntegratorSettings::Path { max_depth } => (integrator_kind::PATH, max_depth, 0.0),
+            IntegratorSettings::AmbientOcclusion { max_distance } => {
+                (integrator_kind::AMBIENT_OCCLUSION, 0, max_distance)
+            }
+        };
+        let lights = &frame.lights;
+        FrameParams {
+            camera_to_world,
+            window_min: window_min.to_array(),
+            window_max: window_max.to_array(),
+            raster_size: camera.raster_size().to_array(),
+            lens_radius,
+            focal_distance,
+            resolution: frame.options.resolution.to_array(),
+            seed: frame.options.seed,
+            integrator,
+            max_depth,
+            ao_max_distance,
+            russian_roulette: frame.options.russian_roulette as u32,
+            light_count: lights.emitters.len() as u32,
+            infinite_count: lights.infinite_lights().len() as u32,
+            triangle_key_count: lights.triangle_keys().len() as u32,
+            material_count: frame.materials.len() as u32,
+            ..Zeroable::zeroed()
+        }
+    }
+
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(FrameParams {
+            camera_to_world,
+            window_min,
+            window_max,
+            raster_size,
+            lens_radius,
+            focal_distance,
+            resolution,
+            seed,
+            integrator,
+            max_depth,
+            ao_max_distance,
+            russian_roulette,
+            light_count,
+            infinite_count,
+            triangle_key_count,
+            material_count,
+            pad,
+            emitters,
+            light_pmf,
+            light_cdf,
+            infinite_lights,
+            triangle_keys,
+            triangle_bases,
+            materials,
+        })
+    }
+}
+
+/// Device pointers of a [`GpuScene`]'s tables and their sizes (64 bytes);
+/// the crate docs describe the tables.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct SceneView {
+    /// `f32[3 * vertex_count]`.
+    pub vertices: u64,
+    /// `f32[3 * vertex_count]` (meaningful for meshes with `HAS_NORMALS`).
+    pub normals: u64,
+    /// `u32[3 * triangle_count]`, absolute vertex indices.
+    pub triangles: u64,
+    /// `u32[triangle_count]`: index into `meshes`.
+    pub triangle_mesh: u64,
+    /// `GpuMesh[mesh_count]`.
+    pub meshes: u64,
+    /// `GpuInstance[instance_count]`.
+    pub instances: u64,
+    pub triangle_count: u32,
+    pub mesh_count: u32,
+    pub instance_count: u32,
+    pub vertex_count: u32,
+}
+
+impl SceneView {
+    /// The view of `scene`'s device tables.
+    pub fn of(scene: &GpuScene) -> Self {
+        let stream = &scene.gpu.stream;
+        SceneView {
+            vertices: scene.vertices.device_ptr(stream).0,
+            normals: scene.normals.device_ptr(stream).0,
+            triangles: scene.triangles.device_ptr(stream).0,
+            triangle_mesh: scene.triangle_mesh.device_ptr(stream).0,
+            meshes: scene.meshes.device_ptr(stream).0,
+            instances: scene.instances.device_ptr(stream).0,
+            triangle_count: scene.counts.triangles as u32,
+            mesh_count: scene.counts.meshes as u32,
+            instance_count: scene.counts.instances as u32,
+            vertex_count: scene.counts.vertices as u32,
+        }
+    }
+
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(SceneView {
+            vertices,
+            normals,
+            triangles,
+            triangle_mesh,
+            meshes,
+            instances,
+            triangle_count,
+            mesh_count,
+            instance_count,
+            vertex_count,
+        })
+    }
+}
+
+// SAFETY (all eight): plain-old-data `#[repr(C)]` structs (Pod), so any bit
+// pattern, including all zeros, is a valid value and they can be copied to
+// and from the device byte for byte.
+unsafe impl DeviceRepr for GpuEmitter {}
+unsafe impl ValidAsZeroBits for GpuEmitter {}
+unsafe impl DeviceRepr for GpuMaterial {}
+unsafe impl ValidAsZeroBits for GpuMaterial {}
+unsafe impl DeviceRepr for FrameParams {}
+unsafe impl ValidAsZeroBits for FrameParams {}
+unsafe impl DeviceRepr for SceneView {}
+unsafe impl ValidAsZeroBits for SceneView {}
+
+const _: () = {
+    assert!(std::mem::size_of::<GpuEmitter>() == 80);
+    assert!(std::mem::size_of::<GpuMaterial>() == 48);
+    assert!(std::mem::size_of::<FrameParams>() == 184);
+    assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
+    assert!(std::mem::size_of::<SceneView>() == 64);
+};
+
+/// The frame's light and material tables in host memory, exactly as they
+/// go to the device.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FrameTables {
+    pub emitters: Vec<GpuEmitter>,
+    pub light_pmf: Vec<f32>,
+    pub light_cdf: Vec<f32>,
+    pub infinite_lights: Vec<u32>,
+    pub triangle_keys: Vec<u64>,
+    pub triangle_bases: Vec<u32>,
+    pub materials: Vec<GpuMaterial>,
+}
+
+impl FrameTables {
+    pub fn build(frame: &FrameContext) -> Self {
+        let lights = &frame.lights;
+        FrameTables {
+            emitters: lights.emitters.iter().map(GpuEmitter::new).collect(),
+            light_pmf: lights.pmfs().to_vec(),
+            light_cdf: lights.cdf().to_vec(),
+            infinite_lights: lights.infinite_lights().to_vec(),
+            triangle_keys: lights.triangle_keys().to_vec(),
+            triangle_bases: lights.triangle_bases().to_vec(),
+            materials: frame.materials.iter().map(GpuMaterial::new).collect(),
+        }
+    }
+
+    /// Device bytes of the tables plus the parameter block (empty tables
+    /// still take one element).
+    pub fn bytes(&self) -> u64 {
+        fn b<T>(v: &[T]) -> u64 {
+            (v.len().max(1) * std::mem::size_of::<T>()) as u64
+        }
+        b(&self.emitters)
+            + b(&self.light_pmf)
+            + b(&self.light_cdf)
+            + b(&self.infinite_lights)
+            + b(&self.triangle_keys)
+            + b(&self.triangle_bases)
+            + b(&self.materials)
+            + std::mem::size_of::<FrameParams>() as u64
+    }
+}
+
+/// [`FrameParams`] resident on a GPU: the parameter block itself
+/// ([`Self::device`], what the kernels' `const FrameParams*` takes) and the
+/// tables it points into, kept alive as long as this value.
+pub struct FrameParamsHost {
+    /// The values, with the device pointers filled in.
+    pub params: FrameParams,
+    /// One `FrameParams` on the device.
+    pub device: CudaSlice<FrameParams>,
+    emitters: CudaSlice<GpuEmitter>,
+    light_pmf: CudaSlice<f32>,
+    light_cdf: CudaSlice<f32>,
+    infinite_lights: CudaSlice<u32>,
+    triangle_keys: CudaSlice<u64>,
+    triangle_bases: CudaSlice<u32>,
+    materials: CudaSlice<GpuMaterial>,
+}
+
+/// Copies `data` to a new device buffer; an empty table becomes one zeroed
+/// element (zero-length allocations fail), never read since its count is 0.
+fn upload<T: DeviceRepr + ValidAsZeroBits + Copy>(
+    gpu: &Gpu,
+    data: &[T],
+    what: &str,
+) -> Result<CudaSlice<T>, CudaError> {
+    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
+    if data.is_empty() {
+        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
+    }
+    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
+}
+
+impl FrameParamsHost {
+    /// Uploads `frame`'s light and material tables and the parameter block.
+    pub fn new(gpu: &Arc<Gpu>, frame: &FrameContext) -> Result<Self, CudaError> {
+        let t = FrameTables::build(frame);
+        let emitters = upload(gpu, &t.emitters, "emitters")?;
+        let light_pmf = upload(gpu, &t.light_pmf, "light pmf")?;
+        let light_cdf = upload(gpu, &t.light_cdf, "light cdf")?;
+        let infinite_lights = upload(gpu, &t.infinite_lights, "infinite lights")?;
+        let triangle_keys = upload(gpu, &t.triangle_keys, "triangle light keys")?;
+        let triangle_bases = upload(gpu, &t.triangle_bases, "triangle light bases")?;
+        let materials = upload(gpu, &t.materials, "materials")?;
+        let stream = &gpu.stream;
+        let mut params = FrameParams::from_frame(frame);
+        params.emitters = emitters.device_ptr(stream).0;
+        params.light_pmf = light_pmf.device_ptr(stream).0;
+        params.light_cdf = light_cdf.device_ptr(stream).0;
+        params.infinite_lights = infinite_lights.device_ptr(stream).0;
+        params.triangle_keys = triangle_keys.device_ptr(stream).0;
+        params.triangle_bases = triangle_bases.device_ptr(stream).0;
+        params.materials = materials.device_ptr(stream).0;
+        let device = upload(gpu, &[params], "frame parameters")?;
+        Ok(FrameParamsHost {
+            params,
+            device,
+            emitters,
+            light_pmf,
+            light_cdf,
+            infinite_lights,
+            triangle_keys,
+            triangle_bases,
+            materials,
+        })
+    }
+
+    /// Device bytes held (tables and parameter block).
+    pub fn bytes(&self) -> u64 {
+        (self.device.num_bytes()
+            + self.emitters.num_bytes()
+            + self.light_pmf.num_bytes()
+            + self.light_cdf.num_bytes()
+            + self.infinite_lights.num_bytes()
+            + self.triangle_keys.num_bytes()
+            + self.triangle_bases.num_bytes()
+            + self.materials.num_bytes()) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests;

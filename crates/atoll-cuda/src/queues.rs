@@ -1,0 +1,205 @@
+//! The CUDA device's ray queues: device buffers of ray records with their
+//! lengths in device memory.
+//!
+//! Kernels read a queue's length from its device counter and append with
+//! atomics, so the host need not know lengths between stages (pbrt-v4's
+//! habit). The host caches a length when it learns it (generate, a
+//! read-back, a write) and forgets it when a kernel may change it; a
+//! read-back happens only when the integrator asks ([`Queues::len`]).
+
+use std::cell::Cell;
+
+use atoll_render::{Queue, RayRecord};
+use cudarc::driver::CudaSlice;
+
+use crate::error::CudaError;
+use crate::gpu::Gpu;
+use crate::layout::{GpuRecord, HitRef};
+
+/// Bytes the queues of `capacity` records take on the device.
+pub fn queue_bytes(capacity: u32) -> u64 {
+    let record = std::mem::size_of::<GpuRecord>() as u64;
+    // paths + next (the path queue's ping-pong partner) + shadows, the hit
+    // references of closest-hit tracing, and three counters.
+    capacity.max(1) as u64 * (3 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4
+}
+
+/// The path and shadow queues of one device.
+pub struct Queues {
+    pub capacity: u32,
+    /// The path queue traced and shaded now.
+    pub paths: CudaSlice<GpuRecord>,
+    /// Where `shade` appends continuing paths; swapped with `paths` after.
+    pub next: CudaSlice<GpuRecord>,
+    pub shadows: CudaSlice<GpuRecord>,
+    /// Closest-hit results, one per path record.
+    pub hits: CudaSlice<HitRef>,
+    pub path_count: CudaSlice<u32>,
+    pub next_count: CudaSlice<u32>,
+    pub shadow_count: CudaSlice<u32>,
+    /// Host copies of the counters when known (`None`: only the device knows).
+    path_len: Cell<Option<u32>>,
+    shadow_len: Cell<Option<u32>>,
+}
+
+impl Queues {
+    /// Empty queues of `capacity` records each.
+    pub fn new(gpu: &Gpu, capacity: u32) -> Result<Self, CudaError> {
+        let capacity = capacity.max(1);
+        let what = |w: &str| format!("{}: allocating the {w} ({capacity} entries)", gpu.label());
+        let records = |w: &str| {
+            gpu.stream.alloc_zeros::<GpuRecord>(capacity as usize).map_err(CudaError::driver(what(w)))
+        };
+        let counter = |w: &str| gpu.stream.alloc_zeros::<u32>(1).map_err(CudaError::driver(what(w)));
+        Ok(Queues {
+            capacity,
+            paths: records("path queue")?,
+            next: records("next path queue")?,
+            shadows: records("shadow queue")?,
+            hits: gpu
+                .stream
+                .alloc_zeros(capacity as usize)
+                .map_err(CudaError::driver(what("hit references")))?,
+            path_count: counter("path counter")?,
+            next_count: counter("next path counter")?,
+            shadow_count: counter("shadow counter")?,
+            path_len: Cell::new(Some(0)),
+            shadow_len: Cell::new(Some(0)),
+        })
+    }
+
+    /// Makes room for `records` per queue, keeping both queues' contents.
+    pub fn ensure_capacity(&mut self, gpu: &Gpu, records: u32) -> Result<(), CudaError> {
+        if records <= self.capacity {
+            return Ok(());
+        }
+        tracing::debug!("{}: growing queues from {} to {records} records", gpu.label(), self.capacity);
+        let mut grown = Queues::new(gpu, records)?;
+        let context = || format!("{}: growing the queues", gpu.label());
+        let old = self.capacity as usize;
+        let copy = |src: &CudaSlice<GpuRecord>, dst: &mut CudaSlice<GpuRecord>| {
+            gpu.stream.memcpy_dtod(src, &mut dst.slice_mut(0..old)).map_err(CudaError::driver(context()))
+        };
+        copy(&self.paths, &mut grown.paths)?;
+        copy(&self.shadows, &mut grown.shadows)?;
+        gpu.stream
+            .memcpy_dtod(&self.path_count, &mut grown.path_count)
+            .map_err(CudaError::driver(context()))?;
+        gpu.stream
+            .memcpy_dtod(&self.shadow_count, &mut grown.shadow_count)
+            .map_err(CudaError::driver(context()))?;
+        grown.path_len.set(self.path_len.get());
+        grown.shadow_len.set(self.shadow_len.get());
+        *self = grown;
+        Ok(())
+    }
+
+    fn cache(&self, queue: Queue) -> &Cell<Option<u32>> {
+        match queue {
+            Queue::Paths => &self.path_len,
+            Queue::Shadows => &self.shadow_len,
+        }
+    }
+
+    fn counter(&self, queue: Queue) -> &CudaSlice<u32> {
+        match queue {
+            Queue::Paths => &self.path_count,
+            Queue::Shadows => &self.shadow_count,
+        }
+    }
+
+    /// The host's copy of a length, if it has one.
+    pub fn known_len(&self, queue: Queue) -> Option<u32> {
+        self.cache(queue).get()
+    }
+
+    /// Records the length a kernel or copy just set on the device (`None`: unknown now).
+    pub fn set_known_len(&self, queue: Queue, len: Option<u32>) {
+        self.cache(queue).set(len);
+    }
+
+    /// The queue's length, read back from the device (waiting for the
+    /// stream) when the host does not know it.
+    pub fn len(&self, gpu: &Gpu, queue: Queue) -> Result<u32, CudaError> {
+        if let Some(n) = self.known_len(queue) {
+            return Ok(n);
+        }
+        let n = gpu
+            .stream
+            .clone_dtoh(self.counter(queue))
+            .map_err(CudaError::driver(format!("{}: reading a queue length", gpu.label())))?[0];
+        if n > self.capacity {
+            return Err(CudaError::Usage(format!(
+                "{}: queue {queue:?} claims {n} records but holds at most {} (kernel bug)",
+                gpu.label(),
+                self.capacity
+            )));
+        }
+        self.set_known_len(queue, Some(n));
+        Ok(n)
+    }
+
+    /// Threads to launch for a kernel over `queue`: its length when known,
+    /// else its capacity (the kernel reads the length on the device).
+    pub fn launch_len(&self, queue: Queue) -> u32 {
+        self.known_len(queue).unwrap_or(self.capacity)
+    }
+
+    /// Zeroes a queue's device counter.
+    pub fn clear(&mut self, gpu: &Gpu, queue: Queue) -> Result<(), CudaError> {
+        let counter = match queue {
+            Queue::Paths => &mut self.path_count,
+            Queue::Shadows => &mut self.shadow_count,
+        };
+        gpu.stream
+            .memset_zeros(counter)
+            .map_err(CudaError::driver(format!("{}: clearing a queue", gpu.label())))?;
+        self.set_known_len(queue, Some(0));
+        Ok(())
+    }
+
+    /// After `shade` appended to `next`: it becomes the path queue.
+    pub fn swap_paths(&mut self) {
+        std::mem::swap(&mut self.paths, &mut self.next);
+        std::mem::swap(&mut self.path_count, &mut self.next_count);
+        self.path_len.set(None);
+    }
+
+    /// The queue's records, copied to the host.
+    pub fn read(&self, gpu: &Gpu, queue: Queue) -> Result<Vec<RayRecord>, CudaError> {
+        let n = self.len(gpu, queue)? as usize;
+        if n == 0 {
+            return Ok(Vec::new());
+        }
+        let buffer = match queue {
+            Queue::Paths => &self.paths,
+            Queue::Shadows => &self.shadows,
+        };
+        let records = gpu
+            .stream
+            .clone_dtoh(&buffer.slice(0..n))
+            .map_err(CudaError::driver(format!("{}: reading the {queue:?} queue", gpu.label())))?;
+        Ok(bytemuck::allocation::cast_vec(records))
+    }
+
+    /// Replaces the queue's records (growing the queues when needed).
+    pub fn write(&mut self, gpu: &Gpu, queue: Queue, records: &[RayRecord]) -> Result<(), CudaError> {
+        let n = u32::try_from(records.len())
+            .map_err(|_| CudaError::Usage(format!("{} records do not fit a queue", records.len())))?;
+        self.ensure_capacity(gpu, n)?;
+        let context = || format!("{}: writing the {queue:?} queue", gpu.label());
+        let (buffer, counter) = match queue {
+            Queue::Paths => (&mut self.paths, &mut self.path_count),
+            Queue::Shadows => (&mut self.shadows, &mut self.shadow_count),
+        };
+        if n > 0 {
+            let device: &[GpuRecord] = bytemuck::cast_slice(records);
+            gpu.stream
+                .memcpy_htod(device, &mut buffer.slice_mut(0..n as usize))
+                .map_err(CudaError::driver(context()))?;
+        }
+        gpu.stream.memcpy_htod(&[n], counter).map_err(CudaError::driver(context()))?;
+        self.set_known_len(queue, Some(n));
+        Ok(())
+    }
+}

@@ -1,0 +1,328 @@
+//! The scene as flat device tables (the layout described in the crate docs).
+//!
+//! [`SceneTables::build`] is a pure host function (tested without a GPU);
+//! [`GpuScene::upload`] checks the memory plan and copies the tables over.
+//!
+//! Meshes are laid out object by object, so each object's triangles are one
+//! contiguous range of the global triangle table (what a per-object BLAS
+//! build wants). A mesh that belongs to two objects is therefore stored
+//! twice; pbrt scenes reuse geometry through instances of one object, not
+//! through one mesh in several objects, so this costs nothing in practice.
+//! Meshes no object uses are not uploaded (no ray can reach them).
+
+use std::sync::Arc;
+
+use atoll_scene::Scene;
+use cudarc::driver::{CudaSlice, DeviceRepr, ValidAsZeroBits};
+use glam::{Affine3A, Mat3};
+
+use crate::error::{fmt_bytes, CudaError};
+use crate::gpu::Gpu;
+use crate::layout::{mesh_flags, GpuInstance, GpuMesh, GpuObject};
+
+/// The scene tables in host memory, exactly as they go to the device.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneTables {
+    /// x, y, z per vertex.
+    pub vertices: Vec<f32>,
+    /// x, y, z per vertex (same indexing as `vertices`), zero for meshes
+    /// without normals; empty when no mesh has normals.
+    pub normals: Vec<f32>,
+    /// 3 absolute vertex indices per triangle.
+    pub triangles: Vec<u32>,
+    /// Index into `meshes` per triangle.
+    pub triangle_mesh: Vec<u32>,
+    pub meshes: Vec<GpuMesh>,
+    /// One per scene object, same order as `Scene::objects`.
+    pub objects: Vec<GpuObject>,
+    /// One per scene instance, same order as `Scene::instances` (hit
+    /// records, lights and the CPU device all use these indices).
+    pub instances: Vec<GpuInstance>,
+}
+
+/// Sizes of the tables, computable without building them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TableCounts {
+    pub vertices: u64,
+    pub triangles: u64,
+    pub meshes: u64,
+    pub objects: u64,
+    pub instances: u64,
+    pub has_normals: bool,
+}
+
+impl TableCounts {
+    /// Counts for `scene` (as [`SceneTables::build`] would produce).
+    pub fn of(scene: &Scene) -> Self {
+        let mut c = TableCounts {
+            objects: scene.objects.len() as u64,
+            instances: scene.instances.len() as u64,
+            ..Default::default()
+        };
+        for object in &scene.objects {
+            for &m in &object.meshes {
+                let mesh = &scene.meshes[m as usize];
+                c.vertices += mesh.positions.len() as u64;
+                c.triangles += mesh.indices.len() as u64;
+                c.meshes += 1;
+                c.has_normals |= !mesh.normals.is_empty();
+            }
+        }
+        c
+    }
+
+    /// Device bytes of the tables (empty tables still take one element).
+    pub fn bytes(&self) -> u64 {
+        let vertex = self.vertices.max(1) * 12;
+        let normals = if self.has_normals { vertex } else { 12 };
+        vertex
+            + normals
+            + self.triangles.max(1) * (12 + 4)
+            + self.meshes.max(1) * std::mem::size_of::<GpuMesh>() as u64
+            + self.objects.max(1) * std::mem::size_of::<GpuObject>() as u64
+            + self.instances.max(1) * std::mem::size_of::<GpuInstance>() as u64
+    }
+}
+
+/// Row-major 3×4 of an affine map (column 3 the translation).
+fn rows_3x4(a: &Affine3A) -> [f32; 12] {
+    let m = Mat3::from(a.matrix3);
+    let t = a.translation;
+    let mut out = [0.0; 12];
+    for r in 0..3 {
+        let row = m.row(r);
+        out[r * 4..r * 4 + 4].copy_from_slice(&[row.x, row.y, row.z, t[r]]);
+    }
+    out
+}
+
+/// The device form of one instance.
+pub fn gpu_instance(instance: &atoll_scene::Instance) -> GpuInstance {
+    let to_world = instance.object_to_world;
+    // Same normal matrix as the CPU device: inverse transpose of the linear part.
+    let normal = Mat3::from(to_world.matrix3).inverse().transpose();
+    let mut normal_to_world = [0.0; 9];
+    for r in 0..3 {
+        normal_to_world[r * 3..r * 3 + 3].copy_from_slice(&normal.row(r).to_array());
+    }
+    GpuInstance {
+        object_to_world: rows_3x4(&to_world),
+        world_to_object: rows_3x4(&to_world.inverse()),
+        normal_to_world,
+        object: instance.object,
+        pad: [0; 2],
+    }
+}
+
+impl SceneTables {
+    /// Flattens `scene` into the device tables.
+    pub fn build(scene: &Scene) -> Self {
+        let counts = TableCounts::of(scene);
+        let mut t = SceneTables {
+            vertices: Vec::with_capacity(counts.vertices as usize * 3),
+            normals: Vec::with_capacity(if counts.has_normals { counts.vertices as usize * 3 } else { 0 }),
+            triangles: Vec::with_capacity(counts.triangles as usize * 3),
+            triangle_mesh: Vec::with_capacity(counts.triangles as usize),
+            meshes: Vec::with_capacity(counts.meshes as usize),
+            objects: Vec::with_capacity(scene.objects.len()),
+            instances: scene.instances.iter().map(gpu_instance).collect(),
+        };
+        for object in &scene.objects {
+            let first_triangle = t.triangle_mesh.len() as u32;
+            let first_mesh = t.meshes.len() as u32;
+            for &mesh_id in &object.meshes {
+                let mesh = &scene.meshes[mesh_id as usize];
+                let first_vertex = (t.vertices.len() / 3) as u32;
+                let gpu_mesh_index = t.meshes.len() as u32;
+                let mut flags = 0;
+                if !mesh.normals.is_empty() {
+                    flags |= mesh_flags::HAS_NORMALS;
+                }
+                if mesh.flip_normals {
+                    flags |= mesh_flags::FLIP_NORMALS;
+                }
+                if mesh.emission.is_some() {
+                    flags |= mesh_flags::EMISSIVE;
+                }
+                t.meshes.push(GpuMesh {
+                    first_triangle: t.triangle_mesh.len() as u32,
+                    triangle_count: mesh.indices.len() as u32,
+                    first_vertex,
+                    vertex_count: mesh.positions.len() as u32,
+                    material: mesh.material,
+                    flags,
+                    scene_mesh: mesh_id,
+                    pad: 0,
+                });
+                t.vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
+                if counts.has_normals {
+                    if mesh.normals.is_empty() {
+                        t.normals.resize(t.vertices.len(), 0.0);
+                    } else {
+                        t.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
+                    }
+                }
+                t.triangles.extend(mesh.indices.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
+                t.triangle_mesh.extend(std::iter::repeat_n(gpu_mesh_index, mesh.indices.len()));
+            }
+            t.objects.push(GpuObject {
+                first_triangle,
+                triangle_count: t.triangle_mesh.len() as u32 - first_triangle,
+                first_mesh,
+                mesh_count: t.meshes.len() as u32 - first_mesh,
+            });
+        }
+        t
+    }
+
+    pub fn counts(&self) -> TableCounts {
+        TableCounts {
+            vertices: (self.vertices.len() / 3) as u64,
+            triangles: self.triangle_mesh.len() as u64,
+            meshes: self.meshes.len() as u64,
+            objects: self.objects.len() as u64,
+            instances: self.instances.len() as u64,
+            has_normals: !self.normals.is_empty(),
+        }
+    }
+}
+
+/// BVH bytes for a scene of `triangles` (as uploaded) and `instances`,
+/// build scratch included ([`crate::bvh::estimate_bytes`]).
+pub fn bvh_estimate_bytes(triangles: u64, instances: u64) -> u64 {
+    crate::bvh::estimate_bytes(triangles, instances)
+}
+
+/// Everything a device will allocate for a frame, summed before allocating.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct MemoryPlan {
+    pub scene_tables: u64,
+    pub bvh: u64,
+    /// Ray queues, hit references, counters.
+    pub queues: u64,
+    pub film: u64,
+    /// Frame parameters (camera, light and material tables).
+    pub params: u64,
+}
+
+/// Kept free beyond the plan: kernel modules, the driver's own allocations
+/// and allocator rounding are not in it.
+pub const HEADROOM: u64 = 64 << 20;
+
+impl MemoryPlan {
+    pub fn total(&self) -> u64 {
+        self.scene_tables + self.bvh + self.queues + self.film + self.params + HEADROOM
+    }
+
+    /// `Err(OutOfMemory)` when the plan exceeds `min(free, budget)`.
+    pub fn check(&self, device: &str, budget: Option<u64>, free: u64) -> Result<(), CudaError> {
+        let budget = budget.unwrap_or(u64::MAX);
+        let needed = self.total();
+        if needed <= budget.min(free) {
+            return Ok(());
+        }
+        Err(CudaError::OutOfMemory {
+            device: device.to_string(),
+            what: format!(
+                "scene tables {}, BVH {}, queues {}, film {}, frame parameters {}, headroom {}",
+                fmt_bytes(self.scene_tables),
+                fmt_bytes(self.bvh),
+                fmt_bytes(self.queues),
+                fmt_bytes(self.film),
+                fmt_bytes(self.params),
+                fmt_bytes(HEADROOM)
+            ),
+            needed,
+            budget,
+            free,
+        })
+    }
+}
+
+/// The scene resident on one GPU. Tables are never empty on the device (a
+/// zero-length allocation is an error there): an empty table holds one
+/// zeroed element and the counts below say how many are real.
+pub struct GpuScene {
+    pub gpu: Arc<Gpu>,
+    pub vertices: CudaSlice<f32>,
+    /// Zero-filled placeholder of one vertex when no mesh has normals.
+    pub normals: CudaSlice<f32>,
+    pub triangles: CudaSlice<u32>,
+    pub triangle_mesh: CudaSlice<u32>,
+    pub meshes: CudaSlice<GpuMesh>,
+    pub objects: CudaSlice<GpuObject>,
+    pub instances: CudaSlice<GpuInstance>,
+    pub counts: TableCounts,
+    /// Host copies of the small tables (BVH builds plan from them).
+    pub host_meshes: Vec<GpuMesh>,
+    pub host_objects: Vec<GpuObject>,
+    pub host_instances: Vec<GpuInstance>,
+}
+
+fn upload<T: DeviceRepr + ValidAsZeroBits + Copy>(
+    gpu: &Gpu,
+    data: &[T],
+    what: &str,
+) -> Result<CudaSlice<T>, CudaError> {
+    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
+    if data.is_empty() {
+        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
+    }
+    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
+}
+
+impl GpuScene {
+    /// Checks the memory plan (these tables + the BVH estimate +
+    /// `frame_bytes` for queues, film and parameters) against
+    /// `min(free memory, budget)`, then builds and uploads the tables.
+    pub fn upload(
+        gpu: &Arc<Gpu>,
+        scene: &Scene,
+        budget: Option<u64>,
+        frame_bytes: u64,
+    ) -> Result<GpuScene, CudaError> {
+        let counts = TableCounts::of(scene);
+        let plan = MemoryPlan {
+            scene_tables: counts.bytes(),
+            bvh: bvh_estimate_bytes(counts.triangles, counts.instances),
+            queues: frame_bytes,
+            ..Default::default()
+        };
+        plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
+        Self::upload_tables(gpu, SceneTables::build(scene))
+    }
+
+    /// Uploads prepared tables (no memory check).
+    pub fn upload_tables(gpu: &Arc<Gpu>, t: SceneTables) -> Result<GpuScene, CudaError> {
+        let counts = t.counts();
+        let scene = GpuScene {
+            gpu: gpu.clone(),
+            vertices: upload(gpu, &t.vertices, "vertices")?,
+            normals: upload(gpu, &t.normals, "normals")?,
+            triangles: upload(gpu, &t.triangles, "triangles")?,
+            triangle_mesh: upload(gpu, &t.triangle_mesh, "triangle meshes")?,
+            meshes: upload(gpu, &t.meshes, "meshes")?,
+            objects: upload(gpu, &t.objects, "objects")?,
+            instances: upload(gpu, &t.instances, "instances")?,
+            counts,
+            host_meshes: t.meshes,
+            host_objects: t.objects,
+            host_instances: t.instances,
+        };
+        Ok(scene)
+    }
+
+    /// Device bytes of the tables.
+    pub fn bytes(&self) -> u64 {
+        (self.vertices.num_bytes()
+            + self.normals.num_bytes()
+            + self.triangles.num_bytes()
+            + self.triangle_mesh.num_bytes()
+            + self.meshes.num_bytes()
+            + self.objects.num_bytes()
+            + self.instances.num_bytes()) as u64
+    }
+}
+
+#[cfg(test)]
+mod tests;

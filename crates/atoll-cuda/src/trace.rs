@@ -1,0 +1,254 @@
+//! Host side of `kernels/trace.cu`: closest-hit and any-hit traversal of
+//! a [`GpuSceneBvh`] for rays in a `RayRecord` array.
+//!
+//! - [`trace_closest`]: for each of the first `count` records, the closest
+//!   hit with `0 < t < t_max`: `t_max` becomes its `t` and `hits[i]` gets
+//!   (u, v, instance, global triangle); no hit leaves the record alone and
+//!   sets `hits[i].instance = HIT_NONE`.
+//! - [`trace_any`]: records without `flags::OCCLUDED` get it when anything
+//!   lies in `(0, t_max)`.
+//!
+//! The loop structure is a [`TraversalVariant`] (Aila & Laine 2009), chosen
+//! per call for measurements; the plain functions use the default.
+
+use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
+
+use crate::bvh::GpuSceneBvh;
+use crate::error::CudaError;
+use crate::gpu::Gpu;
+use crate::layout::{GpuRecord, HitRef};
+use crate::scene::GpuScene;
+
+const FILE: &str = "trace.cu";
+/// Threads per block (TRACE_THREADS in trace.cu).
+const THREADS: u32 = 128;
+
+/// How the traversal kernels schedule rays and loop (Aila & Laine 2009).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum TraversalVariant {
+    /// While-while loops, one thread per ray.
+    WhileWhile,
+    /// While-while with persistent threads: just enough warps to fill the
+    /// GPU, each taking 32 rays at a time from a global counter.
+    Persistent,
+    /// Speculative while-while (leaves postponed until the whole warp has
+    /// one), one thread per ray.
+    #[default]
+    Speculative,
+    /// Speculative traversal with persistent threads.
+    PersistentSpeculative,
+}
+
+impl TraversalVariant {
+    pub const ALL: [TraversalVariant; 4] = [
+        TraversalVariant::WhileWhile,
+        TraversalVariant::Persistent,
+        TraversalVariant::Speculative,
+        TraversalVariant::PersistentSpeculative,
+    ];
+
+    /// Short name (kernel suffix and report column).
+    pub fn name(self) -> &'static str {
+        match self {
+            TraversalVariant::WhileWhile => "ww",
+            TraversalVariant::Persistent => "pt",
+            TraversalVariant::Speculative => "sp",
+            TraversalVariant::PersistentSpeculative => "ptsp",
+        }
+    }
+
+    pub fn persistent(self) -> bool {
+        matches!(self, TraversalVariant::Persistent | TraversalVariant::PersistentSpeculative)
+    }
+}
+
+/// Loaded trace kernels and the persistent threads' work counter. One per
+/// BVH (kept inside it), made on first use.
+pub struct Tracer {
+    kernels: Vec<((bool, TraversalVariant), CudaFunction)>,
+    work: CudaSlice<u32>,
+    /// Blocks of a persistent launch: resident blocks per SM times SMs.
+    persistent_blocks: Vec<(String, u32)>,
+}
+
+impl Tracer {
+    pub fn new(gpu: &Gpu) -> Result<Self, CudaError> {
+        let work =
+            gpu.stream.alloc_zeros(1).map_err(CudaError::driver(format!("{}: allocating a work counter", gpu.label())))?;
+        Ok(Tracer { kernels: Vec::new(), work, persistent_blocks: Vec::new() })
+    }
+
+    fn kernel(
+        &mut self,
+        gpu: &Gpu,
+        any: bool,
+        variant: TraversalVariant,
+        name: &str,
+    ) -> Result<(CudaFunction, u32), CudaError> {
+        let function = match self.kernels.iter().find(|(key, _)| *key == (any, variant)) {
+            Some((_, f)) => f.clone(),
+            None => {
+                let f = gpu.function(FILE, name)?;
+                self.kernels.push(((any, variant), f.clone()));
+                f
+            }
+        };
+        if !variant.persistent() {
+            return Ok((function, 0));
+        }
+        if let Some((_, blocks)) = self.persistent_blocks.iter().find(|(n, _)| n == name) {
+            return Ok((function, *blocks));
+        }
+        let per_sm = function
+            .occupancy_max_active_blocks_per_multiprocessor(THREADS, 0, None)
+            .map_err(CudaError::driver(format!("{}: occupancy of {name}", gpu.label())))?;
+        let blocks = per_sm.max(1) * gpu.multiprocessors;
+        self.persistent_blocks.push((name.to_string(), blocks));
+        Ok((function, blocks))
+    }
+
+    /// Queues one trace of `rays[..count]` (`hits` for closest hits, `None`
+    /// for any-hit queries).
+    #[allow(clippy::too_many_arguments)]
+    pub fn launch(
+        &mut self,
+        gpu: &Gpu,
+        bvh: &GpuSceneBvh,
+        rays: &mut CudaSlice<GpuRecord>,
+        count: u32,
+        hits: Option<&mut CudaSlice<HitRef>>,
+        variant: TraversalVariant,
+    ) -> Result<(), CudaError> {
+        let any = hits.is_none();
+        if count as usize > rays.len() || hits.as_ref().is_some_and(|h| (count as usize) > h.len()) {
+            return Err(CudaError::Usage(format!(
+                "trace of {count} rays: the ray ({}) or hit buffer is smaller",
+                rays.len()
+            )));
+        }
+        if count == 0 {
+            return Ok(());
+        }
+        let query = if any { "any" } else { "closest" };
+        let name = format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix());
+        let (function, persistent_blocks) = self.kernel(gpu, any, variant, &name)?;
+        let config = if variant.persistent() {
+            gpu.stream.memset_zeros(&mut self.work).map_err(CudaError::driver("clearing the work counter"))?;
+            LaunchConfig { grid_dim: (persistent_blocks, 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 }
+        } else {
+            LaunchConfig { grid_dim: (count.div_ceil(THREADS), 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 }
+        };
+        let null: u64 = 0;
+        let mut launch = gpu.stream.launch_builder(&function);
+        launch
+            .arg(&bvh.tlas_nodes)
+            .arg(&bvh.blas_nodes)
+            .arg(&bvh.tris)
+            .arg(&bvh.tri_ids)
+            .arg(&bvh.instances)
+            .arg(&bvh.tlas_root)
+            .arg(&mut *rays);
+        match hits {
+            Some(h) => launch.arg(h),
+            None => launch.arg(&null),
+        };
+        launch.arg(&count).arg(&mut self.work);
+        // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
+        // BvhNode* blas_nodes, const TriRecord* tris, const unsigned* tri_ids, const
+        // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
+        // count, unsigned* work)`. The BVH's links stay within its arrays (built by lbvh.cu);
+        // threads touch records and hits below `count`, which both buffers hold (checked);
+        // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches.
+        unsafe { launch.launch(config) }.map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
+        Ok(())
+    }
+}
+
+fn check_scene(scene: &GpuScene, bvh: &GpuSceneBvh) -> Result<(), CudaError> {
+    if scene.counts.triangles != bvh.scene_triangles {
+        return Err(CudaError::Usage(format!(
+            "trace: the BVH was built for a scene of {} triangles, not this one ({})",
+            bvh.scene_triangles, scene.counts.triangles
+        )));
+    }
+    Ok(())
+}
+
+fn with_tracer<R>(
+    gpu: &Gpu,
+    bvh: &GpuSceneBvh,
+    f: impl FnOnce(&mut Tracer) -> Result<R, CudaError>,
+) -> Result<R, CudaError> {
+    let mut slot = bvh.tracer.lock().unwrap_or_else(|p| p.into_inner());
+    if slot.is_none() {
+        *slot = Some(Tracer::new(gpu)?);
+    }
+    f(slot.as_mut().expect("made above"))
+}
+
+/// Closest hits of `rays[..count]` with the default variant (see the module docs).
+pub fn trace_closest(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    count: u32,
+    hits: &mut CudaSlice<HitRef>,
+) -> Result<(), CudaError> {
+    trace_closest_with(gpu, scene, bvh, rays, count, hits, TraversalVariant::default())
+}
+
+/// [`trace_closest`] with a chosen traversal variant.
+pub fn trace_closest_with(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    count: u32,
+    hits: &mut CudaSlice<HitRef>,
+    variant: TraversalVariant,
+) -> Result<(), CudaError> {
+    check_scene(scene, bvh)?;
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant))
+}
+
+/// Sets `flags::OCCLUDED` on the records of `rays[..count]` that hit
+/// anything, with the default variant.
+pub fn trace_any(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    count: u32,
+) -> Result<(), CudaError> {
+    trace_any_with(gpu, scene, bvh, rays, count, TraversalVariant::default())
+}
+
+/// [`trace_any`] with a chosen traversal variant.
+pub fn trace_any_with(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    count: u32,
+    variant: TraversalVariant,
+) -> Result<(), CudaError> {
+    check_scene(scene, bvh)?;
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn variant_names_are_kernel_suffixes() {
+        let names: Vec<&str> = TraversalVariant::ALL.iter().map(|v| v.name()).collect();
+        assert_eq!(names, ["ww", "pt", "sp", "ptsp"]);
+        let source = crate::compile::kernel_source(FILE).expect("trace.cu is registered");
+        for v in TraversalVariant::ALL {
+            assert!(source.contains(&format!("trace_##query##_{}_##test", v.name())), "{}", v.name());
+        }
+        assert_eq!(TraversalVariant::ALL.iter().filter(|v| v.persistent()).count(), 2);
+    }
+}

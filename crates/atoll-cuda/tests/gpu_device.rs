@@ -1,0 +1,129 @@
+//! `CudaDevice` against `CpuDevice`: the same stages on the same scene must
+//! give the same queues and (up to float rounding) the same image. Skips
+//! without a GPU (see tests/common).
+
+mod common;
+
+use std::sync::Arc;
+
+use atoll_cuda::CudaDevice;
+use atoll_render::record::flags;
+use atoll_render::{render, CpuDevice, Device, DeviceError, FrameContext, Queue, RenderOptions, Wave};
+use atoll_scene::{IntegratorSettings, Scene};
+use glam::{UVec2, Vec3};
+
+use common::gpu_or_skip;
+
+fn options(scene: &Scene, res: u32, spp: u32) -> RenderOptions {
+    let mut o = RenderOptions::from_scene(scene);
+    o.resolution = UVec2::splat(res);
+    o.spp = spp;
+    o
+}
+
+fn cornell() -> Arc<Scene> {
+    Arc::new(atoll_scene::cornell::builtin_cornell_box())
+}
+
+/// Largest relative difference of the channel means.
+fn mean_diff(a: Vec3, b: Vec3) -> f32 {
+    ((a - b).abs() / a.abs().max(Vec3::splat(1e-6))).max_element()
+}
+
+#[test]
+fn camera_rays_and_hits_match_the_cpu_device() {
+    let Some(gpu) = gpu_or_skip("stages") else { return };
+    let scene = cornell();
+    let frame = Arc::new(FrameContext::new(&scene, options(&scene, 32, 1)));
+    let mut cpu = CpuDevice::new();
+    let mut cuda = CudaDevice::on(gpu);
+    cpu.prepare(&scene, &frame).unwrap();
+    cuda.prepare(&scene, &frame).unwrap();
+    let wave = Wave { sample: 0, first_pixel: 0, pixel_count: 32 * 32 };
+    cpu.generate(&wave);
+    cuda.generate(&wave);
+    let (c, g) = (cpu.read_queue(Queue::Paths), cuda.read_queue(Queue::Paths));
+    assert_eq!(c.len(), g.len());
+    for (a, b) in c.iter().zip(&g) {
+        assert_eq!((a.pixel, a.sample, a.flags, a.depth), (b.pixel, b.sample, b.flags, b.depth));
+        assert!(a.origin().abs_diff_eq(b.origin(), 1e-4) && a.direction().abs_diff_eq(b.direction(), 1e-4));
+    }
+    // Trace the CPU's rays on both, so that only traversal and hit attributes differ.
+    cuda.write_queue(Queue::Paths, &c);
+    cpu.trace_paths();
+    cuda.trace_paths();
+    let (c, g) = (cpu.read_queue(Queue::Paths), cuda.read_queue(Queue::Paths));
+    let mut mismatched = 0;
+    for (a, b) in c.iter().zip(&g) {
+        if a.has(flags::HIT) != b.has(flags::HIT) || a.instance != b.instance {
+            mismatched += 1;
+            continue;
+        }
+        if a.has(flags::HIT) {
+            assert!((a.t_max - b.t_max).abs() <= 1e-4 * a.t_max.max(1.0), "{} vs {}", a.t_max, b.t_max);
+            assert!(Vec3::from(a.position).abs_diff_eq(Vec3::from(b.position), 1e-4));
+            assert!(a.geometric_normal().abs_diff_eq(b.geometric_normal(), 1e-3));
+            assert_eq!((a.material, a.coeffs, a.light), (b.material, b.coeffs, b.light));
+        }
+    }
+    // Rays through triangle edges may legitimately disagree.
+    assert!(mismatched <= c.len() / 200, "{mismatched} of {} hits differ", c.len());
+}
+
+#[test]
+fn cornell_box_matches_the_cpu_device_and_is_deterministic() {
+    let Some(gpu) = gpu_or_skip("cornell") else { return };
+    let scene = cornell();
+    let mut o = options(&scene, 64, 16);
+    o.russian_roulette = false;
+    o.integrator = IntegratorSettings::Path { max_depth: 8 };
+    let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+    let mut cuda = CudaDevice::on(gpu);
+    let errors = cuda.errors();
+    let a = render(&mut cuda, &scene, o.clone(), &mut |_, _| {}).unwrap();
+    let b = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
+    assert_eq!(errors.get(), None);
+    let (mc, mg) = (cpu.film.mean(), a.film.mean());
+    println!("mean cpu {mc}, gpu {mg}; gpu {:.2} M rays/s", a.rays_per_second() / 1e6);
+    assert!(mean_diff(mc, mg) < 0.02, "means differ: cpu {mc}, gpu {mg}");
+    assert_eq!(a.film.sum, b.film.sum, "two GPU renders of one frame are identical");
+    assert_eq!(a.device.rays_traced, b.device.rays_traced);
+    assert!(a.device.rays_traced >= 64 * 64 * 16);
+    assert!(a.device.busy_seconds > 0.0 && a.device.busy_seconds <= a.render_seconds * 1.5);
+}
+
+#[test]
+fn ambient_occlusion_on_an_instanced_scene_matches_the_cpu_device() {
+    let Some(gpu) = gpu_or_skip("ao instanced") else { return };
+    let scene = Arc::new(atoll_scene::procedural::bench_scene(100_000));
+    let mut o = options(&scene, 96, 4);
+    o.integrator = IntegratorSettings::AmbientOcclusion { max_distance: 5.0 };
+    let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+    let gpu = render(&mut CudaDevice::on(gpu), &scene, o, &mut |_, _| {}).unwrap();
+    let (mc, mg) = (cpu.film.mean(), gpu.film.mean());
+    assert!(mean_diff(mc, mg) < 0.01, "AO means differ: cpu {mc}, gpu {mg}");
+    let (sc, sg) = (cpu.device.shadow_rays_traced as f64, gpu.device.shadow_rays_traced as f64);
+    assert!((sc - sg).abs() <= 0.005 * sc, "shadow rays: cpu {sc}, gpu {sg}");
+}
+
+#[test]
+fn memory_budget_is_refused_before_allocating() {
+    let Some(gpu) = gpu_or_skip("budget") else { return };
+    let scene = cornell();
+    let frame = Arc::new(FrameContext::new(&scene, options(&scene, 512, 1)));
+    let mut cuda = CudaDevice::on(gpu).with_memory_budget(1 << 20);
+    match cuda.prepare(&scene, &frame) {
+        Err(DeviceError::OutOfMemory { needed, budget, .. }) => assert!(needed > budget && budget == 1 << 20),
+        other => panic!("expected OutOfMemory, got {other:?}"),
+    }
+}
+
+#[test]
+fn stages_before_prepare_are_errors_not_panics() {
+    let Some(gpu) = gpu_or_skip("usage") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    cuda.generate(&Wave { sample: 0, first_pixel: 0, pixel_count: 4 });
+    cuda.trace_paths();
+    assert_eq!(cuda.queue_len(Queue::Paths), 0);
+    assert!(cuda.errors().get().unwrap().contains("before prepare"));
+}

@@ -1,0 +1,760 @@
+//! GPU equality tests of the wavefront stages (`kernels/wavefront.cu`) and
+//! of the device functions they are built from (`kernels/test_bsdf.cu`):
+//! every output is compared with the Rust function it mirrors, record by
+//! record and value by value.
+//!
+//! The kernels are compiled with `--fmad=false` here, so that the GPU
+//! evaluates exactly the CPU's operations (only `sinf`/`cosf` may differ by
+//! an ulp or two) and a random decision never flips on a rounding
+//! difference; [`shade_with_production_options_mostly_agrees`] checks the
+//! default options too, allowing a few flipped decisions.
+//!
+//! Without a GPU (no driver, no NVRTC, no device) every test skips;
+//! `ATOLL_REQUIRE_GPU=1` turns a skip into a failure.
+
+use std::sync::Arc;
+
+use atoll_cuda::compile::{compile_with_cache, Output};
+use atoll_cuda::gpu::{launch_1d, Gpu};
+use atoll_cuda::layout::{GpuRecord, HitRef, HIT_NONE};
+use atoll_cuda::params::{FrameParamsHost, SceneView};
+use atoll_cuda::scene::{GpuScene, SceneTables};
+use atoll_render::lights::Emitter;
+use atoll_render::material_coeffs::{bsdf_from_record, PackedMaterial};
+use atoll_render::record::{flags, NO_LIGHT};
+use atoll_render::rng::{pcg_hash, SampleStream};
+use atoll_render::sampling::sample_uniform_sphere;
+use atoll_render::stages::{generate::camera_record, shade::shade};
+use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
+use atoll_scene::{
+    AreaEmission, Instance, IntegratorSettings, Light, Material, Object, Rgb, Scene, TriangleMesh,
+};
+use bytemuck::Zeroable;
+use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
+use cudarc::nvrtc::Ptx;
+use glam::{Affine3A, Quat, UVec2, Vec2, Vec3};
+
+const BLOCK: u32 = 128;
+
+/// The GPU, or `None` (test skipped) when there is none.
+fn gpu() -> Option<Arc<Gpu>> {
+    let require = std::env::var("ATOLL_REQUIRE_GPU").is_ok_and(|v| v == "1");
+    let skip = |why: String| {
+        assert!(!require, "ATOLL_REQUIRE_GPU=1 but {why}");
+        eprintln!("skipping GPU test: {why}");
+        None
+    };
+    // cudarc panics without the libraries: check before any call into them.
+    if !atoll_cuda::error::driver_present() {
+        return skip("no CUDA driver library".into());
+    }
+    if !atoll_cuda::error::nvrtc_present() {
+        return skip("no NVRTC library".into());
+    }
+    match Gpu::open(0) {
+        Ok(gpu) => Some(gpu),
+        Err(e) => skip(e.to_string()),
+    }
+}
+
+/// Kernel file `file` compiled for this GPU, with `--fmad=false` unless
+/// `production` (then exactly the options the device uses).
+fn module(gpu: &Gpu, file: &str, production: bool) -> Arc<CudaModule> {
+    let mut options = gpu.compile_options().clone();
+    if !production {
+        options.extra.push("--fmad=false".into());
+    }
+    let compiled = compile_with_cache(file, &options, None).unwrap_or_else(|e| panic!("{e}"));
+    let image = match options.output {
+        Output::Cubin => Ptx::from_binary(compiled.image),
+        Output::Ptx => Ptx::from_src(String::from_utf8(compiled.image).unwrap()),
+    };
+    gpu.ctx.load_module(image).unwrap()
+}
+
+fn upload<T: cudarc::driver::DeviceRepr + Copy>(gpu: &Gpu, data: &[T]) -> CudaSlice<T> {
+    gpu.stream.clone_htod(data).unwrap()
+}
+
+fn download<T: cudarc::driver::DeviceRepr + Copy>(gpu: &Gpu, data: &CudaSlice<T>) -> Vec<T> {
+    gpu.stream.clone_dtoh(data).unwrap()
+}
+
+fn records_of(v: Vec<GpuRecord>) -> Vec<RayRecord> {
+    v.into_iter().map(|r| r.0).collect()
+}
+
+fn gpu_records(v: &[RayRecord]) -> Vec<GpuRecord> {
+    v.iter().map(|&r| GpuRecord(r)).collect()
+}
+
+/// Equal within the float tolerance of these tests (1e-4 relative, 1e-6
+/// absolute for values near 0); infinities and NaNs must match exactly.
+fn close(a: f32, b: f32) -> bool {
+    a == b || (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-4 * a.abs().max(b.abs()) + 1e-6
+}
+
+fn close_all(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| close(*x, *y))
+}
+
+/// f16 fields: one f16 rounding step apart at most (computed fields such as
+/// the hit normals round two nearly equal f32s).
+fn close_f16(a: &[half::f16], b: &[half::f16]) -> bool {
+    a.iter().zip(b).all(|(x, y)| {
+        let (x, y) = (x.to_f32(), y.to_f32());
+        x == y || (x - y).abs() <= 1e-3 * x.abs().max(y.abs()) + 1e-4
+    })
+}
+
+/// `Err` naming the first field of `gpu` that differs from `cpu`.
+fn compare_records(cpu: &RayRecord, gpu: &RayRecord) -> Result<(), String> {
+    let mut bad = Vec::new();
+    let mut f = |name: &str, ok: bool| {
+        if !ok {
+            bad.push(name.to_string());
+        }
+    };
+    f("origin", close_all(&cpu.origin, &gpu.origin));
+    f("t_max", close(cpu.t_max, gpu.t_max));
+    f("direction", close_all(&cpu.direction, &gpu.direction));
+    f("pixel", cpu.pixel == gpu.pixel);
+    f("throughput", close_all(&cpu.throughput, &gpu.throughput));
+    f("sample", cpu.sample == gpu.sample);
+    f("bsdf_pdf", close(cpu.bsdf_pdf, gpu.bsdf_pdf));
+    f("depth", cpu.depth == gpu.depth);
+    f("flags", cpu.flags == gpu.flags);
+    f("light", cpu.light == gpu.light);
+    f("instance", cpu.instance == gpu.instance);
+    f("position", close_all(&cpu.position, &gpu.position));
+    f("reserved", cpu.reserved == gpu.reserved && cpu.reserved2 == gpu.reserved2);
+    f("geometric_normal", close_f16(&cpu.geometric_normal, &gpu.geometric_normal));
+    f("material", cpu.material == gpu.material);
+    f("shading_normal", close_f16(&cpu.shading_normal, &gpu.shading_normal));
+    f("coeffs", cpu.coeffs == gpu.coeffs);
+    if bad.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("fields {bad:?} differ:\n  cpu {cpu:?}\n  gpu {gpu:?}"))
+    }
+}
+
+/// Deterministic numbers in [0, 1) for the synthetic inputs.
+fn rnd(i: u32, k: u32) -> f32 {
+    SampleStream::new(0x5eed, i, 0).get(k)
+}
+
+fn unit(i: u32, k: u32) -> Vec3 {
+    sample_uniform_sphere(Vec2::new(rnd(i, k), rnd(i, k + 1)))
+}
+
+/// The Cornell box with every kind of light and a small image.
+fn test_frame(integrator: IntegratorSettings, lens: bool) -> (Scene, FrameContext) {
+    let mut scene = atoll_scene::cornell::builtin_cornell_box();
+    scene
+        .lights
+        .push(Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::new(1.0, 2.0, 0.5) });
+    scene.lights.push(Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) });
+    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
+    if lens {
+        scene.settings.camera.lens_radius = 0.05;
+        scene.settings.camera.focal_distance = 3.5;
+    }
+    let mut options = RenderOptions::from_scene(&scene);
+    options.resolution = UVec2::new(64, 48);
+    options.integrator = integrator;
+    options.seed = 11;
+    let frame = FrameContext::new(&scene, options);
+    (scene, frame)
+}
+
+/// Every material the record can carry, pass-through included.
+fn test_materials() -> Vec<PackedMaterial> {
+    [
+        Material::Diffuse { reflectance: Rgb::new(0.7, 0.5, 0.3) },
+        Material::Conductor {
+            eta: Rgb::new(0.2, 0.9, 1.1),
+            k: Rgb::new(3.9, 2.4, 2.1),
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+        },
+        Material::Conductor {
+            eta: Rgb::new(0.2, 0.9, 1.1),
+            k: Rgb::new(3.9, 2.4, 2.1),
+            alpha_x: 0.3,
+            alpha_y: 0.08,
+        },
+        Material::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 },
+        Material::Dielectric { eta: 1.5, alpha_x: 0.3, alpha_y: 0.2 },
+        Material::Dielectric { eta: 1.33, alpha_x: 0.1, alpha_y: 0.1 },
+        Material::Dielectric { eta: 1.0, alpha_x: 0.3, alpha_y: 0.3 },
+        Material::Interface,
+    ]
+    .iter()
+    .map(PackedMaterial::pack)
+    .collect()
+}
+
+/// `n` path records with hand-filled hits (one per pixel): misses, every
+/// material kind, emissive hits, depths around the maximum, both flag states.
+fn synthetic_paths(frame: &FrameContext, n: u32) -> Vec<RayRecord> {
+    let materials = test_materials();
+    let triangle_lights: Vec<u32> = (0..frame.lights.emitters.len() as u32)
+        .filter(|&i| matches!(frame.lights.emitters[i as usize], Emitter::Triangle { .. }))
+        .collect();
+    assert!(!triangle_lights.is_empty());
+    (0..n)
+        .map(|i| {
+            let mut r = camera_record(frame, i, i % 3);
+            r.direction = unit(i, 0).to_array();
+            r.throughput = [0.2 + rnd(i, 2), 0.3 + rnd(i, 3), 0.1 + rnd(i, 4)];
+            r.bsdf_pdf = 0.1 + 4.0 * rnd(i, 5);
+            r.depth = (i / 7 % 7) as u16;
+            r.flags = if rnd(i, 6) < 0.3 { flags::SPECULAR } else { 0 };
+            r.t_max = 0.3 + 3.0 * rnd(i, 7);
+            if i % 9 == 0 {
+                r.t_max = f32::INFINITY;
+                return r; // a miss
+            }
+            r.flags |= flags::HIT;
+            r.position = [2.0 * rnd(i, 8) - 1.0, 2.0 * rnd(i, 9), 2.0 * rnd(i, 10) - 1.0];
+            let ng = unit(i, 11);
+            // Shading normals near the geometric one, sometimes on the other side.
+            let mut ns = (ng + 0.3 * unit(i, 13)).normalize();
+            if i % 11 == 0 {
+                ns = -ns;
+            }
+            r.geometric_normal = ng.to_array().map(half::f16::from_f32);
+            r.shading_normal = ns.to_array().map(half::f16::from_f32);
+            r.instance = i % 5;
+            materials[(i as usize / 2) % materials.len()].store(&mut r);
+            r.light = if i % 4 == 1 { triangle_lights[i as usize % triangle_lights.len()] } else { NO_LIGHT };
+            r
+        })
+        .collect()
+}
+
+/// Outputs of one `shade` launch (or its CPU reference).
+struct Shaded {
+    next: Vec<RayRecord>,
+    shadows: Vec<RayRecord>,
+    film: Vec<f32>,
+}
+
+fn shade_on_cpu(frame: &FrameContext, paths: &[RayRecord]) -> Shaded {
+    let pixels = frame.options.pixel_count() as usize;
+    let mut out = Shaded { next: Vec::new(), shadows: Vec::new(), film: vec![0.0; 3 * pixels] };
+    for r in paths {
+        let o = shade(frame, r);
+        if o.emitted != Vec3::ZERO {
+            for c in 0..3 {
+                out.film[3 * r.pixel as usize + c] += o.emitted[c];
+            }
+        }
+        out.shadows.extend(o.shadow);
+        out.next.extend(o.next);
+    }
+    out
+}
+
+fn shade_on_gpu(
+    gpu: &Gpu,
+    m: &Arc<CudaModule>,
+    params: &FrameParamsHost,
+    frame: &FrameContext,
+    paths: &[RayRecord],
+) -> Shaded {
+    let n = paths.len() as u32;
+    let pixels = frame.options.pixel_count() as usize;
+    let input = upload(gpu, &gpu_records(paths));
+    let path_count = upload(gpu, &[n]);
+    let mut next = gpu.stream.alloc_zeros::<GpuRecord>(paths.len()).unwrap();
+    let mut shadows = gpu.stream.alloc_zeros::<GpuRecord>(paths.len()).unwrap();
+    let mut next_count = gpu.stream.alloc_zeros::<u32>(1).unwrap();
+    let mut shadow_count = gpu.stream.alloc_zeros::<u32>(1).unwrap();
+    let mut film = gpu.stream.alloc_zeros::<f32>(3 * pixels).unwrap();
+    let f = m.load_function("shade").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&params.device).arg(&input).arg(&path_count).arg(&mut next).arg(&mut next_count);
+    b.arg(&mut shadows).arg(&mut shadow_count).arg(&mut film);
+    // SAFETY: the arguments match `shade` in wavefront.cu; next and shadows
+    // hold `n` records each (at most one of each per input record).
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let next_n = download(gpu, &next_count)[0] as usize;
+    let shadow_n = download(gpu, &shadow_count)[0] as usize;
+    let mut next = records_of(download(gpu, &next));
+    let mut shadows = records_of(download(gpu, &shadows));
+    next.truncate(next_n);
+    shadows.truncate(shadow_n);
+    // Appended in any order; every pixel appears once.
+    next.sort_by_key(|r| r.pixel);
+    shadows.sort_by_key(|r| r.pixel);
+    Shaded { next, shadows, film: download(gpu, &film) }
+}
+
+/// Mismatches between two shade results (records matched by pixel).
+fn shade_mismatches(cpu: &Shaded, gpu: &Shaded) -> Vec<String> {
+    let mut bad = Vec::new();
+    for (what, c, g) in [("next", &cpu.next, &gpu.next), ("shadow", &cpu.shadows, &gpu.shadows)] {
+        let mut gi = g.iter().peekable();
+        for r in c.iter() {
+            while gi.peek().is_some_and(|x| x.pixel < r.pixel) {
+                bad.push(format!("{what}: pixel {} only on the GPU", gi.next().unwrap().pixel));
+            }
+            match gi.peek() {
+                Some(x) if x.pixel == r.pixel => {
+                    if let Err(e) = compare_records(r, gi.next().unwrap()) {
+                        bad.push(format!("{what} of pixel {}: {e}", r.pixel));
+                    }
+                }
+                _ => bad.push(format!("{what}: pixel {} only on the CPU", r.pixel)),
+            }
+        }
+        bad.extend(gi.map(|x| format!("{what}: pixel {} only on the GPU", x.pixel)));
+    }
+    for (i, (a, b)) in cpu.film.iter().zip(&gpu.film).enumerate() {
+        if !close(*a, *b) {
+            bad.push(format!("film[{}] channel {}: cpu {a} gpu {b}", i / 3, i % 3));
+        }
+    }
+    bad
+}
+
+fn assert_no_mismatches(what: &str, bad: &[String]) {
+    assert!(
+        bad.is_empty(),
+        "{what}: {} mismatches, first ones:\n{}",
+        bad.len(),
+        bad[..bad.len().min(8)].join("\n")
+    );
+}
+
+#[test]
+fn generate_matches_camera_record() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    for lens in [false, true] {
+        let (_, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, lens);
+        let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+        let (first, count, sample, capacity) = (37u32, 2000u32, 5u32, 2048u32);
+        let mut paths = gpu.stream.alloc_zeros::<GpuRecord>(capacity as usize).unwrap();
+        let mut path_count = upload(&gpu, &[u32::MAX]);
+        let f = m.load_function("generate").unwrap();
+        let mut b = gpu.stream.launch_builder(&f);
+        b.arg(&params.device).arg(&first).arg(&count).arg(&sample).arg(&mut paths).arg(&mut path_count);
+        // SAFETY: the arguments match `generate`; `paths` holds `capacity` >= `count` records.
+        unsafe { b.launch(launch_1d(capacity, BLOCK)) }.unwrap();
+        assert_eq!(download(&gpu, &path_count), [count]);
+        let got = records_of(download(&gpu, &paths));
+        let mut bad = Vec::new();
+        for (i, g) in got.iter().enumerate() {
+            let expected = if (i as u32) < count {
+                camera_record(&frame, first + i as u32, sample)
+            } else {
+                RayRecord::zeroed()
+            };
+            if let Err(e) = compare_records(&expected, g) {
+                bad.push(format!("record {i}: {e}"));
+            }
+        }
+        assert_no_mismatches(&format!("generate (lens {lens})"), &bad);
+    }
+}
+
+#[test]
+fn shade_matches_the_cpu_stage() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    let integrators = [
+        IntegratorSettings::Path { max_depth: 5 },
+        IntegratorSettings::AmbientOcclusion { max_distance: 0.5 },
+        IntegratorSettings::AmbientOcclusion { max_distance: f32::INFINITY },
+    ];
+    for integrator in integrators {
+        for russian_roulette in [true, false] {
+            let (_, mut frame) = test_frame(integrator.clone(), false);
+            frame.options.russian_roulette = russian_roulette;
+            let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+            let paths = synthetic_paths(&frame, 3000);
+            let cpu = shade_on_cpu(&frame, &paths);
+            let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
+            // The synthetic batch must exercise every output.
+            assert!(!cpu.shadows.is_empty() && !cpu.next.is_empty(), "{integrator:?}");
+            if matches!(integrator, IntegratorSettings::Path { .. }) {
+                assert!(cpu.film.iter().any(|&v| v > 0.0), "no emission in the batch");
+            }
+            assert_no_mismatches(
+                &format!("shade {integrator:?} rr {russian_roulette}"),
+                &shade_mismatches(&cpu, &got),
+            );
+        }
+    }
+}
+
+#[test]
+fn shade_with_production_options_mostly_agrees() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", true);
+    let (_, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
+    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+    let paths = synthetic_paths(&frame, 3000);
+    let cpu = shade_on_cpu(&frame, &paths);
+    let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
+    let bad = shade_mismatches(&cpu, &got);
+    // FMA contraction may flip a decision that sits on a rounding boundary.
+    assert!(bad.len() <= 30, "{} mismatches, first ones:\n{}", bad.len(), bad[..bad.len().min(8)].join("\n"));
+}
+
+#[test]
+fn resolve_shadows_adds_unoccluded_rays() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    let (_, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
+    let mut shadows = shade_on_cpu(&frame, &synthetic_paths(&frame, 3000)).shadows;
+    for (i, s) in shadows.iter_mut().enumerate() {
+        if i % 3 == 0 {
+            s.flags |= flags::OCCLUDED;
+        }
+    }
+    let pixels = frame.options.pixel_count() as usize;
+    let mut expected = vec![0.0f32; 3 * pixels];
+    for s in shadows.iter().filter(|s| !s.has(flags::OCCLUDED)) {
+        for c in 0..3 {
+            expected[3 * s.pixel as usize + c] += s.throughput[c];
+        }
+    }
+    let capacity = shadows.len() as u32 + 100;
+    let mut padded = shadows.clone();
+    padded.resize(capacity as usize, RayRecord::zeroed());
+    let input = upload(&gpu, &gpu_records(&padded));
+    let count = upload(&gpu, &[shadows.len() as u32]);
+    let mut film = gpu.stream.alloc_zeros::<f32>(3 * pixels).unwrap();
+    let f = m.load_function("resolve_shadows").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&input).arg(&count).arg(&mut film);
+    // SAFETY: the arguments match `resolve_shadows`; records past the count are never read.
+    unsafe { b.launch(launch_1d(capacity, BLOCK)) }.unwrap();
+    let film = download(&gpu, &film);
+    let bad: Vec<String> = (0..film.len())
+        .filter(|&i| !close(film[i], expected[i]))
+        .map(|i| format!("film[{i}]: cpu {} gpu {}", expected[i], film[i]))
+        .collect();
+    assert_no_mismatches("resolve_shadows", &bad);
+}
+
+/// A scene for `surface`: the Cornell box plus an object with per-vertex
+/// normals (one of them against its face), a flipped mesh and an emissive
+/// mesh, instanced twice under rotations and non-uniform scales.
+fn surface_scene() -> Scene {
+    let mut scene = atoll_scene::cornell::builtin_cornell_box();
+    let metal = scene.add_material(Material::Conductor {
+        eta: Rgb::splat(0.2),
+        k: Rgb::splat(3.0),
+        alpha_x: 0.2,
+        alpha_y: 0.2,
+    });
+    let glass = scene.add_material(Material::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 });
+    let tent = TriangleMesh {
+        name: "tent".into(),
+        positions: vec![
+            Vec3::new(-0.3, 0.0, -0.3),
+            Vec3::new(0.3, 0.0, -0.3),
+            Vec3::new(0.0, 0.4, 0.0),
+            Vec3::new(0.0, 0.0, 0.3),
+        ],
+        normals: vec![
+            Vec3::new(-0.5, 0.5, -0.5),
+            Vec3::new(0.5, 0.5, -0.5),
+            Vec3::Y,
+            Vec3::new(0.0, -0.2, -1.0),
+        ],
+        indices: vec![[0, 1, 2], [1, 3, 2], [3, 0, 2]],
+        material: metal,
+        ..Default::default()
+    };
+    let tent = scene.add_mesh(tent);
+    let flipped = scene.add_mesh(TriangleMesh {
+        name: "flipped".into(),
+        positions: vec![Vec3::new(-0.2, 0.5, -0.2), Vec3::new(0.2, 0.5, -0.2), Vec3::new(0.0, 0.5, 0.2)],
+        indices: vec![[0, 1, 2]],
+        material: glass,
+        flip_normals: true,
+        ..Default::default()
+    });
+    let lamp = scene.add_mesh(TriangleMesh {
+        name: "lamp".into(),
+        positions: vec![
+            Vec3::new(-0.1, 0.6, -0.1),
+            Vec3::new(0.1, 0.6, -0.1),
+            Vec3::new(0.1, 0.6, 0.1),
+            Vec3::new(-0.1, 0.6, 0.1),
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material: metal,
+        emission: Some(AreaEmission { radiance: Rgb::splat(2.0), two_sided: true }),
+        ..Default::default()
+    });
+    let object = scene.add_object(Object { name: "props".into(), meshes: vec![tent, flipped, lamp] });
+    for (k, (axis, angle, scale, at)) in [
+        (Vec3::Y, 0.7f32, Vec3::new(1.0, 1.5, 0.8), Vec3::new(-0.4, 0.0, 0.2)),
+        (Vec3::new(1.0, 0.3, 0.2).normalize(), -0.4, Vec3::new(0.7, 0.9, 1.3), Vec3::new(0.45, 0.3, -0.3)),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let to_world = Affine3A::from_scale_rotation_translation(
+            scale,
+            Quat::from_axis_angle(axis, angle + k as f32),
+            at,
+        );
+        scene.instances.push(Instance { object, object_to_world: to_world });
+    }
+    scene
+}
+
+#[test]
+fn surface_matches_write_hit() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    let scene = Arc::new(surface_scene());
+    let mut options = RenderOptions::from_scene(&scene);
+    options.resolution = UVec2::new(48, 32);
+    let frame = Arc::new(FrameContext::new(&scene, options));
+    // Camera rays and rays from inside the box in every direction.
+    let mut rays: Vec<RayRecord> =
+        (0..frame.options.pixel_count()).map(|p| camera_record(&frame, p, 0)).collect();
+    for i in 0..4000u32 {
+        let mut r = camera_record(&frame, i % frame.options.pixel_count(), 1);
+        r.origin = [1.6 * rnd(i, 20) - 0.8, 0.1 + 1.6 * rnd(i, 21), 1.6 * rnd(i, 22) - 0.8];
+        r.direction = unit(i, 23).to_array();
+        rays.push(r);
+    }
+    // The CPU device's hits (write_hit) ...
+    let mut cpu = CpuDevice::new();
+    cpu.prepare(&scene, &frame).unwrap();
+    cpu.write_queue(Queue::Paths, &rays);
+    cpu.trace_paths();
+    let cpu_hits = cpu.read_queue(Queue::Paths);
+    // ... and the same BVH's raw hits as GPU traversal would report them.
+    let bvh = atoll_bvh::SceneBvh::build(&scene);
+    let tables = SceneTables::build(&scene);
+    let mut hits = Vec::with_capacity(rays.len());
+    let mut gpu_input = rays.clone();
+    for (r, input) in rays.iter().zip(gpu_input.iter_mut()) {
+        let ray = atoll_bvh::Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max };
+        hits.push(match bvh.intersect(&ray) {
+            Some(h) => {
+                let object = tables.objects[scene.instances[h.instance as usize].object as usize];
+                let meshes = &tables.meshes
+                    [object.first_mesh as usize..(object.first_mesh + object.mesh_count) as usize];
+                let mesh =
+                    meshes.iter().find(|gm| gm.scene_mesh == h.mesh).expect("hit mesh is in its object");
+                input.t_max = h.t; // traversal shrinks t_max
+                HitRef { u: h.u, v: h.v, instance: h.instance, triangle: mesh.first_triangle + h.triangle }
+            }
+            None => HitRef { u: 0.0, v: 0.0, instance: HIT_NONE, triangle: 0 },
+        });
+    }
+    let scene_gpu = GpuScene::upload_tables(&gpu, tables).unwrap();
+    let view = upload(&gpu, &[SceneView::of(&scene_gpu)]);
+    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+    let n = rays.len() as u32;
+    let mut paths = upload(&gpu, &gpu_records(&gpu_input));
+    let hits_dev = upload(&gpu, &hits);
+    let count = upload(&gpu, &[n]);
+    let f = m.load_function("surface").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&params.device).arg(&view).arg(&mut paths).arg(&hits_dev).arg(&count);
+    // SAFETY: the arguments match `surface`; `paths` and `hits` hold `n` entries.
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let got = records_of(download(&gpu, &paths));
+    let (mut compared, mut emissive, mut with_normals) = (0, 0, 0);
+    let mut bad = Vec::new();
+    for (i, (c, g)) in cpu_hits.iter().zip(&got).enumerate() {
+        // A tie between two BVH builds could pick another triangle: compare
+        // only rays whose CPU hit is the one handed to the kernel.
+        if c.has(flags::HIT) != (hits[i].instance != HIT_NONE) || c.t_max != gpu_input[i].t_max {
+            continue;
+        }
+        compared += 1;
+        emissive += (c.light != NO_LIGHT) as u32;
+        with_normals += (c.shading_normal != c.geometric_normal) as u32;
+        if let Err(e) = compare_records(c, g) {
+            bad.push(format!("ray {i}: {e}"));
+        }
+    }
+    assert!(compared >= rays.len() * 95 / 100, "only {compared} of {} rays comparable", rays.len());
+    assert!(
+        emissive > 0 && with_normals > 0,
+        "the rays must hit lights ({emissive}) and smooth meshes ({with_normals})"
+    );
+    assert_no_mismatches("surface", &bad);
+}
+
+#[test]
+fn rng_is_bit_identical() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "test_bsdf.cu", false);
+    let seed = 1234u32;
+    let queries: Vec<u32> =
+        (0..20_000u32).flat_map(|i| [i.wrapping_mul(2_654_435_761), i % 97, i % 61]).collect();
+    let n = (queries.len() / 3) as u32;
+    let q = upload(&gpu, &queries);
+    let mut out = gpu.stream.alloc_zeros::<u32>(2 * n as usize).unwrap();
+    let f = m.load_function("test_rng").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&seed).arg(&q).arg(&n).arg(&mut out);
+    // SAFETY: the arguments match `test_rng`; `out` holds 2n words.
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let out = download(&gpu, &out);
+    for (i, q) in queries.chunks(3).enumerate() {
+        assert_eq!(out[2 * i], pcg_hash(q[0]), "pcg_hash({})", q[0]);
+        let expected = SampleStream::new(seed, q[0], q[1]).get(q[2]);
+        assert_eq!(out[2 * i + 1], expected.to_bits(), "get({q:?})");
+    }
+}
+
+/// The 16 output words of `test_bsdf` for one case, computed on the CPU.
+fn bsdf_reference(r: &RayRecord, input: &[f32]) -> [f32; 16] {
+    let mut out = [0.0f32; 16];
+    let Some(b) = bsdf_from_record(r) else { return out };
+    let (wo, wi) = (Vec3::from_slice(&input[0..3]), Vec3::from_slice(&input[3..6]));
+    out[0..3].copy_from_slice(&b.eval(wo, wi).to_array());
+    out[3] = b.pdf(wo, wi);
+    if let Some(s) = b.sample(wo, input[6], Vec2::new(input[7], input[8])) {
+        out[4] = 1.0;
+        out[5..8].copy_from_slice(&s.f.to_array());
+        out[8..11].copy_from_slice(&s.wi.to_array());
+        out[11] = s.pdf;
+        out[12] = s.eta;
+        out[13] = s.delta as u32 as f32;
+        out[14] = s.transmission as u32 as f32;
+    }
+    out[15] = b.is_delta() as u32 as f32;
+    out
+}
+
+#[test]
+fn bsdfs_match_value_by_value() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "test_bsdf.cu", false);
+    let materials = test_materials();
+    let (mut records, mut inputs) = (Vec::new(), Vec::new());
+    for i in 0..12_000u32 {
+        let mut r = RayRecord::zeroed();
+        materials[i as usize % materials.len()].store(&mut r);
+        let wo = unit(i, 0);
+        // Half the cases with wi on wo's side (reflection), half anywhere.
+        let mut wi = unit(i, 2);
+        if i % 2 == 0 && wi.z * wo.z < 0.0 {
+            wi.z = -wi.z;
+        }
+        records.push(r);
+        inputs.extend_from_slice(&[wo.x, wo.y, wo.z, wi.x, wi.y, wi.z, rnd(i, 4), rnd(i, 5), rnd(i, 6)]);
+    }
+    let n = records.len() as u32;
+    let r_dev = upload(&gpu, &gpu_records(&records));
+    let in_dev = upload(&gpu, &inputs);
+    let mut out = gpu.stream.alloc_zeros::<f32>(16 * n as usize).unwrap();
+    let f = m.load_function("test_bsdf").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&r_dev).arg(&in_dev).arg(&n).arg(&mut out);
+    // SAFETY: the arguments match `test_bsdf`; 9 input and 16 output words per case.
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let out = download(&gpu, &out);
+    let mut bad = Vec::new();
+    for i in 0..n as usize {
+        let expected = bsdf_reference(&records[i], &inputs[9 * i..9 * i + 9]);
+        let got = &out[16 * i..16 * i + 16];
+        if !close_all(&expected, got) {
+            bad.push(format!(
+                "case {i} (material {}): input {:?}\n  cpu {expected:?}\n  gpu {got:?}",
+                records[i].material,
+                &inputs[9 * i..9 * i + 9]
+            ));
+        }
+    }
+    // A sampled decision on a rounding boundary (sinf/cosf differ by an ulp) may flip.
+    assert!(
+        bad.len() <= 3,
+        "{} of {n} BSDF cases differ, first ones:\n{}",
+        bad.len(),
+        bad[..bad.len().min(6)].join("\n")
+    );
+}
+
+#[test]
+fn light_sampling_and_lookup_match() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "test_bsdf.cu", false);
+    // Area lights (the Cornell light, two lamp instances) and every other kind.
+    let mut scene = surface_scene();
+    scene.lights.extend([
+        Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::splat(3.0) },
+        Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) },
+        Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) },
+    ]);
+    let mut options = RenderOptions::from_scene(&scene);
+    options.resolution = UVec2::new(8, 8);
+    let frame = FrameContext::new(&scene, options);
+    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+    let inputs: Vec<f32> = (0..8000u32)
+        .flat_map(|i| {
+            [1.8 * rnd(i, 0) - 0.9, 1.9 * rnd(i, 1), 1.8 * rnd(i, 2) - 0.9, rnd(i, 3), rnd(i, 4), rnd(i, 5)]
+        })
+        .collect();
+    let n = (inputs.len() / 6) as u32;
+    let in_dev = upload(&gpu, &inputs);
+    let mut out = gpu.stream.alloc_zeros::<f32>(10 * n as usize).unwrap();
+    let f = m.load_function("test_lights").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&params.device).arg(&in_dev).arg(&n).arg(&mut out);
+    // SAFETY: the arguments match `test_lights`; 6 input and 10 output words per case.
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let out = download(&gpu, &out);
+    let mut bad = Vec::new();
+    for (i, input) in inputs.chunks(6).enumerate() {
+        let mut expected = [0.0f32; 10];
+        if let Some(ls) =
+            frame.lights.sample(Vec3::from_slice(input), input[3], Vec2::new(input[4], input[5]))
+        {
+            expected[0] = 1.0;
+            expected[1..4].copy_from_slice(&ls.wi.to_array());
+            expected[4] = ls.distance;
+            expected[5..8].copy_from_slice(&ls.radiance.to_array());
+            expected[8] = ls.pdf;
+            expected[9] = ls.delta as u32 as f32;
+        }
+        if !close_all(&expected, &out[10 * i..10 * i + 10]) {
+            bad.push(format!(
+                "case {i} {input:?}:\n  cpu {expected:?}\n  gpu {:?}",
+                &out[10 * i..10 * i + 10]
+            ));
+        }
+    }
+    assert_no_mismatches("light sampling", &bad);
+
+    // Every (instance, mesh) pair, emissive or not, and some triangles.
+    let queries: Vec<u32> = (0..scene.instances.len() as u32 + 1)
+        .flat_map(|inst| {
+            (0..scene.meshes.len() as u32 + 1).flat_map(move |mesh| [0u32, 1].map(|t| [inst, mesh, t]))
+        })
+        .flatten()
+        .collect();
+    let n = (queries.len() / 3) as u32;
+    let q_dev = upload(&gpu, &queries);
+    let mut out = gpu.stream.alloc_zeros::<u32>(n as usize).unwrap();
+    let f = m.load_function("test_light_lookup").unwrap();
+    let mut b = gpu.stream.launch_builder(&f);
+    b.arg(&params.device).arg(&q_dev).arg(&n).arg(&mut out);
+    // SAFETY: the arguments match `test_light_lookup`; one output word per query.
+    unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
+    let out = download(&gpu, &out);
+    let mut found = 0;
+    for (q, got) in queries.chunks(3).zip(out) {
+        let expected = frame.lights.triangle_light(q[0], q[1], q[2]).unwrap_or(NO_LIGHT);
+        assert_eq!(got, expected, "triangle_light{q:?}");
+        found += (got != NO_LIGHT) as u32;
+    }
+    assert!(found >= 6, "the Cornell light and both lamp instances");
+}

@@ -1,0 +1,344 @@
+//! Wavefront OBJ + MTL scenes, read with `tobj` (polygons triangulated as
+//! fans, one index per vertex).
+//!
+//! Every OBJ model (an `o`/`g` group, split further where `usemtl` changes)
+//! becomes one mesh, in world space, in the world object with its one
+//! identity instance. Camera, settings and lights come from
+//! [`crate::framing`] since OBJ has none.
+//!
+//! MTL materials map to atoll's as follows ([`mtl_material`]):
+//! - `illum` 4, 6, 7 or 9 (the refracting models): `Dielectric` with
+//!   `eta = Ni` (1.5 when `Ni` ≤ 1).
+//! - Specular-dominated (`max(Ks) ≥ 0.5`, `Ns ≥ 200` and `max(Ks) > max(Kd)`):
+//!   `Conductor` with `eta = 1` and `k` giving reflectance `Ks`, GGX alpha
+//!   `sqrt(2 / (Ns + 2))` (the Phong exponent's Beckmann equivalent). A
+//!   strong `Ks` with a low `Ns` is a broad highlight that Lambert shows
+//!   better than a rough metal, so those stay diffuse.
+//! - Otherwise `Diffuse` with `Kd` (0.5 grey when absent).
+//! - `Ke` (emission) becomes a one-sided `AreaEmission` on the meshes.
+//!
+//! Textures (`map_Kd`, `map_Bump`/`norm`) are recorded in
+//! [`LoadedScene::textures`] and warned about; they are not rendered yet.
+
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::io::{BufRead, Read};
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3};
+
+use crate::error::{FileLoc, SceneError};
+use crate::load::{add_world_object, TextureRef};
+use crate::pbrt::WarningSink;
+use crate::{AreaEmission, LoadedScene, Material, MaterialId, Rgb, TriangleMesh};
+
+/// Loads an OBJ file and the MTL files it names (relative to its directory).
+pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
+    let name = path.display().to_string();
+    let whole = FileLoc::whole_file(name.as_str());
+    let bytes = std::fs::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
+    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    load_obj_bytes(&bytes, &name, &dir)
+}
+
+/// Loads OBJ text (`name` for messages; MTL files resolve against `dir`).
+pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneError> {
+    let whole = FileLoc::whole_file(name);
+    let mut w = WarningSink::default();
+    let (text, lossy) = decode_text(bytes);
+    if lossy {
+        w.warn(
+            &whole,
+            "the file is not valid UTF-8 (an 8-bit encoding?); the bytes that are not were replaced",
+        );
+    }
+    // MTL files are decoded the same way, so material names written with the
+    // same 8-bit encoding still match.
+    let libs: RefCell<Vec<(String, Option<tobj::LoadError>)>> = RefCell::new(Vec::new());
+    let loader = |mtl: &Path| {
+        let result = match std::fs::read(dir.join(mtl)) {
+            Ok(b) => tobj::load_mtl_buf(&mut decode_text(&b).0.as_bytes()),
+            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        };
+        libs.borrow_mut().push((mtl.display().to_string(), result.as_ref().err().copied()));
+        result
+    };
+    let options =
+        tobj::LoadOptions { single_index: true, triangulate: true, ignore_points: true, ignore_lines: true };
+    let mut reader = LineCounter { data: text.as_bytes(), pos: 0, newlines: 0 };
+    let (models, materials) = match tobj::load_obj_buf(&mut reader, &options, loader) {
+        Ok(r) => r,
+        Err(e) => return Err(obj_error(e, text.as_bytes(), reader.current_line(), name)),
+    };
+    for (lib, err) in libs.into_inner() {
+        if let Some(e) = err {
+            let why =
+                if e == tobj::LoadError::OpenFileFailed { "cannot be opened".into() } else { e.to_string() };
+            w.warn(&whole, format!("material library '{lib}' {why}; its materials use the default diffuse"));
+        }
+    }
+    if let Some((n, first)) = short_faces(&text) {
+        let at = FileLoc::new(name, first, 1);
+        w.warn(
+            &at,
+            format!("{n} faces with fewer than 3 vertices skipped (the first is here; a truncated file?)"),
+        );
+    }
+    // tobj reports a missing library again as the materials' error; it was warned about above.
+    let materials = materials.unwrap_or_default();
+
+    let mut loaded = LoadedScene::default();
+    let mut ids: HashMap<Option<usize>, MaterialId> = HashMap::new();
+    let mut meshes = Vec::new();
+    for model in models {
+        let m = &model.mesh;
+        if m.indices.is_empty() {
+            w.warn(&whole, format!("object '{}' has no faces (points or lines only); skipped", model.name));
+            continue;
+        }
+        // An unknown `usemtl` name leaves no material id: those share the default.
+        let mat = model.mesh.material_id.and_then(|i| materials.get(i));
+        let key = mat.and(model.mesh.material_id);
+        let material = *ids.entry(key).or_insert_with(|| match mat {
+            Some(mtl) => add_mtl_material(mtl, &mut loaded, dir, &whole, &mut w),
+            None => loaded.scene.add_material(Material::default_diffuse()),
+        });
+        let mut mesh = TriangleMesh {
+            name: model.name.clone(),
+            positions: m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect(),
+            normals: m.normals.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])).collect(),
+            uvs: m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect(),
+            indices: m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+            material,
+            emission: mat.and_then(mtl_emission),
+            flip_normals: false,
+        };
+        // Faces mixing vertices with and without normals (or uvs) leave them partial: drop them.
+        if mesh.normals.len() != mesh.positions.len() {
+            mesh.normals.clear();
+        }
+        if mesh.uvs.len() != mesh.positions.len() {
+            mesh.uvs.clear();
+        }
+        mesh.validate().map_err(|msg| SceneError::at(&whole, format!("object '{}': {msg}", model.name)))?;
+        meshes.push(loaded.scene.add_mesh(mesh));
+    }
+    if meshes.is_empty() {
+        return Err(SceneError::at(&whole, "no triangles to render (points and lines are not supported)"));
+    }
+    add_world_object(&mut loaded.scene, meshes);
+    crate::framing::frame_scene(&mut loaded.scene, true);
+    loaded.warnings = w.list;
+    Ok(loaded)
+}
+
+/// Text of an OBJ or MTL file: UTF-16 when it starts with a byte-order mark,
+/// else UTF-8 (BOM dropped) with invalid bytes replaced. The flag says
+/// whether anything was replaced.
+fn decode_text(bytes: &[u8]) -> (std::borrow::Cow<'_, str>, bool) {
+    let utf16 = |be: bool| {
+        let units = bytes[2..].chunks_exact(2).map(|c| {
+            if be {
+                u16::from_be_bytes([c[0], c[1]])
+            } else {
+                u16::from_le_bytes([c[0], c[1]])
+            }
+        });
+        let text: String =
+            char::decode_utf16(units).map(|c| c.unwrap_or(char::REPLACEMENT_CHARACTER)).collect();
+        (std::borrow::Cow::Owned(text), false)
+    };
+    match bytes {
+        [0xfe, 0xff, ..] => utf16(true),
+        [0xff, 0xfe, ..] => utf16(false),
+        _ => {
+            let b = bytes.strip_prefix(&[0xef, 0xbb, 0xbf]).unwrap_or(bytes);
+            let text = String::from_utf8_lossy(b);
+            let lossy = matches!(text, std::borrow::Cow::Owned(_));
+            (text, lossy)
+        }
+    }
+}
+
+/// Adds the atoll material for an MTL material, records its textures.
+fn add_mtl_material(
+    mtl: &tobj::Material,
+    loaded: &mut LoadedScene,
+    dir: &Path,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> MaterialId {
+    let id = loaded.scene.add_material(mtl_material(mtl));
+    let maps = [(&mtl.diffuse_texture, "map_Kd", "reflectance"), (&mtl.normal_texture, "norm", "normalmap")];
+    for (map, keyword, parameter) in maps {
+        let Some(tex) = map.as_deref().filter(|t| !t.is_empty()) else { continue };
+        w.warn(
+            loc,
+            format!(
+                "material '{}': {keyword} '{tex}' recorded but textures are not rendered yet; using its constant value",
+                mtl.name
+            ),
+        );
+        record_texture(&mut loaded.textures, tex, dir, id, parameter);
+    }
+    if mtl.dissolve.is_some_and(|d| d < 1.0) && !is_refractive(mtl) {
+        w.warn(
+            loc,
+            format!("material '{}': transparency (d < 1) is not supported; rendered opaque", mtl.name),
+        );
+    }
+    id
+}
+
+/// Records a use of image texture `name` (one [`TextureRef`] per image).
+fn record_texture(textures: &mut Vec<TextureRef>, name: &str, dir: &Path, id: MaterialId, parameter: &str) {
+    let use_ = (id, parameter.to_string());
+    if let Some(t) = textures.iter_mut().find(|t| t.name == name) {
+        t.uses.push(use_);
+        return;
+    }
+    // Exporters on Windows write `.\tex.jpg`.
+    let filename = Some(dir.join(PathBuf::from(name.replace('\\', "/"))));
+    textures.push(TextureRef { name: name.into(), class: "image".into(), filename, uses: vec![use_] });
+}
+
+fn is_refractive(mtl: &tobj::Material) -> bool {
+    matches!(mtl.illumination_model, Some(4 | 6 | 7 | 9))
+}
+
+/// The atoll material for an MTL material (rules in the module docs).
+pub fn mtl_material(mtl: &tobj::Material) -> Material {
+    let kd = mtl.diffuse.map(Rgb::from).unwrap_or(Rgb::splat(0.5));
+    let ks = mtl.specular.map(Rgb::from).unwrap_or(Rgb::ZERO);
+    let ns = mtl.shininess.unwrap_or(0.0);
+    let phong_alpha = (2.0 / (ns.max(0.0) + 2.0)).sqrt();
+    if is_refractive(mtl) {
+        let eta = mtl.optical_density.filter(|&n| n > 1.0).unwrap_or(1.5);
+        // Refracting MTL materials are smooth unless Ns says otherwise; a
+        // missing Ns is not a hint of roughness.
+        let alpha = if mtl.shininess.is_some() && ns < 200.0 { phong_alpha } else { 0.0 };
+        return Material::Dielectric { eta, alpha_x: alpha, alpha_y: alpha };
+    }
+    if ks.max_element() >= 0.5 && ns >= 200.0 && ks.max_element() > kd.max_element() {
+        let k = Material::conductor_k_from_reflectance(ks);
+        return Material::Conductor { eta: Rgb::ONE, k, alpha_x: phong_alpha, alpha_y: phong_alpha };
+    }
+    Material::Diffuse { reflectance: kd }
+}
+
+/// `Ke` as an area light, when non-zero.
+fn mtl_emission(mtl: &tobj::Material) -> Option<AreaEmission> {
+    let ke = Rgb::from(mtl.emissive?);
+    (ke.max_element() > 0.0).then_some(AreaEmission { radiance: ke, two_sided: false })
+}
+
+/// A `SceneError` for a tobj failure. Errors about one line point at it
+/// (`line` is the line tobj was reading); index errors are only detected
+/// when a group ends, so the offending face is searched for instead.
+fn obj_error(e: tobj::LoadError, bytes: &[u8], line: u32, name: &str) -> SceneError {
+    use tobj::LoadError as E;
+    let what = match e {
+        E::PositionParseError => "bad vertex position 'v'",
+        E::NormalParseError => "bad normal 'vn'",
+        E::TexcoordParseError => "bad texture coordinate 'vt'",
+        E::FaceParseError => "bad face 'f'",
+        E::MaterialParseError => "bad 'usemtl' (no material name)",
+        E::ColorParseError => "bad vertex colour",
+        E::ScalingByZeroError => "vertex 'w' is zero",
+        E::InvalidObjectName => "bad object name",
+        E::FaceVertexOutOfBounds
+        | E::FaceNormalOutOfBounds
+        | E::FaceTexCoordOutOfBounds
+        | E::InvalidPolygon => {
+            let (at, msg) = find_bad_index(bytes).unwrap_or((0, format!("bad face: {e}")));
+            return SceneError::at(&FileLoc::new(name, at, 1), msg);
+        }
+        other => return SceneError::at(&FileLoc::whole_file(name), format!("cannot load OBJ: {other}")),
+    };
+    SceneError::at(&FileLoc::new(name, line.max(1), 1), what)
+}
+
+/// The first face line whose `v`/`vt`/`vn` index is out of range (OBJ
+/// indices count from 1; negative ones count back from the last defined).
+fn find_bad_index(bytes: &[u8]) -> Option<(u32, String)> {
+    let text = String::from_utf8_lossy(bytes);
+    let mut counts = [0i64; 3];
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        match words.next() {
+            Some("v") => counts[0] += 1,
+            Some("vt") => counts[1] += 1,
+            Some("vn") => counts[2] += 1,
+            Some("f") => {
+                if words.clone().next().is_none() {
+                    return Some((i as u32 + 1, "face without vertices".into()));
+                }
+                for vertex in words {
+                    for (slot, s) in vertex.split('/').enumerate().take(3) {
+                        let Ok(idx) = s.parse::<i64>() else { continue };
+                        let n = counts[slot];
+                        let resolved = if idx < 0 { n + idx + 1 } else { idx };
+                        if resolved < 1 || resolved > n {
+                            let kind = ["vertex", "texture coordinate", "normal"][slot];
+                            let msg = format!("face uses {kind} {idx} but only {n} are defined before it");
+                            return Some((i as u32 + 1, msg));
+                        }
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+/// How many `f` lines have one or two vertices (tobj drops them as points
+/// and lines), and the first one's line.
+fn short_faces(text: &str) -> Option<(usize, u32)> {
+    let mut found = None;
+    for (i, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if words.next() == Some("f") && matches!(words.count(), 1 | 2) {
+            let (n, _) = found.get_or_insert((0, i as u32 + 1));
+            *n += 1;
+        }
+    }
+    found
+}
+
+/// Reads a byte slice for tobj, counting the lines it consumed, so a parse
+/// error can name the line tobj was reading.
+struct LineCounter<'a> {
+    data: &'a [u8],
+    pos: usize,
+    newlines: u32,
+}
+
+impl LineCounter<'_> {
+    /// The line tobj read last (from 1).
+    fn current_line(&self) -> u32 {
+        let ended = self.pos > 0 && self.data[self.pos - 1] == b'\n';
+        self.newlines + u32::from(!ended)
+    }
+}
+
+impl Read for LineCounter<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = buf.len().min(self.data.len() - self.pos);
+        buf[..n].copy_from_slice(&self.data[self.pos..self.pos + n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl BufRead for LineCounter<'_> {
+    fn fill_buf(&mut self) -> std::io::Result<&[u8]> {
+        Ok(&self.data[self.pos..])
+    }
+
+    fn consume(&mut self, amt: usize) {
+        let end = (self.pos + amt).min(self.data.len());
+        self.newlines += self.data[self.pos..end].iter().filter(|&&b| b == b'\n').count() as u32;
+        self.pos = end;
+    }
+}

@@ -1,0 +1,339 @@
+//! OBJ/MTL, glTF (JSON with external or data-URI buffers, and GLB), PLY and
+//! OFF through `load_any`, on files written here with known contents; bad
+//! files give errors with locations, never panics.
+
+mod common;
+
+use atoll_scene::{load_any, AreaEmission, Light, Material, Rgb};
+use common::{assert_close, temp_dir, write};
+use glam::{UVec2, Vec3};
+use serde_json::json;
+
+const OBJ: &str = "# a quad, a lamp triangle and a glass triangle
+mtllib scene.mtl
+o quad
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+vt 0 0
+vt 1 0
+vt 1 1
+vt 0 1
+vn 0 0 1
+usemtl red
+f 1/1/1 2/2/1 3/3/1 4/4/1
+o lamp
+usemtl light
+f 1 2 3
+usemtl chrome
+f 2 3 4
+usemtl glass
+f -4 -3 -1
+";
+
+const MTL: &str = "newmtl red\nKd 0.8 0.1 0.1\nKs 0.9 0.9 0.9\nNs 10\nmap_Kd tex\\red.png\n\
+newmtl chrome\nKd 0.05 0.05 0.05\nKs 0.9 0.8 0.7\nNs 898\n\
+newmtl glass\nillum 7\nNi 1.45\nd 0.2\n\
+newmtl light\nKd 0 0 0\nKe 5 4 3\n";
+
+#[test]
+fn obj_with_mtl() {
+    let dir = temp_dir("obj");
+    write(&dir, "scene.mtl", MTL);
+    let loaded = load_any(&write(&dir, "scene.obj", OBJ)).unwrap();
+    let s = &loaded.scene;
+    assert_eq!((s.objects.len(), s.instances.len(), s.meshes.len()), (1, 1, 4));
+    assert_eq!(s.instances[0].object_to_world, glam::Affine3A::IDENTITY);
+    let quad = &s.meshes[0];
+    assert_eq!((quad.name.as_str(), quad.triangle_count()), ("quad", 2));
+    assert_eq!((quad.normals.len(), quad.uvs.len()), (quad.positions.len(), quad.positions.len()));
+    assert!(quad.geometric_normal(0).z > 0.0, "counter-clockwise faces face +z");
+    let mat = |i: usize| &s.materials[s.meshes[i].material as usize];
+    assert_eq!(*mat(0), Material::Diffuse { reflectance: Rgb::new(0.8, 0.1, 0.1) });
+    assert_eq!(*mat(1), Material::Diffuse { reflectance: Rgb::ZERO });
+    assert_eq!(
+        s.meshes[1].emission,
+        Some(AreaEmission { radiance: Rgb::new(5.0, 4.0, 3.0), two_sided: false })
+    );
+    let k = Material::conductor_k_from_reflectance(Rgb::new(0.9, 0.8, 0.7));
+    let alpha = (2.0f32 / 900.0).sqrt();
+    assert_eq!(*mat(2), Material::Conductor { eta: Rgb::ONE, k, alpha_x: alpha, alpha_y: alpha });
+    assert_eq!(*mat(3), Material::Dielectric { eta: 1.45, alpha_x: 0.0, alpha_y: 0.0 });
+    // Negative indices count back from the last vertex: -4 -3 -1 are 1 2 4.
+    assert_eq!(s.meshes[3].triangle(0), [Vec3::ZERO, Vec3::X, Vec3::Y]);
+    assert_eq!(loaded.textures.len(), 1);
+    assert_eq!(loaded.textures[0].name, "tex\\red.png");
+    assert_eq!(loaded.textures[0].filename.as_deref(), Some(dir.join("tex/red.png").as_path()));
+    assert_eq!(loaded.textures[0].uses, [(s.meshes[0].material, "reflectance".to_string())]);
+    let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].contains("map_Kd 'tex\\red.png' recorded"), "{w:?}");
+    // Emissive meshes light the scene: no default sky or sun.
+    assert!(s.lights.is_empty());
+    assert_eq!(s.settings.film.resolution, UVec2::new(1024, 768));
+}
+
+#[test]
+fn obj_without_its_mtl_warns_and_uses_the_default() {
+    let dir = temp_dir("obj-nomtl");
+    let path = write(&dir, "scene.obj", OBJ);
+    let loaded = load_any(&path).unwrap();
+    let w = &loaded.warnings;
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert_eq!(
+        w[0].to_string(),
+        format!(
+            "{}: material library 'scene.mtl' cannot be opened; its materials use the default diffuse",
+            path.display()
+        )
+    );
+    assert!(loaded.scene.materials.iter().all(|m| *m == Material::default_diffuse()));
+    assert_eq!(loaded.scene.materials.len(), 1);
+    // No light in the file: the default sky and sun.
+    assert_eq!(loaded.scene.lights, atoll_scene::framing::default_lights());
+}
+
+#[test]
+fn bad_obj_files_are_errors_with_lines() {
+    let dir = temp_dir("obj-bad");
+    let cases = [
+        ("v 0 0 0\nv 1 0 zero\n", 2, "bad vertex position"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0\n", 4, "bad normal"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\n\nf 1 2 3\nf 1 2 9\n", 6, "face uses vertex 9 but only 3 are defined"),
+        ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 x\n", 5, "bad face"),
+        // A file cut off in the middle of a number.
+        (&OBJ[..OBJ.find("v 1 1 0").unwrap() + 4], 6, "bad vertex position"),
+    ];
+    for (text, line, msg) in cases {
+        let path = write(&dir, "bad.obj", text);
+        let e = load_any(&path).unwrap_err();
+        assert_eq!((e.line, e.file.as_str()), (line, path.to_str().unwrap()), "{e}");
+        assert!(e.message.contains(msg), "{e}");
+    }
+    let e = load_any(&write(&dir, "points.obj", "v 0 0 0\nv 1 0 0\np 1 2\n")).unwrap_err();
+    assert!(e.message.contains("no triangles"), "{e}");
+}
+
+/// Little-endian bytes of f32s.
+fn f32s(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The binary buffer of [`gltf_json`]: a triangle (positions, normals, uvs,
+/// u16 indices) and a 4-vertex triangle strip.
+fn gltf_bin() -> Vec<u8> {
+    let mut b = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    b.extend(f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
+    b.extend(f32s(&[0., 0., 1., 0., 0., 1.]));
+    b.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
+    b.extend(f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]));
+    b
+}
+
+/// A glTF scene exercising instancing, materials, camera and lights.
+fn gltf_json(buffer_uri: Option<String>) -> serde_json::Value {
+    let s = std::f32::consts::FRAC_1_SQRT_2;
+    let vec3 = |view: u32, n: u32, max: [f32; 3]| json!({"bufferView": view, "componentType": 5126, "count": n, "type": "VEC3", "min": [0, 0, 0], "max": max});
+    let mut buffer = json!({"byteLength": gltf_bin().len()});
+    if let Some(uri) = buffer_uri {
+        buffer["uri"] = json!(uri);
+    }
+    json!({
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior",
+                           "KHR_materials_emissive_strength"],
+        "scene": 0,
+        "scenes": [{"nodes": [0, 3, 4, 5, 6, 7, 8]}],
+        "nodes": [
+            {"name": "root", "translation": [10, 0, 0], "children": [1, 2]},
+            {"mesh": 0, "rotation": [0, 0, s, s]},
+            {"mesh": 0, "scale": [2, 2, 2]},
+            {"mesh": 1, "translation": [0, 5, 0]},
+            {"mesh": 2},
+            {"camera": 0, "translation": [0, 1, 10]},
+            {"translation": [0, 3, 0], "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"extensions": {"KHR_lights_punctual": {"light": 1}}},
+            {"rotation": [-s, 0, 0, s], "extensions": {"KHR_lights_punctual": {"light": 2}}}
+        ],
+        "meshes": [
+            {"name": "tri", "primitives": [
+                {"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}, "indices": 3, "material": 0},
+                {"attributes": {"POSITION": 4}, "mode": 5, "material": 1}]},
+            {"name": "glass", "primitives": [{"attributes": {"POSITION": 0}, "indices": 3, "material": 2}]},
+            {"name": "lamp", "primitives": [{"attributes": {"POSITION": 0}, "material": 3}]}
+        ],
+        "materials": [
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.1, 1], "metallicFactor": 0,
+                                      "baseColorTexture": {"index": 0}}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.5, 1], "metallicFactor": 1, "roughnessFactor": 0.5}},
+            {"pbrMetallicRoughness": {"roughnessFactor": 0},
+             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1}, "KHR_materials_ior": {"ior": 1.33}}},
+            {"emissiveFactor": [1, 0.5, 0.25], "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4}}}
+        ],
+        "textures": [{"source": 0}],
+        "images": [{"uri": "tex/wood%20dark.png"}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "aspectRatio": 1.5, "znear": 0.1}}],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1, 1, 1], "intensity": 10},
+            {"type": "spot", "intensity": 5, "spot": {}},
+            {"type": "directional", "color": [1, 0.9, 0.8], "intensity": 2}]}},
+        "accessors": [
+            vec3(0, 3, [1., 1., 0.]),
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC3"},
+            {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC2"},
+            {"bufferView": 3, "componentType": 5123, "count": 3, "type": "SCALAR"},
+            vec3(4, 4, [1., 1., 0.])
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 72, "byteLength": 24},
+            {"buffer": 0, "byteOffset": 96, "byteLength": 6},
+            {"buffer": 0, "byteOffset": 104, "byteLength": 48}
+        ],
+        "buffers": [buffer]
+    })
+}
+
+/// A binary glTF of `json` with `bin` as its BIN chunk.
+fn glb(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut j = serde_json::to_vec(json).unwrap();
+    j.resize(j.len().next_multiple_of(4), b' ');
+    let mut b = bin.to_vec();
+    b.resize(b.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = b"glTF".to_vec();
+    for x in [2u32, total as u32, j.len() as u32, 0x4E4F534A] {
+        out.extend(x.to_le_bytes());
+    }
+    out.extend(j);
+    out.extend((b.len() as u32).to_le_bytes());
+    out.extend(0x004E4942u32.to_le_bytes());
+    out.extend(b);
+    out
+}
+
+fn base64(bytes: &[u8]) -> String {
+    const A: &[u8] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut s = String::new();
+    for c in bytes.chunks(3) {
+        let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+        for i in 0..4 {
+            s.push(if i <= c.len() { A[(n >> (18 - 6 * i) & 63) as usize] as char } else { '=' });
+        }
+    }
+    s
+}
+
+#[test]
+fn gltf_scene_in_all_three_packagings() {
+    let dir = temp_dir("gltf");
+    write(&dir, "scene.bin", gltf_bin());
+    let external = write(&dir, "external.gltf", gltf_json(Some("scene.bin".into())).to_string());
+    let data_uri = format!("data:application/octet-stream;base64,{}", base64(&gltf_bin()));
+    let embedded = write(&dir, "embedded.gltf", gltf_json(Some(data_uri)).to_string());
+    let binary = write(&dir, "binary.glb", glb(&gltf_json(None), &gltf_bin()));
+    for path in [external, embedded, binary] {
+        let loaded = load_any(&path).unwrap_or_else(|e| panic!("{e}"));
+        check_gltf_scene(&loaded, &dir);
+    }
+}
+
+fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
+    let s = &loaded.scene;
+    // Mesh "tri" is used by two nodes but stored once.
+    assert_eq!((s.objects.len(), s.meshes.len(), s.instances.len()), (3, 4, 4));
+    assert_eq!(s.objects[0].meshes.len(), 2);
+    assert_eq!(s.meshes[1].indices, [[0, 1, 2], [2, 1, 3]], "triangle strip");
+    assert_eq!((s.instances[0].object, s.instances[1].object), (0, 0));
+    let p = |i: usize, v: Vec3| s.instances[i].object_to_world.transform_point3(v);
+    assert_close(p(0, Vec3::X), Vec3::new(10.0, 1.0, 0.0), 1e-5);
+    assert_close(p(1, Vec3::X), Vec3::new(12.0, 0.0, 0.0), 1e-5);
+    assert_close(p(2, Vec3::ZERO), Vec3::new(0.0, 5.0, 0.0), 1e-6);
+    let tri = &s.meshes[0];
+    assert_eq!((tri.normals.len(), tri.uvs.len(), tri.flip_normals), (3, 3, false));
+    assert!(tri.geometric_normal(0).z > 0.0, "glTF front faces are counter-clockwise");
+    let m = |mesh: usize| &s.materials[s.meshes[mesh].material as usize];
+    assert_eq!(*m(0), Material::Diffuse { reflectance: Rgb::new(0.8, 0.2, 0.1) });
+    let k = Material::conductor_k_from_reflectance(Rgb::new(0.9, 0.8, 0.5));
+    assert_eq!(*m(1), Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.25, alpha_y: 0.25 });
+    assert_eq!(*m(2), Material::Dielectric { eta: 1.33, alpha_x: 0.0, alpha_y: 0.0 });
+    assert_eq!(
+        s.meshes[3].emission,
+        Some(AreaEmission { radiance: Rgb::new(4.0, 2.0, 1.0), two_sided: false })
+    );
+    assert_eq!(s.meshes[3].indices, [[0, 1, 2]], "non-indexed");
+    // Camera at (0, 1, 10) looking down -Z, aspect 1.5: fov = yfov on a landscape image.
+    let cam = &s.settings.camera;
+    assert_close(cam.camera_to_world.transform_point3(Vec3::ZERO), Vec3::new(0.0, 1.0, 10.0), 1e-6);
+    assert_close(cam.camera_to_world.transform_vector3(Vec3::Z), -Vec3::Z, 1e-6);
+    assert_close(cam.camera_to_world.transform_vector3(Vec3::X), Vec3::X, 1e-6);
+    assert!((cam.fov_degrees - 0.8f32.to_degrees()).abs() < 1e-4);
+    assert_eq!(s.settings.film.resolution, UVec2::new(1024, 683));
+    assert_eq!(s.lights.len(), 3);
+    assert_eq!(s.lights[0], Light::Point { position: Vec3::new(0.0, 3.0, 0.0), intensity: Rgb::splat(10.0) });
+    assert!(matches!(s.lights[1], Light::Point { intensity, .. } if intensity == Rgb::splat(5.0)));
+    let Light::Distant { direction, radiance } = s.lights[2] else { panic!("{:?}", s.lights[2]) };
+    assert_close(direction, -Vec3::Y, 1e-6);
+    assert_close(radiance, Rgb::new(2.0, 1.8, 1.6), 1e-6);
+    let t = &loaded.textures;
+    assert_eq!(t.len(), 1);
+    assert_eq!(t[0].filename.as_deref(), Some(dir.join("tex/wood dark.png").as_path()));
+    assert_eq!(t[0].uses, [(s.meshes[0].material, "reflectance".to_string())]);
+    let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert!(w.iter().any(|w| w.contains("spot light 1: spot lights are not supported yet")), "{w:?}");
+    assert_eq!(w.iter().filter(|w| w.contains("principled material")).count(), 1, "{w:?}");
+}
+
+#[test]
+fn broken_gltf_files_are_errors() {
+    let dir = temp_dir("gltf-bad");
+    let good = glb(&gltf_json(None), &gltf_bin());
+    for cut in [10, 30, good.len() - 20] {
+        let e = load_any(&write(&dir, "cut.glb", &good[..cut])).unwrap_err();
+        assert_eq!(e.line, 0, "{e}");
+    }
+    write(&dir, "short.bin", &gltf_bin()[..100]);
+    let e =
+        load_any(&write(&dir, "short.gltf", gltf_json(Some("short.bin".into())).to_string())).unwrap_err();
+    assert!(e.message.contains("has 100 bytes but the file says 152"), "{e}");
+    let text = gltf_json(Some("scene.bin".into())).to_string();
+    let e = load_any(&write(&dir, "cut.gltf", &text[..text.len() / 2])).unwrap_err();
+    assert!(e.line >= 1 && e.message.starts_with("bad glTF JSON"), "{e}");
+    // Positions declared as 2D would make the gltf crate panic; we refuse them.
+    let mut j = gltf_json(Some("scene.bin".into()));
+    j["accessors"][0]["type"] = json!("VEC2");
+    write(&dir, "scene.bin", gltf_bin());
+    let e = load_any(&write(&dir, "vec2.gltf", j.to_string())).unwrap_err();
+    assert!(e.message.contains("POSITION accessor 0: unexpected type Vec2"), "{e}");
+    // A node that is its own descendant.
+    let mut j = gltf_json(Some("scene.bin".into()));
+    j["nodes"][1]["children"] = json!([0]);
+    let e = load_any(&write(&dir, "cycle.gltf", j.to_string())).unwrap_err();
+    assert!(e.message.contains("cycle"), "{e}");
+}
+
+#[test]
+fn standalone_ply_and_off_are_framed() {
+    let dir = temp_dir("ply");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n\
+               element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n2 0 0\n2 1 0\n0 1 0\n4 0 1 2 3\n";
+    let off = "OFF\n4 1 0\n0 0 0\n2 0 0\n2 1 0\n0 1 0\n4 0 1 2 3\n";
+    for path in [write(&dir, "quad.ply", ply), write(&dir, "quad.off", off)] {
+        let loaded = load_any(&path).unwrap();
+        let s = &loaded.scene;
+        assert_eq!((s.meshes.len(), s.meshes[0].triangle_count(), s.instances.len()), (1, 2, 1));
+        assert_eq!(s.materials, [Material::default_diffuse()]);
+        assert_eq!(s.lights, atoll_scene::framing::default_lights());
+        assert_eq!((s.settings.spp, s.settings.film.resolution), (64, UVec2::new(1024, 768)));
+        assert_eq!(s.settings.integrator, atoll_scene::IntegratorSettings::Path { max_depth: 8 });
+        let eye = s.settings.camera.camera_to_world.transform_point3(Vec3::ZERO);
+        let forward = s.settings.camera.camera_to_world.transform_vector3(Vec3::Z);
+        assert_close(forward, (Vec3::new(1.0, 0.5, 0.0) - eye).normalize(), 1e-5);
+    }
+    let e = load_any(&write(&dir, "bad.off", "OFF\n4 1 0\n0 0 0\n2 0 0\n")).unwrap_err();
+    assert!(e.message.contains("truncated"), "{e}");
+    let e = load_any(&write(&dir, "scene.fbx", "")).unwrap_err();
+    assert!(e.message.contains("unknown scene format"), "{e}");
+}
