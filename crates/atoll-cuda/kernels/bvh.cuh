@@ -55,20 +55,26 @@ constexpr int LINK_INSTANCE_END = 1985229329;
 constexpr unsigned int MAX_LEAF_PRIMS = 4u;
 constexpr int TRAVERSAL_STACK = 96;
 static_assert(sizeof(BvhNode) == 64, "BvhNode: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(BvhNode, left_xy) == 0 && sizeof(BvhNode::left_xy) == 16, "BvhNode.left_xy: offset or size differs from Rust");
 static_assert(__builtin_offsetof(BvhNode, right_xy) == 16 && sizeof(BvhNode::right_xy) == 16, "BvhNode.right_xy: offset or size differs from Rust");
 static_assert(__builtin_offsetof(BvhNode, z) == 32 && sizeof(BvhNode::z) == 16, "BvhNode.z: offset or size differs from Rust");
 static_assert(__builtin_offsetof(BvhNode, links) == 48 && sizeof(BvhNode::links) == 16, "BvhNode.links: offset or size differs from Rust");
+#endif
 static_assert(sizeof(TriRecord) == 48, "TriRecord: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(TriRecord, a) == 0 && sizeof(TriRecord::a) == 16, "TriRecord.a: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TriRecord, b) == 16 && sizeof(TriRecord::b) == 16, "TriRecord.b: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TriRecord, c) == 32 && sizeof(TriRecord::c) == 16, "TriRecord.c: offset or size differs from Rust");
+#endif
 static_assert(sizeof(TlasInstance) == 64, "TlasInstance: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(TlasInstance, world_to_object) == 0 && sizeof(TlasInstance::world_to_object) == 48, "TlasInstance.world_to_object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, blas_root) == 48 && sizeof(TlasInstance::blas_root) == 4, "TlasInstance.blas_root: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, instance) == 52 && sizeof(TlasInstance::instance) == 4, "TlasInstance.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, identity) == 56 && sizeof(TlasInstance::identity) == 4, "TlasInstance.identity: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, pad) == 60 && sizeof(TlasInstance::pad) == 4, "TlasInstance.pad: offset or size differs from Rust");
+#endif
 // END GENERATED bvh
 
 /// Triangle tests (template argument of the traversal).

@@ -50,6 +50,7 @@ inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;
 static_assert(sizeof(GpuMesh) == 32, "GpuMesh: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMesh, first_triangle) == 0 && sizeof(GpuMesh::first_triangle) == 4, "GpuMesh.first_triangle: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, triangle_count) == 4 && sizeof(GpuMesh::triangle_count) == 4, "GpuMesh.triangle_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, first_vertex) == 8 && sizeof(GpuMesh::first_vertex) == 4, "GpuMesh.first_vertex: offset or size differs from Rust");
@@ -58,20 +59,27 @@ static_assert(__builtin_offsetof(GpuMesh, material) == 16 && sizeof(GpuMesh::mat
 static_assert(__builtin_offsetof(GpuMesh, flags) == 20 && sizeof(GpuMesh::flags) == 4, "GpuMesh.flags: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, scene_mesh) == 24 && sizeof(GpuMesh::scene_mesh) == 4, "GpuMesh.scene_mesh: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, pad) == 28 && sizeof(GpuMesh::pad) == 4, "GpuMesh.pad: offset or size differs from Rust");
+#endif
 static_assert(sizeof(GpuObject) == 16, "GpuObject: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuObject, first_triangle) == 0 && sizeof(GpuObject::first_triangle) == 4, "GpuObject.first_triangle: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuObject, triangle_count) == 4 && sizeof(GpuObject::triangle_count) == 4, "GpuObject.triangle_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuObject, first_mesh) == 8 && sizeof(GpuObject::first_mesh) == 4, "GpuObject.first_mesh: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuObject, mesh_count) == 12 && sizeof(GpuObject::mesh_count) == 4, "GpuObject.mesh_count: offset or size differs from Rust");
+#endif
 static_assert(sizeof(GpuInstance) == 144, "GpuInstance: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuInstance, object_to_world) == 0 && sizeof(GpuInstance::object_to_world) == 48, "GpuInstance.object_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, world_to_object) == 48 && sizeof(GpuInstance::world_to_object) == 48, "GpuInstance.world_to_object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, normal_to_world) == 96 && sizeof(GpuInstance::normal_to_world) == 36, "GpuInstance.normal_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, object) == 132 && sizeof(GpuInstance::object) == 4, "GpuInstance.object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, pad) == 136 && sizeof(GpuInstance::pad) == 8, "GpuInstance.pad: offset or size differs from Rust");
+#endif
 static_assert(sizeof(HitRef) == 16, "HitRef: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(HitRef, u) == 0 && sizeof(HitRef::u) == 4, "HitRef.u: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, v) == 4 && sizeof(HitRef::v) == 4, "HitRef.v: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, instance) == 8 && sizeof(HitRef::instance) == 4, "HitRef.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, triangle) == 12 && sizeof(HitRef::triangle) == 4, "HitRef.triangle: offset or size differs from Rust");
+#endif
 // END GENERATED layout

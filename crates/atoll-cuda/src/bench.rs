@@ -174,7 +174,9 @@ fn cpu_hits(bvh: &SceneBvh<Bvh2>, rays: &[Ray], any: bool) -> usize {
             .chunks(chunk)
             .map(|c| {
                 s.spawn(move || {
-                    c.iter().filter(|r| if any { bvh.occluded(r) } else { bvh.intersect(r).is_some() }).count()
+                    c.iter()
+                        .filter(|r| if any { bvh.occluded(r) } else { bvh.intersect(r).is_some() })
+                        .count()
                 })
             })
             .collect();
@@ -220,7 +222,12 @@ fn time_batch(
         let recs = gpu.stream.clone_dtoh(&*work).map_err(event_err(gpu))?;
         recs.iter().filter(|r| r.0.has(flags::OCCLUDED)).count()
     } else {
-        gpu.stream.clone_dtoh(&*hits).map_err(event_err(gpu))?.iter().filter(|h| h.instance != HIT_NONE).count()
+        gpu.stream
+            .clone_dtoh(&*hits)
+            .map_err(event_err(gpu))?
+            .iter()
+            .filter(|h| h.instance != HIT_NONE)
+            .count()
     };
     Ok((count as f64 / (median(times) as f64 * 1e-3) / 1e6, hit_count))
 }
@@ -242,8 +249,17 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
     for &n in &opts.build_scenes {
         let big = atoll_scene::procedural::bench_scene(n);
         let big_scene = GpuScene::upload_tables(gpu, SceneTables::build(&big))?;
-        for (builder, options) in [("lbvh", BuildOptions::lbvh()), ("lbvh+treelet", BuildOptions::default())] {
-            builds.push(time_build(gpu, &big_scene, &format!("bench {n}"), builder, &options, opts.runs, None)?);
+        for (builder, options) in [("lbvh", BuildOptions::lbvh()), ("lbvh+treelet", BuildOptions::default())]
+        {
+            builds.push(time_build(
+                gpu,
+                &big_scene,
+                &format!("bench {n}"),
+                builder,
+                &options,
+                opts.runs,
+                None,
+            )?);
         }
     }
 
@@ -257,11 +273,22 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
     let bvhs: Vec<(TriangleTest, GpuSceneBvh)> = opts
         .tests
         .iter()
-        .map(|&t| GpuSceneBvh::build_with(gpu, &gpu_scene, &BuildOptions { triangle_test: t, ..Default::default() }).map(|b| (t, b)))
+        .map(|&t| {
+            GpuSceneBvh::build_with(gpu, &gpu_scene, &BuildOptions { triangle_test: t, ..Default::default() })
+                .map(|b| (t, b))
+        })
         .collect::<Result<_, _>>()?;
     let mut batches = Vec::new();
-    for (name, any, batch) in [("primary", false, &rays.primary), ("shadow", true, &rays.shadow), ("diffuse", false, &rays.diffuse)] {
-        let mut row = BatchRow { name, any, rays: batch.len(), cpu_hits: cpu_hits(&cpu_bvh, batch, any), results: Vec::new() };
+    for (name, any, batch) in
+        [("primary", false, &rays.primary), ("shadow", true, &rays.shadow), ("diffuse", false, &rays.diffuse)]
+    {
+        let mut row = BatchRow {
+            name,
+            any,
+            rays: batch.len(),
+            cpu_hits: cpu_hits(&cpu_bvh, batch, any),
+            results: Vec::new(),
+        };
         if batch.is_empty() {
             batches.push(row);
             continue;
@@ -281,14 +308,24 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
         }
         batches.push(row);
     }
-    Ok(GpuBenchReport { device: gpu.name.clone(), scene_triangles, resolution: opts.resolution, builds, batches })
+    Ok(GpuBenchReport {
+        device: gpu.name.clone(),
+        scene_triangles,
+        resolution: opts.resolution,
+        builds,
+        batches,
+    })
 }
 
 impl fmt::Display for GpuBenchReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(f, "GPU BVH benchmark on {} ({} triangles as uploaded)", self.device, self.scene_triangles)?;
-        writeln!(f, "\nBuild (device ms, median; SAH recomputed on the host, CPU = binned SAH of atoll_bvh):")?;
-        let phase_names: Vec<&str> = self.builds.first().map_or(Vec::new(), |b| b.phases.iter().map(|p| p.0).collect());
+        writeln!(
+            f,
+            "\nBuild (device ms, median; SAH recomputed on the host, CPU = binned SAH of atoll_bvh):"
+        )?;
+        let phase_names: Vec<&str> =
+            self.builds.first().map_or(Vec::new(), |b| b.phases.iter().map(|p| p.0).collect());
         write!(f, "{:<14} {:<12} {:>10} {:>8}", "scene", "builder", "triangles", "Mtris/s")?;
         for p in &phase_names {
             write!(f, " {p:>8}")?;
@@ -299,7 +336,9 @@ impl fmt::Display for GpuBenchReport {
             for (_, ms) in &b.phases {
                 write!(f, " {ms:>8.3}")?;
             }
-            let vs = b.cpu_blas_sah.map_or("-".to_string(), |c| format!("{:+.1}%", 100.0 * (b.blas_sah / c - 1.0)));
+            let vs = b
+                .cpu_blas_sah
+                .map_or("-".to_string(), |c| format!("{:+.1}%", 100.0 * (b.blas_sah / c - 1.0)));
             writeln!(
                 f,
                 " {:>8.3} {:>9.2} {:>9} {:>8.2} {:>8.1}",
@@ -311,7 +350,11 @@ impl fmt::Display for GpuBenchReport {
             )?;
         }
         let r = self.resolution;
-        writeln!(f, "\nTraversal (Mrays/s, median; {}x{} primary rays; hits checked against the CPU):", r.x, r.y)?;
+        writeln!(
+            f,
+            "\nTraversal (Mrays/s, median; {}x{} primary rays; hits checked against the CPU):",
+            r.x, r.y
+        )?;
         let columns: Vec<(TraversalVariant, TriangleTest)> =
             self.batches.first().map_or(Vec::new(), |b| b.results.iter().map(|r| (r.0, r.1)).collect());
         write!(f, "{:<8} {:<8} {:>9} {:>9}", "batch", "query", "rays", "CPU hits")?;

@@ -73,8 +73,10 @@ pub struct Tracer {
 
 impl Tracer {
     pub fn new(gpu: &Gpu) -> Result<Self, CudaError> {
-        let work =
-            gpu.stream.alloc_zeros(1).map_err(CudaError::driver(format!("{}: allocating a work counter", gpu.label())))?;
+        let work = gpu
+            .stream
+            .alloc_zeros(1)
+            .map_err(CudaError::driver(format!("{}: allocating a work counter", gpu.label())))?;
         Ok(Tracer { kernels: Vec::new(), work, persistent_blocks: Vec::new() })
     }
 
@@ -133,10 +135,20 @@ impl Tracer {
         let name = format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix());
         let (function, persistent_blocks) = self.kernel(gpu, any, variant, &name)?;
         let config = if variant.persistent() {
-            gpu.stream.memset_zeros(&mut self.work).map_err(CudaError::driver("clearing the work counter"))?;
-            LaunchConfig { grid_dim: (persistent_blocks, 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 }
+            gpu.stream
+                .memset_zeros(&mut self.work)
+                .map_err(CudaError::driver("clearing the work counter"))?;
+            LaunchConfig {
+                grid_dim: (persistent_blocks, 1, 1),
+                block_dim: (THREADS, 1, 1),
+                shared_mem_bytes: 0,
+            }
         } else {
-            LaunchConfig { grid_dim: (count.div_ceil(THREADS), 1, 1), block_dim: (THREADS, 1, 1), shared_mem_bytes: 0 }
+            LaunchConfig {
+                grid_dim: (count.div_ceil(THREADS), 1, 1),
+                block_dim: (THREADS, 1, 1),
+                shared_mem_bytes: 0,
+            }
         };
         let null: u64 = 0;
         let mut launch = gpu.stream.launch_builder(&function);
@@ -159,7 +171,8 @@ impl Tracer {
         // count, unsigned* work)`. The BVH's links stay within its arrays (built by lbvh.cu);
         // threads touch records and hits below `count`, which both buffers hold (checked);
         // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches.
-        unsafe { launch.launch(config) }.map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
+        unsafe { launch.launch(config) }
+            .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())
     }
 }

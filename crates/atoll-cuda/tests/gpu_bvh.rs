@@ -89,7 +89,10 @@ fn first_difference<T: PartialEq + std::fmt::Debug>(what: &str, a: &[T], b: &[T]
     if a.len() != b.len() {
         return Some(format!("{what}: {} vs {} entries", a.len(), b.len()));
     }
-    a.iter().zip(b).position(|(x, y)| x != y).map(|i| format!("{what}[{i}]: GPU {:?} vs host {:?}", a[i], b[i]))
+    a.iter()
+        .zip(b)
+        .position(|(x, y)| x != y)
+        .map(|i| format!("{what}[{i}]: GPU {:?} vs host {:?}", a[i], b[i]))
 }
 
 fn compare_with_reference(gpu_bvh: &HostSceneBvh, host: &HostSceneBvh) {
@@ -101,7 +104,8 @@ fn compare_with_reference(gpu_bvh: &HostSceneBvh, host: &HostSceneBvh) {
         first_difference("instances", &gpu_bvh.instances, &host.instances),
         first_difference("blas_roots", &gpu_bvh.blas_roots, &host.blas_roots),
         first_difference("blas_bounds", &gpu_bvh.blas_bounds, &host.blas_bounds),
-        (gpu_bvh.tlas_root != host.tlas_root).then(|| format!("tlas_root {} vs {}", gpu_bvh.tlas_root, host.tlas_root)),
+        (gpu_bvh.tlas_root != host.tlas_root)
+            .then(|| format!("tlas_root {} vs {}", gpu_bvh.tlas_root, host.tlas_root)),
     ]
     .into_iter()
     .flatten()
@@ -131,9 +135,16 @@ fn gpu_build_equals_the_host_reference_and_is_valid() {
             compare_with_reference(&got, &reference::build_scene(&tables, &options));
             let s = bvh.stats();
             println!("{name}, {} rounds: {:?}", options.treelet_rounds, s);
-            assert!(s.build_bytes <= atoll_cuda::bvh::build_bytes(s.triangles as u64, s.blases as u64, s.instances as u64));
+            assert!(
+                s.build_bytes
+                    <= atoll_cuda::bvh::build_bytes(s.triangles as u64, s.blases as u64, s.instances as u64)
+            );
             let (host_sah, _) = got.sah(options.intersection_cost, options.traversal_cost);
-            assert!((host_sah - s.blas_sah).abs() <= 1e-3 * host_sah, "SAH {host_sah} vs tracked {}", s.blas_sah);
+            assert!(
+                (host_sah - s.blas_sah).abs() <= 1e-3 * host_sah,
+                "SAH {host_sah} vs tracked {}",
+                s.blas_sah
+            );
         }
     }
 }
@@ -154,7 +165,10 @@ fn empty_and_tiny_scenes_build_and_trace() {
         let tables = SceneTables::build(&s);
         let gpu_scene = GpuScene::upload_tables(&gpu, tables.clone()).unwrap();
         let bvh = GpuSceneBvh::build(&gpu, &gpu_scene).unwrap();
-        compare_with_reference(&bvh.download(&gpu).unwrap(), &reference::build_scene(&tables, &BuildOptions::default()));
+        compare_with_reference(
+            &bvh.download(&gpu).unwrap(),
+            &reference::build_scene(&tables, &BuildOptions::default()),
+        );
         let rays = random_rays(3, 1000);
         let (hits, _) = trace_on_gpu(&gpu, &gpu_scene, &bvh, &rays, TraversalVariant::default(), false);
         let plan = ScenePlan::new(&tables.objects, &tables.instances);
@@ -164,7 +178,8 @@ fn empty_and_tiny_scenes_build_and_trace() {
         // Zero rays is a no-op.
         let mut records = gpu.stream.alloc_zeros::<GpuRecord>(1).unwrap();
         let mut h = gpu.stream.alloc_zeros::<HitRef>(1).unwrap();
-        trace_closest_with(&gpu, &gpu_scene, &bvh, &mut records, 0, &mut h, TraversalVariant::Persistent).unwrap();
+        trace_closest_with(&gpu, &gpu_scene, &bvh, &mut records, 0, &mut h, TraversalVariant::Persistent)
+            .unwrap();
     }
 }
 
@@ -218,8 +233,12 @@ fn gpu_traversal_matches_brute_force() {
     let hit_count = truth.iter().filter(|h| h.is_some()).count();
     assert!(hit_count > rays.len() / 5, "{hit_count} hits");
     for test in [TriangleTest::Exact, TriangleTest::Woop] {
-        let bvh = GpuSceneBvh::build_with(&gpu, &gpu_scene, &BuildOptions { triangle_test: test, ..Default::default() })
-            .unwrap();
+        let bvh = GpuSceneBvh::build_with(
+            &gpu,
+            &gpu_scene,
+            &BuildOptions { triangle_test: test, ..Default::default() },
+        )
+        .unwrap();
         for variant in TraversalVariant::ALL {
             let (hits, recs) = trace_on_gpu(&gpu, &gpu_scene, &bvh, &rays, variant, false);
             let mut differ = Vec::new();
@@ -236,7 +255,12 @@ fn gpu_traversal_matches_brute_force() {
             }
             let allowed = if test == TriangleTest::Exact { 0 } else { rays.len() / 500 };
             println!("{test:?} {}: {} of {} closest hits differ", variant.name(), differ.len(), rays.len());
-            assert!(differ.len() <= allowed, "{test:?} {}:\n{}", variant.name(), differ[..differ.len().min(10)].join("\n"));
+            assert!(
+                differ.len() <= allowed,
+                "{test:?} {}:\n{}",
+                variant.name(),
+                differ[..differ.len().min(10)].join("\n")
+            );
 
             let (_, recs) = trace_on_gpu(&gpu, &gpu_scene, &bvh, &rays, variant, true);
             let wrong = recs
@@ -253,7 +277,9 @@ fn gpu_traversal_matches_brute_force() {
 fn sah_against_the_cpu_binned_builder() {
     let Some(gpu) = gpu_or_skip("sah") else { return };
     let scene = atoll_scene::procedural::bench_scene(1_000_000);
-    let cpu = atoll_bvh::SceneBvh::<atoll_bvh::Bvh2>::build_layout(&scene, &atoll_bvh::ScenePart::whole(&scene)).stats();
+    let cpu =
+        atoll_bvh::SceneBvh::<atoll_bvh::Bvh2>::build_layout(&scene, &atoll_bvh::ScenePart::whole(&scene))
+            .stats();
     let gpu_scene = GpuScene::upload_tables(&gpu, SceneTables::build(&scene)).unwrap();
     for options in [BuildOptions::lbvh(), BuildOptions::default()] {
         let bvh = GpuSceneBvh::build_with(&gpu, &gpu_scene, &options).unwrap();

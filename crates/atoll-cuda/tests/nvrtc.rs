@@ -34,7 +34,9 @@ fn every_kernel_file_compiles_to_ptx_for_compute_90() {
     }
     let mut failures = Vec::new();
     for file in compilation_units() {
-        match compile_with_cache(file, &CompileOptions::ptx(ARCH), None) {
+        let mut options = CompileOptions::ptx(ARCH);
+        options.extra.push(atoll_cuda::header::LAYOUT_CHECK_OPTION.into());
+        match compile_with_cache(file, &options, None) {
             Ok(compiled) => {
                 let ptx = String::from_utf8(compiled.image).expect("PTX is text");
                 assert!(ptx.contains(".target sm_90"), "{file}: unexpected PTX target");
@@ -60,6 +62,7 @@ fn every_kernel_file_compiles_to_sm_90_cubin_with_register_report() {
     for file in compilation_units() {
         let mut options = CompileOptions::cubin(ARCH);
         options.extra.push("-Xptxas=-v".into());
+        options.extra.push(atoll_cuda::header::LAYOUT_CHECK_OPTION.into());
         match compile_with_cache(file, &options, None) {
             Ok(compiled) => {
                 // ELF magic: machine code, not PTX.

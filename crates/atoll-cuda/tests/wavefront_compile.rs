@@ -18,7 +18,11 @@ fn nvrtc_or_skip() -> bool {
 /// Compiles `file` for sm_90 with ptxas' report; returns (PTX, log).
 fn compile(file: &str, extra: &[&str]) -> (String, String) {
     let mut ptx_options = CompileOptions::ptx((9, 0));
-    ptx_options.extra = extra.iter().map(|s| s.to_string()).collect();
+    ptx_options.extra = extra
+        .iter()
+        .map(|s| s.to_string())
+        .chain([atoll_cuda::header::LAYOUT_CHECK_OPTION.to_string()])
+        .collect();
     let ptx = compile_with_cache(file, &ptx_options, None).unwrap_or_else(|e| panic!("{e}"));
     let mut cubin_options = CompileOptions::cubin((9, 0));
     cubin_options.extra = extra.iter().map(|s| s.to_string()).chain(["-Xptxas=-v".to_string()]).collect();

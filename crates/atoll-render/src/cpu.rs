@@ -177,8 +177,7 @@ impl Device for CpuDevice {
         let bvh = self.run(|| SceneBvh::build(scene));
         let build = start.elapsed().as_secs_f64();
         let bvh_stats = bvh.stats();
-        let normal_to_world =
-            scene.instances.iter().map(|i| i.normal_to_world()).collect();
+        let normal_to_world = scene.instances.iter().map(|i| i.normal_to_world()).collect();
         self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
         self.film = Film::new(frame.options.resolution);
         self.frame = Some(frame.clone());

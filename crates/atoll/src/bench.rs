@@ -30,8 +30,12 @@ pub struct BenchArgs {
 }
 
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
+    let mut selected = select(&args.device, None)?;
     if !args.no_traversal {
-        traversal(&args)?;
+        match &selected.gpu {
+            Some(gpu) => gpu_traversal(&args, gpu)?,
+            None => traversal(&args)?,
+        }
     }
     // Path tracing: the diffuse Cornell box at 512², 15 bounces, no Russian
     // roulette (the settings issue 3's GPU target is stated in).
@@ -41,7 +45,6 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     options.spp = args.spp;
     options.integrator = IntegratorSettings::Path { max_depth: 15 };
     options.russian_roulette = false;
-    let mut selected = select(&args.device, None)?;
     let mut run_once = |spp: u32| {
         let options = RenderOptions { spp, ..options.clone() };
         let out = render(selected.device.as_mut(), &scene, options, &mut |_, _| {})
@@ -63,6 +66,17 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         runs.len(),
         selected.description
     );
+    Ok(())
+}
+
+/// GPU BVH build (on the traversal scene and a 10M-triangle one) and GPU
+/// traversal throughput per variant, on the instanced bench scene.
+fn gpu_traversal(args: &BenchArgs, gpu: &std::sync::Arc<atoll_cuda::Gpu>) -> Result<(), CliError> {
+    let scene = atoll_scene::procedural::bench_scene(args.triangles);
+    let options = atoll_cuda::bench::GpuBenchOptions { build_scenes: vec![10_000_000], ..Default::default() };
+    let report =
+        atoll_cuda::bench::run(gpu, &scene, &options).map_err(|e| CliError::Runtime(e.to_string()))?;
+    println!("{report}");
     Ok(())
 }
 

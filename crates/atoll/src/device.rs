@@ -76,6 +76,8 @@ pub struct Selected {
     pub description: String,
     /// A GPU device's stage errors (its stages cannot return them).
     errors: Option<ErrorSlot>,
+    /// The GPU behind a CUDA device (benchmarks use it directly).
+    pub gpu: Option<std::sync::Arc<atoll_cuda::Gpu>>,
 }
 
 impl Selected {
@@ -97,7 +99,7 @@ fn cpu(args: &DeviceArgs, threads: Option<usize>) -> Result<Selected, CliError> 
         device = device.with_memory_budget(bytes);
     }
     let description = format!("cpu ({} threads)", device.threads());
-    Ok(Selected { device: Box::new(device), description, errors: None })
+    Ok(Selected { device: Box::new(device), description, errors: None, gpu: None })
 }
 
 fn cuda(args: &DeviceArgs, ordinal: usize) -> Result<Selected, CudaError> {
@@ -108,7 +110,8 @@ fn cuda(args: &DeviceArgs, ordinal: usize) -> Result<Selected, CudaError> {
     let gpu = device.gpu();
     let description = format!("{} ({}, {})", gpu.label(), gpu.name, fmt_bytes(gpu.total_memory));
     let errors = Some(device.errors());
-    Ok(Selected { device: Box::new(device), description, errors })
+    let gpu = Some(gpu.clone());
+    Ok(Selected { device: Box::new(device), description, errors, gpu })
 }
 
 /// The device `args` ask for; `threads` applies to the CPU device only.

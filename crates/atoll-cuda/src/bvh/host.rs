@@ -44,7 +44,8 @@ impl ScenePlan {
         plan.valid_instances = (0..instances.len() as u32)
             .filter(|&i| {
                 let inst = &instances[i as usize];
-                let has_blas = plan.object_segment.get(inst.object as usize).is_some_and(|&s| s != BUILD_NONE);
+                let has_blas =
+                    plan.object_segment.get(inst.object as usize).is_some_and(|&s| s != BUILD_NONE);
                 has_blas && inst.world_to_object.iter().all(|x| x.is_finite())
             })
             .collect();
@@ -92,7 +93,8 @@ pub struct HostSceneBvh {
 /// Woop's test on the host, as `intersect_woop` in bvh.cuh (with FMA
 /// contraction on the GPU the floats may differ in the last bits).
 fn intersect_woop(r: &GpuTriRecord, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, f32, f32)> {
-    let row = |m: &[f32; 4]| (m[3] + o.x * m[0] + o.y * m[1] + o.z * m[2], d.x * m[0] + d.y * m[1] + d.z * m[2]);
+    let row =
+        |m: &[f32; 4]| (m[3] + o.x * m[0] + o.y * m[1] + o.z * m[2], d.x * m[0] + d.y * m[1] + d.z * m[2]);
     let (ow, dw) = row(&r.a);
     let t = -ow / dw;
     if !(t > 0.0 && t < t_max) {
@@ -158,7 +160,8 @@ impl HostSceneBvh {
                             if let Some((t, u, v)) = hit {
                                 t_max = t;
                                 let instance = self.instances[slot as usize].instance;
-                                best = Some(HostHit { t, u, v, instance, triangle: self.tri_ids[k as usize] });
+                                best =
+                                    Some(HostHit { t, u, v, instance, triangle: self.tri_ids[k as usize] });
                                 if any {
                                     return best;
                                 }
@@ -207,7 +210,13 @@ impl HostSceneBvh {
     /// SAH cost of one tree (`atoll_bvh::Bvh2::sah_cost`'s formula) given
     /// its root box: traversal cost `ct` per inner node and `ci` per
     /// primitive, each weighted by its box's area, over the root's area.
-    pub fn tree_sah(nodes: &[GpuBvhNode], root: i32, root_box: ([f32; 3], [f32; 3]), ci: f32, ct: f32) -> f32 {
+    pub fn tree_sah(
+        nodes: &[GpuBvhNode],
+        root: i32,
+        root_box: ([f32; 3], [f32; 3]),
+        ci: f32,
+        ct: f32,
+    ) -> f32 {
         let area = |(lo, hi): ([f32; 3], [f32; 3])| {
             Aabb { min: Vec3A::from_array(lo), max: Vec3A::from_array(hi) }.area() as f64
         };
@@ -242,7 +251,8 @@ impl HostSceneBvh {
                     count += c as u64;
                 }
             });
-            weighted += Self::tree_sah(&self.blas_nodes, root, self.blas_bounds[s], ci, ct) as f64 * count as f64;
+            weighted +=
+                Self::tree_sah(&self.blas_nodes, root, self.blas_bounds[s], ci, ct) as f64 * count as f64;
             triangles += count;
         }
         let tlas = Self::tree_sah(&self.tlas_nodes, self.tlas_root, self.tlas_bounds, ci, ct);
@@ -265,56 +275,68 @@ impl HostSceneBvh {
     /// containing their children's, triangle ids a permutation of the
     /// segments' triangles. Returns the first problem found.
     pub fn check(&self, plan: &ScenePlan) -> Result<(), String> {
-        let check_tree = |nodes: &[GpuBvhNode], roots: &[i32], records: usize, what: &str| -> Result<(), String> {
-            let mut node_seen = vec![false; nodes.len()];
-            let mut record_seen = vec![false; records];
-            for &root in roots {
-                let mut todo = vec![root];
-                while let Some(link) = todo.pop() {
-                    match Link::decode(link) {
-                        Link::Marker(m) if m == LINK_DONE && records == 0 => {}
-                        Link::Marker(m) => return Err(format!("{what}: marker {m:#x} as a link")),
-                        Link::Node(n) => {
-                            let seen = node_seen.get_mut(n as usize).ok_or(format!("{what}: node {n} out of range"))?;
-                            if std::mem::replace(seen, true) {
-                                return Err(format!("{what}: node {n} reached twice"));
-                            }
-                            let node = &nodes[n as usize];
-                            for c in 0..2 {
-                                let (lo, hi) = node.child_box(c);
-                                if (0..3).any(|k| !(lo[k] <= hi[k])) {
-                                    return Err(format!("{what}: node {n} child {c} has an inverted box"));
-                                }
-                                if let Link::Node(m) = Link::decode(node.links[c]) {
-                                    let inner = nodes.get(m as usize).ok_or(format!("{what}: node {m} out of range"))?;
-                                    let (a, b) = (inner.child_box(0), inner.child_box(1));
-                                    if (0..3).any(|k| a.0[k].min(b.0[k]) < lo[k] || a.1[k].max(b.1[k]) > hi[k]) {
-                                        return Err(format!("{what}: node {m} pokes out of its box in node {n}"));
-                                    }
-                                }
-                                todo.push(node.links[c]);
-                            }
-                        }
-                        Link::Leaf { first, count } => {
-                            for r in first..first + count {
-                                let seen =
-                                    record_seen.get_mut(r as usize).ok_or(format!("{what}: record {r} out of range"))?;
+        let check_tree =
+            |nodes: &[GpuBvhNode], roots: &[i32], records: usize, what: &str| -> Result<(), String> {
+                let mut node_seen = vec![false; nodes.len()];
+                let mut record_seen = vec![false; records];
+                for &root in roots {
+                    let mut todo = vec![root];
+                    while let Some(link) = todo.pop() {
+                        match Link::decode(link) {
+                            Link::Marker(m) if m == LINK_DONE && records == 0 => {}
+                            Link::Marker(m) => return Err(format!("{what}: marker {m:#x} as a link")),
+                            Link::Node(n) => {
+                                let seen = node_seen
+                                    .get_mut(n as usize)
+                                    .ok_or(format!("{what}: node {n} out of range"))?;
                                 if std::mem::replace(seen, true) {
-                                    return Err(format!("{what}: record {r} in two leaves"));
+                                    return Err(format!("{what}: node {n} reached twice"));
+                                }
+                                let node = &nodes[n as usize];
+                                for c in 0..2 {
+                                    let (lo, hi) = node.child_box(c);
+                                    if (0..3).any(|k| lo[k] > hi[k] || lo[k].is_nan() || hi[k].is_nan()) {
+                                        return Err(format!(
+                                            "{what}: node {n} child {c} has an inverted box"
+                                        ));
+                                    }
+                                    if let Link::Node(m) = Link::decode(node.links[c]) {
+                                        let inner = nodes
+                                            .get(m as usize)
+                                            .ok_or(format!("{what}: node {m} out of range"))?;
+                                        let (a, b) = (inner.child_box(0), inner.child_box(1));
+                                        if (0..3)
+                                            .any(|k| a.0[k].min(b.0[k]) < lo[k] || a.1[k].max(b.1[k]) > hi[k])
+                                        {
+                                            return Err(format!(
+                                                "{what}: node {m} pokes out of its box in node {n}"
+                                            ));
+                                        }
+                                    }
+                                    todo.push(node.links[c]);
+                                }
+                            }
+                            Link::Leaf { first, count } => {
+                                for r in first..first + count {
+                                    let seen = record_seen
+                                        .get_mut(r as usize)
+                                        .ok_or(format!("{what}: record {r} out of range"))?;
+                                    if std::mem::replace(seen, true) {
+                                        return Err(format!("{what}: record {r} in two leaves"));
+                                    }
                                 }
                             }
                         }
                     }
                 }
-            }
-            if let Some(n) = node_seen.iter().position(|&s| !s) {
-                return Err(format!("{what}: node {n} unreachable"));
-            }
-            if let Some(r) = record_seen.iter().position(|&s| !s) {
-                return Err(format!("{what}: record {r} in no leaf"));
-            }
-            Ok(())
-        };
+                if let Some(n) = node_seen.iter().position(|&s| !s) {
+                    return Err(format!("{what}: node {n} unreachable"));
+                }
+                if let Some(r) = record_seen.iter().position(|&s| !s) {
+                    return Err(format!("{what}: record {r} in no leaf"));
+                }
+                Ok(())
+            };
         check_tree(&self.blas_nodes, &self.blas_roots, self.tris.len(), "BLAS")?;
         check_tree(&self.tlas_nodes, &[self.tlas_root], self.instances.len(), "TLAS")?;
         let mut ids = self.tri_ids.clone();

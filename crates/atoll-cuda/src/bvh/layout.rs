@@ -160,7 +160,10 @@ pub fn leaf_link(first: u32, count: u32) -> i32 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Link {
     Node(u32),
-    Leaf { first: u32, count: u32 },
+    Leaf {
+        first: u32,
+        count: u32,
+    },
     /// `LINK_DONE` (an empty tree) or another marker.
     Marker(i32),
 }
@@ -192,7 +195,11 @@ pub fn header_block() -> String {
     s += &const_int("int", "TRAVERSAL_STACK", TRAVERSAL_STACK);
     s += &struct_asserts("BvhNode", std::mem::size_of::<GpuBvhNode>(), &GpuBvhNode::field_layout());
     s += &struct_asserts("TriRecord", std::mem::size_of::<GpuTriRecord>(), &GpuTriRecord::field_layout());
-    s + &struct_asserts("TlasInstance", std::mem::size_of::<GpuTlasInstance>(), &GpuTlasInstance::field_layout())
+    s + &struct_asserts(
+        "TlasInstance",
+        std::mem::size_of::<GpuTlasInstance>(),
+        &GpuTlasInstance::field_layout(),
+    )
 }
 
 /// The generated block of `kernels/lbvh.cuh`: the build tree's constants.

@@ -3,8 +3,8 @@
 //! the launch sequence that turns primitive boxes into the traversal layout.
 //! [`super::reference`] computes the same thing on the host.
 
-use cudarc::driver::{CudaEvent, CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
 use cudarc::driver::sys::CUevent_flags;
+use cudarc::driver::{CudaEvent, CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
 
 use super::layout::GpuBvhNode;
 use super::sort::{morton_passes, SortKernels, SortScratch};
@@ -71,7 +71,8 @@ impl Phases {
 
     fn event(gpu: &Gpu) -> Result<CudaEvent, CudaError> {
         let context = || format!("{}: timing event", gpu.label());
-        let event = gpu.ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT)).map_err(CudaError::driver(context()))?;
+        let event =
+            gpu.ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT)).map_err(CudaError::driver(context()))?;
         event.record(&gpu.stream).map_err(CudaError::driver(context()))?;
         Ok(event)
     }
@@ -99,13 +100,14 @@ impl Phases {
     }
 }
 
-fn alloc<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits>(
-    gpu: &Gpu,
-    len: u64,
-    what: &str,
-) -> Result<CudaSlice<T>, CudaError> {
-    gpu.stream
-        .alloc_zeros::<T>(len.max(1) as usize)
+/// An uninitialised device array of `len` elements (at least one). Only
+/// for arrays that a kernel or copy fills before anything reads them (each
+/// use says which); zeroing them would cost a memset per build.
+fn alloc<T: cudarc::driver::DeviceRepr>(gpu: &Gpu, len: u64, what: &str) -> Result<CudaSlice<T>, CudaError> {
+    // SAFETY: device memory is not Rust memory: uninitialised contents are
+    // only garbage values, and `BuildArrays::new` documents per array which
+    // step writes it before it is read.
+    unsafe { gpu.stream.alloc::<T>(len.max(1) as usize) }
         .map_err(CudaError::driver(format!("{}: allocating {what} ({len} elements)", gpu.label())))
 }
 
@@ -157,6 +159,12 @@ impl BuildArrays {
             .stream
             .clone_htod(seg_start)
             .map_err(CudaError::driver(format!("{}: uploading segment starts", gpu.label())))?;
+        // Who writes each array before it is read: prim_box the box kernel;
+        // seg_bounds init_seg_bounds; keys/values morton (the alternates the
+        // sort's scatter); child and parent karras (every slot: spare slots
+        // and roots get BUILD_NONE); node_lo/hi bounds (spare slots are never
+        // read: their child is BUILD_NONE); kept a memset; leaf_size mark;
+        // node_id and tri_offset copies; root_link/box emit_roots; counts copies.
         Ok(BuildArrays {
             p,
             segments,
@@ -197,7 +205,8 @@ impl BuildArrays {
         launch.arg(&mut self.seg_bounds).arg(&self.segments);
         // SAFETY: matches `lbvh_init_seg_bounds(unsigned* seg_bounds, unsigned segments)`;
         // seg_bounds holds 8 words per segment.
-        unsafe { launch.launch(launch_1d(self.segments, THREADS)) }.map_err(launch_err(gpu, "lbvh_init_seg_bounds"))?;
+        unsafe { launch.launch(launch_1d(self.segments, THREADS)) }
+            .map_err(launch_err(gpu, "lbvh_init_seg_bounds"))?;
         Ok(())
     }
 
@@ -306,7 +315,8 @@ impl BuildArrays {
             // node_lo, float4* node_hi, unsigned* counter, unsigned gamma, unsigned max_leaf,
             // float ci, float ct)`; counters zeroed above; treelets only rewire nodes below
             // their root, within the arrays.
-            unsafe { launch.launch(launch_1d(p, TREELET_THREADS)) }.map_err(launch_err(gpu, "lbvh_treelet"))?;
+            unsafe { launch.launch(launch_1d(p, TREELET_THREADS)) }
+                .map_err(launch_err(gpu, "lbvh_treelet"))?;
         }
         phases.mark(gpu, "quality")?;
         Ok(())
@@ -349,7 +359,12 @@ impl BuildArrays {
 
     /// Step 8a–b: the traversal nodes (`nodes` holds the kept count) and the
     /// segments' root links and boxes.
-    pub fn emit_nodes(&mut self, gpu: &Gpu, k: &LbvhKernels, nodes: &mut CudaSlice<GpuBvhNode>) -> Result<(), CudaError> {
+    pub fn emit_nodes(
+        &mut self,
+        gpu: &Gpu,
+        k: &LbvhKernels,
+        nodes: &mut CudaSlice<GpuBvhNode>,
+    ) -> Result<(), CudaError> {
         let p = self.p;
         let mut launch = gpu.stream.launch_builder(&k.emit_nodes);
         launch
@@ -382,7 +397,8 @@ impl BuildArrays {
         // unsigned P, const float4* node_lo, const float4* node_hi, const unsigned* kept, const
         // unsigned* node_id, const unsigned* tri_offset, int* root_link, float4* root_box)`;
         // root_link holds one entry and root_box two float4 per segment.
-        unsafe { launch.launch(launch_1d(self.segments, THREADS)) }.map_err(launch_err(gpu, "lbvh_emit_roots"))?;
+        unsafe { launch.launch(launch_1d(self.segments, THREADS)) }
+            .map_err(launch_err(gpu, "lbvh_emit_roots"))?;
         Ok(())
     }
 }

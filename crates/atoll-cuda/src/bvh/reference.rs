@@ -12,8 +12,8 @@
 
 use super::host::{HostSceneBvh, ScenePlan};
 use super::layout::{
-    leaf_link, GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest, BUILD_COUNT_MASK, BUILD_LEAF_BIT, BUILD_NONE,
-    LINK_DONE,
+    leaf_link, GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest, BUILD_COUNT_MASK, BUILD_LEAF_BIT,
+    BUILD_NONE, LINK_DONE,
 };
 use super::BuildOptions;
 use crate::scene::SceneTables;
@@ -43,7 +43,8 @@ pub fn box_area(lo: [f32; 3], hi: [f32; 3]) -> f32 {
 }
 
 fn union(a: Bounds, b: Bounds) -> Bounds {
-    let f = |x: [f32; 3], y: [f32; 3], op: fn(f32, f32) -> f32| [op(x[0], y[0]), op(x[1], y[1]), op(x[2], y[2])];
+    let f =
+        |x: [f32; 3], y: [f32; 3], op: fn(f32, f32) -> f32| [op(x[0], y[0]), op(x[1], y[1]), op(x[2], y[2])];
     (f(a.0, b.0, f32::min), f(a.1, b.1, f32::max))
 }
 
@@ -69,7 +70,8 @@ pub fn expand_bits(mut v: u32) -> u32 {
 
 /// 30-bit Morton code of a point normalised to [0, 1]^3 (clamped), as `morton3` in lbvh.cuh.
 pub fn morton3(x: f32, y: f32, z: f32) -> u32 {
-    let q = |v: f32| (v * 1024.0).max(0.0).min(1023.0) as u32;
+    // NaN clamps to NaN and converts to 0, as fminf/fmaxf make it 0 on the GPU.
+    let q = |v: f32| (v * 1024.0).clamp(0.0, 1023.0) as u32;
     expand_bits(q(x)) * 4 + expand_bits(q(y)) * 2 + expand_bits(q(z))
 }
 
@@ -369,7 +371,12 @@ pub fn collapse(tree: &BuildTree, max_leaf: u32) -> Collapsed {
 }
 
 /// A whole build over primitive boxes with `options`' treelet rounds.
-pub fn build(boxes: &[Bounds], seg_start: &[u32], max_leaf: u32, options: &BuildOptions) -> (BuildTree, Collapsed) {
+pub fn build(
+    boxes: &[Bounds],
+    seg_start: &[u32],
+    max_leaf: u32,
+    options: &BuildOptions,
+) -> (BuildTree, Collapsed) {
     let (ci, ct) = (options.intersection_cost, options.traversal_cost);
     if boxes.is_empty() {
         let roots = vec![LINK_DONE; seg_start.len().saturating_sub(1)];
@@ -443,11 +450,15 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
         let s = segment_of(p, &plan.seg_start);
         plan.seg_first_tri[s] + (p - plan.seg_start[s])
     };
-    let corners = |tri: u32| -> [[f32; 3]; 3] { std::array::from_fn(|k| vertex(t.triangles[3 * tri as usize + k])) };
+    let corners =
+        |tri: u32| -> [[f32; 3]; 3] { std::array::from_fn(|k| vertex(t.triangles[3 * tri as usize + k])) };
     let boxes: Vec<Bounds> = (0..plan.primitives())
         .map(|p| {
             let [a, b, c] = corners(triangle(p));
-            (std::array::from_fn(|k| a[k].min(b[k]).min(c[k])), std::array::from_fn(|k| a[k].max(b[k]).max(c[k])))
+            (
+                std::array::from_fn(|k| a[k].min(b[k]).min(c[k])),
+                std::array::from_fn(|k| a[k].max(b[k]).max(c[k])),
+            )
         })
         .collect();
     let (tree, blas) = build(&boxes, &plan.seg_start, options.max_leaf, options);
@@ -459,7 +470,10 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
         .iter()
         .map(|&i| {
             let inst = &t.instances[i as usize];
-            instance_bounds(&inst.object_to_world, blas.root_bounds[plan.object_segment[inst.object as usize] as usize])
+            instance_bounds(
+                &inst.object_to_world,
+                blas.root_bounds[plan.object_segment[inst.object as usize] as usize],
+            )
         })
         .collect();
     let v = instance_boxes.len() as u32;

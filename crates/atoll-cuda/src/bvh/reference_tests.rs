@@ -24,7 +24,7 @@ fn morton_codes_interleave_bits() {
     assert_eq!(morton3(-5.0, 7.0, f32::NAN), morton3(0.0, 1.0, 0.0));
     let mut rng = Rng(3);
     for _ in 0..1000 {
-        let (x, y, z) = (rng.next(), rng.next(), rng.next());
+        let (x, y, z) = (rng.uniform(), rng.uniform(), rng.uniform());
         let code = morton3(x, y, z);
         let decode = |shift: u32| (0..10).map(|b| ((code >> (3 * b + shift)) & 1) << b).sum::<u32>();
         let q = |v: f32| (v * 1024.0) as u32;
@@ -161,11 +161,18 @@ fn bounds_costs_and_collapse_are_consistent() {
             tlas_root: LINK_DONE,
             ..Default::default()
         };
-        let plan = ScenePlan { seg_start: seg_start.to_vec(), seg_first_tri: vec![0], seg_object: vec![0], ..Default::default() };
+        let plan = ScenePlan {
+            seg_start: seg_start.to_vec(),
+            seg_first_tri: vec![0],
+            seg_object: vec![0],
+            ..Default::default()
+        };
         host.check(&plan).unwrap_or_else(|e| panic!("n = {n}: {e}"));
         for node in &collapsed.nodes {
             for c in 0..2 {
-                if let super::super::layout::Link::Leaf { count, .. } = super::super::layout::Link::decode(node.links[c]) {
+                if let super::super::layout::Link::Leaf { count, .. } =
+                    super::super::layout::Link::decode(node.links[c])
+                {
                     assert!(count <= max_leaf);
                 }
             }
@@ -201,7 +208,10 @@ fn scene_bvh_finds_the_brute_force_hits() {
             bvh.check(&plan).unwrap();
             assert_eq!(bvh.instances.len(), plan.valid_instances.len());
             // Instances of the object without meshes (object 1) and the singular one are left out.
-            let expected = scene.instances.iter().filter(|i| i.object != 1 && i.object_to_world.matrix3.determinant() != 0.0);
+            let expected = scene
+                .instances
+                .iter()
+                .filter(|i| i.object != 1 && i.object_to_world.matrix3.determinant() != 0.0);
             assert_eq!(plan.valid_instances.len(), expected.count());
             assert!(plan.valid_instances.len() < scene.instances.len());
             let rays = random_rays(seed, 3000);
@@ -230,15 +240,22 @@ fn scene_bvh_finds_the_brute_force_hits() {
 #[test]
 fn sah_is_close_to_the_binned_sah_builder() {
     let scene = atoll_scene::procedural::bench_scene(60_000);
-    let cpu = atoll_bvh::SceneBvh::<atoll_bvh::Bvh2>::build_layout(&scene, &atoll_bvh::ScenePart::whole(&scene)).stats();
+    let cpu =
+        atoll_bvh::SceneBvh::<atoll_bvh::Bvh2>::build_layout(&scene, &atoll_bvh::ScenePart::whole(&scene))
+            .stats();
     let tables = SceneTables::build(&scene);
     // Measured: LBVH +25%, with treelets +19% (terrain +19%, the small
     // coarse 80-triangle blobs +50%); at 1M triangles +23% and +15%.
-    for (name, options, bound) in [("lbvh", BuildOptions::lbvh(), 1.3), ("treelet", BuildOptions::default(), 1.22)] {
+    for (name, options, bound) in
+        [("lbvh", BuildOptions::lbvh(), 1.3), ("treelet", BuildOptions::default(), 1.22)]
+    {
         let bvh = build_scene(&tables, &options);
         let (blas, tlas) = bvh.sah(1.0, 1.0);
         for (s, &root) in bvh.blas_roots.iter().enumerate() {
-            println!("  BLAS {s}: SAH {:.2}", HostSceneBvh::tree_sah(&bvh.blas_nodes, root, bvh.blas_bounds[s], 1.0, 1.0));
+            println!(
+                "  BLAS {s}: SAH {:.2}",
+                HostSceneBvh::tree_sah(&bvh.blas_nodes, root, bvh.blas_bounds[s], 1.0, 1.0)
+            );
         }
         println!(
             "{name}: BLAS SAH {blas:.2} vs binned {:.2} ({:+.1}%), TLAS {tlas:.2} vs {:.2}",
@@ -259,12 +276,21 @@ fn treelet_dp_finds_the_optimal_topology() {
         let seg_start = [0, 7];
         let mut tree = build_tree(&boxes, &seg_start, 1, 1.0, 1.0);
         fn best(s: usize, leaf_box: &[Bounds], cost: &[f32]) -> f32 {
-            if s.count_ones() == 1 { return cost[s.trailing_zeros() as usize]; }
+            if s.count_ones() == 1 {
+                return cost[s.trailing_zeros() as usize];
+            }
             let mut b = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-            for k in 0..7 { if s >> k & 1 != 0 { b = union(b, leaf_box[k]); } }
+            for (k, leaf) in leaf_box.iter().enumerate() {
+                if s >> k & 1 != 0 {
+                    b = union(b, *leaf);
+                }
+            }
             let mut m = f32::INFINITY;
             let mut q = (s - 1) & s;
-            while q > 0 { m = m.min(best(q, leaf_box, cost) + best(s ^ q, leaf_box, cost)); q = (q - 1) & s; }
+            while q > 0 {
+                m = m.min(best(q, leaf_box, cost) + best(s ^ q, leaf_box, cost));
+                q = (q - 1) & s;
+            }
             box_area(b.0, b.1) + m
         }
         let p = 7;
@@ -274,5 +300,26 @@ fn treelet_dp_finds_the_optimal_topology() {
         let opt = best(127, &leaf_box, &cost);
         crate::bvh::treelet_reference::round(&mut tree, 7, 1, 1.0, 1.0);
         assert!((tree.cost[0] - opt).abs() <= 1e-4 * opt, "trial {trial}: dp {} opt {opt}", tree.cost[0]);
+    }
+}
+
+#[test]
+fn empty_and_one_triangle_scenes_build() {
+    let objects = random_scene(5, 2, 1, 0);
+    let one = atoll_scene::Instance { object: 0, object_to_world: glam::Affine3A::IDENTITY };
+    for (scene, instances) in [
+        (atoll_scene::Scene::default(), 0),
+        (atoll_scene::Scene { instances: Vec::new(), ..objects.clone() }, 0),
+        (atoll_scene::Scene { instances: vec![one], ..objects.clone() }, 1),
+    ] {
+        let tables = SceneTables::build(&scene);
+        let bvh = build_scene(&tables, &BuildOptions::default());
+        bvh.check(&ScenePlan::new(&tables.objects, &tables.instances)).unwrap();
+        assert_eq!(bvh.instances.len(), instances);
+        assert_eq!(bvh.tlas_root, if instances == 0 { LINK_DONE } else { leaf_link(0, 1) });
+        let plan = ScenePlan::new(&tables.objects, &tables.instances);
+        for ray in random_rays(8, 300) {
+            assert_eq!(bvh.intersect(&ray).map(|h| h.t), brute_force(&tables, &plan, &ray).map(|h| h.t));
+        }
     }
 }

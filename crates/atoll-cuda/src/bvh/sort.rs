@@ -168,7 +168,8 @@ impl SortKernels {
         segments: u32,
         scratch: &mut SortScratch,
     ) -> Result<(), CudaError> {
-        let buffers_ok = [keys.len(), values.len(), keys_alt.len(), values_alt.len()].iter().all(|&l| l >= n as usize);
+        let buffers_ok =
+            [keys.len(), values.len(), keys_alt.len(), values_alt.len()].iter().all(|&l| l >= n as usize);
         if n == 0 {
             return Ok(());
         }
@@ -196,7 +197,14 @@ impl SortKernels {
             // unsigned segments, unsigned* hist, unsigned tiles)`; keys/values hold n pairs,
             // hist 256 * tiles entries (checked above), seg_start segments + 1.
             unsafe { launch.launch(grid(tiles, 0)) }.map_err(err("radix_histogram"))?;
-            self.scan_buffers(gpu, &mut scratch.hist, hist_len, &mut scratch.tile_sums, &mut scratch.total, scratch.capacity)?;
+            self.scan_buffers(
+                gpu,
+                &mut scratch.hist,
+                hist_len,
+                &mut scratch.tile_sums,
+                &mut scratch.total,
+                scratch.capacity,
+            )?;
             let mut launch = gpu.stream.launch_builder(&self.scatter);
             launch
                 .arg(&*keys)

@@ -12,17 +12,17 @@ use crate::scene::SceneTables;
 pub struct Rng(pub u64);
 
 impl Rng {
-    pub fn next(&mut self) -> f32 {
+    pub fn uniform(&mut self) -> f32 {
         self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((self.0 >> 40) as f32) / (1u64 << 24) as f32
     }
 
     pub fn vec3(&mut self) -> Vec3 {
-        Vec3::new(self.next(), self.next(), self.next())
+        Vec3::new(self.uniform(), self.uniform(), self.uniform())
     }
 
     pub fn below(&mut self, n: u32) -> u32 {
-        ((self.next() * n as f32) as u32).min(n.saturating_sub(1))
+        ((self.uniform() * n as f32) as u32).min(n.saturating_sub(1))
     }
 }
 
@@ -67,15 +67,19 @@ pub fn random_scene(seed: u64, objects: usize, max_triangles: usize, instances: 
         ids.push(scene.add_object(Object { name: format!("object {o}"), meshes }));
     }
     scene.instances.push(Instance { object: ids[objects - 1], object_to_world: Affine3A::IDENTITY });
-    scene.instances.push(Instance { object: ids[0], object_to_world: Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)) });
+    scene
+        .instances
+        .push(Instance { object: ids[0], object_to_world: Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)) });
     for _ in 0..instances {
         let axis = (rng.vec3() - 0.5).normalize_or(Vec3::Y);
         let m = Affine3A::from_scale_rotation_translation(
-            Vec3::splat(0.3 + rng.next() * 2.0) * Vec3::new(1.0, 0.5 + rng.next(), 1.0),
-            Quat::from_axis_angle(axis, rng.next() * 6.0),
+            Vec3::splat(0.3 + rng.uniform() * 2.0) * Vec3::new(1.0, 0.5 + rng.uniform(), 1.0),
+            Quat::from_axis_angle(axis, rng.uniform() * 6.0),
             (rng.vec3() - 0.5) * 10.0,
         );
-        scene.instances.push(Instance { object: ids[rng.below(objects as u32) as usize], object_to_world: m });
+        scene
+            .instances
+            .push(Instance { object: ids[rng.below(objects as u32) as usize], object_to_world: m });
     }
     scene
 }
@@ -88,7 +92,7 @@ pub fn random_rays(seed: u64, n: usize) -> Vec<Ray> {
     (0..n)
         .map(|i| {
             let origin = (rng.vec3() - 0.5) * 24.0;
-            let mut direction = (rng.vec3() - 0.5) * (0.5 + 3.0 * rng.next());
+            let mut direction = (rng.vec3() - 0.5) * (0.5 + 3.0 * rng.uniform());
             if i % 17 == 0 {
                 direction = Vec3::new(0.0, 0.0, if i % 2 == 0 { 1.0 } else { -1.0 });
             }
@@ -96,7 +100,7 @@ pub fn random_rays(seed: u64, n: usize) -> Vec<Ray> {
                 // Aimed at the middle, where most geometry is.
                 direction = (rng.vec3() - 0.5) * 2.0 - origin;
             }
-            let t_max = if i % 3 == 0 { 0.5 + 10.0 * rng.next() } else { f32::INFINITY };
+            let t_max = if i % 3 == 0 { 0.5 + 10.0 * rng.uniform() } else { f32::INFINITY };
             Ray { origin, direction, t_max }
         })
         .collect()

@@ -6,8 +6,8 @@
 //! depends only on its subtree after all treelets below it are done, so a
 //! sequential post-order pass over the same roots gives the same tree.
 
-use super::reference::{box_area, sah_node_cost, BuildTree, Bounds};
 use super::layout::{BUILD_COUNT_MASK, BUILD_LEAF_BIT};
+use super::reference::{box_area, sah_node_cost, Bounds, BuildTree};
 
 /// Leaves of a treelet.
 pub const TREELET_LEAVES: usize = 7;
@@ -152,6 +152,7 @@ fn restructure(tree: &mut BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32)
         tree.child[n as usize] = ids;
         tree.bounds[n as usize] = subset_bounds(&boxes, s);
         tree.cost[n as usize] = sh.cost[s];
-        tree.packed[n as usize] = (sh.count[s] & BUILD_COUNT_MASK) | if sh.as_leaf[s] { BUILD_LEAF_BIT } else { 0 };
+        tree.packed[n as usize] =
+            (sh.count[s] & BUILD_COUNT_MASK) | if sh.as_leaf[s] { BUILD_LEAF_BIT } else { 0 };
     }
 }
