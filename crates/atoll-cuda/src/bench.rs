@@ -38,8 +38,9 @@ pub struct GpuBenchOptions {
     pub runs: usize,
     pub variants: Vec<TraversalVariant>,
     pub tests: Vec<TriangleTest>,
-    /// Also time builds of `atoll_scene::procedural::bench_scene(n)` for
-    /// each `n` here (the 10M-triangle build target); empty: none.
+    /// Also time builds of `atoll_scene::procedural::bench_scene_flat(n)`
+    /// (every triangle unique, none instanced) for each `n` here (the
+    /// 10M-triangle build target); empty: none.
     pub build_scenes: Vec<usize>,
     /// Shadow-ray length as a fraction of the scene diagonal (as the CPU bench).
     pub shadow_fraction: f32,
@@ -247,14 +248,14 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
         builds.push(time_build(gpu, &gpu_scene, "bench", builder, &options, opts.runs, Some(cpu_sah))?);
     }
     for &n in &opts.build_scenes {
-        let big = atoll_scene::procedural::bench_scene(n);
+        let big = atoll_scene::procedural::bench_scene_flat(n);
         let big_scene = GpuScene::upload_tables(gpu, SceneTables::build(&big))?;
         for (builder, options) in [("lbvh", BuildOptions::lbvh()), ("lbvh+treelet", BuildOptions::default())]
         {
             builds.push(time_build(
                 gpu,
                 &big_scene,
-                &format!("bench {n}"),
+                &format!("flat {n}"),
                 builder,
                 &options,
                 opts.runs,

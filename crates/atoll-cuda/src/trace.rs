@@ -29,11 +29,12 @@ pub enum TraversalVariant {
     /// While-while loops, one thread per ray.
     WhileWhile,
     /// While-while with persistent threads: just enough warps to fill the
-    /// GPU, each taking 32 rays at a time from a global counter.
+    /// GPU, each taking 32 rays at a time from a global counter. The default:
+    /// fastest for every ray type on an H200 (BENCHMARKS.md, 2026-11-22).
+    #[default]
     Persistent,
     /// Speculative while-while (leaves postponed until the whole warp has
     /// one), one thread per ray.
-    #[default]
     Speculative,
     /// Speculative traversal with persistent threads.
     PersistentSpeculative,

@@ -22,6 +22,10 @@ pub struct BenchArgs {
     /// Skip the traversal benchmark.
     #[arg(long)]
     pub no_traversal: bool,
+    /// Trace the flattened scene (every triangle unique) instead of the
+    /// instanced one (on the CPU the flattened one is always used).
+    #[arg(long)]
+    pub flat: bool,
     /// Path-tracing runs after an untimed 1-spp warm-up; the median is reported.
     #[arg(long, default_value_t = 1)]
     pub runs: usize,
@@ -72,8 +76,15 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
 /// GPU BVH build (on the traversal scene and a 10M-triangle one) and GPU
 /// traversal throughput per variant, on the instanced bench scene.
 fn gpu_traversal(args: &BenchArgs, gpu: &std::sync::Arc<atoll_cuda::Gpu>) -> Result<(), CliError> {
-    let scene = atoll_scene::procedural::bench_scene(args.triangles);
-    let options = atoll_cuda::bench::GpuBenchOptions { build_scenes: vec![10_000_000], ..Default::default() };
+    let scene = if args.flat {
+        atoll_scene::procedural::bench_scene_flat(args.triangles)
+    } else {
+        atoll_scene::procedural::bench_scene(args.triangles)
+    };
+    let options = atoll_cuda::bench::GpuBenchOptions {
+        build_scenes: vec![10_000_000, 20_000_000],
+        ..Default::default()
+    };
     let report =
         atoll_cuda::bench::run(gpu, &scene, &options).map_err(|e| CliError::Runtime(e.to_string()))?;
     println!("{report}");
