@@ -82,29 +82,42 @@ __device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecor
     }
 }
 
+/// The number of records to trace: `count`, or fewer when the queue's
+/// length lives on the device (`device_count`, so the host need not read
+/// it back between stages). Block 0 adds it to `traced` (ray statistics).
+__device__ __forceinline__ unsigned int trace_count(unsigned int count, const unsigned int* device_count,
+                                                    unsigned long long* traced) {
+    unsigned int n = count;
+    if (device_count) n = min(n, *device_count);
+    if (traced && blockIdx.x == 0 && threadIdx.x == 0) atomicAdd(traced, (unsigned long long)n);
+    return n;
+}
+
 #define TRACE_ARGS                                                                                           \
     const BvhNode *tlas_nodes, const BvhNode *blas_nodes, const TriRecord *tris, const unsigned int *tri_ids, \
         const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
-        unsigned int *work
-#define TRACE_VIEW SceneBvhView v = {tlas_nodes, blas_nodes, tris, tri_ids, instances, tlas_root}
+        unsigned int *work, const unsigned int *device_count, unsigned long long *traced
+#define TRACE_VIEW                                                                   \
+    SceneBvhView v = {tlas_nodes, blas_nodes, tris, tri_ids, instances, tlas_root}; \
+    const unsigned int n = trace_count(count, device_count, traced)
 
 // One extern "C" kernel per (query, loop, triangle test).
 #define TRACE_KERNELS(query, any, test, tri)                                                                      \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ww_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, false>(v, records, hits, count);                                                     \
+        trace_grid<tri, any, false>(v, records, hits, n);                                                            \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_sp_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, true>(v, records, hits, count);                                                      \
+        trace_grid<tri, any, true>(v, records, hits, n);                                                             \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_pt_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, false>(v, records, hits, count, work);                                         \
+        trace_persistent<tri, any, false>(v, records, hits, n, work);                                                \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptsp_##test(TRACE_ARGS) {        \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, true>(v, records, hits, count, work);                                          \
+        trace_persistent<tri, any, true>(v, records, hits, n, work);                                                 \
     }
 
 TRACE_KERNELS(closest, false, exact, TRI_EXACT)

@@ -30,6 +30,7 @@ use crate::gpu::{launch_1d, Gpu, Timer};
 use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::GpuScene;
+use crate::trace::DeviceQueueLength;
 use crate::{bvh, trace};
 
 /// Threads per block of the wavefront kernels.
@@ -92,6 +93,12 @@ struct Resident {
     queues: Queues,
     /// RGB f32 radiance sums per pixel.
     film: CudaSlice<f32>,
+    /// Rays traced (path segments, shadow rays), counted by the trace
+    /// kernels themselves: the host does not know queue lengths mid-wave.
+    traced_paths: CudaSlice<u64>,
+    traced_shadows: CudaSlice<u64>,
+    /// Bounces shaded since the last `generate` (see `has_paths`).
+    bounces: u32,
 }
 
 /// Device time of the stages: timers are collected as stages are queued
@@ -216,6 +223,12 @@ impl CudaDevice {
             .stream
             .alloc_zeros::<f32>(options.pixel_count().max(1) as usize * 3)
             .map_err(CudaError::driver(format!("{}: allocating the film", gpu.label())))?;
+        let counter = |what: &str| {
+            gpu.stream
+                .alloc_zeros::<u64>(1)
+                .map_err(CudaError::driver(format!("{}: allocating the {what} counter", gpu.label())))
+        };
+        let (traced_paths, traced_shadows) = (counter("traced paths")?, counter("traced shadows")?);
         gpu.synchronize()?;
         let stats = PrepareStats {
             scene_bytes: gpu_scene.bytes() + bvh.bytes(),
@@ -232,6 +245,9 @@ impl CudaDevice {
             kernels,
             queues,
             film,
+            traced_paths,
+            traced_shadows,
+            bounces: 0,
         });
         Ok(stats)
     }
@@ -257,35 +273,33 @@ impl CudaDevice {
             unsafe { launch.launch(launch_1d(count, BLOCK)) }
                 .map_err(CudaError::driver("launching generate"))?;
             r.queues.set_known_len(Queue::Paths, Some(count));
+            r.bounces = 0;
             Ok(())
         })
     }
 
     fn try_trace_paths(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        let count = {
-            let r = self.resident()?;
-            r.queues.len(&gpu, Queue::Paths)?
-        };
-        if count == 0 {
+        if self.resident()?.queues.known_len(Queue::Paths) == Some(0) {
             return Ok(());
         }
         self.timed(|d| {
             let r = d.resident()?;
             let q = &mut r.queues;
-            trace::trace_closest(&gpu, &r.scene, &r.bvh, &mut q.paths, count, &mut q.hits)?;
+            // The kernels read the path count on the device: no read-back.
+            let max = q.launch_len(Queue::Paths);
+            let length = DeviceQueueLength { length: &q.path_count, traced: &mut r.traced_paths };
+            trace::trace_closest_queued(&gpu, &r.scene, &r.bvh, &mut q.paths, max, &mut q.hits, length)?;
             let mut launch = gpu.stream.launch_builder(&r.kernels.surface);
             launch.arg(&r.params.device).arg(&r.scene_view).arg(&mut q.paths).arg(&q.hits).arg(&q.path_count);
             // SAFETY: matches `surface(const FrameParams*, const SceneView*, RayRecord* paths,
             // const HitRef* hits, const unsigned* path_count)`; `paths` and `hits` hold
-            // `capacity >= count` entries and the kernel stops at `*path_count`; the scene
+            // `capacity >= max` entries and the kernel stops at `*path_count`; the scene
             // tables the view points into are owned by `r.scene` for the device's lifetime.
-            unsafe { launch.launch(launch_1d(count, BLOCK)) }
+            unsafe { launch.launch(launch_1d(max, BLOCK)) }
                 .map_err(CudaError::driver("launching surface"))?;
             Ok(())
-        })?;
-        self.stats.rays_traced += count as u64;
-        Ok(())
+        })
     }
 
     fn try_shade(&mut self) -> Result<(), CudaError> {
@@ -317,22 +331,23 @@ impl CudaDevice {
                 .map_err(CudaError::driver("launching shade"))?;
             q.swap_paths();
             q.set_known_len(Queue::Shadows, None);
+            r.bounces += 1;
             Ok(())
         })
     }
 
     fn try_trace_shadows(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        let count = self.resident()?.queues.len(&gpu, Queue::Shadows)?;
-        if count == 0 {
+        if self.resident()?.queues.known_len(Queue::Shadows) == Some(0) {
             return Ok(());
         }
         self.timed(|d| {
             let r = d.resident()?;
-            trace::trace_any(&gpu, &r.scene, &r.bvh, &mut r.queues.shadows, count)
-        })?;
-        self.stats.shadow_rays_traced += count as u64;
-        Ok(())
+            let q = &mut r.queues;
+            let max = q.launch_len(Queue::Shadows);
+            let length = DeviceQueueLength { length: &q.shadow_count, traced: &mut r.traced_shadows };
+            trace::trace_any_queued(&gpu, &r.scene, &r.bvh, &mut q.shadows, max, length)
+        })
     }
 
     fn try_resolve_shadows(&mut self) -> Result<(), CudaError> {
@@ -370,6 +385,15 @@ impl CudaDevice {
             *pixel = Vec3::new(rgb[0], rgb[1], rgb[2]);
         }
         Ok(film)
+    }
+
+    /// Rays traced so far (paths, shadows), from the kernels' counters.
+    fn try_traced(&self) -> Result<(u64, u64), CudaError> {
+        let Some(r) = &self.resident else { return Ok((0, 0)) };
+        let read = |c: &CudaSlice<u64>| {
+            self.gpu.stream.clone_dtoh(c).map_err(CudaError::driver("reading the ray counters"))
+        };
+        Ok((read(&r.traced_paths)?[0], read(&r.traced_shadows)?[0]))
     }
 
     fn try_busy_seconds(&self) -> Result<f64, CudaError> {
@@ -415,6 +439,19 @@ impl Device for CudaDevice {
         self.stage("resolve_shadows", |d| d.try_resolve_shadows());
     }
 
+    /// Paths cannot outlive `max_depth + 1` bounces except through
+    /// pass-through surfaces, and stages on an empty queue cost a few
+    /// microseconds, so the path count is read back (a full device round
+    /// trip) only once that many bounces have been shaded.
+    fn has_paths(&self) -> bool {
+        let Some(r) = &self.resident else { return false };
+        match r.queues.known_len(Queue::Paths) {
+            Some(n) => n > 0,
+            None if !self.errors.is_set() && r.bounces <= r.frame.max_depth() => true,
+            None => self.queue_len(Queue::Paths) > 0,
+        }
+    }
+
     fn queue_len(&self, queue: Queue) -> usize {
         if self.errors.is_set() {
             return 0;
@@ -458,6 +495,10 @@ impl Device for CudaDevice {
 
     fn stats(&self) -> DeviceStats {
         let mut stats = self.stats.clone();
+        match self.try_traced() {
+            Ok((paths, shadows)) => (stats.rays_traced, stats.shadow_rays_traced) = (paths, shadows),
+            Err(e) => self.errors.set(format!("{} stats: {e}", self.gpu.label())),
+        }
         match self.try_busy_seconds() {
             Ok(seconds) => stats.busy_seconds = seconds,
             Err(e) => self.errors.set(format!("{} stats: {e}", self.gpu.label())),

@@ -63,6 +63,14 @@ impl TraversalVariant {
     }
 }
 
+/// A queue whose length is known only on the device: trace kernels read
+/// `length` themselves and add the number of rays traced to `traced`, so
+/// the host never waits for a read-back between stages.
+pub struct DeviceQueueLength<'a> {
+    pub length: &'a CudaSlice<u32>,
+    pub traced: &'a mut CudaSlice<u64>,
+}
+
 /// Loaded trace kernels and the persistent threads' work counter. One per
 /// BVH (kept inside it), made on first use.
 pub struct Tracer {
@@ -111,7 +119,7 @@ impl Tracer {
     }
 
     /// Queues one trace of `rays[..count]` (`hits` for closest hits, `None`
-    /// for any-hit queries).
+    /// for any-hit queries); with `queue`, of `rays[..min(count, *queue.length)]`.
     #[allow(clippy::too_many_arguments)]
     pub fn launch(
         &mut self,
@@ -121,6 +129,7 @@ impl Tracer {
         count: u32,
         hits: Option<&mut CudaSlice<HitRef>>,
         variant: TraversalVariant,
+        queue: Option<DeviceQueueLength<'_>>,
     ) -> Result<(), CudaError> {
         let any = hits.is_none();
         if count as usize > rays.len() || hits.as_ref().is_some_and(|h| (count as usize) > h.len()) {
@@ -166,12 +175,18 @@ impl Tracer {
             None => launch.arg(&null),
         };
         launch.arg(&count).arg(&mut self.work);
+        match queue {
+            Some(q) => launch.arg(q.length).arg(q.traced),
+            None => launch.arg(&null).arg(&null),
+        };
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
         // BvhNode* blas_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
-        // count, unsigned* work)`. The BVH's links stay within its arrays (built by lbvh.cu);
-        // threads touch records and hits below `count`, which both buffers hold (checked);
-        // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches.
+        // count, unsigned* work, const unsigned* device_count, unsigned long long* traced)`.
+        // The BVH's links stay within its arrays (built by lbvh.cu); threads touch records and
+        // hits below `count` (or the smaller device count), which both buffers hold (checked);
+        // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches;
+        // `device_count`/`traced` are null or single device integers.
         unsafe { launch.launch(config) }
             .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())
@@ -223,7 +238,7 @@ pub fn trace_closest_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant))
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant, None))
 }
 
 /// Sets `flags::OCCLUDED` on the records of `rays[..count]` that hit
@@ -248,7 +263,38 @@ pub fn trace_any_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant))
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant, None))
+}
+
+/// Closest hits of the first `*queue.length` records (at most `capacity`)
+/// with the default variant, without reading the length back.
+pub fn trace_closest_queued(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    capacity: u32,
+    hits: &mut CudaSlice<HitRef>,
+    queue: DeviceQueueLength<'_>,
+) -> Result<(), CudaError> {
+    check_scene(scene, bvh)?;
+    let variant = TraversalVariant::default();
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue)))
+}
+
+/// Any-hit tests of the first `*queue.length` records (at most `capacity`)
+/// with the default variant, without reading the length back.
+pub fn trace_any_queued(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    bvh: &GpuSceneBvh,
+    rays: &mut CudaSlice<GpuRecord>,
+    capacity: u32,
+    queue: DeviceQueueLength<'_>,
+) -> Result<(), CudaError> {
+    check_scene(scene, bvh)?;
+    let variant = TraversalVariant::default();
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue)))
 }
 
 #[cfg(test)]

@@ -78,6 +78,13 @@ pub trait Device: Send {
     /// Adds unoccluded shadow contributions to the film; empties the shadow queue.
     fn resolve_shadows(&mut self);
 
+    /// Whether the path queue may still hold paths. A device for which
+    /// reading the length back is expensive may answer `true` for an empty
+    /// queue: every stage on an empty queue does nothing.
+    fn has_paths(&self) -> bool {
+        self.queue_len(Queue::Paths) > 0
+    }
+
     fn queue_len(&self, queue: Queue) -> usize;
     fn read_queue(&self, queue: Queue) -> Vec<RayRecord>;
     fn write_queue(&mut self, queue: Queue, records: &[RayRecord]);

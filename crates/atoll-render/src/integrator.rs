@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use atoll_scene::Scene;
 
-use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
+use crate::device::{Device, DeviceError, DeviceStats, PrepareStats};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
 
@@ -37,12 +37,12 @@ impl RenderOutput {
 /// Runs one wave to completion on `device`.
 pub fn render_wave(device: &mut dyn Device, wave: &Wave) {
     device.generate(wave);
-    while device.queue_len(Queue::Paths) > 0 {
+    // No queue lengths are asked for here beyond `has_paths`: on a GPU each
+    // one is a round trip that leaves the device idle.
+    while device.has_paths() {
         device.trace_paths();
         device.shade();
-        if device.queue_len(Queue::Shadows) > 0 {
-            device.trace_shadows();
-        }
+        device.trace_shadows();
         device.resolve_shadows();
     }
 }
