@@ -209,6 +209,20 @@ pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
     }
 }
 
+/// Copies `data` to a new device buffer; an empty table becomes one zeroed
+/// element (zero-length allocations fail), never read since its count is 0.
+pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
+    gpu: &Gpu,
+    data: &[T],
+    what: &str,
+) -> Result<cudarc::driver::CudaSlice<T>, CudaError> {
+    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
+    if data.is_empty() {
+        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
+    }
+    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -22,7 +22,7 @@ use bytemuck::{Pod, Zeroable};
 use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
 
 use crate::error::CudaError;
-use crate::gpu::Gpu;
+use crate::gpu::{upload, Gpu};
 use crate::layout::{field_layout, FieldLayout};
 use crate::scene::GpuScene;
 
@@ -370,20 +370,6 @@ pub struct FrameParamsHost {
     triangle_keys: CudaSlice<u64>,
     triangle_bases: CudaSlice<u32>,
     materials: CudaSlice<GpuMaterial>,
-}
-
-/// Copies `data` to a new device buffer; an empty table becomes one zeroed
-/// element (zero-length allocations fail), never read since its count is 0.
-fn upload<T: DeviceRepr + ValidAsZeroBits + Copy>(
-    gpu: &Gpu,
-    data: &[T],
-    what: &str,
-) -> Result<CudaSlice<T>, CudaError> {
-    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
-    if data.is_empty() {
-        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
-    }
-    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
 }
 
 impl FrameParamsHost {

@@ -13,11 +13,11 @@
 use std::sync::Arc;
 
 use atoll_scene::Scene;
-use cudarc::driver::{CudaSlice, DeviceRepr, ValidAsZeroBits};
+use cudarc::driver::CudaSlice;
 use glam::{Affine3A, Mat3};
 
 use crate::error::{fmt_bytes, CudaError};
-use crate::gpu::Gpu;
+use crate::gpu::{upload, Gpu};
 use crate::layout::{mesh_flags, GpuInstance, GpuMesh, GpuObject};
 
 /// The scene tables in host memory, exactly as they go to the device.
@@ -257,18 +257,6 @@ pub struct GpuScene {
     pub host_meshes: Vec<GpuMesh>,
     pub host_objects: Vec<GpuObject>,
     pub host_instances: Vec<GpuInstance>,
-}
-
-fn upload<T: DeviceRepr + ValidAsZeroBits + Copy>(
-    gpu: &Gpu,
-    data: &[T],
-    what: &str,
-) -> Result<CudaSlice<T>, CudaError> {
-    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
-    if data.is_empty() {
-        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
-    }
-    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
 }
 
 impl GpuScene {
