@@ -37,7 +37,7 @@ struct GpuInstance {
 
 /// Mirror of `layout::HitRef` (16 bytes); `instance == HIT_NONE` means
 /// "this trace found no hit".
-struct HitRef {
+struct __align__(16) HitRef {
     float u;
     float v;
     unsigned int instance;

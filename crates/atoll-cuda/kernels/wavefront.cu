@@ -138,22 +138,34 @@ extern "C" __global__ void surface(const FrameParams* __restrict__ params, const
         if (!is_zero3(shading) && dot3(ng, shading) < 0.0f) ng = -ng;
         ns = is_zero3(shading) ? ng : shading;
     }
-    RayRecord& r = paths[i];
-    r.flags |= FLAG_HIT;
-    store3(r.position, position);
-    r.instance = hit.instance;
-    store_f16x3(r.geometric_normal, ng);
-    store_f16x3(r.shading_normal, ns);
-    r.light = (mesh.flags & MESH_EMISSIVE)
-                  ? light_triangle_index(p, hit.instance, mesh.scene_mesh, hit.triangle - mesh.first_triangle)
-                  : NO_LIGHT;
-    // PackedMaterial::store.
-    const GpuMaterial& m = p.materials[mesh.material];
-    r.material = (unsigned short)m.kind;
-    const uint4* src = reinterpret_cast<const uint4*>(m.coeffs);
-    uint4* dst = reinterpret_cast<uint4*>(r.coeffs);
-    dst[0] = src[0];
-    dst[1] = src[1];
+    const unsigned int light = (mesh.flags & MESH_EMISSIVE)
+                                   ? light_triangle_index(p, hit.instance, mesh.scene_mesh,
+                                                          hit.triangle - mesh.first_triangle)
+                                   : NO_LIGHT;
+    const GpuMaterial& m = p.materials[mesh.material];  // PackedMaterial::store
+    // The record's bytes [32, 128) are written as whole 16-byte words, three
+    // full 32-byte sectors: field-by-field stores of the hit leave partial
+    // sectors that the memory system must merge (or, with ECC, read first).
+    // Byte offsets are those of record.rs (checked by the asserts in record.cuh).
+    uint4* words = reinterpret_cast<uint4*>(paths + i);
+    const uint4 w2 = words[2];  // throughput, sample: unchanged
+    uint4 w3 = words[3];        // bsdf_pdf, depth | flags << 16, light, instance
+    w3.y |= (unsigned int)FLAG_HIT << 16;
+    w3.z = light;
+    w3.w = hit.instance;
+    const uint4 w4 = make_uint4(__float_as_uint(position.x), __float_as_uint(position.y),
+                                __float_as_uint(position.z), 0u);  // position, reserved
+    const unsigned int ng0 = f32_to_f16(ng.x), ng1 = f32_to_f16(ng.y), ng2 = f32_to_f16(ng.z);
+    const unsigned int ns0 = f32_to_f16(ns.x), ns1 = f32_to_f16(ns.y), ns2 = f32_to_f16(ns.z);
+    // geometric_normal, material, shading_normal, reserved2
+    const uint4 w5 = make_uint4(ng0 | ng1 << 16, ng2 | (m.kind & 0xffffu) << 16, ns0 | ns1 << 16, ns2);
+    const uint4* coeffs = reinterpret_cast<const uint4*>(m.coeffs);
+    words[2] = w2;
+    words[3] = w3;
+    words[4] = w4;
+    words[5] = w5;
+    words[6] = coeffs[0];
+    words[7] = coeffs[1];
 }
 
 // ---------------------------------------------------------------------------

@@ -133,6 +133,9 @@ pub struct CudaDevice {
     errors: ErrorSlot,
     stats: DeviceStats,
     busy: Mutex<BusyTime>,
+    /// Times the wave in flight, from `generate` to the `has_paths` that
+    /// finds the path queue empty.
+    wave_timer: Mutex<Option<Timer>>,
 }
 
 impl CudaDevice {
@@ -150,6 +153,7 @@ impl CudaDevice {
             errors: ErrorSlot::default(),
             stats: DeviceStats::default(),
             busy: Mutex::new(BusyTime::default()),
+            wave_timer: Mutex::new(None),
         }
     }
 
@@ -182,12 +186,26 @@ impl CudaDevice {
         self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
     }
 
-    /// Queues `launch` between timing events.
+    /// Queues a stage's launches. Device time is measured per wave (see
+    /// `start_wave_timer`), not per stage: creating and recording a pair of
+    /// events around every stage cost more host time than the small stages
+    /// take on the GPU, which then waited for its next launch.
     fn timed(&mut self, launch: impl FnOnce(&mut Self) -> Result<(), CudaError>) -> Result<(), CudaError> {
-        let mut timer = self.gpu.start_timer()?;
-        launch(self)?;
-        timer.stop(&self.gpu)?;
-        self.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
+        launch(self)
+    }
+
+    fn start_wave_timer(&self) -> Result<(), CudaError> {
+        self.stop_wave_timer()?;
+        *self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()) = Some(self.gpu.start_timer()?);
+        Ok(())
+    }
+
+    /// Ends the wave's timer (queued; never waits) and files it for `stats`.
+    fn stop_wave_timer(&self) -> Result<(), CudaError> {
+        if let Some(mut timer) = self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()).take() {
+            timer.stop(&self.gpu)?;
+            self.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
+        }
         Ok(())
     }
 
@@ -254,6 +272,7 @@ impl CudaDevice {
 
     fn try_generate(&mut self, wave: &Wave) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
+        self.start_wave_timer()?;
         self.resident()?.queues.ensure_capacity(&gpu, wave.pixel_count)?;
         self.timed(|d| {
             let r = d.resident()?;
@@ -445,11 +464,17 @@ impl Device for CudaDevice {
     /// trip) only once that many bounces have been shaded.
     fn has_paths(&self) -> bool {
         let Some(r) = &self.resident else { return false };
-        match r.queues.known_len(Queue::Paths) {
+        let more = match r.queues.known_len(Queue::Paths) {
             Some(n) => n > 0,
             None if !self.errors.is_set() && r.bounces <= r.frame.max_depth() => true,
             None => self.queue_len(Queue::Paths) > 0,
+        };
+        if !more {
+            if let Err(e) = self.stop_wave_timer() {
+                self.errors.set(format!("{} timing: {e}", self.gpu.label()));
+            }
         }
+        more
     }
 
     fn queue_len(&self, queue: Queue) -> usize {

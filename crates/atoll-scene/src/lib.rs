@@ -1,7 +1,7 @@
 //! The scene model of atoll and everything that produces one: the loaders
 //! (PBRT v4 and v3, OBJ/MTL, glTF 2.0, PLY, OFF; [`load_any`] picks one by
 //! extension), default framing for files without a camera, the built-in
-//! Cornell box and procedural scenes.
+//! Cornell box and procedural scenes (the benchmark [`landscape`]).
 //!
 //! A [`Scene`] is two-level: [`Object`]s are groups of [`TriangleMesh`]es, and
 //! [`Instance`]s place objects in the world with an affine transform. Geometry
@@ -13,6 +13,7 @@ pub mod cornell;
 pub mod error;
 pub mod framing;
 pub mod gltf;
+pub mod landscape;
 pub mod light;
 pub mod load;
 pub mod material;

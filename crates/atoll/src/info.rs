@@ -11,7 +11,8 @@ use crate::CliError;
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// Scene file (.pbrt); the built-in Cornell box when omitted.
+    /// Scene file (.pbrt, .obj, .gltf/.glb, .ply, .off) or a generated `landscape:GROWTH[:SEED]`;
+    /// the built-in Cornell box when omitted.
     pub scene: Option<PathBuf>,
 }
 

@@ -3,6 +3,7 @@
 mod bench;
 mod compare;
 mod device;
+mod gen;
 mod info;
 mod load;
 mod render;
@@ -29,6 +30,8 @@ enum Command {
     Bench(bench::BenchArgs),
     /// Compare two EXR renders: channel means and per-pixel relative errors.
     Compare(compare::CompareArgs),
+    /// Generate a procedural benchmark scene: print its size or write it as PBRT-v4.
+    Gen(gen::GenArgs),
 }
 
 /// Failures the command line reports, with their exit codes.
@@ -55,6 +58,7 @@ fn main() -> ExitCode {
         Some(Command::Info(args)) => info::run(args),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Compare(args)) => compare::run(args),
+        Some(Command::Gen(args)) => gen::run(args),
         None => render::run(render::RenderArgs::default()),
     };
     match result {

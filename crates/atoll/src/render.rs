@@ -15,7 +15,8 @@ use crate::CliError;
 
 #[derive(Args, Default)]
 pub struct RenderArgs {
-    /// Scene file (.pbrt); the built-in Cornell box when omitted.
+    /// Scene file (.pbrt, .obj, .gltf/.glb, .ply, .off) or a generated `landscape:GROWTH[:SEED]`;
+    /// the built-in Cornell box when omitted.
     pub scene: Option<PathBuf>,
     /// Output image (.exr linear, .png sRGB); default: the scene's Film filename, else atoll.png.
     #[arg(short, long)]

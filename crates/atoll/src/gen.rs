@@ -1,0 +1,399 @@
+//! `atoll gen`: procedural scenes, sized up (the default) or written out as
+//! PBRT-v4 text that atoll's own loader reads back to an equal scene.
+
+use std::fmt::Display;
+use std::io::{self, BufWriter, Write};
+use std::path::PathBuf;
+use std::time::Instant;
+
+use atoll_scene::landscape::{Landscape, LandscapeEstimate};
+use atoll_scene::{IntegratorSettings, Light, Material, Scene, TriangleMesh};
+use clap::{Args, Subcommand};
+use glam::{Affine3A, Mat4, Vec3};
+
+use crate::CliError;
+
+#[derive(Args)]
+pub struct GenArgs {
+    #[command(subcommand)]
+    pub scene: GenScene,
+}
+
+#[derive(Subcommand)]
+pub enum GenScene {
+    /// Terrain with instanced rocks, trees, glass and metal; growth g makes
+    /// about g million instanced triangles. Without -o, prints its sizes only
+    /// (render it without a file as the scene `landscape:GROWTH[:SEED]`).
+    Landscape(LandscapeArgs),
+}
+
+#[derive(Args)]
+pub struct LandscapeArgs {
+    /// Scale factor: terrain area, instances and instanced triangles grow linearly.
+    #[arg(long, default_value_t = 1)]
+    pub growth: u32,
+    /// Seed of the terrain, rock shapes and placement.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u32,
+    /// Tessellation multiplier of the terrain and objects (triangles, not instances).
+    #[arg(long, default_value_t = 1.0)]
+    pub detail: f32,
+    /// Write the scene here as PBRT-v4 text.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+pub fn run(args: GenArgs) -> Result<(), CliError> {
+    match args.scene {
+        GenScene::Landscape(args) => landscape(args),
+    }
+}
+
+fn mib(bytes: u64) -> String {
+    format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
+}
+
+fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
+    if args.growth == 0 {
+        return Err(CliError::Input("--growth must be at least 1".into()));
+    }
+    if !(args.detail > 0.0 && args.detail.is_finite()) {
+        return Err(CliError::Input(format!("--detail must be positive, not {}", args.detail)));
+    }
+    let landscape = Landscape { growth: args.growth, seed: args.seed, detail: args.detail };
+    let e: LandscapeEstimate = landscape.estimate();
+    println!("landscape          growth {}, seed {}, detail {}", args.growth, args.seed, args.detail);
+    println!("objects            {} ({} meshes)", e.objects, e.meshes);
+    println!("instances          {}", e.instances);
+    println!("triangles          {} unique, {} instanced", e.unique_triangles, e.instanced_triangles);
+    println!(
+        "memory estimate    {} ({} meshes + {} instance records; BVH not included)",
+        mib(e.bytes),
+        mib(e.geometry_bytes),
+        mib(e.bytes - e.geometry_bytes)
+    );
+    let Some(path) = args.output else { return Ok(()) };
+    let start = Instant::now();
+    let scene = landscape.build();
+    let build_seconds = start.elapsed().as_secs_f64();
+    let start = Instant::now();
+    let header =
+        format!("atoll gen landscape --growth {} --seed {} --detail {}", args.growth, args.seed, args.detail);
+    let file = std::fs::File::create(&path)
+        .map_err(|e| CliError::Runtime(format!("{}: cannot create: {e}", path.display())))?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    write_pbrt(&scene, &mut out, &header)
+        .and_then(|_| out.flush())
+        .map_err(|e| CliError::Runtime(format!("{}: cannot write: {e}", path.display())))?;
+    let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+    println!(
+        "{}: {} generated in {:.2} s, written in {:.2} s",
+        path.display(),
+        mib(size),
+        build_seconds,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// Writes `values` as a bracketed list, a few per line (long lines are
+/// awkward in editors; the loader does not care).
+fn list<T: Display>(out: &mut impl Write, values: impl IntoIterator<Item = T>) -> io::Result<()> {
+    write!(out, "[")?;
+    for (i, v) in values.into_iter().enumerate() {
+        if i % 24 == 23 {
+            write!(out, "\n   ")?;
+        }
+        write!(out, " {v}")?;
+    }
+    write!(out, " ]")
+}
+
+fn vec3s<'a>(out: &mut impl Write, v: impl IntoIterator<Item = &'a Vec3>) -> io::Result<()> {
+    list(out, v.into_iter().flat_map(|p| p.to_array()))
+}
+
+/// `Transform`'s 16 numbers: pbrt lists the matrix column by column.
+fn matrix(out: &mut impl Write, m: &Mat4) -> io::Result<()> {
+    list(out, m.to_cols_array())
+}
+
+/// `Shape "trianglemesh"` with the mesh's material (and area light and
+/// orientation) in an attribute block.
+fn shape(out: &mut impl Write, mesh: &TriangleMesh, world: bool) -> io::Result<()> {
+    writeln!(out, "AttributeBegin")?;
+    writeln!(out, "  NamedMaterial \"material_{}\"", mesh.material)?;
+    // pbrt-v4 ignores area lights in object instances, so they only exist at world level.
+    if let (Some(e), true) = (mesh.emission, world) {
+        let c = e.radiance;
+        writeln!(
+            out,
+            "  AreaLightSource \"diffuse\" \"rgb L\" [ {} {} {} ] \"bool twosided\" {}",
+            c.x, c.y, c.z, e.two_sided
+        )?;
+    }
+    // ReverseOrientation flips the geometric normal but also negates the
+    // shading normals as they are read, so those are written negated.
+    let sign = if mesh.flip_normals { -1.0 } else { 1.0 };
+    if mesh.flip_normals {
+        writeln!(out, "  ReverseOrientation")?;
+    }
+    writeln!(out, "  # {}: {} triangles", mesh.name, mesh.triangle_count())?;
+    write!(out, "  Shape \"trianglemesh\"\n    \"point3 P\" ")?;
+    vec3s(out, &mesh.positions)?;
+    if !mesh.normals.is_empty() {
+        write!(out, "\n    \"normal N\" ")?;
+        list(out, mesh.normals.iter().flat_map(|n| (*n * sign).to_array()))?;
+    }
+    if !mesh.uvs.is_empty() {
+        write!(out, "\n    \"point2 uv\" ")?;
+        list(out, mesh.uvs.iter().flat_map(|uv| uv.to_array()))?;
+    }
+    write!(out, "\n    \"integer indices\" ")?;
+    list(out, mesh.indices.iter().flatten())?;
+    writeln!(out, "\nAttributeEnd")
+}
+
+fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
+    write!(out, "MakeNamedMaterial \"material_{id}\" ")?;
+    // Roughness is stored as GGX alpha already: no remapping on the way back.
+    let rough = |ax: f32, ay: f32| {
+        format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" false")
+    };
+    let rgb = |c: Vec3| format!("[ {} {} {} ]", c.x, c.y, c.z);
+    match m {
+        Material::Diffuse { reflectance } => {
+            writeln!(out, "\"string type\" \"diffuse\" \"rgb reflectance\" {}", rgb(*reflectance))
+        }
+        Material::Conductor { eta, k, alpha_x, alpha_y } => writeln!(
+            out,
+            "\"string type\" \"conductor\" \"rgb eta\" {} \"rgb k\" {} {}",
+            rgb(*eta),
+            rgb(*k),
+            rough(*alpha_x, *alpha_y)
+        ),
+        Material::Dielectric { eta, alpha_x, alpha_y } => writeln!(
+            out,
+            "\"string type\" \"dielectric\" \"float eta\" [ {eta} ] {}",
+            rough(*alpha_x, *alpha_y)
+        ),
+        Material::Interface => writeln!(out, "\"string type\" \"interface\""),
+    }
+}
+
+/// Writes `scene` as PBRT-v4 text: options (camera, film, sampler,
+/// integrator), lights, named materials, world-level meshes, object
+/// definitions and their instances. An object named "world" with one
+/// identity instance (what loaders make of world-level shapes) is written at
+/// world level; every other object as `ObjectBegin`/`ObjectEnd` plus one
+/// `Transform`/`ObjectInstance` pair per instance. Reading the text back
+/// with atoll's loader gives the same meshes, objects, instances and
+/// materials in the same order (materials are numbered by first use there,
+/// so a scene whose meshes use them in id order keeps its ids).
+pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Result<()> {
+    let s = &scene.settings;
+    writeln!(out, "# {header}")?;
+    // f64 on the way out and in, so the loader's inverse gives back camera_to_world.
+    let world_to_camera = s.camera.camera_to_world.as_dmat4().inverse();
+    write!(out, "Transform ")?;
+    list(out, world_to_camera.to_cols_array())?;
+    write!(out, "\nCamera \"perspective\" \"float fov\" [ {} ]", s.camera.fov_degrees)?;
+    if s.camera.lens_radius > 0.0 {
+        let c = &s.camera;
+        write!(
+            out,
+            " \"float lensradius\" [ {} ] \"float focaldistance\" [ {} ]",
+            c.lens_radius, c.focal_distance
+        )?;
+    }
+    let res = s.film.resolution;
+    write!(
+        out,
+        "\nFilm \"rgb\" \"integer xresolution\" [ {} ] \"integer yresolution\" [ {} ]",
+        res.x, res.y
+    )?;
+    if let Some(name) = &s.film.filename {
+        write!(out, " \"string filename\" \"{}\"", name.replace('\\', "\\\\").replace('"', "\\\""))?;
+    }
+    writeln!(out, "\nSampler \"zsobol\" \"integer pixelsamples\" [ {} ]", s.spp)?;
+    match s.integrator {
+        IntegratorSettings::Path { max_depth } => {
+            writeln!(out, "Integrator \"path\" \"integer maxdepth\" [ {max_depth} ]")?
+        }
+        IntegratorSettings::AmbientOcclusion { max_distance } if max_distance.is_finite() => {
+            writeln!(out, "Integrator \"ambientocclusion\" \"float maxdistance\" [ {max_distance} ]")?
+        }
+        IntegratorSettings::AmbientOcclusion { .. } => writeln!(out, "Integrator \"ambientocclusion\"")?,
+    }
+    writeln!(out, "\nWorldBegin")?;
+    let v = |c: Vec3| format!("[ {} {} {} ]", c.x, c.y, c.z);
+    for light in &scene.lights {
+        match light {
+            Light::Point { position, intensity } => writeln!(
+                out,
+                "LightSource \"point\" \"point3 from\" {} \"rgb I\" {}",
+                v(*position),
+                v(*intensity)
+            )?,
+            Light::Distant { direction, radiance } => writeln!(
+                out,
+                "LightSource \"distant\" \"point3 from\" [ 0 0 0 ] \"point3 to\" {} \"rgb L\" {}",
+                v(*direction),
+                v(*radiance)
+            )?,
+            Light::Infinite { radiance } => {
+                writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(*radiance))?
+            }
+        }
+    }
+    for (id, m) in scene.materials.iter().enumerate() {
+        material(out, id, m)?;
+    }
+
+    let mut uses = vec![0usize; scene.objects.len()];
+    for inst in &scene.instances {
+        uses[inst.object as usize] += 1;
+    }
+    let mut world_level: Vec<bool> = scene.objects.iter().map(|o| o.name == "world").collect();
+    for inst in &scene.instances {
+        let o = inst.object as usize;
+        world_level[o] &= uses[o] == 1 && inst.object_to_world == Affine3A::IDENTITY;
+    }
+    for (_, object) in scene.objects.iter().enumerate().filter(|&(o, _)| world_level[o]) {
+        for &m in &object.meshes {
+            shape(out, &scene.meshes[m as usize], true)?;
+        }
+    }
+    // Names must be unique in the file: keep unique ones, number the rest.
+    let names: Vec<String> = scene
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(o, object)| {
+            let n = &object.name;
+            let unique = !n.is_empty() && scene.objects.iter().filter(|other| &other.name == n).count() == 1;
+            if unique && !n.contains(['"', '\\']) {
+                n.clone()
+            } else {
+                format!("object_{o}")
+            }
+        })
+        .collect();
+    for (o, object) in scene.objects.iter().enumerate().filter(|&(o, _)| !world_level[o]) {
+        writeln!(out, "ObjectBegin \"{}\"", names[o])?;
+        for &m in &object.meshes {
+            shape(out, &scene.meshes[m as usize], false)?;
+        }
+        writeln!(out, "ObjectEnd")?;
+    }
+    writeln!(out, "AttributeBegin")?;
+    for inst in scene.instances.iter().filter(|i| !world_level[i.object as usize]) {
+        write!(out, "  Transform ")?;
+        matrix(out, &Mat4::from(inst.object_to_world))?;
+        writeln!(out, " ObjectInstance \"{}\"", names[inst.object as usize])?;
+    }
+    writeln!(out, "AttributeEnd")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Writes `scene`, reads it back with atoll's PBRT loader (no warnings
+    /// allowed: every parameter written must be understood).
+    fn round_trip(scene: &Scene) -> Scene {
+        let mut text = Vec::new();
+        write_pbrt(scene, &mut text, "test").unwrap();
+        let text = String::from_utf8(text).unwrap();
+        let loaded = atoll_scene::pbrt::load_str(&text, "gen.pbrt", std::path::Path::new(".")).unwrap();
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        loaded.scene
+    }
+
+    fn close(a: Vec3, b: Vec3, tolerance: f32) -> bool {
+        (a - b).abs().max_element() <= tolerance * (1.0 + a.abs().max_element())
+    }
+
+    /// Counts equal, bounds within 1e-4 relative, and mesh by mesh the same
+    /// vertices, materials, emission and orientation; instance by instance
+    /// the same object and transform.
+    fn assert_equal(a: &Scene, b: &Scene) {
+        let (sa, sb) = (a.stats(), b.stats());
+        assert_eq!(
+            (sa.meshes, sa.objects, sa.instances, sa.unique_triangles, sa.instanced_triangles),
+            (sb.meshes, sb.objects, sb.instances, sb.unique_triangles, sb.instanced_triangles)
+        );
+        assert_eq!(
+            (sa.materials, sa.lights, sa.emissive_triangles),
+            (sb.materials, sb.lights, sb.emissive_triangles)
+        );
+        let extent = (sa.bounds_max - sa.bounds_min).max_element();
+        assert!((sa.bounds_min - sb.bounds_min).abs().max_element() <= 1e-4 * extent, "{sa:?} {sb:?}");
+        assert!((sa.bounds_max - sb.bounds_max).abs().max_element() <= 1e-4 * extent, "{sa:?} {sb:?}");
+        for (m, n) in a.meshes.iter().zip(&b.meshes) {
+            assert_eq!((&m.indices, m.emission, m.flip_normals), (&n.indices, n.emission, n.flip_normals));
+            assert_eq!(a.materials[m.material as usize], b.materials[n.material as usize]);
+            assert_eq!(
+                (m.positions.len(), m.normals.len(), m.uvs.len()),
+                (n.positions.len(), n.normals.len(), n.uvs.len())
+            );
+            assert!(m.positions.iter().zip(&n.positions).all(|(p, q)| close(*p, *q, 1e-6)), "{}", m.name);
+            assert!(m.normals.iter().zip(&n.normals).all(|(p, q)| close(*p, *q, 1e-5)), "{}", m.name);
+        }
+        for (o, p) in a.objects.iter().zip(&b.objects) {
+            assert_eq!((&o.name, &o.meshes), (&p.name, &p.meshes));
+        }
+        for (i, j) in a.instances.iter().zip(&b.instances) {
+            assert_eq!(i.object, j.object);
+            assert!(i.object_to_world.abs_diff_eq(j.object_to_world, 1e-5), "{i:?} {j:?}");
+        }
+        let (ca, cb) = (&a.settings.camera, &b.settings.camera);
+        assert!(ca.camera_to_world.abs_diff_eq(cb.camera_to_world, 1e-4), "{ca:?} {cb:?}");
+        assert_eq!((ca.fov_degrees, ca.lens_radius), (cb.fov_degrees, cb.lens_radius));
+        let (sa, sb) = (&a.settings, &b.settings);
+        assert_eq!(
+            (sa.film.resolution, sa.spp, &sa.integrator),
+            (sb.film.resolution, sb.spp, &sb.integrator)
+        );
+        for (l, m) in a.lights.iter().zip(&b.lights) {
+            match (l, m) {
+                (
+                    Light::Distant { direction: d, radiance: r },
+                    Light::Distant { direction: e, radiance: s },
+                ) => {
+                    assert!(close(*d, *e, 1e-6) && r == s)
+                }
+                _ => assert_eq!(l, m),
+            }
+        }
+    }
+
+    #[test]
+    fn landscape_round_trips_through_pbrt_text() {
+        let scene = Landscape { growth: 1, seed: 3, detail: 0.5 }.build();
+        let back = round_trip(&scene);
+        assert_equal(&scene, &back);
+        // Materials keep their ids too: the landscape's meshes use them in id order.
+        assert_eq!(scene.materials, back.materials);
+        assert!(scene.meshes.iter().zip(&back.meshes).all(|(m, n)| m.material == n.material));
+    }
+
+    #[test]
+    fn cornell_box_round_trips_with_its_area_light() {
+        let scene = atoll_scene::cornell::builtin_cornell_box();
+        assert!(scene.stats().emissive_triangles > 0);
+        assert_equal(&scene, &round_trip(&scene));
+    }
+
+    #[test]
+    fn mirrored_instances_and_reversed_meshes_round_trip() {
+        let mut scene = Landscape { growth: 1, seed: 0, detail: 0.2 }.build();
+        scene.instances.truncate(20);
+        scene.instances[3].object_to_world =
+            Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0)) * scene.instances[3].object_to_world;
+        scene.meshes[2].flip_normals = true;
+        scene.settings.integrator = IntegratorSettings::AmbientOcclusion { max_distance: 3.0 };
+        scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::splat(4.0) });
+        assert_equal(&scene, &round_trip(&scene));
+    }
+}
