@@ -186,12 +186,16 @@ impl CudaDevice {
         self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
     }
 
-    /// Queues a stage's launches. Device time is measured per wave (see
-    /// `start_wave_timer`), not per stage: creating and recording a pair of
-    /// events around every stage cost more host time than the small stages
-    /// take on the GPU, which then waited for its next launch.
-    fn timed(&mut self, launch: impl FnOnce(&mut Self) -> Result<(), CudaError>) -> Result<(), CudaError> {
-        launch(self)
+    /// Runs `f` on the frame's resident state (an error before `prepare`).
+    /// Stages are not timed one by one: device time is measured per wave
+    /// (`start_wave_timer`), because creating and recording an event pair
+    /// around every stage cost more host time than the small stages take on
+    /// the GPU, which then waited for its next launch.
+    fn with_resident<R>(
+        &mut self,
+        f: impl FnOnce(&mut Resident) -> Result<R, CudaError>,
+    ) -> Result<R, CudaError> {
+        f(self.resident()?)
     }
 
     fn start_wave_timer(&self) -> Result<(), CudaError> {
@@ -274,8 +278,7 @@ impl CudaDevice {
         let gpu = self.gpu.clone();
         self.start_wave_timer()?;
         self.resident()?.queues.ensure_capacity(&gpu, wave.pixel_count)?;
-        self.timed(|d| {
-            let r = d.resident()?;
+        self.with_resident(|r| {
             let count = wave.pixel_count;
             let mut launch = gpu.stream.launch_builder(&r.kernels.generate);
             launch
@@ -302,8 +305,7 @@ impl CudaDevice {
         if self.resident()?.queues.known_len(Queue::Paths) == Some(0) {
             return Ok(());
         }
-        self.timed(|d| {
-            let r = d.resident()?;
+        self.with_resident(|r| {
             let q = &mut r.queues;
             // The kernels read the path count on the device: no read-back.
             let max = q.launch_len(Queue::Paths);
@@ -323,8 +325,7 @@ impl CudaDevice {
 
     fn try_shade(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        self.timed(|d| {
-            let r = d.resident()?;
+        self.with_resident(|r| {
             let q = &mut r.queues;
             let threads = q.launch_len(Queue::Paths);
             let context = || format!("{}: clearing queue counters", gpu.label());
@@ -360,8 +361,7 @@ impl CudaDevice {
         if self.resident()?.queues.known_len(Queue::Shadows) == Some(0) {
             return Ok(());
         }
-        self.timed(|d| {
-            let r = d.resident()?;
+        self.with_resident(|r| {
             let q = &mut r.queues;
             let max = q.launch_len(Queue::Shadows);
             let length = DeviceQueueLength { length: &q.shadow_count, traced: &mut r.traced_shadows };
@@ -371,8 +371,7 @@ impl CudaDevice {
 
     fn try_resolve_shadows(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        self.timed(|d| {
-            let r = d.resident()?;
+        self.with_resident(|r| {
             let q = &mut r.queues;
             if q.known_len(Queue::Shadows) != Some(0) {
                 let threads = q.launch_len(Queue::Shadows);
