@@ -19,14 +19,23 @@
 #include "record.cuh"
 #include "layout.cuh"
 #include "bvh.cuh"
+#include "surface.cuh"
 
 #define TRACE_THREADS 128
 
 /// Traces ray `i` (when `i < count`) and writes its result. All 32 lanes
 /// of the warp call this together (the speculative traversal votes).
+/// With `surface` (closest hits only), a hit's attributes are written into
+/// the record right away (`write_surface`) instead of a `HitRef` for the
+/// separate `surface` pass.
+struct SurfaceArgs {
+    const FrameParams* params;
+    const SceneView* scene;
+};
+
 template <int TRI, bool ANY, bool SPECULATIVE>
 __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                          unsigned long long i, unsigned int count) {
+                                          unsigned long long i, unsigned int count, SurfaceArgs surface) {
     bool valid = i < count;
     RayRecord* rec = records + (valid ? i : 0);
     float4 a = make_float4(0.0f, 0.0f, 0.0f, 0.0f), b = a;
@@ -51,7 +60,12 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
         out.v = h.v;
         out.instance = __ldg(&v.instances[h.slot].instance);
         out.triangle = __ldg(v.tri_ids + h.tri);
+        if (surface.params) {
+            write_surface(*surface.params, *surface.scene, rec, out);
+            return;
+        }
     } else {
+        if (surface.params) return;  // a miss leaves the record as it is
         out.u = out.v = 0.0f;
         out.instance = HIT_NONE;
         out.triangle = HIT_NONE;
@@ -62,22 +76,22 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
 /// One thread per ray.
 template <int TRI, bool ANY, bool SPECULATIVE>
 __device__ __forceinline__ void trace_grid(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                           unsigned int count) {
+                                           unsigned int count, SurfaceArgs surface) {
     const unsigned long long i = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
-    trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, i, count);
+    trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, i, count, surface);
 }
 
 /// Persistent threads: warps take batches of 32 rays from `*work`.
 template <int TRI, bool ANY, bool SPECULATIVE>
 __device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                                 unsigned int count, unsigned int* work) {
+                                                 unsigned int count, unsigned int* work, SurfaceArgs surface) {
     const unsigned int lane = threadIdx.x & 31u;
     for (;;) {
         unsigned int base = 0;
         if (lane == 0) base = atomicAdd(work, 32u);
         base = __shfl_sync(0xffffffffu, base, 0);
         if (base >= count) return;
-        trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, (unsigned long long)base + lane, count);
+        trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, (unsigned long long)base + lane, count, surface);
         __syncwarp();
     }
 }
@@ -96,28 +110,30 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
 #define TRACE_ARGS                                                                                           \
     const BvhNode *tlas_nodes, const BvhNode *blas_nodes, const TriRecord *tris, const unsigned int *tri_ids, \
         const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
-        unsigned int *work, const unsigned int *device_count, unsigned long long *traced
+        unsigned int *work, const unsigned int *device_count, unsigned long long *traced,                   \
+        const FrameParams *surface_params, const SceneView *surface_scene
 #define TRACE_VIEW                                                                   \
     SceneBvhView v = {tlas_nodes, blas_nodes, tris, tri_ids, instances, tlas_root}; \
-    const unsigned int n = trace_count(count, device_count, traced)
+    const unsigned int n = trace_count(count, device_count, traced);                \
+    const SurfaceArgs surface = {surface_params, surface_scene}
 
 // One extern "C" kernel per (query, loop, triangle test).
 #define TRACE_KERNELS(query, any, test, tri)                                                                      \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ww_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, false>(v, records, hits, n);                                                            \
+        trace_grid<tri, any, false>(v, records, hits, n, surface);                                                            \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_sp_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, true>(v, records, hits, n);                                                             \
+        trace_grid<tri, any, true>(v, records, hits, n, surface);                                                             \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_pt_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, false>(v, records, hits, n, work);                                                \
+        trace_persistent<tri, any, false>(v, records, hits, n, work, surface);                                                \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptsp_##test(TRACE_ARGS) {        \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, true>(v, records, hits, n, work);                                                 \
+        trace_persistent<tri, any, true>(v, records, hits, n, work, surface);                                                 \
     }
 
 TRACE_KERNELS(closest, false, exact, TRI_EXACT)

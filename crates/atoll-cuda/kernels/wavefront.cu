@@ -25,6 +25,7 @@
 #include "bsdf.cuh"
 #include "lights.cuh"
 #include "camera.cuh"
+#include "surface.cuh"
 
 __device__ __forceinline__ unsigned int global_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
 
@@ -110,62 +111,7 @@ extern "C" __global__ void surface(const FrameParams* __restrict__ params, const
     if (i >= *path_count) return;
     const HitRef hit = hits[i];
     if (hit.instance == HIT_NONE) return;
-    const FrameParams& p = *params;
-    const SceneView& s = *scene;
-    const GpuInstance& instance = s.instances[hit.instance];
-    const GpuMesh& mesh = s.meshes[s.triangle_mesh[hit.triangle]];
-    const unsigned int i0 = s.triangles[3ull * hit.triangle + 0];
-    const unsigned int i1 = s.triangles[3ull * hit.triangle + 1];
-    const unsigned int i2 = s.triangles[3ull * hit.triangle + 2];
-    const float b1 = hit.u, b2 = hit.v;
-    const float b0 = 1.0f - b1 - b2;
-    // Interpolating the vertices is more precise than origin + t * direction.
-    const float3 p0 = load3(s.vertices + 3ull * i0);
-    const float3 p1 = load3(s.vertices + 3ull * i1);
-    const float3 p2 = load3(s.vertices + 3ull * i2);
-    const float3 p_obj = p0 * b0 + p1 * b1 + p2 * b2;
-    const float3 position = affine_point(instance.object_to_world, p_obj);
-    // TriangleMesh::geometric_normal: pbrt's orientation rule.
-    float3 n_obj = cross3(p0 - p2, p1 - p2);
-    if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
-    float3 ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
-    float3 ns = ng;
-    if (mesh.flags & MESH_HAS_NORMALS) {
-        const float3 n = load3(s.normals + 3ull * i0) * b0 + load3(s.normals + 3ull * i1) * b1 +
-                         load3(s.normals + 3ull * i2) * b2;
-        const float3 shading = normalize_or_zero3(mat3_mul(instance.normal_to_world, n));
-        // pbrt: interpolated normals are authoritative for orientation.
-        if (!is_zero3(shading) && dot3(ng, shading) < 0.0f) ng = -ng;
-        ns = is_zero3(shading) ? ng : shading;
-    }
-    const unsigned int light = (mesh.flags & MESH_EMISSIVE)
-                                   ? light_triangle_index(p, hit.instance, mesh.scene_mesh,
-                                                          hit.triangle - mesh.first_triangle)
-                                   : NO_LIGHT;
-    const GpuMaterial& m = p.materials[mesh.material];  // PackedMaterial::store
-    // The record's bytes [32, 128) are written as whole 16-byte words, three
-    // full 32-byte sectors: field-by-field stores of the hit leave partial
-    // sectors that the memory system must merge (or, with ECC, read first).
-    // Byte offsets are those of record.rs (checked by the asserts in record.cuh).
-    uint4* words = reinterpret_cast<uint4*>(paths + i);
-    const uint4 w2 = words[2];  // throughput, sample: unchanged
-    uint4 w3 = words[3];        // bsdf_pdf, depth | flags << 16, light, instance
-    w3.y |= (unsigned int)FLAG_HIT << 16;
-    w3.z = light;
-    w3.w = hit.instance;
-    const uint4 w4 = make_uint4(__float_as_uint(position.x), __float_as_uint(position.y),
-                                __float_as_uint(position.z), 0u);  // position, reserved
-    const unsigned int ng0 = f32_to_f16(ng.x), ng1 = f32_to_f16(ng.y), ng2 = f32_to_f16(ng.z);
-    const unsigned int ns0 = f32_to_f16(ns.x), ns1 = f32_to_f16(ns.y), ns2 = f32_to_f16(ns.z);
-    // geometric_normal, material, shading_normal, reserved2
-    const uint4 w5 = make_uint4(ng0 | ng1 << 16, ng2 | (m.kind & 0xffffu) << 16, ns0 | ns1 << 16, ns2);
-    const uint4* coeffs = reinterpret_cast<const uint4*>(m.coeffs);
-    words[2] = w2;
-    words[3] = w3;
-    words[4] = w4;
-    words[5] = w5;
-    words[6] = coeffs[0];
-    words[7] = coeffs[1];
+    write_surface(*params, *scene, paths + i, hit);
 }
 
 // ---------------------------------------------------------------------------

@@ -212,7 +212,16 @@ fn time_batch(
         let start = gpu.ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT)).map_err(event_err(gpu))?;
         let end = gpu.ctx.new_event(Some(CUevent_flags::CU_EVENT_DEFAULT)).map_err(event_err(gpu))?;
         start.record(&gpu.stream).map_err(event_err(gpu))?;
-        tracer.launch(gpu, bvh, work, count, if any { None } else { Some(&mut *hits) }, variant, None)?;
+        tracer.launch(
+            gpu,
+            bvh,
+            work,
+            count,
+            if any { None } else { Some(&mut *hits) },
+            variant,
+            None,
+            None,
+        )?;
         end.record(&gpu.stream).map_err(event_err(gpu))?;
         let ms = start.elapsed_ms(&end).map_err(event_err(gpu))?;
         if run > 0 {

@@ -32,6 +32,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("lbvh.cu", include_str!("../kernels/lbvh.cu")),
     ("lbvh.cuh", include_str!("../kernels/lbvh.cuh")),
     ("lights.cuh", include_str!("../kernels/lights.cuh")),
+    ("surface.cuh", include_str!("../kernels/surface.cuh")),
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),

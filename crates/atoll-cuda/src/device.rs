@@ -5,7 +5,7 @@
 //! |------------------|-----------------------------------|----------------------------------------------|
 //! | prepare          | `SceneBvh::build`                 | memory plan, table upload, GPU BVH build, frame tables |
 //! | generate         | `camera_record` per pixel         | `generate` (wavefront.cu)                    |
-//! | trace_paths      | `bvh.intersect` + `write_hit`     | `trace::trace_closest` + `surface`           |
+//! | trace_paths      | `bvh.intersect` + `write_hit`     | `trace::trace_closest_queued` (`write_surface` folded in) |
 //! | shade            | `shade` + film / queue appends    | `shade` (appends with atomics)               |
 //! | trace_shadows    | `bvh.occluded`                    | `trace::trace_any`                           |
 //! | resolve_shadows  | film adds                         | `resolve_shadows`                            |
@@ -30,7 +30,7 @@ use crate::gpu::{launch_1d, Gpu, Timer};
 use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::GpuScene;
-use crate::trace::DeviceQueueLength;
+use crate::trace::{DeviceQueueLength, SurfaceTables};
 use crate::{bvh, trace};
 
 /// Threads per block of the wavefront kernels.
@@ -65,7 +65,6 @@ impl ErrorSlot {
 /// The wavefront kernels, loaded once per prepare.
 struct Kernels {
     generate: CudaFunction,
-    surface: CudaFunction,
     shade: CudaFunction,
     resolve_shadows: CudaFunction,
 }
@@ -74,7 +73,6 @@ impl Kernels {
     fn load(gpu: &Gpu) -> Result<Self, CudaError> {
         Ok(Kernels {
             generate: gpu.function(WAVEFRONT, "generate")?,
-            surface: gpu.function(WAVEFRONT, "surface")?,
             shade: gpu.function(WAVEFRONT, "shade")?,
             resolve_shadows: gpu.function(WAVEFRONT, "resolve_shadows")?,
         })
@@ -87,7 +85,7 @@ struct Resident {
     scene: GpuScene,
     bvh: bvh::GpuSceneBvh,
     params: FrameParamsHost,
-    /// One [`SceneView`] on the device (the `surface` kernel's argument).
+    /// One [`SceneView`] on the device (what `write_surface` reads).
     scene_view: CudaSlice<SceneView>,
     kernels: Kernels,
     queues: Queues,
@@ -310,16 +308,19 @@ impl CudaDevice {
             // The kernels read the path count on the device: no read-back.
             let max = q.launch_len(Queue::Paths);
             let length = DeviceQueueLength { length: &q.path_count, traced: &mut r.traced_paths };
-            trace::trace_closest_queued(&gpu, &r.scene, &r.bvh, &mut q.paths, max, &mut q.hits, length)?;
-            let mut launch = gpu.stream.launch_builder(&r.kernels.surface);
-            launch.arg(&r.params.device).arg(&r.scene_view).arg(&mut q.paths).arg(&q.hits).arg(&q.path_count);
-            // SAFETY: matches `surface(const FrameParams*, const SceneView*, RayRecord* paths,
-            // const HitRef* hits, const unsigned* path_count)`; `paths` and `hits` hold
-            // `capacity >= max` entries and the kernel stops at `*path_count`; the scene
-            // tables the view points into are owned by `r.scene` for the device's lifetime.
-            unsafe { launch.launch(launch_1d(max, BLOCK)) }
-                .map_err(CudaError::driver("launching surface"))?;
-            Ok(())
+            // Hit attributes are written by the traversal kernel itself (the
+            // `surface` stage folded in): one pass over the records fewer.
+            let surface = SurfaceTables { params: &r.params.device, scene: &r.scene_view };
+            trace::trace_closest_queued(
+                &gpu,
+                &r.scene,
+                &r.bvh,
+                &mut q.paths,
+                max,
+                &mut q.hits,
+                length,
+                surface,
+            )
         })
     }
 

@@ -71,6 +71,14 @@ pub struct DeviceQueueLength<'a> {
     pub traced: &'a mut CudaSlice<u64>,
 }
 
+/// Frame parameters and scene view for closest-hit kernels that write hit
+/// attributes themselves (`write_surface` in kernels/surface.cuh) instead
+/// of `HitRef`s for a separate `surface` pass.
+pub struct SurfaceTables<'a> {
+    pub params: &'a CudaSlice<crate::params::FrameParams>,
+    pub scene: &'a CudaSlice<crate::params::SceneView>,
+}
+
 /// Loaded trace kernels and the persistent threads' work counter. One per
 /// BVH (kept inside it), made on first use.
 pub struct Tracer {
@@ -130,6 +138,7 @@ impl Tracer {
         hits: Option<&mut CudaSlice<HitRef>>,
         variant: TraversalVariant,
         queue: Option<DeviceQueueLength<'_>>,
+        surface: Option<SurfaceTables<'_>>,
     ) -> Result<(), CudaError> {
         let any = hits.is_none();
         if count as usize > rays.len() || hits.as_ref().is_some_and(|h| (count as usize) > h.len()) {
@@ -179,14 +188,20 @@ impl Tracer {
             Some(q) => launch.arg(q.length).arg(q.traced),
             None => launch.arg(&null).arg(&null),
         };
+        match &surface {
+            Some(t) => launch.arg(t.params).arg(t.scene),
+            None => launch.arg(&null).arg(&null),
+        };
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
         // BvhNode* blas_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
-        // count, unsigned* work, const unsigned* device_count, unsigned long long* traced)`.
+        // count, unsigned* work, const unsigned* device_count, unsigned long long* traced,
+        // const FrameParams* surface_params, const SceneView* surface_scene)`.
         // The BVH's links stay within its arrays (built by lbvh.cu); threads touch records and
         // hits below `count` (or the smaller device count), which both buffers hold (checked);
         // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches;
-        // `device_count`/`traced` are null or single device integers.
+        // `device_count`/`traced` are null or single device integers; the surface tables are
+        // null or one FrameParams/SceneView whose tables outlive the launch (the device owns them).
         unsafe { launch.launch(config) }
             .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())
@@ -238,7 +253,7 @@ pub fn trace_closest_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant, None))
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant, None, None))
 }
 
 /// Sets `flags::OCCLUDED` on the records of `rays[..count]` that hit
@@ -263,11 +278,13 @@ pub fn trace_any_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant, None))
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant, None, None))
 }
 
 /// Closest hits of the first `*queue.length` records (at most `capacity`)
-/// with the default variant, without reading the length back.
+/// with the default variant, without reading the length back; each hit's
+/// attributes are written into its record (the `surface` stage folded in).
+#[allow(clippy::too_many_arguments)]
 pub fn trace_closest_queued(
     gpu: &Gpu,
     scene: &GpuScene,
@@ -276,10 +293,13 @@ pub fn trace_closest_queued(
     capacity: u32,
     hits: &mut CudaSlice<HitRef>,
     queue: DeviceQueueLength<'_>,
+    surface: SurfaceTables<'_>,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue)))
+    with_tracer(gpu, bvh, |t| {
+        t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue), Some(surface))
+    })
 }
 
 /// Any-hit tests of the first `*queue.length` records (at most `capacity`)
@@ -294,7 +314,7 @@ pub fn trace_any_queued(
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue)))
+    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue), None))
 }
 
 #[cfg(test)]
