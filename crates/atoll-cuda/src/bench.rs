@@ -15,9 +15,7 @@ use std::time::Instant;
 use atoll_bvh::bench::{generate_rays, BenchOptions};
 use atoll_bvh::{Bvh2, Ray, SceneBvh, ScenePart};
 use atoll_render::record::flags;
-use atoll_render::RayRecord;
 use atoll_scene::Scene;
-use bytemuck::Zeroable;
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::CudaSlice;
 use glam::UVec2;
@@ -155,13 +153,9 @@ fn to_records(rays: &[Ray], shadow: bool) -> Vec<GpuRecord> {
     rays.iter()
         .enumerate()
         .map(|(i, r)| {
-            let mut rec = RayRecord::zeroed();
-            rec.origin = r.origin.into();
-            rec.direction = r.direction.into();
-            rec.t_max = r.t_max;
-            rec.pixel = i as u32;
-            rec.flags = if shadow { flags::SHADOW } else { 0 };
-            GpuRecord(rec)
+            let mut rec = GpuRecord::from_ray(r, i as u32);
+            rec.0.flags = if shadow { flags::SHADOW } else { 0 };
+            rec
         })
         .collect()
 }

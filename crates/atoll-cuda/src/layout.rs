@@ -138,6 +138,19 @@ const _: () = {
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct GpuRecord(pub atoll_render::RayRecord);
 
+impl GpuRecord {
+    /// A record carrying just `ray` for pixel `pixel` (benchmarks and tests
+    /// trace bare rays; every other field is zero).
+    pub fn from_ray(ray: &atoll_bvh::Ray, pixel: u32) -> Self {
+        let mut rec = <atoll_render::RayRecord as Zeroable>::zeroed();
+        rec.origin = ray.origin.into();
+        rec.direction = ray.direction.into();
+        rec.t_max = ray.t_max;
+        rec.pixel = pixel;
+        GpuRecord(rec)
+    }
+}
+
 // SAFETY (all five): plain-old-data `#[repr(C)]`/transparent structs (Pod),
 // so any bit pattern, including all zeros, is a valid value and they can be
 // copied to and from the device byte for byte.

@@ -14,8 +14,6 @@ use atoll_cuda::scene::SceneTables;
 use atoll_cuda::trace::{trace_any_with, trace_closest_with, TraversalVariant};
 use atoll_cuda::{Gpu, GpuScene};
 use atoll_render::record::flags;
-use atoll_render::RayRecord;
-use bytemuck::Zeroable;
 use cudarc::driver::CudaSlice;
 
 use common::gpu_or_skip;
@@ -187,16 +185,12 @@ fn records(rays: &[Ray]) -> Vec<GpuRecord> {
     rays.iter()
         .enumerate()
         .map(|(i, r)| {
-            let mut rec = RayRecord::zeroed();
-            rec.origin = r.origin.into();
-            rec.direction = r.direction.into();
-            rec.t_max = r.t_max;
-            rec.pixel = i as u32;
+            let mut rec = GpuRecord::from_ray(r, i as u32);
             // Every 11th shadow ray starts occluded: trace_any must skip it.
             if i % 11 == 0 {
-                rec.flags = flags::OCCLUDED;
+                rec.0.flags = flags::OCCLUDED;
             }
-            GpuRecord(rec)
+            rec
         })
         .collect()
 }
