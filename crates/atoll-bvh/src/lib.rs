@@ -11,6 +11,8 @@
 //!   [`ScenePart`] of one): one bottom-level BVH per object, one top-level
 //!   BVH over the instances. Closest-hit ([`SceneBvh::intersect`]) and
 //!   any-hit ([`SceneBvh::occluded`]) queries, safe to call from many threads.
+//! - [`part_bytes`]: what a device must hold for a [`ScenePart`], from a
+//!   [`ByteModel`] ([`ByteModel::CPU`] for [`SceneBvh`]); partitioning balances it.
 //! - [`mod@bench`]: the traversal benchmark behind `atoll bench`, and the export
 //!   of its data for the Embree comparison (`scripts/bench-embree.py`).
 
@@ -22,6 +24,7 @@ pub mod build;
 pub mod bvh2;
 pub mod bvh4;
 pub mod layout;
+pub mod memory;
 pub mod scene_bvh;
 pub mod triangle;
 
@@ -32,6 +35,7 @@ pub use build::{BuildOptions, SplitMethod};
 pub use bvh2::{Bvh2, Bvh2Node};
 pub use bvh4::{Bvh4Cpu, Bvh4CpuNode};
 pub use layout::{BvhLayout, BvhStats, TraversalRay, MAX_DEPTH};
+pub use memory::{part_bytes, part_geometry_bytes, ByteModel};
 pub use scene_bvh::{MeshRange, SceneBvh, SceneBvhStats, ScenePart};
 pub use triangle::{Ray4, Tri4, TriAccel};
 

@@ -13,7 +13,7 @@ struct GpuMesh {
     unsigned int material;
     unsigned int flags;
     unsigned int scene_mesh;
-    unsigned int pad;
+    unsigned int first_scene_triangle;
 };
 
 /// Mirror of `layout::GpuObject` (16 bytes).
@@ -32,7 +32,8 @@ struct GpuInstance {
     float world_to_object[12];
     float normal_to_world[9];
     unsigned int object;
-    unsigned int pad[2];
+    unsigned int excluded;
+    unsigned int pad;
 };
 
 /// Mirror of `layout::HitRef` (16 bytes); `instance == HIT_NONE` means
@@ -58,7 +59,7 @@ static_assert(__builtin_offsetof(GpuMesh, vertex_count) == 12 && sizeof(GpuMesh:
 static_assert(__builtin_offsetof(GpuMesh, material) == 16 && sizeof(GpuMesh::material) == 4, "GpuMesh.material: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, flags) == 20 && sizeof(GpuMesh::flags) == 4, "GpuMesh.flags: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMesh, scene_mesh) == 24 && sizeof(GpuMesh::scene_mesh) == 4, "GpuMesh.scene_mesh: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuMesh, pad) == 28 && sizeof(GpuMesh::pad) == 4, "GpuMesh.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMesh, first_scene_triangle) == 28 && sizeof(GpuMesh::first_scene_triangle) == 4, "GpuMesh.first_scene_triangle: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuObject) == 16, "GpuObject: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
@@ -73,7 +74,8 @@ static_assert(__builtin_offsetof(GpuInstance, object_to_world) == 0 && sizeof(Gp
 static_assert(__builtin_offsetof(GpuInstance, world_to_object) == 48 && sizeof(GpuInstance::world_to_object) == 48, "GpuInstance.world_to_object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, normal_to_world) == 96 && sizeof(GpuInstance::normal_to_world) == 36, "GpuInstance.normal_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, object) == 132 && sizeof(GpuInstance::object) == 4, "GpuInstance.object: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuInstance, pad) == 136 && sizeof(GpuInstance::pad) == 8, "GpuInstance.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuInstance, excluded) == 136 && sizeof(GpuInstance::excluded) == 4, "GpuInstance.excluded: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuInstance, pad) == 140 && sizeof(GpuInstance::pad) == 4, "GpuInstance.pad: offset or size differs from Rust");
 #endif
 static_assert(sizeof(HitRef) == 16, "HitRef: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -42,7 +42,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     }
     const unsigned int light = (mesh.flags & MESH_EMISSIVE)
                                    ? light_triangle_index(p, hit.instance, mesh.scene_mesh,
-                                                          hit.triangle - mesh.first_triangle)
+                                                          hit.triangle - mesh.first_triangle + mesh.first_scene_triangle)
                                    : NO_LIGHT;
     const GpuMaterial& m = p.materials[mesh.material];  // PackedMaterial::store
     // The record's bytes [32, 128) are written as whole 16-byte words, three

@@ -19,6 +19,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+use atoll_bvh::ScenePart;
 use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Wave};
 use atoll_scene::Scene;
@@ -184,6 +185,11 @@ impl CudaDevice {
         self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
     }
 
+    /// The frame's queues (an error before `prepare`).
+    pub(crate) fn queues_mut(&mut self) -> Result<&mut Queues, CudaError> {
+        Ok(&mut self.resident()?.queues)
+    }
+
     /// Runs `f` on the frame's resident state (an error before `prepare`).
     /// Stages are not timed one by one: device time is measured per wave
     /// (`start_wave_timer`), because creating and recording an event pair
@@ -214,6 +220,7 @@ impl CudaDevice {
     fn try_prepare(
         &mut self,
         scene: &Arc<Scene>,
+        part: &ScenePart,
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, CudaError> {
         // Free the previous frame's buffers before planning the new one.
@@ -229,7 +236,7 @@ impl CudaDevice {
 
         // Compile (or load from the cache) before the clock of the first wave starts.
         let kernels = Kernels::load(&gpu)?;
-        let gpu_scene = GpuScene::upload(&gpu, scene, self.memory_budget, frame_bytes)?;
+        let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
         let start = Instant::now();
         let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
         gpu.synchronize()?;
@@ -430,9 +437,10 @@ impl Device for CudaDevice {
     fn prepare(
         &mut self,
         scene: &Arc<Scene>,
+        part: &ScenePart,
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, DeviceError> {
-        self.try_prepare(scene, frame).map_err(|e| {
+        self.try_prepare(scene, part, frame).map_err(|e| {
             self.resident = None;
             e.into_device_error(&self.gpu.label())
         })
@@ -516,6 +524,14 @@ impl Device for CudaDevice {
             let resolution = self.resident.as_ref().map_or(glam::UVec2::ZERO, |r| r.frame.options.resolution);
             Film::new(resolution)
         })
+    }
+
+    fn error(&self) -> Option<String> {
+        self.errors.get()
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 
     fn stats(&self) -> DeviceStats {

@@ -50,7 +50,10 @@ pub struct GpuMesh {
     pub flags: u32,
     /// Scene mesh id (index into `Scene::meshes`).
     pub scene_mesh: u32,
-    pub pad: u32,
+    /// The scene mesh's index of this mesh's first triangle: non-zero when a
+    /// device holds only a range of the mesh (a scene part), so hits still
+    /// name scene-wide triangles (emitter lookups need them).
+    pub first_scene_triangle: u32,
 }
 
 /// One object: a consecutive range of meshes and therefore of triangles (16 bytes).
@@ -73,8 +76,11 @@ pub struct GpuInstance {
     pub world_to_object: [f32; 12],
     pub normal_to_world: [f32; 9],
     pub object: u32,
+    /// 1 when the instance is not part of this device's scene part (its
+    /// row stays so instance indices are scene-wide; the TLAS leaves it out).
+    pub excluded: u32,
     /// Keeps the size a multiple of 16 bytes.
-    pub pad: [u32; 2],
+    pub pad: u32,
 }
 
 /// What traversal found for one ray, before hit attributes are computed
@@ -100,7 +106,7 @@ impl GpuMesh {
             material,
             flags,
             scene_mesh,
-            pad
+            first_scene_triangle
         })
     }
 }
@@ -113,7 +119,14 @@ impl GpuObject {
 
 impl GpuInstance {
     pub fn field_layout() -> FieldLayout {
-        field_layout!(GpuInstance { object_to_world, world_to_object, normal_to_world, object, pad })
+        field_layout!(GpuInstance {
+            object_to_world,
+            world_to_object,
+            normal_to_world,
+            object,
+            excluded,
+            pad
+        })
     }
 }
 

@@ -44,6 +44,7 @@ pub mod header;
 pub mod kernel_cache;
 pub mod layout;
 pub mod params;
+pub mod peer;
 pub mod queues;
 pub mod scene;
 pub mod trace;

@@ -19,9 +19,11 @@ use crate::layout::{GpuRecord, HitRef};
 /// Bytes the queues of `capacity` records take on the device.
 pub fn queue_bytes(capacity: u32) -> u64 {
     let record = std::mem::size_of::<GpuRecord>() as u64;
-    // paths + next (the path queue's ping-pong partner) + shadows, the hit
-    // references of closest-hit tracing, and three counters.
-    capacity.max(1) as u64 * (3 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4
+    // paths + next (the path queue's ping-pong partner) + shadows + the
+    // spare shadow queue a ring needs (counted always: the plan is checked
+    // before the strategy is known to the device), the hit references of
+    // closest-hit tracing, and three counters.
+    capacity.max(1) as u64 * (4 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4
 }
 
 /// The path and shadow queues of one device.
@@ -37,6 +39,9 @@ pub struct Queues {
     pub path_count: CudaSlice<u32>,
     pub next_count: CudaSlice<u32>,
     pub shadow_count: CudaSlice<u32>,
+    /// Where a ring neighbour copies a shadow queue in (allocated by the
+    /// first [`Queues::incoming`] for shadows: only rings need it).
+    pub spare_shadows: Option<CudaSlice<GpuRecord>>,
     /// Host copies of the counters when known (`None`: only the device knows).
     path_len: Cell<Option<u32>>,
     shadow_len: Cell<Option<u32>>,
@@ -63,6 +68,7 @@ impl Queues {
             path_count: counter("path counter")?,
             next_count: counter("next path counter")?,
             shadow_count: counter("shadow counter")?,
+            spare_shadows: None,
             path_len: Cell::new(Some(0)),
             shadow_len: Cell::new(Some(0)),
         })
@@ -88,6 +94,9 @@ impl Queues {
         gpu.stream
             .memcpy_dtod(&self.shadow_count, &mut grown.shadow_count)
             .map_err(CudaError::driver(context()))?;
+        if self.spare_shadows.is_some() {
+            grown.incoming(gpu, Queue::Shadows)?;
+        }
         grown.path_len.set(self.path_len.get());
         grown.shadow_len.set(self.shadow_len.get());
         *self = grown;
@@ -200,6 +209,52 @@ impl Queues {
         }
         gpu.stream.memcpy_htod(&[n], counter).map_err(CudaError::driver(context()))?;
         self.set_known_len(queue, Some(n));
+        Ok(())
+    }
+
+    /// The buffer a ring neighbour copies `queue` into: the path queue's
+    /// ping-pong partner (idle outside `shade`), or the spare shadow buffer.
+    pub fn incoming(&mut self, gpu: &Gpu, queue: Queue) -> Result<&mut CudaSlice<GpuRecord>, CudaError> {
+        match queue {
+            Queue::Paths => Ok(&mut self.next),
+            Queue::Shadows => {
+                if self.spare_shadows.is_none() {
+                    let spare = gpu.stream.alloc_zeros::<GpuRecord>(self.capacity as usize).map_err(
+                        CudaError::driver(format!("{}: allocating the spare shadow queue", gpu.label())),
+                    )?;
+                    self.spare_shadows = Some(spare);
+                }
+                Ok(self.spare_shadows.as_mut().expect("allocated above"))
+            }
+        }
+    }
+
+    /// Makes the incoming buffer (filled with `len` records by a neighbour)
+    /// the queue, and the queue's old buffer the next incoming one.
+    pub fn accept_incoming(&mut self, gpu: &Gpu, queue: Queue, len: u32) -> Result<(), CudaError> {
+        if len > self.capacity {
+            return Err(CudaError::Usage(format!(
+                "{}: {len} incoming records for a queue of {}",
+                gpu.label(),
+                self.capacity
+            )));
+        }
+        let (current, counter) = match queue {
+            Queue::Paths => (&mut self.paths, &mut self.path_count),
+            Queue::Shadows => (&mut self.shadows, &mut self.shadow_count),
+        };
+        let incoming = match queue {
+            Queue::Paths => &mut self.next,
+            Queue::Shadows => self
+                .spare_shadows
+                .as_mut()
+                .ok_or_else(|| CudaError::Usage(format!("{}: no shadow queue was sent here", gpu.label())))?,
+        };
+        std::mem::swap(current, incoming);
+        gpu.stream
+            .memcpy_htod(&[len], counter)
+            .map_err(CudaError::driver(format!("{}: accepting the {queue:?} queue", gpu.label())))?;
+        self.set_known_len(queue, Some(len));
         Ok(())
     }
 }

@@ -12,6 +12,7 @@
 
 use std::sync::Arc;
 
+use atoll_bvh::{ByteModel, MeshRange, ScenePart};
 use atoll_scene::Scene;
 use cudarc::driver::CudaSlice;
 use glam::{Affine3A, Mat3};
@@ -54,16 +55,21 @@ pub struct TableCounts {
 impl TableCounts {
     /// Counts for `scene` (as [`SceneTables::build`] would produce).
     pub fn of(scene: &Scene) -> Self {
+        Self::of_part(scene, &ScenePart::whole(scene))
+    }
+
+    /// Counts for `part` of `scene` (as [`SceneTables::build_part`] would produce).
+    pub fn of_part(scene: &Scene, part: &ScenePart) -> Self {
         let mut c = TableCounts {
             objects: scene.objects.len() as u64,
             instances: scene.instances.len() as u64,
             ..Default::default()
         };
-        for object in &scene.objects {
-            for &m in &object.meshes {
-                let mesh = &scene.meshes[m as usize];
+        for ranges in part_ranges(scene, part).iter().flatten() {
+            for range in ranges {
+                let mesh = &scene.meshes[range.mesh as usize];
                 c.vertices += mesh.positions.len() as u64;
-                c.triangles += mesh.indices.len() as u64;
+                c.triangles += range.triangles.len() as u64;
                 c.meshes += 1;
                 c.has_normals |= !mesh.normals.is_empty();
             }
@@ -110,14 +116,42 @@ pub fn gpu_instance(instance: &atoll_scene::Instance) -> GpuInstance {
         world_to_object: rows_3x4(&to_world.inverse()),
         normal_to_world,
         object: instance.object,
-        pad: [0; 2],
+        excluded: 0,
+        pad: 0,
     }
 }
 
+/// Per scene object, the mesh triangle ranges `part` holds of it (`None`
+/// for objects no instance of the part uses).
+fn part_ranges(scene: &Scene, part: &ScenePart) -> Vec<Option<Vec<MeshRange>>> {
+    let mut used = vec![false; scene.objects.len()];
+    for &i in &part.instances {
+        used[scene.instances[i as usize].object as usize] = true;
+    }
+    (0..scene.objects.len()).map(|o| used[o].then(|| part.object_ranges(scene, o as u32))).collect()
+}
+
 impl SceneTables {
-    /// Flattens `scene` into the device tables.
+    /// Flattens all of `scene` into the device tables.
     pub fn build(scene: &Scene) -> Self {
-        let counts = TableCounts::of(scene);
+        Self::build_part(scene, &ScenePart::whole(scene))
+    }
+
+    /// Flattens `part` of `scene`: only the part's triangles are stored;
+    /// every object and instance keeps its row (hits and lights use
+    /// scene-wide indices), instances outside the part marked `excluded`.
+    /// A mesh held only in part keeps all its vertices (the triangle ranges
+    /// index them) but only its range of triangles.
+    pub fn build_part(scene: &Scene, part: &ScenePart) -> Self {
+        let counts = TableCounts::of_part(scene, part);
+        let mut instances: Vec<GpuInstance> = scene.instances.iter().map(gpu_instance).collect();
+        let mut in_part = vec![false; instances.len()];
+        for &i in &part.instances {
+            in_part[i as usize] = true;
+        }
+        for (instance, in_part) in instances.iter_mut().zip(in_part) {
+            instance.excluded = u32::from(!in_part);
+        }
         let mut t = SceneTables {
             vertices: Vec::with_capacity(counts.vertices as usize * 3),
             normals: Vec::with_capacity(if counts.has_normals { counts.vertices as usize * 3 } else { 0 }),
@@ -125,13 +159,13 @@ impl SceneTables {
             triangle_mesh: Vec::with_capacity(counts.triangles as usize),
             meshes: Vec::with_capacity(counts.meshes as usize),
             objects: Vec::with_capacity(scene.objects.len()),
-            instances: scene.instances.iter().map(gpu_instance).collect(),
+            instances,
         };
-        for object in &scene.objects {
+        for ranges in part_ranges(scene, part) {
             let first_triangle = t.triangle_mesh.len() as u32;
             let first_mesh = t.meshes.len() as u32;
-            for &mesh_id in &object.meshes {
-                let mesh = &scene.meshes[mesh_id as usize];
+            for range in ranges.iter().flatten() {
+                let mesh = &scene.meshes[range.mesh as usize];
                 let first_vertex = (t.vertices.len() / 3) as u32;
                 let gpu_mesh_index = t.meshes.len() as u32;
                 let mut flags = 0;
@@ -144,15 +178,16 @@ impl SceneTables {
                 if mesh.emission.is_some() {
                     flags |= mesh_flags::EMISSIVE;
                 }
+                let triangles = &mesh.indices[range.triangles.start as usize..range.triangles.end as usize];
                 t.meshes.push(GpuMesh {
                     first_triangle: t.triangle_mesh.len() as u32,
-                    triangle_count: mesh.indices.len() as u32,
+                    triangle_count: triangles.len() as u32,
                     first_vertex,
                     vertex_count: mesh.positions.len() as u32,
                     material: mesh.material,
                     flags,
-                    scene_mesh: mesh_id,
-                    pad: 0,
+                    scene_mesh: range.mesh,
+                    first_scene_triangle: range.triangles.start,
                 });
                 t.vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
                 if counts.has_normals {
@@ -162,8 +197,8 @@ impl SceneTables {
                         t.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
                     }
                 }
-                t.triangles.extend(mesh.indices.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
-                t.triangle_mesh.extend(std::iter::repeat_n(gpu_mesh_index, mesh.indices.len()));
+                t.triangles.extend(triangles.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
+                t.triangle_mesh.extend(std::iter::repeat_n(gpu_mesh_index, triangles.len()));
             }
             t.objects.push(GpuObject {
                 first_triangle,
@@ -191,6 +226,25 @@ impl SceneTables {
 /// build scratch included ([`crate::bvh::estimate_bytes`]).
 pub fn bvh_estimate_bytes(triangles: u64, instances: u64) -> u64 {
     crate::bvh::estimate_bytes(triangles, instances)
+}
+
+/// The GPU's memory use per scene element, for partitioning scenes over
+/// GPUs (`atoll_bvh::part_bytes`): derived from the same sizes the memory
+/// plan checks ([`TableCounts::bytes`], [`crate::bvh::build_bytes`]). The
+/// build sorts and builds every BLAS at once, so its scratch is charged per
+/// triangle, not per largest object.
+pub fn byte_model() -> ByteModel {
+    const N: u64 = 1 << 20;
+    let bvh = |triangles: u64, instances: u64| crate::bvh::build_bytes(triangles, 1, instances);
+    ByteModel {
+        // Index bytes are in the geometry; the device adds the triangle's mesh index.
+        per_triangle: 4 + (bvh(N, 1) - bvh(0, 1)).div_ceil(N),
+        // Positions and normals as stored; uvs are not uploaded (yet).
+        per_vertex: 0,
+        per_instance: std::mem::size_of::<GpuInstance>() as u64 + (bvh(1, N) - bvh(1, 0)).div_ceil(N),
+        per_object: (std::mem::size_of::<GpuObject>() + std::mem::size_of::<GpuMesh>()) as u64 + 64,
+        scratch_per_triangle: 0,
+    }
 }
 
 /// Everything a device will allocate for a frame, summed before allocating.
@@ -269,7 +323,18 @@ impl GpuScene {
         budget: Option<u64>,
         frame_bytes: u64,
     ) -> Result<GpuScene, CudaError> {
-        let counts = TableCounts::of(scene);
+        Self::upload_part(gpu, scene, &ScenePart::whole(scene), budget, frame_bytes)
+    }
+
+    /// [`GpuScene::upload`] of `part` of the scene.
+    pub fn upload_part(
+        gpu: &Arc<Gpu>,
+        scene: &Scene,
+        part: &ScenePart,
+        budget: Option<u64>,
+        frame_bytes: u64,
+    ) -> Result<GpuScene, CudaError> {
+        let counts = TableCounts::of_part(scene, part);
         let plan = MemoryPlan {
             scene_tables: counts.bytes(),
             bvh: bvh_estimate_bytes(counts.triangles, counts.instances),
@@ -277,7 +342,7 @@ impl GpuScene {
             ..Default::default()
         };
         plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
-        Self::upload_tables(gpu, SceneTables::build(scene))
+        Self::upload_tables(gpu, SceneTables::build_part(scene, part))
     }
 
     /// Uploads prepared tables (no memory check).

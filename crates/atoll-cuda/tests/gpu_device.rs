@@ -6,6 +6,7 @@ mod common;
 
 use std::sync::Arc;
 
+use atoll_bvh::ScenePart;
 use atoll_cuda::CudaDevice;
 use atoll_render::record::flags;
 use atoll_render::{render, CpuDevice, Device, DeviceError, FrameContext, Queue, RenderOptions, Wave};
@@ -37,8 +38,8 @@ fn camera_rays_and_hits_match_the_cpu_device() {
     let frame = Arc::new(FrameContext::new(&scene, options(&scene, 32, 1)));
     let mut cpu = CpuDevice::new();
     let mut cuda = CudaDevice::on(gpu);
-    cpu.prepare(&scene, &frame).unwrap();
-    cuda.prepare(&scene, &frame).unwrap();
+    cpu.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
+    cuda.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
     let wave = Wave { sample: 0, first_pixel: 0, pixel_count: 32 * 32 };
     cpu.generate(&wave);
     cuda.generate(&wave);
@@ -112,7 +113,7 @@ fn memory_budget_is_refused_before_allocating() {
     let scene = cornell();
     let frame = Arc::new(FrameContext::new(&scene, options(&scene, 512, 1)));
     let mut cuda = CudaDevice::on(gpu).with_memory_budget(1 << 20);
-    match cuda.prepare(&scene, &frame) {
+    match cuda.prepare(&scene, &ScenePart::whole(&scene), &frame) {
         Err(DeviceError::OutOfMemory { needed, budget, .. }) => assert!(needed > budget && budget == 1 << 20),
         other => panic!("expected OutOfMemory, got {other:?}"),
     }

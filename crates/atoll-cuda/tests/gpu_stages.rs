@@ -14,6 +14,7 @@
 
 use std::sync::Arc;
 
+use atoll_bvh::ScenePart;
 use atoll_cuda::compile::{compile_with_cache, Output};
 use atoll_cuda::gpu::{launch_1d, Gpu};
 use atoll_cuda::layout::{GpuRecord, HitRef, HIT_NONE};
@@ -531,7 +532,7 @@ fn surface_matches_write_hit() {
     }
     // The CPU device's hits (write_hit) ...
     let mut cpu = CpuDevice::new();
-    cpu.prepare(&scene, &frame).unwrap();
+    cpu.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
     cpu.write_queue(Queue::Paths, &rays);
     cpu.trace_paths();
     let cpu_hits = cpu.read_queue(Queue::Paths);

@@ -1,2 +1,24 @@
-//! Distribution strategies over many devices (issue 4). Empty until the
-//! single-device renderer has landed.
+//! Distribution strategies over many devices (issue 4).
+//!
+//! - [`partition()`]: the scene split into K memory-balanced parts for the
+//!   ring strategy (ray queue cycling), big objects split by meshes and
+//!   triangle ranges; [`min_parts`] the fewest parts that fit a budget.
+//! - [`plan()`]: replicate or ring (with islands) for N devices, as `auto`
+//!   chooses or as forced by a [`Strategy`].
+//! - [`render_multi`]: one frame on many devices placed by a [`Layout`]
+//!   (replicate with dynamic waves; ring with queues cycling, GPU to GPU by
+//!   peer copies where every member is a GPU).
+//! - [`ownership`]: the false-colour view of which device holds what.
+
+#![warn(missing_docs)]
+
+pub mod ownership;
+pub mod partition;
+pub mod render;
+mod vote;
+
+pub use partition::{
+    min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
+    Strategy,
+};
+pub use render::{render_multi, DeviceReport, Layout, MultiOutput, Transport};

@@ -3,7 +3,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use atoll_bvh::{Hit, Ray, SceneBvh};
+use atoll_bvh::{part_bytes, part_geometry_bytes, ByteModel, Hit, Ray, SceneBvh, ScenePart};
 use atoll_scene::Scene;
 use glam::{Affine3A, Mat3A, Vec3};
 use rayon::prelude::*;
@@ -162,19 +162,18 @@ impl Device for CpuDevice {
     fn prepare(
         &mut self,
         scene: &Arc<Scene>,
+        part: &ScenePart,
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, DeviceError> {
-        let geometry = scene.stats().geometry_bytes;
-        // A binary BVH has < 2 nodes per triangle of 32 bytes, plus the
-        // reordered triangle data; estimate before building.
-        let estimate = geometry + scene.stats().unique_triangles * (64 + 48);
+        // Checked before building, from the same byte model the partitioner uses.
+        let estimate = part_bytes(scene, part, &ByteModel::CPU);
         if let Some(budget) = self.memory_budget {
             if estimate > budget {
                 return Err(DeviceError::OutOfMemory { device: self.name(), needed: estimate, budget });
             }
         }
         let start = Instant::now();
-        let bvh = self.run(|| SceneBvh::build(scene));
+        let bvh = self.run(|| SceneBvh::build_part(scene, part));
         let build = start.elapsed().as_secs_f64();
         let bvh_stats = bvh.stats();
         let normal_to_world = scene.instances.iter().map(|i| i.normal_to_world()).collect();
@@ -184,7 +183,7 @@ impl Device for CpuDevice {
         self.stats = DeviceStats::default();
         let wave = frame.options.wave_size.min(frame.options.pixel_count()) as u64;
         Ok(PrepareStats {
-            scene_bytes: geometry + bvh_stats.bytes as u64,
+            scene_bytes: part_geometry_bytes(scene, part) + bvh_stats.bytes as u64,
             frame_bytes: 2 * wave * std::mem::size_of::<RayRecord>() as u64
                 + self.film.pixel_count() as u64 * 12,
             bvh_build_seconds: build,
@@ -308,5 +307,9 @@ impl Device for CpuDevice {
 
     fn stats(&self) -> DeviceStats {
         self.stats.clone()
+    }
+
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
+        self
     }
 }

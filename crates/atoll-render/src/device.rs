@@ -6,6 +6,7 @@
 
 use std::sync::Arc;
 
+use atoll_bvh::ScenePart;
 use atoll_scene::Scene;
 
 use crate::film::Film;
@@ -55,11 +56,17 @@ pub trait Device: Send {
     /// A short name such as `cpu` or `cuda:0`.
     fn name(&self) -> String;
 
-    /// Makes the scene resident (upload, BVH build) and allocates queues and
-    /// film for `frame`. Fails before allocating when the memory budget
-    /// cannot hold it.
-    fn prepare(&mut self, scene: &Arc<Scene>, frame: &Arc<FrameContext>)
-        -> Result<PrepareStats, DeviceError>;
+    /// Makes `part` of the scene resident (upload, BVH build over that part
+    /// only; [`ScenePart::whole`] for all of it) and allocates queues and
+    /// film for `frame`. Materials and lights are always whole: a device
+    /// shades any hit, wherever it was found. Fails before allocating when
+    /// the memory budget cannot hold it.
+    fn prepare(
+        &mut self,
+        scene: &Arc<Scene>,
+        part: &ScenePart,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError>;
 
     /// Replaces the path queue with the camera rays of `wave`.
     fn generate(&mut self, wave: &Wave);
@@ -93,4 +100,16 @@ pub trait Device: Send {
     fn film(&self) -> Film;
 
     fn stats(&self) -> DeviceStats;
+
+    /// The first error a stage met, for devices whose stages can fail
+    /// (a GPU's kernel launch); after one, stages do nothing and queues
+    /// read as empty, so render loops end and callers check this.
+    fn error(&self) -> Option<String> {
+        None
+    }
+
+    /// The concrete device, for strategies' fast paths between devices of
+    /// one kind (GPU peer copies of queues instead of `read_queue` /
+    /// `write_queue` through the host).
+    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
 }

@@ -5,6 +5,7 @@
 use std::sync::Arc;
 use std::time::Instant;
 
+use atoll_bvh::ScenePart;
 use atoll_scene::Scene;
 
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats};
@@ -57,7 +58,7 @@ pub fn render(
 ) -> Result<RenderOutput, DeviceError> {
     let start = Instant::now();
     let frame = Arc::new(FrameContext::new(scene, options));
-    let prepare = device.prepare(scene, &frame)?;
+    let prepare = device.prepare(scene, &ScenePart::whole(scene), &frame)?;
     let prepare_seconds = start.elapsed().as_secs_f64();
     let waves = Wave::all(&frame.options);
     let start = Instant::now();

@@ -29,11 +29,18 @@ pub struct BenchArgs {
     /// Path-tracing runs after an untimed 1-spp warm-up; the median is reported.
     #[arg(long, default_value_t = 1)]
     pub runs: usize,
+    /// Measure queue copy speed between GPUs 0 and 1 (peer copies vs
+    /// through the host) instead of everything else.
+    #[arg(long)]
+    pub peer: bool,
     #[command(flatten)]
     pub device: DeviceArgs,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
+    if args.peer {
+        return peer_copies();
+    }
     let mut selected = select(&args.device, None)?;
     if !args.no_traversal {
         match &selected.gpu {
@@ -104,5 +111,28 @@ fn traversal(args: &BenchArgs) -> Result<(), CliError> {
     );
     let report = atoll_bvh::bench::run_traversal_bench(&scene, &atoll_bvh::bench::BenchOptions::default());
     println!("{report}");
+    Ok(())
+}
+
+/// GPU-to-GPU copy speed for ray queues of a few sizes (32 MiB is one wave
+/// of 262144 records).
+fn peer_copies() -> Result<(), CliError> {
+    let open = |i| atoll_cuda::Gpu::open(i).map_err(|e| CliError::Runtime(e.to_string()));
+    let (a, b) = (open(0)?, open(1)?);
+    for (x, y) in [(&a, &b), (&b, &a)] {
+        for mib in [4usize, 32, 256] {
+            let r = atoll_cuda::peer::measure_copy(x, y, mib << 20, 20)
+                .map_err(|e| CliError::Runtime(e.to_string()))?;
+            println!(
+                "queue copy  {} -> {}  {:>4} MiB: peer {:.1} GB/s ({}), through the host {:.1} GB/s",
+                x.label(),
+                y.label(),
+                mib,
+                r.peer_gbps,
+                if r.direct { "direct" } else { "no peer access: staged by the driver" },
+                r.host_gbps
+            );
+        }
+    }
     Ok(())
 }

@@ -4,7 +4,7 @@
 //! NVRTC are all there, else the CPU, and says on stderr which and why.
 //! Naming `cuda` on a machine without them is an error (exit 1), never a panic.
 
-use atoll_cuda::device::{CudaDevice, ErrorSlot};
+use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::{fmt_bytes, CudaError};
 use atoll_render::{CpuDevice, Device};
 use clap::Args;
@@ -74,8 +74,6 @@ pub struct Selected {
     pub device: Box<dyn Device>,
     /// e.g. `cuda:0 (NVIDIA H200, 139.8 GiB)` or `cpu (16 threads)`.
     pub description: String,
-    /// A GPU device's stage errors (its stages cannot return them).
-    errors: Option<ErrorSlot>,
     /// The GPU behind a CUDA device (benchmarks use it directly).
     pub gpu: Option<std::sync::Arc<atoll_cuda::Gpu>>,
 }
@@ -83,7 +81,7 @@ pub struct Selected {
 impl Selected {
     /// `Err` when a stage of the render failed on the device.
     pub fn check(&self) -> Result<(), CliError> {
-        match self.errors.as_ref().and_then(|e| e.get()) {
+        match self.device.error() {
             Some(message) => Err(CliError::Runtime(format!("rendering failed: {message}"))),
             None => Ok(()),
         }
@@ -99,7 +97,7 @@ fn cpu(args: &DeviceArgs, threads: Option<usize>) -> Result<Selected, CliError> 
         device = device.with_memory_budget(bytes);
     }
     let description = format!("cpu ({} threads)", device.threads());
-    Ok(Selected { device: Box::new(device), description, errors: None, gpu: None })
+    Ok(Selected { device: Box::new(device), description, gpu: None })
 }
 
 fn cuda(args: &DeviceArgs, ordinal: usize) -> Result<Selected, CudaError> {
@@ -109,9 +107,8 @@ fn cuda(args: &DeviceArgs, ordinal: usize) -> Result<Selected, CudaError> {
     }
     let gpu = device.gpu();
     let description = format!("{} ({}, {})", gpu.label(), gpu.name, fmt_bytes(gpu.total_memory));
-    let errors = Some(device.errors());
     let gpu = Some(gpu.clone());
-    Ok(Selected { device: Box::new(device), description, errors, gpu })
+    Ok(Selected { device: Box::new(device), description, gpu })
 }
 
 /// The device `args` ask for; `threads` applies to the CPU device only.

@@ -6,6 +6,7 @@ mod device;
 mod gen;
 mod info;
 mod load;
+mod multi;
 mod render;
 
 use std::process::ExitCode;

@@ -1,16 +1,19 @@
 //! `atoll render`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use atoll_dist::Strategy;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
+use atoll_scene::Scene;
 use clap::Args;
 use glam::UVec2;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
 use crate::load::load_scene;
+use crate::multi::{self, parse_devices, DeviceList, DeviceSpec, MultiArgs};
 use crate::CliError;
 
 #[derive(Args, Default)]
@@ -35,6 +38,17 @@ pub struct RenderArgs {
     pub threads: Option<usize>,
     #[command(flatten)]
     pub device: DeviceArgs,
+    /// Render on several devices: comma-separated cpu, cpu:N (N CPU devices
+    /// sharing the cores) or cuda:I; `--device-memory` is then per device.
+    #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
+    pub devices: Option<DeviceList>,
+    /// How several devices share the work: auto (replicate when the scene
+    /// fits every device, else rings of as few devices as fit), replicate or ring.
+    #[arg(long, default_value = "auto", value_parser = parse_strategy, requires = "devices")]
+    pub strategy: Strategy,
+    /// Also write a false-colour image of which device holds which surface.
+    #[arg(long, value_name = "IMAGE", requires = "devices")]
+    pub ownership: Option<PathBuf>,
     /// Random seed; different seeds give independent images.
     #[arg(long, default_value_t = 0)]
     pub seed: u32,
@@ -85,13 +99,12 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
     }
 
-    let mut selected = select(&args.device, args.threads)?;
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
-            .expect("valid template"),
-    );
     let scene = Arc::new(scene);
+    if let Some(DeviceList(specs)) = &args.devices {
+        return render_on_devices(&scene, options, &args, specs, &output);
+    }
+    let mut selected = select(&args.device, args.threads)?;
+    let bar = progress_bar(args.quiet);
     let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
@@ -111,6 +124,56 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
         out.rays_per_second() / 1e6,
+    );
+    Ok(())
+}
+
+fn parse_strategy(s: &str) -> Result<Strategy, String> {
+    s.parse().map_err(|e: atoll_dist::ParseStrategyError| e.to_string())
+}
+
+fn progress_bar(quiet: bool) -> ProgressBar {
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
+            .expect("valid template"),
+    );
+    bar
+}
+
+/// `--devices`: plan, render on every device, write, print the per-device table.
+fn render_on_devices(
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    args: &RenderArgs,
+    specs: &[DeviceSpec],
+    output: &Path,
+) -> Result<(), CliError> {
+    let multi_args = MultiArgs {
+        specs,
+        strategy: args.strategy,
+        budget: args.device.device_memory,
+        threads: args.threads,
+        ownership: args.ownership.as_deref(),
+    };
+    let bar = progress_bar(args.quiet);
+    let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    print!("{}", multi::device_table(&out));
+    println!(
+        "{}: {}x{} {} spp on {} devices in {:.2} s (prepare {:.2} s): {:.2} M samples/s",
+        output.display(),
+        options.resolution.x,
+        options.resolution.y,
+        options.spp,
+        specs.len(),
+        out.render_seconds,
+        out.prepare_seconds,
+        out.samples_per_second() / 1e6,
     );
     Ok(())
 }

@@ -23,8 +23,9 @@ pub struct ScenePlan {
     pub seg_object: Vec<u32>,
     /// Segment of each object, `BUILD_NONE` for objects without triangles.
     pub object_segment: Vec<u32>,
-    /// Instances in the TLAS: those of objects with triangles whose
-    /// `world_to_object` is finite (as `atoll_bvh::SceneBvh` leaves out the rest).
+    /// Instances in the TLAS: those of this device's scene part whose object
+    /// has triangles and whose `world_to_object` is finite (as
+    /// `atoll_bvh::SceneBvh` leaves out the rest).
     pub valid_instances: Vec<u32>,
 }
 
@@ -46,7 +47,7 @@ impl ScenePlan {
                 let inst = &instances[i as usize];
                 let has_blas =
                     plan.object_segment.get(inst.object as usize).is_some_and(|&s| s != BUILD_NONE);
-                has_blas && inst.world_to_object.iter().all(|x| x.is_finite())
+                has_blas && inst.excluded == 0 && inst.world_to_object.iter().all(|x| x.is_finite())
             })
             .collect();
         plan

@@ -150,6 +150,36 @@ fn instanced_scene_tables() {
 }
 
 #[test]
+fn part_tables_hold_only_the_part_with_scene_wide_indices() {
+    let scene = instanced_scene();
+    // Instances 0 (object b) and 1 (object a); of b only triangles 1..3 of mesh 2.
+    let part = ScenePart {
+        instances: vec![0, 1],
+        object_subsets: vec![(1, vec![MeshRange { mesh: 2, triangles: 1..3 }])],
+    };
+    let t = SceneTables::build_part(&scene, &part);
+    assert_eq!(t.counts(), TableCounts::of_part(&scene, &part), "counts without building agree");
+    assert_eq!(t.objects[0].triangle_count, 4, "object a whole");
+    assert_eq!(t.objects[1].triangle_count, 2, "object b: the range only");
+    let b_mesh = t.meshes[t.objects[1].first_mesh as usize];
+    assert_eq!((b_mesh.scene_mesh, b_mesh.first_scene_triangle, b_mesh.triangle_count), (2, 1, 2));
+    // The range's triangles, with the mesh's vertices kept whole.
+    let first = b_mesh.first_triangle as usize;
+    for (k, local) in (1..3).enumerate() {
+        for c in 0..3 {
+            let v = t.triangles[(first + k) * 3 + c] - b_mesh.first_vertex;
+            assert_eq!(v, scene.meshes[2].indices[local][c]);
+        }
+    }
+    let excluded: Vec<u32> = t.instances.iter().map(|i| i.excluded).collect();
+    assert_eq!(excluded, [0, 0, 1], "every instance keeps its row; the third is outside the part");
+    let plan = crate::bvh::ScenePlan::new(&t.objects, &t.instances);
+    assert_eq!(plan.valid_instances, [0, 1]);
+    // The whole scene as a part is the plain build.
+    assert_eq!(SceneTables::build_part(&scene, &ScenePart::whole(&scene)), SceneTables::build(&scene));
+}
+
+#[test]
 fn empty_scene_has_empty_tables_and_positive_size() {
     let t = SceneTables::build(&Scene::default());
     assert_eq!(t, SceneTables::default());

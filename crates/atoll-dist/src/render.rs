@@ -1,0 +1,425 @@
+//! Rendering one frame on many devices: replicate (every device holds the
+//! whole scene and takes waves of pixels as it becomes free) and ring (ray
+//! queue cycling: each device of a ring holds one scene part; every queue
+//! visits every device of its ring to be traced, then returns home to be
+//! shaded), with islands of rings sharing the waves.
+//!
+//! One thread drives each device. Waves are handed out from one counter
+//! shared by all devices (replicate) or all rings (ring), so faster devices
+//! or islands take more of them: the dynamic load balancing of Jaroš et al.
+//! 2021. Devices accumulate only the pixels they shade; films are summed
+//! once at the end.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::mpsc;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use atoll_bvh::ScenePart;
+use atoll_cuda::peer::IncomingSlot;
+use atoll_cuda::CudaDevice;
+use atoll_render::device::{DeviceStats, PrepareStats};
+use atoll_render::integrator::render_wave;
+use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave};
+use atoll_scene::Scene;
+
+use crate::vote::Vote;
+
+/// Where the scene goes: what each device holds and who it works with.
+#[derive(Clone, Debug)]
+pub enum Layout {
+    /// Every device holds the whole scene.
+    Replicate,
+    /// `parts.len()` devices per ring, `islands` rings: device `i * K + j`
+    /// (K = parts.len()) is member `j` of ring `i` and holds `parts[j]`.
+    Ring {
+        /// One part per member of a ring.
+        parts: Vec<ScenePart>,
+        /// Rings, each rendering its share of the waves.
+        islands: usize,
+    },
+}
+
+impl Layout {
+    /// Devices this layout needs (`None`: any number).
+    pub fn devices(&self) -> Option<usize> {
+        match self {
+            Layout::Replicate => None,
+            Layout::Ring { parts, islands } => Some(parts.len() * islands),
+        }
+    }
+}
+
+/// What one device did over a frame.
+#[derive(Clone, Debug, Default)]
+pub struct DeviceReport {
+    /// The device's name (`cpu:0`, `cuda:1`).
+    pub name: String,
+    /// Ring and member within it (0, 0 for replicate).
+    pub island: usize,
+    /// Position in its ring (the scene part it holds).
+    pub member: usize,
+    /// What preparing (upload, BVH build) cost and holds.
+    pub prepare: PrepareStats,
+    /// The device's own counters (rays traced, busy time).
+    pub stats: DeviceStats,
+    /// Waves this device generated (its share of the pixels).
+    pub waves: usize,
+    /// Seconds from the start of rendering until this device finished.
+    pub wall_seconds: f64,
+    /// Seconds spent blocked on the other devices of its ring (queue
+    /// hand-overs, end-of-wave votes).
+    pub wait_seconds: f64,
+    /// Ray-record bytes this device sent to the next device of its ring.
+    pub bytes_sent: u64,
+    /// A failure while moving queues (the frame is then wrong and refused).
+    pub error: Option<String>,
+}
+
+/// A frame rendered on many devices.
+#[derive(Clone, Debug)]
+pub struct MultiOutput {
+    /// The merged film of every device.
+    pub film: Film,
+    /// Per device, in device order.
+    pub devices: Vec<DeviceReport>,
+    /// Seconds to prepare every device (they prepare at once).
+    pub prepare_seconds: f64,
+    /// Seconds from the first wave to the last.
+    pub render_seconds: f64,
+}
+
+impl MultiOutput {
+    /// Camera samples per second.
+    pub fn samples_per_second(&self) -> f64 {
+        self.film.pixel_count() as f64 * self.film.spp as f64 / self.render_seconds.max(1e-9)
+    }
+}
+
+/// The waves of a frame for `workers` devices or rings taking them
+/// dynamically: waves are made smaller (down to 4096 pixels) until there
+/// are at least 8 per worker, so that the last ones to finish do not keep
+/// the others waiting long.
+pub fn work_units(options: &RenderOptions, workers: usize) -> Vec<Wave> {
+    let pixels = options.pixel_count().max(1) as u64;
+    let wanted = 8 * workers.max(1) as u64;
+    let per_unit = (pixels * options.spp.max(1) as u64).div_ceil(wanted).max(4096).min(pixels);
+    let mut opts = options.clone();
+    opts.wave_size = opts.wave_size.min(per_unit as u32).max(1);
+    Wave::all(&opts)
+}
+
+/// The device's first stage error, as a `DeviceError`.
+fn check(device: &dyn Device) -> Result<(), DeviceError> {
+    match device.error() {
+        Some(message) => Err(DeviceError::Other { device: device.name(), message }),
+        None => Ok(()),
+    }
+}
+
+/// Prepares every device with its part, all at once (uploads and BVH builds
+/// of different devices overlap).
+fn prepare_all(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    frame: &Arc<FrameContext>,
+    layout: &Layout,
+) -> Result<Vec<PrepareStats>, DeviceError> {
+    let whole = ScenePart::whole(scene);
+    let part_of = |d: usize| match layout {
+        Layout::Replicate => &whole,
+        Layout::Ring { parts, .. } => &parts[d % parts.len()],
+    };
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = devices
+            .iter_mut()
+            .enumerate()
+            .map(|(d, device)| {
+                let part = part_of(d);
+                scope.spawn(move || device.prepare(scene, part, frame))
+            })
+            .collect();
+        handles.into_iter().map(|h| h.join().expect("device prepare panicked")).collect()
+    })
+}
+
+/// Renders a frame on `devices` placed by `layout`. `progress` gets
+/// (waves done, waves total) as waves finish.
+pub fn render_multi(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    layout: &Layout,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<MultiOutput, DeviceError> {
+    if devices.is_empty() {
+        return Err(DeviceError::Other {
+            device: "devices".into(),
+            message: "no devices to render on".into(),
+        });
+    }
+    if let Some(needed) = layout.devices() {
+        if needed != devices.len() {
+            return Err(DeviceError::Other {
+                device: "devices".into(),
+                message: format!("the ring layout needs {needed} devices, {} given", devices.len()),
+            });
+        }
+    }
+    let start = Instant::now();
+    let frame = Arc::new(FrameContext::new(scene, options));
+    let prepared = prepare_all(devices, scene, &frame, layout)?;
+    let prepare_seconds = start.elapsed().as_secs_f64();
+
+    let (ring, islands) = match layout {
+        Layout::Replicate => (1, devices.len()),
+        Layout::Ring { parts, islands } => (parts.len(), *islands),
+    };
+    let waves = work_units(&frame.options, islands);
+    let next = AtomicUsize::new(0);
+    let take = || {
+        let i = next.fetch_add(1, Ordering::Relaxed);
+        waves.get(i)
+    };
+    let transport = if ring > 1 { choose_transport(devices)? } else { Transport::Host };
+    let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
+    let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
+        (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
+    // Device d sends to d + 1 of its ring and receives from d - 1.
+    let (senders, receivers): (Vec<_>, Vec<_>) = (0..devices.len()).map(|_| mpsc::channel()).unzip();
+    let mut inboxes: Vec<Option<mpsc::Receiver<Handover>>> = receivers.into_iter().map(Some).collect();
+    let (done_tx, done_rx) = mpsc::channel::<()>();
+
+    let start = Instant::now();
+    let mut reports: Vec<DeviceReport> = std::thread::scope(|scope| {
+        let handles: Vec<_> = devices
+            .iter_mut()
+            .enumerate()
+            .map(|(d, device)| {
+                let (island, member) = (d / ring, d % ring);
+                let next_device = island * ring + (member + 1) % ring;
+                let vote = &votes[island];
+                let link = RingLink {
+                    size: ring,
+                    member,
+                    transport,
+                    to_next: senders[next_device].clone(),
+                    from_prev: inboxes[d].take().expect("one inbox per device"),
+                    slots: &slots[island],
+                    vote,
+                };
+                let done = done_tx.clone();
+                let take = &take;
+                scope.spawn(move || {
+                    let mut report =
+                        DeviceReport { name: device.name(), island, member, ..Default::default() };
+                    let device = device.as_mut();
+                    if ring == 1 {
+                        while let Some(wave) = take() {
+                            render_wave(device, wave);
+                            report.waves += 1;
+                            let _ = done.send(());
+                        }
+                    } else {
+                        ring_loop(device, &link, vote, take, &done, &mut report);
+                    }
+                    report.wall_seconds = start.elapsed().as_secs_f64();
+                    report
+                })
+            })
+            .collect();
+        drop(done_tx);
+        let mut finished = 0;
+        for () in done_rx {
+            finished += 1;
+            progress(finished, waves.len());
+        }
+        handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
+    });
+    let render_seconds = start.elapsed().as_secs_f64();
+
+    let mut film = Film::new(frame.options.resolution);
+    for ((device, report), prepare) in devices.iter().zip(&mut reports).zip(prepared) {
+        check(device.as_ref())?;
+        if let Some(message) = &report.error {
+            return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
+        }
+        film.merge(&device.film());
+        report.stats = device.stats();
+        report.prepare = prepare;
+    }
+    film.spp = frame.options.spp;
+    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds })
+}
+
+/// What passes from a ring member to the next at each step.
+enum Handover {
+    /// The records themselves, through the host (any device kind).
+    Records(Vec<RayRecord>),
+    /// The number of records already copied GPU to GPU into the receiver's
+    /// incoming slot ([`atoll_cuda::peer`]).
+    Copied(u32),
+}
+
+/// How queues move around a ring.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// `read_queue` / `write_queue` through host memory: works for every device.
+    Host,
+    /// CUDA peer copies (NVLink where available): every member a GPU.
+    Peer,
+}
+
+/// A device's connections to its ring neighbours.
+struct RingLink<'a> {
+    size: usize,
+    member: usize,
+    transport: Transport,
+    to_next: mpsc::Sender<Handover>,
+    from_prev: mpsc::Receiver<Handover>,
+    /// The ring's published incoming slots, by member (peer transport).
+    slots: &'a [Mutex<Option<IncomingSlot>>],
+    vote: &'a Vote,
+}
+
+impl RingLink<'_> {
+    /// Traces `queue` with `trace` on this device and passes it on, `size`
+    /// times: every queue of the ring visits every member once and is back
+    /// home at the end. A closest hit found earlier shortens `t_max`, so
+    /// later members only report nearer hits; shadow rays found occluded
+    /// are skipped by the later members.
+    fn cycle(
+        &self,
+        device: &mut dyn Device,
+        queue: Queue,
+        trace: fn(&mut dyn Device),
+        report: &mut DeviceReport,
+    ) -> Result<(), String> {
+        for _ in 0..self.size {
+            trace(device);
+            let handover = match self.transport {
+                Transport::Host => {
+                    let records = device.read_queue(queue);
+                    report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+                    Handover::Records(records)
+                }
+                Transport::Peer => Handover::Copied(self.send_peer(device, queue, report)),
+            };
+            let waited = Instant::now();
+            self.to_next.send(handover).map_err(|_| "the next device of the ring stopped".to_string())?;
+            let incoming =
+                self.from_prev.recv().map_err(|_| "the previous device of the ring stopped".to_string())?;
+            report.wait_seconds += waited.elapsed().as_secs_f64();
+            match incoming {
+                Handover::Records(records) => device.write_queue(queue, &records),
+                Handover::Copied(len) => {
+                    let cuda = cuda_device(device);
+                    if let Err(e) = cuda.accept_incoming(queue, len) {
+                        report.error.get_or_insert(e.to_string());
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Publishes this member's incoming slot, waits until every member has,
+    /// and copies `queue` into the successor's. Errors are kept in the
+    /// report and count as an empty queue, so the ring keeps stepping.
+    fn send_peer(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> u32 {
+        let cuda = cuda_device(device);
+        let slot = cuda.incoming_slot(queue);
+        *self.slots[self.member].lock().unwrap_or_else(|p| p.into_inner()) = slot.as_ref().ok().copied();
+        report.wait_seconds += self.vote.any(false).1.as_secs_f64();
+        let next = (self.member + 1) % self.size;
+        let target = *self.slots[next].lock().unwrap_or_else(|p| p.into_inner());
+        let sent = match (slot, target) {
+            (Err(e), _) => Err(e.to_string()),
+            (_, None) => Err("the next device has no incoming slot".to_string()),
+            (Ok(_), Some(target)) => cuda.send_queue(queue, &target).map_err(|e| e.to_string()),
+        };
+        match sent {
+            Ok(len) => {
+                report.bytes_sent += len as u64 * std::mem::size_of::<RayRecord>() as u64;
+                len
+            }
+            Err(e) => {
+                report.error.get_or_insert(e);
+                0
+            }
+        }
+    }
+}
+
+/// The CUDA device behind a ring member of the peer transport (which is
+/// only chosen when every member is one).
+fn cuda_device(device: &mut dyn Device) -> &mut CudaDevice {
+    device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on a CUDA device")
+}
+
+/// The transport for `devices`: peer copies when all are CUDA GPUs (with
+/// peer access enabled between them here), else the host. The environment
+/// variable `ATOLL_RING_TRANSPORT=host` forces the host, for comparison.
+fn choose_transport(devices: &mut [Box<dyn Device>]) -> Result<Transport, DeviceError> {
+    let forced_host = std::env::var("ATOLL_RING_TRANSPORT").is_ok_and(|v| v.eq_ignore_ascii_case("host"));
+    let gpus: Option<Vec<_>> = devices
+        .iter_mut()
+        .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
+        .collect();
+    match gpus {
+        Some(gpus) if !forced_host => {
+            atoll_cuda::peer::enable_peer_access(&gpus)
+                .map_err(|e| DeviceError::Other { device: "peer access".into(), message: e.to_string() })?;
+            Ok(Transport::Peer)
+        }
+        _ => Ok(Transport::Host),
+    }
+}
+
+/// One ring member's frame: take a wave (or none), then bounce until no
+/// member of the ring has paths left; repeat until no member took a wave.
+fn ring_loop<'w>(
+    device: &mut dyn Device,
+    link: &RingLink<'_>,
+    vote: &Vote,
+    take: &dyn Fn() -> Option<&'w Wave>,
+    done: &mpsc::Sender<()>,
+    report: &mut DeviceReport,
+) {
+    let voted = |mine: bool, report: &mut DeviceReport| {
+        let (any, waited): (bool, Duration) = vote.any(mine);
+        report.wait_seconds += waited.as_secs_f64();
+        any
+    };
+    loop {
+        // A device that failed keeps voting (with empty queues) so that the
+        // others are not left waiting for it.
+        let wave = if device.error().is_none() { take() } else { None };
+        if !voted(wave.is_some(), report) {
+            return;
+        }
+        match wave {
+            Some(wave) => {
+                device.generate(wave);
+                report.waves += 1;
+            }
+            None => device.write_queue(Queue::Paths, &[]),
+        }
+        while voted(device.has_paths(), report) {
+            let traced = link.cycle(device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
+                device.shade();
+                link.cycle(device, Queue::Shadows, |d| d.trace_shadows(), report)
+            });
+            if let Err(message) = traced {
+                // Only when a neighbour's thread is gone (it panicked): the
+                // frame cannot finish; its panic is reported by the caller.
+                tracing::error!("{}: {message}", device.name());
+                return;
+            }
+            device.resolve_shadows();
+        }
+        if wave.is_some() {
+            let _ = done.send(());
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! Many CPU devices render the same image as one: replicate, ring (ray
+//! queue cycling over scene parts, big objects split) and islands of rings.
+//!
+//! Random numbers depend only on (pixel, sample, dimension), so the only
+//! differences allowed are float summation order (a pixel's samples may be
+//! summed on different devices before the films are merged) and hit ties
+//! between parts (equal distances on two devices' triangles).
+
+use std::sync::Arc;
+
+use atoll_bvh::{ByteModel, ScenePart};
+use atoll_dist::{partition, render_multi, Layout, PartitionOptions};
+use atoll_render::{render, CpuDevice, Device, Film, RenderOptions};
+use atoll_scene::Scene;
+use glam::UVec2;
+
+fn options(scene: &Scene, spp: u32) -> RenderOptions {
+    let mut o = RenderOptions::from_scene(scene);
+    o.resolution = UVec2::new(40, 40);
+    o.spp = spp;
+    o
+}
+
+fn single(scene: &Arc<Scene>, options: &RenderOptions) -> Film {
+    let mut device = CpuDevice::new();
+    let mut film = render(&mut device, scene, options.clone(), &mut |_, _| {}).unwrap().film;
+    film.spp = options.spp;
+    film
+}
+
+fn cpus(n: usize, budget: Option<u64>) -> Vec<Box<dyn Device>> {
+    (0..n)
+        .map(|i| {
+            let mut d = CpuDevice::new().with_name(format!("cpu:{i}"));
+            if let Some(b) = budget {
+                d = d.with_memory_budget(b);
+            }
+            Box::new(d) as Box<dyn Device>
+        })
+        .collect()
+}
+
+/// Same image up to float rounding: every pixel within a relative 1e-4
+/// (absolute 1e-6 near black) except hit-tie pixels, which must be rare.
+fn assert_same_image(a: &Film, b: &Film, what: &str) {
+    let (pa, pb) = (a.pixels(), b.pixels());
+    assert_eq!(pa.len(), pb.len());
+    let differing = pa
+        .iter()
+        .zip(&pb)
+        .filter(|(x, y)| {
+            ((**x - **y).abs().max_element()) > 1e-4 * x.abs().max_element().max(y.abs().max_element()) + 1e-6
+        })
+        .count();
+    eprintln!("{what}: {differing} of {} pixels differ beyond rounding", pa.len());
+    assert!(differing * 500 <= pa.len(), "{what}: {differing} of {} pixels differ", pa.len());
+    let (ma, mb) = (a.mean(), b.mean());
+    assert!((ma - mb).abs().max_element() <= 1e-3 * ma.max_element(), "{what}: means {ma} vs {mb}");
+    assert!(ma.max_element() > 0.0, "{what}: a black image proves nothing");
+}
+
+/// The Cornell box and a few extra objects: several objects and meshes to
+/// spread over parts, an area light that must be sampled from every part.
+fn scene() -> Arc<Scene> {
+    Arc::new(atoll_scene::cornell::builtin_cornell_box())
+}
+
+#[test]
+fn replicate_on_three_devices_is_one_device() {
+    let scene = scene();
+    let opts = options(&scene, 4);
+    let reference = single(&scene, &opts);
+    let mut devices = cpus(3, None);
+    let out = render_multi(&mut devices, &scene, opts, &Layout::Replicate, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "replicate");
+    // Every device took a share of the waves, and together all of them.
+    let waves: usize = out.devices.iter().map(|d| d.waves).sum();
+    assert_eq!(waves, atoll_dist::render::work_units(&options(&scene, 4), 3).len());
+    assert!(out.devices.iter().all(|d| d.bytes_sent == 0), "replicas exchange no rays");
+}
+
+#[test]
+fn ring_of_three_parts_is_one_device() {
+    let scene = scene();
+    let opts = options(&scene, 4);
+    let reference = single(&scene, &opts);
+    let p = partition(&scene, 3, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+    assert!(p.parts.iter().all(|part| !part.instances.is_empty()), "every device holds something");
+    let budget = *p.bytes.iter().max().unwrap();
+    let whole = atoll_bvh::part_bytes(&scene, &ScenePart::whole(&scene), &ByteModel::CPU);
+    assert!(budget < whole, "the parts are smaller than the scene");
+    // Budgets below the whole scene: a device could not hold it alone.
+    let mut devices = cpus(3, Some(budget));
+    assert!(devices[0]
+        .prepare(
+            &scene,
+            &ScenePart::whole(&scene),
+            &Arc::new(atoll_render::FrameContext::new(&scene, opts.clone()))
+        )
+        .is_err());
+    let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
+    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "ring of 3");
+    for d in &out.devices {
+        assert!(d.bytes_sent > 0, "{}: queues cycle", d.name);
+        assert!(d.prepare.scene_bytes <= budget);
+    }
+}
+
+#[test]
+fn islands_of_two_rings_of_two_are_one_device() {
+    let scene = scene();
+    let opts = options(&scene, 6);
+    let reference = single(&scene, &opts);
+    let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+    let layout = Layout::Ring { parts: p.parts, islands: 2 };
+    let mut devices = cpus(4, None);
+    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "2 islands of 2");
+    // Both islands generated pixels.
+    let per_island = |i: usize| out.devices.iter().filter(|d| d.island == i).map(|d| d.waves).sum::<usize>();
+    assert!(per_island(0) > 0 && per_island(1) > 0);
+}
+
+/// A ground mesh heavier than any device's budget, split by triangle
+/// ranges over the parts, plus boxes standing on it, lit by the sky and sun.
+fn ground_scene() -> Arc<Scene> {
+    let mut scene = atoll_scene::procedural::bench_scene(20_000);
+    atoll_scene::framing::frame_scene(&mut scene, false);
+    Arc::new(scene)
+}
+
+#[test]
+fn a_ground_object_too_big_for_one_device_is_split() {
+    let scene = ground_scene();
+    let opts = options(&scene, 2);
+    let reference = single(&scene, &opts);
+    let model = ByteModel::CPU;
+    let whole = atoll_bvh::part_bytes(&scene, &ScenePart::whole(&scene), &model);
+    let budget = whole * 2 / 5;
+    let p = partition(&scene, 3, &model, &PartitionOptions { budget: Some(budget), split_threshold: None })
+        .unwrap();
+    assert!(p.parts.iter().any(|part| !part.object_subsets.is_empty()), "an object was split");
+    let mut devices = cpus(3, Some(budget));
+    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "ring with a split ground");
+}

@@ -1,0 +1,274 @@
+//! `--devices`, `--strategy` and `--ownership`: rendering on many devices
+//! in one process (atoll-dist), and the per-device table printed after.
+
+use std::path::Path;
+use std::sync::Arc;
+
+use atoll_bvh::ByteModel;
+use atoll_cuda::device::CudaDevice;
+use atoll_cuda::error::fmt_bytes;
+use atoll_dist::{
+    partition, plan, render_multi, Layout, MultiOutput, Partition, PartitionOptions, Plan, Strategy,
+};
+use atoll_render::{CpuDevice, Device, RenderOptions};
+use atoll_scene::Scene;
+
+use crate::CliError;
+
+/// One entry of `--devices`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DeviceSpec {
+    Cpu,
+    Cuda(usize),
+}
+
+/// The parsed `--devices` list (a newtype: clap would take a bare `Vec`
+/// for a repeated flag).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceList(pub Vec<DeviceSpec>);
+
+/// Parses `--devices`: comma-separated `cpu`, `cpu:N` (N CPU devices
+/// sharing the cores), `cuda:I` (GPU I).
+pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
+    let mut devices = Vec::new();
+    for item in s.split(',').map(|i| i.trim().to_ascii_lowercase()) {
+        let bad = || format!("{item:?} in {s:?}: expected cpu, cpu:N (N CPU devices) or cuda:I");
+        match item.split_once(':') {
+            None if item == "cpu" => devices.push(DeviceSpec::Cpu),
+            None if item == "cuda" => devices.push(DeviceSpec::Cuda(0)),
+            Some(("cpu", n)) => {
+                let n: usize = n.parse().map_err(|_| bad())?;
+                if n == 0 || n > 64 {
+                    return Err(format!("{item:?}: between 1 and 64 CPU devices"));
+                }
+                devices.extend(std::iter::repeat_n(DeviceSpec::Cpu, n));
+            }
+            Some(("cuda", i)) => devices.push(DeviceSpec::Cuda(i.parse().map_err(|_| bad())?)),
+            _ => return Err(bad()),
+        }
+    }
+    if devices.is_empty() {
+        return Err("--devices: no devices listed".into());
+    }
+    let mut gpus: Vec<usize> =
+        devices.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
+    gpus.sort_unstable();
+    if gpus.windows(2).any(|w| w[0] == w[1]) {
+        return Err(format!("{s:?}: a GPU is listed twice"));
+    }
+    Ok(DeviceList(devices))
+}
+
+/// The devices, created (GPUs opened) but not prepared.
+fn open_devices(
+    specs: &[DeviceSpec],
+    budget: Option<u64>,
+    threads: Option<usize>,
+) -> Result<Vec<Box<dyn Device>>, CliError> {
+    let mut devices: Vec<Box<dyn Device>> = Vec::new();
+    let mut cpus = 0;
+    for spec in specs {
+        match *spec {
+            DeviceSpec::Cpu => {
+                let mut d = CpuDevice::new().with_name(format!("cpu:{cpus}"));
+                cpus += 1;
+                if let Some(t) = threads {
+                    d = d.with_threads(t.max(1)).map_err(|e| CliError::Runtime(e.to_string()))?;
+                }
+                if let Some(b) = budget {
+                    d = d.with_memory_budget(b);
+                }
+                devices.push(Box::new(d));
+            }
+            DeviceSpec::Cuda(ordinal) => {
+                let mut d = CudaDevice::new(ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
+                if let Some(b) = budget {
+                    d = d.with_memory_budget(b);
+                }
+                devices.push(Box::new(d));
+            }
+        }
+    }
+    Ok(devices)
+}
+
+/// The byte model partitioning uses: the largest need per element of the
+/// device kinds present, so that every device can hold any part.
+fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
+    let mut models = Vec::new();
+    if specs.contains(&DeviceSpec::Cpu) {
+        models.push(ByteModel::CPU);
+    }
+    if specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_))) {
+        models.push(atoll_cuda::scene::byte_model());
+    }
+    models
+        .into_iter()
+        .reduce(|a, b| ByteModel {
+            per_triangle: a.per_triangle.max(b.per_triangle),
+            per_vertex: a.per_vertex.max(b.per_vertex),
+            per_instance: a.per_instance.max(b.per_instance),
+            per_object: a.per_object.max(b.per_object),
+            scratch_per_triangle: a.scratch_per_triangle.max(b.scratch_per_triangle),
+        })
+        .unwrap_or(ByteModel::CPU)
+}
+
+/// What `atoll render` hands to the multi-device path.
+pub struct MultiArgs<'a> {
+    pub specs: &'a [DeviceSpec],
+    pub strategy: Strategy,
+    pub budget: Option<u64>,
+    pub threads: Option<usize>,
+    pub ownership: Option<&'a Path>,
+}
+
+/// Plans, partitions and renders `scene` on the listed devices; prints the
+/// choice before and the per-device table after.
+pub fn render(
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    args: &MultiArgs,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<MultiOutput, CliError> {
+    let mut devices = open_devices(args.specs, args.budget, args.threads)?;
+    let model = byte_model(args.specs);
+    let budget = scene_budget(&mut devices, args.budget, &options);
+    let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
+        .map_err(|e| CliError::Runtime(e.to_string()))?;
+    let (layout, partition) = match plan {
+        Plan::Replicate => (Layout::Replicate, None),
+        Plan::Ring { k, islands } => {
+            let options = PartitionOptions { budget, ..Default::default() };
+            let p = partition(scene, k, &model, &options).map_err(|e| CliError::Runtime(e.to_string()))?;
+            (Layout::Ring { parts: p.parts.clone(), islands }, Some(p))
+        }
+    };
+    eprintln!("{}", describe(&plan, partition.as_ref(), args.specs.len()));
+    if let Some(path) = args.ownership {
+        write_ownership(scene, &options, partition.as_ref(), path)?;
+    }
+    // A ring plan may leave devices over (N not a multiple of K): they idle.
+    let used = match plan {
+        Plan::Ring { k, islands } => k * islands,
+        Plan::Replicate => args.specs.len(),
+    };
+    if used < args.specs.len() {
+        eprintln!(
+            "note: {} of {} devices idle (rings of {used} devices in all)",
+            args.specs.len() - used,
+            args.specs.len()
+        );
+    }
+    devices.truncate(used);
+    let out = render_multi(&mut devices, scene, options, &layout, progress)
+        .map_err(|e| CliError::Runtime(e.to_string()))?;
+    Ok(out)
+}
+
+/// Bytes of scene (geometry, BVH) each device may hold: the budget (or,
+/// for GPUs without one, their free memory) less what every device
+/// allocates for the frame itself (queues, film, parameters, headroom).
+fn scene_budget(
+    devices: &mut [Box<dyn Device>],
+    budget: Option<u64>,
+    options: &RenderOptions,
+) -> Option<u64> {
+    let gpus: Vec<_> = devices
+        .iter_mut()
+        .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
+        .collect();
+    let free = gpus.iter().filter_map(|g| g.free_memory().ok()).min();
+    let total = match (budget, free) {
+        (Some(b), Some(f)) => Some(b.min(f)),
+        (Some(b), None) => Some(b),
+        // All GPUs and no budget: what they have free.
+        (None, Some(f)) if gpus.len() == devices.len() => Some(f),
+        (None, _) => None,
+    }?;
+    if gpus.is_empty() {
+        return Some(total);
+    }
+    let wave = options.wave_size.min(options.pixel_count()).max(1);
+    let frame = atoll_cuda::queues::queue_bytes(wave)
+        + options.pixel_count() as u64 * 12
+        + atoll_cuda::scene::HEADROOM
+        // Frame parameters (lights, materials): a generous allowance.
+        + (16 << 20);
+    Some(total.saturating_sub(frame))
+}
+
+/// One line saying what was chosen and why.
+fn describe(plan: &Plan, partition: Option<&Partition>, devices: usize) -> String {
+    match (plan, partition) {
+        (Plan::Ring { k, islands }, Some(p)) => {
+            let sizes: Vec<String> = p.bytes.iter().map(|&b| fmt_bytes(b)).collect();
+            format!(
+                "strategy: ring of {k} ({islands} island{}) on {devices} devices; parts {}",
+                if *islands == 1 { "" } else { "s" },
+                sizes.join(", ")
+            )
+        }
+        _ => format!("strategy: replicate on {devices} devices"),
+    }
+}
+
+/// The false-colour view: by part (ring) or everything device 0's colour (replicate).
+fn write_ownership(
+    scene: &Scene,
+    options: &RenderOptions,
+    partition: Option<&Partition>,
+    path: &Path,
+) -> Result<(), CliError> {
+    let owner = |instance: u32, mesh: u32, triangle: u32| match partition {
+        Some(p) => p.owner(instance, mesh, triangle),
+        None => Some(0),
+    };
+    let film = atoll_dist::ownership::ownership_view(scene, options, &owner);
+    film.write(path).map_err(|e| CliError::Runtime(e.to_string()))?;
+    eprintln!("ownership view: {}", path.display());
+    Ok(())
+}
+
+/// The per-device table printed after a multi-device render.
+pub fn device_table(out: &MultiOutput) -> String {
+    let mut s = String::from(
+        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   wait s   sent\n",
+    );
+    for d in &out.devices {
+        s += &format!(
+            "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.2}  {:>7.2}  {}\n",
+            d.name,
+            d.island,
+            d.member,
+            fmt_bytes(d.prepare.scene_bytes),
+            fmt_bytes(d.prepare.frame_bytes),
+            d.waves,
+            d.stats.rays_traced as f64 / 1e6,
+            d.stats.shadow_rays_traced as f64 / 1e6,
+            d.stats.busy_seconds,
+            d.wait_seconds,
+            fmt_bytes(d.bytes_sent),
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn device_lists() {
+        assert_eq!(parse_devices("cpu:3"), Ok(DeviceList(vec![DeviceSpec::Cpu; 3])));
+        assert_eq!(
+            parse_devices("cuda:0,cuda:1"),
+            Ok(DeviceList(vec![DeviceSpec::Cuda(0), DeviceSpec::Cuda(1)]))
+        );
+        assert_eq!(parse_devices("cpu, cuda:1"), Ok(DeviceList(vec![DeviceSpec::Cpu, DeviceSpec::Cuda(1)])));
+        assert!(parse_devices("cuda:0,cuda:0").unwrap_err().contains("twice"));
+        assert!(parse_devices("cpu:0").is_err());
+        assert!(parse_devices("tpu:1").is_err());
+        assert!(parse_devices("").is_err());
+    }
+}
