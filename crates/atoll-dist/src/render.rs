@@ -72,6 +72,9 @@ pub struct DeviceReport {
     pub wait_seconds: f64,
     /// Ray-record bytes this device sent to the next device of its ring.
     pub bytes_sent: u64,
+    /// Seconds spent sending queues: waiting for the trace before the send
+    /// to finish, then the copy (peer) or the read-back (host).
+    pub send_seconds: f64,
     /// A failure while moving queues (the frame is then wrong and refused).
     pub error: Option<String>,
 }
@@ -143,13 +146,15 @@ fn prepare_all(
     })
 }
 
-/// Renders a frame on `devices` placed by `layout`. `progress` gets
+/// Renders a frame on `devices` placed by `layout`, ring queues moving by
+/// `transport` (`None`: the fastest the devices allow). `progress` gets
 /// (waves done, waves total) as waves finish.
 pub fn render_multi(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
     options: RenderOptions,
     layout: &Layout,
+    transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
     if devices.is_empty() {
@@ -181,7 +186,7 @@ pub fn render_multi(
         let i = next.fetch_add(1, Ordering::Relaxed);
         waves.get(i)
     };
-    let transport = if ring > 1 { choose_transport(devices)? } else { Transport::Host };
+    let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
         (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
@@ -299,7 +304,9 @@ impl RingLink<'_> {
             trace(device);
             let handover = match self.transport {
                 Transport::Host => {
+                    let sending = Instant::now();
                     let records = device.read_queue(queue);
+                    report.send_seconds += sending.elapsed().as_secs_f64();
                     report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
                     Handover::Records(records)
                 }
@@ -336,7 +343,12 @@ impl RingLink<'_> {
         let sent = match (slot, target) {
             (Err(e), _) => Err(e.to_string()),
             (_, None) => Err("the next device has no incoming slot".to_string()),
-            (Ok(_), Some(target)) => cuda.send_queue(queue, &target).map_err(|e| e.to_string()),
+            (Ok(_), Some(target)) => {
+                let sending = Instant::now();
+                let sent = cuda.send_queue(queue, &target).map_err(|e| e.to_string());
+                report.send_seconds += sending.elapsed().as_secs_f64();
+                sent
+            }
         };
         match sent {
             Ok(len) => {
@@ -357,22 +369,40 @@ fn cuda_device(device: &mut dyn Device) -> &mut CudaDevice {
     device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on a CUDA device")
 }
 
-/// The transport for `devices`: peer copies when all are CUDA GPUs (with
-/// peer access enabled between them here), else the host. The environment
-/// variable `ATOLL_RING_TRANSPORT=host` forces the host, for comparison.
-fn choose_transport(devices: &mut [Box<dyn Device>]) -> Result<Transport, DeviceError> {
-    let forced_host = std::env::var("ATOLL_RING_TRANSPORT").is_ok_and(|v| v.eq_ignore_ascii_case("host"));
+/// The transport for `devices`: `wanted`, or when `None` the fastest that
+/// works (peer copies when all are CUDA GPUs, else the host). Peer access
+/// between the GPUs is enabled here.
+fn choose_transport(
+    devices: &mut [Box<dyn Device>],
+    wanted: Option<Transport>,
+) -> Result<Transport, DeviceError> {
     let gpus: Option<Vec<_>> = devices
         .iter_mut()
         .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
         .collect();
-    match gpus {
-        Some(gpus) if !forced_host => {
-            atoll_cuda::peer::enable_peer_access(&gpus)
+    match (gpus, wanted) {
+        (_, Some(Transport::Host)) => Ok(Transport::Host),
+        (Some(gpus), _) => {
+            let access = atoll_cuda::peer::enable_peer_access(&gpus)
                 .map_err(|e| DeviceError::Other { device: "peer access".into(), message: e.to_string() })?;
+            for (i, row) in access.iter().enumerate() {
+                for (j, &direct) in row.iter().enumerate() {
+                    if i != j && !direct {
+                        tracing::warn!(
+                            "{} cannot access {} directly: ring copies between them go through the host",
+                            gpus[i].label(),
+                            gpus[j].label()
+                        );
+                    }
+                }
+            }
             Ok(Transport::Peer)
         }
-        _ => Ok(Transport::Host),
+        (None, Some(Transport::Peer)) => Err(DeviceError::Other {
+            device: "devices".into(),
+            message: "peer copies need every device of the ring to be a CUDA GPU".into(),
+        }),
+        (None, None) => Ok(Transport::Host),
     }
 }
 

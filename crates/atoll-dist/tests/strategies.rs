@@ -71,7 +71,7 @@ fn replicate_on_three_devices_is_one_device() {
     let opts = options(&scene, 4);
     let reference = single(&scene, &opts);
     let mut devices = cpus(3, None);
-    let out = render_multi(&mut devices, &scene, opts, &Layout::Replicate, &mut |_, _| {}).unwrap();
+    let out = render_multi(&mut devices, &scene, opts, &Layout::Replicate, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "replicate");
     // Every device took a share of the waves, and together all of them.
     let waves: usize = out.devices.iter().map(|d| d.waves).sum();
@@ -99,7 +99,7 @@ fn ring_of_three_parts_is_one_device() {
         )
         .is_err());
     let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
-    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring of 3");
     for d in &out.devices {
         assert!(d.bytes_sent > 0, "{}: queues cycle", d.name);
@@ -115,7 +115,7 @@ fn islands_of_two_rings_of_two_are_one_device() {
     let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
     let layout = Layout::Ring { parts: p.parts, islands: 2 };
     let mut devices = cpus(4, None);
-    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "2 islands of 2");
     // Both islands generated pixels.
     let per_island = |i: usize| out.devices.iter().filter(|d| d.island == i).map(|d| d.waves).sum::<usize>();
@@ -143,6 +143,6 @@ fn a_ground_object_too_big_for_one_device_is_split() {
     assert!(p.parts.iter().any(|part| !part.object_subsets.is_empty()), "an object was split");
     let mut devices = cpus(3, Some(budget));
     let layout = Layout::Ring { parts: p.parts, islands: 1 };
-    let out = render_multi(&mut devices, &scene, opts, &layout, &mut |_, _| {}).unwrap();
+    let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring with a split ground");
 }

@@ -9,6 +9,7 @@ use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::{
     partition, plan, render_multi, Layout, MultiOutput, Partition, PartitionOptions, Plan, Strategy,
+    Transport,
 };
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
@@ -121,6 +122,8 @@ pub struct MultiArgs<'a> {
     pub budget: Option<u64>,
     pub threads: Option<usize>,
     pub ownership: Option<&'a Path>,
+    /// How ring queues move (`None`: the fastest the devices allow).
+    pub transport: Option<Transport>,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -161,7 +164,7 @@ pub fn render(
         );
     }
     devices.truncate(used);
-    let out = render_multi(&mut devices, scene, options, &layout, progress)
+    let out = render_multi(&mut devices, scene, options, &layout, args.transport, progress)
         .map_err(|e| CliError::Runtime(e.to_string()))?;
     Ok(out)
 }
@@ -233,11 +236,11 @@ fn write_ownership(
 /// The per-device table printed after a multi-device render.
 pub fn device_table(out: &MultiOutput) -> String {
     let mut s = String::from(
-        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   wait s   sent\n",
+        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   wait s   send s  sent\n",
     );
     for d in &out.devices {
         s += &format!(
-            "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.2}  {:>7.2}  {}\n",
+            "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.2}  {:>7.2}  {:>6.2}  {}\n",
             d.name,
             d.island,
             d.member,
@@ -248,10 +251,20 @@ pub fn device_table(out: &MultiOutput) -> String {
             d.stats.shadow_rays_traced as f64 / 1e6,
             d.stats.busy_seconds,
             d.wait_seconds,
+            d.send_seconds,
             fmt_bytes(d.bytes_sent),
         );
     }
     s
+}
+
+/// Parses `--ring-transport`.
+pub fn parse_transport(s: &str) -> Result<Transport, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "host" => Ok(Transport::Host),
+        "peer" => Ok(Transport::Peer),
+        _ => Err(format!("{s:?}: expected host or peer")),
+    }
 }
 
 #[cfg(test)]

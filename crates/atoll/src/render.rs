@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use atoll_dist::Strategy;
+use atoll_dist::{Strategy, Transport};
 use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
 use atoll_scene::Scene;
@@ -13,7 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
 use crate::load::load_scene;
-use crate::multi::{self, parse_devices, DeviceList, DeviceSpec, MultiArgs};
+use crate::multi::{self, parse_devices, parse_transport, DeviceList, DeviceSpec, MultiArgs};
 use crate::CliError;
 
 #[derive(Args, Default)]
@@ -46,6 +46,10 @@ pub struct RenderArgs {
     /// fits every device, else rings of as few devices as fit), replicate or ring.
     #[arg(long, default_value = "auto", value_parser = parse_strategy, requires = "devices")]
     pub strategy: Strategy,
+    /// How ring queues move between devices: peer (GPU to GPU copies, the
+    /// default for GPUs) or host (through host memory, any device).
+    #[arg(long, value_parser = parse_transport, requires = "devices")]
+    pub ring_transport: Option<Transport>,
     /// Also write a false-colour image of which device holds which surface.
     #[arg(long, value_name = "IMAGE", requires = "devices")]
     pub ownership: Option<PathBuf>,
@@ -58,6 +62,10 @@ pub struct RenderArgs {
     /// Render ambient occlusion instead of the scene's integrator, with this max distance.
     #[arg(long)]
     pub ao: Option<f32>,
+    /// Render an untimed 1-spp frame first (benchmarks: kernel loading,
+    /// clocks and first-touch costs stay out of the reported speed).
+    #[arg(long)]
+    pub warmup: bool,
     /// Hide the progress bar.
     #[arg(long, short)]
     pub quiet: bool,
@@ -104,6 +112,10 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         return render_on_devices(&scene, options, &args, specs, &output);
     }
     let mut selected = select(&args.device, args.threads)?;
+    if args.warmup {
+        render(selected.device.as_mut(), &scene, RenderOptions { spp: 1, ..options.clone() }, &mut |_, _| {})
+            .map_err(|e| CliError::Runtime(e.to_string()))?;
+    }
     let bar = progress_bar(args.quiet);
     let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
         bar.set_length(total as u64);
@@ -155,7 +167,11 @@ fn render_on_devices(
         budget: args.device.device_memory,
         threads: args.threads,
         ownership: args.ownership.as_deref(),
+        transport: args.ring_transport,
     };
+    if args.warmup {
+        multi::render(scene, RenderOptions { spp: 1, ..options.clone() }, &multi_args, &mut |_, _| {})?;
+    }
     let bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {
         bar.set_length(total as u64);

@@ -1,0 +1,113 @@
+//! `--devices`, `--strategy`, `--device-memory` per device and
+//! `--ownership` end to end, on CPU devices: a budget that forces the scene
+//! apart makes `auto` pick a ring (or islands of rings), and the image is
+//! the one a single device renders.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use atoll_bvh::{part_bytes, ByteModel, ScenePart};
+
+fn atoll(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("atoll-multi-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// The built-in Cornell box's bytes on a CPU device.
+fn cornell_bytes() -> u64 {
+    let scene = atoll_scene::cornell::builtin_cornell_box();
+    part_bytes(&scene, &ScenePart::whole(&scene), &ByteModel::CPU)
+}
+
+const RENDER: [&str; 6] = ["render", "--spp", "4", "--res", "48x48", "-q"];
+
+fn render(dir: &Path, extra: &[&str], output: &str) -> Output {
+    let args: Vec<&str> = RENDER.iter().copied().chain(extra.iter().copied()).chain(["-o", output]).collect();
+    atoll(dir, &args)
+}
+
+/// Same image as the single CPU device within 0.05% in every channel mean.
+fn assert_same_as_single(dir: &Path, image: &str) {
+    let out = atoll(dir, &["compare", "single.exr", image, "--max-mean-diff", "0.05"]);
+    assert!(out.status.success(), "{image}: {}{}", text(&out.stdout), text(&out.stderr));
+}
+
+#[test]
+fn a_budget_that_splits_the_scene_gives_rings_and_the_same_image() {
+    let dir = scratch("ring");
+    let single = render(&dir, &["--device", "cpu"], "single.exr");
+    assert!(single.status.success(), "{}", text(&single.stderr));
+    let whole = cornell_bytes();
+
+    // 40% of the scene per device: three parts are needed.
+    let budget = format!("{}", whole * 2 / 5);
+    let out = render(&dir, &["--devices", "cpu:3", "--device-memory", &budget], "ring.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("strategy: ring of 3 (1 island)"), "{stderr}");
+    for name in ["cpu:0", "cpu:1", "cpu:2"] {
+        assert!(stdout.lines().any(|l| l.starts_with(name)), "table row for {name}: {stdout}");
+    }
+    assert_same_as_single(&dir, "ring.exr");
+
+    // 60% per device on four devices: rings of two, two islands.
+    let budget = format!("{}", whole * 3 / 5);
+    let out = render(
+        &dir,
+        &["--devices", "cpu:4", "--device-memory", &budget, "--ownership", "own.png"],
+        "islands.exr",
+    );
+    let stderr = text(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("strategy: ring of 2 (2 islands)"), "{stderr}");
+    assert!(dir.join("own.png").exists());
+    assert_same_as_single(&dir, "islands.exr");
+
+    // No budget: the scene fits every device, so auto replicates.
+    let out = render(&dir, &["--devices", "cpu:2"], "replicate.exr");
+    assert!(text(&out.stderr).contains("strategy: replicate on 2 devices"), "{}", text(&out.stderr));
+    assert_same_as_single(&dir, "replicate.exr");
+
+    // Forced ring without a budget: one ring over all devices, queues through the host.
+    let out =
+        render(&dir, &["--devices", "cpu:2", "--strategy", "ring", "--ring-transport", "host"], "forced.exr");
+    assert!(text(&out.stderr).contains("strategy: ring of 2 (1 island)"), "{}", text(&out.stderr));
+    assert_same_as_single(&dir, "forced.exr");
+}
+
+#[test]
+fn scenes_that_cannot_fit_and_bad_flags_are_clear_errors() {
+    let dir = scratch("errors");
+    // Too small for any partition over 2 devices: exit 1 before rendering, nothing written.
+    let out = render(&dir, &["--devices", "cpu:2", "--device-memory", "1K"], "x.exr");
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    assert!(text(&out.stderr).contains("does not fit"), "{}", text(&out.stderr));
+    assert!(!dir.join("x.exr").exists());
+    // Replicate forced under a budget the whole scene exceeds.
+    let budget = format!("{}", cornell_bytes() / 2);
+    let out =
+        render(&dir, &["--devices", "cpu:2", "--device-memory", &budget, "--strategy", "replicate"], "x.exr");
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out.stderr));
+    for args in [
+        vec!["--devices", "tpu:1"],
+        vec!["--devices", "cpu:0"],
+        vec!["--strategy", "ring"],
+        vec!["--devices", "cpu:2", "--strategy", "scatter"],
+        vec!["--devices", "cpu:2", "--device", "cpu"],
+        vec!["--devices", "cpu:2", "--ring-transport", "pigeon"],
+    ] {
+        let out = render(&dir, &args, "x.exr");
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
+        assert!(!text(&out.stderr).contains("panicked"), "{}", text(&out.stderr));
+    }
+}
