@@ -36,6 +36,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),
+    ("peer.cu", include_str!("../kernels/peer.cu")),
     ("sampling.cuh", include_str!("../kernels/sampling.cuh")),
     ("selftest.cu", include_str!("../kernels/selftest.cu")),
     ("sort.cu", include_str!("../kernels/sort.cu")),

@@ -1,14 +1,19 @@
 //! Ray queues moved straight from GPU to GPU, for the ring strategy (ray
-//! queue cycling): the sender copies its queue into the receiver's idle
-//! incoming buffer with `cuMemcpyPeerAsync` (over NVLink where the GPUs
-//! have peer access, staged by the driver otherwise), then the receiver
-//! makes that buffer its queue. No record passes through the host.
+//! queue cycling). The sender's `send_records` kernel (kernels/peer.cu)
+//! reads its queue length on the device and writes records and length
+//! into the receiver's idle incoming buffer over NVLink (peer access);
+//! the receiver then makes that buffer its queue. Nothing passes through
+//! the host and the host never waits: each step is queued on the two
+//! GPUs' streams and ordered with events.
 //!
-//! The protocol, per ring step (the strategy orders it with a barrier):
-//! 1. every member calls [`CudaDevice::incoming_slot`] and publishes it;
+//! The protocol, per ring step (the strategy orders the host side):
+//! 1. every member traces, records its `ready` event, and publishes its
+//!    [`CudaDevice::incoming_slot`] (a barrier follows);
 //! 2. every member calls [`CudaDevice::send_queue`] with its successor's
-//!    slot (returns when the copy has landed) and hands over the length;
-//! 3. every member calls [`CudaDevice::accept_incoming`] with that length.
+//!    slot, after the successor's `ready` (so all the successor's earlier
+//!    work on that buffer is done), recording its `sent` event;
+//! 3. every member calls [`CudaDevice::accept_incoming`] after its
+//!    predecessor's `sent`.
 //!
 //! Slots change from step to step (buffers swap), so they are published
 //! anew each time.
@@ -17,27 +22,20 @@ use std::sync::Arc;
 
 use atoll_render::Queue;
 use cudarc::driver::sys;
-use cudarc::driver::DevicePtr;
+use cudarc::driver::{CudaEvent, DevicePtr, PushKernelArg};
 
 use crate::device::CudaDevice;
 use crate::error::CudaError;
 use crate::gpu::Gpu;
-use crate::layout::GpuRecord;
 
-/// Where a neighbour may copy a queue into this device (valid until the
+/// Where a neighbour may write a queue into this device (valid until the
 /// next [`CudaDevice::accept_incoming`]).
 #[derive(Clone, Copy, Debug)]
 pub struct IncomingSlot {
-    ctx: sys::CUcontext,
     records: sys::CUdeviceptr,
+    count: sys::CUdeviceptr,
     capacity: u32,
 }
-
-// SAFETY: a CUcontext handle and a device address are plain values; the
-// driver accepts them from any thread, and the protocol above keeps the
-// buffer alive and unused by its owner while a neighbour writes it.
-unsafe impl Send for IncomingSlot {}
-unsafe impl Sync for IncomingSlot {}
 
 /// Lets each GPU of `gpus` read and write the others' memory directly
 /// where the hardware allows it. Returns, per ordered pair (i, j), whether
@@ -103,66 +101,75 @@ fn grant_pool_access(owner: &Gpu, reader: &Gpu) -> Result<(), CudaError> {
 }
 
 impl CudaDevice {
-    /// This device's buffer for an incoming `queue` (see the module docs).
+    /// This device's buffer and counter for an incoming `queue` (see the module docs).
     pub fn incoming_slot(&mut self, queue: Queue) -> Result<IncomingSlot, CudaError> {
         let gpu = self.gpu().clone();
         let queues = self.queues_mut()?;
         let capacity = queues.capacity;
-        let buffer = queues.incoming(&gpu, queue)?;
-        let (records, _sync) = buffer.device_ptr(&gpu.stream);
-        Ok(IncomingSlot { ctx: gpu.ctx.cu_ctx(), records, capacity })
+        let (records, count) = queues.incoming(&gpu, queue)?;
+        let (records, _sync) = records.device_ptr(&gpu.stream);
+        let (count, _sync) = count.device_ptr(&gpu.stream);
+        Ok(IncomingSlot { records, count, capacity })
     }
 
-    /// Copies `queue` into a neighbour's incoming slot and waits until the
-    /// copy has landed. Returns the number of records sent.
-    pub fn send_queue(&mut self, queue: Queue, to: &IncomingSlot) -> Result<u32, CudaError> {
+    /// Records `event` on this device's stream: everything queued so far.
+    pub fn record(&self, event: &CudaEvent) -> Result<(), CudaError> {
+        event
+            .record(&self.gpu().stream)
+            .map_err(CudaError::driver(format!("{}: recording an event", self.gpu().label())))
+    }
+
+    /// Queues, after `after` (an event of the receiver), the copy of
+    /// `queue` into a neighbour's incoming slot, then records `sent`.
+    pub fn send_queue(
+        &mut self,
+        queue: Queue,
+        to: &IncomingSlot,
+        after: &CudaEvent,
+        sent: &CudaEvent,
+    ) -> Result<(), CudaError> {
         let gpu = self.gpu().clone();
+        let what = |w: &str| format!("{}: sending the {queue:?} queue: {w}", gpu.label());
+        let kernel = gpu.function("peer.cu", "send_records")?;
         let queues = self.queues_mut()?;
-        let len = queues.len(&gpu, queue)?;
-        if len > to.capacity {
-            return Err(CudaError::Usage(format!(
-                "{}: sending {len} records to a queue of {}",
-                gpu.label(),
-                to.capacity
-            )));
+        if queues.capacity > to.capacity {
+            return Err(CudaError::Usage(what(&format!(
+                "a queue of {} records does not fit the receiver's {}",
+                queues.capacity, to.capacity
+            ))));
         }
-        if len > 0 {
-            let buffer = match queue {
-                Queue::Paths => &queues.paths,
-                Queue::Shadows => &queues.shadows,
-            };
-            let (src, _sync) = buffer.device_ptr(&gpu.stream);
-            let bytes = len as usize * std::mem::size_of::<GpuRecord>();
-            gpu.ctx
-                .bind_to_thread()
-                .map_err(CudaError::driver(format!("{}: binding the context", gpu.label())))?;
-            // SAFETY: `src` holds `len` records on this GPU (the queue's
-            // length, checked against its capacity by `len`); `to` names a
-            // live buffer of at least `len` records that its owner leaves
-            // alone until `accept_incoming`, which happens only after this
-            // function's synchronisation below. The copy is queued after
-            // this device's earlier work on the same stream (its trace).
-            unsafe {
-                cudarc::driver::result::memcpy_peer_async(
-                    to.ctx,
-                    to.records,
-                    gpu.ctx.cu_ctx(),
-                    src,
-                    bytes,
-                    gpu.stream.cu_stream(),
-                )
-            }
-            .map_err(CudaError::driver(format!("{}: sending the {queue:?} queue", gpu.label())))?;
-        }
-        gpu.synchronize()?;
-        Ok(len)
+        gpu.stream.wait(after).map_err(CudaError::driver(what("waiting for the receiver")))?;
+        let (src, src_count) = match queue {
+            Queue::Paths => (&queues.paths, &queues.path_count),
+            Queue::Shadows => (&queues.shadows, &queues.shadow_count),
+        };
+        let mut launch = gpu.stream.launch_builder(&kernel);
+        launch.arg(src).arg(src_count).arg(&to.records).arg(&to.count).arg(&to.capacity);
+        // Enough blocks to keep NVLink busy; the kernel strides over the rest.
+        let config = cudarc::driver::LaunchConfig {
+            grid_dim: (gpu.multiprocessors * 4, 1, 1),
+            block_dim: (256, 1, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: matches `send_records(const uint4* src, const unsigned* src_count, uint4* dst,
+        // unsigned* dst_count, unsigned capacity)` in peer.cu. `src` holds `capacity` records
+        // and its counter never exceeds that; `to` names a live buffer of `to.capacity` records
+        // and its counter on a GPU with peer access (enabled by `enable_peer_access`), which
+        // its owner leaves alone until `accept_incoming`, ordered after `sent` below; the
+        // kernel writes at most `to.capacity` records.
+        unsafe { launch.launch(config) }.map_err(CudaError::driver(what("launch")))?;
+        self.record(sent)
     }
 
-    /// Makes the incoming buffer, filled by a neighbour's `send_queue` with
-    /// `len` records, this device's `queue`.
-    pub fn accept_incoming(&mut self, queue: Queue, len: u32) -> Result<(), CudaError> {
+    /// Makes the incoming buffer, being filled by a neighbour's `send_queue`
+    /// that records `sent`, this device's `queue`; later work waits for it.
+    pub fn accept_incoming(&mut self, queue: Queue, sent: &CudaEvent) -> Result<(), CudaError> {
         let gpu = self.gpu().clone();
-        self.queues_mut()?.accept_incoming(&gpu, queue, len)
+        gpu.stream.wait(sent).map_err(CudaError::driver(format!(
+            "{}: waiting for the incoming {queue:?} queue",
+            gpu.label()
+        )))?;
+        self.queues_mut()?.accept_incoming(&gpu, queue)
     }
 }
 

@@ -42,6 +42,7 @@ pub struct Queues {
     /// Where a ring neighbour copies a shadow queue in (allocated by the
     /// first [`Queues::incoming`] for shadows: only rings need it).
     pub spare_shadows: Option<CudaSlice<GpuRecord>>,
+    pub spare_shadow_count: Option<CudaSlice<u32>>,
     /// Host copies of the counters when known (`None`: only the device knows).
     path_len: Cell<Option<u32>>,
     shadow_len: Cell<Option<u32>>,
@@ -69,6 +70,7 @@ impl Queues {
             next_count: counter("next path counter")?,
             shadow_count: counter("shadow counter")?,
             spare_shadows: None,
+            spare_shadow_count: None,
             path_len: Cell::new(Some(0)),
             shadow_len: Cell::new(Some(0)),
         })
@@ -212,49 +214,55 @@ impl Queues {
         Ok(())
     }
 
-    /// The buffer a ring neighbour copies `queue` into: the path queue's
-    /// ping-pong partner (idle outside `shade`), or the spare shadow buffer.
-    pub fn incoming(&mut self, gpu: &Gpu, queue: Queue) -> Result<&mut CudaSlice<GpuRecord>, CudaError> {
+    /// The buffer a ring neighbour copies `queue` into, with its counter:
+    /// the path queue's ping-pong partner (idle outside `shade`), or the
+    /// spare shadow buffer (allocated on first use: only rings need it).
+    pub fn incoming(
+        &mut self,
+        gpu: &Gpu,
+        queue: Queue,
+    ) -> Result<(&mut CudaSlice<GpuRecord>, &mut CudaSlice<u32>), CudaError> {
         match queue {
-            Queue::Paths => Ok(&mut self.next),
+            Queue::Paths => Ok((&mut self.next, &mut self.next_count)),
             Queue::Shadows => {
                 if self.spare_shadows.is_none() {
-                    let spare = gpu.stream.alloc_zeros::<GpuRecord>(self.capacity as usize).map_err(
-                        CudaError::driver(format!("{}: allocating the spare shadow queue", gpu.label())),
-                    )?;
+                    let what = || format!("{}: allocating the spare shadow queue", gpu.label());
+                    let spare = gpu
+                        .stream
+                        .alloc_zeros::<GpuRecord>(self.capacity as usize)
+                        .map_err(CudaError::driver(what()))?;
+                    let count = gpu.stream.alloc_zeros::<u32>(1).map_err(CudaError::driver(what()))?;
                     self.spare_shadows = Some(spare);
+                    self.spare_shadow_count = Some(count);
                 }
-                Ok(self.spare_shadows.as_mut().expect("allocated above"))
+                match (self.spare_shadows.as_mut(), self.spare_shadow_count.as_mut()) {
+                    (Some(records), Some(count)) => Ok((records, count)),
+                    _ => unreachable!("allocated together above"),
+                }
             }
         }
     }
 
-    /// Makes the incoming buffer (filled with `len` records by a neighbour)
-    /// the queue, and the queue's old buffer the next incoming one.
-    pub fn accept_incoming(&mut self, gpu: &Gpu, queue: Queue, len: u32) -> Result<(), CudaError> {
-        if len > self.capacity {
-            return Err(CudaError::Usage(format!(
-                "{}: {len} incoming records for a queue of {}",
-                gpu.label(),
-                self.capacity
-            )));
+    /// Makes the incoming buffer and counter (filled by a neighbour) the
+    /// queue, and the queue's old ones the next incoming. The length is
+    /// known only on the device until read.
+    pub fn accept_incoming(&mut self, gpu: &Gpu, queue: Queue) -> Result<(), CudaError> {
+        match queue {
+            Queue::Paths => {
+                std::mem::swap(&mut self.paths, &mut self.next);
+                std::mem::swap(&mut self.path_count, &mut self.next_count);
+            }
+            Queue::Shadows => {
+                let (Some(records), Some(count)) =
+                    (self.spare_shadows.as_mut(), self.spare_shadow_count.as_mut())
+                else {
+                    return Err(CudaError::Usage(format!("{}: no shadow queue was sent here", gpu.label())));
+                };
+                std::mem::swap(&mut self.shadows, records);
+                std::mem::swap(&mut self.shadow_count, count);
+            }
         }
-        let (current, counter) = match queue {
-            Queue::Paths => (&mut self.paths, &mut self.path_count),
-            Queue::Shadows => (&mut self.shadows, &mut self.shadow_count),
-        };
-        let incoming = match queue {
-            Queue::Paths => &mut self.next,
-            Queue::Shadows => self
-                .spare_shadows
-                .as_mut()
-                .ok_or_else(|| CudaError::Usage(format!("{}: no shadow queue was sent here", gpu.label())))?,
-        };
-        std::mem::swap(current, incoming);
-        gpu.stream
-            .memcpy_htod(&[len], counter)
-            .map_err(CudaError::driver(format!("{}: accepting the {queue:?} queue", gpu.label())))?;
-        self.set_known_len(queue, Some(len));
+        self.set_known_len(queue, None);
         Ok(())
     }
 }

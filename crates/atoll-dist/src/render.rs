@@ -10,6 +10,7 @@
 //! 2021. Devices accumulate only the pixels they shade; films are summed
 //! once at the end.
 
+use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
@@ -22,6 +23,7 @@ use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::integrator::render_wave;
 use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave};
 use atoll_scene::Scene;
+use cudarc::driver::CudaEvent;
 
 use crate::vote::Vote;
 
@@ -190,6 +192,7 @@ pub fn render_multi(
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
         (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
+    let events = if transport == Transport::Peer { peer_events(devices)? } else { Vec::new() };
     // Device d sends to d + 1 of its ring and receives from d - 1.
     let (senders, receivers): (Vec<_>, Vec<_>) = (0..devices.len()).map(|_| mpsc::channel()).unzip();
     let mut inboxes: Vec<Option<mpsc::Receiver<Handover>>> = receivers.into_iter().map(Some).collect();
@@ -211,6 +214,8 @@ pub fn render_multi(
                     to_next: senders[next_device].clone(),
                     from_prev: inboxes[d].take().expect("one inbox per device"),
                     slots: &slots[island],
+                    events: events.get(island * ring..(island + 1) * ring).unwrap_or(&[]),
+                    steps: Cell::new(0),
                     vote,
                 };
                 let done = done_tx.clone();
@@ -251,6 +256,12 @@ pub fn render_multi(
         }
         film.merge(&device.film());
         report.stats = device.stats();
+        if transport == Transport::Peer {
+            // Every record traced is sent on once (the device knows the
+            // lengths, the host never asked).
+            report.bytes_sent = (report.stats.rays_traced + report.stats.shadow_rays_traced)
+                * std::mem::size_of::<RayRecord>() as u64;
+        }
         report.prepare = prepare;
     }
     film.spp = frame.options.spp;
@@ -261,9 +272,10 @@ pub fn render_multi(
 enum Handover {
     /// The records themselves, through the host (any device kind).
     Records(Vec<RayRecord>),
-    /// The number of records already copied GPU to GPU into the receiver's
-    /// incoming slot ([`atoll_cuda::peer`]).
-    Copied(u32),
+    /// The records are on their way GPU to GPU into the receiver's
+    /// incoming slot ([`atoll_cuda::peer`]); the sender's `sent` event of
+    /// this step says when they have landed.
+    Copied,
 }
 
 /// How queues move around a ring.
@@ -284,7 +296,21 @@ struct RingLink<'a> {
     from_prev: mpsc::Receiver<Handover>,
     /// The ring's published incoming slots, by member (peer transport).
     slots: &'a [Mutex<Option<IncomingSlot>>],
+    /// Per member, its `ready` and `sent` events for even and odd steps
+    /// (peer transport): a member re-records a step's events only after a
+    /// barrier its neighbours pass after waiting on them.
+    events: &'a [PeerEvents],
+    /// Steps taken (the parity picks the events).
+    steps: Cell<usize>,
     vote: &'a Vote,
+}
+
+/// One ring member's events for the peer transport, by step parity.
+struct PeerEvents {
+    /// Recorded after the member's trace: all its earlier work is done.
+    ready: [CudaEvent; 2],
+    /// Recorded after the member's send: its records have landed.
+    sent: [CudaEvent; 2],
 }
 
 impl RingLink<'_> {
@@ -302,6 +328,8 @@ impl RingLink<'_> {
     ) -> Result<(), String> {
         for _ in 0..self.size {
             trace(device);
+            let step = self.steps.get();
+            self.steps.set(step + 1);
             let handover = match self.transport {
                 Transport::Host => {
                     let sending = Instant::now();
@@ -310,7 +338,10 @@ impl RingLink<'_> {
                     report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
                     Handover::Records(records)
                 }
-                Transport::Peer => Handover::Copied(self.send_peer(device, queue, report)),
+                Transport::Peer => {
+                    self.send_peer(device, queue, step, report);
+                    Handover::Copied
+                }
             };
             let waited = Instant::now();
             self.to_next.send(handover).map_err(|_| "the next device of the ring stopped".to_string())?;
@@ -319,9 +350,10 @@ impl RingLink<'_> {
             report.wait_seconds += waited.elapsed().as_secs_f64();
             match incoming {
                 Handover::Records(records) => device.write_queue(queue, &records),
-                Handover::Copied(len) => {
-                    let cuda = cuda_device(device);
-                    if let Err(e) = cuda.accept_incoming(queue, len) {
+                Handover::Copied => {
+                    let prev = (self.member + self.size - 1) % self.size;
+                    let sent = &self.events[prev].sent[step % 2];
+                    if let Err(e) = cuda_device(device).accept_incoming(queue, sent) {
                         report.error.get_or_insert(e.to_string());
                     }
                 }
@@ -330,37 +362,48 @@ impl RingLink<'_> {
         Ok(())
     }
 
-    /// Publishes this member's incoming slot, waits until every member has,
-    /// and copies `queue` into the successor's. Errors are kept in the
-    /// report and count as an empty queue, so the ring keeps stepping.
-    fn send_peer(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> u32 {
+    /// Marks this member ready, publishes its incoming slot, waits until
+    /// every member has, and queues the copy of `queue` into the
+    /// successor's slot (after the successor is ready). Nothing here waits
+    /// for the GPUs. Errors are kept in the report; the ring keeps stepping.
+    fn send_peer(&self, device: &mut dyn Device, queue: Queue, step: usize, report: &mut DeviceReport) {
         let cuda = cuda_device(device);
-        let slot = cuda.incoming_slot(queue);
+        let mine = &self.events[self.member];
+        let slot = cuda.record(&mine.ready[step % 2]).and_then(|()| cuda.incoming_slot(queue));
         *self.slots[self.member].lock().unwrap_or_else(|p| p.into_inner()) = slot.as_ref().ok().copied();
         report.wait_seconds += self.vote.any(false).1.as_secs_f64();
         let next = (self.member + 1) % self.size;
         let target = *self.slots[next].lock().unwrap_or_else(|p| p.into_inner());
+        let sending = Instant::now();
         let sent = match (slot, target) {
             (Err(e), _) => Err(e.to_string()),
             (_, None) => Err("the next device has no incoming slot".to_string()),
-            (Ok(_), Some(target)) => {
-                let sending = Instant::now();
-                let sent = cuda.send_queue(queue, &target).map_err(|e| e.to_string());
-                report.send_seconds += sending.elapsed().as_secs_f64();
-                sent
-            }
+            (Ok(_), Some(target)) => cuda
+                .send_queue(queue, &target, &self.events[next].ready[step % 2], &mine.sent[step % 2])
+                .map_err(|e| e.to_string()),
         };
-        match sent {
-            Ok(len) => {
-                report.bytes_sent += len as u64 * std::mem::size_of::<RayRecord>() as u64;
-                len
-            }
-            Err(e) => {
-                report.error.get_or_insert(e);
-                0
-            }
+        report.send_seconds += sending.elapsed().as_secs_f64();
+        if let Err(e) = sent {
+            report.error.get_or_insert(e);
         }
     }
+}
+
+/// Per device, the peer transport's events (created on each device's GPU).
+fn peer_events(devices: &mut [Box<dyn Device>]) -> Result<Vec<PeerEvents>, DeviceError> {
+    devices
+        .iter_mut()
+        .map(|d| {
+            let gpu = cuda_device(d.as_mut()).gpu().clone();
+            let event = || {
+                gpu.ctx.new_event(None).map_err(|e| DeviceError::Other {
+                    device: gpu.label(),
+                    message: format!("creating an event: {e}"),
+                })
+            };
+            Ok(PeerEvents { ready: [event()?, event()?], sent: [event()?, event()?] })
+        })
+        .collect()
 }
 
 /// The CUDA device behind a ring member of the peer transport (which is
