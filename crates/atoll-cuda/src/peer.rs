@@ -22,7 +22,7 @@ use std::sync::Arc;
 
 use atoll_render::Queue;
 use cudarc::driver::sys;
-use cudarc::driver::{CudaEvent, DevicePtr, PushKernelArg};
+use cudarc::driver::{CudaEvent, CudaSlice, DevicePtr, PushKernelArg};
 
 use crate::device::CudaDevice;
 use crate::error::CudaError;
@@ -112,6 +112,12 @@ impl CudaDevice {
         Ok(IncomingSlot { records, count, capacity })
     }
 
+    /// Loads (compiling on a cold cache) the send kernel now, so that the
+    /// first ring step does not pay for it.
+    pub fn load_peer_kernels(&self) -> Result<(), CudaError> {
+        self.gpu().function("peer.cu", "send_records").map(|_| ())
+    }
+
     /// Records `event` on this device's stream: everything queued so far.
     pub fn record(&self, event: &CudaEvent) -> Result<(), CudaError> {
         event
@@ -184,6 +190,9 @@ pub struct CopyBandwidth {
     /// Device to host to device through pageable memory (what the host
     /// transport's `read_queue` / `write_queue` do), GB/s.
     pub host_gbps: f64,
+    /// NCCL `send`/`recv` (grouped) from the first GPU to the second, GB/s;
+    /// `None` without the NCCL library.
+    pub nccl_gbps: Option<f64>,
 }
 
 /// Copies `bytes` from `a` to `b` `repeats` times each way (after one
@@ -218,7 +227,7 @@ pub fn measure_copy(
         .map_err(CudaError::driver(what("peer copy")))?;
         a.synchronize()
     };
-    let timed = |f: &mut dyn FnMut() -> Result<(), CudaError>| -> Result<f64, CudaError> {
+    let timed = move |f: &mut dyn FnMut() -> Result<(), CudaError>| -> Result<f64, CudaError> {
         f()?;
         let start = std::time::Instant::now();
         for _ in 0..repeats.max(1) {
@@ -232,5 +241,39 @@ pub fn measure_copy(
         b.stream.memcpy_htod(&host, &mut dst).map_err(CudaError::driver(what("upload")))?;
         b.synchronize()
     })?;
-    Ok(CopyBandwidth { bytes: bytes as u64, direct: access[0][1], peer_gbps, host_gbps })
+    let nccl_gbps = nccl_copy(a, b, &src, &mut dst, &timed)?;
+    Ok(CopyBandwidth { bytes: bytes as u64, direct: access[0][1], peer_gbps, host_gbps, nccl_gbps })
+}
+
+/// Runs a copy once untimed, then times repeats of it: GB/s.
+type Timed = dyn Fn(&mut dyn FnMut() -> Result<(), CudaError>) -> Result<f64, CudaError>;
+
+/// NCCL point-to-point from `a` to `b` (a communicator over both), timed
+/// like the other copies; `None` when libnccl cannot be loaded.
+fn nccl_copy(
+    a: &Arc<Gpu>,
+    b: &Arc<Gpu>,
+    src: &CudaSlice<u8>,
+    dst: &mut CudaSlice<u8>,
+    timed: &Timed,
+) -> Result<Option<f64>, CudaError> {
+    use cudarc::nccl::safe::{group_end, group_start, Comm};
+    // SAFETY: only probes whether the shared library loads.
+    if !unsafe { cudarc::nccl::sys::is_culib_present() } {
+        return Ok(None);
+    }
+    let nccl = |what: &str| {
+        let what = what.to_string();
+        move |e: cudarc::nccl::result::NcclError| CudaError::Usage(format!("NCCL {what}: {e:?}"))
+    };
+    let comms = Comm::from_devices(vec![a.stream.clone(), b.stream.clone()]).map_err(nccl("init"))?;
+    let gbps = timed(&mut || {
+        group_start().map_err(nccl("group start"))?;
+        comms[0].send(src, 1).map_err(nccl("send"))?;
+        comms[1].recv(dst, 0).map_err(nccl("recv"))?;
+        group_end().map_err(nccl("group end"))?;
+        a.synchronize()?;
+        b.synchronize()
+    })?;
+    Ok(Some(gbps))
 }

@@ -426,6 +426,11 @@ fn choose_transport(
     match (gpus, wanted) {
         (_, Some(Transport::Host)) => Ok(Transport::Host),
         (Some(gpus), _) => {
+            for d in devices.iter_mut() {
+                cuda_device(d.as_mut())
+                    .load_peer_kernels()
+                    .map_err(|e| DeviceError::Other { device: d.name(), message: e.to_string() })?;
+            }
             let access = atoll_cuda::peer::enable_peer_access(&gpus)
                 .map_err(|e| DeviceError::Other { device: "peer access".into(), message: e.to_string() })?;
             for (i, row) in access.iter().enumerate() {

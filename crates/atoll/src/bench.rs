@@ -124,12 +124,13 @@ fn peer_copies() -> Result<(), CliError> {
             let r = atoll_cuda::peer::measure_copy(x, y, mib << 20, 20)
                 .map_err(|e| CliError::Runtime(e.to_string()))?;
             println!(
-                "queue copy  {} -> {}  {:>4} MiB: peer {:.1} GB/s ({}), through the host {:.1} GB/s",
+                "queue copy  {} -> {}  {:>4} MiB: peer {:.1} GB/s ({}), NCCL send/recv {}, through the host {:.1} GB/s",
                 x.label(),
                 y.label(),
                 mib,
                 r.peer_gbps,
                 if r.direct { "direct" } else { "no peer access: staged by the driver" },
+                r.nccl_gbps.map_or("unavailable (no libnccl)".to_string(), |g| format!("{g:.1} GB/s")),
                 r.host_gbps
             );
         }

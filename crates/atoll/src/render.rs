@@ -82,7 +82,9 @@ fn parse_resolution(s: &str) -> Result<UVec2, String> {
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
+    let loading = std::time::Instant::now();
     let scene = load_scene(args.scene.as_deref())?;
+    let load_seconds = loading.elapsed().as_secs_f64();
     let mut options = RenderOptions::from_scene(&scene);
     if let Some(spp) = args.spp {
         options.spp = spp.max(1);
@@ -109,7 +111,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
     let scene = Arc::new(scene);
     if let Some(DeviceList(specs)) = &args.devices {
-        return render_on_devices(&scene, options, &args, specs, &output);
+        return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
     let mut selected = select(&args.device, args.threads)?;
     if args.warmup {
@@ -126,13 +128,14 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     selected.check()?;
     out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
     println!(
-        "{}: {}x{} {} spp on {} in {:.2} s (prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
+        "{}: {}x{} {} spp on {} in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
         output.display(),
         options.resolution.x,
         options.resolution.y,
         options.spp,
         selected.description,
         out.render_seconds,
+        load_seconds,
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
         out.rays_per_second() / 1e6,
@@ -160,6 +163,7 @@ fn render_on_devices(
     args: &RenderArgs,
     specs: &[DeviceSpec],
     output: &Path,
+    load_seconds: f64,
 ) -> Result<(), CliError> {
     let multi_args = MultiArgs {
         specs,
@@ -181,13 +185,14 @@ fn render_on_devices(
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
     print!("{}", multi::device_table(&out));
     println!(
-        "{}: {}x{} {} spp on {} devices in {:.2} s (prepare {:.2} s): {:.2} M samples/s",
+        "{}: {}x{} {} spp on {} devices in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s",
         output.display(),
         options.resolution.x,
         options.resolution.y,
         options.spp,
         specs.len(),
         out.render_seconds,
+        load_seconds,
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
     );
