@@ -6,17 +6,27 @@
 
 #include "record.cuh"
 
-/// Copies `min(*src_count, capacity)` records from `src` to `dst` (another
-/// GPU's memory) and writes that count to `dst_count`. Grid-stride over
-/// 16-byte words: every launch shape works.
+/// Copies the first `1 << word_shift` 16-byte words of each of
+/// `min(*src_count, capacity)` records from `src` to `dst` (another GPU's
+/// memory), writes that count to `dst_count` and adds the bytes sent to
+/// `*sent_bytes` (this GPU's statistics). Shadow rays need only their first
+/// four words (ray, pixel, throughput, flags): what any-hit tracing and
+/// resolving read. Grid-stride: every launch shape works.
 extern "C" __global__ void send_records(const uint4* __restrict__ src, const unsigned int* __restrict__ src_count,
                                         uint4* __restrict__ dst, unsigned int* __restrict__ dst_count,
-                                        unsigned int capacity) {
+                                        unsigned int capacity, unsigned int word_shift,
+                                        unsigned long long* sent_bytes) {
+    constexpr unsigned int RECORD_WORDS = sizeof(RayRecord) / sizeof(uint4);
     const unsigned int n = min(*src_count, capacity);
-    const unsigned long long words = (unsigned long long)n * (sizeof(RayRecord) / sizeof(uint4));
+    const unsigned long long words = (unsigned long long)n << word_shift;
+    const unsigned long long mask = (1ull << word_shift) - 1;
     const unsigned long long stride = (unsigned long long)gridDim.x * blockDim.x;
     for (unsigned long long i = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x; i < words; i += stride) {
-        dst[i] = src[i];
+        const unsigned long long at = (i >> word_shift) * RECORD_WORDS + (i & mask);
+        dst[at] = src[at];
     }
-    if (blockIdx.x == 0 && threadIdx.x == 0) *dst_count = n;
+    if (blockIdx.x == 0 && threadIdx.x == 0) {
+        *dst_count = n;
+        *sent_bytes += words * sizeof(uint4);
+    }
 }

@@ -118,6 +118,18 @@ impl CudaDevice {
         self.gpu().function("peer.cu", "send_records").map(|_| ())
     }
 
+    /// Bytes this device has sent to ring neighbours (read back: waits for
+    /// the device).
+    pub fn bytes_sent(&mut self) -> Result<u64, CudaError> {
+        let gpu = self.gpu().clone();
+        let queues = self.queues_mut()?;
+        let n = gpu
+            .stream
+            .clone_dtoh(&queues.sent_bytes)
+            .map_err(CudaError::driver(format!("{}: reading the sent counter", gpu.label())))?;
+        Ok(n[0])
+    }
+
     /// Records `event` on this device's stream: everything queued so far.
     pub fn record(&self, event: &CudaEvent) -> Result<(), CudaError> {
         event
@@ -150,7 +162,19 @@ impl CudaDevice {
             Queue::Shadows => (&queues.shadows, &queues.shadow_count),
         };
         let mut launch = gpu.stream.launch_builder(&kernel);
-        launch.arg(src).arg(src_count).arg(&to.records).arg(&to.count).arg(&to.capacity);
+        // Shadow rays: the first 4 of 8 words (see peer.cu); paths: all of them.
+        let word_shift: u32 = match queue {
+            Queue::Paths => 3,
+            Queue::Shadows => 2,
+        };
+        launch
+            .arg(src)
+            .arg(src_count)
+            .arg(&to.records)
+            .arg(&to.count)
+            .arg(&to.capacity)
+            .arg(&word_shift)
+            .arg(&mut queues.sent_bytes);
         // Enough blocks to keep NVLink busy; the kernel strides over the rest.
         let config = cudarc::driver::LaunchConfig {
             grid_dim: (gpu.multiprocessors * 4, 1, 1),
@@ -158,7 +182,9 @@ impl CudaDevice {
             shared_mem_bytes: 0,
         };
         // SAFETY: matches `send_records(const uint4* src, const unsigned* src_count, uint4* dst,
-        // unsigned* dst_count, unsigned capacity)` in peer.cu. `src` holds `capacity` records
+        // unsigned* dst_count, unsigned capacity, unsigned word_shift, unsigned long long*
+        // sent_bytes)` in peer.cu (`sent_bytes` is this GPU's one counter; word_shift <= 3
+        // keeps every copied word inside its record). `src` holds `capacity` records
         // and its counter never exceeds that; `to` names a live buffer of `to.capacity` records
         // and its counter on a GPU with peer access (enabled by `enable_peer_access`), which
         // its owner leaves alone until `accept_incoming`, ordered after `sent` below; the

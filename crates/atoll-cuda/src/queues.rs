@@ -22,8 +22,8 @@ pub fn queue_bytes(capacity: u32) -> u64 {
     // paths + next (the path queue's ping-pong partner) + shadows + the
     // spare shadow queue a ring needs (counted always: the plan is checked
     // before the strategy is known to the device), the hit references of
-    // closest-hit tracing, and three counters.
-    capacity.max(1) as u64 * (4 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4
+    // closest-hit tracing, three counters and the sent-bytes counter.
+    capacity.max(1) as u64 * (4 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4 + 8
 }
 
 /// The path and shadow queues of one device.
@@ -43,6 +43,8 @@ pub struct Queues {
     /// first [`Queues::incoming`] for shadows: only rings need it).
     pub spare_shadows: Option<CudaSlice<GpuRecord>>,
     pub spare_shadow_count: Option<CudaSlice<u32>>,
+    /// Bytes sent to ring neighbours so far (the send kernel adds).
+    pub sent_bytes: CudaSlice<u64>,
     /// Host copies of the counters when known (`None`: only the device knows).
     path_len: Cell<Option<u32>>,
     shadow_len: Cell<Option<u32>>,
@@ -71,6 +73,7 @@ impl Queues {
             shadow_count: counter("shadow counter")?,
             spare_shadows: None,
             spare_shadow_count: None,
+            sent_bytes: gpu.stream.alloc_zeros(1).map_err(CudaError::driver(what("sent counter")))?,
             path_len: Cell::new(Some(0)),
             shadow_len: Cell::new(Some(0)),
         })
@@ -99,6 +102,9 @@ impl Queues {
         if self.spare_shadows.is_some() {
             grown.incoming(gpu, Queue::Shadows)?;
         }
+        gpu.stream
+            .memcpy_dtod(&self.sent_bytes, &mut grown.sent_bytes)
+            .map_err(CudaError::driver(context()))?;
         grown.path_len.set(self.path_len.get());
         grown.shadow_len.set(self.shadow_len.get());
         *self = grown;

@@ -8,6 +8,8 @@
 //! - [`render_multi`]: one frame on many devices placed by a [`Layout`]
 //!   (replicate with dynamic waves; ring with queues cycling, GPU to GPU by
 //!   peer copies where every member is a GPU).
+//! - [`spatial::partition_spatial`]: the same as slabs along the longest
+//!   axis, so that rays rarely enter more than one part's bounds.
 //! - [`ownership`]: the false-colour view of which device holds what.
 
 #![warn(missing_docs)]
@@ -15,6 +17,7 @@
 pub mod ownership;
 pub mod partition;
 pub mod render;
+pub mod spatial;
 mod vote;
 
 pub use partition::{

@@ -468,24 +468,34 @@ pub fn partition(
 
     let parts: Vec<ScenePart> =
         assigned.iter().map(|indices| assemble(indices.iter().map(|&i| &pieces[i]))).collect();
-    let bytes = parts.iter().map(|p| part_bytes(scene, p, model)).collect();
-    let mut instance_parts = vec![Vec::new(); scene.instances.len()];
-    for (p, part) in parts.iter().enumerate() {
-        for &i in &part.instances {
-            instance_parts[i as usize].push(p as u32);
+    Ok(Partition::from_parts(scene, parts, model))
+}
+
+impl Partition {
+    /// The partition made of `parts` (each a valid [`ScenePart`] of
+    /// `scene`), with its byte sizes under `model` and its owner index.
+    pub(crate) fn from_parts(scene: &Scene, parts: Vec<ScenePart>, model: &ByteModel) -> Self {
+        let bytes = parts.iter().map(|p| part_bytes(scene, p, model)).collect();
+        let mut instance_parts = vec![Vec::new(); scene.instances.len()];
+        for (p, part) in parts.iter().enumerate() {
+            for &i in &part.instances {
+                instance_parts[i as usize].push(p as u32);
+            }
+        }
+        Partition {
+            parts,
+            bytes,
+            instance_parts,
+            instance_object: scene.instances.iter().map(|i| i.object).collect(),
+            object_meshes: scene
+                .objects
+                .iter()
+                .map(|o| {
+                    o.meshes.iter().map(|&m| (m, scene.meshes[m as usize].indices.len() as u32)).collect()
+                })
+                .collect(),
         }
     }
-    Ok(Partition {
-        parts,
-        bytes,
-        instance_parts,
-        instance_object: scene.instances.iter().map(|i| i.object).collect(),
-        object_meshes: scene
-            .objects
-            .iter()
-            .map(|o| o.meshes.iter().map(|&m| (m, scene.meshes[m as usize].indices.len() as u32)).collect())
-            .collect(),
-    })
 }
 
 /// The [`ScenePart`] holding `pieces`: instances sorted, geometry pieces of

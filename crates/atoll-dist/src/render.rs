@@ -103,15 +103,32 @@ impl MultiOutput {
 
 /// The waves of a frame for `workers` devices or rings taking them
 /// dynamically: waves are made smaller (down to 4096 pixels) until there
-/// are at least 8 per worker, so that the last ones to finish do not keep
-/// the others waiting long.
+/// are at least 8 per worker, and the last `2 × workers` are cut in four
+/// (guided scheduling), so that the last ones to finish do not keep the
+/// others waiting long.
 pub fn work_units(options: &RenderOptions, workers: usize) -> Vec<Wave> {
+    const MIN_PIXELS: u32 = 4096;
     let pixels = options.pixel_count().max(1) as u64;
     let wanted = 8 * workers.max(1) as u64;
-    let per_unit = (pixels * options.spp.max(1) as u64).div_ceil(wanted).max(4096).min(pixels);
+    let per_unit = (pixels * options.spp.max(1) as u64).div_ceil(wanted).max(MIN_PIXELS as u64).min(pixels);
     let mut opts = options.clone();
     opts.wave_size = opts.wave_size.min(per_unit as u32).max(1);
-    Wave::all(&opts)
+    let mut waves = Wave::all(&opts);
+    let tail = waves.len().saturating_sub(2 * workers.max(1));
+    let split: Vec<Wave> = waves[tail..]
+        .iter()
+        .flat_map(|w| {
+            let piece = w.pixel_count.div_ceil(4).max(MIN_PIXELS);
+            (w.first_pixel..w.first_pixel + w.pixel_count).step_by(piece as usize).map(move |first| Wave {
+                sample: w.sample,
+                first_pixel: first,
+                pixel_count: piece.min(w.first_pixel + w.pixel_count - first),
+            })
+        })
+        .collect();
+    waves.truncate(tail);
+    waves.extend(split);
+    waves
 }
 
 /// The device's first stage error, as a `DeviceError`.
@@ -249,7 +266,7 @@ pub fn render_multi(
     let render_seconds = start.elapsed().as_secs_f64();
 
     let mut film = Film::new(frame.options.resolution);
-    for ((device, report), prepare) in devices.iter().zip(&mut reports).zip(prepared) {
+    for ((device, report), prepare) in devices.iter_mut().zip(&mut reports).zip(prepared) {
         check(device.as_ref())?;
         if let Some(message) = &report.error {
             return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
@@ -257,10 +274,12 @@ pub fn render_multi(
         film.merge(&device.film());
         report.stats = device.stats();
         if transport == Transport::Peer {
-            // Every record traced is sent on once (the device knows the
-            // lengths, the host never asked).
-            report.bytes_sent = (report.stats.rays_traced + report.stats.shadow_rays_traced)
-                * std::mem::size_of::<RayRecord>() as u64;
+            // Counted by the send kernel: the host never learns the lengths.
+            let cuda =
+                device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on CUDA devices");
+            report.bytes_sent = cuda
+                .bytes_sent()
+                .map_err(|e| DeviceError::Other { device: report.name.clone(), message: e.to_string() })?;
         }
         report.prepare = prepare;
     }
@@ -314,11 +333,15 @@ struct PeerEvents {
 }
 
 impl RingLink<'_> {
-    /// Traces `queue` with `trace` on this device and passes it on, `size`
-    /// times: every queue of the ring visits every member once and is back
-    /// home at the end. A closest hit found earlier shortens `t_max`, so
-    /// later members only report nearer hits; shadow rays found occluded
-    /// are skipped by the later members.
+    /// Traces `queue` with `trace` on this device, passing it on between
+    /// traces: after `size` traces every queue of the ring has visited every
+    /// member once, and is shaded (or resolved) where it is then, not sent
+    /// home: any member can shade any hit (the record carries it, materials
+    /// and lights are on every device, films are summed at the end), and a
+    /// ring of K sends K - 1 times per trace instead of K (for K = 2, half
+    /// the traffic, measured in BENCHMARKS.md). A closest hit found earlier
+    /// shortens `t_max`, so later members only report nearer hits; shadow
+    /// rays found occluded are skipped by the later members.
     fn cycle(
         &self,
         device: &mut dyn Device,
@@ -326,8 +349,11 @@ impl RingLink<'_> {
         trace: fn(&mut dyn Device),
         report: &mut DeviceReport,
     ) -> Result<(), String> {
-        for _ in 0..self.size {
+        for i in 0..self.size {
             trace(device);
+            if i + 1 == self.size {
+                break;
+            }
             let step = self.steps.get();
             self.steps.set(step + 1);
             let handover = match self.transport {
@@ -498,6 +524,33 @@ fn ring_loop<'w>(
         }
         if wave.is_some() {
             let _ = done.send(());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::UVec2;
+
+    /// Every (pixel, sample) exactly once, whatever the split.
+    #[test]
+    fn work_units_cover_the_frame_once_with_a_finer_tail() {
+        let scene = atoll_scene::cornell::builtin_cornell_box();
+        for (w, h, spp, workers) in [(640, 360, 8, 2), (64, 64, 3, 4), (1, 1, 1, 1), (1280, 720, 32, 3)] {
+            let mut options = RenderOptions::from_scene(&scene);
+            options.resolution = UVec2::new(w, h);
+            options.spp = spp;
+            let waves = work_units(&options, workers);
+            let mut seen = vec![0u32; (w * h * spp) as usize];
+            for wave in &waves {
+                assert!(wave.pixel_count > 0 && wave.pixel_count <= options.wave_size);
+                for p in wave.first_pixel..wave.first_pixel + wave.pixel_count {
+                    seen[(wave.sample * w * h + p) as usize] += 1;
+                }
+            }
+            assert!(seen.iter().all(|&n| n == 1), "{w}x{h} {spp} spp {workers} workers");
+            assert!(waves.len() >= 8 * workers || (w * h) as usize * spp as usize <= 8 * 4096 * workers);
         }
     }
 }

@@ -146,3 +146,15 @@ fn a_ground_object_too_big_for_one_device_is_split() {
     let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring with a split ground");
 }
+
+#[test]
+fn a_ring_over_spatial_slabs_is_one_device() {
+    let scene = ground_scene();
+    let opts = options(&scene, 2);
+    let reference = single(&scene, &opts);
+    let p = atoll_dist::spatial::partition_spatial(&scene, 3, &ByteModel::CPU, &PartitionOptions::default())
+        .unwrap();
+    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "ring over spatial slabs");
+}

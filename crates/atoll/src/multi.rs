@@ -7,6 +7,7 @@ use std::sync::Arc;
 use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
+use atoll_dist::spatial::partition_spatial;
 use atoll_dist::{
     partition, plan, render_multi, Layout, MultiOutput, Partition, PartitionOptions, Plan, Strategy,
     Transport,
@@ -124,6 +125,8 @@ pub struct MultiArgs<'a> {
     pub ownership: Option<&'a Path>,
     /// How ring queues move (`None`: the fastest the devices allow).
     pub transport: Option<Transport>,
+    /// How a ring's scene parts are made.
+    pub partitioning: Partitioning,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -143,7 +146,17 @@ pub fn render(
         Plan::Replicate => (Layout::Replicate, None),
         Plan::Ring { k, islands } => {
             let options = PartitionOptions { budget, ..Default::default() };
-            let p = partition(scene, k, &model, &options).map_err(|e| CliError::Runtime(e.to_string()))?;
+            let memory = || partition(scene, k, &model, &options);
+            let spatial = || partition_spatial(scene, k, &model, &options).map(|p| (p, "spatial slabs"));
+            let memory = || memory().map(|p| (p, "memory-balanced"));
+            let (p, kind) = match args.partitioning {
+                Partitioning::Memory => memory(),
+                Partitioning::Spatial => spatial(),
+                // Slabs when they fit (faster: rays rarely enter two), else memory-balanced parts.
+                Partitioning::Auto => spatial().or_else(|_| memory()),
+            }
+            .map_err(|e| CliError::Runtime(e.to_string()))?;
+            eprintln!("partition: {kind}");
             (Layout::Ring { parts: p.parts.clone(), islands }, Some(p))
         }
     };
@@ -256,6 +269,28 @@ pub fn device_table(out: &MultiOutput) -> String {
         );
     }
     s
+}
+
+/// How `--partition` makes a ring's parts.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Partitioning {
+    /// Spatial slabs when they fit the budget, else memory-balanced parts.
+    #[default]
+    Auto,
+    /// Slabs along the scene's longest axis ([`partition_spatial`]).
+    Spatial,
+    /// Objects greedily onto the least-loaded part ([`partition`]).
+    Memory,
+}
+
+/// Parses `--partition`.
+pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "auto" => Ok(Partitioning::Auto),
+        "spatial" => Ok(Partitioning::Spatial),
+        "memory" => Ok(Partitioning::Memory),
+        _ => Err(format!("{s:?}: expected auto, spatial or memory")),
+    }
 }
 
 /// Parses `--ring-transport`.

@@ -13,7 +13,9 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
 use crate::load::load_scene;
-use crate::multi::{self, parse_devices, parse_transport, DeviceList, DeviceSpec, MultiArgs};
+use crate::multi::{
+    self, parse_devices, parse_partitioning, parse_transport, DeviceList, DeviceSpec, MultiArgs, Partitioning,
+};
 use crate::CliError;
 
 #[derive(Args, Default)]
@@ -50,6 +52,10 @@ pub struct RenderArgs {
     /// default for GPUs) or host (through host memory, any device).
     #[arg(long, value_parser = parse_transport, requires = "devices")]
     pub ring_transport: Option<Transport>,
+    /// How a ring's scene parts are made: auto (spatial slabs when they fit
+    /// the budget, else memory-balanced), spatial or memory.
+    #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "devices")]
+    pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
     #[arg(long, value_name = "IMAGE", requires = "devices")]
     pub ownership: Option<PathBuf>,
@@ -172,6 +178,7 @@ fn render_on_devices(
         threads: args.threads,
         ownership: args.ownership.as_deref(),
         transport: args.ring_transport,
+        partitioning: args.partitioning,
     };
     if args.warmup {
         multi::render(scene, RenderOptions { spp: 1, ..options.clone() }, &multi_args, &mut |_, _| {})?;
