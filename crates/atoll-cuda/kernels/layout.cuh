@@ -45,6 +45,31 @@ struct __align__(16) HitRef {
     unsigned int triangle;
 };
 
+/// Mirrors of `work::GpuWave`, `work::WorkStatus` and `work::WorkFifo`
+/// (wave-front merging; see src/work.rs). The array lengths are
+/// WORK_SLOTS and WORK_CLAIMS, pinned by the size asserts below.
+struct GpuWave {
+    unsigned int sample;
+    unsigned int first_pixel;
+    unsigned int pixel_count;
+    unsigned int queue_offset;
+};
+
+struct WorkStatus {
+    unsigned long long paths_started;
+    unsigned int queue_len;
+    unsigned int waves_started;
+};
+
+struct WorkFifo {
+    GpuWave waves[64];
+    GpuWave claims[8];
+    unsigned int pushed;
+    unsigned int taken;
+    unsigned int claim_count;
+    unsigned int pad;
+};
+
 // BEGIN GENERATED layout (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int HIT_NONE = 4294967295u;
 inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
@@ -83,5 +108,29 @@ static_assert(__builtin_offsetof(HitRef, u) == 0 && sizeof(HitRef::u) == 4, "Hit
 static_assert(__builtin_offsetof(HitRef, v) == 4 && sizeof(HitRef::v) == 4, "HitRef.v: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, instance) == 8 && sizeof(HitRef::instance) == 4, "HitRef.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, triangle) == 12 && sizeof(HitRef::triangle) == 4, "HitRef.triangle: offset or size differs from Rust");
+#endif
+inline constexpr unsigned int WORK_SLOTS = 64u;
+inline constexpr unsigned int WORK_CLAIMS = 8u;
+static_assert(sizeof(GpuWave) == 16, "GpuWave: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuWave, sample) == 0 && sizeof(GpuWave::sample) == 4, "GpuWave.sample: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuWave, first_pixel) == 4 && sizeof(GpuWave::first_pixel) == 4, "GpuWave.first_pixel: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuWave, pixel_count) == 8 && sizeof(GpuWave::pixel_count) == 4, "GpuWave.pixel_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuWave, queue_offset) == 12 && sizeof(GpuWave::queue_offset) == 4, "GpuWave.queue_offset: offset or size differs from Rust");
+#endif
+static_assert(sizeof(WorkStatus) == 16, "WorkStatus: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(WorkStatus, paths_started) == 0 && sizeof(WorkStatus::paths_started) == 8, "WorkStatus.paths_started: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkStatus, queue_len) == 8 && sizeof(WorkStatus::queue_len) == 4, "WorkStatus.queue_len: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkStatus, waves_started) == 12 && sizeof(WorkStatus::waves_started) == 4, "WorkStatus.waves_started: offset or size differs from Rust");
+#endif
+static_assert(sizeof(WorkFifo) == 1168, "WorkFifo: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(WorkFifo, waves) == 0 && sizeof(WorkFifo::waves) == 1024, "WorkFifo.waves: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkFifo, claims) == 1024 && sizeof(WorkFifo::claims) == 128, "WorkFifo.claims: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkFifo, pushed) == 1152 && sizeof(WorkFifo::pushed) == 4, "WorkFifo.pushed: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkFifo, taken) == 1156 && sizeof(WorkFifo::taken) == 4, "WorkFifo.taken: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkFifo, claim_count) == 1160 && sizeof(WorkFifo::claim_count) == 4, "WorkFifo.claim_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(WorkFifo, pad) == 1164 && sizeof(WorkFifo::pad) == 4, "WorkFifo.pad: offset or size differs from Rust");
 #endif
 // END GENERATED layout

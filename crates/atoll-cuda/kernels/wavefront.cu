@@ -85,16 +85,59 @@ __device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigne
     return r;
 }
 
-/// Camera rays for pixels `first_pixel .. first_pixel + count`, sample
-/// `sample`: thread i writes `paths[i]`; thread 0 sets `*path_count = count`.
-/// Mirrors `CpuDevice::generate`.
-extern "C" __global__ void generate(const FrameParams* __restrict__ params, unsigned int first_pixel,
-                                    unsigned int count, unsigned int sample, RayRecord* __restrict__ paths,
-                                    unsigned int* __restrict__ path_count) {
-    const unsigned int i = global_index();
-    if (i == 0) *path_count = count;
-    if (i >= count) return;
-    paths[i] = camera_record(*params, first_pixel + i, sample);
+/// Appends a wave to the work FIFO (one thread; src/work.rs `WorkFeed::push`).
+extern "C" __global__ void push_work(WorkFifo* __restrict__ fifo, unsigned int sample, unsigned int first_pixel,
+                                     unsigned int count) {
+    GpuWave& w = fifo->waves[fifo->pushed % WORK_SLOTS];
+    w.sample = sample;
+    w.first_pixel = first_pixel;
+    w.pixel_count = count;
+    w.queue_offset = 0;
+    fifo->pushed += 1;
+}
+
+/// Claims the path queue's free slots for pending camera paths, front of the
+/// FIFO first (one thread): the claims go to `refill_generate`, the new
+/// length to `*path_count` and the host's status.
+extern "C" __global__ void refill_claim(WorkFifo* __restrict__ fifo, WorkStatus* __restrict__ status,
+                                        unsigned int* __restrict__ path_count, unsigned int capacity) {
+    unsigned int len = *path_count;
+    unsigned int claims = 0;
+    while (len < capacity && status->waves_started != fifo->pushed && claims < WORK_CLAIMS) {
+        const GpuWave w = fifo->waves[status->waves_started % WORK_SLOTS];
+        const unsigned int n = min(capacity - len, w.pixel_count - fifo->taken);
+        GpuWave& c = fifo->claims[claims++];
+        c.sample = w.sample;
+        c.first_pixel = w.first_pixel + fifo->taken;
+        c.pixel_count = n;
+        c.queue_offset = len;
+        len += n;
+        fifo->taken += n;
+        status->paths_started += n;
+        if (fifo->taken == w.pixel_count) {
+            status->waves_started += 1;
+            fifo->taken = 0;
+        }
+    }
+    fifo->claim_count = claims;
+    *path_count = len;
+    status->queue_len = len;
+}
+
+/// Writes the camera records `refill_claim` claimed: thread i takes the
+/// i-th new path over all claims. Mirrors `CpuDevice::refill`.
+extern "C" __global__ void refill_generate(const FrameParams* __restrict__ params,
+                                           const WorkFifo* __restrict__ fifo, RayRecord* __restrict__ paths) {
+    unsigned int i = global_index();
+    const unsigned int claims = fifo->claim_count;
+    for (unsigned int k = 0; k < claims; ++k) {
+        const GpuWave c = fifo->claims[k];
+        if (i < c.pixel_count) {
+            paths[c.queue_offset + i] = camera_record(*params, c.first_pixel + i, c.sample);
+            return;
+        }
+        i -= c.pixel_count;
+    }
 }
 
 // ---------------------------------------------------------------------------

@@ -4,7 +4,8 @@
 //! | stage            | CPU device                        | here                                         |
 //! |------------------|-----------------------------------|----------------------------------------------|
 //! | prepare          | `SceneBvh::build`                 | memory plan, table upload, GPU BVH build, frame tables |
-//! | generate         | `camera_record` per pixel         | `generate` (wavefront.cu)                    |
+//! | queue_work       | pending waves on the host         | `push_work` into a FIFO on the GPU ([`crate::work`]) |
+//! | refill           | `camera_record` per free slot     | `refill_claim` + `refill_generate`           |
 //! | trace_paths      | `bvh.intersect` + `write_hit`     | `trace::trace_closest_queued` (`write_surface` folded in) |
 //! | shade            | `shade` + film / queue appends    | `shade` (appends with atomics)               |
 //! | trace_shadows    | `bvh.occluded`                    | `trace::trace_any`                           |
@@ -32,6 +33,7 @@ use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::GpuScene;
 use crate::trace::{DeviceQueueLength, SurfaceTables};
+use crate::work::{WorkFeed, FEED_BYTES};
 use crate::{bvh, trace};
 
 /// Threads per block of the wavefront kernels.
@@ -65,7 +67,6 @@ impl ErrorSlot {
 
 /// The wavefront kernels, loaded once per prepare.
 struct Kernels {
-    generate: CudaFunction,
     shade: CudaFunction,
     resolve_shadows: CudaFunction,
 }
@@ -73,7 +74,6 @@ struct Kernels {
 impl Kernels {
     fn load(gpu: &Gpu) -> Result<Self, CudaError> {
         Ok(Kernels {
-            generate: gpu.function(WAVEFRONT, "generate")?,
             shade: gpu.function(WAVEFRONT, "shade")?,
             resolve_shadows: gpu.function(WAVEFRONT, "resolve_shadows")?,
         })
@@ -96,8 +96,8 @@ struct Resident {
     /// kernels themselves: the host does not know queue lengths mid-wave.
     traced_paths: CudaSlice<u64>,
     traced_shadows: CudaSlice<u64>,
-    /// Bounces shaded since the last `generate` (see `has_paths`).
-    bounces: u32,
+    /// Waves queued on the device and what the host knows of them.
+    work: WorkFeed,
 }
 
 /// Device time of the stages: timers are collected as stages are queued
@@ -232,7 +232,7 @@ impl CudaDevice {
         let capacity = options.wave_size.min(options.pixel_count()).max(1);
         let film_bytes = options.pixel_count() as u64 * 12;
         let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
-        let frame_bytes = queue_bytes(capacity) + film_bytes + params_bytes;
+        let frame_bytes = queue_bytes(capacity) + FEED_BYTES + film_bytes + params_bytes;
 
         // Compile (or load from the cache) before the clock of the first wave starts.
         let kernels = Kernels::load(&gpu)?;
@@ -256,10 +256,11 @@ impl CudaDevice {
                 .map_err(CudaError::driver(format!("{}: allocating the {what} counter", gpu.label())))
         };
         let (traced_paths, traced_shadows) = (counter("traced paths")?, counter("traced shadows")?);
+        let work = WorkFeed::new(&gpu, WAVEFRONT)?;
         gpu.synchronize()?;
         let stats = PrepareStats {
             scene_bytes: gpu_scene.bytes() + bvh.bytes(),
-            frame_bytes: queue_bytes(capacity) + film_bytes + params.bytes(),
+            frame_bytes: queue_bytes(capacity) + FEED_BYTES + film_bytes + params.bytes(),
             bvh_build_seconds,
             bvh_sah_cost: bvh.sah_cost(),
         };
@@ -274,35 +275,23 @@ impl CudaDevice {
             film,
             traced_paths,
             traced_shadows,
-            bounces: 0,
+            work,
         });
         Ok(stats)
     }
 
-    fn try_generate(&mut self, wave: &Wave) -> Result<(), CudaError> {
+    fn try_queue_work(&mut self, wave: &Wave) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        self.start_wave_timer()?;
-        self.resident()?.queues.ensure_capacity(&gpu, wave.pixel_count)?;
-        self.with_resident(|r| {
-            let count = wave.pixel_count;
-            let mut launch = gpu.stream.launch_builder(&r.kernels.generate);
-            launch
-                .arg(&r.params.device)
-                .arg(&wave.first_pixel)
-                .arg(&count)
-                .arg(&wave.sample)
-                .arg(&mut r.queues.paths)
-                .arg(&mut r.queues.path_count);
-            // SAFETY: the arguments match `generate(const FrameParams*, unsigned first_pixel,
-            // unsigned count, unsigned sample, RayRecord* paths, unsigned* path_count)` in
-            // wavefront.cu; `paths` holds at least `count` records (ensured above) and
-            // every buffer lives until the stream has run the kernel (they are owned by `r`).
-            unsafe { launch.launch(launch_1d(count, BLOCK)) }
-                .map_err(CudaError::driver("launching generate"))?;
-            r.queues.set_known_len(Queue::Paths, Some(count));
-            r.bounces = 0;
-            Ok(())
-        })
+        if self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()).is_none() {
+            self.start_wave_timer()?;
+        }
+        let r = self.resident()?;
+        r.work.push(&gpu, wave.sample, wave.first_pixel, wave.pixel_count)
+    }
+
+    fn try_refill(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        self.with_resident(|r| r.work.refill(&gpu, &r.params.device, &mut r.queues, BLOCK))
     }
 
     fn try_trace_paths(&mut self) -> Result<(), CudaError> {
@@ -359,7 +348,6 @@ impl CudaDevice {
                 .map_err(CudaError::driver("launching shade"))?;
             q.swap_paths();
             q.set_known_len(Queue::Shadows, None);
-            r.bounces += 1;
             Ok(())
         })
     }
@@ -446,8 +434,23 @@ impl Device for CudaDevice {
         })
     }
 
-    fn generate(&mut self, wave: &Wave) {
-        self.stage("generate", |d| d.try_generate(wave));
+    fn queue_work(&mut self, wave: &Wave) {
+        self.stage("queue_work", |d| d.try_queue_work(wave));
+    }
+
+    fn wants_work(&self) -> bool {
+        let Some(r) = &self.resident else { return false };
+        if self.errors.is_set() {
+            return false;
+        }
+        r.work.wants_work(r.queues.capacity).unwrap_or_else(|e| {
+            self.errors.set(format!("{} wants_work: {e}", self.gpu.label()));
+            false
+        })
+    }
+
+    fn refill(&mut self) {
+        self.stage("refill", |d| d.try_refill());
     }
 
     fn trace_paths(&mut self) {
@@ -466,17 +469,17 @@ impl Device for CudaDevice {
         self.stage("resolve_shadows", |d| d.try_resolve_shadows());
     }
 
-    /// Paths cannot outlive `max_depth + 1` bounces except through
-    /// pass-through surfaces, and stages on an empty queue cost a few
-    /// microseconds, so the path count is read back (a full device round
-    /// trip) only once that many bounces have been shaded.
+    /// From the status of the last refill (see [`crate::work`]): waits for
+    /// that refill, not for the stages queued after it, so the GPU keeps a
+    /// bounce of work while the host decides. The answer is a bounce late:
+    /// after the last paths finish, one more (empty) bounce runs.
     fn has_paths(&self) -> bool {
         let Some(r) = &self.resident else { return false };
-        let more = match r.queues.known_len(Queue::Paths) {
-            Some(n) => n > 0,
-            None if !self.errors.is_set() && r.bounces <= r.frame.max_depth() => true,
-            None => self.queue_len(Queue::Paths) > 0,
-        };
+        let more = !self.errors.is_set()
+            && r.work.busy().unwrap_or_else(|e| {
+                self.errors.set(format!("{} has_paths: {e}", self.gpu.label()));
+                false
+            });
         if !more {
             if let Err(e) = self.stop_wave_timer() {
                 self.errors.set(format!("{} timing: {e}", self.gpu.label()));

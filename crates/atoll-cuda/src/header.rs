@@ -23,6 +23,7 @@ use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 
 use crate::layout::{mesh_flags, FieldLayout, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE};
 use crate::params::{emitter_kind, integrator_kind, FrameParams, GpuEmitter, GpuMaterial, SceneView};
+use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
 /// How to regenerate, repeated in every marker line.
 pub const REGENERATE: &str = "src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header";
@@ -157,7 +158,12 @@ pub fn layout_asserts() -> String {
     s += &assert_struct::<GpuMesh>("GpuMesh", GpuMesh::field_layout());
     s += &assert_struct::<GpuObject>("GpuObject", GpuObject::field_layout());
     s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
-    s + &assert_struct::<HitRef>("HitRef", HitRef::field_layout())
+    s += &assert_struct::<HitRef>("HitRef", HitRef::field_layout());
+    s += &const_uint("unsigned int", "WORK_SLOTS", WORK_SLOTS as u64);
+    s += &const_uint("unsigned int", "WORK_CLAIMS", WORK_CLAIMS as u64);
+    s += &assert_struct::<GpuWave>("GpuWave", GpuWave::field_layout());
+    s += &assert_struct::<WorkStatus>("WorkStatus", WorkStatus::field_layout());
+    s + &assert_struct::<WorkFifo>("WorkFifo", WorkFifo::field_layout())
 }
 
 /// Emitter and integrator kinds and the asserts of the kernel parameters.
@@ -245,12 +251,15 @@ mod tests {
     /// struct (all shared structs carry explicit padding fields).
     #[test]
     fn header_layouts_cover_their_structs() {
-        let all: [(&str, usize, FieldLayout); 9] = [
+        let all: [(&str, usize, FieldLayout); 12] = [
             ("RayRecord", std::mem::size_of::<RayRecord>(), record::field_layout()),
             ("GpuMesh", std::mem::size_of::<GpuMesh>(), GpuMesh::field_layout()),
             ("GpuObject", std::mem::size_of::<GpuObject>(), GpuObject::field_layout()),
             ("GpuInstance", std::mem::size_of::<GpuInstance>(), GpuInstance::field_layout()),
             ("HitRef", std::mem::size_of::<HitRef>(), HitRef::field_layout()),
+            ("GpuWave", std::mem::size_of::<GpuWave>(), GpuWave::field_layout()),
+            ("WorkStatus", std::mem::size_of::<WorkStatus>(), WorkStatus::field_layout()),
+            ("WorkFifo", std::mem::size_of::<WorkFifo>(), WorkFifo::field_layout()),
             ("GpuEmitter", std::mem::size_of::<GpuEmitter>(), GpuEmitter::field_layout()),
             ("GpuMaterial", std::mem::size_of::<GpuMaterial>(), GpuMaterial::field_layout()),
             ("FrameParams", std::mem::size_of::<FrameParams>(), FrameParams::field_layout()),

@@ -48,6 +48,7 @@ pub mod peer;
 pub mod queues;
 pub mod scene;
 pub mod trace;
+pub mod work;
 
 pub use device::CudaDevice;
 pub use error::CudaError;

@@ -20,6 +20,7 @@ use atoll_cuda::gpu::{launch_1d, Gpu};
 use atoll_cuda::layout::{GpuRecord, HitRef, HIT_NONE};
 use atoll_cuda::params::{FrameParamsHost, SceneView};
 use atoll_cuda::scene::{GpuScene, SceneTables};
+use atoll_cuda::work::{WorkFifo, WorkStatus};
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::{bsdf_from_record, PackedMaterial};
 use atoll_render::record::{flags, NO_LIGHT};
@@ -330,35 +331,61 @@ fn assert_no_mismatches(what: &str, bad: &[String]) {
     );
 }
 
+/// The work FIFO's refill appends camera records after the paths already
+/// queued, across wave boundaries, exactly as `CpuDevice::refill` does.
 #[test]
-fn generate_matches_camera_record() {
+fn refill_matches_camera_record() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", false);
     for lens in [false, true] {
         let (_, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, lens);
         let params = FrameParamsHost::new(&gpu, &frame).unwrap();
-        let (first, count, sample, capacity) = (37u32, 2000u32, 5u32, 2048u32);
+        let (capacity, queued) = (2048u32, 48u32);
+        // (sample, first pixel, count): the first fits, the second only in part.
+        let waves = [(5u32, 37u32, 1500u32), (6, 0, 1000)];
         let mut paths = gpu.stream.alloc_zeros::<GpuRecord>(capacity as usize).unwrap();
-        let mut path_count = upload(&gpu, &[u32::MAX]);
-        let f = m.load_function("generate").unwrap();
-        let mut b = gpu.stream.launch_builder(&f);
-        b.arg(&params.device).arg(&first).arg(&count).arg(&sample).arg(&mut paths).arg(&mut path_count);
-        // SAFETY: the arguments match `generate`; `paths` holds `capacity` >= `count` records.
+        let mut path_count = upload(&gpu, &[queued]);
+        let mut fifo = gpu.stream.alloc_zeros::<WorkFifo>(1).unwrap();
+        let mut status = gpu.stream.alloc_zeros::<WorkStatus>(1).unwrap();
+        let push = m.load_function("push_work").unwrap();
+        for (sample, first, count) in waves {
+            let mut b = gpu.stream.launch_builder(&push);
+            b.arg(&mut fifo).arg(&sample).arg(&first).arg(&count);
+            // SAFETY: matches `push_work(WorkFifo*, unsigned, unsigned, unsigned)`.
+            unsafe { b.launch(launch_1d(1, 1)) }.unwrap();
+        }
+        let claim = m.load_function("refill_claim").unwrap();
+        let mut b = gpu.stream.launch_builder(&claim);
+        b.arg(&mut fifo).arg(&mut status).arg(&mut path_count).arg(&capacity);
+        // SAFETY: matches `refill_claim(WorkFifo*, WorkStatus*, unsigned*, unsigned)`.
+        unsafe { b.launch(launch_1d(1, 1)) }.unwrap();
+        let generate = m.load_function("refill_generate").unwrap();
+        let mut b = gpu.stream.launch_builder(&generate);
+        b.arg(&params.device).arg(&fifo).arg(&mut paths);
+        // SAFETY: matches `refill_generate(const FrameParams*, const WorkFifo*, RayRecord*)`;
+        // claims end at `capacity`, the length of `paths`.
         unsafe { b.launch(launch_1d(capacity, BLOCK)) }.unwrap();
-        assert_eq!(download(&gpu, &path_count), [count]);
+        assert_eq!(download(&gpu, &path_count), [capacity]);
+        let s = download(&gpu, &status)[0];
+        let started = capacity - queued;
+        assert_eq!((s.paths_started, s.queue_len, s.waves_started), (started as u64, capacity, 1));
+        assert_eq!(download(&gpu, &fifo)[0].taken, started - waves[0].2);
         let got = records_of(download(&gpu, &paths));
         let mut bad = Vec::new();
         for (i, g) in got.iter().enumerate() {
-            let expected = if (i as u32) < count {
-                camera_record(&frame, first + i as u32, sample)
-            } else {
+            let i = i as u32;
+            let expected = if i < queued {
                 RayRecord::zeroed()
+            } else if i < queued + waves[0].2 {
+                camera_record(&frame, waves[0].1 + i - queued, waves[0].0)
+            } else {
+                camera_record(&frame, waves[1].1 + i - queued - waves[0].2, waves[1].0)
             };
             if let Err(e) = compare_records(&expected, g) {
                 bad.push(format!("record {i}: {e}"));
             }
         }
-        assert_no_mismatches(&format!("generate (lens {lens})"), &bad);
+        assert_no_mismatches(&format!("refill (lens {lens})"), &bad);
     }
 }
 

@@ -48,7 +48,15 @@ fn wavefront_kernels_compile_without_warnings_or_spills() {
     if !nvrtc_or_skip() {
         return;
     }
-    let kernels = ["generate", "surface", "shade", "resolve_shadows", "reset_queue_counts"];
+    let kernels = [
+        "push_work",
+        "refill_claim",
+        "refill_generate",
+        "surface",
+        "shade",
+        "resolve_shadows",
+        "reset_queue_counts",
+    ];
     check("wavefront.cu", &kernels, &[]);
     // What the equality tests compile (tests/gpu_stages.rs).
     check("wavefront.cu", &kernels, &["--fmad=false"]);

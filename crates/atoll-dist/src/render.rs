@@ -20,7 +20,7 @@ use atoll_bvh::ScenePart;
 use atoll_cuda::peer::IncomingSlot;
 use atoll_cuda::CudaDevice;
 use atoll_render::device::{DeviceStats, PrepareStats};
-use atoll_render::integrator::render_wave;
+use atoll_render::integrator::render_waves;
 use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave};
 use atoll_scene::Scene;
 use cudarc::driver::CudaEvent;
@@ -205,6 +205,7 @@ pub fn render_multi(
         let i = next.fetch_add(1, Ordering::Relaxed);
         waves.get(i)
     };
+    let merge = frame.options.merge_waves;
     let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
@@ -242,13 +243,16 @@ pub fn render_multi(
                         DeviceReport { name: device.name(), island, member, ..Default::default() };
                     let device = device.as_mut();
                     if ring == 1 {
-                        while let Some(wave) = take() {
-                            render_wave(device, wave);
-                            report.waves += 1;
-                            let _ = done.send(());
-                        }
+                        render_waves(device, merge, &mut || {
+                            let wave = take().copied();
+                            if wave.is_some() {
+                                report.waves += 1;
+                                let _ = done.send(());
+                            }
+                            wave
+                        });
                     } else {
-                        ring_loop(device, &link, vote, take, &done, &mut report);
+                        ring_loop(device, &link, merge, take, &done, &mut report);
                     }
                     report.wall_seconds = start.elapsed().as_secs_f64();
                     report
@@ -480,51 +484,44 @@ fn choose_transport(
     }
 }
 
-/// One ring member's frame: take a wave (or none), then bounce until no
-/// member of the ring has paths left; repeat until no member took a wave.
+/// One ring member's frame: queue waves as this member runs out of work
+/// (or, merging, as its pending work runs low) and bounce in step with the
+/// others until no member of the ring has paths or work left.
 fn ring_loop<'w>(
     device: &mut dyn Device,
     link: &RingLink<'_>,
-    vote: &Vote,
+    merge: bool,
     take: &dyn Fn() -> Option<&'w Wave>,
     done: &mpsc::Sender<()>,
     report: &mut DeviceReport,
 ) {
-    let voted = |mine: bool, report: &mut DeviceReport| {
-        let (any, waited): (bool, Duration) = vote.any(mine);
-        report.wait_seconds += waited.as_secs_f64();
-        any
-    };
     loop {
-        // A device that failed keeps voting (with empty queues) so that the
-        // others are not left waiting for it.
-        let wave = if device.error().is_none() { take() } else { None };
-        if !voted(wave.is_some(), report) {
+        // A device that failed takes no more work but keeps stepping (with
+        // empty queues) so that the others are not left waiting for it.
+        if device.error().is_none() && (!device.has_paths() || (merge && device.wants_work())) {
+            if let Some(wave) = take() {
+                device.queue_work(wave);
+                report.waves += 1;
+                let _ = done.send(());
+            }
+        }
+        let (any, waited): (bool, Duration) = link.vote.any(device.has_paths());
+        report.wait_seconds += waited.as_secs_f64();
+        if !any {
             return;
         }
-        match wave {
-            Some(wave) => {
-                device.generate(wave);
-                report.waves += 1;
-            }
-            None => device.write_queue(Queue::Paths, &[]),
+        device.refill();
+        let traced = link.cycle(device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
+            device.shade();
+            link.cycle(device, Queue::Shadows, |d| d.trace_shadows(), report)
+        });
+        if let Err(message) = traced {
+            // Only when a neighbour's thread is gone (it panicked): the
+            // frame cannot finish; its panic is reported by the caller.
+            tracing::error!("{}: {message}", device.name());
+            return;
         }
-        while voted(device.has_paths(), report) {
-            let traced = link.cycle(device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
-                device.shade();
-                link.cycle(device, Queue::Shadows, |d| d.trace_shadows(), report)
-            });
-            if let Err(message) = traced {
-                // Only when a neighbour's thread is gone (it panicked): the
-                // frame cannot finish; its panic is reported by the caller.
-                tracing::error!("{}: {message}", device.name());
-                return;
-            }
-            device.resolve_shadows();
-        }
-        if wave.is_some() {
-            let _ = done.send(());
-        }
+        device.resolve_shadows();
     }
 }
 

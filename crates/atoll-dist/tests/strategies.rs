@@ -99,11 +99,15 @@ fn ring_of_three_parts_is_one_device() {
         )
         .is_err());
     let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
-    let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
-    assert_same_image(&reference, &out.film, "ring of 3");
-    for d in &out.devices {
-        assert!(d.bytes_sent > 0, "{}: queues cycle", d.name);
-        assert!(d.prepare.scene_bytes <= budget);
+    // Queues of 500 paths: waves end mid-image, so merging has work to merge.
+    for merge in [true, false] {
+        let opts = RenderOptions { merge_waves: merge, wave_size: 500, ..opts.clone() };
+        let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
+        assert_same_image(&reference, &out.film, &format!("ring of 3 (merging {merge})"));
+        for d in &out.devices {
+            assert!(d.bytes_sent > 0, "{}: queues cycle", d.name);
+            assert!(d.prepare.scene_bytes <= budget);
+        }
     }
 }
 

@@ -1,5 +1,6 @@
 //! The CPU device: queues in host memory, stages mapped over them with rayon.
 
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -34,6 +35,9 @@ pub struct CpuDevice {
     frame: Option<Arc<FrameContext>>,
     paths: Vec<RayRecord>,
     shadows: Vec<RayRecord>,
+    /// Waves queued and not yet fully started; the front one's first
+    /// pixels are trimmed off as they start.
+    pending: VecDeque<Wave>,
     /// Buffers reused across bounces: fresh multi-megabyte allocations per
     /// stage cost more in page faults than the stage itself.
     outcomes: Vec<ShadeOutcome>,
@@ -53,6 +57,7 @@ impl CpuDevice {
             frame: None,
             paths: Vec::new(),
             shadows: Vec::new(),
+            pending: VecDeque::new(),
             outcomes: Vec::new(),
             spare_paths: Vec::new(),
             film: Film::new(glam::UVec2::ZERO),
@@ -94,6 +99,17 @@ impl CpuDevice {
 
     fn frame(&self) -> &FrameContext {
         self.frame.as_ref().expect("CpuDevice used before prepare()")
+    }
+
+    /// Most paths in flight: the frame's wave size.
+    fn capacity(&self) -> usize {
+        let options = &self.frame().options;
+        options.wave_size.min(options.pixel_count()).max(1) as usize
+    }
+
+    /// Camera paths not yet started.
+    fn pending_paths(&self) -> u64 {
+        self.pending.iter().map(|w| w.pixel_count as u64).sum()
     }
 
     fn resident(&self) -> &Resident {
@@ -180,6 +196,9 @@ impl Device for CpuDevice {
         self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
         self.film = Film::new(frame.options.resolution);
         self.frame = Some(frame.clone());
+        self.paths.clear();
+        self.shadows.clear();
+        self.pending.clear();
         self.stats = DeviceStats::default();
         let wave = frame.options.wave_size.min(frame.options.pixel_count()) as u64;
         Ok(PrepareStats {
@@ -191,17 +210,40 @@ impl Device for CpuDevice {
         })
     }
 
-    fn generate(&mut self, wave: &Wave) {
+    fn queue_work(&mut self, wave: &Wave) {
+        if wave.pixel_count > 0 {
+            self.pending.push_back(*wave);
+        }
+    }
+
+    fn wants_work(&self) -> bool {
+        self.pending_paths() <= self.capacity() as u64
+    }
+
+    fn refill(&mut self) {
         let start = Instant::now();
         let frame = self.frame().clone();
+        let mut free = self.capacity().saturating_sub(self.paths.len());
         let mut paths = std::mem::take(&mut self.paths);
-        self.run(|| {
-            (wave.first_pixel..wave.first_pixel + wave.pixel_count)
-                .into_par_iter()
-                .with_min_len(CHUNK)
-                .map(|pixel| camera_record(&frame, pixel, wave.sample))
-                .collect_into_vec(&mut paths)
-        });
+        while free > 0 {
+            let Some(&wave) = self.pending.front() else { break };
+            let n = (wave.pixel_count as usize).min(free) as u32;
+            self.run(|| {
+                paths.par_extend(
+                    (wave.first_pixel..wave.first_pixel + n)
+                        .into_par_iter()
+                        .with_min_len(CHUNK)
+                        .map(|pixel| camera_record(&frame, pixel, wave.sample)),
+                )
+            });
+            if n == wave.pixel_count {
+                self.pending.pop_front();
+            } else if let Some(front) = self.pending.front_mut() {
+                front.first_pixel += n;
+                front.pixel_count -= n;
+            }
+            free -= n as usize;
+        }
         self.paths = paths;
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
     }
@@ -276,6 +318,10 @@ impl Device for CpuDevice {
                 self.film.add(r.pixel, r.throughput());
             }
         }
+    }
+
+    fn has_paths(&self) -> bool {
+        !self.paths.is_empty() || !self.pending.is_empty()
     }
 
     fn queue_len(&self, queue: Queue) -> usize {

@@ -68,8 +68,23 @@ pub trait Device: Send {
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, DeviceError>;
 
-    /// Replaces the path queue with the camera rays of `wave`.
-    fn generate(&mut self, wave: &Wave);
+    /// Adds the camera paths of `wave` to this device's pending work, after
+    /// what is already pending; [`Device::refill`] starts them as the path
+    /// queue has room. Waves pass through in order, so a device that is
+    /// given waves one at a time and refilled until empty renders exactly
+    /// what a wave-at-a-time loop renders.
+    fn queue_work(&mut self, wave: &Wave);
+
+    /// Whether pending work may run out at the next refill (at most one
+    /// queue's worth of paths not yet started, as far as the device knows):
+    /// a caller merging waves queues the next one now, so the path queue
+    /// stays full while long paths finish.
+    fn wants_work(&self) -> bool;
+
+    /// Appends pending camera paths to the path queue, up to its capacity
+    /// (the frame's wave size). A no-op when nothing is pending or the
+    /// queue is full.
+    fn refill(&mut self);
 
     /// Closest-hit tracing of the path queue. Hits farther than a record's
     /// `t_max` (e.g. found earlier on another device) are left alone.
@@ -85,12 +100,11 @@ pub trait Device: Send {
     /// Adds unoccluded shadow contributions to the film; empties the shadow queue.
     fn resolve_shadows(&mut self);
 
-    /// Whether the path queue may still hold paths. A device for which
-    /// reading the length back is expensive may answer `true` for an empty
-    /// queue: every stage on an empty queue does nothing.
-    fn has_paths(&self) -> bool {
-        self.queue_len(Queue::Paths) > 0
-    }
+    /// Whether the path queue may still hold paths or work is pending. A
+    /// device for which reading the length back is expensive may answer
+    /// `true` for an empty queue (one bounce late): every stage on an empty
+    /// queue does nothing.
+    fn has_paths(&self) -> bool;
 
     fn queue_len(&self, queue: Queue) -> usize;
     fn read_queue(&self, queue: Queue) -> Vec<RayRecord>;

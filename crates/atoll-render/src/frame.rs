@@ -21,6 +21,12 @@ pub struct RenderOptions {
     pub russian_roulette: bool,
     /// Paths in flight per wave. Memory is `wave_size * 128 B` per queue.
     pub wave_size: u32,
+    /// Wave-front merging: start the next wave's camera paths in the slots
+    /// that finished paths free, so late bounces do not run on nearly empty
+    /// queues. Off renders one wave at a time (each pixel at most once per
+    /// queue). Either way each path's random numbers depend only on its
+    /// pixel and sample; only the order of film additions changes.
+    pub merge_waves: bool,
 }
 
 impl RenderOptions {
@@ -34,6 +40,7 @@ impl RenderOptions {
             seed: 0,
             russian_roulette: true,
             wave_size: 1 << 18,
+            merge_waves: true,
         }
     }
 

@@ -1,6 +1,6 @@
-//! The wavefront loop: generate → (trace → shade → trace shadows → resolve)*
-//! per wave, on one device. Strategies over many devices reuse the same
-//! stage order with queues moving between devices.
+//! The wavefront loop: (refill → trace → shade → trace shadows → resolve)*
+//! on one device, fed waves of camera paths. Strategies over many devices
+//! reuse the same stage order with queues moving between devices.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -35,21 +35,39 @@ impl RenderOutput {
     }
 }
 
-/// Runs one wave to completion on `device`.
-pub fn render_wave(device: &mut dyn Device, wave: &Wave) {
-    device.generate(wave);
-    // No queue lengths are asked for here beyond `has_paths`: on a GPU each
-    // one is a round trip that leaves the device idle.
-    while device.has_paths() {
-        device.trace_paths();
-        device.shade();
-        device.trace_shadows();
-        device.resolve_shadows();
+/// One bounce of the wavefront loop: top the path queue up with pending
+/// camera paths, trace, shade, trace and resolve shadow rays.
+pub fn bounce(device: &mut dyn Device) {
+    device.refill();
+    device.trace_paths();
+    device.shade();
+    device.trace_shadows();
+    device.resolve_shadows();
+}
+
+/// Renders waves from `take` on `device` until `take` has none left and
+/// every path has finished. With `merge` the next wave is queued while the
+/// current one's paths still run (wave-front merging), else only once the
+/// device is idle.
+pub fn render_waves(device: &mut dyn Device, merge: bool, take: &mut dyn FnMut() -> Option<Wave>) {
+    loop {
+        // No queue lengths are asked for here beyond `has_paths` and
+        // `wants_work`: on a GPU these read a status the device copies back
+        // a bounce ahead, so the GPU never waits for the host.
+        let busy = device.has_paths();
+        if !busy || (merge && device.wants_work()) {
+            match take() {
+                Some(wave) => device.queue_work(&wave),
+                None if !busy => return,
+                None => {}
+            }
+        }
+        bounce(device);
     }
 }
 
-/// Renders a frame of `scene` on one device. `progress` is called after each
-/// wave with (waves done, waves total).
+/// Renders a frame of `scene` on one device. `progress` is called as each
+/// wave starts with (waves started, waves total).
 pub fn render(
     device: &mut dyn Device,
     scene: &Arc<Scene>,
@@ -62,10 +80,15 @@ pub fn render(
     let prepare_seconds = start.elapsed().as_secs_f64();
     let waves = Wave::all(&frame.options);
     let start = Instant::now();
-    for (i, wave) in waves.iter().enumerate() {
-        render_wave(device, wave);
-        progress(i + 1, waves.len());
-    }
+    let mut taken = 0;
+    render_waves(device, frame.options.merge_waves, &mut || {
+        let wave = waves.get(taken).copied();
+        if wave.is_some() {
+            taken += 1;
+            progress(taken, waves.len());
+        }
+        wave
+    });
     let render_seconds = start.elapsed().as_secs_f64();
     let mut film = device.film();
     film.spp = frame.options.spp;

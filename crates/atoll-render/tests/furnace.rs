@@ -73,6 +73,7 @@ fn options(spp: u32, max_depth: u32) -> RenderOptions {
         seed: 3,
         russian_roulette: true,
         wave_size: 1 << 16,
+        merge_waves: true,
     }
 }
 

@@ -9,6 +9,7 @@ use clap::Args;
 use glam::UVec2;
 
 use crate::device::{select, DeviceArgs};
+use crate::render::WaveArgs;
 use crate::CliError;
 
 #[derive(Args)]
@@ -35,6 +36,8 @@ pub struct BenchArgs {
     pub peer: bool,
     #[command(flatten)]
     pub device: DeviceArgs,
+    #[command(flatten)]
+    pub waves: WaveArgs,
 }
 
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
@@ -56,6 +59,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     options.spp = args.spp;
     options.integrator = IntegratorSettings::Path { max_depth: 15 };
     options.russian_roulette = false;
+    args.waves.apply(&mut options);
     let mut run_once = |spp: u32| {
         let options = RenderOptions { spp, ..options.clone() };
         let out = render(selected.device.as_mut(), &scene, options, &mut |_, _| {})
@@ -69,8 +73,10 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     runs.sort_by(|a, b| a.render_seconds.total_cmp(&b.render_seconds));
     let out = &runs[runs.len() / 2];
     println!(
-        "path tracing  cornell box 512x512, {} spp, depth 15, no RR: {:.3} M samples/s, {:.2} M rays/s ({:.3} s median of {}, on {})",
+        "path tracing  cornell box 512x512, {} spp, depth 15, no RR, waves of {}{}: {:.3} M samples/s, {:.2} M rays/s ({:.3} s median of {}, on {})",
         args.spp,
+        options.wave_size,
+        if options.merge_waves { " merged" } else { "" },
         out.samples_per_second() / 1e6,
         out.rays_per_second() / 1e6,
         out.render_seconds,

@@ -18,6 +18,27 @@ use crate::multi::{
 };
 use crate::CliError;
 
+/// How the wavefront loop is fed (shared by `render` and `bench`).
+#[derive(Args, Clone, Default)]
+pub struct WaveArgs {
+    /// Render one wave at a time instead of starting the next wave's paths
+    /// in the slots finished paths free (wave-front merging).
+    #[arg(long)]
+    pub no_merge: bool,
+    /// Paths in flight per device (default 262144; queues take about 4 x 128 B each).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
+    pub wave_size: Option<u32>,
+}
+
+impl WaveArgs {
+    pub fn apply(&self, options: &mut RenderOptions) {
+        options.merge_waves = !self.no_merge;
+        if let Some(size) = self.wave_size {
+            options.wave_size = size;
+        }
+    }
+}
+
 #[derive(Args, Default)]
 pub struct RenderArgs {
     /// Scene file (.pbrt, .obj, .gltf/.glb, .ply, .off) or a generated `landscape:GROWTH[:SEED]`;
@@ -40,6 +61,8 @@ pub struct RenderArgs {
     pub threads: Option<usize>,
     #[command(flatten)]
     pub device: DeviceArgs,
+    #[command(flatten)]
+    pub waves: WaveArgs,
     /// Render on several devices: comma-separated cpu, cpu:N (N CPU devices
     /// sharing the cores) or cuda:I; `--device-memory` is then per device.
     #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
@@ -106,6 +129,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     }
     options.seed = args.seed;
     options.russian_roulette = !args.no_rr;
+    args.waves.apply(&mut options);
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
     });
