@@ -3,7 +3,9 @@
 //! - [`Bvh2::build`]: parallel binned-SAH builder (and a median-split one for
 //!   comparison) over primitive boxes, producing the canonical binary layout
 //!   [`Bvh2`]. Other layouts are converted from it: [`Bvh4Cpu`], 4-wide with
-//!   SIMD box tests, the default (it measured faster on every ray batch).
+//!   SIMD box tests, the default (it measured faster on every ray batch);
+//!   [`Cwbvh`], the compressed 8-wide BVH for GPU upload, with a scalar
+//!   reference traversal.
 //! - Triangles: Möller–Trumbore on precomputed `(v0, e1, e2)`, four at a
 //!   time in [`Tri4`] leaf blocks; [`TriAccel`] is the scalar reference the
 //!   GPU kernels must match.
@@ -23,6 +25,7 @@ pub mod bench;
 pub mod build;
 pub mod bvh2;
 pub mod bvh4;
+pub mod cwbvh;
 pub mod layout;
 pub mod memory;
 pub mod scene_bvh;
@@ -34,6 +37,7 @@ pub use aabb::Aabb;
 pub use build::{BuildOptions, SplitMethod};
 pub use bvh2::{Bvh2, Bvh2Node};
 pub use bvh4::{Bvh4Cpu, Bvh4CpuNode};
+pub use cwbvh::{Cwbvh, CwbvhNode};
 pub use layout::{BvhLayout, BvhStats, TraversalRay, MAX_DEPTH};
 pub use memory::{part_bytes, part_geometry_bytes, ByteModel};
 pub use scene_bvh::{MeshRange, SceneBvh, SceneBvhStats, ScenePart};
