@@ -220,9 +220,20 @@ __device__ __forceinline__ TriRecord load_tri(const TriRecord* tris, unsigned in
 }
 
 /// Everything one traversal reads (kernel arguments, gathered).
+/// A compressed wide node (mirror of `atoll_bvh::CwbvhNode` through
+/// `bvh::wide::GpuWideNode`, 80 bytes): origin xyz, then the exponent and
+/// imask bytes; child_base, prim_base, meta[8]; lo_x[8] lo_y[8]; lo_z[8]
+/// hi_x[8]; hi_y[8] hi_z[8]. Loaded as five 16-byte words.
+struct __align__(16) WideNode {
+    float4 w[5];
+};
+static_assert(sizeof(WideNode) == 80, "WideNode: size differs from Rust");
+
 struct SceneBvhView {
     const BvhNode* tlas_nodes;
     const BvhNode* blas_nodes;
+    /// The compressed wide tree (TLAS then BLASes), for the `cw` kernels only.
+    const WideNode* wide_nodes;
     const TriRecord* tris;
     /// Global triangle index (into the scene's `triangles` table) per TriRecord.
     const unsigned int* tri_ids;
@@ -239,3 +250,4 @@ struct TraversalHit {
 };
 
 #include "traverse.cuh"
+#include "wide.cuh"

@@ -12,7 +12,10 @@
 //   fetching 32 rays at a time from a global counter until none are left
 //   (`*work` must be 0 at launch);
 // - sp: speculative while-while, one thread per ray;
-// - ptsp: persistent threads with speculative traversal.
+// - ptsp: persistent threads with speculative traversal;
+// - cw / ptcw: the compressed wide BVH (Ylitie et al. 2017, wide.cuh), one
+//   thread per ray / persistent threads; `tlas_root`, `tris`, `tri_ids` and
+//   `instances` are then the wide tree's (src/bvh/wide.rs).
 // and two triangle tests: exact (Möller–Trumbore bit-identical to the CPU)
 // and woop (unit-triangle test).
 
@@ -33,7 +36,12 @@ struct SurfaceArgs {
     const SceneView* scene;
 };
 
-template <int TRI, bool ANY, bool SPECULATIVE>
+/// Loop structures (template argument).
+#define LOOP_WHILE_WHILE 0
+#define LOOP_SPECULATIVE 1
+#define LOOP_WIDE 2
+
+template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* records, HitRef* hits,
                                           unsigned long long i, unsigned int count, SurfaceArgs surface) {
     bool valid = i < count;
@@ -47,8 +55,9 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
     const unsigned int mask = __ballot_sync(0xffffffffu, valid);
     if (!valid) return;
     const float3 o = make_float3(a.x, a.y, a.z), d = make_float3(b.x, b.y, b.z);
-    const TraversalHit h = SPECULATIVE ? traverse_speculative<TRI, ANY>(v, o, d, a.w, mask)
-                                       : traverse_while_while<TRI, ANY>(v, o, d, a.w);
+    const TraversalHit h = LOOP == LOOP_SPECULATIVE ? traverse_speculative<TRI, ANY>(v, o, d, a.w, mask)
+                           : LOOP == LOOP_WIDE      ? traverse_wide<TRI, ANY>(v, o, d, a.w)
+                                                    : traverse_while_while<TRI, ANY>(v, o, d, a.w);
     if (ANY) {
         if (h.hit) rec->flags |= FLAG_OCCLUDED;
         return;
@@ -74,15 +83,15 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
 }
 
 /// One thread per ray.
-template <int TRI, bool ANY, bool SPECULATIVE>
+template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_grid(const SceneBvhView& v, RayRecord* records, HitRef* hits,
                                            unsigned int count, SurfaceArgs surface) {
     const unsigned long long i = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
-    trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, i, count, surface);
+    trace_ray<TRI, ANY, LOOP>(v, records, hits, i, count, surface);
 }
 
 /// Persistent threads: warps take batches of 32 rays from `*work`.
-template <int TRI, bool ANY, bool SPECULATIVE>
+template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecord* records, HitRef* hits,
                                                  unsigned int count, unsigned int* work, SurfaceArgs surface) {
     const unsigned int lane = threadIdx.x & 31u;
@@ -91,7 +100,7 @@ __device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecor
         if (lane == 0) base = atomicAdd(work, 32u);
         base = __shfl_sync(0xffffffffu, base, 0);
         if (base >= count) return;
-        trace_ray<TRI, ANY, SPECULATIVE>(v, records, hits, (unsigned long long)base + lane, count, surface);
+        trace_ray<TRI, ANY, LOOP>(v, records, hits, (unsigned long long)base + lane, count, surface);
         __syncwarp();
     }
 }
@@ -108,12 +117,12 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
 }
 
 #define TRACE_ARGS                                                                                           \
-    const BvhNode *tlas_nodes, const BvhNode *blas_nodes, const TriRecord *tris, const unsigned int *tri_ids, \
+    const BvhNode *tlas_nodes, const BvhNode *blas_nodes, const WideNode *wide_nodes, const TriRecord *tris, const unsigned int *tri_ids, \
         const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
         unsigned int *work, const unsigned int *device_count, unsigned long long *traced,                   \
         const FrameParams *surface_params, const SceneView *surface_scene
 #define TRACE_VIEW                                                                   \
-    SceneBvhView v = {tlas_nodes, blas_nodes, tris, tri_ids, instances, tlas_root}; \
+    SceneBvhView v = {tlas_nodes, blas_nodes, wide_nodes, tris, tri_ids, instances, tlas_root}; \
     const unsigned int n = trace_count(count, device_count, traced);                \
     const SurfaceArgs surface = {surface_params, surface_scene}
 
@@ -121,19 +130,27 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
 #define TRACE_KERNELS(query, any, test, tri)                                                                      \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ww_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, false>(v, records, hits, n, surface);                                                            \
+        trace_grid<tri, any, LOOP_WHILE_WHILE>(v, records, hits, n, surface);                                                            \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_sp_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, true>(v, records, hits, n, surface);                                                             \
+        trace_grid<tri, any, LOOP_SPECULATIVE>(v, records, hits, n, surface);                                                             \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_pt_##test(TRACE_ARGS) {          \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, false>(v, records, hits, n, work, surface);                                                \
+        trace_persistent<tri, any, LOOP_WHILE_WHILE>(v, records, hits, n, work, surface);                                                \
     }                                                                                                             \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptsp_##test(TRACE_ARGS) {        \
         TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, true>(v, records, hits, n, work, surface);                                                 \
+        trace_persistent<tri, any, LOOP_SPECULATIVE>(v, records, hits, n, work, surface);                                                 \
+    }                                                                                                             \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_cw_##test(TRACE_ARGS) {          \
+        TRACE_VIEW;                                                                                               \
+        trace_grid<tri, any, LOOP_WIDE>(v, records, hits, n, surface);                                            \
+    }                                                                                                             \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptcw_##test(TRACE_ARGS) {        \
+        TRACE_VIEW;                                                                                               \
+        trace_persistent<tri, any, LOOP_WIDE>(v, records, hits, n, work, surface);                                \
     }
 
 TRACE_KERNELS(closest, false, exact, TRI_EXACT)

@@ -16,6 +16,23 @@
 //   are written with warp-uniform trip counts.
 #pragma once
 
+/// The ray of instance record `s` in object space (`world` unchanged for an
+/// identity instance, kept in `ray`); returns the record's BLAS root.
+__device__ __forceinline__ int instance_ray(const SceneBvhView& v, unsigned int s, const TraversalRay& world,
+                                            TraversalRay& ray) {
+    const float4* p = reinterpret_cast<const float4*>(v.instances + s);
+    const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
+    if (meta.z == 0) {
+        const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
+        const float3 o = world.o, d = world.d;
+        // glam's Affine3A::transform_point3a / transform_vector3a, rounding included.
+        ray = make_traversal_ray(
+            make_float3(affine_row_rn(m0, o, true), affine_row_rn(m1, o, true), affine_row_rn(m2, o, true)),
+            make_float3(affine_row_rn(m0, d, false), affine_row_rn(m1, d, false), affine_row_rn(m2, d, false)));
+    }
+    return meta.x;
+}
+
 /// Per-thread traversal state, in registers; the stack it points to is a
 /// separate array in local memory (a struct holding the array would be put
 /// in local memory whole).
@@ -40,20 +57,11 @@ struct Traversal {
 
     /// Moves into instance record `s`; returns its BLAS root link.
     __device__ __forceinline__ int enter_instance(const SceneBvhView& v, unsigned int s) {
-        const float4* p = reinterpret_cast<const float4*>(v.instances + s);
-        const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
-        if (meta.z == 0) {
-            const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
-            const float3 o = world.o, d = world.d;
-            // glam's Affine3A::transform_point3a / transform_vector3a, rounding included.
-            ray = make_traversal_ray(
-                make_float3(affine_row_rn(m0, o, true), affine_row_rn(m1, o, true), affine_row_rn(m2, o, true)),
-                make_float3(affine_row_rn(m0, d, false), affine_row_rn(m1, d, false), affine_row_rn(m2, d, false)));
-        }
+        const int root = instance_ray(v, s, world, ray);
         nodes = v.blas_nodes;
         in_blas = true;
         slot = s;
-        return meta.x;
+        return root;
     }
 
     __device__ __forceinline__ void leave_instance(const SceneBvhView& v) {

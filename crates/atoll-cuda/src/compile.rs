@@ -43,6 +43,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("test_bsdf.cu", include_str!("../kernels/test_bsdf.cu")),
     ("trace.cu", include_str!("../kernels/trace.cu")),
     ("traverse.cuh", include_str!("../kernels/traverse.cuh")),
+    ("wide.cuh", include_str!("../kernels/wide.cuh")),
     ("treelet.cu", include_str!("../kernels/treelet.cu")),
     ("wavefront.cu", include_str!("../kernels/wavefront.cu")),
 ];

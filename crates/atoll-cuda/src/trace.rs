@@ -13,6 +13,7 @@
 
 use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
 
+use crate::bvh::wide::WideBvh;
 use crate::bvh::GpuSceneBvh;
 use crate::error::CudaError;
 use crate::gpu::Gpu;
@@ -38,14 +39,21 @@ pub enum TraversalVariant {
     Speculative,
     /// Speculative traversal with persistent threads.
     PersistentSpeculative,
+    /// The compressed 8-wide BVH (Ylitie et al. 2017; [`crate::bvh::wide`]),
+    /// collapsed on the host at first use; one thread per ray.
+    Wide,
+    /// The compressed wide BVH with persistent threads.
+    PersistentWide,
 }
 
 impl TraversalVariant {
-    pub const ALL: [TraversalVariant; 4] = [
+    pub const ALL: [TraversalVariant; 6] = [
         TraversalVariant::WhileWhile,
         TraversalVariant::Persistent,
         TraversalVariant::Speculative,
         TraversalVariant::PersistentSpeculative,
+        TraversalVariant::Wide,
+        TraversalVariant::PersistentWide,
     ];
 
     /// Short name (kernel suffix and report column).
@@ -55,11 +63,23 @@ impl TraversalVariant {
             TraversalVariant::Persistent => "pt",
             TraversalVariant::Speculative => "sp",
             TraversalVariant::PersistentSpeculative => "ptsp",
+            TraversalVariant::Wide => "cw",
+            TraversalVariant::PersistentWide => "ptcw",
         }
     }
 
     pub fn persistent(self) -> bool {
-        matches!(self, TraversalVariant::Persistent | TraversalVariant::PersistentSpeculative)
+        matches!(
+            self,
+            TraversalVariant::Persistent
+                | TraversalVariant::PersistentSpeculative
+                | TraversalVariant::PersistentWide
+        )
+    }
+
+    /// Whether the variant traverses the compressed wide BVH.
+    pub fn wide(self) -> bool {
+        matches!(self, TraversalVariant::Wide | TraversalVariant::PersistentWide)
     }
 }
 
@@ -82,7 +102,9 @@ pub struct SurfaceTables<'a> {
 /// Loaded trace kernels and the persistent threads' work counter. One per
 /// BVH (kept inside it), made on first use.
 pub struct Tracer {
-    kernels: Vec<((bool, TraversalVariant), CudaFunction)>,
+    /// By kernel name (query, variant and triangle test: one tracer may
+    /// serve BVHs built for different tests).
+    kernels: Vec<(String, CudaFunction)>,
     work: CudaSlice<u32>,
     /// Blocks of a persistent launch: resident blocks per SM times SMs.
     persistent_blocks: Vec<(String, u32)>,
@@ -100,15 +122,14 @@ impl Tracer {
     fn kernel(
         &mut self,
         gpu: &Gpu,
-        any: bool,
         variant: TraversalVariant,
         name: &str,
     ) -> Result<(CudaFunction, u32), CudaError> {
-        let function = match self.kernels.iter().find(|(key, _)| *key == (any, variant)) {
+        let function = match self.kernels.iter().find(|(key, _)| key == name) {
             Some((_, f)) => f.clone(),
             None => {
                 let f = gpu.function(FILE, name)?;
-                self.kernels.push(((any, variant), f.clone()));
+                self.kernels.push((name.to_string(), f.clone()));
                 f
             }
         };
@@ -152,7 +173,7 @@ impl Tracer {
         }
         let query = if any { "any" } else { "closest" };
         let name = format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix());
-        let (function, persistent_blocks) = self.kernel(gpu, any, variant, &name)?;
+        let (function, persistent_blocks) = self.kernel(gpu, variant, &name)?;
         let config = if variant.persistent() {
             gpu.stream
                 .memset_zeros(&mut self.work)
@@ -170,15 +191,19 @@ impl Tracer {
             }
         };
         let null: u64 = 0;
+        let mut wide = bvh.wide.lock().unwrap_or_else(|p| p.into_inner());
+        if variant.wide() && wide.is_none() {
+            *wide = Some(WideBvh::build(gpu, bvh)?);
+        }
         let mut launch = gpu.stream.launch_builder(&function);
-        launch
-            .arg(&bvh.tlas_nodes)
-            .arg(&bvh.blas_nodes)
-            .arg(&bvh.tris)
-            .arg(&bvh.tri_ids)
-            .arg(&bvh.instances)
-            .arg(&bvh.tlas_root)
-            .arg(&mut *rays);
+        launch.arg(&bvh.tlas_nodes).arg(&bvh.blas_nodes);
+        match wide.as_ref().filter(|_| variant.wide()) {
+            Some(w) => launch.arg(&w.nodes).arg(&w.tris).arg(&w.tri_ids).arg(&w.instances).arg(&w.root),
+            None => {
+                launch.arg(&null).arg(&bvh.tris).arg(&bvh.tri_ids).arg(&bvh.instances).arg(&bvh.tlas_root)
+            }
+        };
+        launch.arg(&mut *rays);
         match hits {
             Some(h) => launch.arg(h),
             None => launch.arg(&null),
@@ -193,11 +218,12 @@ impl Tracer {
             None => launch.arg(&null).arg(&null),
         };
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
-        // BvhNode* blas_nodes, const TriRecord* tris, const unsigned* tri_ids, const
+        // BvhNode* blas_nodes, const WideNode* wide_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
         // count, unsigned* work, const unsigned* device_count, unsigned long long* traced,
         // const FrameParams* surface_params, const SceneView* surface_scene)`.
-        // The BVH's links stay within its arrays (built by lbvh.cu); threads touch records and
+        // The BVH's links stay within its arrays (built by lbvh.cu; the wide tree's by
+        // bvh::wide from them, and only the wide kernels read `wide_nodes`, null otherwise); threads touch records and
         // hits below `count` (or the smaller device count), which both buffers hold (checked);
         // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches;
         // `device_count`/`traced` are null or single device integers; the surface tables are
@@ -324,11 +350,11 @@ mod tests {
     #[test]
     fn variant_names_are_kernel_suffixes() {
         let names: Vec<&str> = TraversalVariant::ALL.iter().map(|v| v.name()).collect();
-        assert_eq!(names, ["ww", "pt", "sp", "ptsp"]);
+        assert_eq!(names, ["ww", "pt", "sp", "ptsp", "cw", "ptcw"]);
         let source = crate::compile::kernel_source(FILE).expect("trace.cu is registered");
         for v in TraversalVariant::ALL {
             assert!(source.contains(&format!("trace_##query##_{}_##test", v.name())), "{}", v.name());
         }
-        assert_eq!(TraversalVariant::ALL.iter().filter(|v| v.persistent()).count(), 2);
+        assert_eq!(TraversalVariant::ALL.iter().filter(|v| v.persistent()).count(), 3);
     }
 }

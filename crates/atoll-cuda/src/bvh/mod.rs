@@ -19,6 +19,7 @@ pub mod reference;
 pub mod sort;
 pub mod testing;
 mod treelet_reference;
+pub mod wide;
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -144,6 +145,8 @@ pub struct GpuSceneBvh {
     pub(crate) scene_triangles: u64,
     /// Trace kernels and the persistent-threads counter, made on first use.
     pub(crate) tracer: Mutex<Option<Tracer>>,
+    /// The compressed wide BVH, collapsed from this one at the first wide trace.
+    pub(crate) wide: Mutex<Option<wide::WideBvh>>,
 }
 
 fn alloc<T: DeviceRepr + ValidAsZeroBits>(
@@ -401,6 +404,7 @@ impl GpuSceneBvh {
             stats,
             scene_triangles: scene.counts.triangles,
             tracer: Mutex::new(None),
+            wide: Mutex::new(None),
         };
         let bytes = bvh.bytes();
         Ok(GpuSceneBvh { stats: GpuBvhStats { bytes, ..bvh.stats.clone() }, ..bvh })
