@@ -372,7 +372,11 @@ impl fmt::Display for GpuBenchReport {
             let mut mismatches = Vec::new();
             for (v, t, mrays, hits) in &b.results {
                 write!(f, " {mrays:>11.1}")?;
-                if *hits != b.cpu_hits {
+                // Exact tests find the CPU's hits bit for bit; Woop's test
+                // rounds differently, so grazing hits may come and go (the
+                // equality tests bound that at 0.2% of rays; here 0.01%).
+                let tolerance = if *t == TriangleTest::Exact { 0 } else { b.cpu_hits / 10_000 };
+                if hits.abs_diff(b.cpu_hits) > tolerance {
                     mismatches.push(format!("{}/{}: {hits}", v.name(), t.suffix()));
                 }
             }

@@ -146,6 +146,16 @@ impl WideBvh {
                 record
             })
             .collect();
+        let build_seconds = start.elapsed().as_secs_f64();
+        tracing::info!(
+            "{}: wide BVH: {} nodes ({:.1} MiB, binary {:.1} MiB) collapsed on the host in {:.3} s",
+            gpu.label(),
+            nodes.len(),
+            (nodes.len() * std::mem::size_of::<GpuWideNode>()) as f64 / (1 << 20) as f64,
+            ((blas_nodes.len() + tlas_nodes.len()) * std::mem::size_of::<GpuBvhNode>()) as f64
+                / (1 << 20) as f64,
+            build_seconds
+        );
         Ok(WideBvh {
             node_count: nodes.len(),
             nodes: upload(gpu, &nodes, "wide BVH nodes")?,
@@ -153,7 +163,7 @@ impl WideBvh {
             tri_ids: upload(gpu, &wide_ids, "wide BVH triangle ids")?,
             instances: upload(gpu, &wide_instances, "wide BVH instances")?,
             root,
-            build_seconds: start.elapsed().as_secs_f64(),
+            build_seconds,
         })
     }
 }
