@@ -60,6 +60,13 @@ __device__ __forceinline__ bool light_select(const FrameParams& p, float u, unsi
     return true;
 }
 
+/// Mirrors `lights::smooth_step` (pbrt's SmoothStep).
+__device__ __forceinline__ float smooth_step(float x, float a, float b) {
+    if (a == b) return x < a ? 0.0f : 1.0f;
+    const float t = fminf(fmaxf(__fdiv_rn(x - a, b - a), 0.0f), 1.0f);
+    return t * t * (3.0f - 2.0f * t);
+}
+
 /// Mirrors `LightSet::sample`: incident light at `pos` with selection number
 /// `u_select` and position numbers `u`. False for Rust's `None`.
 __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, float u_select, float2 u,
@@ -76,6 +83,20 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->wi = d / distance;
         out->distance = distance;
         out->radiance = load3(e.radiance) / dist2;
+        out->pdf = pmf;
+        out->delta = true;
+        return true;
+    }
+    if (e.kind == EMITTER_SPOT) {
+        const float3 d = load3(&e.p[0]) - pos;
+        const float dist2 = length_squared3(d);
+        const float distance = sqrtf(dist2);
+        const float3 wi = d / distance;
+        const float falloff = smooth_step(dot3(load3(&e.p[3]), -wi), e.p[7], e.p[6]);
+        if (falloff <= 0.0f) return false;
+        out->wi = wi;
+        out->distance = distance;
+        out->radiance = load3(e.radiance) * __fdiv_rn(falloff, dist2);
         out->pdf = pmf;
         out->delta = true;
         return true;

@@ -84,6 +84,7 @@ inline constexpr unsigned int EMITTER_POINT = 0u;
 inline constexpr unsigned int EMITTER_DISTANT = 1u;
 inline constexpr unsigned int EMITTER_INFINITE = 2u;
 inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
+inline constexpr unsigned int EMITTER_SPOT = 4u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
 static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");

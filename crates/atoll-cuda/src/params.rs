@@ -32,6 +32,7 @@ pub mod emitter_kind {
     pub const DISTANT: u32 = 1;
     pub const INFINITE: u32 = 2;
     pub const TRIANGLE: u32 = 3;
+    pub const SPOT: u32 = 4;
 }
 
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
@@ -43,7 +44,9 @@ pub mod integrator_kind {
 /// One [`Emitter`] on the device (80 bytes). By `kind`: point: `p[0..3]`
 /// position, `radiance` intensity; distant: `p[0..3]` the direction light
 /// travels, `radiance`; infinite: `radiance`; triangle: `p` the three
-/// world-space vertices, `normal`, `area`, `radiance`, `two_sided`.
+/// world-space vertices, `normal`, `area`, `radiance`, `two_sided`; spot:
+/// `p[0..3]` position, `p[3..6]` axis, `p[6]` cos_falloff_start, `p[7]`
+/// cos_falloff_end, `radiance` intensity.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuEmitter {
@@ -77,6 +80,14 @@ impl GpuEmitter {
             Emitter::Infinite { radiance } => {
                 g.kind = emitter_kind::INFINITE;
                 g.radiance = radiance.to_array();
+            }
+            Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
+                g.kind = emitter_kind::SPOT;
+                g.p[..3].copy_from_slice(&position.to_array());
+                g.p[3..6].copy_from_slice(&direction.to_array());
+                g.p[6] = cos_falloff_start;
+                g.p[7] = cos_falloff_end;
+                g.radiance = intensity.to_array();
             }
             Emitter::Triangle { p, normal, area, radiance, two_sided } => {
                 g.kind = emitter_kind::TRIANGLE;

@@ -158,6 +158,7 @@ fn test_frame(integrator: IntegratorSettings, lens: bool) -> (Scene, FrameContex
         .push(Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::new(1.0, 2.0, 0.5) });
     scene.lights.push(Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) });
     scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
+    scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(2.0), 35.0, 10.0));
     if lens {
         scene.settings.camera.lens_radius = 0.05;
         scene.settings.camera.focal_distance = 3.5;
@@ -721,6 +722,8 @@ fn light_sampling_and_lookup_match() {
         Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::splat(3.0) },
         Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) },
         Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) },
+        // Aimed down into the sampled region, its falloff band crossing it.
+        Light::spot(Vec3::new(0.0, 1.8, 0.0), -Vec3::Y, Rgb::new(4.0, 3.0, 2.0), 25.0, 10.0),
     ]);
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = UVec2::new(8, 8);

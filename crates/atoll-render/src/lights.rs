@@ -23,6 +23,14 @@ pub enum Emitter {
     Infinite {
         radiance: Rgb,
     },
+    /// `direction` is the cone's unit axis; see [`Light::Spot`].
+    Spot {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Rgb,
+        cos_falloff_start: f32,
+        cos_falloff_end: f32,
+    },
     Triangle {
         p: [Vec3; 3],
         normal: Vec3,
@@ -71,6 +79,16 @@ pub fn triangle_key(instance: u32, mesh: u32) -> u64 {
     (instance as u64) << 32 | mesh as u64
 }
 
+/// pbrt's `SmoothStep(x, a, b)`: 0 below `a`, 1 above `b`, a cubic between
+/// (a step at `a` when `a == b`). The GPU's `smooth_step` mirrors it.
+pub fn smooth_step(x: f32, a: f32, b: f32) -> f32 {
+    if a == b {
+        return if x < a { 0.0 } else { 1.0 };
+    }
+    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
 fn luminance(c: Rgb) -> f32 {
     0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
@@ -88,6 +106,9 @@ impl LightSet {
                     Emitter::Distant { direction: direction.normalize(), radiance }
                 }
                 Light::Infinite { radiance } => Emitter::Infinite { radiance },
+                Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
+                    Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end }
+                }
             });
         }
         for (instance_id, instance) in scene.instances.iter().enumerate() {
@@ -119,6 +140,9 @@ impl LightSet {
             .iter()
             .map(|e| match *e {
                 Emitter::Point { intensity, .. } => 4.0 * std::f32::consts::PI * luminance(intensity),
+                Emitter::Spot { intensity, cos_falloff_start, cos_falloff_end, .. } => {
+                    Light::spot_solid_angle(cos_falloff_start, cos_falloff_end) * luminance(intensity)
+                }
                 Emitter::Distant { radiance, .. } => {
                     std::f32::consts::PI * scene_radius * scene_radius * luminance(radiance)
                 }
@@ -236,6 +260,23 @@ impl LightSet {
             }
             Emitter::Distant { direction, radiance } => {
                 Some(LightSample { wi: -direction, distance: f32::INFINITY, radiance, pdf: pmf, delta: true })
+            }
+            Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
+                let d = position - p;
+                let dist2 = d.length_squared();
+                let distance = dist2.sqrt();
+                let wi = d / distance;
+                let falloff = smooth_step(direction.dot(-wi), cos_falloff_end, cos_falloff_start);
+                if falloff <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    distance,
+                    radiance: intensity * (falloff / dist2),
+                    pdf: pmf,
+                    delta: true,
+                })
             }
             Emitter::Infinite { radiance } => Some(LightSample {
                 wi: sample_uniform_sphere(u),
@@ -462,5 +503,41 @@ mod tests {
         }
         assert_eq!(set.cdf().len(), 8);
         assert_eq!(set.pmfs().len(), 7);
+    }
+
+    /// A spot light: full intensity inside the inner cone, pbrt's
+    /// smoothstep across the falloff band, nothing outside; chosen by power.
+    #[test]
+    fn spot_light_cone_and_power() {
+        let mut scene = Scene::default();
+        let axis = Vec3::new(0.0, -1.0, 0.0);
+        scene.lights.push(Light::spot(Vec3::new(0.0, 2.0, 0.0), axis, Rgb::splat(8.0), 30.0, 10.0));
+        scene.lights.push(Light::Point { position: Vec3::new(5.0, 5.0, 5.0), intensity: Rgb::splat(8.0) });
+        let set = LightSet::new(&scene);
+        let spot_pmf = set.pmf(0);
+        // Power: a spot of cone 30 (falloff from 20) against a point light of equal intensity.
+        let (start, end) = (20f32.to_radians().cos(), 30f32.to_radians().cos());
+        let expected = Light::spot_solid_angle(start, end)
+            / (Light::spot_solid_angle(start, end) + 4.0 * std::f32::consts::PI);
+        assert!((spot_pmf - expected).abs() < 1e-6, "{spot_pmf} vs {expected}");
+        // Selection number 0 picks the spot light.
+        let at = |angle_deg: f32| {
+            let a = angle_deg.to_radians();
+            Vec3::new(0.0, 2.0, 0.0) + Vec3::new(a.sin(), -a.cos(), 0.0) * 2.0
+        };
+        let inside = set.sample(at(10.0), 0.0, Vec2::ZERO).expect("inside the cone");
+        assert!(inside.delta && (inside.pdf - spot_pmf).abs() < 1e-7);
+        assert!((inside.radiance - Rgb::splat(2.0)).abs().max_element() < 1e-5, "{:?}", inside.radiance);
+        assert!((inside.distance - 2.0).abs() < 1e-5);
+        let band = set.sample(at(25.0), 0.0, Vec2::ZERO).expect("in the falloff band");
+        let cos = 25f32.to_radians().cos();
+        let t = (cos - end) / (start - end);
+        let falloff = t * t * (3.0 - 2.0 * t);
+        assert!((band.radiance.x - 2.0 * falloff).abs() < 1e-4, "{} vs {}", band.radiance.x, 2.0 * falloff);
+        assert!(band.radiance.x > 0.0 && band.radiance.x < 2.0);
+        assert!(set.sample(at(31.0), 0.0, Vec2::ZERO).is_none(), "outside the cone");
+        assert!(set.sample(Vec3::new(0.0, 3.0, 0.0), 0.0, Vec2::ZERO).is_none(), "behind the light");
+        assert_eq!(smooth_step(0.5, 0.5, 0.5), 1.0);
+        assert_eq!(smooth_step(0.4, 0.5, 0.5), 0.0);
     }
 }

@@ -24,7 +24,7 @@
 //!   [`crate::framing`] frames the model.
 //! - **Lights** (`KHR_lights_punctual`): point → `Light::Point` (candela =
 //!   W/sr here, used as is), directional → `Light::Distant` (lux used as its
-//!   radiance), spot → a point light with a warning (no spot lights yet).
+//!   radiance), spot → `Light::Spot` (cone angles as pbrt's coneangle/conedelta).
 //!   Without punctual lights the default sky and sun of [`crate::framing`]
 //!   are added, even when some materials are emissive (in glTF content those
 //!   are screens and LEDs, not what lights the scene).
@@ -165,13 +165,13 @@ impl<'a> Loader<'a> {
             let light = match light.kind() {
                 LightKind::Point => Light::Point { position, intensity: rgb },
                 LightKind::Directional => Light::Distant { direction, radiance: rgb },
-                LightKind::Spot { .. } => {
-                    let what = format!("spot light {}", light.index());
-                    self.w.warn(
-                        &self.loc,
-                        format!("{what}: spot lights are not supported yet; using a point light"),
-                    );
-                    Light::Point { position, intensity: rgb }
+                LightKind::Spot { inner_cone_angle, outer_cone_angle } => {
+                    // glTF's cone angles are radians from the axis; its
+                    // suggested falloff is quadratic in cos θ between them,
+                    // pbrt's (used here) a smoothstep: equal at both ends.
+                    let outer = outer_cone_angle.to_degrees();
+                    let inner = inner_cone_angle.to_degrees().min(outer);
+                    Light::spot(position, direction, rgb, outer, outer - inner)
                 }
             };
             self.out.scene.lights.push(light);

@@ -26,4 +26,31 @@ pub enum Light {
     Distant { direction: Vec3, radiance: Rgb },
     /// Constant environment light of radiance `radiance` from every direction.
     Infinite { radiance: Rgb },
+    /// pbrt-v4's spot light: intensity `intensity` (W/sr) along the unit
+    /// axis `direction`, scaled by `smoothstep(cos_falloff_end,
+    /// cos_falloff_start, cos θ)` away from it (full inside the inner cone,
+    /// none outside the outer one).
+    Spot { position: Vec3, direction: Vec3, intensity: Rgb, cos_falloff_start: f32, cos_falloff_end: f32 },
+}
+
+impl Light {
+    /// A spot light from pbrt's parameters: cone half-angle `cone_angle` and
+    /// falloff width `cone_delta`, in degrees (`coneangle`, `conedelta`).
+    pub fn spot(position: Vec3, direction: Vec3, intensity: Rgb, cone_angle: f32, cone_delta: f32) -> Light {
+        let end = cone_angle.clamp(0.0, 180.0);
+        let start = (cone_angle - cone_delta).clamp(0.0, end);
+        Light::Spot {
+            position,
+            direction: direction.normalize_or(Vec3::Z),
+            intensity,
+            cos_falloff_start: start.to_radians().cos(),
+            cos_falloff_end: end.to_radians().cos(),
+        }
+    }
+
+    /// pbrt-v4's `SpotLight` power factor: the solid angle a unit intensity
+    /// fills, `2π ((1 - cos_start) + (cos_start - cos_end) / 2)`.
+    pub fn spot_solid_angle(cos_falloff_start: f32, cos_falloff_end: f32) -> f32 {
+        2.0 * std::f32::consts::PI * ((1.0 - cos_falloff_start) + (cos_falloff_start - cos_falloff_end) / 2.0)
+    }
 }

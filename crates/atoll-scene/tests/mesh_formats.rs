@@ -273,7 +273,14 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
     assert_eq!(s.settings.film.resolution, UVec2::new(1024, 683));
     assert_eq!(s.lights.len(), 3);
     assert_eq!(s.lights[0], Light::Point { position: Vec3::new(0.0, 3.0, 0.0), intensity: Rgb::splat(10.0) });
-    assert!(matches!(s.lights[1], Light::Point { intensity, .. } if intensity == Rgb::splat(5.0)));
+    // glTF's default cone: inner 0, outer π/4.
+    let Light::Spot { intensity, cos_falloff_start, cos_falloff_end, .. } = s.lights[1] else {
+        panic!("{:?}", s.lights[1])
+    };
+    assert_eq!(intensity, Rgb::splat(5.0));
+    assert!(
+        (cos_falloff_start - 1.0).abs() < 1e-6 && (cos_falloff_end - 45f32.to_radians().cos()).abs() < 1e-6
+    );
     let Light::Distant { direction, radiance } = s.lights[2] else { panic!("{:?}", s.lights[2]) };
     assert_close(direction, -Vec3::Y, 1e-6);
     assert_close(radiance, Rgb::new(2.0, 1.8, 1.6), 1e-6);
@@ -282,7 +289,7 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
     assert_eq!(t[0].filename.as_deref(), Some(dir.join("tex/wood dark.png").as_path()));
     assert_eq!(t[0].uses, [(s.meshes[0].material, "reflectance".to_string())]);
     let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
-    assert!(w.iter().any(|w| w.contains("spot light 1: spot lights are not supported yet")), "{w:?}");
+    assert!(!w.iter().any(|w| w.contains("spot")), "{w:?}");
     assert_eq!(w.iter().filter(|w| w.contains("principled material")).count(), 1, "{w:?}");
 }
 

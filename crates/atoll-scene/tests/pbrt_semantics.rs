@@ -252,10 +252,11 @@ fn light_sources() {
                  LightSource \"distant\" \"point3 from\" [0 10 0] \"point3 to\" [0 0 0]\n\
                  LightSource \"infinite\" \"rgb L\" [0.5 0.5 0.5] \"float scale\" 2\n\
                  LightSource \"infinite\" \"string filename\" \"sky.exr\"\n\
-                 LightSource \"spot\" \"float coneangle\" 30";
+                 AttributeBegin\nTranslate 0 4 0\nLightSource \"spot\" \"float coneangle\" 30 \"float conedelta\" 10 \"point3 to\" [0 -1 0] \"rgb I\" [2 2 2]\nAttributeEnd\n\
+                 LightSource \"spot\" \"float power\" 100";
     let loaded = load_world("", world).unwrap();
     let l = &loaded.scene.lights;
-    assert_eq!(l.len(), 5);
+    assert_eq!(l.len(), 7);
     assert_eq!(l[0], Light::Point { position: Vec3::new(1.0, 5.0, 0.0), intensity: Rgb::splat(3.0) });
     // Default from (0,0,0) to (0,0,1): light travels along +z; Rotate 90 about x maps +z to -y.
     let Light::Distant { direction, radiance } = l[1] else { panic!() };
@@ -267,7 +268,20 @@ fn light_sources() {
     assert_eq!(l[4], Light::Infinite { radiance: Rgb::ONE });
     let msgs: Vec<_> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
     assert!(msgs.iter().any(|m| m.contains("environment maps are not supported")), "{msgs:?}");
-    assert!(msgs.iter().any(|m| m.contains("light \"spot\" is not supported")), "{msgs:?}");
+    // Spot: from (0,0,0) to (0,-1,0) under Translate 0 4 0; cone 30 degrees, falloff from 20.
+    let Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } = l[5] else {
+        panic!()
+    };
+    assert_close(position, Vec3::new(0.0, 4.0, 0.0), 1e-6);
+    assert_close(direction, -Vec3::Y, 1e-6);
+    assert_eq!(intensity, Rgb::splat(2.0));
+    assert!((cos_falloff_start - 20f32.to_radians().cos()).abs() < 1e-6);
+    assert!((cos_falloff_end - 30f32.to_radians().cos()).abs() < 1e-6);
+    // `power` 100 W over the default cone (30, falloff 5) of unit intensity.
+    let Light::Spot { intensity, cos_falloff_start, cos_falloff_end, .. } = l[6] else { panic!() };
+    let emitted = Light::spot_solid_angle(cos_falloff_start, cos_falloff_end) * intensity.x;
+    assert!((emitted - 100.0).abs() < 1e-3, "{emitted} W");
+    assert!(load_world("", "LightSource \"spot\" \"float coneangle\" 200").is_err());
 }
 
 #[test]

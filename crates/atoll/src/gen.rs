@@ -244,6 +244,17 @@ pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resu
             Light::Infinite { radiance } => {
                 writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(*radiance))?
             }
+            Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
+                let cone_angle = cos_falloff_end.clamp(-1.0, 1.0).acos().to_degrees();
+                let cone_delta = cone_angle - cos_falloff_start.clamp(-1.0, 1.0).acos().to_degrees();
+                writeln!(
+                    out,
+                    "LightSource \"spot\" \"point3 from\" {} \"point3 to\" {} \"rgb I\" {} \"float coneangle\" [ {cone_angle} ] \"float conedelta\" [ {cone_delta} ]",
+                    v(*position),
+                    v(*position + *direction),
+                    v(*intensity)
+                )?
+            }
         }
     }
     for (id, m) in scene.materials.iter().enumerate() {

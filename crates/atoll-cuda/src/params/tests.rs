@@ -12,6 +12,7 @@ fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
     let mut scene = atoll_scene::cornell::builtin_cornell_box();
     scene.lights.push(Light::Point { position: Vec3::new(0.1, 0.5, 0.2), intensity: Rgb::splat(2.0) });
     scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
+    scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(3.0), 40.0, 5.0));
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = glam::UVec2::new(64, 48);
     options.integrator = integrator;
@@ -86,6 +87,13 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!(g.radiance, radiance.to_array());
             }
             Emitter::Distant { .. } => unreachable!("no distant light in this scene"),
+            Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
+                assert_eq!(g.kind, emitter_kind::SPOT);
+                assert_eq!(&g.p[..3], &position.to_array());
+                assert_eq!(&g.p[3..6], &direction.to_array());
+                assert_eq!((g.p[6], g.p[7]), (cos_falloff_start, cos_falloff_end));
+                assert_eq!(g.radiance, intensity.to_array());
+            }
             Emitter::Triangle { p, normal, area, radiance, two_sided } => {
                 assert_eq!(g.kind, emitter_kind::TRIANGLE);
                 assert_eq!(&g.p[6..9], &p[2].to_array());

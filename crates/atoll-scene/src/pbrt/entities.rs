@@ -256,6 +256,35 @@ pub fn light(
             let position = transform::point(ctm, p3("from", Vec3::ZERO)?).as_vec3();
             Light::Point { position, intensity: i * scale }
         }
+        "spot" => {
+            let i = p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let scale = p.float_or("scale", 1.0)?;
+            let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
+            let cone_angle = p.float_or("coneangle", 30.0)?;
+            let cone_delta = p.float_or("conedelta", 5.0)?;
+            if !(0.0..=180.0).contains(&cone_angle) || cone_delta < 0.0 {
+                return Err(SceneError::at(
+                    loc,
+                    format!("{what}: \"coneangle\" must be in [0, 180] and \"conedelta\" not negative (got {cone_angle}, {cone_delta})"),
+                ));
+            }
+            let Some(direction) = ctm.transform_vector3(to - from).try_normalize() else {
+                return Err(SceneError::at(loc, format!("{what}: \"from\" and \"to\" give no direction")));
+            };
+            let position = transform::point(ctm, from).as_vec3();
+            let mut light = Light::spot(position, direction.as_vec3(), i * scale, cone_angle, cone_delta);
+            // pbrt-v4: `power` (W) sets the emitted power, replacing I's brightness.
+            if let (Some(power), Light::Spot { intensity, cos_falloff_start, cos_falloff_end, .. }) =
+                (p.float("power")?, &mut light)
+            {
+                let luminance = 0.2126 * i.x + 0.7152 * i.y + 0.0722 * i.z;
+                let per_unit = Light::spot_solid_angle(*cos_falloff_start, *cos_falloff_end) * luminance;
+                if per_unit > 0.0 {
+                    *intensity = i * (scale * power / per_unit);
+                }
+            }
+            light
+        }
         "distant" => {
             let l = p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
             let scale = p.float_or("scale", 1.0)?;
