@@ -8,6 +8,7 @@
 #include "params.cuh"
 #include "record.cuh"
 #include "sampling.cuh"
+#include "environment.cuh"
 
 /// Mirrors `lights::LightSample`.
 struct LightSample {
@@ -109,6 +110,14 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->delta = true;
         return true;
     }
+    if (e.kind == EMITTER_ENVIRONMENT) {
+        float dir_pdf;
+        if (!env_sample(p, e, u, &out->wi, &out->radiance, &dir_pdf)) return false;
+        out->distance = f32_infinity();
+        out->pdf = pmf * dir_pdf;
+        out->delta = false;
+        return true;
+    }
     if (e.kind == EMITTER_INFINITE) {
         out->wi = sample_uniform_sphere(u);
         out->distance = f32_infinity();
@@ -156,12 +165,15 @@ __device__ __forceinline__ float light_pdf_triangle(const FrameParams& p, unsign
 }
 
 /// Mirrors `LightSet::environment_radiance`.
-__device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3) {
+__device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3 w) {
     const GpuEmitter& e = p.emitters[index];
+    if (e.kind == EMITTER_ENVIRONMENT) return env_radiance(p, e, w);
     return e.kind == EMITTER_INFINITE ? load3(e.radiance) : zero3();
 }
 
 /// Mirrors `LightSet::pdf_environment`.
-__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, unsigned int index, float3) {
-    return p.light_pmf[index] * UNIFORM_SPHERE_PDF;
+__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, unsigned int index, float3 w) {
+    const GpuEmitter& e = p.emitters[index];
+    const float direction_pdf = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
+    return p.light_pmf[index] * direction_pdf;
 }

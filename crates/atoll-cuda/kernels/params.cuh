@@ -15,7 +15,7 @@ struct GpuEmitter {
     unsigned int kind;
     unsigned int two_sided;
     float area;
-    unsigned int pad;
+    unsigned int table;
     float p[9];
     float normal[3];
     float radiance[3];
@@ -62,6 +62,8 @@ struct FrameParams {
     const unsigned long long* triangle_keys;
     const unsigned int* triangle_bases;
     const GpuMaterial* materials;
+    /// The environment emitters' tables (see environment.cuh).
+    const float* environment_tables;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -85,6 +87,7 @@ inline constexpr unsigned int EMITTER_DISTANT = 1u;
 inline constexpr unsigned int EMITTER_INFINITE = 2u;
 inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
 inline constexpr unsigned int EMITTER_SPOT = 4u;
+inline constexpr unsigned int EMITTER_ENVIRONMENT = 5u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
 static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
@@ -92,7 +95,7 @@ static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, two_sided) == 4 && sizeof(GpuEmitter::two_sided) == 4, "GpuEmitter.two_sided: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, area) == 8 && sizeof(GpuEmitter::area) == 4, "GpuEmitter.area: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuEmitter, pad) == 12 && sizeof(GpuEmitter::pad) == 4, "GpuEmitter.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, table) == 12 && sizeof(GpuEmitter::table) == 4, "GpuEmitter.table: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, p) == 16 && sizeof(GpuEmitter::p) == 36, "GpuEmitter.p: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, normal) == 52 && sizeof(GpuEmitter::normal) == 12, "GpuEmitter.normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, radiance) == 64 && sizeof(GpuEmitter::radiance) == 12, "GpuEmitter.radiance: offset or size differs from Rust");
@@ -104,7 +107,7 @@ static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial
 static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 184, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 192, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -130,6 +133,7 @@ static_assert(__builtin_offsetof(FrameParams, infinite_lights) == 152 && sizeof(
 static_assert(__builtin_offsetof(FrameParams, triangle_keys) == 160 && sizeof(FrameParams::triangle_keys) == 8, "FrameParams.triangle_keys: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, triangle_bases) == 168 && sizeof(FrameParams::triangle_bases) == 8, "FrameParams.triangle_bases: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, materials) == 176 && sizeof(FrameParams::materials) == 8, "FrameParams.materials: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, environment_tables) == 184 && sizeof(FrameParams::environment_tables) == 8, "FrameParams.environment_tables: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 64, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

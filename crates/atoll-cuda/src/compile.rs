@@ -28,6 +28,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("bvh.cuh", include_str!("../kernels/bvh.cuh")),
     ("camera.cuh", include_str!("../kernels/camera.cuh")),
     ("common.cuh", include_str!("../kernels/common.cuh")),
+    ("environment.cuh", include_str!("../kernels/environment.cuh")),
     ("layout.cuh", include_str!("../kernels/layout.cuh")),
     ("lbvh.cu", include_str!("../kernels/lbvh.cu")),
     ("lbvh.cuh", include_str!("../kernels/lbvh.cuh")),

@@ -175,6 +175,7 @@ pub fn params_asserts() -> String {
         ("EMITTER_INFINITE", emitter_kind::INFINITE),
         ("EMITTER_TRIANGLE", emitter_kind::TRIANGLE),
         ("EMITTER_SPOT", emitter_kind::SPOT),
+        ("EMITTER_ENVIRONMENT", emitter_kind::ENVIRONMENT),
         ("INTEGRATOR_PATH", integrator_kind::PATH),
         ("INTEGRATOR_AMBIENT_OCCLUSION", integrator_kind::AMBIENT_OCCLUSION),
     ] {

@@ -13,6 +13,7 @@
 
 use std::sync::Arc;
 
+use atoll_render::environment::EnvironmentSampler;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
 use atoll_render::record::MATERIAL_COEFFS;
@@ -33,6 +34,7 @@ pub mod emitter_kind {
     pub const INFINITE: u32 = 2;
     pub const TRIANGLE: u32 = 3;
     pub const SPOT: u32 = 4;
+    pub const ENVIRONMENT: u32 = 5;
 }
 
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
@@ -46,7 +48,10 @@ pub mod integrator_kind {
 /// travels, `radiance`; infinite: `radiance`; triangle: `p` the three
 /// world-space vertices, `normal`, `area`, `radiance`, `two_sided`; spot:
 /// `p[0..3]` position, `p[3..6]` axis, `p[6]` cos_falloff_start, `p[7]`
-/// cos_falloff_end, `radiance` intensity.
+/// cos_falloff_end, `radiance` intensity; environment: `p` the
+/// light-to-world rotation's columns, `normal` (width, height, layout: 0
+/// equal-area, 1 lat-long) as floats, `area` the sum of its selection
+/// weights, `table` its offset in [`FrameParams::environment_tables`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuEmitter {
@@ -55,7 +60,8 @@ pub struct GpuEmitter {
     /// 1 when a triangle emits on both sides.
     pub two_sided: u32,
     pub area: f32,
-    pub pad: u32,
+    /// Environment emitters: offset of their tables (see `kernels/environment.cuh`).
+    pub table: u32,
     pub p: [f32; 9],
     pub normal: [f32; 3],
     pub radiance: [f32; 3],
@@ -81,6 +87,9 @@ impl GpuEmitter {
                 g.kind = emitter_kind::INFINITE;
                 g.radiance = radiance.to_array();
             }
+            Emitter::Environment { .. } => {
+                unreachable!("environment emitters are built by GpuEmitter::environment")
+            }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 g.kind = emitter_kind::SPOT;
                 g.p[..3].copy_from_slice(&position.to_array());
@@ -103,8 +112,24 @@ impl GpuEmitter {
         g
     }
 
+    /// The device form of an environment emitter whose tables start at
+    /// `table` in [`FrameParams::environment_tables`].
+    pub fn environment(env: &EnvironmentSampler, table: u32) -> Self {
+        let mut g = GpuEmitter::zeroed();
+        g.kind = emitter_kind::ENVIRONMENT;
+        g.p = env.light_to_world.to_cols_array();
+        let layout = match env.image.layout {
+            atoll_scene::EnvLayout::EqualArea => 0.0,
+            atoll_scene::EnvLayout::LatLong => 1.0,
+        };
+        g.normal = [env.image.width as f32, env.image.height as f32, layout];
+        g.area = env.func_sum;
+        g.table = table;
+        g
+    }
+
     pub fn field_layout() -> FieldLayout {
-        field_layout!(GpuEmitter { kind, two_sided, area, pad, p, normal, radiance, pad2 })
+        field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, pad2 })
     }
 }
 
@@ -131,7 +156,7 @@ impl GpuMaterial {
 }
 
 /// Everything shading needs, identical on every device: the
-/// [`FrameContext`] flattened (184 bytes). Pointers are device addresses
+/// [`FrameContext`] flattened (192 bytes). Pointers are device addresses
 /// (0 until uploaded: see [`FrameParamsHost`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -174,6 +199,8 @@ pub struct FrameParams {
     pub triangle_bases: u64,
     /// `GpuMaterial[material_count]`, by scene material id.
     pub materials: u64,
+    /// `f32[]`: the environment emitters' tables.
+    pub environment_tables: u64,
 }
 
 impl FrameParams {
@@ -241,6 +268,7 @@ impl FrameParams {
             triangle_keys,
             triangle_bases,
             materials,
+            environment_tables,
         })
     }
 }
@@ -317,7 +345,7 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 80);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<FrameParams>() == 184);
+    assert!(std::mem::size_of::<FrameParams>() == 192);
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 64);
 };
@@ -333,13 +361,27 @@ pub struct FrameTables {
     pub triangle_keys: Vec<u64>,
     pub triangle_bases: Vec<u32>,
     pub materials: Vec<GpuMaterial>,
+    pub environment_tables: Vec<f32>,
 }
 
 impl FrameTables {
     pub fn build(frame: &FrameContext) -> Self {
         let lights = &frame.lights;
+        let mut environment_tables = Vec::new();
+        let emitters = lights
+            .emitters
+            .iter()
+            .map(|e| match *e {
+                Emitter::Environment { index } => {
+                    let env = &lights.environments[index as usize];
+                    GpuEmitter::environment(env, env.tables(&mut environment_tables))
+                }
+                _ => GpuEmitter::new(e),
+            })
+            .collect();
         FrameTables {
-            emitters: lights.emitters.iter().map(GpuEmitter::new).collect(),
+            emitters,
+            environment_tables,
             light_pmf: lights.pmfs().to_vec(),
             light_cdf: lights.cdf().to_vec(),
             infinite_lights: lights.infinite_lights().to_vec(),
@@ -362,6 +404,7 @@ impl FrameTables {
             + b(&self.triangle_keys)
             + b(&self.triangle_bases)
             + b(&self.materials)
+            + b(&self.environment_tables)
             + std::mem::size_of::<FrameParams>() as u64
     }
 }
@@ -381,6 +424,7 @@ pub struct FrameParamsHost {
     triangle_keys: CudaSlice<u64>,
     triangle_bases: CudaSlice<u32>,
     materials: CudaSlice<GpuMaterial>,
+    environment_tables: CudaSlice<f32>,
 }
 
 impl FrameParamsHost {
@@ -394,6 +438,7 @@ impl FrameParamsHost {
         let triangle_keys = upload(gpu, &t.triangle_keys, "triangle light keys")?;
         let triangle_bases = upload(gpu, &t.triangle_bases, "triangle light bases")?;
         let materials = upload(gpu, &t.materials, "materials")?;
+        let environment_tables = upload(gpu, &t.environment_tables, "environment tables")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -403,6 +448,7 @@ impl FrameParamsHost {
         params.triangle_keys = triangle_keys.device_ptr(stream).0;
         params.triangle_bases = triangle_bases.device_ptr(stream).0;
         params.materials = materials.device_ptr(stream).0;
+        params.environment_tables = environment_tables.device_ptr(stream).0;
         let device = upload(gpu, &[params], "frame parameters")?;
         Ok(FrameParamsHost {
             params,
@@ -414,6 +460,7 @@ impl FrameParamsHost {
             triangle_keys,
             triangle_bases,
             materials,
+            environment_tables,
         })
     }
 
@@ -426,7 +473,8 @@ impl FrameParamsHost {
             + self.infinite_lights.num_bytes()
             + self.triangle_keys.num_bytes()
             + self.triangle_bases.num_bytes()
-            + self.materials.num_bytes()) as u64
+            + self.materials.num_bytes()
+            + self.environment_tables.num_bytes()) as u64
     }
 }
 

@@ -29,7 +29,8 @@ use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
 use atoll_scene::{
-    AreaEmission, Instance, IntegratorSettings, Light, Material, Object, Rgb, Scene, TriangleMesh,
+    AreaEmission, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light, Material, Object, Rgb,
+    Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -150,6 +151,26 @@ fn unit(i: u32, k: u32) -> Vec3 {
     sample_uniform_sphere(Vec2::new(rnd(i, k), rnd(i, k + 1)))
 }
 
+/// An environment image with a bright patch on a graded background, rotated.
+fn environment_light(layout: EnvLayout) -> Light {
+    let (w, h) = if layout == EnvLayout::LatLong { (16u32, 8u32) } else { (12, 12) };
+    let pixels = (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if (2..5).contains(&x) && (2..4).contains(&y) {
+                Rgb::new(20.0, 15.0, 10.0)
+            } else {
+                Rgb::new(0.1 + 0.02 * x as f32, 0.2, 0.1 + 0.03 * y as f32)
+            }
+        })
+        .collect();
+    Light::Environment {
+        image: Arc::new(EnvironmentImage::new(w, h, pixels, layout)),
+        scale: Rgb::new(1.0, 0.8, 1.2),
+        light_to_world: glam::Mat3::from_rotation_x(0.3) * glam::Mat3::from_rotation_z(0.2),
+    }
+}
+
 /// The Cornell box with every kind of light and a small image.
 fn test_frame(integrator: IntegratorSettings, lens: bool) -> (Scene, FrameContext) {
     let mut scene = atoll_scene::cornell::builtin_cornell_box();
@@ -159,6 +180,7 @@ fn test_frame(integrator: IntegratorSettings, lens: bool) -> (Scene, FrameContex
     scene.lights.push(Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) });
     scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
     scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(2.0), 35.0, 10.0));
+    scene.lights.push(environment_light(EnvLayout::EqualArea));
     if lens {
         scene.settings.camera.lens_radius = 0.05;
         scene.settings.camera.focal_distance = 3.5;
@@ -724,6 +746,8 @@ fn light_sampling_and_lookup_match() {
         Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) },
         // Aimed down into the sampled region, its falloff band crossing it.
         Light::spot(Vec3::new(0.0, 1.8, 0.0), -Vec3::Y, Rgb::new(4.0, 3.0, 2.0), 25.0, 10.0),
+        environment_light(EnvLayout::LatLong),
+        environment_light(EnvLayout::EqualArea),
     ]);
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = UVec2::new(8, 8);

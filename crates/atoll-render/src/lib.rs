@@ -5,6 +5,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod cpu;
 pub mod device;
+pub mod environment;
 pub mod film;
 pub mod frame;
 pub mod integrator;

@@ -6,6 +6,7 @@
 use atoll_scene::{Light, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
+use crate::environment::EnvironmentSampler;
 use crate::sampling::{sample_uniform_sphere, sample_uniform_triangle, UNIFORM_SPHERE_PDF};
 
 /// One emitter in world space.
@@ -22,6 +23,10 @@ pub enum Emitter {
     },
     Infinite {
         radiance: Rgb,
+    },
+    /// Image-based environment `index` of [`LightSet::environments`].
+    Environment {
+        index: u32,
     },
     /// `direction` is the cone's unit axis; see [`Light::Spot`].
     Spot {
@@ -70,6 +75,8 @@ pub struct LightSet {
     triangle_bases: Vec<u32>,
     /// Indices of infinite lights (a path that escapes sees all of them).
     infinite: Vec<u32>,
+    /// The image-based environments, by [`Emitter::Environment`] index.
+    pub environments: Vec<EnvironmentSampler>,
 }
 
 /// The key of an (instance, mesh) pair in [`LightSet`]'s sorted triangle
@@ -108,6 +115,10 @@ impl LightSet {
                 Light::Infinite { radiance } => Emitter::Infinite { radiance },
                 Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                     Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end }
+                }
+                Light::Environment { ref image, scale, light_to_world } => {
+                    set.environments.push(EnvironmentSampler::new(image.clone(), scale, light_to_world));
+                    Emitter::Environment { index: set.environments.len() as u32 - 1 }
                 }
             });
         }
@@ -149,6 +160,12 @@ impl LightSet {
                 Emitter::Infinite { radiance } => {
                     4.0 * std::f32::consts::PI.powi(2) * scene_radius * scene_radius * luminance(radiance)
                 }
+                Emitter::Environment { index } => {
+                    4.0 * std::f32::consts::PI.powi(2)
+                        * scene_radius
+                        * scene_radius
+                        * set.environments[index as usize].mean_luminance
+                }
                 Emitter::Triangle { area, radiance, two_sided, .. } => {
                     let sides = if two_sided { 2.0 } else { 1.0 };
                     std::f32::consts::PI * sides * area * luminance(radiance)
@@ -182,7 +199,9 @@ impl LightSet {
             set.triangle_bases.push(base);
         }
         set.infinite = (0..set.emitters.len() as u32)
-            .filter(|&i| matches!(set.emitters[i as usize], Emitter::Infinite { .. }))
+            .filter(|&i| {
+                matches!(set.emitters[i as usize], Emitter::Infinite { .. } | Emitter::Environment { .. })
+            })
             .collect();
         set
     }
@@ -261,6 +280,10 @@ impl LightSet {
             Emitter::Distant { direction, radiance } => {
                 Some(LightSample { wi: -direction, distance: f32::INFINITY, radiance, pdf: pmf, delta: true })
             }
+            Emitter::Environment { index } => {
+                let (wi, radiance, pdf) = self.environments[index as usize].sample(u)?;
+                Some(LightSample { wi, distance: f32::INFINITY, radiance, pdf: pmf * pdf, delta: false })
+            }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let d = position - p;
                 let dist2 = d.length_squared();
@@ -338,17 +361,22 @@ impl LightSet {
     }
 
     /// Radiance of infinite light `index` along a ray leaving the scene in direction `w`.
-    pub fn environment_radiance(&self, index: u32, _w: Vec3) -> Rgb {
+    pub fn environment_radiance(&self, index: u32, w: Vec3) -> Rgb {
         match self.emitters[index as usize] {
             Emitter::Infinite { radiance } => radiance,
+            Emitter::Environment { index } => self.environments[index as usize].radiance(w),
             _ => Rgb::ZERO,
         }
     }
 
     /// Solid-angle pdf (with selection) that light sampling picks direction
     /// `w` from infinite light `index`.
-    pub fn pdf_environment(&self, index: u32, _w: Vec3) -> f32 {
-        self.pmf[index as usize] * UNIFORM_SPHERE_PDF
+    pub fn pdf_environment(&self, index: u32, w: Vec3) -> f32 {
+        let direction_pdf = match self.emitters[index as usize] {
+            Emitter::Environment { index } => self.environments[index as usize].pdf(w),
+            _ => UNIFORM_SPHERE_PDF,
+        };
+        self.pmf[index as usize] * direction_pdf
     }
 }
 

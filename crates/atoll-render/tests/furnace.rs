@@ -98,6 +98,35 @@ fn white_sphere_under_uniform_sky_is_invisible() {
     }
 }
 
+/// The same furnace lit by uniform environment images (equal-area and
+/// lat-long, rotated): image sampling, its density on escaped rays (MIS)
+/// and the lookups must give the same 1 everywhere.
+#[test]
+fn white_sphere_under_a_uniform_environment_image_is_invisible() {
+    use atoll_scene::{EnvLayout, EnvironmentImage};
+    for (w, h, layout) in [(16, 16, EnvLayout::EqualArea), (32, 16, EnvLayout::LatLong)] {
+        let mut scene = scene_with(
+            vec![sphere(0)],
+            vec![Material::Diffuse { reflectance: Rgb::ONE }],
+            Vec3::new(0.0, 0.0, -3.0),
+            Vec3::ZERO,
+        );
+        let image = EnvironmentImage::new(w, h, vec![Rgb::splat(0.5); (w * h) as usize], layout);
+        scene.lights.push(Light::Environment {
+            image: Arc::new(image),
+            scale: Rgb::splat(2.0),
+            light_to_world: glam::Mat3::from_rotation_x(0.4),
+        });
+        let film = render_with(&Arc::new(scene), options(64, 8), None);
+        assert_finite(&film);
+        let pixels = film.pixels();
+        for c in 0..3 {
+            let (mean, err) = mean_and_stderr(pixels.iter().map(|p| p[c]));
+            assert!((mean - 1.0).abs() < 4.0 * err + 2e-3, "{layout:?} channel {c}: mean {mean} ± {err}");
+        }
+    }
+}
+
 /// Inside a closed box whose walls emit Le = 1 and reflect albedo a = 0.5,
 /// radiance is Le · Σ_{k=0..D} a^k everywhere. Exercises area-light NEE,
 /// MIS on emitter hits, max depth and Russian roulette.

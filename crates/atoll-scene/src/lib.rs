@@ -10,6 +10,7 @@
 
 pub mod camera;
 pub mod cornell;
+pub mod environment;
 pub mod error;
 pub mod framing;
 pub mod gltf;
@@ -26,6 +27,7 @@ pub mod procedural;
 pub mod scene;
 
 pub use camera::{Camera, FilmSettings, IntegratorSettings, RenderSettings};
+pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
 pub use load::{load_any, LoadedScene, TextureRef};

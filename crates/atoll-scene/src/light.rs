@@ -1,7 +1,11 @@
 //! Light sources. Area lights are emission attached to meshes
 //! ([`AreaEmission`]); the rest are [`Light`]s.
 
-use glam::Vec3;
+use std::sync::Arc;
+
+use glam::{Mat3, Vec3};
+
+use crate::EnvironmentImage;
 
 use crate::Rgb;
 
@@ -31,6 +35,9 @@ pub enum Light {
     /// cos_falloff_start, cos θ)` away from it (full inside the inner cone,
     /// none outside the outer one).
     Spot { position: Vec3, direction: Vec3, intensity: Rgb, cos_falloff_start: f32, cos_falloff_end: f32 },
+    /// An image-based environment: radiance `scale × image(d)` from world
+    /// direction `light_to_world × d` (a rotation; `d` in the image's space).
+    Environment { image: Arc<EnvironmentImage>, scale: Rgb, light_to_world: Mat3 },
 }
 
 impl Light {

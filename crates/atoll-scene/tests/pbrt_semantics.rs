@@ -267,7 +267,7 @@ fn light_sources() {
     assert_eq!(l[3], Light::Infinite { radiance: Rgb::ONE });
     assert_eq!(l[4], Light::Infinite { radiance: Rgb::ONE });
     let msgs: Vec<_> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
-    assert!(msgs.iter().any(|m| m.contains("environment maps are not supported")), "{msgs:?}");
+    assert!(msgs.iter().any(|m| m.contains("sky.exr") && m.contains("using constant white")), "{msgs:?}");
     // Spot: from (0,0,0) to (0,-1,0) under Translate 0 4 0; cone 30 degrees, falloff from 20.
     let Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } = l[5] else {
         panic!()
@@ -333,4 +333,24 @@ fn transform_begin_restores_the_graphics_state() {
     let s = load_world("", &world).unwrap().scene;
     assert_close(s.meshes[0].positions[0], Vec3::X, 0.0);
     assert_eq!(s.materials[s.meshes[0].material as usize], Material::default_diffuse());
+}
+
+/// `LightSource "infinite" "string filename"`: the image becomes an
+/// environment light (lat-long for a 2:1 image), rotated by the CTM.
+#[test]
+fn infinite_light_with_an_image() {
+    let dir = std::env::temp_dir().join(format!("atoll-pbrt-env-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    exr::prelude::write_rgb_file(dir.join("sky.exr"), 8, 4, |x, _| (x as f32, 1.0, 2.0)).unwrap();
+    let text = "WorldBegin\nAttributeBegin\nRotate 90 1 0 0\nLightSource \"infinite\" \"string filename\" \"sky.exr\" \"float scale\" 3\nAttributeEnd\n";
+    let loaded = atoll_scene::pbrt::load_str(text, "env.pbrt", &dir).unwrap();
+    let Light::Environment { image, scale, light_to_world } = &loaded.scene.lights[0] else {
+        panic!("{:?}", loaded.scene.lights)
+    };
+    assert_eq!((image.width, image.height, image.layout), (8, 4, atoll_scene::EnvLayout::LatLong));
+    assert_eq!(image.pixels[5], Rgb::new(5.0, 1.0, 2.0));
+    assert_eq!(*scale, Rgb::splat(3.0));
+    assert_close(*light_to_world * Vec3::Z, -Vec3::Y, 1e-6);
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -244,6 +244,16 @@ pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resu
             Light::Infinite { radiance } => {
                 writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(*radiance))?
             }
+            Light::Environment { image, scale, .. } => {
+                // The image itself is not written out: its mean stands in.
+                let mean = image.pixels.iter().copied().sum::<Vec3>() / image.pixels.len().max(1) as f32;
+                writeln!(
+                    out,
+                    "# environment image ({}x{}) written as its mean radiance",
+                    image.width, image.height
+                )?;
+                writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(mean * *scale))?
+            }
             Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let cone_angle = cos_falloff_end.clamp(-1.0, 1.0).acos().to_degrees();
                 let cone_delta = cone_angle - cos_falloff_start.clamp(-1.0, 1.0).acos().to_degrees();

@@ -13,6 +13,17 @@ fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
     scene.lights.push(Light::Point { position: Vec3::new(0.1, 0.5, 0.2), intensity: Rgb::splat(2.0) });
     scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
     scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(3.0), 40.0, 5.0));
+    let pixels = (0..12).map(|i| Rgb::new(i as f32, 1.0, 0.5)).collect();
+    scene.lights.push(Light::Environment {
+        image: std::sync::Arc::new(atoll_scene::EnvironmentImage::new(
+            4,
+            3,
+            pixels,
+            atoll_scene::EnvLayout::LatLong,
+        )),
+        scale: Rgb::splat(2.0),
+        light_to_world: glam::Mat3::from_rotation_y(0.5),
+    });
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = glam::UVec2::new(64, 48);
     options.integrator = integrator;
@@ -55,7 +66,7 @@ fn frame_params_reproduce_the_camera_and_options() {
     // Row 3 of the camera matrix is (0, 0, 0, 1): dropping it loses nothing.
     assert_eq!(frame.camera.camera_to_world().row(3), Vec4::W);
     assert_eq!(p.light_count as usize, frame.lights.emitters.len());
-    assert_eq!(p.infinite_count, 1);
+    assert_eq!(p.infinite_count, 2, "the constant sky and the environment image");
     assert_eq!(p.material_count as usize, frame.materials.len());
     assert_eq!(p.emitters, 0, "pointers are set by FrameParamsHost");
 
@@ -87,6 +98,17 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!(g.radiance, radiance.to_array());
             }
             Emitter::Distant { .. } => unreachable!("no distant light in this scene"),
+            Emitter::Environment { index } => {
+                let env = &lights.environments[index as usize];
+                assert_eq!(g.kind, emitter_kind::ENVIRONMENT);
+                assert_eq!(g.p, env.light_to_world.to_cols_array());
+                assert_eq!((g.normal, g.area), ([4.0, 3.0, 1.0], env.func_sum));
+                // Pixels (scaled), weights, marginal and conditional CDFs.
+                let t0 = g.table as usize;
+                assert_eq!(t.environment_tables.len() - t0, 3 * 12 + 12 + 4 + 3 * 5);
+                assert_eq!(t.environment_tables[t0 + 3 * 5], 10.0, "pixel 5, red, scale 2");
+                assert_eq!(&t.environment_tables[t0 + 48..t0 + 52], env.marginal_cdf.as_slice());
+            }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 assert_eq!(g.kind, emitter_kind::SPOT);
                 assert_eq!(&g.p[..3], &position.to_array());

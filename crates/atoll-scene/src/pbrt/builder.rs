@@ -490,7 +490,7 @@ impl Builder {
                 self.named_materials.insert(name.clone(), MaterialSlot { material, id: None });
             }
             E::LightSource => {
-                if let Some(light) = entities::light(&name, &p, &self.gs.ctm, &loc, w)? {
+                if let Some(light) = entities::light(&name, &p, &self.gs.ctm, &self.base_dir, &loc, w)? {
                     self.scene.lights.push(light);
                 }
             }

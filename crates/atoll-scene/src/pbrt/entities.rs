@@ -236,11 +236,13 @@ pub fn area_light(
 }
 
 /// `LightSource`; `None` (after a warning) for unsupported types. `ctm` is
-/// the light-to-world transform in effect.
+/// the light-to-world transform in effect; image file names are relative to
+/// `base_dir`.
 pub fn light(
     ty: &str,
     p: &ParamList,
     ctm: &DMat4,
+    base_dir: &std::path::Path,
     loc: &FileLoc,
     w: &mut WarningSink,
 ) -> Result<Option<Light>, SceneError> {
@@ -310,12 +312,26 @@ pub fn light(
                 ));
             }
             if let Some(f) = filename {
-                w.warn(
-                    loc,
-                    format!(
-                        "{what}: environment maps are not supported yet; \"{f}\" replaced by constant white"
-                    ),
-                );
+                // The image's radiance times `scale` (pbrt-v4 also
+                // normalises by the image's illuminance when "illuminance"
+                // is given; that parameter is not supported).
+                match crate::EnvironmentImage::load(&base_dir.join(&f)) {
+                    Ok(image) => {
+                        let m = glam::DMat3::from_mat4(*ctm).as_mat3();
+                        // Columns normalised: the light's rotation without any scale.
+                        let light_to_world = glam::Mat3::from_cols(
+                            m.x_axis.normalize(),
+                            m.y_axis.normalize(),
+                            m.z_axis.normalize(),
+                        );
+                        return Ok(Some(Light::Environment {
+                            image: std::sync::Arc::new(image),
+                            scale: Rgb::splat(scale),
+                            light_to_world,
+                        }));
+                    }
+                    Err(e) => w.warn(loc, format!("{what}: {e}; using constant white instead")),
+                }
             }
             let radiance = l.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE) * scale;
             Light::Infinite { radiance }
