@@ -270,6 +270,11 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.eta = f16_to_f32(r.coeffs[0]);
         b.alpha_x = f16_to_f32(r.coeffs[1]);
         b.alpha_y = f16_to_f32(r.coeffs[2]);
+    } else if (r.material == MATERIAL_DIFFUSE_TRANSMISSION) {
+        b.a = load_f16x3(&r.coeffs[0]);
+        b.b = load_f16x3(&r.coeffs[3]);
+    } else if (r.material == MATERIAL_THIN_DIELECTRIC) {
+        b.eta = f16_to_f32(r.coeffs[0]);
     } else {
         b.kind = MATERIAL_NONE;
     }
@@ -441,12 +446,70 @@ __device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf,
     return true;
 }
 
+// --- diffuse transmission and thin dielectric (bsdf/thin.rs) ---
+
+__device__ __forceinline__ float max_component3(float3 v) { return fmaxf(v.x, fmaxf(v.y, v.z)); }
+
+/// Mirrors `thin::sample_diffuse_transmission`.
+__device__ __forceinline__ bool diffuse_transmission_sample(float3 r, float3 t, float3 wo, float uc, float2 u,
+                                                           BsdfSample* out) {
+    const float pr = max_component3(r), pt = max_component3(t);
+    if (pr + pt == 0.0f) return false;
+    float3 wi = sample_cosine_hemisphere(u);
+    if (uc < pr / (pr + pt)) {
+        if (wo.z < 0.0f) wi.z = -wi.z;
+        const float pdf = pr / (pr + pt) * cosine_hemisphere_pdf(fabsf(wi.z));
+        *out = make_bsdf_sample(r * FRAC_1_PI, wi, pdf, 1.0f, false, false);
+    } else {
+        if (wo.z > 0.0f) wi.z = -wi.z;
+        const float pdf = pt / (pr + pt) * cosine_hemisphere_pdf(fabsf(wi.z));
+        *out = make_bsdf_sample(t * FRAC_1_PI, wi, pdf, 1.0f, false, true);
+    }
+    return true;
+}
+
+/// Mirrors `Bsdf::pdf` for diffuse transmission.
+__device__ __forceinline__ float diffuse_transmission_pdf(float3 r, float3 t, float3 wo, float3 wi) {
+    const float pr = max_component3(r), pt = max_component3(t);
+    if (pr + pt == 0.0f) return 0.0f;
+    const float lobe = same_hemisphere(wo, wi) ? pr : pt;
+    return lobe / (pr + pt) * cosine_hemisphere_pdf(fabsf(wi.z));
+}
+
+/// Mirrors `thin::thin_reflectance`.
+__device__ __forceinline__ float thin_reflectance(float cos_theta, float eta) {
+    const float r = fr_dielectric(cos_theta, eta);
+    if (r < 1.0f) {
+        const float t = 1.0f - r;
+        return r + t * t * r / (1.0f - r * r);
+    }
+    return r;
+}
+
+/// Mirrors `thin::sample_thin_dielectric`.
+__device__ __forceinline__ bool thin_dielectric_sample(float eta, float3 wo, float uc, BsdfSample* out) {
+    const float r = thin_reflectance(fabsf(wo.z), eta);
+    const float t = 1.0f - r;
+    if (uc < r / (r + t)) {
+        const float3 wi = make_float3(-wo.x, -wo.y, wo.z);
+        const float f = r / fabsf(wi.z);
+        *out = make_bsdf_sample(make_float3(f, f, f), wi, r / (r + t), 1.0f, true, false);
+    } else {
+        const float3 wi = -wo;
+        const float f = t / fabsf(wi.z);
+        *out = make_bsdf_sample(make_float3(f, f, f), wi, t / (r + t), 1.0f, true, true);
+    }
+    return true;
+}
+
 // --- dispatch (bsdf.rs `impl Bsdf`) ---
 
 /// Mirrors `Bsdf::eval`. `b.kind` must not be `MATERIAL_NONE`.
 __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi) {
     if (b.kind == MATERIAL_DIFFUSE) return same_hemisphere(wo, wi) ? b.a * FRAC_1_PI : zero3();
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_eval(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+    if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return (same_hemisphere(wo, wi) ? b.a : b.b) * FRAC_1_PI;
+    if (b.kind == MATERIAL_THIN_DIELECTRIC) return zero3();
     return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -454,6 +517,8 @@ __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi)
 __device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
     if (b.kind == MATERIAL_DIFFUSE) return same_hemisphere(wo, wi) ? cosine_hemisphere_pdf(fabsf(wi.z)) : 0.0f;
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_pdf(trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
+    if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return diffuse_transmission_pdf(b.a, b.b, wo, wi);
+    if (b.kind == MATERIAL_THIN_DIELECTRIC) return 0.0f;
     return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -470,6 +535,10 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
         s = make_bsdf_sample(b.a * FRAC_1_PI, wi, pdf, 1.0f, false, false);
     } else if (b.kind == MATERIAL_CONDUCTOR) {
         if (!conductor_sample(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, u, &s)) return false;
+    } else if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) {
+        if (!diffuse_transmission_sample(b.a, b.b, wo, uc, u, &s)) return false;
+    } else if (b.kind == MATERIAL_THIN_DIELECTRIC) {
+        if (!thin_dielectric_sample(b.eta, wo, uc, &s)) return false;
     } else {
         if (!dielectric_sample(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, uc, u, &s)) return false;
     }
@@ -485,5 +554,7 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
 __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
     if (b.kind == MATERIAL_DIFFUSE) return false;
     if (b.kind == MATERIAL_CONDUCTOR) return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y));
+    if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return false;
+    if (b.kind == MATERIAL_THIN_DIELECTRIC) return true;
     return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
 }

@@ -40,6 +40,8 @@ inline constexpr unsigned int MATERIAL_NONE = 0u;
 inline constexpr unsigned int MATERIAL_DIFFUSE = 1u;
 inline constexpr unsigned int MATERIAL_CONDUCTOR = 2u;
 inline constexpr unsigned int MATERIAL_DIELECTRIC = 3u;
+inline constexpr unsigned int MATERIAL_DIFFUSE_TRANSMISSION = 4u;
+inline constexpr unsigned int MATERIAL_THIN_DIELECTRIC = 5u;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");

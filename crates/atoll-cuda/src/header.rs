@@ -123,6 +123,8 @@ pub fn record_asserts() -> String {
         ("MATERIAL_DIFFUSE", MaterialKind::Diffuse),
         ("MATERIAL_CONDUCTOR", MaterialKind::Conductor),
         ("MATERIAL_DIELECTRIC", MaterialKind::Dielectric),
+        ("MATERIAL_DIFFUSE_TRANSMISSION", MaterialKind::DiffuseTransmission),
+        ("MATERIAL_THIN_DIELECTRIC", MaterialKind::ThinDielectric),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }

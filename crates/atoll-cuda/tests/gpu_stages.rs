@@ -213,6 +213,13 @@ fn test_materials() -> Vec<PackedMaterial> {
         Material::Dielectric { eta: 1.5, alpha_x: 0.3, alpha_y: 0.2 },
         Material::Dielectric { eta: 1.33, alpha_x: 0.1, alpha_y: 0.1 },
         Material::Dielectric { eta: 1.0, alpha_x: 0.3, alpha_y: 0.3 },
+        Material::DiffuseTransmission {
+            reflectance: Rgb::new(0.3, 0.5, 0.1),
+            transmittance: Rgb::new(0.6, 0.2, 0.4),
+        },
+        Material::DiffuseTransmission { reflectance: Rgb::ZERO, transmittance: Rgb::splat(0.5) },
+        Material::ThinDielectric { eta: 1.5 },
+        Material::ThinDielectric { eta: 1.0 },
         Material::Interface,
     ]
     .iter()

@@ -1,6 +1,7 @@
 //! BSDFs with pbrt-v4 semantics for the scene's materials: Lambertian
-//! diffuse, conductor (smooth mirror or anisotropic GGX) and dielectric
-//! (smooth or rough, reflection and transmission), in RGB.
+//! diffuse, conductor (smooth mirror or anisotropic GGX), dielectric
+//! (smooth or rough, reflection and transmission), diffuse transmission and
+//! thin dielectric, in RGB.
 //!
 //! Conventions (pbrt's):
 //! - Everything works in the local shading frame ([`Frame`]): the shading
@@ -22,6 +23,7 @@ mod conductor;
 mod dielectric;
 pub mod fresnel;
 pub mod microfacet;
+mod thin;
 
 pub use fresnel::{fr_complex, fr_complex_rgb, fr_dielectric, reflect, refract};
 pub use microfacet::TrowbridgeReitz;
@@ -108,6 +110,21 @@ pub enum Bsdf {
         /// GGX roughness along local y.
         alpha_y: f32,
     },
+    /// Lambertian reflection on `wo`'s side and Lambertian transmission to
+    /// the other, lobes chosen by their largest channel (pbrt-v4's
+    /// `DiffuseTransmissionBxDF`).
+    DiffuseTransmission {
+        /// Reflectance per channel.
+        reflectance: Rgb,
+        /// Transmittance per channel.
+        transmittance: Rgb,
+    },
+    /// A thin slab of index `eta`: specular reflection including the slab's
+    /// inner bounces, straight transmission (pbrt-v4's `ThinDielectricBxDF`).
+    ThinDielectric {
+        /// Index of refraction of the slab.
+        eta: f32,
+    },
 }
 
 /// The result of [`Bsdf::sample`].
@@ -145,6 +162,10 @@ impl Bsdf {
                 Some(Bsdf::Dielectric { eta, alpha_x, alpha_y })
             }
             Material::Interface => None,
+            Material::DiffuseTransmission { reflectance, transmittance } => {
+                Some(Bsdf::DiffuseTransmission { reflectance, transmittance })
+            }
+            Material::ThinDielectric { eta } => Some(Bsdf::ThinDielectric { eta }),
         }
     }
 
@@ -164,6 +185,14 @@ impl Bsdf {
             Bsdf::Dielectric { eta, alpha_x, alpha_y } => {
                 dielectric::eval(eta, TrowbridgeReitz::new(alpha_x, alpha_y), wo, wi)
             }
+            Bsdf::DiffuseTransmission { reflectance, transmittance } => {
+                if same_hemisphere(wo, wi) {
+                    reflectance * FRAC_1_PI
+                } else {
+                    transmittance * FRAC_1_PI
+                }
+            }
+            Bsdf::ThinDielectric { .. } => Rgb::ZERO,
         }
     }
 
@@ -184,6 +213,15 @@ impl Bsdf {
             Bsdf::Dielectric { eta, alpha_x, alpha_y } => {
                 dielectric::pdf(eta, TrowbridgeReitz::new(alpha_x, alpha_y), wo, wi)
             }
+            Bsdf::DiffuseTransmission { reflectance, transmittance } => {
+                let (pr, pt) = thin::lobe_weights(reflectance, transmittance);
+                if pr + pt == 0.0 {
+                    return 0.0;
+                }
+                let lobe = if same_hemisphere(wo, wi) { pr } else { pt };
+                lobe / (pr + pt) * cosine_hemisphere_pdf(wi.z.abs())
+            }
+            Bsdf::ThinDielectric { .. } => 0.0,
         }
     }
 
@@ -213,6 +251,10 @@ impl Bsdf {
             Bsdf::Dielectric { eta, alpha_x, alpha_y } => {
                 dielectric::sample(eta, TrowbridgeReitz::new(alpha_x, alpha_y), wo, uc, u)?
             }
+            Bsdf::DiffuseTransmission { reflectance, transmittance } => {
+                thin::sample_diffuse_transmission(reflectance, transmittance, wo, uc, u)?
+            }
+            Bsdf::ThinDielectric { eta } => thin::sample_thin_dielectric(eta, wo, uc)?,
         };
         // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
         if s.pdf > 0.0 && s.wi.z != 0.0 && s.f.is_finite() {
@@ -233,6 +275,8 @@ impl Bsdf {
             Bsdf::Dielectric { eta, alpha_x, alpha_y } => {
                 dielectric::is_specular(eta, TrowbridgeReitz::new(alpha_x, alpha_y))
             }
+            Bsdf::DiffuseTransmission { .. } => false,
+            Bsdf::ThinDielectric { .. } => true,
         }
     }
 }

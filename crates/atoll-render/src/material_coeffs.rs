@@ -37,6 +37,15 @@ impl PackedMaterial {
                 MaterialKind::Dielectric
             }
             Material::Interface => MaterialKind::None,
+            Material::DiffuseTransmission { reflectance, transmittance } => {
+                c[..3].copy_from_slice(&reflectance.to_array());
+                c[3..6].copy_from_slice(&transmittance.to_array());
+                MaterialKind::DiffuseTransmission
+            }
+            Material::ThinDielectric { eta } => {
+                c[0] = eta;
+                MaterialKind::ThinDielectric
+            }
         };
         PackedMaterial { kind, coeffs: c.map(f16::from_f32) }
     }
@@ -62,6 +71,10 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
         MaterialKind::Dielectric => {
             Some(Bsdf::Dielectric { eta: r.coeff(0), alpha_x: r.coeff(1), alpha_y: r.coeff(2) })
         }
+        MaterialKind::DiffuseTransmission => {
+            Some(Bsdf::DiffuseTransmission { reflectance: r.coeff3(0), transmittance: r.coeff3(3) })
+        }
+        MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(0) }),
     }
 }
 
@@ -82,6 +95,11 @@ mod tests {
                 alpha_y: 0.3,
             },
             Material::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 },
+            Material::DiffuseTransmission {
+                reflectance: Rgb::new(0.25, 0.5, 0.125),
+                transmittance: Rgb::splat(0.75),
+            },
+            Material::ThinDielectric { eta: 1.25 },
         ];
         for m in &materials {
             let mut r = RayRecord::zeroed();
@@ -93,6 +111,10 @@ mod tests {
                     Material::Conductor { eta, k, alpha_x, alpha_y }
                 }
                 Bsdf::Dielectric { eta, alpha_x, alpha_y } => Material::Dielectric { eta, alpha_x, alpha_y },
+                Bsdf::DiffuseTransmission { reflectance, transmittance } => {
+                    Material::DiffuseTransmission { reflectance, transmittance }
+                }
+                Bsdf::ThinDielectric { eta } => Material::ThinDielectric { eta },
             };
             // f16 keeps ~3 significant digits.
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
@@ -110,6 +132,9 @@ mod tests {
                 (Material::Dielectric { eta: a, .. }, Material::Dielectric { eta: b, .. }) => {
                     assert_eq!(a, b)
                 }
+                // Values exact in f16: the round trip is exact.
+                (Material::DiffuseTransmission { .. }, Material::DiffuseTransmission { .. })
+                | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. }) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }
         }

@@ -43,6 +43,10 @@ pub enum MaterialKind {
     Conductor = 2,
     /// coeffs[0] eta, [1] alpha_x, [2] alpha_y.
     Dielectric = 3,
+    /// coeffs[0..3] reflectance, [3..6] transmittance.
+    DiffuseTransmission = 4,
+    /// coeffs[0] eta.
+    ThinDielectric = 5,
 }
 
 impl MaterialKind {
@@ -51,6 +55,8 @@ impl MaterialKind {
             1 => MaterialKind::Diffuse,
             2 => MaterialKind::Conductor,
             3 => MaterialKind::Dielectric,
+            4 => MaterialKind::DiffuseTransmission,
+            5 => MaterialKind::ThinDielectric,
             _ => MaterialKind::None,
         }
     }

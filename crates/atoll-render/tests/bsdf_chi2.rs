@@ -240,6 +240,16 @@ fn all_cases() -> Vec<Case> {
         bsdf: Bsdf::Diffuse { reflectance: Rgb::splat(0.5) },
         wo: wo_at(40.0, 10.0, true),
     });
+    for below in [false, true] {
+        cases.push(Case {
+            name: format!("diffuse transmission below={below}"),
+            bsdf: Bsdf::DiffuseTransmission {
+                reflectance: Rgb::new(0.3, 0.5, 0.1),
+                transmittance: Rgb::new(0.6, 0.2, 0.4),
+            },
+            wo: wo_at(35.0, 80.0, below),
+        });
+    }
     // A gold-like conductor; the pdf does not depend on eta/k.
     let (eta, k) = (Rgb::new(0.18, 0.42, 1.37), Rgb::new(3.42, 2.35, 1.77));
     for (ax, ay) in [(0.1, 0.1), (0.3, 0.3), (0.7, 0.7), (0.2, 0.6)] {

@@ -143,6 +143,49 @@ fn albedo_never_exceeds_one() {
     }
 }
 
+/// Diffuse transmission: reciprocal on both sides, its albedo is R + T per
+/// channel from either side, and a sample lands on the far side with the
+/// probability its lobe weight says.
+#[test]
+fn diffuse_transmission_albedo_is_reflectance_plus_transmittance() {
+    let (r, t) = (Rgb::new(0.3, 0.5, 0.1), Rgb::new(0.6, 0.2, 0.4));
+    let bsdf = Bsdf::DiffuseTransmission { reflectance: r, transmittance: t };
+    let mut rng = Rng(11);
+    for wo in wo_angles() {
+        let (a, _) = albedo(&bsdf, wo, 40_000, false, &mut rng);
+        assert!((a - (r + t)).abs().max_element() < 0.01, "wo={wo}: {a} vs {}", r + t);
+        let wi = rng.vec2();
+        let wi = Vec3::new(wi.x - 0.5, wi.y - 0.5, -0.6 * wo.z.signum()).normalize();
+        assert_eq!(bsdf.eval(wo, wi), bsdf.eval(wi, wo));
+        assert_eq!(bsdf.eval(wo, wi), t / std::f32::consts::PI);
+        let crossing = (0..4000).filter(|_| {
+            let uc = rng.next_f32();
+            bsdf.sample(wo, uc, rng.vec2()).unwrap().transmission
+        });
+        let share = crossing.count() as f32 / 4000.0;
+        assert!((share - 0.6 / 1.1).abs() < 0.03, "transmitted share {share}");
+    }
+}
+
+/// A thin dielectric loses nothing (R + T = 1: every sample weighs 1), and
+/// reflects more than one interface: at normal incidence, η = 1.5, 0.04 for
+/// the interface and 0.04 + 0.96² 0.04 / (1 - 0.04²) ≈ 0.0769 for the slab.
+#[test]
+fn thin_dielectric_conserves_energy() {
+    let bsdf = Bsdf::ThinDielectric { eta: 1.5 };
+    assert!(bsdf.is_delta());
+    let mut rng = Rng(5);
+    for wo in wo_angles() {
+        let (a, max) = albedo(&bsdf, wo, 2_000, false, &mut rng);
+        assert!((a - Rgb::ONE).abs().max_element() < 1e-4 && max <= 1.0 + 1e-5, "wo={wo}: {a}");
+        let s = bsdf.sample(wo, 0.99, rng.vec2()).unwrap();
+        assert!(s.transmission && (s.wi + wo).length() < 1e-6, "straight through");
+    }
+    let normal = Vec3::Z;
+    let reflected = bsdf.sample(normal, 0.0, Vec2::ZERO).unwrap();
+    assert!(!reflected.transmission && (reflected.pdf - 0.076_923).abs() < 1e-4, "{}", reflected.pdf);
+}
+
 #[test]
 fn diffuse_albedo_is_its_reflectance() {
     let r = Rgb::new(0.9, 0.5, 0.1);

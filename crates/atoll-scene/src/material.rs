@@ -20,6 +20,13 @@ pub enum Material {
     Dielectric { eta: f32, alpha_x: f32, alpha_y: f32 },
     /// No surface at all (pbrt's `interface`/`""`): rays pass straight through.
     Interface,
+    /// pbrt-v4's `diffusetransmission`: Lambertian reflection on the side
+    /// light comes from, Lambertian transmission to the other (leaves, paper).
+    DiffuseTransmission { reflectance: Rgb, transmittance: Rgb },
+    /// pbrt-v4's `thindielectric`: a thin slab of index `eta` (window glass,
+    /// bubbles): specular reflection with the slab's internal bounces summed,
+    /// and straight-through transmission without bending.
+    ThinDielectric { eta: f32 },
 }
 
 impl Material {

@@ -209,6 +209,33 @@ fn materials() {
 }
 
 #[test]
+fn diffuse_transmission_and_thin_dielectric() {
+    let world = format!(
+        "Material \"diffusetransmission\" \"rgb reflectance\" [0.2 0.4 0.6] \"float scale\" 0.5\n{t}\n\
+         Material \"diffusetransmission\"\n{t}\n\
+         Material \"thindielectric\" \"float eta\" 1.33\n{t}\nMaterial \"thindielectric\"\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    assert_eq!(
+        *m[0],
+        Material::DiffuseTransmission {
+            reflectance: Rgb::new(0.1, 0.2, 0.3),
+            transmittance: Rgb::splat(0.125)
+        }
+    );
+    assert_eq!(
+        *m[1],
+        Material::DiffuseTransmission { reflectance: Rgb::splat(0.25), transmittance: Rgb::splat(0.25) }
+    );
+    assert_eq!(*m[2], Material::ThinDielectric { eta: 1.33 });
+    assert_eq!(*m[3], Material::ThinDielectric { eta: 1.5 });
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+}
+
+#[test]
 fn default_material_and_texture_references() {
     let world = format!(
         "{t}\nTexture \"checks\" \"spectrum\" \"checkerboard\"\nMaterial \"diffuse\" \"texture reflectance\" \"checks\"\n{t}",

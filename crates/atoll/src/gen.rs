@@ -178,6 +178,15 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
             rough(*alpha_x, *alpha_y)
         ),
         Material::Interface => writeln!(out, "\"string type\" \"interface\""),
+        Material::DiffuseTransmission { reflectance, transmittance } => writeln!(
+            out,
+            "\"string type\" \"diffusetransmission\" \"rgb reflectance\" {} \"rgb transmittance\" {}",
+            rgb(*reflectance),
+            rgb(*transmittance)
+        ),
+        Material::ThinDielectric { eta } => {
+            writeln!(out, "\"string type\" \"thindielectric\" \"float eta\" [ {eta} ]")
+        }
     }
 }
 

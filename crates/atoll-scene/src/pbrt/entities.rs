@@ -96,6 +96,17 @@ pub fn material(ty: &str, p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> 
             Material::Dielectric { eta, alpha_x, alpha_y }
         }
         "interface" | "" | "none" => Material::Interface,
+        "diffusetransmission" => {
+            let scale = p.float_or("scale", 1.0)?;
+            let mut rgb = |name: &str| -> Result<Rgb, SceneError> {
+                let v = p.spectrum(name, true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
+                Ok(v.unwrap_or(Rgb::splat(0.25)) * scale)
+            };
+            let reflectance = rgb("reflectance")?;
+            let transmittance = rgb("transmittance")?;
+            Material::DiffuseTransmission { reflectance, transmittance }
+        }
+        "thindielectric" => Material::ThinDielectric { eta: dielectric_eta(p, &what, loc, w)? },
         "coateddiffuse" => {
             let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
             p.mark_all_used();

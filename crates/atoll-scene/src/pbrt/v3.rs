@@ -5,7 +5,8 @@
 //! | material | becomes | from |
 //! |---|---|---|
 //! | `matte` | `Diffuse` | `Kd` (0.5); Oren–Nayar `sigma` ignored |
-//! | `plastic`, `substrate`, `uber`, `translucent`, `kdsubsurface` | `Diffuse` | `Kd` (v3 defaults); the specular layer, transmission, subsurface dropped |
+//! | `plastic`, `substrate`, `uber`, `kdsubsurface` | `Diffuse` | `Kd` (v3 defaults); the specular layer, subsurface dropped |
+//! | `translucent` | `DiffuseTransmission` | `Kd` × `reflect`, `Kd` × `transmit` (0.25, 0.5, 0.5); the glossy lobe dropped |
 //! | `metal` | `Conductor` | `eta`, `k` (copper), `roughness` (0.01) or `uroughness`/`vroughness`, `remaproughness` |
 //! | `glass` | `Dielectric` | `eta` or `index` (1.5), `uroughness`/`vroughness` (0); `Kr`/`Kt` tints ignored |
 //! | `mirror` | smooth `Conductor` | reflectance `Kr` (0.9) |
@@ -48,12 +49,21 @@ pub fn material(
             };
             (Material::Diffuse { reflectance: kd }, format!("read as \"diffuse\" with its \"Kd\"{sigma}"))
         }
-        "plastic" | "substrate" | "uber" | "translucent" | "kdsubsurface" => {
+        "translucent" => {
+            // pbrt-v3's TranslucentMaterial: Kd (0.25) split by reflect and transmit (0.5 each).
+            let kd = rgb("Kd", 0.25, w)?;
+            let (reflect, transmit) = (rgb("reflect", 0.5, w)?, rgb("transmit", 0.5, w)?);
+            (
+                Material::DiffuseTransmission { reflectance: kd * reflect, transmittance: kd * transmit },
+                "read as \"diffusetransmission\" (Kd × reflect, Kd × transmit; the glossy Ks lobe dropped)"
+                    .into(),
+            )
+        }
+        "plastic" | "substrate" | "uber" | "kdsubsurface" => {
             // pbrt-v3's defaults for Kd.
-            let default = if matches!(ty, "plastic" | "uber" | "translucent") { 0.25 } else { 0.5 };
+            let default = if matches!(ty, "plastic" | "uber") { 0.25 } else { 0.5 };
             let kd = rgb("Kd", default, w)?;
             let dropped = match ty {
-                "translucent" => "reflection and transmission split dropped",
                 "kdsubsurface" => "subsurface scattering dropped",
                 _ => "specular layer dropped",
             };
