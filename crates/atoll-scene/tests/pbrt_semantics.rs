@@ -381,3 +381,35 @@ fn infinite_light_with_an_image() {
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `loopsubdiv` is refined at load (4^levels triangles per control
+/// triangle, smooth normals); `bilinearmesh` patches become triangles.
+#[test]
+fn loop_subdivision_and_bilinear_patches() {
+    let world = "Shape \"loopsubdiv\" \"integer levels\" 2 \"point3 P\" [1 1 1 1 -1 -1 -1 1 -1 -1 -1 1] \
+                 \"integer indices\" [0 1 2 0 3 1 0 2 3 1 3 2]\n\
+                 Translate 0 0 5\n\
+                 Shape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 1] \"point2 uv\" [0 0 1 0 0 1 1 1]";
+    let loaded = load_world("", world).unwrap();
+    let s = &loaded.scene;
+    assert_eq!(s.meshes.len(), 2);
+    let sub = &s.meshes[0];
+    assert_eq!(sub.indices.len(), 4 * 16);
+    assert_eq!(sub.normals.len(), sub.positions.len());
+    let patch = &s.meshes[1];
+    let g = atoll_scene::pbrt::subdivision::BILINEAR_GRID as usize;
+    assert_eq!(patch.indices.len(), 2 * g * g, "a curved patch is sampled on a grid");
+    assert_eq!(patch.uvs.len(), patch.positions.len());
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    for bad in [
+        "Shape \"loopsubdiv\" \"integer levels\" 20 \"point3 P\" [0 0 0 1 0 0 0 1 0]",
+        "Shape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 0 2 2 2] \"integer indices\" [0 1 2]",
+        "Shape \"bilinearmesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0 1 1 0] \"integer indices\" [0 1 2 7]",
+    ] {
+        let e = load_world("", bad).unwrap_err().to_string();
+        assert!(
+            e.starts_with("test.pbrt:3:") && (e.contains("loopsubdiv") || e.contains("bilinearmesh")),
+            "{e}"
+        );
+    }
+}

@@ -21,6 +21,7 @@ pub mod params;
 pub mod parser;
 pub mod shapes;
 pub mod spectrum;
+pub mod subdivision;
 pub mod tokenizer;
 pub mod transform;
 pub mod v3;

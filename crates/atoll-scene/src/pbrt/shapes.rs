@@ -24,7 +24,7 @@ pub struct ShapeMesh {
 }
 
 /// The shape types [`shape_mesh`] turns into triangles.
-pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere"];
+pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere", "loopsubdiv", "bilinearmesh"];
 
 /// Longitude and latitude steps of a tessellated sphere.
 pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
@@ -41,6 +41,18 @@ pub fn shape_mesh(
     match ty {
         "trianglemesh" => triangle_mesh(p, loc, w).map(Some),
         "plymesh" => ply_mesh(p, loc, base_dir, w).map(Some),
+        "loopsubdiv" => {
+            let levels = p.int("levels")?.unwrap_or(3);
+            if !(0..=8).contains(&levels) {
+                return Err(SceneError::at(
+                    loc,
+                    format!("loopsubdiv: \"levels\" must be 0 to 8 (got {levels})"),
+                ));
+            }
+            let control = triangle_mesh(p, loc, w)?;
+            Ok(Some(super::subdivision::loop_subdivide(&control.positions, &control.indices, levels as u32)))
+        }
+        "bilinearmesh" => bilinear(p, loc, w).map(Some),
         "sphere" => {
             let radius = p.float_or("radius", 1.0)?;
             let zmin = p.float_or("zmin", -radius)?;
@@ -105,6 +117,51 @@ fn triangle_mesh(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<Sh
         uvs.clear();
     }
     Ok(ShapeMesh { name: "trianglemesh".into(), positions, normals, uvs, indices })
+}
+
+/// `bilinearmesh`: `P`, `indices` (four per patch; all of `P` as one patch
+/// when there are exactly four and no indices), optional `N` and `uv`.
+fn bilinear(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMesh, SceneError> {
+    let positions = p.point3s("P").unwrap_or_default();
+    let n = positions.len();
+    let flat: Vec<f64> = match p.ints("indices") {
+        Some(i) => i.to_vec(),
+        None if n == 4 => vec![0.0, 1.0, 2.0, 3.0],
+        None => {
+            return Err(SceneError::at(
+                loc,
+                "bilinearmesh: \"integer indices\" must be given (unless there are exactly 4 vertices)",
+            ))
+        }
+    };
+    if !flat.len().is_multiple_of(4) || flat.is_empty() {
+        return Err(SceneError::at(
+            loc,
+            format!("bilinearmesh: {} indices are not a positive multiple of 4", flat.len()),
+        ));
+    }
+    if let Some(bad) = flat.iter().find(|&&i| i < 0.0 || i as usize >= n) {
+        return Err(SceneError::at(
+            loc,
+            format!("bilinearmesh: vertex index {bad} out of range ({n} \"P\" values)"),
+        ));
+    }
+    let patches: Vec<[u32; 4]> =
+        flat.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]].map(|i| i as u32)).collect();
+    let mut normals = p.normals("N").unwrap_or_default();
+    if !normals.is_empty() && normals.len() != n {
+        w.warn(
+            loc,
+            format!("bilinearmesh: {} normals \"N\" for {n} vertices; discarding them", normals.len()),
+        );
+        normals.clear();
+    }
+    let mut uvs = p.point2s("uv").unwrap_or_default();
+    if !uvs.is_empty() && uvs.len() != n {
+        w.warn(loc, format!("bilinearmesh: {} \"uv\"s for {n} vertices; discarding them", uvs.len()));
+        uvs.clear();
+    }
+    Ok(super::subdivision::bilinear_mesh(&positions, &normals, &uvs, &patches))
 }
 
 fn ply_mesh(
