@@ -241,6 +241,7 @@ impl CudaDevice {
         let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
         gpu.synchronize()?;
         let bvh_build_seconds = start.elapsed().as_secs_f64();
+        trace::load_default_kernels(&gpu, &bvh)?;
         let params = FrameParamsHost::new(&gpu, frame)?;
         let view = [SceneView::of(&gpu_scene)];
         let scene_view =

@@ -256,6 +256,19 @@ fn with_tracer<R>(
     f(slot.as_mut().expect("made above"))
 }
 
+/// Compiles (or loads from the kernel cache) the default variant's
+/// closest- and any-hit kernels for `bvh`, so that a render's clock does not
+/// include it (the first trace would otherwise compile `trace.cu`: ~2 s cold).
+pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<(), CudaError> {
+    let variant = TraversalVariant::default();
+    with_tracer(gpu, bvh, |t| {
+        for query in ["closest", "any"] {
+            t.kernel(gpu, variant, &format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix()))?;
+        }
+        Ok(())
+    })
+}
+
 /// Closest hits of `rays[..count]` with the default variant (see the module docs).
 pub fn trace_closest(
     gpu: &Gpu,
