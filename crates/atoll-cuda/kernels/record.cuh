@@ -32,6 +32,7 @@ struct __align__(16) RayRecord {
 // BEGIN GENERATED record (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int NO_LIGHT = 4294967295u;
 inline constexpr unsigned int MATERIAL_COEFFS = 16u;
+inline constexpr unsigned int MAX_MIX_DEPTH = 8u;
 inline constexpr unsigned short FLAG_SHADOW = 1;
 inline constexpr unsigned short FLAG_OCCLUDED = 2;
 inline constexpr unsigned short FLAG_HIT = 4;
@@ -42,6 +43,7 @@ inline constexpr unsigned int MATERIAL_CONDUCTOR = 2u;
 inline constexpr unsigned int MATERIAL_DIELECTRIC = 3u;
 inline constexpr unsigned int MATERIAL_DIFFUSE_TRANSMISSION = 4u;
 inline constexpr unsigned int MATERIAL_THIN_DIELECTRIC = 5u;
+inline constexpr unsigned int MATERIAL_MIX = 6u;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");

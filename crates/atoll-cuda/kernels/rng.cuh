@@ -11,6 +11,7 @@ inline constexpr unsigned int BOUNCE_DIM_LIGHT_POSITION = 1u;
 inline constexpr unsigned int BOUNCE_DIM_BSDF_LOBE = 3u;
 inline constexpr unsigned int BOUNCE_DIM_BSDF_DIRECTION = 4u;
 inline constexpr unsigned int BOUNCE_DIM_RUSSIAN_ROULETTE = 6u;
+inline constexpr unsigned int BOUNCE_DIM_MATERIAL_CHOICE = 7u;
 // END GENERATED rng
 
 /// One round of the PCG hash. Mirrors `rng::pcg_hash`.

@@ -8,6 +8,7 @@
 #include "layout.cuh"
 #include "params.cuh"
 #include "lights.cuh"
+#include "rng.cuh"
 
 /// Fills the hit fields of `record` for `hit` (which found something).
 /// `t_max` was already shrunk by traversal. Not inlined: traversal kernels
@@ -44,7 +45,24 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
                                    ? light_triangle_index(p, hit.instance, mesh.scene_mesh,
                                                           hit.triangle - mesh.first_triangle + mesh.first_scene_triangle)
                                    : NO_LIGHT;
-    const GpuMaterial& m = p.materials[mesh.material];  // PackedMaterial::store
+    // FrameContext::material_at: a mix becomes one of its materials, chosen
+    // with the vertex's material-choice number (rescaled for nested mixes).
+    const GpuMaterial* mp = &p.materials[mesh.material];
+    if (mp->kind == MATERIAL_MIX) {  // the random number only when needed: hashes cost
+        float u = stream_bounce(sample_stream(p.seed, record->pixel, record->sample), record->depth,
+                                BOUNCE_DIM_MATERIAL_CHOICE, 0);
+        for (unsigned int level = 0; level < MAX_MIX_DEPTH && mp->kind == MATERIAL_MIX; ++level) {
+            const float amount = __uint_as_float(mp->pad[2]);
+            if (u < amount) {
+                mp = &p.materials[mp->pad[1]];
+                u = __fdiv_rn(u, amount);
+            } else {
+                mp = &p.materials[mp->pad[0]];
+                u = __fdiv_rn(u - amount, 1.0f - amount);
+            }
+        }
+    }
+    const GpuMaterial& m = *mp;  // PackedMaterial::store
     // The record's bytes [32, 128) are written as whole 16-byte words, three
     // full 32-byte sectors: field-by-field stores of the hit leave partial
     // sectors that the memory system must merge (or, with ECC, read first).

@@ -17,6 +17,7 @@
 use std::fmt::Write;
 
 use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
+use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
@@ -110,6 +111,7 @@ pub fn record_asserts() -> String {
     let mut s = String::new();
     s += &const_uint("unsigned int", "NO_LIGHT", NO_LIGHT as u64);
     s += &const_uint("unsigned int", "MATERIAL_COEFFS", MATERIAL_COEFFS as u64);
+    s += &const_uint("unsigned int", "MAX_MIX_DEPTH", MAX_MIX_DEPTH as u64);
     for (name, value) in [
         ("FLAG_SHADOW", flags::SHADOW),
         ("FLAG_OCCLUDED", flags::OCCLUDED),
@@ -125,6 +127,7 @@ pub fn record_asserts() -> String {
         ("MATERIAL_DIELECTRIC", MaterialKind::Dielectric),
         ("MATERIAL_DIFFUSE_TRANSMISSION", MaterialKind::DiffuseTransmission),
         ("MATERIAL_THIN_DIELECTRIC", MaterialKind::ThinDielectric),
+        ("MATERIAL_MIX", MaterialKind::Mix),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -141,6 +144,7 @@ pub fn rng_constants() -> String {
         ("BOUNCE_DIM_BSDF_LOBE", BounceDim::BsdfLobe),
         ("BOUNCE_DIM_BSDF_DIRECTION", BounceDim::BsdfDirection),
         ("BOUNCE_DIM_RUSSIAN_ROULETTE", BounceDim::RussianRoulette),
+        ("BOUNCE_DIM_MATERIAL_CHOICE", BounceDim::MaterialChoice),
     ] {
         s += &const_uint("unsigned int", name, dim as u64);
     }

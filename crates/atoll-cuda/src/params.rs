@@ -146,8 +146,14 @@ pub struct GpuMaterial {
 }
 
 impl GpuMaterial {
+    /// For a `mix`, `pad` holds its two material ids and the probability of
+    /// the second (f32 bits): see `write_surface`.
     pub fn new(m: &PackedMaterial) -> Self {
-        GpuMaterial { coeffs: m.coeffs.map(|c| c.to_bits()), kind: m.kind as u32, pad: [0; 3] }
+        let pad = match m.mix {
+            Some(([a, b], amount)) => [a, b, amount.to_bits()],
+            None => [0; 3],
+        };
+        GpuMaterial { coeffs: m.coeffs.map(|c| c.to_bits()), kind: m.kind as u32, pad }
     }
 
     pub fn field_layout() -> FieldLayout {

@@ -263,7 +263,11 @@ pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<(), CudaErro
     let variant = TraversalVariant::default();
     with_tracer(gpu, bvh, |t| {
         for query in ["closest", "any"] {
-            t.kernel(gpu, variant, &format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix()))?;
+            t.kernel(
+                gpu,
+                variant,
+                &format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix()),
+            )?;
         }
         Ok(())
     })

@@ -527,7 +527,11 @@ fn surface_scene() -> Scene {
             Vec3::new(0.0, -0.2, -1.0),
         ],
         indices: vec![[0, 1, 2], [1, 3, 2], [3, 0, 2]],
-        material: metal,
+        // A mix of a mix: each hit resolves to metal, glass or metal again.
+        material: {
+            let inner = scene.add_material(Material::Mix { materials: [metal, glass], amount: 0.4 });
+            scene.add_material(Material::Mix { materials: [inner, metal], amount: 0.3 })
+        },
         ..Default::default()
     };
     let tent = scene.add_mesh(tent);

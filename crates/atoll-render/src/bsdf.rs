@@ -151,7 +151,7 @@ pub struct BsdfSample {
 
 impl Bsdf {
     /// The BSDF for a scene material; `None` for [`Material::Interface`],
-    /// which has no surface.
+    /// which has no surface, and for [`Material::Mix`], resolved per hit.
     pub fn from_material(m: &Material) -> Option<Bsdf> {
         match *m {
             Material::Diffuse { reflectance } => Some(Bsdf::Diffuse { reflectance }),
@@ -166,6 +166,8 @@ impl Bsdf {
                 Some(Bsdf::DiffuseTransmission { reflectance, transmittance })
             }
             Material::ThinDielectric { eta } => Some(Bsdf::ThinDielectric { eta }),
+            // A mix is one of its materials per hit (`FrameContext::material_at`).
+            Material::Mix { .. } => None,
         }
     }
 

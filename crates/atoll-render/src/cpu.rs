@@ -163,7 +163,7 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     } else {
         NO_LIGHT
     };
-    frame.materials[mesh.material as usize].store(r);
+    frame.material_at(mesh.material, r).store(r);
 }
 
 fn ray_of(r: &RayRecord) -> Ray {

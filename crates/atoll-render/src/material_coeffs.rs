@@ -12,12 +12,16 @@ use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 pub struct PackedMaterial {
     pub kind: MaterialKind,
     pub coeffs: [f16; MATERIAL_COEFFS],
+    /// For [`MaterialKind::Mix`]: the two material ids and the probability
+    /// of the second.
+    pub mix: Option<([u32; 2], f32)>,
 }
 
 impl PackedMaterial {
     /// Packs a scene material (values rounded to f16).
     pub fn pack(material: &Material) -> Self {
         let mut c = [0f32; MATERIAL_COEFFS];
+        let mut mix = None;
         let kind = match *material {
             Material::Diffuse { reflectance } => {
                 c[..3].copy_from_slice(&reflectance.to_array());
@@ -46,8 +50,12 @@ impl PackedMaterial {
                 c[0] = eta;
                 MaterialKind::ThinDielectric
             }
+            Material::Mix { materials, amount } => {
+                mix = Some((materials, amount));
+                MaterialKind::Mix
+            }
         };
-        PackedMaterial { kind, coeffs: c.map(f16::from_f32) }
+        PackedMaterial { kind, coeffs: c.map(f16::from_f32), mix }
     }
 
     /// Writes the material into a record's hit fields.
@@ -60,7 +68,7 @@ impl PackedMaterial {
 /// The BSDF of a record's hit; `None` for pass-through surfaces and misses.
 pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
     match r.material_kind() {
-        MaterialKind::None => None,
+        MaterialKind::None | MaterialKind::Mix => None,
         MaterialKind::Diffuse => Some(Bsdf::Diffuse { reflectance: r.coeff3(0) }),
         MaterialKind::Conductor => Some(Bsdf::Conductor {
             eta: r.coeff3(0),

@@ -47,6 +47,9 @@ pub enum MaterialKind {
     DiffuseTransmission = 4,
     /// coeffs[0] eta.
     ThinDielectric = 5,
+    /// Material tables only, never in a record: a `mix` resolved to one of
+    /// its materials when the hit is written ([`crate::FrameContext::material_at`]).
+    Mix = 6,
 }
 
 impl MaterialKind {
@@ -57,6 +60,7 @@ impl MaterialKind {
             3 => MaterialKind::Dielectric,
             4 => MaterialKind::DiffuseTransmission,
             5 => MaterialKind::ThinDielectric,
+            6 => MaterialKind::Mix,
             _ => MaterialKind::None,
         }
     }

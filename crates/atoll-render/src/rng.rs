@@ -20,6 +20,8 @@ pub enum BounceDim {
     BsdfLobe = 3,
     BsdfDirection = 4, // and 5
     RussianRoulette = 6,
+    /// Which material of a `mix` the hit takes (written with the hit).
+    MaterialChoice = 7,
 }
 
 /// One round of the PCG hash.

@@ -27,6 +27,10 @@ pub enum Material {
     /// bubbles): specular reflection with the slab's internal bounces summed,
     /// and straight-through transmission without bending.
     ThinDielectric { eta: f32 },
+    /// pbrt's `mix`: at each hit, `materials[1]` with probability `amount`,
+    /// else `materials[0]` (the choice is a random number of the path
+    /// vertex, so every device picks alike).
+    Mix { materials: [MaterialId; 2], amount: f32 },
 }
 
 impl Material {

@@ -133,7 +133,7 @@ fn textures_are_recorded_and_warned_about_once() {
 }
 
 #[test]
-fn mix_uses_its_first_material() {
+fn mix_materials_name_their_two_parts() {
     let text = "WorldBegin\n\
         MakeNamedMaterial \"red\" \"string type\" \"matte\" \"rgb Kd\" [0.8 0.1 0.1]\n\
         MakeNamedMaterial \"chrome\" \"string type\" \"mirror\"\n\
@@ -143,22 +143,26 @@ fn mix_uses_its_first_material() {
         .to_string()
         + TRI
         + "\nMaterial \"mix\" \"string materials\" [\"chrome\" \"red\"] \"float amount\" 0.3\n"
+        + TRI
+        + "\nMaterial \"mix\" \"string materials\" [\"red\" \"nowhere\"]\n"
         + TRI;
     let loaded = load_str(&text, "m.pbrt", Path::new(".")).unwrap();
     let s = &loaded.scene;
+    let material = |mesh: usize| &s.materials[s.meshes[mesh].material as usize];
+    let Material::Mix { materials: [red, chrome], amount } = *material(0) else {
+        panic!("{:?}", material(0))
+    };
+    assert_eq!(amount, 0.5);
+    assert_eq!(s.materials[red as usize], Material::Diffuse { reflectance: Rgb::new(0.8, 0.1, 0.1) });
+    assert!(matches!(s.materials[chrome as usize], Material::Conductor { .. }));
+    assert_eq!(*material(1), Material::Mix { materials: [chrome, red], amount: 0.3 });
+    let Material::Mix { materials: [_, missing], .. } = *material(2) else { panic!() };
+    assert_eq!(s.materials[missing as usize], Material::default_diffuse());
+    let w: Vec<String> =
+        loaded.warnings.iter().filter(|w| w.message.contains("mix")).map(|w| w.to_string()).collect();
     assert_eq!(
-        s.materials[s.meshes[0].material as usize],
-        Material::Diffuse { reflectance: Rgb::new(0.8, 0.1, 0.1) }
-    );
-    assert!(matches!(s.materials[s.meshes[1].material as usize], Material::Conductor { .. }));
-    let mix: Vec<String> =
-        loaded.warnings.iter().filter(|w| w.message.contains("\"mix\"")).map(|w| w.to_string()).collect();
-    assert_eq!(
-        mix,
-        [
-            "m.pbrt:4:1: material \"mix\" is not supported; using its first material \"red\"",
-            "m.pbrt:7:1: material \"mix\" is not supported; using its first material \"chrome\""
-        ]
+        w,
+        ["m.pbrt:9:1: Material \"mix\": material \"nowhere\" is not defined before it; using diffuse 0.5"]
     );
 }
 

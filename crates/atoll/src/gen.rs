@@ -187,6 +187,12 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         Material::ThinDielectric { eta } => {
             writeln!(out, "\"string type\" \"thindielectric\" \"float eta\" [ {eta} ]")
         }
+        // Materials are written in id order, so a mix's parts come first
+        // whenever they have smaller ids (as loaders make them).
+        Material::Mix { materials: [a, b], amount } => writeln!(
+            out,
+            "\"string type\" \"mix\" \"string materials\" [ \"material_{a}\" \"material_{b}\" ] \"float amount\" [ {amount} ]"
+        ),
     }
 }
 

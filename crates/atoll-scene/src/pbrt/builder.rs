@@ -456,8 +456,9 @@ impl Builder {
                 }
             }
             E::Material if name == "mix" => {
-                let first = self.mix_first(&p, &loc)?;
-                self.gs.material = MaterialRef::Named(first, loc.clone());
+                let material = self.mix(&p, "Material \"mix\"", &loc)?;
+                self.anonymous.push(MaterialSlot { material, id: None });
+                self.gs.material = MaterialRef::Anonymous(self.anonymous.len() - 1);
             }
             E::Material => {
                 let material = entities::material(&name, &p, &loc, w)?;
@@ -475,15 +476,7 @@ impl Builder {
                     return Err(SceneError::at(&loc, format!("named material \"{name}\" is defined twice")));
                 }
                 let material = if ty == "mix" {
-                    let first = self.mix_first(&p, &loc)?;
-                    match self.named_materials.get(&first) {
-                        Some(slot) => slot.material.clone(),
-                        None => {
-                            let msg = format!("mix \"{name}\": material \"{first}\" is not defined before it; using diffuse 0.5");
-                            self.warn(&loc, msg);
-                            Material::default_diffuse()
-                        }
-                    }
+                    self.mix(&p, &format!("mix \"{name}\""), &loc)?
                 } else {
                     entities::material(&ty, &p, &loc, w)?
                 };
@@ -563,12 +556,24 @@ impl Builder {
         }
     }
 
-    /// The first material of a `mix` (pbrt-v4's `string materials`, pbrt-v3's
-    /// `string namedmaterial1`), which stands for the whole mix for now.
-    fn mix_first(&mut self, p: &ParamList, loc: &FileLoc) -> Result<String, SceneError> {
-        let first = super::v3::mix_first(p, loc)?;
-        self.warn(loc, format!("material \"mix\" is not supported; using its first material \"{first}\""));
-        Ok(first)
+    /// A `mix` of two named materials (pbrt-v4's `string materials`,
+    /// pbrt-v3's `namedmaterial1/2`), both added to the scene now. A name
+    /// not defined before the mix becomes diffuse 0.5, with a warning.
+    fn mix(&mut self, p: &ParamList, what: &str, loc: &FileLoc) -> Result<Material, SceneError> {
+        let (first, second, amount) = super::v3::mix_parts(p, loc, &mut self.warnings)?;
+        let mut id = |name: &str| -> MaterialId {
+            match self.named_materials.get_mut(name) {
+                Some(slot) => *slot.id.get_or_insert_with(|| self.scene.add_material(slot.material.clone())),
+                None => {
+                    let msg =
+                        format!("{what}: material \"{name}\" is not defined before it; using diffuse 0.5");
+                    self.warnings.warn(loc, msg);
+                    self.scene.add_material(Material::default_diffuse())
+                }
+            }
+        };
+        let materials = [id(&first), id(&second)];
+        Ok(Material::Mix { materials, amount })
     }
 
     /// `Texture "name" "float"|"spectrum"|"color" "class" params`: recorded for

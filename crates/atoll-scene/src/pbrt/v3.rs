@@ -14,7 +14,7 @@
 //! | `hair` | `Diffuse` | `color` (0.5) |
 //! | `fourier` | `Diffuse` 0.5 | the measured BSDF file is ignored |
 //!
-//! `mix` needs named materials: the builder uses its first ([`mix_first`]).
+//! `mix` names two named materials ([`mix_parts`]); the builder makes a `Material::Mix` of them.
 //! `Texture` statements are recorded ([`texture`]), not rendered yet.
 
 use std::path::Path;
@@ -23,7 +23,7 @@ use crate::error::{FileLoc, SceneError};
 use crate::{Material, Rgb, TextureRef};
 
 use super::entities::{alphas, reflectance_rgb};
-use super::params::{FloatOrTexture, ParamList, ParamType};
+use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
 use super::parser::ParamValues;
 use super::WarningSink;
 
@@ -129,19 +129,44 @@ pub fn material(
 
 /// The first material of a `mix`: pbrt-v4's `string materials` or pbrt-v3's
 /// `string namedmaterial1` (the rest of the mix is not used).
-pub fn mix_first(p: &ParamList, loc: &FileLoc) -> Result<String, SceneError> {
+pub fn mix_parts(
+    p: &ParamList,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<(String, String, f32), SceneError> {
     let v4 = p.find("materials", &[ParamType::String]).and_then(|m| match &m.values {
-        ParamValues::Strings(s) => s.first().cloned(),
+        ParamValues::Strings(s) if s.len() == 2 => Some((s[0].clone(), s[1].clone())),
         _ => None,
     });
-    let first = match v4 {
-        Some(f) => f,
-        None => p.string("namedmaterial1")?.ok_or_else(|| {
-            SceneError::at(loc, "material \"mix\": \"string materials\" (or \"namedmaterial1\") is missing")
-        })?,
+    let (first, second) = match v4 {
+        Some(names) => names,
+        None => match (p.string("namedmaterial1")?, p.string("namedmaterial2")?) {
+            (Some(a), Some(b)) => (a, b),
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    "material \"mix\": \"string materials\" with two names (or \"namedmaterial1\" and \"namedmaterial2\") must be given",
+                ))
+            }
+        },
+    };
+    // pbrt-v4's amount is a float; pbrt-v3's a spectrum (its mean is taken).
+    let amount = match p.spectrum("amount", true)? {
+        None => 0.5,
+        Some(SpectrumParam::Constant(a)) => a,
+        Some(SpectrumParam::Rgb(c)) => {
+            if c.max_element() - c.min_element() > 1e-6 {
+                w.warn(loc, "material \"mix\": a coloured \"amount\" is replaced by its mean");
+            }
+            (c.x + c.y + c.z) / 3.0
+        }
+        Some(_) => {
+            w.warn(loc, "material \"mix\": this \"amount\" (a texture or spectrum) is replaced by 0.5");
+            0.5
+        }
     };
     p.mark_all_used();
-    Ok(first)
+    Ok((first, second, amount.clamp(0.0, 1.0)))
 }
 
 /// The record of `Texture "name" "ty" "class" params` (pbrt-v3 also wrote
