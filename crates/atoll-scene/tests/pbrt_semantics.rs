@@ -413,3 +413,18 @@ fn loop_subdivision_and_bilinear_patches() {
         );
     }
 }
+
+/// The repository's feature scene (scenes/features.pbrt, rendered on CPU and
+/// GPU by scripts/gpu-check) loads without a warning.
+#[test]
+fn the_feature_scene_loads_cleanly() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/features.pbrt");
+    let loaded = atoll_scene::pbrt::load_file(&path).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let s = &loaded.scene;
+    assert!(matches!(s.lights[0], Light::Environment { .. }) && matches!(s.lights[1], Light::Spot { .. }));
+    let kinds: Vec<&Material> = s.meshes.iter().map(|m| &s.materials[m.material as usize]).collect();
+    assert!(matches!(kinds[1], Material::Mix { .. }));
+    assert!(matches!(kinds[2], Material::ThinDielectric { .. }));
+    assert!(matches!(kinds[3], Material::DiffuseTransmission { .. }));
+}
