@@ -103,29 +103,35 @@ __device__ __forceinline__ void init_traversal(Traversal& tr, int* stack, const 
     tr.stack[0] = LINK_DONE;
 }
 
-/// Tests the triangles of BLAS leaf `leaf`; returns whether one was hit
-/// (with ANY, stops at the first).
+/// Tests triangle records `first .. first + count` of instance record `slot`
+/// against `ray`; returns whether one was hit (with ANY, stops at the first).
 template <int TRI, bool ANY>
-__device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal& tr, int leaf, TraversalHit& h) {
-    const unsigned int first = leaf_first(leaf), count = leaf_count(leaf);
+__device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const TraversalRay& ray, unsigned int slot,
+                                               unsigned int first, unsigned int count, TraversalHit& h) {
     bool any = false;
     for (unsigned int k = 0; k < count; ++k) {
         const TriRecord tri = load_tri(v.tris, first + k);
         float t, u, w;
-        const bool hit = TRI == TRI_EXACT ? intersect_exact(tri, tr.ray.o, tr.ray.d, h.t, t, u, w)
-                                          : intersect_woop(tri, tr.ray.o, tr.ray.d, h.t, t, u, w);
+        const bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
+                                          : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
         if (hit) {
             h.t = t;
             h.u = u;
             h.v = w;
             h.tri = first + k;
-            h.slot = tr.slot;
+            h.slot = slot;
             h.hit = true;
             any = true;
             if (ANY) break;
         }
     }
     return any;
+}
+
+/// Tests the triangles of BLAS leaf `leaf`.
+template <int TRI, bool ANY>
+__device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal& tr, int leaf, TraversalHit& h) {
+    return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, leaf_first(leaf), leaf_count(leaf), h);
 }
 
 /// While-while traversal of the ray (o, d) with hits in (0, t_max).

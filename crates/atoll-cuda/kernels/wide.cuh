@@ -71,30 +71,6 @@ struct WideTraversal {
     }
 };
 
-/// Tests leaf triangles `first .. first + count` of the current instance.
-template <int TRI, bool ANY>
-__device__ __forceinline__ bool test_wide_leaf(const SceneBvhView& v, const TraversalRay& ray, unsigned int slot,
-                                               unsigned int first, unsigned int count, TraversalHit& h) {
-    bool any = false;
-    for (unsigned int k = 0; k < count; ++k) {
-        const TriRecord tri = load_tri(v.tris, first + k);
-        float t, u, w;
-        const bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
-                                          : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
-        if (hit) {
-            h.t = t;
-            h.u = u;
-            h.v = w;
-            h.tri = first + k;
-            h.slot = slot;
-            h.hit = true;
-            any = true;
-            if (ANY) break;
-        }
-    }
-    return any;
-}
-
 /// Closest (or, with ANY, any) hit of the ray (o, d) in (0, t_max) through
 /// the compressed wide tree rooted at `v.tlas_root`.
 template <int TRI, bool ANY>
@@ -178,7 +154,7 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
             const unsigned int i = __ffs(leaves) - 1u;
             leaves &= leaves - 1u;
             const unsigned int m = byte8(meta, i);
-            if (test_wide_leaf<TRI, ANY>(v, ray, slot, prim_base + (m & 31u), __popc(m >> 5), h) && ANY) return h;
+            if (test_triangles<TRI, ANY>(v, ray, slot, prim_base + (m & 31u), __popc(m >> 5), h) && ANY) return h;
         }
         tr.sort_from(base);
         node = tr.pop(h.t);

@@ -80,40 +80,40 @@ impl Topology {
 
     /// The new position of an existing vertex.
     fn even(&self, p: &[Vec3], v: usize) -> Vec3 {
-        match self.boundary[v].as_slice() {
-            [] => {
-                let n = self.ring[v].len();
-                if n == 0 {
-                    return p[v];
-                }
-                let beta = if n == 3 { 3.0 / 16.0 } else { 3.0 / (8.0 * n as f32) };
-                p[v] * (1.0 - n as f32 * beta) + self.ring_sum(p, v) * beta
-            }
-            [b0, b1] => p[v] * 0.75 + (p[*b0 as usize] + p[*b1 as usize]) * 0.125,
-            // A corner where several boundaries meet stays put.
-            _ => p[v],
-        }
+        self.smooth(p, v, loop_beta, 0.125)
     }
 
     /// The limit-surface position of a vertex.
     fn limit(&self, p: &[Vec3], v: usize) -> Vec3 {
+        self.smooth(p, v, |n| 1.0 / (n + 3.0 / (8.0 * loop_beta(n))), 0.2)
+    }
+
+    /// `(1 - n w) v + w Σ ring` inside (`w = interior(n)` for valence `n`),
+    /// `(1 - 2 b) v + b (b0 + b1)` on a boundary; corners where several
+    /// boundaries meet, and isolated vertices, stay put.
+    fn smooth(&self, p: &[Vec3], v: usize, interior: impl Fn(f32) -> f32, b: f32) -> Vec3 {
         match self.boundary[v].as_slice() {
-            [] => {
-                let n = self.ring[v].len();
-                if n == 0 {
-                    return p[v];
-                }
-                let beta = if n == 3 { 3.0 / 16.0 } else { 3.0 / (8.0 * n as f32) };
-                let gamma = 1.0 / (n as f32 + 3.0 / (8.0 * beta));
-                p[v] * (1.0 - n as f32 * gamma) + self.ring_sum(p, v) * gamma
+            [] if !self.ring[v].is_empty() => {
+                let n = self.ring[v].len() as f32;
+                let w = interior(n);
+                p[v] * (1.0 - n * w) + self.ring_sum(p, v) * w
             }
-            [b0, b1] => p[v] * 0.6 + (p[*b0 as usize] + p[*b1 as usize]) * 0.2,
+            [b0, b1] => p[v] * (1.0 - 2.0 * b) + (p[*b0 as usize] + p[*b1 as usize]) * b,
             _ => p[v],
         }
     }
 
     fn ring_sum(&self, p: &[Vec3], v: usize) -> Vec3 {
         self.ring[v].iter().map(|&u| p[u as usize]).sum()
+    }
+}
+
+/// Loop's vertex weight `β` for valence `n`: 3/16 for 3, else 3 / (8n).
+fn loop_beta(n: f32) -> f32 {
+    if n == 3.0 {
+        3.0 / 16.0
+    } else {
+        3.0 / (8.0 * n)
     }
 }
 
