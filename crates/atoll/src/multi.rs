@@ -152,8 +152,10 @@ pub fn render(
             let (p, kind) = match args.partitioning {
                 Partitioning::Memory => memory(),
                 Partitioning::Spatial => spatial(),
-                // Slabs when they fit (faster: rays rarely enter two), else memory-balanced parts.
-                Partitioning::Auto => spatial().or_else(|_| memory()),
+                // Memory-balanced parts: on 2 H200s they rendered faster than
+                // spatial slabs (landscape:100 ring of 2: 226 vs 174 M samples/s,
+                // BENCHMARKS.md 2026-11-24) although slabs let rays skip parts.
+                Partitioning::Auto => memory(),
             }
             .map_err(|e| CliError::Runtime(e.to_string()))?;
             eprintln!("partition: {kind}");
@@ -274,7 +276,7 @@ pub fn device_table(out: &MultiOutput) -> String {
 /// How `--partition` makes a ring's parts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Partitioning {
-    /// Spatial slabs when they fit the budget, else memory-balanced parts.
+    /// Memory-balanced parts (measured faster than slabs; see `render`).
     #[default]
     Auto,
     /// Slabs along the scene's longest axis ([`partition_spatial`]).

@@ -75,8 +75,8 @@ pub struct RenderArgs {
     /// default for GPUs) or host (through host memory, any device).
     #[arg(long, value_parser = parse_transport, requires = "devices")]
     pub ring_transport: Option<Transport>,
-    /// How a ring's scene parts are made: auto (spatial slabs when they fit
-    /// the budget, else memory-balanced), spatial or memory.
+    /// How a ring's scene parts are made: auto (memory-balanced: measured
+    /// faster), memory, or spatial (slabs along the longest axis).
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "devices")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
