@@ -249,5 +249,15 @@ struct TraversalHit {
     bool hit;
 };
 
+/// No hit yet, searching (0, t_max).
+__device__ __forceinline__ TraversalHit no_hit(float t_max) {
+    TraversalHit h;
+    h.t = t_max;
+    h.u = h.v = 0.0f;
+    h.tri = h.slot = 0;
+    h.hit = false;
+    return h;
+}
+
 #include "traverse.cuh"
 #include "wide.cuh"

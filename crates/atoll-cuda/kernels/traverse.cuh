@@ -137,11 +137,7 @@ __device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal
 /// While-while traversal of the ray (o, d) with hits in (0, t_max).
 template <int TRI, bool ANY>
 __device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, float3 d, float t_max) {
-    TraversalHit h;
-    h.t = t_max;
-    h.u = h.v = 0.0f;
-    h.tri = h.slot = 0;
-    h.hit = false;
+    TraversalHit h = no_hit(t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
     init_traversal(tr, stack, v, o, d);
@@ -174,11 +170,7 @@ __device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, fl
 template <int TRI, bool ANY>
 __device__ TraversalHit traverse_speculative(const SceneBvhView& v, float3 o, float3 d, float t_max,
                                              unsigned int mask) {
-    TraversalHit h;
-    h.t = t_max;
-    h.u = h.v = 0.0f;
-    h.tri = h.slot = 0;
-    h.hit = false;
+    TraversalHit h = no_hit(t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
     init_traversal(tr, stack, v, o, d);

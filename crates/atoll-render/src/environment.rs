@@ -13,12 +13,8 @@
 use std::f32::consts::PI;
 use std::sync::Arc;
 
-use atoll_scene::{EnvLayout, EnvironmentImage, Rgb};
+use atoll_scene::{luminance, EnvLayout, EnvironmentImage, Rgb};
 use glam::{Mat3, Vec2, Vec3};
-
-fn luminance(c: Rgb) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
-}
 
 /// An environment image with its sampling distribution.
 #[derive(Clone, Debug)]

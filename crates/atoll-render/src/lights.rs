@@ -3,7 +3,7 @@
 //! chosen in proportion to power. The table is small and replicated on every
 //! device, so any device can do next-event estimation and MIS for any path.
 
-use atoll_scene::{Light, Rgb, Scene};
+use atoll_scene::{luminance, Light, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
 use crate::environment::EnvironmentSampler;
@@ -94,10 +94,6 @@ pub fn smooth_step(x: f32, a: f32, b: f32) -> f32 {
     }
     let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
-}
-
-fn luminance(c: Rgb) -> f32 {
-    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 impl LightSet {

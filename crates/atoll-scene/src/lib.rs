@@ -37,3 +37,8 @@ pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).
 pub type Rgb = glam::Vec3;
+
+/// Luminance (Y) of a linear-sRGB colour (Rec. 709 weights).
+pub fn luminance(c: Rgb) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}

@@ -200,7 +200,7 @@ pub(super) fn dielectric_eta(
 /// normalisation is by the colour space's white, which leaves them unchanged.
 fn light_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Rgb {
     let luminance_one = |c: Rgb| {
-        let y = 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        let y = crate::luminance(c);
         if y > 0.0 {
             c / y
         } else {
@@ -290,8 +290,8 @@ pub fn light(
             if let (Some(power), Light::Spot { intensity, cos_falloff_start, cos_falloff_end, .. }) =
                 (p.float("power")?, &mut light)
             {
-                let luminance = 0.2126 * i.x + 0.7152 * i.y + 0.0722 * i.z;
-                let per_unit = Light::spot_solid_angle(*cos_falloff_start, *cos_falloff_end) * luminance;
+                let per_unit =
+                    Light::spot_solid_angle(*cos_falloff_start, *cos_falloff_end) * crate::luminance(i);
                 if per_unit > 0.0 {
                     *intensity = i * (scale * power / per_unit);
                 }

@@ -131,7 +131,7 @@ mod tests {
         assert!((d65ish - Vec3::ONE).abs().max_element() < 0.15, "{d65ish}");
         let warm = blackbody_rgb(2700.0);
         assert!(warm.x > warm.y && warm.y > warm.z, "{warm}");
-        let lum = 0.2126 * warm.x + 0.7152 * warm.y + 0.0722 * warm.z;
+        let lum = crate::luminance(warm);
         assert!((lum - 1.0).abs() < 0.02, "{lum}");
     }
 }
