@@ -153,10 +153,13 @@ pub fn part_geometry_bytes(scene: &Scene, part: &ScenePart) -> u64 {
 
 /// Bytes a device with `model` needs for `part`: geometry (see
 /// [`part_geometry_bytes`]) plus the modelled acceleration structures and
-/// build scratch.
+/// build scratch, plus every texture image of the scene: a device shades
+/// the hits it finds and the paths it spawns, on any material, so each
+/// holds them all.
 pub fn part_bytes(scene: &Scene, part: &ScenePart, model: &ByteModel) -> u64 {
     let c = counts(scene, part);
-    c.geometry
+    scene.textures.memory_bytes()
+        + c.geometry
         + c.vertices * model.per_vertex
         + c.triangles * model.per_triangle
         + c.objects * model.per_object
@@ -277,5 +280,22 @@ mod tests {
         placed(&mut scene, object, 0.0);
         let none = ScenePart { instances: vec![0], object_subsets: vec![(object, vec![])] };
         assert_eq!(part_bytes(&scene, &none, &ByteModel::CPU), 0);
+    }
+
+    #[test]
+    fn every_part_holds_all_texture_images() {
+        let mut scene = Scene::default();
+        let mesh = scene.add_mesh(strip(4)); // 10 vertices, 8 triangles
+        let object = scene.add_object(Object { name: "strip".into(), meshes: vec![mesh] });
+        placed(&mut scene, object, 0.0);
+        let image = atoll_scene::TextureImage::from_linear("t", 4, 2, vec![[0.5; 4]; 8]);
+        scene.textures.add_image(image); // 8 float texels: 128 bytes
+        let m = ByteModel::CPU;
+        let whole = ScenePart::whole(&scene);
+        let geometry = 10 * 32 + 8 * 12;
+        assert_eq!(part_geometry_bytes(&scene, &whole), geometry);
+        let bvh = 8 * m.per_triangle + m.per_object + m.per_instance + 8 * m.scratch_per_triangle;
+        assert_eq!(part_bytes(&scene, &whole, &m), 128 + geometry + bvh);
+        assert_eq!(part_bytes(&scene, &ScenePart::default(), &m), 128);
     }
 }

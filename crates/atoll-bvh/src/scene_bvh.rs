@@ -5,7 +5,7 @@ use std::ops::Range;
 use std::time::Instant;
 
 use atoll_scene::{MeshId, ObjectId, Scene};
-use glam::Affine3A;
+use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 
 use crate::{
@@ -75,6 +75,31 @@ pub struct SceneBvhStats {
     pub build_ms: f64,
 }
 
+/// Decides which candidate hits count: alpha masks that cut holes into
+/// surfaces. Traversal asks only for meshes where [`HitFilter::filters`]
+/// says so (the renderer's texture programs implement it).
+pub trait HitFilter: Sync {
+    /// Whether hits on scene mesh `mesh` need [`HitFilter::keeps`].
+    fn filters(&self, mesh: MeshId) -> bool;
+    /// Whether the hit of triangle `triangle` of `mesh` at barycentrics
+    /// `(u, v)` and distance `t` counts; `origin` and `dir` are the ray in
+    /// the triangle's (object) space.
+    #[allow(clippy::too_many_arguments)]
+    fn keeps(&self, mesh: MeshId, triangle: u32, u: f32, v: f32, t: f32, origin: Vec3A, dir: Vec3A) -> bool;
+}
+
+/// Every hit counts.
+pub struct NoFilter;
+
+impl HitFilter for NoFilter {
+    fn filters(&self, _: MeshId) -> bool {
+        false
+    }
+    fn keeps(&self, _: MeshId, _: u32, _: f32, _: f32, _: f32, _: Vec3A, _: Vec3A) -> bool {
+        true
+    }
+}
+
 /// Which triangle a leaf position holds (8 bytes); padding slots hold `u32::MAX`s.
 #[derive(Clone, Copy, Debug)]
 struct PrimId {
@@ -88,6 +113,9 @@ struct Blas<L> {
     bvh: L,
     tris: Vec<Tri4>,
     prims: Vec<PrimId>,
+    /// Some of its meshes have alpha masks: candidate hits go through the
+    /// [`HitFilter`] (the others take the unfiltered fast path).
+    filtered: bool,
     stats: BvhStats,
 }
 
@@ -129,7 +157,8 @@ impl<L: BvhLayout> Blas<L> {
         let mut stats = bvh.stats(&BuildOptions::METRIC);
         stats.bytes += std::mem::size_of_val(&tris[..]) + std::mem::size_of_val(&prims[..]);
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
-        Some(Blas { bvh, tris, prims, stats })
+        let filtered = ranges.iter().any(|r| scene.meshes[r.mesh as usize].alpha.is_some());
+        Some(Blas { bvh, tris, prims, filtered, stats })
     }
 
     /// Triangles stored (padding excluded).
@@ -248,17 +277,27 @@ impl<L: BvhLayout> SceneBvh<L> {
         SceneBvh { tlas, instances, blases, stats }
     }
 
-    /// The closest hit with `0 < t < ray.t_max`.
+    /// The closest hit with `0 < t < ray.t_max`, ignoring alpha masks.
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let (t, leaf, prim, u, v) = self.trace::<false>(ray)?;
+        self.intersect_filtered(ray, &NoFilter)
+    }
+
+    /// Whether anything is hit with `0 < t < ray.t_max`, ignoring alpha masks.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded_filtered(ray, &NoFilter)
+    }
+
+    /// The closest hit with `0 < t < ray.t_max` that `filter` keeps.
+    pub fn intersect_filtered(&self, ray: &Ray, filter: &impl HitFilter) -> Option<Hit> {
+        let (t, leaf, prim, u, v) = self.trace::<false>(ray, filter)?;
         let inst = &self.instances[leaf as usize];
         let id = self.blases[inst.blas as usize].prims[prim as usize];
         Some(Hit { t, u, v, instance: inst.instance, mesh: id.mesh, triangle: id.triangle })
     }
 
-    /// Whether anything is hit with `0 < t < ray.t_max`.
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        self.trace::<true>(ray).is_some()
+    /// Whether anything `filter` keeps is hit with `0 < t < ray.t_max`.
+    pub fn occluded_filtered(&self, ray: &Ray, filter: &impl HitFilter) -> bool {
+        self.trace::<true>(ray, filter).is_some()
     }
 
     /// Sizes, quality and build times.
@@ -268,7 +307,7 @@ impl<L: BvhLayout> SceneBvh<L> {
 
     /// Both queries in one: with `ANY`, the first hit found ends the search.
     #[inline]
-    fn trace<const ANY: bool>(&self, ray: &Ray) -> Option<RawHit> {
+    fn trace<const ANY: bool>(&self, ray: &Ray, filter: &impl HitFilter) -> Option<RawHit> {
         let world = TraversalRay::new(ray.origin.into(), ray.direction.into());
         let mut t_max = ray.t_max;
         let mut best: Option<RawHit> = None;
@@ -288,7 +327,36 @@ impl<L: BvhLayout> SceneBvh<L> {
                 let lanes = Tri4::LANES as u32;
                 for block in first / lanes..(first + count).div_ceil(lanes) {
                     let tris = &blas.tris[block as usize];
-                    if ANY {
+                    if blas.filtered {
+                        // Every candidate lane, nearest kept one wins.
+                        let (mut mask, t, u, v) = tris.test(&ray4, *t_max);
+                        while mask != 0 {
+                            let lane = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let prim = block * lanes + lane as u32;
+                            let id = blas.prims[prim as usize];
+                            if t[lane] >= *t_max
+                                || (filter.filters(id.mesh)
+                                    && !filter.keeps(
+                                        id.mesh,
+                                        id.triangle,
+                                        u[lane],
+                                        v[lane],
+                                        t[lane],
+                                        ray.origin,
+                                        ray.dir,
+                                    ))
+                            {
+                                continue;
+                            }
+                            best = Some((t[lane], leaf, prim, u[lane], v[lane]));
+                            hit = true;
+                            if ANY {
+                                return true;
+                            }
+                            *t_max = t[lane];
+                        }
+                    } else if ANY {
                         let mask = tris.test(&ray4, *t_max).0;
                         if mask != 0 {
                             best = Some((0.0, leaf, block * lanes + mask.trailing_zeros(), 0.0, 0.0));

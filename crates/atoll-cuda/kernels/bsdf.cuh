@@ -7,6 +7,20 @@
 // ports; the arithmetic is the same, operation by operation.
 #pragma once
 
+// The material kinds this module shades: all of them, unless the device
+// compiles a shade kernel specialised to a scene's kinds (`-DATOLL_WITH_COATED=0`
+// and the like; src/device.rs `ShadeFeatures`). Coated diffuse's random
+// walks and the principled lobes cost the shade kernel about a hundred
+// registers, and so occupancy, even in scenes none of whose hits take them.
+// A kind compiled out is read from a record as no surface at all (the device
+// only leaves out kinds its frame has no material of).
+#ifndef ATOLL_WITH_COATED
+#define ATOLL_WITH_COATED 1
+#endif
+#ifndef ATOLL_WITH_PRINCIPLED
+#define ATOLL_WITH_PRINCIPLED 1
+#endif
+
 #include "common.cuh"
 #include "record.cuh"
 #include "sampling.cuh"
@@ -220,12 +234,21 @@ __device__ __forceinline__ float3 tr_sample_wm(TrowbridgeReitz d, float3 w, floa
 
 /// Mirrors `bsdf::Bsdf`. `kind` is a `MATERIAL_*` constant; the fields used
 /// per kind: Diffuse `a` = reflectance; Conductor `a` = eta, `b` = k,
-/// alphas; Dielectric `eta`, alphas. `MATERIAL_NONE` means "no BSDF"
-/// (Rust's `None` from `bsdf_from_record`).
+/// alphas; Dielectric `eta`, alphas; CoatedDiffuse `a` = reflectance, `b` =
+/// albedo, `eta`, alphas and the layer fields; Principled `a` = base colour,
+/// `b` = (metallic, roughness, transmission), `eta`, `alpha_x` = specular,
+/// `alpha_y` = specular tint, `p` = (sheen, sheen tint, clearcoat, clearcoat
+/// gloss). `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
+/// `bsdf_from_record`).
 struct Bsdf {
     unsigned int kind;
     float3 a, b;
     float eta, alpha_x, alpha_y;
+    // Coated diffuse only (`layered::CoatedDiffuse`).
+    float thickness, g;
+    unsigned int max_depth, n_samples;
+    // Principled only (`principled::Principled`).
+    float4 p;
 };
 
 /// Mirrors `bsdf::BsdfSample`.
@@ -259,6 +282,11 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     b.eta = 0.0f;
     b.alpha_x = 0.0f;
     b.alpha_y = 0.0f;
+    b.thickness = 0.0f;
+    b.g = 0.0f;
+    b.max_depth = 0u;
+    b.n_samples = 0u;
+    b.p = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     if (r.material == MATERIAL_DIFFUSE) {
         b.a = load_f16x3(&r.coeffs[0]);
     } else if (r.material == MATERIAL_CONDUCTOR) {
@@ -275,6 +303,26 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.b = load_f16x3(&r.coeffs[3]);
     } else if (r.material == MATERIAL_THIN_DIELECTRIC) {
         b.eta = f16_to_f32(r.coeffs[0]);
+    } else if (ATOLL_WITH_COATED && r.material == MATERIAL_COATED_DIFFUSE) {
+        // Layout: `MaterialKind::CoatedDiffuse`.
+        b.a = load_f16x3(&r.coeffs[0]);
+        b.alpha_x = f16_to_f32(r.coeffs[3]);
+        b.alpha_y = f16_to_f32(r.coeffs[4]);
+        b.eta = f16_to_f32(r.coeffs[5]);
+        b.thickness = f16_to_f32(r.coeffs[6]);
+        b.b = load_f16x3(&r.coeffs[7]);
+        b.g = f16_to_f32(r.coeffs[10]);
+        b.max_depth = (unsigned int)f16_to_f32(r.coeffs[11]);
+        b.n_samples = (unsigned int)f16_to_f32(r.coeffs[12]);
+    } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
+        // Layout: `MaterialKind::Principled`.
+        b.a = load_f16x3(&r.coeffs[0]);
+        b.b = make_float3(f16_to_f32(r.coeffs[3]), f16_to_f32(r.coeffs[4]), f16_to_f32(r.coeffs[11]));
+        b.alpha_x = f16_to_f32(r.coeffs[5]);
+        b.alpha_y = f16_to_f32(r.coeffs[6]);
+        b.p = make_float4(f16_to_f32(r.coeffs[7]), f16_to_f32(r.coeffs[8]), f16_to_f32(r.coeffs[9]),
+                          f16_to_f32(r.coeffs[10]));
+        b.eta = f16_to_f32(r.coeffs[12]);
     } else {
         b.kind = MATERIAL_NONE;
     }
@@ -334,6 +382,25 @@ __device__ __forceinline__ bool dielectric_is_specular(float eta, TrowbridgeReit
     return eta == 1.0f || tr_effectively_smooth(mf);
 }
 
+/// Mirror dielectric.rs's `Mode` (pbrt's `TransportMode`).
+inline constexpr int MODE_RADIANCE = 0;
+inline constexpr int MODE_IMPORTANCE = 1;
+/// Mirror dielectric.rs's `Lobes` (pbrt's `BxDFReflTransFlags`).
+inline constexpr int LOBES_ALL = 0;
+inline constexpr int LOBES_REFLECTION = 1;
+inline constexpr int LOBES_TRANSMISSION = 2;
+
+/// Mirrors `Lobes::weights`: the Fresnel weights with the excluded lobe's zeroed.
+__device__ __forceinline__ void dielectric_lobe_weights(int lobes, float r, float t, float* pr, float* pt) {
+    *pr = lobes == LOBES_TRANSMISSION ? 0.0f : r;
+    *pt = lobes == LOBES_REFLECTION ? 0.0f : t;
+}
+
+/// Mirrors dielectric.rs's `radiance_scaled`.
+__device__ __forceinline__ float dielectric_radiance_scaled(float f, float etap, int mode) {
+    return mode == MODE_RADIANCE ? f / (etap * etap) : f;
+}
+
 /// Mirrors dielectric.rs's `half_vector`; false for `None`.
 __device__ __forceinline__ bool dielectric_half_vector(float eta, float3 wo, float3 wi, float3* wm_out,
                                                        float* etap_out, bool* reflect_out) {
@@ -351,8 +418,8 @@ __device__ __forceinline__ bool dielectric_half_vector(float eta, float3 wo, flo
     return true;
 }
 
-/// Mirrors `dielectric::eval` (radiance mode).
-__device__ __forceinline__ float3 dielectric_eval(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+/// Mirrors `dielectric::eval_with`.
+__device__ __forceinline__ float3 dielectric_eval_with(float eta, TrowbridgeReitz mf, float3 wo, float3 wi, int mode) {
     if (dielectric_is_specular(eta, mf)) return zero3();
     float3 wm;
     float etap;
@@ -367,34 +434,48 @@ __device__ __forceinline__ float3 dielectric_eval(float eta, TrowbridgeReitz mf,
         const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
         const float denom = sq * sq * cos_i * cos_o;
         const float ft = tr_d(mf, wm) * (1.0f - fr) * tr_g(mf, wo, wi) * fabsf(dot3(wi, wm) * dot3(wo, wm) / denom);
-        f = ft / (etap * etap);
+        f = dielectric_radiance_scaled(ft, etap, mode);
     }
     return make_float3(f, f, f);
 }
 
-/// Mirrors `dielectric::pdf`.
-__device__ __forceinline__ float dielectric_pdf(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+/// Mirrors `dielectric::eval` (radiance mode).
+__device__ __forceinline__ float3 dielectric_eval(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+    return dielectric_eval_with(eta, mf, wo, wi, MODE_RADIANCE);
+}
+
+/// Mirrors `dielectric::pdf_with`.
+__device__ __forceinline__ float dielectric_pdf_with(float eta, TrowbridgeReitz mf, float3 wo, float3 wi, int lobes) {
     if (dielectric_is_specular(eta, mf)) return 0.0f;
     float3 wm;
     float etap;
     bool reflect;
     if (!dielectric_half_vector(eta, wo, wi, &wm, &etap, &reflect)) return 0.0f;
     const float r = fr_dielectric(dot3(wo, wm), eta);
-    const float t = 1.0f - r;
-    if (reflect) return tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * r / (r + t);
+    float pr, pt;
+    dielectric_lobe_weights(lobes, r, 1.0f - r, &pr, &pt);
+    if (pr == 0.0f && pt == 0.0f) return 0.0f;
+    if (reflect) return tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * pr / (pr + pt);
     // Jacobian of the generalised half vector with respect to wi.
     const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
     const float denom = sq * sq;
     const float dwm_dwi = fabsf(dot3(wi, wm)) / denom;
-    return tr_pdf(mf, wo, wm) * dwm_dwi * t / (r + t);
+    return tr_pdf(mf, wo, wm) * dwm_dwi * pt / (pr + pt);
 }
 
-/// Mirrors `dielectric::sample`; false for `None`.
-__device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf, float3 wo, float uc, float2 u,
-                                                  BsdfSample* out) {
+/// Mirrors `dielectric::pdf`.
+__device__ __forceinline__ float dielectric_pdf(float eta, TrowbridgeReitz mf, float3 wo, float3 wi) {
+    return dielectric_pdf_with(eta, mf, wo, wi, LOBES_ALL);
+}
+
+/// Mirrors `dielectric::sample_with`; false for `None`.
+__device__ __forceinline__ bool dielectric_sample_with(float eta, TrowbridgeReitz mf, float3 wo, float uc, float2 u,
+                                                       int mode, int lobes, BsdfSample* out) {
     if (wo.z == 0.0f) return false;
     if (eta == 1.0f) {
-        // Index-matched: the surface is invisible, light passes straight on.
+        // Index-matched: the surface is invisible, light passes straight on
+        // (pbrt's R = 0, T = 1).
+        if (lobes == LOBES_REFLECTION) return false;
         const float3 wi = -wo;
         const float v = 1.0f / fabsf(wi.z);
         *out = make_bsdf_sample(make_float3(v, v, v), wi, 1.0f, 1.0f, true, true);
@@ -403,30 +484,35 @@ __device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf,
     if (tr_effectively_smooth(mf)) {
         const float r = fr_dielectric(wo.z, eta);
         const float t = 1.0f - r;
-        const float pr = r / (r + t);
-        if (uc < pr) {
+        float pr, pt;
+        dielectric_lobe_weights(lobes, r, t, &pr, &pt);
+        if (pr == 0.0f && pt == 0.0f) return false;
+        if (uc < pr / (pr + pt)) {
             const float3 wi = make_float3(-wo.x, -wo.y, wo.z);
             const float v = r / fabsf(wi.z);
-            *out = make_bsdf_sample(make_float3(v, v, v), wi, pr, 1.0f, true, false);
+            *out = make_bsdf_sample(make_float3(v, v, v), wi, pr / (pr + pt), 1.0f, true, false);
             return true;
         }
         float3 wi;
         float etap;
         if (!refract3(wo, make_float3(0.0f, 0.0f, 1.0f), eta, &wi, &etap)) return false;
         if (wi.z == 0.0f) return false;
-        const float v = t / fabsf(wi.z) / (etap * etap);
-        *out = make_bsdf_sample(make_float3(v, v, v), wi, t / (r + t), etap, true, true);
+        const float v = dielectric_radiance_scaled(t / fabsf(wi.z), etap, mode);
+        *out = make_bsdf_sample(make_float3(v, v, v), wi, pt / (pr + pt), etap, true, true);
         return true;
     }
 
     const float3 wm = tr_sample_wm(mf, wo, u);
     const float r = fr_dielectric(dot3(wo, wm), eta);
     const float t = 1.0f - r;
-    const float pr = r / (r + t);
-    if (uc < pr) {
+    float pr, pt;
+    dielectric_lobe_weights(lobes, r, t, &pr, &pt);
+    if (pr == 0.0f && pt == 0.0f) return false;
+    const float p_reflect = pr / (pr + pt);
+    if (uc < p_reflect) {
         const float3 wi = reflect3(wo, wm);
         if (!same_hemisphere(wo, wi)) return false;
-        const float pdf = tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * pr;
+        const float pdf = tr_pdf(mf, wo, wm) / (4.0f * fabsf(dot3(wo, wm))) * p_reflect;
         const float f = tr_d(mf, wm) * tr_g(mf, wo, wi) * r / fabsf(4.0f * wi.z * wo.z);
         *out = make_bsdf_sample(make_float3(f, f, f), wi, pdf, 1.0f, false, false);
         return true;
@@ -438,12 +524,18 @@ __device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf,
     const float sq = dot3(wi, wm) + dot3(wo, wm) / etap;
     const float denom = sq * sq;
     const float dwm_dwi = fabsf(dot3(wi, wm)) / denom;
-    const float pdf = tr_pdf(mf, wo, wm) * dwm_dwi * (t / (r + t));
+    const float pdf = tr_pdf(mf, wo, wm) * dwm_dwi * (pt / (pr + pt));
     const float ft =
         t * tr_d(mf, wm) * tr_g(mf, wo, wi) * fabsf(dot3(wi, wm) * dot3(wo, wm) / (wi.z * wo.z * denom));
-    const float f = ft / (etap * etap);
+    const float f = dielectric_radiance_scaled(ft, etap, mode);
     *out = make_bsdf_sample(make_float3(f, f, f), wi, pdf, etap, false, true);
     return true;
+}
+
+/// Mirrors `dielectric::sample`; false for `None`.
+__device__ __forceinline__ bool dielectric_sample(float eta, TrowbridgeReitz mf, float3 wo, float uc, float2 u,
+                                                  BsdfSample* out) {
+    return dielectric_sample_with(eta, mf, wo, uc, u, MODE_RADIANCE, LOBES_ALL, out);
 }
 
 // --- diffuse transmission and thin dielectric (bsdf/thin.rs) ---
@@ -502,6 +594,86 @@ __device__ __forceinline__ bool thin_dielectric_sample(float eta, float3 wo, flo
     return true;
 }
 
+// --- Lambertian reflection (bsdf.rs `Bsdf::Diffuse`) ---
+
+/// Mirrors `Bsdf::sample`'s diffuse arm: cosine-weighted on wo's side (pbrt
+/// flips z for wo below).
+__device__ __forceinline__ BsdfSample diffuse_sample(float3 r, float3 wo, float2 u) {
+    float3 wi = sample_cosine_hemisphere(u);
+    if (wo.z < 0.0f) wi.z = -wi.z;
+    const float pdf = cosine_hemisphere_pdf(fabsf(wi.z));
+    return make_bsdf_sample(r * FRAC_1_PI, wi, pdf, 1.0f, false, false);
+}
+
+// --- coated diffuse (bsdf/layered.rs, in layered.cuh) ---
+
+/// Mirrors `layered::CoatedDiffuse`: the `Bsdf` fields of a coated diffuse
+/// kind, passed by value to the layered functions.
+struct CoatedDiffuse {
+    float3 reflectance, albedo;
+    float eta, alpha_x, alpha_y, thickness, g;
+    unsigned int max_depth, n_samples;
+};
+
+__device__ __forceinline__ CoatedDiffuse coated_diffuse_of(const Bsdf& b) {
+    CoatedDiffuse c;
+    c.reflectance = b.a;
+    c.albedo = b.b;
+    c.eta = b.eta;
+    c.alpha_x = b.alpha_x;
+    c.alpha_y = b.alpha_y;
+    c.thickness = b.thickness;
+    c.g = b.g;
+    c.max_depth = b.max_depth;
+    c.n_samples = b.n_samples;
+    return c;
+}
+
+// Random walks with many live values: kept out of line (layered.cuh) so the
+// shade kernel's other materials keep their register budget.
+__device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, float3 wi);
+__device__ __noinline__ float coated_diffuse_pdf(CoatedDiffuse c, float3 wo, float3 wi);
+__device__ __noinline__ bool coated_diffuse_sample(CoatedDiffuse c, float3 wo, float uc, float2 u, BsdfSample* out);
+
+/// Mirrors `CoatedDiffuse::is_delta`.
+__device__ __forceinline__ bool coated_diffuse_is_delta(const Bsdf& b) {
+    return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y)) && is_zero3(b.a) && is_zero3(b.b);
+}
+
+// --- principled (bsdf/principled.rs, in principled.cuh) ---
+
+/// Mirrors `principled::Principled`: the `Bsdf` fields of a principled
+/// kind, passed by value to the principled functions.
+struct Principled {
+    float3 base_color;
+    float metallic, roughness, specular, specular_tint, sheen, sheen_tint, clearcoat, clearcoat_gloss, transmission,
+        eta;
+};
+
+__device__ __forceinline__ Principled principled_of(const Bsdf& b) {
+    Principled p;
+    p.base_color = b.a;
+    p.metallic = b.b.x;
+    p.roughness = b.b.y;
+    p.transmission = b.b.z;
+    p.specular = b.alpha_x;
+    p.specular_tint = b.alpha_y;
+    p.sheen = b.p.x;
+    p.sheen_tint = b.p.y;
+    p.clearcoat = b.p.z;
+    p.clearcoat_gloss = b.p.w;
+    p.eta = b.eta;
+    return p;
+}
+
+// Four lobes with their own weights and Fresnel terms: kept out of line
+// (principled.cuh) so the shade kernel's other materials keep their
+// register budget.
+__device__ __noinline__ float3 principled_eval(Principled p, float3 wo, float3 wi);
+__device__ __noinline__ float principled_pdf(Principled p, float3 wo, float3 wi);
+__device__ __noinline__ bool principled_sample(Principled p, float3 wo, float uc, float2 u, BsdfSample* out);
+__device__ __noinline__ bool principled_is_delta(Principled p);
+
 // --- dispatch (bsdf.rs `impl Bsdf`) ---
 
 /// Mirrors `Bsdf::eval`. `b.kind` must not be `MATERIAL_NONE`.
@@ -510,6 +682,8 @@ __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi)
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_eval(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return (same_hemisphere(wo, wi) ? b.a : b.b) * FRAC_1_PI;
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return zero3();
+    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_eval(coated_diffuse_of(b), wo, wi);
+    if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_eval(principled_of(b), wo, wi);
     return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -519,6 +693,8 @@ __device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_pdf(trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return diffuse_transmission_pdf(b.a, b.b, wo, wi);
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return 0.0f;
+    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_pdf(coated_diffuse_of(b), wo, wi);
+    if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_pdf(principled_of(b), wo, wi);
     return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -528,17 +704,17 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
     if (wo.z == 0.0f) return false;
     BsdfSample s;
     if (b.kind == MATERIAL_DIFFUSE) {
-        // Cosine-weighted on wo's side (pbrt flips z for wo below).
-        float3 wi = sample_cosine_hemisphere(u);
-        if (wo.z < 0.0f) wi.z = -wi.z;
-        const float pdf = cosine_hemisphere_pdf(fabsf(wi.z));
-        s = make_bsdf_sample(b.a * FRAC_1_PI, wi, pdf, 1.0f, false, false);
+        s = diffuse_sample(b.a, wo, u);
     } else if (b.kind == MATERIAL_CONDUCTOR) {
         if (!conductor_sample(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, u, &s)) return false;
     } else if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) {
         if (!diffuse_transmission_sample(b.a, b.b, wo, uc, u, &s)) return false;
     } else if (b.kind == MATERIAL_THIN_DIELECTRIC) {
         if (!thin_dielectric_sample(b.eta, wo, uc, &s)) return false;
+    } else if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) {
+        if (!coated_diffuse_sample(coated_diffuse_of(b), wo, uc, u, &s)) return false;
+    } else if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) {
+        if (!principled_sample(principled_of(b), wo, uc, u, &s)) return false;
     } else {
         if (!dielectric_sample(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, uc, u, &s)) return false;
     }
@@ -556,5 +732,16 @@ __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
     if (b.kind == MATERIAL_CONDUCTOR) return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y));
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return false;
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return true;
+    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_is_delta(b);
+    if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_is_delta(principled_of(b));
     return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
 }
+
+/// Mirrors `Bsdf::sampled_pdf_is_proportional`: MIS at the next vertex must
+/// use `bsdf_pdf`, not the sample's density.
+__device__ __forceinline__ bool bsdf_sampled_pdf_is_proportional(const Bsdf& b) {
+    return ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE;
+}
+
+#include "layered.cuh"
+#include "principled.cuh"

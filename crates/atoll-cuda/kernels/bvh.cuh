@@ -12,6 +12,8 @@
 // another the TLAS.
 #pragma once
 
+#include "texture.cuh"
+
 /// Box far distances are scaled by 1 + 2 gamma(3) (pbrt's robust slab test,
 /// Ize 2013) so that rounding never culls a box the ray touches.
 #define BOX_ROBUST_SCALE 1.0000004f
@@ -239,6 +241,10 @@ struct SceneBvhView {
     const unsigned int* tri_ids;
     const TlasInstance* instances;
     int tlas_root;
+    /// Frame and scene tables for alpha masks; `alpha_params` is null
+    /// unless some mesh has alpha (then candidate hits run `alpha_keeps`).
+    const FrameParams* alpha_params;
+    const SceneView* alpha_scene;
 };
 
 /// The result of one traversal: `tri` is the leaf-order triangle position

@@ -45,6 +45,16 @@ struct __align__(16) HitRef {
     unsigned int triangle;
 };
 
+/// Mirror of `layout::GpuImage` (32 bytes): texels from `texel_offset`
+/// (u32 words) in `texels`, row 0 at the top; `format` an IMAGE_* constant.
+struct GpuImage {
+    unsigned long long texel_offset;
+    unsigned int width;
+    unsigned int height;
+    unsigned int format;
+    unsigned int pad[3];
+};
+
 /// Mirrors of `work::GpuWave`, `work::WorkStatus` and `work::WorkFifo`
 /// (wave-front merging; see src/work.rs). The array lengths are
 /// WORK_SLOTS and WORK_CLAIMS, pinned by the size asserts below.
@@ -75,6 +85,10 @@ inline constexpr unsigned int HIT_NONE = 4294967295u;
 inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;
+inline constexpr unsigned int MESH_HAS_UVS = 8u;
+inline constexpr unsigned int IMAGE_RGBA8 = 0u;
+inline constexpr unsigned int IMAGE_RGBA8_SRGB = 1u;
+inline constexpr unsigned int IMAGE_RGBA_F32 = 2u;
 static_assert(sizeof(GpuMesh) == 32, "GpuMesh: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMesh, first_triangle) == 0 && sizeof(GpuMesh::first_triangle) == 4, "GpuMesh.first_triangle: offset or size differs from Rust");
@@ -108,6 +122,14 @@ static_assert(__builtin_offsetof(HitRef, u) == 0 && sizeof(HitRef::u) == 4, "Hit
 static_assert(__builtin_offsetof(HitRef, v) == 4 && sizeof(HitRef::v) == 4, "HitRef.v: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, instance) == 8 && sizeof(HitRef::instance) == 4, "HitRef.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, triangle) == 12 && sizeof(HitRef::triangle) == 4, "HitRef.triangle: offset or size differs from Rust");
+#endif
+static_assert(sizeof(GpuImage) == 32, "GpuImage: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuImage, texel_offset) == 0 && sizeof(GpuImage::texel_offset) == 8, "GpuImage.texel_offset: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuImage, width) == 8 && sizeof(GpuImage::width) == 4, "GpuImage.width: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuImage, height) == 12 && sizeof(GpuImage::height) == 4, "GpuImage.height: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuImage, format) == 16 && sizeof(GpuImage::format) == 4, "GpuImage.format: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuImage, pad) == 20 && sizeof(GpuImage::pad) == 12, "GpuImage.pad: offset or size differs from Rust");
 #endif
 inline constexpr unsigned int WORK_SLOTS = 64u;
 inline constexpr unsigned int WORK_CLAIMS = 8u;

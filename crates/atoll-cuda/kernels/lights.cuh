@@ -9,6 +9,15 @@
 #include "record.cuh"
 #include "sampling.cuh"
 #include "environment.cuh"
+#include "texture.cuh"
+
+// Whether emitters may have emission textures: always, unless the device
+// compiles its shade kernel for a frame without any (`-DATOLL_WITH_EMISSION_TEXTURES=0`,
+// src/device.rs `shade_features`): the texture call in light sampling costs
+// the shade kernel about 25 registers.
+#ifndef ATOLL_WITH_EMISSION_TEXTURES
+#define ATOLL_WITH_EMISSION_TEXTURES 1
+#endif
 
 /// Mirrors `lights::LightSample`.
 struct LightSample {
@@ -139,18 +148,24 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
     out->wi = wi;
     out->distance = distance;
     out->radiance = load3(e.radiance);
+#if ATOLL_WITH_EMISSION_TEXTURES
+    if (e.table != NO_EMISSION_TEXTURE) out->radiance = out->radiance * emission_texture_value(p, e.table, b);
+#endif
     out->pdf = pmf * dist2 / (fabsf(cos_light) * e.area);
     out->delta = false;
     return true;
 }
 
 /// Mirrors `LightSet::emitted`: radiance leaving emissive triangle `index`
-/// towards `w` (pointing away from the surface).
-__device__ __forceinline__ float3 light_emitted(const FrameParams& p, unsigned int index, float3 w) {
+/// towards `w` (pointing away from the surface), for a hit record whose
+/// `emission_scale` is given.
+__device__ __forceinline__ float3 light_emitted(const FrameParams& p, unsigned int index, float3 w,
+                                                unsigned int emission_scale) {
     const GpuEmitter& e = p.emitters[index];
     if (e.kind != EMITTER_TRIANGLE) return zero3();
-    if (e.two_sided || dot3(load3(e.normal), w) > 0.0f) return load3(e.radiance);
-    return zero3();
+    if (!(e.two_sided || dot3(load3(e.normal), w) > 0.0f)) return zero3();
+    if (e.table != NO_EMISSION_TEXTURE) return load3(e.radiance) * unpack_rgb9e5(emission_scale);
+    return load3(e.radiance);
 }
 
 /// Mirrors `LightSet::pdf_triangle`: the light-sampling density of the point

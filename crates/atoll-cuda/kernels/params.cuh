@@ -29,6 +29,13 @@ struct __align__(16) GpuMaterial {
     unsigned int pad[3];
 };
 
+/// Mirror of `params::GpuEmissionTexture` (32 bytes): a triangle
+/// emitter's corner uvs and its program in `texture_ops`.
+struct GpuEmissionTexture {
+    float uv[6];
+    unsigned int start, len;
+};
+
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
 /// every device (`atoll_render::FrameContext` flattened).
 struct FrameParams {
@@ -64,6 +71,17 @@ struct FrameParams {
     const GpuMaterial* materials;
     /// The environment emitters' tables (see environment.cuh).
     const float* environment_tables;
+    /// Texture programs (`TexOp`s, texture.cuh); materials name theirs.
+    const void* texture_ops;
+    /// `AlphaProgram` per scene mesh; null when no mesh has alpha.
+    const void* mesh_alpha;
+    /// sRGB byte to linear float.
+    const float* srgb_to_linear;
+    /// `GpuEmissionTexture` per textured triangle emitter (`GpuEmitter::table`).
+    const void* emission_textures;
+    /// The scene's texture images and their texels (texture.cuh).
+    const GpuImage* images;
+    const unsigned int* texels;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -75,6 +93,8 @@ struct SceneView {
     const unsigned int* triangle_mesh;
     const GpuMesh* meshes;
     const GpuInstance* instances;
+    /// u, v per vertex (meshes with MESH_HAS_UVS).
+    const float* uvs;
     unsigned int triangle_count;
     unsigned int mesh_count;
     unsigned int instance_count;
@@ -107,7 +127,14 @@ static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial
 static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 192, "FrameParams: size differs from Rust");
+inline constexpr unsigned int NO_EMISSION_TEXTURE = 4294967295u;
+static_assert(sizeof(GpuEmissionTexture) == 32, "GpuEmissionTexture: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmissionTexture::uv) == 24, "GpuEmissionTexture.uv: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
+#endif
+static_assert(sizeof(FrameParams) == 240, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -134,8 +161,14 @@ static_assert(__builtin_offsetof(FrameParams, triangle_keys) == 160 && sizeof(Fr
 static_assert(__builtin_offsetof(FrameParams, triangle_bases) == 168 && sizeof(FrameParams::triangle_bases) == 8, "FrameParams.triangle_bases: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, materials) == 176 && sizeof(FrameParams::materials) == 8, "FrameParams.materials: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, environment_tables) == 184 && sizeof(FrameParams::environment_tables) == 8, "FrameParams.environment_tables: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, texture_ops) == 192 && sizeof(FrameParams::texture_ops) == 8, "FrameParams.texture_ops: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, mesh_alpha) == 200 && sizeof(FrameParams::mesh_alpha) == 8, "FrameParams.mesh_alpha: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, srgb_to_linear) == 208 && sizeof(FrameParams::srgb_to_linear) == 8, "FrameParams.srgb_to_linear: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, emission_textures) == 216 && sizeof(FrameParams::emission_textures) == 8, "FrameParams.emission_textures: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, images) == 224 && sizeof(FrameParams::images) == 8, "FrameParams.images: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, texels) == 232 && sizeof(FrameParams::texels) == 8, "FrameParams.texels: offset or size differs from Rust");
 #endif
-static_assert(sizeof(SceneView) == 64, "SceneView: size differs from Rust");
+static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(SceneView, vertices) == 0 && sizeof(SceneView::vertices) == 8, "SceneView.vertices: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, normals) == 8 && sizeof(SceneView::normals) == 8, "SceneView.normals: offset or size differs from Rust");
@@ -143,9 +176,10 @@ static_assert(__builtin_offsetof(SceneView, triangles) == 16 && sizeof(SceneView
 static_assert(__builtin_offsetof(SceneView, triangle_mesh) == 24 && sizeof(SceneView::triangle_mesh) == 8, "SceneView.triangle_mesh: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, meshes) == 32 && sizeof(SceneView::meshes) == 8, "SceneView.meshes: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, instances) == 40 && sizeof(SceneView::instances) == 8, "SceneView.instances: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, triangle_count) == 48 && sizeof(SceneView::triangle_count) == 4, "SceneView.triangle_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, mesh_count) == 52 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, instance_count) == 56 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, vertex_count) == 60 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, uvs) == 48 && sizeof(SceneView::uvs) == 8, "SceneView.uvs: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, triangle_count) == 56 && sizeof(SceneView::triangle_count) == 4, "SceneView.triangle_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, mesh_count) == 60 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, instance_count) == 64 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, vertex_count) == 68 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
 #endif
 // END GENERATED params

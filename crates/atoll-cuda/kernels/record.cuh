@@ -21,7 +21,7 @@ struct __align__(16) RayRecord {
     unsigned int light;
     unsigned int instance;
     float position[3];
-    unsigned int reserved;
+    unsigned int emission_scale;  // RGB9E5 texture value of a textured emitter hit, else 0
     unsigned short geometric_normal[3];
     unsigned short material;
     unsigned short shading_normal[3];
@@ -44,6 +44,8 @@ inline constexpr unsigned int MATERIAL_DIELECTRIC = 3u;
 inline constexpr unsigned int MATERIAL_DIFFUSE_TRANSMISSION = 4u;
 inline constexpr unsigned int MATERIAL_THIN_DIELECTRIC = 5u;
 inline constexpr unsigned int MATERIAL_MIX = 6u;
+inline constexpr unsigned int MATERIAL_COATED_DIFFUSE = 7u;
+inline constexpr unsigned int MATERIAL_PRINCIPLED = 8u;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");
@@ -58,7 +60,7 @@ static_assert(__builtin_offsetof(RayRecord, flags) == 54 && sizeof(RayRecord::fl
 static_assert(__builtin_offsetof(RayRecord, light) == 56 && sizeof(RayRecord::light) == 4, "RayRecord.light: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, instance) == 60 && sizeof(RayRecord::instance) == 4, "RayRecord.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, position) == 64 && sizeof(RayRecord::position) == 12, "RayRecord.position: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, reserved) == 76 && sizeof(RayRecord::reserved) == 4, "RayRecord.reserved: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, emission_scale) == 76 && sizeof(RayRecord::emission_scale) == 4, "RayRecord.emission_scale: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, geometric_normal) == 80 && sizeof(RayRecord::geometric_normal) == 6, "RayRecord.geometric_normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, material) == 86 && sizeof(RayRecord::material) == 2, "RayRecord.material: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, shading_normal) == 88 && sizeof(RayRecord::shading_normal) == 6, "RayRecord.shading_normal: offset or size differs from Rust");

@@ -66,3 +66,19 @@ __device__ __forceinline__ float power_heuristic(float f_pdf, float g_pdf) {
     if (f2 + g2 == 0.0f) return 0.0f;
     return f2 / (f2 + g2);
 }
+
+/// Mirrors `sampling::spherical_direction`.
+__device__ __forceinline__ float3 spherical_direction(float sin_theta, float cos_theta, float phi) {
+    const float s = clampf(sin_theta, -1.0f, 1.0f);
+    return make_float3(s * cosf(phi), s * sinf(phi), clampf(cos_theta, -1.0f, 1.0f));
+}
+
+/// Mirrors `sampling::sample_exponential`.
+__device__ __forceinline__ float sample_exponential(float u, float a) { return -logf(1.0f - u) / a; }
+
+/// Mirrors `sampling::henyey_greenstein`.
+__device__ __forceinline__ float henyey_greenstein(float cos_theta, float g) {
+    g = clampf(g, -0.99f, 0.99f);
+    const float denom = 1.0f + g * g + 2.0f * g * cos_theta;
+    return (1.0f / (4.0f * PI)) * (1.0f - g * g) / (denom * sqrtf(fmaxf(denom, 0.0f)));
+}

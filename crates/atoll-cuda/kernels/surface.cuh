@@ -9,6 +9,15 @@
 #include "params.cuh"
 #include "lights.cuh"
 #include "rng.cuh"
+#include "texture.cuh"
+
+// Textured material parameters and emission textures at hits: compiled in
+// unless the trace module is specialised for a frame without textures
+// (`-DATOLL_WITH_TEXTURES=0`, src/trace.rs `TraceFeatures`): the texture
+// calls cost the closest-hit kernels 26 registers (70 → 96).
+#ifndef ATOLL_WITH_TEXTURES
+#define ATOLL_WITH_TEXTURES 1
+#endif
 
 /// Fills the hit fields of `record` for `hit` (which found something).
 /// `t_max` was already shrunk by traversal. Not inlined: traversal kernels
@@ -72,6 +81,20 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
             meta = mw[2];
         }
     }
+    // Textured parameters (texture.cuh): a non-mix material's program
+    // range is in meta.y (start) and meta.z (length).
+    if (ATOLL_WITH_TEXTURES && meta.z != 0u) {
+        // uint4 storage keeps the 16-byte alignment the word copies need.
+        uint4 cw[2] = {c0, c1};
+        unsigned short* coeffs = reinterpret_cast<unsigned short*>(cw);
+        const float2 uv = hit_uv(s, mesh, i0, i1, i2, b1, b2);
+        ProgramRange range;
+        range.start = meta.y;
+        range.len = meta.z;
+        run_program(p, range, uv, coeffs);
+        c0 = cw[0];
+        c1 = cw[1];
+    }
     // The record's bytes [32, 128) are written as whole 16-byte words, three
     // full 32-byte sectors: field-by-field stores of the hit leave partial
     // sectors that the memory system must merge (or, with ECC, read first).
@@ -82,8 +105,13 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     w3.y |= (unsigned int)FLAG_HIT << 16;
     w3.z = light;
     w3.w = hit.instance;
+    // position, emission_scale (LightSet::emission_scale: textured emitters only)
+    const unsigned int emission_scale =
+        ATOLL_WITH_TEXTURES && light != NO_LIGHT && p.emitters[light].table != NO_EMISSION_TEXTURE
+            ? pack_rgb9e5(emission_texture_value(p, p.emitters[light].table, make_float3(b0, b1, b2)))
+            : 0u;
     const uint4 w4 = make_uint4(__float_as_uint(position.x), __float_as_uint(position.y),
-                                __float_as_uint(position.z), 0u);  // position, reserved
+                                __float_as_uint(position.z), emission_scale);
     const unsigned int ng0 = f32_to_f16(ng.x), ng1 = f32_to_f16(ng.y), ng2 = f32_to_f16(ng.z);
     const unsigned int ns0 = f32_to_f16(ns.x), ns1 = f32_to_f16(ns.y), ns2 = f32_to_f16(ns.z);
     // geometric_normal, material, shading_normal, reserved2

@@ -16,6 +16,14 @@
 //   are written with warp-uniform trip counts.
 #pragma once
 
+// Alpha masks tested during traversal: only in the trace module compiled
+// for scenes with alpha (`-DATOLL_TRACE_ALPHA=1`, src/trace.rs
+// `TraceFeatures`): the call inside the triangle loop costs the kernels
+// registers and stack even where it is never taken (trace_any: 61 → 96).
+#ifndef ATOLL_TRACE_ALPHA
+#define ATOLL_TRACE_ALPHA 0
+#endif
+
 /// The ray of instance record `s` in object space (`world` unchanged for an
 /// identity instance, kept in `ray`); returns the record's BLAS root.
 __device__ __forceinline__ int instance_ray(const SceneBvhView& v, unsigned int s, const TraversalRay& world,
@@ -112,8 +120,13 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
     for (unsigned int k = 0; k < count; ++k) {
         const TriRecord tri = load_tri(v.tris, first + k);
         float t, u, w;
-        const bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
-                                          : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
+        bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
+                                    : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
+#if ATOLL_TRACE_ALPHA
+        // Alpha masks (texture.cuh): a cut-out candidate is no hit.
+        if (hit && v.alpha_params)
+            hit = alpha_keeps(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, t, ray.o, ray.d);
+#endif
         if (hit) {
             h.t = t;
             h.u = u;

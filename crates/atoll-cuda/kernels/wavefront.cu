@@ -225,7 +225,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
 
     // Emission of the surface hit, MIS-weighted against light sampling.
     if (r.light != NO_LIGHT) {
-        const float3 le = light_emitted(params, r.light, -dir);
+        const float3 le = light_emitted(params, r.light, -dir, r.emission_scale);
         if (!is_zero3(le)) {
             const float w =
                 specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_triangle(params, r.light, dir, r.t_max));
@@ -284,7 +284,9 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     const float3 wi = normalize3(frame_from_local(frame, bs.wi));
     set_continuation(out, r, p, ng, wi);
     out.next_throughput = next_beta;
-    out.next_pdf = bs.pdf;
+    // A stochastic BSDF's sample density is only proportional to the real
+    // one; MIS at the next vertex needs its pdf (shade.rs, pbrt's pdfIsProportional).
+    out.next_pdf = bsdf_sampled_pdf_is_proportional(bsdf) && !bs.delta ? bsdf_pdf(bsdf, wo, bs.wi) : bs.pdf;
     out.next_depth = (unsigned short)(r.depth + 1);
     out.next_flags = bs.delta ? FLAG_SPECULAR : 0;
 }

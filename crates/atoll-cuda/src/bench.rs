@@ -215,6 +215,8 @@ fn time_batch(
             variant,
             None,
             None,
+            None,
+            crate::trace::TraceFeatures::default(),
         )?;
         end.record(&gpu.stream).map_err(event_err(gpu))?;
         let ms = start.elapsed_ms(&end).map_err(event_err(gpu))?;

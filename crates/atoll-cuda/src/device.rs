@@ -22,6 +22,7 @@ use std::time::Instant;
 
 use atoll_bvh::ScenePart;
 use atoll_render::device::{DeviceStats, PrepareStats};
+use atoll_render::record::MaterialKind;
 use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Wave};
 use atoll_scene::Scene;
 use cudarc::driver::{CudaFunction, CudaSlice, PushKernelArg};
@@ -32,7 +33,7 @@ use crate::gpu::{launch_1d, Gpu, Timer};
 use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::GpuScene;
-use crate::trace::{DeviceQueueLength, SurfaceTables};
+use crate::trace::{DeviceQueueLength, SurfaceTables, TraceFeatures};
 use crate::work::{WorkFeed, FEED_BYTES};
 use crate::{bvh, trace};
 
@@ -72,12 +73,29 @@ struct Kernels {
 }
 
 impl Kernels {
-    fn load(gpu: &Gpu) -> Result<Self, CudaError> {
+    fn load(gpu: &Gpu, frame: &FrameContext) -> Result<Self, CudaError> {
         Ok(Kernels {
-            shade: gpu.function(WAVEFRONT, "shade")?,
+            shade: gpu.function_with(WAVEFRONT, "shade", &shade_features(frame))?,
             resolve_shadows: gpu.function(WAVEFRONT, "resolve_shadows")?,
         })
     }
+}
+
+/// The `shade` kernel is specialised to the frame: material kinds no
+/// material has and emission textures when no emitter has one are compiled
+/// out (kernels/bsdf.cuh, lights.cuh `ATOLL_WITH_*`), so their registers do
+/// not lower every scene's occupancy (the Cornell box's shade kernel: 93
+/// registers instead of 164).
+fn shade_features(frame: &FrameContext) -> Vec<String> {
+    let has = |kind| frame.materials.iter().any(|m| m.kind == kind);
+    let emission_textures = frame.lights.emission_ops.is_empty().then_some("ATOLL_WITH_EMISSION_TEXTURES");
+    [("ATOLL_WITH_COATED", MaterialKind::CoatedDiffuse), ("ATOLL_WITH_PRINCIPLED", MaterialKind::Principled)]
+        .into_iter()
+        .filter(|&(_, kind)| !has(kind))
+        .map(|(name, _)| name)
+        .chain(emission_textures)
+        .map(|name| format!("-D{name}=0"))
+        .collect()
 }
 
 /// What `prepare` made resident.
@@ -89,6 +107,8 @@ struct Resident {
     /// One [`SceneView`] on the device (what `write_surface` reads).
     scene_view: CudaSlice<SceneView>,
     kernels: Kernels,
+    /// What the trace kernels are specialised for.
+    trace_features: TraceFeatures,
     queues: Queues,
     /// RGB f32 radiance sums per pixel.
     film: CudaSlice<f32>,
@@ -235,14 +255,15 @@ impl CudaDevice {
         let frame_bytes = queue_bytes(capacity) + FEED_BYTES + film_bytes + params_bytes;
 
         // Compile (or load from the cache) before the clock of the first wave starts.
-        let kernels = Kernels::load(&gpu)?;
+        let kernels = Kernels::load(&gpu, frame)?;
         let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
         let start = Instant::now();
         let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
         gpu.synchronize()?;
         let bvh_build_seconds = start.elapsed().as_secs_f64();
-        trace::load_default_kernels(&gpu, &bvh)?;
-        let params = FrameParamsHost::new(&gpu, frame)?;
+        let trace_features = TraceFeatures::of(frame);
+        trace::load_default_kernels(&gpu, &bvh, trace_features)?;
+        let params = FrameParamsHost::for_scene(&gpu, frame, Some(&gpu_scene))?;
         let view = [SceneView::of(&gpu_scene)];
         let scene_view =
             gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"))?;
@@ -272,6 +293,7 @@ impl CudaDevice {
             params,
             scene_view,
             kernels,
+            trace_features,
             queues,
             film,
             traced_paths,
@@ -308,6 +330,7 @@ impl CudaDevice {
             // Hit attributes are written by the traversal kernel itself (the
             // `surface` stage folded in): one pass over the records fewer.
             let surface = SurfaceTables { params: &r.params.device, scene: &r.scene_view };
+            let features = r.trace_features;
             trace::trace_closest_queued(
                 &gpu,
                 &r.scene,
@@ -317,6 +340,7 @@ impl CudaDevice {
                 &mut q.hits,
                 length,
                 surface,
+                features,
             )
         })
     }
@@ -362,7 +386,17 @@ impl CudaDevice {
             let q = &mut r.queues;
             let max = q.launch_len(Queue::Shadows);
             let length = DeviceQueueLength { length: &q.shadow_count, traced: &mut r.traced_shadows };
-            trace::trace_any_queued(&gpu, &r.scene, &r.bvh, &mut q.shadows, max, length)
+            let tables = SurfaceTables { params: &r.params.device, scene: &r.scene_view };
+            trace::trace_any_queued(
+                &gpu,
+                &r.scene,
+                &r.bvh,
+                &mut q.shadows,
+                max,
+                length,
+                tables,
+                r.trace_features,
+            )
         })
     }
 

@@ -125,11 +125,21 @@ impl Gpu {
     /// The module of kernel file `file`, compiled (or taken from the disk
     /// cache) and loaded on first use.
     pub fn module(&self, file: &str) -> Result<Arc<CudaModule>, CudaError> {
+        self.module_with(file, &[])
+    }
+
+    /// [`Gpu::module`] compiled with extra NVRTC options (`-DNAME=VALUE`
+    /// specialisations); one module per file and option list.
+    pub fn module_with(&self, file: &str, extra: &[String]) -> Result<Arc<CudaModule>, CudaError> {
+        let key =
+            std::iter::once(file.to_string()).chain(extra.iter().cloned()).collect::<Vec<_>>().join(" ");
         let mut modules = self.modules.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        if let Some(module) = modules.get(file) {
+        if let Some(module) = modules.get(&key) {
             return Ok(module.clone());
         }
-        let compiled = compile(file, &self.compile_options)?;
+        let mut options = self.compile_options.clone();
+        options.extra.extend(extra.iter().cloned());
+        let compiled = compile(file, &options)?;
         if !compiled.log.trim().is_empty() {
             tracing::debug!("{file}: NVRTC log:\n{}", compiled.log);
         }
@@ -141,13 +151,18 @@ impl Gpu {
             .ctx
             .load_module(image)
             .map_err(CudaError::driver(format!("{}: loading kernel module {file}", self.label())))?;
-        modules.insert(file.to_string(), module.clone());
+        modules.insert(key, module.clone());
         Ok(module)
     }
 
     /// Kernel `name` of kernel file `file` (an `extern "C" __global__` function).
     pub fn function(&self, file: &str, name: &str) -> Result<CudaFunction, CudaError> {
-        self.module(file)?
+        self.function_with(file, name, &[])
+    }
+
+    /// [`Gpu::function`] of the module compiled with `extra` options.
+    pub fn function_with(&self, file: &str, name: &str, extra: &[String]) -> Result<CudaFunction, CudaError> {
+        self.module_with(file, extra)?
             .load_function(name)
             .map_err(CudaError::driver(format!("{}: kernel {name} in {file}", self.label())))
     }

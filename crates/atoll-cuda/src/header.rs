@@ -16,14 +16,21 @@
 
 use std::fmt::Write;
 
+use crate::layout::field_layout;
+
 use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
 use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 
-use crate::layout::{mesh_flags, FieldLayout, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE};
-use crate::params::{emitter_kind, integrator_kind, FrameParams, GpuEmitter, GpuMaterial, SceneView};
+use crate::layout::{
+    image_format, mesh_flags, FieldLayout, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
+};
+use crate::params::{
+    emitter_kind, integrator_kind, FrameParams, GpuEmissionTexture, GpuEmitter, GpuMaterial, SceneView,
+    NO_EMISSION_TEXTURE,
+};
 use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
 /// How to regenerate, repeated in every marker line.
@@ -48,6 +55,8 @@ pub fn blocks() -> Vec<Block> {
         Block { file: "params.cuh", name: "params", generate: params_asserts },
         Block { file: "bvh.cuh", name: "bvh", generate: crate::bvh::layout::header_block },
         Block { file: "lbvh.cuh", name: "lbvh", generate: crate::bvh::layout::build_header_block },
+        Block { file: "texture.cuh", name: "texture", generate: texture_constants },
+        Block { file: "layered.cuh", name: "layered", generate: layered_constants },
     ]
 }
 
@@ -128,6 +137,8 @@ pub fn record_asserts() -> String {
         ("MATERIAL_DIFFUSE_TRANSMISSION", MaterialKind::DiffuseTransmission),
         ("MATERIAL_THIN_DIELECTRIC", MaterialKind::ThinDielectric),
         ("MATERIAL_MIX", MaterialKind::Mix),
+        ("MATERIAL_COATED_DIFFUSE", MaterialKind::CoatedDiffuse),
+        ("MATERIAL_PRINCIPLED", MaterialKind::Principled),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -158,6 +169,10 @@ pub fn layout_asserts() -> String {
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
         ("MESH_EMISSIVE", mesh_flags::EMISSIVE),
+        ("MESH_HAS_UVS", mesh_flags::HAS_UVS),
+        ("IMAGE_RGBA8", image_format::RGBA8),
+        ("IMAGE_RGBA8_SRGB", image_format::RGBA8_SRGB),
+        ("IMAGE_RGBA_F32", image_format::RGBA_F32),
     ] {
         s += &const_uint("unsigned int", name, value as u64);
     }
@@ -165,11 +180,64 @@ pub fn layout_asserts() -> String {
     s += &assert_struct::<GpuObject>("GpuObject", GpuObject::field_layout());
     s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
     s += &assert_struct::<HitRef>("HitRef", HitRef::field_layout());
+    s += &assert_struct::<GpuImage>("GpuImage", GpuImage::field_layout());
     s += &const_uint("unsigned int", "WORK_SLOTS", WORK_SLOTS as u64);
     s += &const_uint("unsigned int", "WORK_CLAIMS", WORK_CLAIMS as u64);
     s += &assert_struct::<GpuWave>("GpuWave", GpuWave::field_layout());
     s += &assert_struct::<WorkStatus>("WorkStatus", WorkStatus::field_layout());
     s + &assert_struct::<WorkFifo>("WorkFifo", WorkFifo::field_layout())
+}
+
+/// Texture program op codes, store modes, alpha modes and the asserts of
+/// the program structs (`atoll_render::texture`).
+pub fn texture_constants() -> String {
+    use atoll_render::texture::{alpha_mode, op, store, AlphaProgram, ProgramRange, TexOp, TEXTURE_STACK};
+    let mut s = String::new();
+    for (name, value) in [
+        ("TEXTURE_STACK", TEXTURE_STACK as u32),
+        ("TEX_CONSTANT", op::CONSTANT),
+        ("TEX_IMAGE", op::IMAGE),
+        ("TEX_CHECKERBOARD", op::CHECKERBOARD),
+        ("TEX_SCALE", op::SCALE),
+        ("TEX_MIX", op::MIX),
+        ("TEX_STORE", op::STORE),
+        ("STORE_RGB", store::RGB),
+        ("STORE_FLOAT", store::FLOAT),
+        ("STORE_ROUGHNESS", store::ROUGHNESS),
+        ("STORE_CONDUCTOR_REFLECTANCE", store::CONDUCTOR_REFLECTANCE),
+        ("ALPHA_NONE", alpha_mode::NONE),
+        ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
+        ("ALPHA_CUTOFF", alpha_mode::CUTOFF),
+        ("WRAP_REPEAT", atoll_scene::Wrap::Repeat as u32),
+        ("WRAP_CLAMP", atoll_scene::Wrap::Clamp as u32),
+        ("WRAP_BLACK", atoll_scene::Wrap::Black as u32),
+        ("WRAP_MIRROR", atoll_scene::Wrap::Mirror as u32),
+        ("CHANNEL_RGB", atoll_scene::Channel::Rgb as u32),
+        ("CHANNEL_AVERAGE", atoll_scene::Channel::Average as u32),
+        ("CHANNEL_ALPHA", atoll_scene::Channel::Alpha as u32),
+        ("CHANNEL_RED", atoll_scene::Channel::Red as u32),
+        ("CHANNEL_GREEN", atoll_scene::Channel::Green as u32),
+        ("CHANNEL_BLUE", atoll_scene::Channel::Blue as u32),
+    ] {
+        s += &const_uint("unsigned int", name, value as u64);
+    }
+    s += &assert_struct::<TexOp>("TexOp", field_layout!(TexOp { code, a, b, c, f }));
+    s += &assert_struct::<ProgramRange>("ProgramRange", field_layout!(ProgramRange { start, len }));
+    s + &assert_struct::<AlphaProgram>("AlphaProgram", field_layout!(AlphaProgram { program, mode, cutoff }))
+}
+
+/// The layered BSDF's random-stream tags, seed rounding and smallest layer
+/// thickness (`atoll_render::bsdf::layered`).
+pub fn layered_constants() -> String {
+    use atoll_render::bsdf::layered::{DIRECTION_SEED_DROP_BITS, TAG_EVAL, TAG_PDF, TAG_SAMPLE};
+    let mut s = const_float("FLT_MIN_POSITIVE", f32::MIN_POSITIVE);
+    s += &const_uint("unsigned int", "DIRECTION_SEED_DROP_BITS", DIRECTION_SEED_DROP_BITS as u64);
+    for (name, value) in
+        [("LAYERED_TAG_EVAL", TAG_EVAL), ("LAYERED_TAG_SAMPLE", TAG_SAMPLE), ("LAYERED_TAG_PDF", TAG_PDF)]
+    {
+        s += &const_uint("unsigned int", name, value as u64);
+    }
+    s
 }
 
 /// Emitter and integrator kinds and the asserts of the kernel parameters.
@@ -189,6 +257,8 @@ pub fn params_asserts() -> String {
     }
     s += &assert_struct::<GpuEmitter>("GpuEmitter", GpuEmitter::field_layout());
     s += &assert_struct::<GpuMaterial>("GpuMaterial", GpuMaterial::field_layout());
+    s += &const_uint("unsigned int", "NO_EMISSION_TEXTURE", NO_EMISSION_TEXTURE as u64);
+    s += &assert_struct::<GpuEmissionTexture>("GpuEmissionTexture", GpuEmissionTexture::field_layout());
     s += &assert_struct::<FrameParams>("FrameParams", FrameParams::field_layout());
     s + &assert_struct::<SceneView>("SceneView", SceneView::field_layout())
 }

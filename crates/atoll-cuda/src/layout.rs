@@ -32,6 +32,37 @@ pub mod mesh_flags {
     pub const FLIP_NORMALS: u32 = 1 << 1;
     /// The mesh emits (its triangles are lights).
     pub const EMISSIVE: u32 = 1 << 2;
+    /// The mesh has per-vertex texture coordinates in the `uvs` table.
+    pub const HAS_UVS: u32 = 1 << 3;
+}
+
+/// `GpuImage::format` values.
+pub mod image_format {
+    /// One u32 of RGBA bytes per texel, linear.
+    pub const RGBA8: u32 = 0;
+    /// One u32 of RGBA bytes per texel, colour channels sRGB-encoded.
+    pub const RGBA8_SRGB: u32 = 1;
+    /// Four f32 words (linear RGBA) per texel.
+    pub const RGBA_F32: u32 = 2;
+}
+
+/// One texture image in the `texels` table (32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuImage {
+    /// First u32 word of its texels, row 0 (the top) first.
+    pub texel_offset: u64,
+    pub width: u32,
+    pub height: u32,
+    /// [`image_format`].
+    pub format: u32,
+    pub pad: [u32; 3],
+}
+
+impl GpuImage {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuImage { texel_offset, width, height, format, pad })
+    }
 }
 
 /// One mesh of the uploaded scene (32 bytes).
@@ -164,7 +195,7 @@ impl GpuRecord {
     }
 }
 
-// SAFETY (all five): plain-old-data `#[repr(C)]`/transparent structs (Pod),
+// SAFETY (all six): plain-old-data `#[repr(C)]`/transparent structs (Pod),
 // so any bit pattern, including all zeros, is a valid value and they can be
 // copied to and from the device byte for byte.
 unsafe impl cudarc::driver::DeviceRepr for GpuRecord {}
@@ -175,6 +206,8 @@ unsafe impl cudarc::driver::DeviceRepr for GpuObject {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuObject {}
 unsafe impl cudarc::driver::DeviceRepr for GpuInstance {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuInstance {}
+unsafe impl cudarc::driver::DeviceRepr for GpuImage {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuImage {}
 unsafe impl cudarc::driver::DeviceRepr for HitRef {}
 unsafe impl cudarc::driver::ValidAsZeroBits for HitRef {}
 

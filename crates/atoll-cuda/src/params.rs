@@ -17,6 +17,7 @@ use atoll_render::environment::EnvironmentSampler;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
 use atoll_render::record::MATERIAL_COEFFS;
+use atoll_render::texture::ProgramRange;
 use atoll_render::FrameContext;
 use atoll_scene::IntegratorSettings;
 use bytemuck::{Pod, Zeroable};
@@ -37,6 +38,25 @@ pub mod emitter_kind {
     pub const ENVIRONMENT: u32 = 5;
 }
 
+/// [`GpuEmitter::table`] of a triangle emitter without an emission texture.
+pub const NO_EMISSION_TEXTURE: u32 = u32::MAX;
+
+/// A textured triangle emitter's corner uvs and its program in
+/// [`FrameParams::texture_ops`] (32 bytes; `lights::EmissionTexture`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuEmissionTexture {
+    pub uv: [f32; 6],
+    pub start: u32,
+    pub len: u32,
+}
+
+impl GpuEmissionTexture {
+    pub fn field_layout() -> FieldLayout {
+        field_layout!(GpuEmissionTexture { uv, start, len })
+    }
+}
+
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
 pub mod integrator_kind {
     pub const PATH: u32 = 0;
@@ -51,7 +71,9 @@ pub mod integrator_kind {
 /// cos_falloff_end, `radiance` intensity; environment: `p` the
 /// light-to-world rotation's columns, `normal` (width, height, layout: 0
 /// equal-area, 1 lat-long) as floats, `area` the sum of its selection
-/// weights, `table` its offset in [`FrameParams::environment_tables`].
+/// weights, `table` its offset in [`FrameParams::environment_tables`];
+/// a triangle's `table` indexes [`FrameParams::emission_textures`]
+/// ([`NO_EMISSION_TEXTURE`]: untextured).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuEmitter {
@@ -98,8 +120,10 @@ impl GpuEmitter {
                 g.p[7] = cos_falloff_end;
                 g.radiance = intensity.to_array();
             }
-            Emitter::Triangle { p, normal, area, radiance, two_sided } => {
+            Emitter::Triangle { p, normal, area, radiance, two_sided, .. } => {
                 g.kind = emitter_kind::TRIANGLE;
+                // FrameTables::build points textured triangles at their texture.
+                g.table = NO_EMISSION_TEXTURE;
                 for (k, v) in p.iter().enumerate() {
                     g.p[3 * k..3 * k + 3].copy_from_slice(&v.to_array());
                 }
@@ -147,11 +171,12 @@ pub struct GpuMaterial {
 
 impl GpuMaterial {
     /// For a `mix`, `pad` holds its two material ids and the probability of
-    /// the second (f32 bits): see `write_surface`.
-    pub fn new(m: &PackedMaterial) -> Self {
+    /// the second (f32 bits); otherwise the start and length of its texture
+    /// program (`textures`): see `write_surface`.
+    pub fn new(m: &PackedMaterial, textures: ProgramRange) -> Self {
         let pad = match m.mix {
             Some(([a, b], amount)) => [a, b, amount.to_bits()],
-            None => [0; 3],
+            None => [textures.start, textures.len, 0],
         };
         GpuMaterial { coeffs: m.coeffs.map(|c| c.to_bits()), kind: m.kind as u32, pad }
     }
@@ -162,7 +187,7 @@ impl GpuMaterial {
 }
 
 /// Everything shading needs, identical on every device: the
-/// [`FrameContext`] flattened (192 bytes). Pointers are device addresses
+/// [`FrameContext`] flattened (240 bytes). Pointers are device addresses
 /// (0 until uploaded: see [`FrameParamsHost`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -207,6 +232,18 @@ pub struct FrameParams {
     pub materials: u64,
     /// `f32[]`: the environment emitters' tables.
     pub environment_tables: u64,
+    /// `TexOp[]`: texture programs (`atoll_render::texture`); materials
+    /// name theirs in `GpuMaterial::pad`.
+    pub texture_ops: u64,
+    /// `AlphaProgram[]` by scene mesh id; 0 when no mesh has alpha.
+    pub mesh_alpha: u64,
+    /// `f32[256]`: sRGB byte to linear (`atoll_scene::srgb8_to_linear`).
+    pub srgb_to_linear: u64,
+    /// `GpuEmissionTexture[]`, by triangle emitters' `table`.
+    pub emission_textures: u64,
+    /// The scene's `GpuImage`s and their `u32` texels (from the `GpuScene`).
+    pub images: u64,
+    pub texels: u64,
 }
 
 impl FrameParams {
@@ -275,11 +312,17 @@ impl FrameParams {
             triangle_bases,
             materials,
             environment_tables,
+            texture_ops,
+            mesh_alpha,
+            srgb_to_linear,
+            emission_textures,
+            images,
+            texels,
         })
     }
 }
 
-/// Device pointers of a [`GpuScene`]'s tables and their sizes (64 bytes);
+/// Device pointers of a [`GpuScene`]'s tables and their sizes (72 bytes);
 /// the crate docs describe the tables.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -296,6 +339,8 @@ pub struct SceneView {
     pub meshes: u64,
     /// `GpuInstance[instance_count]`.
     pub instances: u64,
+    /// `f32[2 * vertex_count]` (meaningful for meshes with `HAS_UVS`).
+    pub uvs: u64,
     pub triangle_count: u32,
     pub mesh_count: u32,
     pub instance_count: u32,
@@ -313,6 +358,7 @@ impl SceneView {
             triangle_mesh: scene.triangle_mesh.device_ptr(stream).0,
             meshes: scene.meshes.device_ptr(stream).0,
             instances: scene.instances.device_ptr(stream).0,
+            uvs: scene.uvs.device_ptr(stream).0,
             triangle_count: scene.counts.triangles as u32,
             mesh_count: scene.counts.meshes as u32,
             instance_count: scene.counts.instances as u32,
@@ -328,6 +374,7 @@ impl SceneView {
             triangle_mesh,
             meshes,
             instances,
+            uvs,
             triangle_count,
             mesh_count,
             instance_count,
@@ -336,7 +383,7 @@ impl SceneView {
     }
 }
 
-// SAFETY (all eight): plain-old-data `#[repr(C)]` structs (Pod), so any bit
+// SAFETY (all ten): plain-old-data `#[repr(C)]` structs (Pod), so any bit
 // pattern, including all zeros, is a valid value and they can be copied to
 // and from the device byte for byte.
 unsafe impl DeviceRepr for GpuEmitter {}
@@ -346,14 +393,16 @@ unsafe impl ValidAsZeroBits for GpuMaterial {}
 unsafe impl DeviceRepr for FrameParams {}
 unsafe impl ValidAsZeroBits for FrameParams {}
 unsafe impl DeviceRepr for SceneView {}
+unsafe impl DeviceRepr for GpuEmissionTexture {}
+unsafe impl ValidAsZeroBits for GpuEmissionTexture {}
 unsafe impl ValidAsZeroBits for SceneView {}
 
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 80);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<FrameParams>() == 192);
+    assert!(std::mem::size_of::<FrameParams>() == 240);
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
-    assert!(std::mem::size_of::<SceneView>() == 64);
+    assert!(std::mem::size_of::<SceneView>() == 72);
 };
 
 /// The frame's light and material tables in host memory, exactly as they
@@ -368,12 +417,21 @@ pub struct FrameTables {
     pub triangle_bases: Vec<u32>,
     pub materials: Vec<GpuMaterial>,
     pub environment_tables: Vec<f32>,
+    /// `TexOp`s and `AlphaProgram`s as u32 words (the structs belong to
+    /// atoll-render, so they travel as plain words).
+    pub texture_ops: Vec<u32>,
+    pub mesh_alpha: Vec<u32>,
+    pub srgb_to_linear: Vec<f32>,
+    pub emission_textures: Vec<GpuEmissionTexture>,
 }
 
 impl FrameTables {
     pub fn build(frame: &FrameContext) -> Self {
         let lights = &frame.lights;
         let mut environment_tables = Vec::new();
+        // Emission programs follow the material and alpha programs in one table.
+        let emission_base = frame.textures.ops.len() as u32;
+        let mut emission_textures = Vec::new();
         let emitters = lights
             .emitters
             .iter()
@@ -381,6 +439,16 @@ impl FrameTables {
                 Emitter::Environment { index } => {
                     let env = &lights.environments[index as usize];
                     GpuEmitter::environment(env, env.tables(&mut environment_tables))
+                }
+                Emitter::Triangle { texture: Some(t), .. } => {
+                    let mut g = GpuEmitter::new(e);
+                    g.table = emission_textures.len() as u32;
+                    emission_textures.push(GpuEmissionTexture {
+                        uv: [t.uv[0].x, t.uv[0].y, t.uv[1].x, t.uv[1].y, t.uv[2].x, t.uv[2].y],
+                        start: emission_base + t.program.start,
+                        len: t.program.len,
+                    });
+                    g
                 }
                 _ => GpuEmitter::new(e),
             })
@@ -393,7 +461,20 @@ impl FrameTables {
             infinite_lights: lights.infinite_lights().to_vec(),
             triangle_keys: lights.triangle_keys().to_vec(),
             triangle_bases: lights.triangle_bases().to_vec(),
-            materials: frame.materials.iter().map(GpuMaterial::new).collect(),
+            materials: frame
+                .materials
+                .iter()
+                .zip(&frame.textures.materials)
+                .map(|(m, t)| GpuMaterial::new(m, *t))
+                .collect(),
+            texture_ops: bytemuck::cast_slice(&frame.textures.ops)
+                .iter()
+                .chain(bytemuck::cast_slice(&lights.emission_ops))
+                .copied()
+                .collect(),
+            emission_textures,
+            mesh_alpha: bytemuck::cast_slice(&frame.textures.mesh_alpha).to_vec(),
+            srgb_to_linear: atoll_scene::texture::srgb8_to_linear().to_vec(),
         }
     }
 
@@ -411,6 +492,10 @@ impl FrameTables {
             + b(&self.triangle_bases)
             + b(&self.materials)
             + b(&self.environment_tables)
+            + b(&self.texture_ops)
+            + b(&self.mesh_alpha)
+            + b(&self.srgb_to_linear)
+            + b(&self.emission_textures)
             + std::mem::size_of::<FrameParams>() as u64
     }
 }
@@ -431,11 +516,25 @@ pub struct FrameParamsHost {
     triangle_bases: CudaSlice<u32>,
     materials: CudaSlice<GpuMaterial>,
     environment_tables: CudaSlice<f32>,
+    texture_ops: CudaSlice<u32>,
+    mesh_alpha: CudaSlice<u32>,
+    srgb_to_linear: CudaSlice<f32>,
+    emission_textures: CudaSlice<GpuEmissionTexture>,
 }
 
 impl FrameParamsHost {
-    /// Uploads `frame`'s light and material tables and the parameter block.
+    /// Uploads `frame`'s light and material tables and the parameter block,
+    /// for a scene without texture images.
     pub fn new(gpu: &Arc<Gpu>, frame: &FrameContext) -> Result<Self, CudaError> {
+        Self::for_scene(gpu, frame, None)
+    }
+
+    /// [`FrameParamsHost::new`] whose textures read `scene`'s images.
+    pub fn for_scene(
+        gpu: &Arc<Gpu>,
+        frame: &FrameContext,
+        scene: Option<&GpuScene>,
+    ) -> Result<Self, CudaError> {
         let t = FrameTables::build(frame);
         let emitters = upload(gpu, &t.emitters, "emitters")?;
         let light_pmf = upload(gpu, &t.light_pmf, "light pmf")?;
@@ -445,6 +544,10 @@ impl FrameParamsHost {
         let triangle_bases = upload(gpu, &t.triangle_bases, "triangle light bases")?;
         let materials = upload(gpu, &t.materials, "materials")?;
         let environment_tables = upload(gpu, &t.environment_tables, "environment tables")?;
+        let texture_ops = upload(gpu, &t.texture_ops, "texture programs")?;
+        let mesh_alpha = upload(gpu, &t.mesh_alpha, "alpha masks")?;
+        let srgb_to_linear = upload(gpu, &t.srgb_to_linear, "sRGB table")?;
+        let emission_textures = upload(gpu, &t.emission_textures, "emission textures")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -455,6 +558,15 @@ impl FrameParamsHost {
         params.triangle_bases = triangle_bases.device_ptr(stream).0;
         params.materials = materials.device_ptr(stream).0;
         params.environment_tables = environment_tables.device_ptr(stream).0;
+        params.texture_ops = texture_ops.device_ptr(stream).0;
+        // Null tells traversal that no mesh has alpha (it skips the test).
+        params.mesh_alpha = if t.mesh_alpha.is_empty() { 0 } else { mesh_alpha.device_ptr(stream).0 };
+        params.srgb_to_linear = srgb_to_linear.device_ptr(stream).0;
+        params.emission_textures = emission_textures.device_ptr(stream).0;
+        if let Some(scene) = scene {
+            params.images = scene.images.device_ptr(stream).0;
+            params.texels = scene.texels.device_ptr(stream).0;
+        }
         let device = upload(gpu, &[params], "frame parameters")?;
         Ok(FrameParamsHost {
             params,
@@ -467,6 +579,10 @@ impl FrameParamsHost {
             triangle_bases,
             materials,
             environment_tables,
+            texture_ops,
+            mesh_alpha,
+            srgb_to_linear,
+            emission_textures,
         })
     }
 
@@ -480,7 +596,11 @@ impl FrameParamsHost {
             + self.triangle_keys.num_bytes()
             + self.triangle_bases.num_bytes()
             + self.materials.num_bytes()
-            + self.environment_tables.num_bytes()) as u64
+            + self.environment_tables.num_bytes()
+            + self.texture_ops.num_bytes()
+            + self.mesh_alpha.num_bytes()
+            + self.srgb_to_linear.num_bytes()
+            + self.emission_textures.num_bytes()) as u64
     }
 }
 

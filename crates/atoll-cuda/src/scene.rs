@@ -13,13 +13,13 @@
 use std::sync::Arc;
 
 use atoll_bvh::{ByteModel, MeshRange, ScenePart};
-use atoll_scene::Scene;
+use atoll_scene::{Scene, Texels, TextureImage};
 use cudarc::driver::CudaSlice;
 use glam::{Affine3A, Mat3};
 
 use crate::error::{fmt_bytes, CudaError};
 use crate::gpu::{upload, Gpu};
-use crate::layout::{mesh_flags, GpuInstance, GpuMesh, GpuObject};
+use crate::layout::{image_format, mesh_flags, GpuImage, GpuInstance, GpuMesh, GpuObject};
 
 /// The scene tables in host memory, exactly as they go to the device.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -39,6 +39,13 @@ pub struct SceneTables {
     /// One per scene instance, same order as `Scene::instances` (hit
     /// records, lights and the CPU device all use these indices).
     pub instances: Vec<GpuInstance>,
+    /// u, v per vertex (same indexing as `vertices`), zero for meshes
+    /// without uvs; empty when no mesh has uvs.
+    pub uvs: Vec<f32>,
+    /// The scene's texture images, by image id.
+    pub images: Vec<GpuImage>,
+    /// Their texels ([`GpuImage::texel_offset`]).
+    pub texels: Vec<u32>,
 }
 
 /// Sizes of the tables, computable without building them.
@@ -50,6 +57,10 @@ pub struct TableCounts {
     pub objects: u64,
     pub instances: u64,
     pub has_normals: bool,
+    pub has_uvs: bool,
+    pub images: u64,
+    /// u32 words of all images' texels.
+    pub texel_words: u64,
 }
 
 impl TableCounts {
@@ -72,17 +83,28 @@ impl TableCounts {
                 c.triangles += range.triangles.len() as u64;
                 c.meshes += 1;
                 c.has_normals |= !mesh.normals.is_empty();
+                c.has_uvs |= !mesh.uvs.is_empty();
             }
         }
+        // Every device holds every image: a texture may be read by any
+        // part's materials and alpha masks (images split with their
+        // meshes are future work).
+        c.images = scene.textures.images.len() as u64;
+        c.texel_words = scene.textures.images.iter().map(|i| atoll_render::texture::gpu_image_words(i)).sum();
         c
     }
 
     /// Device bytes of the tables (empty tables still take one element).
     pub fn bytes(&self) -> u64 {
         let vertex = self.vertices.max(1) * 12;
-        let normals = if self.has_normals { vertex } else { 12 };
+        // Absent tables are one placeholder f32 on the device.
+        let normals = if self.has_normals { vertex } else { 4 };
+        let uvs = if self.has_uvs { self.vertices.max(1) * 8 } else { 4 };
         vertex
             + normals
+            + uvs
+            + self.images.max(1) * std::mem::size_of::<GpuImage>() as u64
+            + self.texel_words.max(1) * 4
             + self.triangles.max(1) * (12 + 4)
             + self.meshes.max(1) * std::mem::size_of::<GpuMesh>() as u64
             + self.objects.max(1) * std::mem::size_of::<GpuObject>() as u64
@@ -160,7 +182,13 @@ impl SceneTables {
             meshes: Vec::with_capacity(counts.meshes as usize),
             objects: Vec::with_capacity(scene.objects.len()),
             instances,
+            uvs: Vec::with_capacity(if counts.has_uvs { counts.vertices as usize * 2 } else { 0 }),
+            images: Vec::with_capacity(counts.images as usize),
+            texels: Vec::with_capacity(counts.texel_words as usize),
         };
+        for image in &scene.textures.images {
+            t.push_image(image);
+        }
         for ranges in part_ranges(scene, part) {
             let first_triangle = t.triangle_mesh.len() as u32;
             let first_mesh = t.meshes.len() as u32;
@@ -177,6 +205,9 @@ impl SceneTables {
                 }
                 if mesh.emission.is_some() {
                     flags |= mesh_flags::EMISSIVE;
+                }
+                if !mesh.uvs.is_empty() {
+                    flags |= mesh_flags::HAS_UVS;
                 }
                 let triangles = &mesh.indices[range.triangles.start as usize..range.triangles.end as usize];
                 t.meshes.push(GpuMesh {
@@ -195,6 +226,13 @@ impl SceneTables {
                         t.normals.resize(t.vertices.len(), 0.0);
                     } else {
                         t.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
+                    }
+                }
+                if counts.has_uvs {
+                    if mesh.uvs.is_empty() {
+                        t.uvs.resize(t.vertices.len() / 3 * 2, 0.0);
+                    } else {
+                        t.uvs.extend(mesh.uvs.iter().flat_map(|uv| uv.to_array()));
                     }
                 }
                 t.triangles.extend(triangles.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
@@ -218,7 +256,36 @@ impl SceneTables {
             objects: self.objects.len() as u64,
             instances: self.instances.len() as u64,
             has_normals: !self.normals.is_empty(),
+            has_uvs: !self.uvs.is_empty(),
+            images: self.images.len() as u64,
+            texel_words: self.texels.len() as u64,
         }
+    }
+
+    /// Appends one image's texels in the device format.
+    fn push_image(&mut self, image: &TextureImage) {
+        let texel_offset = self.texels.len() as u64;
+        let format = match &image.texels {
+            Texels::Rgba8 { srgb, data } => {
+                self.texels.extend(data.iter().map(|p| u32::from_le_bytes(*p)));
+                if *srgb {
+                    image_format::RGBA8_SRGB
+                } else {
+                    image_format::RGBA8
+                }
+            }
+            Texels::RgbaF32(data) => {
+                self.texels.extend(data.iter().flat_map(|p| p.map(f32::to_bits)));
+                image_format::RGBA_F32
+            }
+        };
+        self.images.push(GpuImage {
+            texel_offset,
+            width: image.width,
+            height: image.height,
+            format,
+            pad: [0; 3],
+        });
     }
 }
 
@@ -239,7 +306,7 @@ pub fn byte_model() -> ByteModel {
     ByteModel {
         // Index bytes are in the geometry; the device adds the triangle's mesh index.
         per_triangle: 4 + (bvh(N, 1) - bvh(0, 1)).div_ceil(N),
-        // Positions and normals as stored; uvs are not uploaded (yet).
+        // Positions, normals and uvs as stored.
         per_vertex: 0,
         per_instance: std::mem::size_of::<GpuInstance>() as u64 + (bvh(1, N) - bvh(1, 0)).div_ceil(N),
         per_object: (std::mem::size_of::<GpuObject>() + std::mem::size_of::<GpuMesh>()) as u64 + 64,
@@ -299,13 +366,17 @@ impl MemoryPlan {
 pub struct GpuScene {
     pub gpu: Arc<Gpu>,
     pub vertices: CudaSlice<f32>,
-    /// Zero-filled placeholder of one vertex when no mesh has normals.
+    /// One zero placeholder when no mesh has normals.
     pub normals: CudaSlice<f32>,
     pub triangles: CudaSlice<u32>,
     pub triangle_mesh: CudaSlice<u32>,
     pub meshes: CudaSlice<GpuMesh>,
     pub objects: CudaSlice<GpuObject>,
     pub instances: CudaSlice<GpuInstance>,
+    /// One zero placeholder when no mesh has uvs.
+    pub uvs: CudaSlice<f32>,
+    pub images: CudaSlice<GpuImage>,
+    pub texels: CudaSlice<u32>,
     pub counts: TableCounts,
     /// Host copies of the small tables (BVH builds plan from them).
     pub host_meshes: Vec<GpuMesh>,
@@ -357,6 +428,9 @@ impl GpuScene {
             meshes: upload(gpu, &t.meshes, "meshes")?,
             objects: upload(gpu, &t.objects, "objects")?,
             instances: upload(gpu, &t.instances, "instances")?,
+            uvs: upload(gpu, &t.uvs, "uvs")?,
+            images: upload(gpu, &t.images, "images")?,
+            texels: upload(gpu, &t.texels, "texels")?,
             counts,
             host_meshes: t.meshes,
             host_objects: t.objects,
@@ -373,7 +447,10 @@ impl GpuScene {
             + self.triangle_mesh.num_bytes()
             + self.meshes.num_bytes()
             + self.objects.num_bytes()
-            + self.instances.num_bytes()) as u64
+            + self.instances.num_bytes()
+            + self.uvs.num_bytes()
+            + self.images.num_bytes()
+            + self.texels.num_bytes()) as u64
     }
 }
 

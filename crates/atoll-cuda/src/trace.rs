@@ -21,6 +21,38 @@ use crate::layout::{GpuRecord, HitRef};
 use crate::scene::GpuScene;
 
 const FILE: &str = "trace.cu";
+
+/// What the trace module is compiled for: a frame's features, each of which
+/// costs the kernels registers even where no ray takes it, so modules are
+/// specialised (kernels/traverse.cuh, surface.cuh). The default (none) is
+/// what benchmarks and tests without frames trace with.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct TraceFeatures {
+    /// Alpha masks are tested during traversal (`ATOLL_TRACE_ALPHA`).
+    pub alpha: bool,
+    /// Closest-hit kernels that write surfaces apply texture programs and
+    /// emission textures (`ATOLL_WITH_TEXTURES`).
+    pub textures: bool,
+}
+
+impl TraceFeatures {
+    /// The features `frame` needs.
+    pub fn of(frame: &atoll_render::FrameContext) -> Self {
+        TraceFeatures {
+            alpha: frame.textures.has_alpha(),
+            textures: frame.textures.materials.iter().any(|r| !r.is_empty())
+                || !frame.lights.emission_ops.is_empty(),
+        }
+    }
+
+    /// The NVRTC defines of the module.
+    pub fn defines(self) -> Vec<String> {
+        vec![
+            format!("-DATOLL_TRACE_ALPHA={}", self.alpha as u32),
+            format!("-DATOLL_WITH_TEXTURES={}", self.textures as u32),
+        ]
+    }
+}
 /// Threads per block (TRACE_THREADS in trace.cu).
 const THREADS: u32 = 128;
 
@@ -124,26 +156,28 @@ impl Tracer {
         gpu: &Gpu,
         variant: TraversalVariant,
         name: &str,
+        features: TraceFeatures,
     ) -> Result<(CudaFunction, u32), CudaError> {
-        let function = match self.kernels.iter().find(|(key, _)| key == name) {
+        let key = format!("{name}:{features:?}");
+        let function = match self.kernels.iter().find(|(k, _)| *k == key) {
             Some((_, f)) => f.clone(),
             None => {
-                let f = gpu.function(FILE, name)?;
-                self.kernels.push((name.to_string(), f.clone()));
+                let f = gpu.function_with(FILE, name, &features.defines())?;
+                self.kernels.push((key.clone(), f.clone()));
                 f
             }
         };
         if !variant.persistent() {
             return Ok((function, 0));
         }
-        if let Some((_, blocks)) = self.persistent_blocks.iter().find(|(n, _)| n == name) {
+        if let Some((_, blocks)) = self.persistent_blocks.iter().find(|(k, _)| *k == key) {
             return Ok((function, *blocks));
         }
         let per_sm = function
             .occupancy_max_active_blocks_per_multiprocessor(THREADS, 0, None)
             .map_err(CudaError::driver(format!("{}: occupancy of {name}", gpu.label())))?;
         let blocks = per_sm.max(1) * gpu.multiprocessors;
-        self.persistent_blocks.push((name.to_string(), blocks));
+        self.persistent_blocks.push((key, blocks));
         Ok((function, blocks))
     }
 
@@ -160,7 +194,12 @@ impl Tracer {
         variant: TraversalVariant,
         queue: Option<DeviceQueueLength<'_>>,
         surface: Option<SurfaceTables<'_>>,
+        alpha: Option<SurfaceTables<'_>>,
+        features: TraceFeatures,
     ) -> Result<(), CudaError> {
+        if features.alpha != alpha.is_some() {
+            return Err(CudaError::Usage("trace: alpha tables must come with the alpha kernels".into()));
+        }
         let any = hits.is_none();
         if count as usize > rays.len() || hits.as_ref().is_some_and(|h| (count as usize) > h.len()) {
             return Err(CudaError::Usage(format!(
@@ -173,7 +212,7 @@ impl Tracer {
         }
         let query = if any { "any" } else { "closest" };
         let name = format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix());
-        let (function, persistent_blocks) = self.kernel(gpu, variant, &name)?;
+        let (function, persistent_blocks) = self.kernel(gpu, variant, &name, features)?;
         let config = if variant.persistent() {
             gpu.stream
                 .memset_zeros(&mut self.work)
@@ -217,17 +256,23 @@ impl Tracer {
             Some(t) => launch.arg(t.params).arg(t.scene),
             None => launch.arg(&null).arg(&null),
         };
+        match &alpha {
+            Some(t) => launch.arg(t.params).arg(t.scene),
+            None => launch.arg(&null).arg(&null),
+        };
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
         // BvhNode* blas_nodes, const WideNode* wide_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
         // count, unsigned* work, const unsigned* device_count, unsigned long long* traced,
-        // const FrameParams* surface_params, const SceneView* surface_scene)`.
+        // const FrameParams* surface_params, const SceneView* surface_scene, const FrameParams*
+        // alpha_params, const SceneView* alpha_scene)`.
         // The BVH's links stay within its arrays (built by lbvh.cu; the wide tree's by
         // bvh::wide from them, and only the wide kernels read `wide_nodes`, null otherwise); threads touch records and
         // hits below `count` (or the smaller device count), which both buffers hold (checked);
         // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches;
         // `device_count`/`traced` are null or single device integers; the surface tables are
-        // null or one FrameParams/SceneView whose tables outlive the launch (the device owns them).
+        // null or one FrameParams/SceneView whose tables outlive the launch (the device owns them);
+        // the alpha tables likewise (the kernels read them only when `mesh_alpha` is set).
         unsafe { launch.launch(config) }
             .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())
@@ -259,7 +304,8 @@ fn with_tracer<R>(
 /// Compiles (or loads from the kernel cache) the default variant's
 /// closest- and any-hit kernels for `bvh`, so that a render's clock does not
 /// include it (the first trace would otherwise compile `trace.cu`: ~2 s cold).
-pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<(), CudaError> {
+/// `features`: what the frame needs (see [`TraceFeatures`]).
+pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh, features: TraceFeatures) -> Result<(), CudaError> {
     let variant = TraversalVariant::default();
     with_tracer(gpu, bvh, |t| {
         for query in ["closest", "any"] {
@@ -267,6 +313,7 @@ pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<(), CudaErro
                 gpu,
                 variant,
                 &format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix()),
+                features,
             )?;
         }
         Ok(())
@@ -296,7 +343,9 @@ pub fn trace_closest_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, Some(hits), variant, None, None))
+    with_tracer(gpu, bvh, |t| {
+        t.launch(gpu, bvh, rays, count, Some(hits), variant, None, None, None, TraceFeatures::default())
+    })
 }
 
 /// Sets `flags::OCCLUDED` on the records of `rays[..count]` that hit
@@ -321,7 +370,9 @@ pub fn trace_any_with(
     variant: TraversalVariant,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, count, None, variant, None, None))
+    with_tracer(gpu, bvh, |t| {
+        t.launch(gpu, bvh, rays, count, None, variant, None, None, None, TraceFeatures::default())
+    })
 }
 
 /// Closest hits of the first `*queue.length` records (at most `capacity`)
@@ -337,16 +388,21 @@ pub fn trace_closest_queued(
     hits: &mut CudaSlice<HitRef>,
     queue: DeviceQueueLength<'_>,
     surface: SurfaceTables<'_>,
+    features: TraceFeatures,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
+    let alpha = features.alpha.then_some(SurfaceTables { params: surface.params, scene: surface.scene });
     with_tracer(gpu, bvh, |t| {
-        t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue), Some(surface))
+        t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue), Some(surface), alpha, features)
     })
 }
 
 /// Any-hit tests of the first `*queue.length` records (at most `capacity`)
-/// with the default variant, without reading the length back.
+/// with the default variant, without reading the length back; `tables`:
+/// the frame and scene alpha masks are evaluated with (used when
+/// `features.alpha`).
+#[allow(clippy::too_many_arguments)]
 pub fn trace_any_queued(
     gpu: &Gpu,
     scene: &GpuScene,
@@ -354,10 +410,15 @@ pub fn trace_any_queued(
     rays: &mut CudaSlice<GpuRecord>,
     capacity: u32,
     queue: DeviceQueueLength<'_>,
+    tables: SurfaceTables<'_>,
+    features: TraceFeatures,
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
-    with_tracer(gpu, bvh, |t| t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue), None))
+    let alpha = features.alpha.then_some(tables);
+    with_tracer(gpu, bvh, |t| {
+        t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue), None, alpha, features)
+    })
 }
 
 #[cfg(test)]

@@ -69,3 +69,69 @@ fn test_kernels_compile_without_warnings() {
     }
     check("test_bsdf.cu", &["test_bsdf", "test_rng", "test_lights", "test_light_lookup"], &["--fmad=false"]);
 }
+
+/// Registers ptxas reports for `kernel` in a compile log.
+fn registers(log: &str, kernel: &str) -> u32 {
+    let entry = format!("Compiling entry function '{kernel}'");
+    let mut lines = log.lines().skip_while(|l| !l.contains(&entry));
+    let used = lines
+        .find(|l| l.contains("Used "))
+        .unwrap_or_else(|| panic!("no register report for {kernel}:\n{log}"));
+    let words: Vec<&str> = used.split_whitespace().collect();
+    let at = words.iter().position(|w| *w == "Used").unwrap();
+    words[at + 1].parse().unwrap()
+}
+
+/// The shade kernel a scene without coated-diffuse or principled
+/// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
+/// it had before those materials existed (93 on sm_90): their code would
+/// otherwise halve every scene's occupancy. Specialised for one of them,
+/// it still compiles cleanly.
+#[test]
+fn specialised_shade_kernels_keep_their_registers() {
+    if !nvrtc_or_skip() {
+        return;
+    }
+    let none = ["-DATOLL_WITH_COATED=0", "-DATOLL_WITH_PRINCIPLED=0", "-DATOLL_WITH_EMISSION_TEXTURES=0"];
+    let (_, log) = compile("wavefront.cu", &none);
+    let plain = registers(&log, "shade");
+    let (_, log) = compile("wavefront.cu", &[]);
+    let all = registers(&log, "shade");
+    eprintln!("shade registers: plain materials {plain}, every material {all}");
+    assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
+    assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_PRINCIPLED=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
+}
+
+/// Every specialisation of the trace module compiles cleanly (the alpha
+/// kernels are launched only for scenes with alpha masks), and the plain
+/// ones keep the registers they had before textures existed (src/trace.rs
+/// `TraceFeatures`).
+#[test]
+fn trace_specialisations_compile_and_plain_ones_stay_lean() {
+    if !nvrtc_or_skip() {
+        return;
+    }
+    let kernels = ["trace_closest_pt_exact", "trace_any_pt_exact", "trace_closest_ptcw_woop"];
+    let mut plain = (0, 0);
+    for alpha in [0, 1] {
+        for textures in [0, 1] {
+            let defines =
+                [format!("-DATOLL_TRACE_ALPHA={alpha}"), format!("-DATOLL_WITH_TEXTURES={textures}")];
+            let defines: Vec<&str> = defines.iter().map(String::as_str).collect();
+            let (ptx, log) = compile("trace.cu", &defines);
+            for kernel in kernels {
+                assert!(ptx.contains(&format!(".entry {kernel}(")), "{defines:?}: no kernel {kernel}");
+            }
+            assert!(!log.contains("warning"), "{defines:?}: NVRTC warnings:\n{log}");
+            let regs = (registers(&log, "trace_closest_pt_exact"), registers(&log, "trace_any_pt_exact"));
+            eprintln!("{defines:?}: closest {} any {} registers", regs.0, regs.1);
+            if alpha == 0 && textures == 0 {
+                plain = regs;
+            }
+        }
+    }
+    assert!(plain.0 <= 72 && plain.1 <= 64, "plain trace kernels: {plain:?} registers");
+}

@@ -231,7 +231,8 @@ struct Load {
 impl Load {
     fn new(scene: &Scene) -> Self {
         Load {
-            bytes: 0,
+            // Every part holds all texture images (see `part_bytes`).
+            bytes: scene.textures.memory_bytes(),
             meshes: vec![false; scene.meshes.len()],
             objects: vec![None; scene.objects.len()],
             largest: 0,

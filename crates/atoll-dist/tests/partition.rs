@@ -3,7 +3,7 @@
 
 use atoll_bvh::{part_bytes, ByteModel, SceneBvh, ScenePart};
 use atoll_dist::{min_parts, partition, plan, Partition, PartitionError, PartitionOptions, Plan, Strategy};
-use atoll_scene::{Instance, Object, ObjectId, Scene, TriangleMesh};
+use atoll_scene::{Instance, Object, ObjectId, Scene, TextureImage, TriangleMesh};
 use glam::{Affine3A, Vec2, Vec3};
 
 const MODEL: ByteModel = ByteModel::CPU;
@@ -232,6 +232,24 @@ fn min_parts_is_the_smallest_that_fits() {
     let options = PartitionOptions { budget: Some(budget), split_threshold: None };
     assert!(partition(&scene, k, &MODEL, &options).is_ok());
     assert!(partition(&scene, k - 1, &MODEL, &options).is_err());
+}
+
+#[test]
+fn every_part_holds_the_texture_images() {
+    let plain = ground_scene();
+    let mut scene = ground_scene();
+    // 64 × 64 float texels, 64 KiB: every device shades any material, so every part holds them.
+    scene.textures.add_image(TextureImage::from_linear("t", 64, 64, vec![[0.5; 4]; 64 * 64]));
+    let tex = 64 * 64 * 16;
+    assert_eq!(whole_bytes(&scene), whole_bytes(&plain) + tex);
+    let budget = whole_bytes(&plain) * 2 / 5;
+    let k = min_parts(&plain, &MODEL, budget, 8).expect("fits in 8");
+    let options = PartitionOptions { budget: Some(budget + tex), split_threshold: None };
+    let p = partition(&scene, k, &MODEL, &options).expect("the same parts with room for the images");
+    check_exactly_once(&scene, &p);
+    assert!(p.bytes.iter().all(|&b| b > tex && b <= budget + tex), "{:?}", p.bytes);
+    // A budget the images alone fill holds no geometry.
+    assert_eq!(min_parts(&scene, &MODEL, tex, 8), None);
 }
 
 #[test]

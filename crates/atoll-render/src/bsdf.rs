@@ -1,7 +1,8 @@
 //! BSDFs with pbrt-v4 semantics for the scene's materials: Lambertian
 //! diffuse, conductor (smooth mirror or anisotropic GGX), dielectric
-//! (smooth or rough, reflection and transmission), diffuse transmission and
-//! thin dielectric, in RGB.
+//! (smooth or rough, reflection and transmission), diffuse transmission,
+//! thin dielectric, coated diffuse (a stochastic layered BSDF) and the
+//! Disney-principled BSDF, in RGB.
 //!
 //! Conventions (pbrt's):
 //! - Everything works in the local shading frame ([`Frame`]): the shading
@@ -22,11 +23,15 @@
 mod conductor;
 mod dielectric;
 pub mod fresnel;
+pub mod layered;
 pub mod microfacet;
+pub mod principled;
 mod thin;
 
 pub use fresnel::{fr_complex, fr_complex_rgb, fr_dielectric, reflect, refract};
+pub use layered::CoatedDiffuse;
 pub use microfacet::TrowbridgeReitz;
+pub use principled::Principled;
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
 use atoll_scene::{Material, Rgb};
@@ -125,6 +130,14 @@ pub enum Bsdf {
         /// Index of refraction of the slab.
         eta: f32,
     },
+    /// A dielectric coating over a Lambertian base with a medium between
+    /// (pbrt-v4's `CoatedDiffuseBxDF`); `eval`, `pdf` and `sample` are
+    /// random-walk estimates ([`CoatedDiffuse`]).
+    CoatedDiffuse(CoatedDiffuse),
+    /// The Disney-principled BSDF: diffuse with retro-reflection and sheen,
+    /// GGX specular, clearcoat and rough glass, lobes picked by weight
+    /// ([`Principled`]).
+    Principled(Principled),
 }
 
 /// The result of [`Bsdf::sample`].
@@ -166,8 +179,54 @@ impl Bsdf {
                 Some(Bsdf::DiffuseTransmission { reflectance, transmittance })
             }
             Material::ThinDielectric { eta } => Some(Bsdf::ThinDielectric { eta }),
+            Material::CoatedDiffuse {
+                reflectance,
+                eta,
+                alpha_x,
+                alpha_y,
+                thickness,
+                albedo,
+                g,
+                max_depth,
+                n_samples,
+            } => Some(Bsdf::CoatedDiffuse(CoatedDiffuse {
+                reflectance,
+                eta,
+                alpha_x,
+                alpha_y,
+                thickness,
+                albedo,
+                g,
+                max_depth,
+                n_samples,
+            })),
             // A mix is one of its materials per hit (`FrameContext::material_at`).
             Material::Mix { .. } => None,
+            Material::Principled {
+                base_color,
+                metallic,
+                roughness,
+                specular,
+                specular_tint,
+                sheen,
+                sheen_tint,
+                clearcoat,
+                clearcoat_gloss,
+                transmission,
+                eta,
+            } => Some(Bsdf::Principled(Principled {
+                base_color,
+                metallic,
+                roughness,
+                specular,
+                specular_tint,
+                sheen,
+                sheen_tint,
+                clearcoat,
+                clearcoat_gloss,
+                transmission,
+                eta,
+            })),
         }
     }
 
@@ -195,6 +254,8 @@ impl Bsdf {
                 }
             }
             Bsdf::ThinDielectric { .. } => Rgb::ZERO,
+            Bsdf::CoatedDiffuse(c) => c.eval(wo, wi),
+            Bsdf::Principled(p) => p.eval(wo, wi),
         }
     }
 
@@ -224,6 +285,8 @@ impl Bsdf {
                 lobe / (pr + pt) * cosine_hemisphere_pdf(wi.z.abs())
             }
             Bsdf::ThinDielectric { .. } => 0.0,
+            Bsdf::CoatedDiffuse(c) => c.pdf(wo, wi),
+            Bsdf::Principled(p) => p.pdf(wo, wi),
         }
     }
 
@@ -257,6 +320,8 @@ impl Bsdf {
                 thin::sample_diffuse_transmission(reflectance, transmittance, wo, uc, u)?
             }
             Bsdf::ThinDielectric { eta } => thin::sample_thin_dielectric(eta, wo, uc)?,
+            Bsdf::CoatedDiffuse(c) => c.sample(wo, uc, u)?,
+            Bsdf::Principled(p) => p.sample(wo, uc, u)?,
         };
         // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
         if s.pdf > 0.0 && s.wi.z != 0.0 && s.f.is_finite() {
@@ -279,7 +344,19 @@ impl Bsdf {
             }
             Bsdf::DiffuseTransmission { .. } => false,
             Bsdf::ThinDielectric { .. } => true,
+            Bsdf::CoatedDiffuse(c) => c.is_delta(),
+            Bsdf::Principled(p) => p.is_delta(),
         }
+    }
+
+    /// True when a sample's `pdf` is only proportional to the density of
+    /// its direction (pbrt's `BSDFSample::pdfIsProportional`): its
+    /// `f |cos| / pdf` is still the right path weight, but MIS at the next
+    /// vertex must use [`Self::pdf`] instead. So far only the layered BSDF,
+    /// whose samples come from random walks whose density is not that of
+    /// the direction they leave in.
+    pub fn sampled_pdf_is_proportional(&self) -> bool {
+        matches!(self, Bsdf::CoatedDiffuse(_))
     }
 }
 

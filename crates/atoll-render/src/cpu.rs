@@ -14,6 +14,7 @@ use crate::film::Film;
 use crate::frame::{FrameContext, Wave};
 use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
+use crate::texture::SceneTextures;
 
 /// Records per rayon task: big enough to amortise scheduling.
 const CHUNK: usize = 256;
@@ -24,6 +25,13 @@ struct Resident {
     bvh: SceneBvh,
     /// Per instance: the matrix taking object-space normals to world space.
     normal_to_world: Vec<Mat3A>,
+}
+
+impl Resident {
+    /// The frame's texture programs over this scene (alpha masks filter hits).
+    fn textures<'a>(&'a self, frame: &'a FrameContext) -> SceneTextures<'a> {
+        SceneTextures { scene: &self.scene, tables: &frame.textures }
+    }
 }
 
 /// A device that runs every stage on the host's cores.
@@ -163,7 +171,15 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     } else {
         NO_LIGHT
     };
-    frame.material_at(mesh.material, r).store(r);
+    r.emission_scale =
+        if r.light != NO_LIGHT { frame.lights.emission_scale(r.light, hit.u, hit.v) } else { 0 };
+    let (material, packed) = frame.material_at(mesh.material, r);
+    packed.store(r);
+    let textures = res.textures(frame);
+    if !frame.textures.materials[material as usize].is_empty() {
+        let uv = textures.uv(hit.mesh, hit.triangle, hit.u, hit.v);
+        textures.apply(material, uv, &mut r.coeffs);
+    }
 }
 
 fn ray_of(r: &RayRecord) -> Ray {
@@ -202,7 +218,10 @@ impl Device for CpuDevice {
         self.stats = DeviceStats::default();
         let wave = frame.options.wave_size.min(frame.options.pixel_count()) as u64;
         Ok(PrepareStats {
-            scene_bytes: part_geometry_bytes(scene, part) + bvh_stats.bytes as u64,
+            // Every device holds all texture images (see atoll_bvh::part_bytes).
+            scene_bytes: part_geometry_bytes(scene, part)
+                + bvh_stats.bytes as u64
+                + scene.textures.memory_bytes(),
             frame_bytes: 2 * wave * std::mem::size_of::<RayRecord>() as u64
                 + self.film.pixel_count() as u64 * 12,
             bvh_build_seconds: build,
@@ -254,7 +273,7 @@ impl Device for CpuDevice {
         let (res, frame) = (self.resident(), self.frame());
         self.run(|| {
             paths.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
-                if let Some(hit) = res.bvh.intersect(&ray_of(r)) {
+                if let Some(hit) = res.bvh.intersect_filtered(&ray_of(r), &res.textures(frame)) {
                     write_hit(r, &hit, res, frame);
                 }
             })
@@ -299,10 +318,11 @@ impl Device for CpuDevice {
     fn trace_shadows(&mut self) {
         let start = Instant::now();
         let mut shadows = std::mem::take(&mut self.shadows);
-        let res = self.resident();
+        let (res, frame) = (self.resident(), self.frame());
+        let textures = res.textures(frame);
         self.run(|| {
             shadows.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
-                if !r.has(flags::OCCLUDED) && res.bvh.occluded(&ray_of(r)) {
+                if !r.has(flags::OCCLUDED) && res.bvh.occluded_filtered(&ray_of(r), &textures) {
                     r.flags |= flags::OCCLUDED;
                 }
             })

@@ -9,6 +9,7 @@ use crate::lights::LightSet;
 use crate::material_coeffs::PackedMaterial;
 use crate::record::RayRecord;
 use crate::rng::{BounceDim, SampleStream};
+use crate::texture::TextureTables;
 
 /// Most nested `mix` materials a hit resolves.
 pub const MAX_MIX_DEPTH: u32 = 8;
@@ -62,14 +63,19 @@ pub struct FrameContext {
     pub lights: LightSet,
     /// Scene materials packed for the ray record, by material id.
     pub materials: Vec<PackedMaterial>,
+    /// Textured material parameters and alpha masks as programs.
+    pub textures: TextureTables,
 }
 
 impl FrameContext {
     pub fn new(scene: &Scene, options: RenderOptions) -> Self {
+        let materials: Vec<PackedMaterial> = scene.materials.iter().map(PackedMaterial::pack).collect();
+        let kinds: Vec<_> = materials.iter().map(|m| m.kind).collect();
         FrameContext {
             camera: CameraRays::new(&scene.settings.camera, options.resolution),
             lights: LightSet::new(scene),
-            materials: scene.materials.iter().map(PackedMaterial::pack).collect(),
+            textures: TextureTables::new(scene, &kinds),
+            materials,
             options,
         }
     }
@@ -78,10 +84,12 @@ impl FrameContext {
     /// `id`: the material itself, or for a `mix` one of its two, chosen with
     /// the vertex's [`BounceDim::MaterialChoice`] number (nested mixes reuse
     /// what is left of it, rescaled). The GPU's `write_surface` mirrors it.
-    pub fn material_at(&self, id: u32, r: &RayRecord) -> &PackedMaterial {
+    /// Returns the chosen material's id with it (its textures apply).
+    pub fn material_at(&self, id: u32, r: &RayRecord) -> (u32, &PackedMaterial) {
+        let mut id = id;
         let mut m = &self.materials[id as usize];
         if m.mix.is_none() {
-            return m;
+            return (id, m);
         }
         let mut u = SampleStream::new(self.options.seed, r.pixel, r.sample).bounce(
             r.depth as u32,
@@ -92,14 +100,15 @@ impl FrameContext {
         for _ in 0..MAX_MIX_DEPTH {
             let Some(([first, second], amount)) = m.mix else { break };
             if u < amount {
-                m = &self.materials[second as usize];
+                id = second;
                 u /= amount;
             } else {
-                m = &self.materials[first as usize];
+                id = first;
                 u = (u - amount) / (1.0 - amount);
             }
+            m = &self.materials[id as usize];
         }
-        m
+        (id, m)
     }
 
     pub fn max_depth(&self) -> u32 {
@@ -160,8 +169,8 @@ mod tests {
         for i in 0..n {
             let mut r = RayRecord::zeroed();
             (r.pixel, r.sample, r.depth) = (i, i % 7, (i % 3) as u16);
-            let chosen = frame.material_at(abc, &r).coeffs[0].to_f32();
-            assert_eq!(frame.material_at(abc, &r).coeffs[0].to_f32(), chosen, "deterministic");
+            let chosen = frame.material_at(abc, &r).1.coeffs[0].to_f32();
+            assert_eq!(frame.material_at(abc, &r).1.coeffs[0].to_f32(), chosen, "deterministic");
             *counts.entry((chosen * 10.0).round() as u32).or_insert(0u32) += 1;
         }
         // c half the time; of the other half, b a quarter.
@@ -170,6 +179,6 @@ mod tests {
             assert!((share - expected).abs() < 0.01, "material {key}: {share} vs {expected}");
         }
         // A plain material is itself.
-        assert_eq!(frame.material_at(a, &RayRecord::zeroed()), &frame.materials[a as usize]);
+        assert_eq!(frame.material_at(a, &RayRecord::zeroed()), (a, &frame.materials[a as usize]));
     }
 }

@@ -15,6 +15,7 @@ pub mod record;
 pub mod rng;
 pub mod sampling;
 pub mod stages;
+pub mod texture;
 
 pub use cpu::CpuDevice;
 pub use device::{Device, DeviceError, Queue};

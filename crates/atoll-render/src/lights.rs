@@ -6,8 +6,14 @@
 use atoll_scene::{luminance, Light, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
+use std::sync::Arc;
+
+use atoll_scene::TextureImage;
+
 use crate::environment::EnvironmentSampler;
+use crate::record::{pack_rgb9e5, unpack_rgb9e5};
 use crate::sampling::{sample_uniform_sphere, sample_uniform_triangle, UNIFORM_SPHERE_PDF};
+use crate::texture::{self, ProgramRange, TexOp};
 
 /// One emitter in world space.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,7 +48,17 @@ pub enum Emitter {
         area: f32,
         radiance: Rgb,
         two_sided: bool,
+        /// Emission texture scaling `radiance` across the triangle.
+        texture: Option<EmissionTexture>,
     },
+}
+
+/// A triangle emitter's texture: its corners' uvs and its program in
+/// [`LightSet::emission_ops`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmissionTexture {
+    pub uv: [Vec2; 3],
+    pub program: ProgramRange,
 }
 
 /// A light sample as seen from a shading point.
@@ -77,6 +93,10 @@ pub struct LightSet {
     infinite: Vec<u32>,
     /// The image-based environments, by [`Emitter::Environment`] index.
     pub environments: Vec<EnvironmentSampler>,
+    /// Programs of emission textures ([`EmissionTexture::program`]).
+    pub emission_ops: Vec<TexOp>,
+    /// The scene's texture images (shared), which those programs read.
+    pub images: Vec<Arc<TextureImage>>,
 }
 
 /// The key of an (instance, mesh) pair in [`LightSet`]'s sorted triangle
@@ -118,10 +138,32 @@ impl LightSet {
                 }
             });
         }
+        // Emission texture programs per textured emissive mesh.
+        let mut mesh_programs = std::collections::HashMap::new();
+        for &(mesh, texture) in &scene.textures.emission {
+            if scene.meshes.get(mesh as usize).is_none_or(|m| m.emission.is_none()) {
+                continue;
+            }
+            let start = set.emission_ops.len() as u32;
+            match texture::compile_texture(scene, texture, &mut set.emission_ops) {
+                Ok(()) => {
+                    let len = set.emission_ops.len() as u32 - start;
+                    mesh_programs.insert(mesh, ProgramRange { start, len });
+                }
+                Err(e) => {
+                    set.emission_ops.truncate(start as usize);
+                    tracing::warn!("mesh {mesh}: emission texture: {e}; emitting its constant radiance");
+                }
+            }
+        }
+        if !mesh_programs.is_empty() {
+            set.images = scene.textures.images.clone();
+        }
         for (instance_id, instance) in scene.instances.iter().enumerate() {
             for &mesh_id in &scene.objects[instance.object as usize].meshes {
                 let mesh = &scene.meshes[mesh_id as usize];
                 let Some(emission) = mesh.emission else { continue };
+                let program = mesh_programs.get(&mesh_id).copied();
                 triangle_base.push((triangle_key(instance_id as u32, mesh_id), set.emitters.len() as u32));
                 let normal_to_world = instance.normal_to_world();
                 for t in 0..mesh.triangle_count() {
@@ -132,12 +174,22 @@ impl LightSet {
                     // agrees between light sampling and emitter hits even
                     // under mirroring instance transforms.
                     let n = normal_to_world * mesh.geometric_normal(t);
+                    let texture = program.map(|program| EmissionTexture {
+                        // pbrt's default parameterisation without uvs, as for other textures.
+                        uv: if mesh.uvs.is_empty() {
+                            [Vec2::ZERO, Vec2::X, Vec2::ONE]
+                        } else {
+                            mesh.indices[t].map(|i| mesh.uvs[i as usize])
+                        },
+                        program,
+                    });
                     set.emitters.push(Emitter::Triangle {
                         p,
                         normal: n.normalize_or_zero(),
                         area,
                         radiance: emission.radiance,
                         two_sided: emission.two_sided,
+                        texture,
                     });
                 }
             }
@@ -162,9 +214,16 @@ impl LightSet {
                         * scene_radius
                         * set.environments[index as usize].mean_luminance
                 }
-                Emitter::Triangle { area, radiance, two_sided, .. } => {
+                Emitter::Triangle { area, radiance, two_sided, texture, .. } => {
                     let sides = if two_sided { 2.0 } else { 1.0 };
-                    std::f32::consts::PI * sides * area * luminance(radiance)
+                    // A textured triangle's power: the texture's mean over
+                    // its centroid and edge midpoints (selection only needs
+                    // to be roughly proportional).
+                    let mean = texture.map_or(Rgb::ONE, |t| {
+                        let points = [[1.0 / 3.0; 3], [0.5, 0.5, 0.0], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5]];
+                        points.iter().map(|&b| set.texture_value(&t, b)).sum::<Rgb>() / points.len() as f32
+                    });
+                    std::f32::consts::PI * sides * area * luminance(radiance * mean)
                 }
             })
             .map(|p| if p.is_finite() { p.max(0.0) } else { 0.0 })
@@ -304,7 +363,7 @@ impl LightSet {
                 pdf: pmf * UNIFORM_SPHERE_PDF,
                 delta: false,
             }),
-            Emitter::Triangle { p: tri, normal, area, radiance, two_sided } => {
+            Emitter::Triangle { p: tri, normal, area, radiance, two_sided, texture } => {
                 let b = sample_uniform_triangle(u);
                 let q = tri[0] * b[0] + tri[1] * b[1] + tri[2] * b[2];
                 let d = q - p;
@@ -319,24 +378,50 @@ impl LightSet {
                     return None;
                 }
                 let pdf = pmf * dist2 / (cos_light.abs() * area);
+                let radiance = match texture {
+                    Some(t) => radiance * self.texture_value(&t, b),
+                    None => radiance,
+                };
                 Some(LightSample { wi, distance, radiance, pdf, delta: false })
             }
         }
     }
 
     /// Radiance leaving emissive triangle `index` towards direction `w`
-    /// (pointing away from the surface).
-    pub fn emitted(&self, index: u32, w: Vec3) -> Rgb {
+    /// (pointing away from the surface), for a hit whose record carries
+    /// `emission_scale` (see [`LightSet::emission_scale`]).
+    pub fn emitted(&self, index: u32, w: Vec3, emission_scale: u32) -> Rgb {
         match self.emitters[index as usize] {
-            Emitter::Triangle { normal, radiance, two_sided, .. } => {
-                if two_sided || normal.dot(w) > 0.0 {
-                    radiance
-                } else {
+            Emitter::Triangle { normal, radiance, two_sided, texture, .. } => {
+                if !(two_sided || normal.dot(w) > 0.0) {
                     Rgb::ZERO
+                } else if texture.is_some() {
+                    radiance * unpack_rgb9e5(emission_scale)
+                } else {
+                    radiance
                 }
             }
             _ => Rgb::ZERO,
         }
+    }
+
+    /// What a hit at barycentrics `(b1, b2)` of emissive triangle `index`
+    /// stores in [`crate::RayRecord::emission_scale`]: its emission texture's
+    /// value, packed; 0 for untextured emitters.
+    pub fn emission_scale(&self, index: u32, b1: f32, b2: f32) -> u32 {
+        match self.emitters[index as usize] {
+            Emitter::Triangle { texture: Some(t), .. } => {
+                pack_rgb9e5(self.texture_value(&t, [1.0 - b1 - b2, b1, b2]))
+            }
+            _ => 0,
+        }
+    }
+
+    /// An emission texture's value at barycentrics `b`.
+    fn texture_value(&self, t: &EmissionTexture, b: [f32; 3]) -> Rgb {
+        let uv = t.uv[0] * b[0] + t.uv[1] * b[1] + t.uv[2] * b[2];
+        let ops = &self.emission_ops[t.program.start as usize..(t.program.start + t.program.len) as usize];
+        texture::run_program(ops, &self.images, uv, &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS])
     }
 
     /// Solid-angle pdf (with selection) that [`LightSet::sample`] picks the
@@ -444,8 +529,8 @@ mod tests {
             let (index, _) = set.select(s.get(0)).unwrap();
             let pdf = set.pdf_triangle(index, ls.wi, ls.distance);
             assert!((pdf - ls.pdf).abs() < 1e-4 * pdf, "{pdf} vs {}", ls.pdf);
-            assert_eq!(set.emitted(index, -ls.wi), Rgb::ONE);
-            assert_eq!(set.emitted(index, ls.wi), Rgb::ZERO);
+            assert_eq!(set.emitted(index, -ls.wi, 0), Rgb::ONE);
+            assert_eq!(set.emitted(index, ls.wi, 0), Rgb::ZERO);
         }
         // From above, the one-sided light cannot be sampled.
         assert!(set.sample(Vec3::new(0.0, 2.0, 0.0), 0.3, Vec2::new(0.2, 0.4)).is_none());

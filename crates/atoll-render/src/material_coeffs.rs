@@ -4,7 +4,7 @@
 use atoll_scene::Material;
 use half::f16;
 
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, CoatedDiffuse, Principled};
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
 /// A material as it travels in a [`RayRecord`].
@@ -54,6 +54,60 @@ impl PackedMaterial {
                 mix = Some((materials, amount));
                 MaterialKind::Mix
             }
+            Material::CoatedDiffuse {
+                reflectance,
+                eta,
+                alpha_x,
+                alpha_y,
+                thickness,
+                albedo,
+                g,
+                max_depth,
+                n_samples,
+            } => {
+                // Reflectance and roughness first, where per-hit textures
+                // overwrite them (`MaterialKind::CoatedDiffuse` has the layout).
+                c[..3].copy_from_slice(&reflectance.to_array());
+                c[3] = alpha_x;
+                c[4] = alpha_y;
+                c[5] = eta;
+                c[6] = thickness;
+                c[7..10].copy_from_slice(&albedo.to_array());
+                c[10] = g;
+                c[11] = max_depth.min(Material::COATED_MAX_COUNT) as f32;
+                c[12] = n_samples.min(Material::COATED_MAX_COUNT) as f32;
+                MaterialKind::CoatedDiffuse
+            }
+            Material::Principled {
+                base_color,
+                metallic,
+                roughness,
+                specular,
+                specular_tint,
+                sheen,
+                sheen_tint,
+                clearcoat,
+                clearcoat_gloss,
+                transmission,
+                eta,
+            } => {
+                // Base colour, metallic and roughness first: per-hit textures
+                // overwrite them (`MaterialKind::Principled` has the layout).
+                c[..3].copy_from_slice(&base_color.to_array());
+                c[3..13].copy_from_slice(&[
+                    metallic,
+                    roughness,
+                    specular,
+                    specular_tint,
+                    sheen,
+                    sheen_tint,
+                    clearcoat,
+                    clearcoat_gloss,
+                    transmission,
+                    eta,
+                ]);
+                MaterialKind::Principled
+            }
         };
         PackedMaterial { kind, coeffs: c.map(f16::from_f32), mix }
     }
@@ -83,6 +137,30 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             Some(Bsdf::DiffuseTransmission { reflectance: r.coeff3(0), transmittance: r.coeff3(3) })
         }
         MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(0) }),
+        MaterialKind::CoatedDiffuse => Some(Bsdf::CoatedDiffuse(CoatedDiffuse {
+            reflectance: r.coeff3(0),
+            alpha_x: r.coeff(3),
+            alpha_y: r.coeff(4),
+            eta: r.coeff(5),
+            thickness: r.coeff(6),
+            albedo: r.coeff3(7),
+            g: r.coeff(10),
+            max_depth: r.coeff(11) as u32,
+            n_samples: r.coeff(12) as u32,
+        })),
+        MaterialKind::Principled => Some(Bsdf::Principled(Principled {
+            base_color: r.coeff3(0),
+            metallic: r.coeff(3),
+            roughness: r.coeff(4),
+            specular: r.coeff(5),
+            specular_tint: r.coeff(6),
+            sheen: r.coeff(7),
+            sheen_tint: r.coeff(8),
+            clearcoat: r.coeff(9),
+            clearcoat_gloss: r.coeff(10),
+            transmission: r.coeff(11),
+            eta: r.coeff(12),
+        })),
     }
 }
 
@@ -91,6 +169,30 @@ mod tests {
     use super::*;
     use atoll_scene::Rgb;
     use bytemuck::Zeroable;
+
+    /// Per-hit textures overwrite reflectance and roughness in place, so a
+    /// coated diffuse keeps them where `MaterialKind::CoatedDiffuse` says.
+    #[test]
+    fn coated_diffuse_layout() {
+        let m = Material::CoatedDiffuse {
+            reflectance: Rgb::new(0.25, 0.5, 0.75),
+            eta: 1.25,
+            alpha_x: 0.125,
+            alpha_y: 0.375,
+            thickness: 2.0,
+            albedo: Rgb::new(0.5, 0.625, 0.875),
+            g: -0.25,
+            max_depth: 2048,
+            n_samples: 4000,
+        };
+        let p = PackedMaterial::pack(&m);
+        let c: Vec<f32> = p.coeffs.iter().map(|h| h.to_f32()).collect();
+        let expected =
+            [0.25, 0.5, 0.75, 0.125, 0.375, 1.25, 2.0, 0.5, 0.625, 0.875, -0.25, 2048.0, 2048.0, 0.0];
+        assert_eq!(&c[..14], &expected, "counts beyond COATED_MAX_COUNT are clamped");
+        assert!(c[14..].iter().all(|&x| x == 0.0));
+        assert_eq!(p.kind, MaterialKind::CoatedDiffuse);
+    }
 
     #[test]
     fn round_trip_through_record() {
@@ -108,6 +210,30 @@ mod tests {
                 transmittance: Rgb::splat(0.75),
             },
             Material::ThinDielectric { eta: 1.25 },
+            Material::CoatedDiffuse {
+                reflectance: Rgb::new(0.25, 0.5, 0.125),
+                eta: 1.5,
+                alpha_x: 0.25,
+                alpha_y: 0.5,
+                thickness: 0.125,
+                albedo: Rgb::new(0.5, 0.25, 0.0),
+                g: -0.5,
+                max_depth: 10,
+                n_samples: 3,
+            },
+            Material::Principled {
+                base_color: Rgb::new(0.25, 0.5, 0.75),
+                metallic: 0.125,
+                roughness: 0.375,
+                specular: 0.5,
+                specular_tint: 0.25,
+                sheen: 0.0625,
+                sheen_tint: 0.5,
+                clearcoat: 1.0,
+                clearcoat_gloss: 0.875,
+                transmission: 0.75,
+                eta: 1.5,
+            },
         ];
         for m in &materials {
             let mut r = RayRecord::zeroed();
@@ -123,6 +249,30 @@ mod tests {
                     Material::DiffuseTransmission { reflectance, transmittance }
                 }
                 Bsdf::ThinDielectric { eta } => Material::ThinDielectric { eta },
+                Bsdf::CoatedDiffuse(c) => Material::CoatedDiffuse {
+                    reflectance: c.reflectance,
+                    eta: c.eta,
+                    alpha_x: c.alpha_x,
+                    alpha_y: c.alpha_y,
+                    thickness: c.thickness,
+                    albedo: c.albedo,
+                    g: c.g,
+                    max_depth: c.max_depth,
+                    n_samples: c.n_samples,
+                },
+                Bsdf::Principled(p) => Material::Principled {
+                    base_color: p.base_color,
+                    metallic: p.metallic,
+                    roughness: p.roughness,
+                    specular: p.specular,
+                    specular_tint: p.specular_tint,
+                    sheen: p.sheen,
+                    sheen_tint: p.sheen_tint,
+                    clearcoat: p.clearcoat,
+                    clearcoat_gloss: p.clearcoat_gloss,
+                    transmission: p.transmission,
+                    eta: p.eta,
+                },
             };
             // f16 keeps ~3 significant digits.
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
@@ -142,7 +292,9 @@ mod tests {
                 }
                 // Values exact in f16: the round trip is exact.
                 (Material::DiffuseTransmission { .. }, Material::DiffuseTransmission { .. })
-                | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. }) => assert_eq!(m, &back),
+                | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. })
+                | (Material::CoatedDiffuse { .. }, Material::CoatedDiffuse { .. })
+                | (Material::Principled { .. }, Material::Principled { .. }) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }
         }

@@ -50,6 +50,16 @@ pub enum MaterialKind {
     /// Material tables only, never in a record: a `mix` resolved to one of
     /// its materials when the hit is written ([`crate::FrameContext::material_at`]).
     Mix = 6,
+    /// coeffs[0..3] reflectance, [3] alpha_x, [4] alpha_y, [5] eta,
+    /// [6] thickness, [7..10] albedo, [10] g, [11] max_depth, [12] n_samples
+    /// (the two counts as f16 integers, exact up to 2048).
+    CoatedDiffuse = 7,
+    /// coeffs[0..3] base colour, [3] metallic, [4] roughness (perceptual,
+    /// not alpha), [5] specular, [6] specular tint, [7] sheen, [8] sheen
+    /// tint, [9] clearcoat, [10] clearcoat gloss, [11] transmission, [12]
+    /// eta. Per-hit textures overwrite base colour, metallic and roughness
+    /// in place.
+    Principled = 8,
 }
 
 impl MaterialKind {
@@ -61,6 +71,8 @@ impl MaterialKind {
             4 => MaterialKind::DiffuseTransmission,
             5 => MaterialKind::ThinDielectric,
             6 => MaterialKind::Mix,
+            7 => MaterialKind::CoatedDiffuse,
+            8 => MaterialKind::Principled,
             _ => MaterialKind::None,
         }
     }
@@ -96,8 +108,10 @@ pub struct RayRecord {
     /// Instance that was hit (for ownership/debug views).
     pub instance: u32,
     pub position: [f32; 3],
-    /// Reserved; keeps the f16 block aligned.
-    pub reserved: u32,
+    /// For a hit on a textured emitter: the emission texture's value at the
+    /// hit, packed by [`pack_rgb9e5`] (the emitter's radiance is scaled by
+    /// it when shading); 0 otherwise.
+    pub emission_scale: u32,
     /// Geometric normal, oriented by pbrt's rule (not towards the ray).
     pub geometric_normal: [f16; 3],
     /// [`MaterialKind`] as u16.
@@ -145,13 +159,50 @@ pub fn field_layout() -> Vec<(&'static str, usize, usize)> {
         f!(light),
         f!(instance),
         f!(position),
-        f!(reserved),
+        f!(emission_scale),
         f!(geometric_normal),
         f!(material),
         f!(shading_normal),
         f!(reserved2),
         f!(coeffs),
     ]
+}
+
+/// Mantissa bits of [`pack_rgb9e5`]'s channels.
+const RGB9E5_MANTISSA: i32 = 9;
+/// Exponent bias of [`pack_rgb9e5`].
+const RGB9E5_BIAS: i32 = 15;
+
+/// Packs a non-negative colour as RGB9E5 (three 9-bit mantissas sharing a
+/// 5-bit exponent, as `EXT_texture_shared_exponent`): 4 bytes, about 0.2%
+/// precision relative to the largest channel, range up to 65408. Pure bit
+/// arithmetic (no `log2`), so `kernels/texture.cuh` packs the same bits.
+pub fn pack_rgb9e5(v: Vec3) -> u32 {
+    let max_value = 511.0 / 512.0 * 65536.0;
+    let c = |x: f32| if x > 0.0 { x.min(max_value) } else { 0.0 };
+    let (r, g, b) = (c(v.x), c(v.y), c(v.z));
+    let max_c = r.max(g).max(b);
+    if max_c < f32::MIN_POSITIVE {
+        return 0;
+    }
+    // floor(log2(max_c)) from the exponent bits (max_c is normal here).
+    let floor_log2 = ((max_c.to_bits() >> 23) & 0xff) as i32 - 127;
+    let mut exp_shared = floor_log2.max(-RGB9E5_BIAS - 1) + 1 + RGB9E5_BIAS;
+    let scale = |e: i32| f32::from_bits(((127 - (e - RGB9E5_BIAS - RGB9E5_MANTISSA)) as u32) << 23);
+    let mut inv_denom = scale(exp_shared);
+    if (max_c * inv_denom + 0.5).floor() >= 512.0 {
+        exp_shared += 1;
+        inv_denom = scale(exp_shared);
+    }
+    let m = |x: f32| ((x * inv_denom + 0.5).floor() as u32).min(511);
+    m(r) | m(g) << 9 | m(b) << 18 | (exp_shared as u32) << 27
+}
+
+/// The colour of [`pack_rgb9e5`] bits.
+pub fn unpack_rgb9e5(bits: u32) -> Vec3 {
+    let e = (bits >> 27) as i32 - RGB9E5_BIAS - RGB9E5_MANTISSA;
+    let scale = f32::from_bits(((127 + e) as u32) << 23);
+    Vec3::new((bits & 511) as f32, (bits >> 9 & 511) as f32, (bits >> 18 & 511) as f32) * scale
 }
 
 pub(crate) fn to_f16x3(v: Vec3) -> [f16; 3] {
@@ -195,6 +246,25 @@ impl RayRecord {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rgb9e5_round_trips_within_its_precision() {
+        assert_eq!(pack_rgb9e5(Vec3::ZERO), 0);
+        assert_eq!(unpack_rgb9e5(pack_rgb9e5(Vec3::ONE)), Vec3::ONE);
+        for v in [
+            Vec3::new(0.25, 0.5, 2.0),
+            Vec3::new(1e-3, 7.0, 300.0),
+            Vec3::new(0.999, 0.0, 0.001),
+            Vec3::splat(65000.0),
+        ] {
+            let back = unpack_rgb9e5(pack_rgb9e5(v));
+            let tol = v.max_element() / 256.0;
+            assert!((back - v).abs().max_element() <= tol, "{v} -> {back}");
+        }
+        // Negative and NaN channels become 0; huge ones saturate.
+        let back = unpack_rgb9e5(pack_rgb9e5(Vec3::new(-1.0, f32::NAN, 1e9)));
+        assert_eq!(back, Vec3::new(0.0, 0.0, 511.0 / 512.0 * 65536.0));
+    }
 
     #[test]
     fn layout_has_no_gaps_and_fills_128_bytes() {

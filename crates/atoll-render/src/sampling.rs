@@ -4,6 +4,7 @@
 //! helpers. Everything here is plain math with no state so the CUDA kernels can
 //! mirror it line by line.
 
+use crate::bsdf::Frame;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
@@ -109,6 +110,39 @@ pub fn power_heuristic(f_pdf: f32, g_pdf: f32) -> f32 {
         return 0.0;
     }
     f2 / (f2 + g2)
+}
+
+/// A distance with the exponential density `a e^(-a x)`, sampled by
+/// inverting its CDF (pbrt-v4 `SampleExponential`): `-ln(1 - u) / a`.
+pub fn sample_exponential(u: f32, a: f32) -> f32 {
+    -(1.0 - u).ln() / a
+}
+
+/// The Henyey–Greenstein phase function for the cosine between `wo` and
+/// `wi` (pbrt-v4 `HenyeyGreenstein`). Both point away from the scattering
+/// point, so forward scattering (`g > 0`) peaks at `cos_theta = -1`. `g` is
+/// clamped to ±0.99, where the function is still numerically stable.
+pub fn henyey_greenstein(cos_theta: f32, g: f32) -> f32 {
+    let g = g.clamp(-0.99, 0.99);
+    let denom = 1.0 + g * g + 2.0 * g * cos_theta;
+    (1.0 / (4.0 * PI)) * (1.0 - g * g) / (denom * denom.max(0.0).sqrt())
+}
+
+/// Samples the Henyey–Greenstein distribution around `wo` exactly (pbrt-v4
+/// `SampleHenyeyGreenstein`): `cos θ` by inverting its CDF, the azimuth
+/// uniformly. Returns `wi` and its density, which equals the phase function.
+pub fn sample_henyey_greenstein(wo: Vec3, g: f32, u: Vec2) -> (Vec3, f32) {
+    let g = g.clamp(-0.99, 0.99);
+    let cos_theta = if g.abs() < 1e-3 {
+        1.0 - 2.0 * u.x
+    } else {
+        let s = (1.0 - g * g) / (1.0 + g - 2.0 * g * u.x);
+        -1.0 / (2.0 * g) * (1.0 + g * g - s * s)
+    };
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    let wi = Frame::from_z(wo).from_local(spherical_direction(sin_theta, cos_theta, phi));
+    (wi, henyey_greenstein(cos_theta, g))
 }
 
 /// Unit vector from spherical coordinates, with `sin θ` and `cos θ` given
@@ -247,6 +281,39 @@ mod tests {
         assert!((power_heuristic(2.0, 1.0) - 0.8).abs() < 1e-6);
         assert!((power_heuristic(2.0, 1.0) + power_heuristic(1.0, 2.0) - 1.0).abs() < 1e-6);
         assert_eq!(power_heuristic(f32::INFINITY, 1.0), 1.0);
+    }
+
+    /// Henyey–Greenstein: normalised over the sphere, sampled exactly (the
+    /// returned density is the phase function of the sampled direction), and
+    /// with pbrt's orientation: mean cosine between `wo` and `wi` is `-g`.
+    #[test]
+    fn henyey_greenstein_is_normalised_and_sampled_exactly() {
+        let wo = Vec3::new(0.3, -0.5, 0.8).normalize();
+        for g in [-0.7f32, -0.2, 0.0, 0.5, 0.9] {
+            let n = 40_000;
+            // ∫ p dω over the sphere, cos θ uniform in [-1, 1] by the midpoint rule.
+            let cos = |i: u32| 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let sum: f64 = (0..n).map(|i| henyey_greenstein(cos(i), g) as f64).sum();
+            let integral = sum * 4.0 * std::f64::consts::PI / n as f64;
+            assert!((integral - 1.0).abs() < 1e-3, "g={g}: {integral}");
+            let mut mean_cos = 0.0f64;
+            for i in 0..n {
+                let (wi, pdf) = sample_henyey_greenstein(wo, g, halton(i));
+                assert!((wi.length() - 1.0).abs() < 1e-4, "{wi}");
+                let p = henyey_greenstein(wo.dot(wi), g);
+                assert!((pdf - p).abs() <= 2e-3 * p, "g={g}: {pdf} vs {p}");
+                mean_cos += wo.dot(wi) as f64;
+            }
+            assert!((mean_cos / n as f64 + g as f64).abs() < 5e-3, "g={g}: {}", mean_cos / n as f64);
+        }
+    }
+
+    #[test]
+    fn exponential_distances_have_mean_one_over_rate() {
+        let n = 20_000;
+        let mean = (0..n).map(|i| sample_exponential(halton(i).x, 4.0) as f64).sum::<f64>() / n as f64;
+        assert!((mean - 0.25).abs() < 2e-3, "{mean}");
+        assert_eq!(sample_exponential(0.0, 2.0), 0.0);
     }
 
     #[test]

@@ -11,7 +11,7 @@
 //! and `Bsdf::eval` for the same direction (all cases are rough, so a delta
 //! sample is an error too).
 
-use atoll_render::bsdf::Bsdf;
+use atoll_render::bsdf::{Bsdf, Principled};
 use atoll_scene::Rgb;
 use glam::{Vec2, Vec3};
 use std::f64::consts::PI;
@@ -197,15 +197,48 @@ fn adaptive_simpson(f: &mut dyn FnMut(f64) -> f64, a: f64, b: f64, eps: f64, max
 /// Simpson, as pbrt's `AdaptiveSimpson2D`). The θ range is inset by a hair:
 /// the horizon θ = π/2 is a cell boundary where most pdfs jump, and Simpson
 /// must not evaluate the upper hemisphere's value on the lower cell's edge
-/// (cos(π/2) rounds to a positive f32).
+/// (cos(π/2) rounds to a positive f32). Cells are split into
+/// [`cell_splits`]² parts first for BSDFs with very narrow lobes.
 fn integrate_cell(bsdf: &Bsdf, wo: Vec3, t0: f64, t1: f64, p0: f64, p1: f64) -> f64 {
     let (t0, t1) = (t0 + 1e-7, t1 - 1e-7);
-    let mut outer = |theta: f64| {
-        let s = theta.sin();
-        let mut inner = |phi: f64| bsdf.pdf(wo, direction(theta, phi)) as f64 * s;
-        adaptive_simpson(&mut inner, p0, p1, 1e-7, 6)
+    let n = cell_splits(bsdf);
+    let (dt, dp) = ((t1 - t0) / n as f64, (p1 - p0) / n as f64);
+    let mut sum = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let (ta, pa) = (t0 + i as f64 * dt, p0 + j as f64 * dp);
+            let mut outer = |theta: f64| {
+                let s = theta.sin();
+                let mut inner = |phi: f64| bsdf.pdf(wo, direction(theta, phi)) as f64 * s;
+                adaptive_simpson(&mut inner, pa, pa + dp, 1e-7, 6)
+            };
+            sum += adaptive_simpson(&mut outer, ta, ta + dt, 1e-7, 6);
+        }
+    }
+    sum
+}
+
+/// Parts per cell side for [`integrate_cell`]: Simpson's first points in a
+/// 7.5° cell are about 1° apart and step over a lobe a few tenths of a
+/// degree wide (GGX alpha 0.0025, GTR1 alpha near 0.001), so BSDFs with such
+/// lobes are integrated on a 16× finer grid.
+fn cell_splits(bsdf: &Bsdf) -> usize {
+    let narrowest = match bsdf {
+        Bsdf::Conductor { alpha_x, alpha_y, .. } | Bsdf::Dielectric { alpha_x, alpha_y, .. } => {
+            alpha_x.min(*alpha_y)
+        }
+        // GGX alpha, and the clearcoat's GTR1 alpha when there is a clearcoat.
+        Bsdf::Principled(p) => {
+            let coat = if p.clearcoat > 0.0 { 0.1 - 0.099 * p.clearcoat_gloss } else { 1.0 };
+            (p.roughness * p.roughness).min(coat)
+        }
+        _ => 1.0,
     };
-    adaptive_simpson(&mut outer, t0, t1, 1e-7, 6)
+    if narrowest < 0.02 {
+        16
+    } else {
+        1
+    }
 }
 
 struct Case {
@@ -279,7 +312,70 @@ fn all_cases() -> Vec<Case> {
             }
         }
     }
+    principled_cases(&mut cases);
     cases
+}
+
+/// The principled BSDF: metallic 0 and 1, roughness 0.05, 0.5 and 1,
+/// clearcoat, sheen, transmission from both sides, and everything at once.
+fn principled_cases(cases: &mut Vec<Case>) {
+    let base = Principled {
+        base_color: Rgb::new(0.8, 0.5, 0.2),
+        metallic: 0.0,
+        roughness: 0.5,
+        specular: 0.5,
+        specular_tint: 0.0,
+        sheen: 0.0,
+        sheen_tint: 0.5,
+        clearcoat: 0.0,
+        clearcoat_gloss: 1.0,
+        transmission: 0.0,
+        eta: 1.5,
+    };
+    let variants = [
+        ("dielectric r=0.5", Principled { ..base }),
+        ("dielectric r=0.05", Principled { roughness: 0.05, ..base }),
+        ("dielectric r=1", Principled { roughness: 1.0, specular_tint: 1.0, ..base }),
+        ("metallic r=0.5", Principled { metallic: 1.0, ..base }),
+        ("metallic r=0.05", Principled { metallic: 1.0, roughness: 0.05, ..base }),
+        ("metallic r=1", Principled { metallic: 1.0, roughness: 1.0, ..base }),
+        ("clearcoat gloss=0.5", Principled { clearcoat: 1.0, clearcoat_gloss: 0.5, metallic: 0.3, ..base }),
+        ("clearcoat gloss=1", Principled { clearcoat: 0.6, roughness: 0.3, ..base }),
+        ("sheen", Principled { sheen: 1.0, roughness: 0.8, ..base }),
+        ("glass r=0.3", Principled { transmission: 1.0, roughness: 0.3, ..base }),
+        ("glass η=0.667 r=0.5", Principled { transmission: 1.0, eta: 1.0 / 1.5, ..base }),
+        (
+            "everything",
+            Principled {
+                metallic: 0.3,
+                roughness: 0.4,
+                specular: 0.8,
+                specular_tint: 0.5,
+                sheen: 0.5,
+                clearcoat: 0.7,
+                clearcoat_gloss: 0.8,
+                transmission: 0.4,
+                ..base
+            },
+        ),
+    ];
+    for (name, p) in variants {
+        let glass = p.transmission > 0.0;
+        // Mirror directions off the grid's θ boundaries (multiples of 7.5°):
+        // a narrow lobe split by one is integrated less accurately.
+        let angles: &[(f32, f32, bool)] = if glass {
+            &[(5.0, 30.0, false), (50.0, 110.0, false), (40.0, 250.0, true), (70.0, 10.0, true)]
+        } else {
+            &[(5.0, 30.0, false), (40.0, 110.0, false), (80.0, 250.0, false), (50.0, 300.0, true)]
+        };
+        for &(t, phi, below) in angles {
+            cases.push(Case {
+                name: format!("principled {name} wo θ={t} below={below}"),
+                bsdf: Bsdf::Principled(p),
+                wo: wo_at(t, phi, below),
+            });
+        }
+    }
 }
 const CELL_THETA: f64 = PI / THETA_RES as f64;
 const CELL_PHI: f64 = 2.0 * PI / PHI_RES as f64;
@@ -431,6 +527,28 @@ fn chi2_dielectric_eta_above_one() {
 #[test]
 fn chi2_dielectric_eta_below_one() {
     run_family("dielectric η=0.667");
+}
+
+#[test]
+fn chi2_principled_dielectric() {
+    run_family("principled dielectric");
+}
+
+#[test]
+fn chi2_principled_metallic() {
+    run_family("principled metallic");
+}
+
+#[test]
+fn chi2_principled_clearcoat_and_sheen() {
+    run_family("principled clearcoat");
+    run_family("principled sheen");
+}
+
+#[test]
+fn chi2_principled_glass_and_everything() {
+    run_family("principled glass");
+    run_family("principled everything");
 }
 
 /// The test must be able to fail: samples from one BSDF checked against the

@@ -3,7 +3,7 @@
 //! conservation of the albedo estimate, the Fresnel equations and the law of
 //! refraction.
 
-use atoll_render::bsdf::{fr_complex, fr_dielectric, refract, Bsdf};
+use atoll_render::bsdf::{fr_complex, fr_dielectric, refract, Bsdf, Principled};
 use atoll_render::sampling::sample_uniform_sphere;
 use atoll_scene::{Material, Rgb};
 use glam::{Vec2, Vec3};
@@ -341,6 +341,188 @@ fn refraction_follows_snell() {
                     }
                 }
                 None => assert!(eta_o * sin_o > eta_i, "no TIR expected for {wo}"),
+            }
+        }
+    }
+}
+
+/// A principled surface with the given weights (specular 0.5, eta 1.5,
+/// sheen tint 0.5, gloss 1 unless set after).
+fn principled(base: Rgb, metallic: f32, roughness: f32, transmission: f32) -> Principled {
+    Principled {
+        base_color: base,
+        metallic,
+        roughness,
+        specular: 0.5,
+        specular_tint: 0.0,
+        sheen: 0.0,
+        sheen_tint: 0.5,
+        clearcoat: 0.0,
+        clearcoat_gloss: 1.0,
+        transmission,
+        eta: 1.5,
+    }
+}
+
+/// Principled parameter sets covering every lobe, rough and smooth.
+fn principled_set(base: Rgb) -> Vec<Principled> {
+    let mut v = Vec::new();
+    for metallic in [0.0, 0.5, 1.0] {
+        for roughness in [0.0, 0.05, 0.3, 0.5, 1.0] {
+            v.push(principled(base, metallic, roughness, 0.0));
+        }
+    }
+    for transmission in [0.5, 1.0] {
+        for roughness in [0.0, 0.2, 0.6] {
+            v.push(principled(base, 0.0, roughness, transmission));
+        }
+    }
+    let p = principled(base, 0.0, 1.0, 0.0);
+    v.push(Principled { sheen: 1.0, sheen_tint: 0.0, ..p });
+    v.push(Principled { sheen: 1.0, specular: 1.0, ..principled(base, 0.0, 0.0, 0.0) });
+    v.push(Principled { specular: 0.0, ..p });
+    v.push(Principled { specular: 1.0, specular_tint: 1.0, roughness: 0.2, ..p });
+    for (metallic, roughness) in [(1.0, 0.0), (1.0, 0.3), (0.0, 1.0), (0.0, 0.05)] {
+        for gloss in [0.0, 1.0] {
+            let p = principled(base, metallic, roughness, 0.0);
+            v.push(Principled { clearcoat: 1.0, clearcoat_gloss: gloss, ..p });
+        }
+    }
+    v.push(Principled {
+        metallic: 0.3,
+        roughness: 0.4,
+        specular: 0.8,
+        specular_tint: 0.5,
+        sheen: 0.5,
+        clearcoat: 0.7,
+        clearcoat_gloss: 0.8,
+        transmission: 0.4,
+        ..principled(base, 0.0, 0.0, 0.0)
+    });
+    v
+}
+
+/// Reflection pairs of every principled lobe (diffuse with its energy
+/// normalisation, specular, glass reflection, sheen, clearcoat) are
+/// symmetric; transmission obeys the `etap²` relation of radiance mode.
+#[test]
+fn principled_is_reciprocal() {
+    let mut rng = Rng(0x5eed_1234_abcd_0001);
+    for p in principled_set(Rgb::new(0.9, 0.4, 0.1)) {
+        let bsdf = Bsdf::Principled(p);
+        let (mut reflected, mut transmitted) = (0, 0);
+        for _ in 0..20_000 {
+            let wo = sample_uniform_sphere(rng.vec2());
+            let wi = sample_uniform_sphere(rng.vec2());
+            let (a, b) = (bsdf.eval(wo, wi), bsdf.eval(wi, wo));
+            if wo.z * wi.z > 0.0 {
+                assert!(rel_close(a, b, 1e-3), "{p:?} wo={wo} wi={wi}: {a} vs {b}");
+                reflected += (a.max_element() > 0.0) as u32;
+            } else {
+                let etap = if wo.z > 0.0 { p.eta } else { 1.0 / p.eta };
+                // Away from the critical angle, as for the dielectric.
+                let wm = (wi * etap + wo).normalize();
+                if wo.dot(wm).abs().min(wi.dot(wm).abs()) < 0.02 {
+                    continue;
+                }
+                assert!(rel_close(b, a * etap * etap, 1e-3), "{p:?} wo={wo} wi={wi}: {a} vs {b}");
+                transmitted += (a.max_element() > 0.0) as u32;
+            }
+        }
+        assert!(bsdf.is_delta() || reflected > 1000, "{p:?}: only {reflected} nonzero reflection values");
+        assert!(p.transmission == 0.0 || p.roughness == 0.0 || transmitted > 1000, "{p:?}: {transmitted}");
+    }
+}
+
+/// White principled surfaces never reflect (and transmit, in importance
+/// mode) more than they receive, at any angle, with every lobe: the
+/// Monte Carlo albedo stays below 1 up to three standard errors.
+#[test]
+fn principled_white_albedo_never_exceeds_one() {
+    let mut rng = Rng(0x00a1_bed0);
+    let n = 20_000;
+    let mut most = (0.0f32, None);
+    for p in principled_set(Rgb::ONE) {
+        let bsdf = Bsdf::Principled(p);
+        for wo in wo_angles() {
+            let (mut sum, mut sum2) = (Rgb::ZERO, Rgb::ZERO);
+            for _ in 0..n {
+                let uc = rng.next_f32();
+                if let Some(s) = bsdf.sample(wo, uc, rng.vec2()) {
+                    let mut w = s.f * s.wi.z.abs() / s.pdf;
+                    if s.transmission {
+                        w *= s.eta * s.eta;
+                    }
+                    sum += w;
+                    sum2 += w * w;
+                }
+            }
+            let mean = sum / n as f32;
+            let stderr = ((sum2 / n as f32 - mean * mean).max(Rgb::ZERO) / n as f32).map(f32::sqrt);
+            let excess = (mean - Rgb::ONE - 3.0 * stderr).max_element();
+            assert!(excess <= 1e-3, "{p:?} wo={wo}: albedo {mean} ± {stderr}");
+            if mean.max_element() > most.0 {
+                most = (mean.max_element(), Some((p, wo)));
+            }
+        }
+    }
+    // The tests are not vacuous: some white surfaces are close to 1 (the smooth metal is 1).
+    assert!(most.0 > 0.99, "{most:?}");
+}
+
+/// Metallic 1, roughness → 0 is a mirror whose reflectance is Schlick's
+/// from the base colour: the base colour at normal incidence, white at
+/// grazing. Just above the delta threshold the rough lobe reflects about
+/// the same.
+#[test]
+fn smooth_principled_metal_is_a_mirror_of_its_base_colour() {
+    let base = Rgb::new(0.9, 0.6, 0.2);
+    for roughness in [0.0, 0.01] {
+        let bsdf = Bsdf::Principled(principled(base, 1.0, roughness, 0.0));
+        assert!(bsdf.is_delta());
+        for wo in wo_angles() {
+            let s = bsdf.sample(wo, 0.5, Vec2::new(0.3, 0.7)).unwrap();
+            assert!(s.delta && !s.transmission && s.pdf == 1.0);
+            assert!((s.wi - Vec3::new(-wo.x, -wo.y, wo.z)).length() < 1e-6);
+            let schlick = base + (Rgb::ONE - base) * (1.0 - wo.z.abs()).powi(5);
+            let weight = s.f * s.wi.z.abs() / s.pdf;
+            assert!((weight - schlick).abs().max_element() < 1e-5, "{wo}: {weight} vs {schlick}");
+            assert_eq!((bsdf.eval(wo, s.wi), bsdf.pdf(wo, s.wi)), (Rgb::ZERO, 0.0));
+        }
+    }
+    let mut rng = Rng(13);
+    let nearly = Bsdf::Principled(principled(base, 1.0, 0.05, 0.0));
+    assert!(!nearly.is_delta());
+    let (a, _) = albedo(&nearly, Vec3::Z, 20_000, false, &mut rng);
+    assert!((a - base).abs().max_element() < 0.01, "{a} vs {base}");
+    // With a clearcoat there is a glossy lobe to light-sample.
+    let coated = Principled { clearcoat: 1.0, ..principled(base, 1.0, 0.0, 0.0) };
+    assert!(!Bsdf::Principled(coated).is_delta());
+}
+
+/// Smooth principled glass of white base colour is the smooth dielectric:
+/// reflection with probability R, refraction with 1 − R, weights 1 in
+/// importance mode; a coloured base tints transmission by its square root.
+#[test]
+fn smooth_principled_glass_is_the_dielectric() {
+    for eta in [1.5f32, 1.0 / 1.5] {
+        let p = Principled { eta, ..principled(Rgb::ONE, 0.0, 0.0, 1.0) };
+        let glass = Bsdf::Principled(p);
+        assert!(glass.is_delta());
+        let tinted = Bsdf::Principled(Principled { base_color: Rgb::new(0.25, 1.0, 0.64), ..p });
+        let mut rng = Rng(14);
+        for _ in 0..200 {
+            let wo = sample_uniform_sphere(rng.vec2());
+            let r = fr_dielectric(wo.z, eta);
+            let refl = glass.sample(wo, 0.0, Vec2::ZERO).unwrap();
+            assert!(refl.delta && !refl.transmission && (refl.pdf - r).abs() < 1e-5, "{wo}: {refl:?}");
+            if let Some(t) = glass.sample(wo, 0.999_999, Vec2::ZERO).filter(|t| t.transmission) {
+                assert!((refl.pdf + t.pdf - 1.0).abs() < 1e-5);
+                let w = t.f * t.wi.z.abs() / t.pdf * t.eta * t.eta;
+                assert!((w - Rgb::ONE).abs().max_element() < 1e-4, "{w}");
+                let s = tinted.sample(wo, 0.999_999, Vec2::ZERO).unwrap();
+                let wt = s.f * s.wi.z.abs() / s.pdf * s.eta * s.eta;
+                assert!((wt - Rgb::new(0.5, 1.0, 0.8)).abs().max_element() < 1e-4, "{wt}");
             }
         }
     }

@@ -169,3 +169,42 @@ fn ambient_occlusion_extremes() {
     }
     assert!(pixels.iter().filter(|p| p.x == 1.0).count() > 100);
 }
+
+/// Principled spheres under a uniform sky of radiance 1: smooth white metal
+/// is a perfect mirror (every pixel 1, through its delta lobe); a rough
+/// white dielectric and a white coated glass, whose lobes mix delta and
+/// glossy ones with light sampling, reflect less than they receive but most
+/// of it (the single-scattering lobes lose a little).
+#[test]
+fn white_principled_spheres_under_uniform_sky() {
+    let p = |metallic: f32, roughness: f32, transmission: f32, clearcoat: f32| Material::Principled {
+        base_color: Rgb::ONE,
+        metallic,
+        roughness,
+        specular: 0.5,
+        specular_tint: 0.0,
+        sheen: 0.0,
+        sheen_tint: 0.5,
+        clearcoat,
+        clearcoat_gloss: 1.0,
+        transmission,
+        eta: 1.5,
+    };
+    for (material, lo, hi) in [
+        (p(1.0, 0.0, 0.0, 0.0), 1.0, 1.0),
+        (p(0.0, 0.5, 0.0, 0.0), 0.9, 1.0),
+        (p(0.0, 0.3, 1.0, 1.0), 0.9, 1.0),
+    ] {
+        let mut scene =
+            scene_with(vec![sphere(0)], vec![material.clone()], Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO);
+        scene.lights.push(Light::Infinite { radiance: Rgb::ONE });
+        let film = render_with(&Arc::new(scene), options(64, 16), None);
+        assert_finite(&film);
+        let pixels = film.pixels();
+        for c in 0..3 {
+            let (mean, err) = mean_and_stderr(pixels.iter().map(|p| p[c]));
+            let slack = 4.0 * err + 2e-3;
+            assert!(mean > lo - slack && mean < hi + slack, "{material:?} channel {c}: mean {mean} ± {err}");
+        }
+    }
+}

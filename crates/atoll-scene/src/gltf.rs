@@ -9,14 +9,37 @@
 //! - **Coordinates** stay as they are (right-handed, +Y up); atoll has no
 //!   fixed up axis. glTF's front faces wind counter-clockwise, which is the
 //!   side atoll's geometric normal points to, so `flip_normals` is false.
-//! - **Materials** (metallic-roughness) are approximated until atoll has a
-//!   principled material (one warning a file): `KHR_materials_transmission`
-//!   ≥ 0.5 → `Dielectric` (eta = `KHR_materials_ior`, default 1.5);
-//!   metallic ≥ 0.5 → `Conductor` with eta 1 and the `k` whose normal
-//!   reflectance is the base colour; otherwise `Diffuse` with the base
-//!   colour. Alpha is roughness² (glTF's GGX convention). Specular-glossiness
-//!   materials use their diffuse factor. Primitives without a material get
-//!   glTF's default material (white, metallic 1, roughness 1), as viewers do.
+//! - **Materials** become [`Material::Principled`] ([`convert_material`]):
+//!   `baseColorFactor`, `metallicFactor`, `roughnessFactor` (perceptual, as
+//!   the principled roughness), `KHR_materials_ior` (default 1.5) as `eta` and,
+//!   with `KHR_materials_specular`'s factors, as `specular` (glTF's dielectric
+//!   reflectance `((ior - 1) / (ior + 1))² · specularFactor ·
+//!   specularColorFactor`, its colour's luminance); `KHR_materials_transmission`
+//!   as `transmission` (a refracting solid: glTF without `KHR_materials_volume`
+//!   means a thin wall, which atoll does not model); `KHR_materials_clearcoat`
+//!   (its roughness² as the coat's GTR1 alpha) and `KHR_materials_sheen` (the
+//!   colour's largest channel, untinted) read from the raw extension JSON,
+//!   which the `gltf` crate does not parse. Specular-glossiness materials use
+//!   their diffuse factor and texture, `1 - glossiness` and the specular
+//!   factor's luminance. Primitives without a material get glTF's default
+//!   material (white, metallic 1, roughness 1), as viewers do.
+//! - **Textures** go into [`crate::Scene::textures`]: `baseColorTexture`
+//!   (sRGB, times `baseColorFactor` through a `Scale` node) bound to
+//!   `Reflectance`; `metallicRoughnessTexture` (linear) as two image textures
+//!   of the same image, blue scaled by `metallicFactor` bound to `Metallic`,
+//!   green by `roughnessFactor` to `Roughness`. Images are decoded from the
+//!   file's buffers, data URIs or files (16-bit sRGB images at 8 bits), once
+//!   per colour encoding; samplers' wrap modes map to [`Wrap`] (u's when u
+//!   and v differ); `KHR_texture_transform`'s offset and scale join the
+//!   `v` flip into the [`UvMapping`] (rotation is ignored). `TEXCOORD_0`
+//!   gives the meshes' uvs. What is not read (normal, emissive and
+//!   extension textures, textures on other texture coordinates, ...) is
+//!   named in one warning a file; an image that cannot be read leaves its
+//!   material with the factors, after a warning.
+//! - **Alpha**: `MASK` cuts the primitive where the base colour's alpha
+//!   (texture × factor) is below `alphaCutoff` (default 0.5); `BLEND` is
+//!   rendered as stochastic coverage (alpha is the probability that a ray
+//!   hits), which converges to the blend for a single layer.
 //! - **Emission**: `emissiveFactor × KHR_materials_emissive_strength`, when
 //!   non-zero, is a one-sided area light on the primitive's mesh.
 //! - **Camera**: the first perspective camera met walking the scene's nodes
@@ -28,9 +51,8 @@
 //!   Without punctual lights the default sky and sun of [`crate::framing`]
 //!   are added, even when some materials are emissive (in glTF content those
 //!   are screens and LEDs, not what lights the scene).
-//! - **Textures** are recorded in [`LoadedScene::textures`], not rendered yet.
 
-use std::collections::HashMap;
+use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
 
 use ::gltf::accessor::{DataType, Dimensions};
@@ -40,11 +62,11 @@ use ::gltf::mesh::Mode;
 use glam::{Affine3A, Mat4, UVec2, Vec2, Vec3, Vec4};
 
 use crate::error::{FileLoc, SceneError};
-use crate::load::TextureRef;
 use crate::pbrt::WarningSink;
 use crate::{
-    AreaEmission, Camera, Instance, Light, LoadedScene, Material, MaterialId, Object, ObjectId, Rgb,
-    TriangleMesh,
+    luminance, AlphaMode, AreaEmission, Camera, Channel, ImageId, Instance, Light, LoadedScene, Material,
+    MaterialId, MeshAlpha, Object, ObjectId, Rgb, TexInput, Texels, Texture, TextureBinding, TextureImage,
+    TexturedParam, TriangleMesh, UvMapping, Wrap,
 };
 
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
@@ -76,8 +98,13 @@ struct Loader<'a> {
     loc: FileLoc,
     out: LoadedScene,
     w: WarningSink,
-    /// glTF material index (`None`: the default material) → atoll material.
-    materials: HashMap<Option<usize>, MaterialId>,
+    /// glTF material index (`None`: the default material) → atoll material
+    /// and the alpha mask of the primitives that use it.
+    materials: HashMap<Option<usize>, (MaterialId, Option<MeshAlpha>)>,
+    /// (glTF image index, sRGB) → the decoded image (`None`: unreadable).
+    images: HashMap<(usize, bool), Option<ImageId>>,
+    /// What the file uses that atoll ignores, named in one warning.
+    ignored: BTreeSet<&'static str>,
     /// glTF mesh index → atoll object (`None`: the mesh has no triangles).
     objects: HashMap<usize, Option<ObjectId>>,
     /// The first perspective camera: node world transform, yfov, aspect ratio.
@@ -97,6 +124,8 @@ fn convert(bytes: &[u8], name: &str, base: &Path) -> Result<LoadedScene, SceneEr
         out: LoadedScene::default(),
         w: WarningSink::default(),
         materials: HashMap::new(),
+        images: HashMap::new(),
+        ignored: BTreeSet::new(),
         objects: HashMap::new(),
         camera: None,
     };
@@ -250,7 +279,7 @@ impl<'a> Loader<'a> {
         if prim.morph_targets().next().is_some() {
             self.w.warn(&self.loc, format!("{what}: morph targets are not supported; using the base shape"));
         }
-        let material = self.material(&prim.material());
+        let (material, alpha) = self.material(&prim.material());
         let emission = emission(&prim.material());
         let mesh = TriangleMesh {
             name: what.to_string(),
@@ -261,64 +290,190 @@ impl<'a> Loader<'a> {
             material,
             emission,
             flip_normals: false,
+            alpha,
         };
         mesh.validate().map_err(err)?;
         Ok(Some(mesh))
     }
 
-    /// The atoll material for a glTF material, added on first use.
-    fn material(&mut self, m: &::gltf::Material<'a>) -> MaterialId {
-        if let Some(&id) = self.materials.get(&m.index()) {
-            return id;
+    /// The atoll material for a glTF material, added with its texture
+    /// bindings on first use, and the alpha mask of its primitives.
+    fn material(&mut self, m: &::gltf::Material<'a>) -> (MaterialId, Option<MeshAlpha>) {
+        if let Some(&known) = self.materials.get(&m.index()) {
+            return known;
         }
         let id = self.out.scene.add_material(convert_material(m));
-        self.materials.insert(m.index(), id);
         let pbr = m.pbr_metallic_roughness();
-        let textures = [
-            (pbr.base_color_texture().map(|t| t.texture()), "reflectance"),
-            (m.emissive_texture().map(|t| t.texture()), "emission"),
-            (m.normal_texture().map(|t| t.texture()), "normalmap"),
-            (pbr.metallic_roughness_texture().map(|t| t.texture()), "roughness"),
-        ];
-        for (tex, parameter) in textures {
-            if let Some(tex) = tex {
-                self.record_texture(&tex.source(), id, parameter);
-            }
+        let sg = m.pbr_specular_glossiness();
+        let (factor, color_info) = match &sg {
+            Some(sg) => (Vec4::from(sg.diffuse_factor()), sg.diffuse_texture()),
+            None => (Vec4::from(pbr.base_color_factor()), pbr.base_color_texture()),
+        };
+        // Base colour: the sRGB image times the factor.
+        let color = color_info.and_then(|info| self.image_texture(&info, true));
+        if let Some((image, mapping, wrap)) = color {
+            let tex = self.add_texture(image_node(image, mapping, wrap, Channel::Rgb, 1.0));
+            let rgb = factor.truncate();
+            let tex = if rgb == Rgb::ONE {
+                tex
+            } else {
+                self.add_texture(Texture::Scale { tex: TexInput::Texture(tex), scale: TexInput::Value(rgb) })
+            };
+            self.bind(id, TexturedParam::Reflectance, tex);
         }
+        // Metalness in blue, roughness in green of one linear image, times the factors.
+        let mr = pbr.metallic_roughness_texture().filter(|_| sg.is_none());
+        if let Some((image, mapping, wrap)) = mr.and_then(|info| self.image_texture(&info, false)) {
+            let metallic =
+                self.add_texture(image_node(image, mapping, wrap, Channel::Blue, pbr.metallic_factor()));
+            self.bind(id, TexturedParam::Metallic, metallic);
+            let roughness =
+                self.add_texture(image_node(image, mapping, wrap, Channel::Green, pbr.roughness_factor()));
+            self.bind(id, TexturedParam::Roughness, roughness);
+        }
+        let alpha = self.alpha(m, factor.w, color);
+        self.note_ignored(m);
+        self.materials.insert(m.index(), (id, alpha));
+        (id, alpha)
+    }
+
+    fn add_texture(&mut self, texture: Texture) -> u32 {
+        self.out.scene.textures.add(texture)
+    }
+
+    /// Binds `texture` to `param` of `material`; the principled roughness is
+    /// perceptual, as glTF's, so nothing is remapped.
+    fn bind(&mut self, material: MaterialId, param: TexturedParam, texture: u32) {
+        self.out.scene.textures.bind(TextureBinding { material, param, texture, remap_roughness: false });
+    }
+
+    /// The image, uv mapping and wrap mode of a texture reference; `None`
+    /// (noted) for one atoll cannot use.
+    fn image_texture(
+        &mut self,
+        info: &::gltf::texture::Info<'a>,
+        srgb: bool,
+    ) -> Option<(ImageId, UvMapping, Wrap)> {
+        let transform = info.texture_transform();
+        let tex_coord = transform.as_ref().and_then(|t| t.tex_coord()).unwrap_or(info.tex_coord());
+        if tex_coord != 0 {
+            self.ignored.insert("textures on TEXCOORD_1 and beyond");
+            return None;
+        }
+        let texture = info.texture();
+        let image = self.image(&texture.source(), srgb)?;
+        let sampler = texture.sampler();
+        let (wrap, wrap_t) = (wrap_mode(sampler.wrap_s()), wrap_mode(sampler.wrap_t()));
+        if wrap != wrap_t {
+            self.ignored.insert("v wrap modes that differ from u's (u's is used)");
+        }
+        let mapping = match transform {
+            Some(t) => {
+                if t.rotation() != 0.0 {
+                    self.ignored.insert("texture rotations (KHR_texture_transform)");
+                }
+                uv_mapping(t.offset(), t.scale())
+            }
+            None => UvMapping::FLIP_V,
+        };
+        Some((image, mapping, wrap))
+    }
+
+    /// glTF image `image` decoded (once per encoding); `None` after a
+    /// warning when it cannot be read.
+    fn image(&mut self, image: &::gltf::Image<'a>, srgb: bool) -> Option<ImageId> {
+        if let Some(&known) = self.images.get(&(image.index(), srgb)) {
+            return known;
+        }
+        let name = match image.source() {
+            ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => uri.to_string(),
+            _ => image.name().map(String::from).unwrap_or_else(|| format!("image {}", image.index())),
+        };
+        let decoded = ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
+            .map_err(|e| e.to_string())
+            .and_then(|data| texture_image(&name, data, srgb));
+        let id = match decoded {
+            Ok(t) => Some(self.out.scene.textures.add_image(t)),
+            Err(e) => {
+                self.w.warn(
+                    &self.loc,
+                    format!(
+                        "image {} ('{name}') cannot be read: {e}; its materials use their factors",
+                        image.index()
+                    ),
+                );
+                None
+            }
+        };
+        self.images.insert((image.index(), srgb), id);
         id
     }
 
-    fn record_texture(&mut self, image: &::gltf::Image<'a>, id: MaterialId, parameter: &str) {
-        let (name, filename) = match image.source() {
-            ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
-                let file = percent_decode(uri).map(|f| self.base.join(f));
-                (image.name().unwrap_or(uri).to_string(), file)
-            }
-            _ => (image.name().map(String::from).unwrap_or_else(|| format!("image {}", image.index())), None),
+    /// The alpha mask of `m`'s primitives: the base colour's alpha (texture
+    /// × factor) against the cutoff for `MASK`, as a hit probability for
+    /// `BLEND`; `None` when opaque.
+    fn alpha(
+        &mut self,
+        m: &::gltf::Material<'a>,
+        factor: f32,
+        color: Option<(ImageId, UvMapping, Wrap)>,
+    ) -> Option<MeshAlpha> {
+        let mode = match m.alpha_mode() {
+            ::gltf::material::AlphaMode::Opaque => return None,
+            ::gltf::material::AlphaMode::Mask => AlphaMode::Cutoff(m.alpha_cutoff().unwrap_or(0.5)),
+            ::gltf::material::AlphaMode::Blend => AlphaMode::Stochastic,
         };
-        let use_ = (id, parameter.to_string());
-        match self.out.textures.iter_mut().find(|t| t.name == name && t.filename == filename) {
-            Some(t) => t.uses.push(use_),
+        let images = &self.out.scene.textures.images;
+        let texture = match color.filter(|&(image, ..)| images[image as usize].has_alpha()) {
+            Some((image, mapping, wrap)) => image_node(image, mapping, wrap, Channel::Alpha, factor),
             None => {
-                self.out.textures.push(TextureRef { name, class: "image".into(), filename, uses: vec![use_] })
+                // A constant alpha: the surface is whole or gone.
+                let solid = match mode {
+                    AlphaMode::Cutoff(cutoff) => factor >= cutoff,
+                    AlphaMode::Stochastic => factor >= 1.0,
+                };
+                if solid {
+                    return None;
+                }
+                Texture::Constant(Rgb::splat(factor.max(0.0)))
+            }
+        };
+        Some(MeshAlpha { texture: self.add_texture(texture), mode })
+    }
+
+    /// Notes what of `m` atoll does not read.
+    fn note_ignored(&mut self, m: &::gltf::Material<'a>) {
+        let ext_texture = |name: &str, keys: &[&str]| {
+            m.extension_value(name).is_some_and(|v| keys.iter().any(|k| v.get(*k).is_some()))
+        };
+        let notes = [
+            (m.normal_texture().is_some(), "normal maps"),
+            (m.emissive_texture().is_some(), "emissive textures (the emissive factor is used)"),
+            (m.unlit(), "KHR_materials_unlit (shaded as lit)"),
+            (m.volume().is_some(), "KHR_materials_volume (transmission is a refracting solid without absorption)"),
+            (
+                m.pbr_specular_glossiness().is_some_and(|sg| sg.specular_glossiness_texture().is_some())
+                    || m.transmission().is_some_and(|t| t.transmission_texture().is_some())
+                    || m.specular()
+                        .is_some_and(|s| s.specular_texture().is_some() || s.specular_color_texture().is_some())
+                    || ext_texture(CLEARCOAT, &["clearcoatTexture", "clearcoatRoughnessTexture"])
+                    || ext_texture(SHEEN, &["sheenColorTexture", "sheenRoughnessTexture"]),
+                "specular-glossiness, transmission, specular, clearcoat and sheen textures (factors are used)",
+            ),
+            (ext_texture(CLEARCOAT, &["clearcoatNormalTexture"]), "clearcoat normal maps"),
+        ];
+        for (used, what) in notes {
+            if used {
+                self.ignored.insert(what);
             }
         }
     }
 
     fn finish(mut self) -> Result<LoadedScene, SceneError> {
         let doc = self.doc;
-        if doc.materials().next().is_some() {
-            self.w.warn(
-                &self.loc,
-                "glTF materials are approximated (diffuse, conductor or dielectric) until atoll has a principled material",
-            );
-        }
-        if !self.out.textures.is_empty() {
-            let n = self.out.textures.len();
-            self.w.warn(
-                &self.loc,
-                format!("{n} textures recorded but not rendered yet; materials use their factors"),
-            );
+        if !self.ignored.is_empty() {
+            let list: Vec<&str> = self.ignored.iter().copied().collect();
+            self.w.warn(&self.loc, format!("not supported, ignored: {}", list.join("; ")));
         }
         if doc.skins().next().is_some() || doc.animations().next().is_some() {
             self.w.warn(
@@ -387,24 +542,132 @@ pub fn camera_fov_and_resolution(yfov: f32, aspect: Option<f32>) -> (f32, UVec2)
     (fov.to_degrees(), resolution)
 }
 
-/// The approximated material (rules in the module docs).
-fn convert_material(m: &::gltf::Material) -> Material {
-    if let Some(sg) = m.pbr_specular_glossiness() {
-        return Material::Diffuse { reflectance: Vec4::from(sg.diffuse_factor()).truncate() };
+/// The raw JSON of these extensions is read (the `gltf` crate does not
+/// parse them).
+const CLEARCOAT: &str = "KHR_materials_clearcoat";
+const SHEEN: &str = "KHR_materials_sheen";
+
+/// The principled material of a glTF material's factors (rules in the module docs).
+pub fn convert_material(m: &::gltf::Material) -> Material {
+    let ior = m.ior().filter(|e| e.is_finite() && *e > 0.0).unwrap_or(1.5);
+    let unit = |x: f32| x.clamp(0.0, 1.0);
+    let (base_color, metallic, roughness, specular) = match m.pbr_specular_glossiness() {
+        Some(sg) => {
+            let specular = luminance(Rgb::from(sg.specular_factor())) / 0.08;
+            (Vec4::from(sg.diffuse_factor()).truncate(), 0.0, 1.0 - sg.glossiness_factor(), specular)
+        }
+        None => {
+            let pbr = m.pbr_metallic_roughness();
+            let scale = m
+                .specular()
+                .map_or(1.0, |s| s.specular_factor() * luminance(Rgb::from(s.specular_color_factor())));
+            let base = Vec4::from(pbr.base_color_factor()).truncate();
+            (base, pbr.metallic_factor(), pbr.roughness_factor(), scale * Material::specular_from_eta(ior))
+        }
+    };
+    let number = |ext: &str, key: &str, default: f32| {
+        m.extension_value(ext)
+            .and_then(|v| v.get(key))
+            .and_then(serde_json::Value::as_f64)
+            .map_or(default, |x| x as f32)
+    };
+    // glTF's coat is GGX of roughness r (alpha r²); Disney's is GTR1 of alpha
+    // lerp(gloss, 0.1, 0.001): the gloss whose alpha is r², within that range.
+    let coat_roughness = number(CLEARCOAT, "clearcoatRoughnessFactor", 0.0);
+    let clearcoat_gloss = unit((0.1 - coat_roughness * coat_roughness) / 0.099);
+    let sheen_color = m
+        .extension_value(SHEEN)
+        .and_then(|v| v.get("sheenColorFactor"))
+        .and_then(serde_json::Value::as_array)
+        .map_or(0.0, |c| c.iter().filter_map(serde_json::Value::as_f64).fold(0.0, f64::max) as f32);
+    Material::Principled {
+        base_color: base_color.clamp(Rgb::ZERO, Rgb::ONE),
+        metallic: unit(metallic),
+        roughness: unit(roughness),
+        specular: specular.max(0.0),
+        specular_tint: 0.0,
+        sheen: unit(sheen_color),
+        sheen_tint: 0.0,
+        clearcoat: unit(number(CLEARCOAT, "clearcoatFactor", 0.0)),
+        clearcoat_gloss,
+        transmission: unit(m.transmission().map_or(0.0, |t| t.transmission_factor())),
+        eta: ior,
     }
-    let pbr = m.pbr_metallic_roughness();
-    let base = Vec4::from(pbr.base_color_factor()).truncate();
-    let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
-    let alpha = roughness * roughness;
-    if m.transmission().is_some_and(|t| t.transmission_factor() >= 0.5) {
-        let eta = m.ior().filter(|&e| e > 0.0).unwrap_or(1.5);
-        return Material::Dielectric { eta, alpha_x: alpha, alpha_y: alpha };
+}
+
+/// An image texture node with no inversion.
+fn image_node(image: ImageId, mapping: UvMapping, wrap: Wrap, channel: Channel, scale: f32) -> Texture {
+    Texture::Image { image, mapping, wrap, channel, scale, invert: false }
+}
+
+fn wrap_mode(m: ::gltf::texture::WrappingMode) -> Wrap {
+    match m {
+        ::gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+        ::gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+        ::gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
     }
-    if pbr.metallic_factor() >= 0.5 {
-        let k = Material::conductor_k_from_reflectance(base);
-        return Material::Conductor { eta: Rgb::ONE, k, alpha_x: alpha, alpha_y: alpha };
+}
+
+/// `KHR_texture_transform`'s `uv · scale + offset` (glTF's uv, `v` down),
+/// then atoll's `v` up: `s = sx u + ox`, `t = 1 - (sy v + oy)`. Offset 0
+/// and scale 1 give [`UvMapping::FLIP_V`].
+fn uv_mapping(offset: [f32; 2], scale: [f32; 2]) -> UvMapping {
+    UvMapping { su: scale[0], sv: -scale[1], du: offset[0], dv: 1.0 - offset[1] }
+}
+
+/// Grey, grey-alpha, RGB or RGBA values of one texel as RGBA (`one`: opaque).
+fn rgba<T: Copy>(v: &[T], one: T) -> [T; 4] {
+    match v.len() {
+        1 => [v[0], v[0], v[0], one],
+        2 => [v[0], v[0], v[0], v[1]],
+        3 => [v[0], v[1], v[2], one],
+        _ => [v[0], v[1], v[2], v[3]],
     }
-    Material::Diffuse { reflectance: base }
+}
+
+/// A decoded glTF image as a [`TextureImage`]: 8-bit images stay 8-bit
+/// (sRGB when `srgb`); grey ones are spread over RGB (with grey-alpha's
+/// alpha); 16-bit ones become linear floats, or 8-bit when sRGB; float ones
+/// stay linear floats.
+pub fn texture_image(name: &str, data: ::gltf::image::Data, srgb: bool) -> Result<TextureImage, String> {
+    use ::gltf::image::Format as F;
+    let (width, height) = (data.width, data.height);
+    let px = &data.pixels;
+    let channels = match data.format {
+        F::R8 | F::R16 => 1,
+        F::R8G8 | F::R16G16 => 2,
+        F::R8G8B8 | F::R16G16B16 | F::R32G32B32FLOAT => 3,
+        F::R8G8B8A8 | F::R16G16B16A16 | F::R32G32B32A32FLOAT => 4,
+    };
+    let texels = match data.format {
+        F::R8 | F::R8G8 | F::R8G8B8 | F::R8G8B8A8 => {
+            Texels::Rgba8 { srgb, data: px.chunks_exact(channels).map(|c| rgba(c, 255)).collect() }
+        }
+        F::R16 | F::R16G16 | F::R16G16B16 | F::R16G16B16A16 => {
+            let words: Vec<f32> =
+                px.chunks_exact(2).map(|b| u16::from_ne_bytes([b[0], b[1]]) as f32 / 65535.0).collect();
+            let texels = words.chunks_exact(channels).map(|c| rgba(c, 1.0));
+            if srgb {
+                let byte = |v: f32| (v * 255.0).round() as u8;
+                Texels::Rgba8 { srgb, data: texels.map(|t| t.map(byte)).collect() }
+            } else {
+                Texels::RgbaF32(texels.collect())
+            }
+        }
+        F::R32G32B32FLOAT | F::R32G32B32A32FLOAT => {
+            let floats: Vec<f32> =
+                px.chunks_exact(4).map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]])).collect();
+            Texels::RgbaF32(floats.chunks_exact(channels).map(|c| rgba(c, 1.0)).collect())
+        }
+    };
+    let count = match &texels {
+        Texels::Rgba8 { data, .. } => data.len(),
+        Texels::RgbaF32(data) => data.len(),
+    };
+    if width == 0 || height == 0 || count != (width * height) as usize {
+        return Err(format!("{width}x{height} pixels but {count} texels decoded"));
+    }
+    Ok(TextureImage { name: name.to_string(), width, height, texels })
 }
 
 /// `emissiveFactor × emissive_strength` as a one-sided area light.
@@ -587,6 +850,35 @@ mod tests {
         let expected = 2.0 * (0.25f32.tan() * 0.5).atan();
         assert!((fov - expected.to_degrees()).abs() < 1e-4);
         assert_eq!(camera_fov_and_resolution(0.5, None).1, crate::framing::RESOLUTION);
+    }
+
+    #[test]
+    fn texture_transform_joins_the_v_flip() {
+        assert_eq!(uv_mapping([0.0, 0.0], [1.0, 1.0]), UvMapping::FLIP_V);
+        // glTF uv (0.25, 0.5) → (0.25 · 2 + 0.5, 0.5 · 4 + 0.25) = (1, 2.25) → atoll t = 1 - 2.25.
+        let m = uv_mapping([0.5, 0.25], [2.0, 4.0]);
+        assert_eq!((m.su * 0.25 + m.du, m.sv * 0.5 + m.dv), (1.0, -1.25));
+    }
+
+    #[test]
+    fn decoded_images_become_rgba_texels() {
+        use ::gltf::image::{Data, Format};
+        let image = |format, pixels: Vec<u8>| Data { pixels, format, width: 2, height: 1 };
+        // Grey, grey-alpha, RGB: spread to RGBA, 8-bit stays 8-bit.
+        let t = texture_image("g", image(Format::R8, vec![10, 20]), true).unwrap();
+        assert_eq!(t.texels, Texels::Rgba8 { srgb: true, data: vec![[10, 10, 10, 255], [20, 20, 20, 255]] });
+        let t = texture_image("ga", image(Format::R8G8, vec![10, 1, 20, 2]), false).unwrap();
+        assert_eq!(t.texels, Texels::Rgba8 { srgb: false, data: vec![[10, 10, 10, 1], [20, 20, 20, 2]] });
+        let t = texture_image("rgb", image(Format::R8G8B8, vec![1, 2, 3, 4, 5, 6]), true).unwrap();
+        assert_eq!(t.texels, Texels::Rgba8 { srgb: true, data: vec![[1, 2, 3, 255], [4, 5, 6, 255]] });
+        // 16-bit: linear floats, or 8-bit when sRGB.
+        let words: Vec<u8> = [0u16, 65535].iter().flat_map(|w| w.to_ne_bytes()).collect();
+        let t = texture_image("r16", image(Format::R16, words.clone()), false).unwrap();
+        assert_eq!(t.texels, Texels::RgbaF32(vec![[0.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 1.0]]));
+        let t = texture_image("r16", image(Format::R16, words), true).unwrap();
+        assert_eq!(t.texels, Texels::Rgba8 { srgb: true, data: vec![[0, 0, 0, 255], [255, 255, 255, 255]] });
+        // Too few pixels for the size is an error, not a short image.
+        assert!(texture_image("short", image(Format::R8, vec![1]), true).is_err());
     }
 
     #[test]

@@ -25,15 +25,21 @@ pub mod pbrt;
 pub mod ply;
 pub mod procedural;
 pub mod scene;
+pub mod texture;
+pub mod texture_scenes;
 
 pub use camera::{Camera, FilmSettings, IntegratorSettings, RenderSettings};
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
-pub use load::{load_any, LoadedScene, TextureRef};
+pub use load::{load_any, LoadedScene};
 pub use material::{Material, MaterialId};
 pub use mesh::{MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
+pub use texture::{
+    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, MeshAlpha, TexInput, Texels, Texture,
+    TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping, Wrap,
+};
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).
 pub type Rgb = glam::Vec3;

@@ -9,13 +9,13 @@
 //! | `.ply`, `.ply.gz` | [`crate::ply`], one mesh | [`crate::framing`] defaults |
 //! | `.off` | [`crate::off`], one mesh | [`crate::framing`] defaults |
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::Affine3A;
 
 use crate::error::{FileLoc, SceneError, Warning};
 use crate::pbrt::WarningSink;
-use crate::{Instance, Material, MaterialId, Object, Scene, TriangleMesh};
+use crate::{Instance, Material, Object, Scene, TriangleMesh};
 
 /// A loaded scene with everything the loader had to warn about.
 #[derive(Clone, Debug, Default)]
@@ -24,26 +24,6 @@ pub struct LoadedScene {
     pub scene: Scene,
     /// Everything ignored or approximated, in file order.
     pub warnings: Vec<Warning>,
-    /// Textures the file names. None is rendered yet: materials use their
-    /// constant values meanwhile. Kept so that the texture step can bind them.
-    pub textures: Vec<TextureRef>,
-}
-
-/// A texture named by a scene file, with the material parameters it drives.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TextureRef {
-    /// The name the file gives it: the PBRT `Texture` name, the MTL map's
-    /// file name, or the glTF image's name (its URI, or `image N`).
-    pub name: String,
-    /// What kind of texture: the PBRT class (`imagemap`, `checkerboard`,
-    /// ...) or `image` for OBJ and glTF.
-    pub class: String,
-    /// The image file it reads, resolved against the scene file's directory;
-    /// `None` for procedural textures and images embedded in the file.
-    pub filename: Option<PathBuf>,
-    /// (material, parameter) pairs that would read it. Parameters use
-    /// pbrt-v4's names: `reflectance`, `emission`, `normalmap`, `roughness`.
-    pub uses: Vec<(MaterialId, String)>,
 }
 
 /// The scene formats [`load_any`] knows, by extension.
@@ -138,7 +118,7 @@ fn single_mesh_scene(
     let mut scene = Scene::default();
     mesh.material = scene.add_material(Material::default_diffuse());
     let id = scene.add_mesh(mesh);
-    let mut loaded = LoadedScene { scene, warnings: w.list, textures: Vec::new() };
+    let mut loaded = LoadedScene { scene, warnings: w.list };
     add_world_object(&mut loaded.scene, vec![id]);
     crate::framing::frame_scene(&mut loaded.scene, true);
     Ok(loaded)

@@ -31,9 +31,52 @@ pub enum Material {
     /// else `materials[0]` (the choice is a random number of the path
     /// vertex, so every device picks alike).
     Mix { materials: [MaterialId; 2], amount: f32 },
+    /// pbrt-v4's `coateddiffuse`: a dielectric coating (index `eta`, GGX
+    /// roughness) over a Lambertian base of `reflectance`, with a medium of
+    /// `thickness` between them that absorbs (albedo 0) or scatters with
+    /// single-scattering `albedo` and Henyey–Greenstein asymmetry `g`. Light
+    /// between the layers is followed by a random walk of at most
+    /// `max_depth` events, `n_samples` walks per evaluation.
+    CoatedDiffuse {
+        reflectance: Rgb,
+        eta: f32,
+        alpha_x: f32,
+        alpha_y: f32,
+        thickness: f32,
+        albedo: Rgb,
+        g: f32,
+        max_depth: u32,
+        n_samples: u32,
+    },
+    /// A Disney-principled surface (Burley 2012/2015, as pbrt-v3's `disney`
+    /// material; glTF's metallic-roughness maps onto it): Burley diffuse
+    /// with retro-reflection and sheen, a GGX specular lobe whose
+    /// normal-incidence reflectance goes from `0.08 specular` (tinted
+    /// towards the base colour's hue by `specular_tint`) to `base_color` as
+    /// `metallic` goes to 1, a GTR1 clearcoat, and rough dielectric
+    /// transmission of index `eta` weighted by `transmission`. `roughness`
+    /// is perceptual (GGX alpha = roughness²); every weight is in [0, 1].
+    /// No subsurface scattering, no thin-surface mode.
+    Principled {
+        base_color: Rgb,
+        metallic: f32,
+        roughness: f32,
+        specular: f32,
+        specular_tint: f32,
+        sheen: f32,
+        sheen_tint: f32,
+        clearcoat: f32,
+        clearcoat_gloss: f32,
+        transmission: f32,
+        eta: f32,
+    },
 }
 
 impl Material {
+    /// Largest `max_depth` and `n_samples` of a [`Material::CoatedDiffuse`]:
+    /// hits carry them as f16 integers, exact up to 2048.
+    pub const COATED_MAX_COUNT: u32 = 2048;
+
     /// The material pbrt uses when none was given: diffuse 0.5 grey.
     pub fn default_diffuse() -> Self {
         Material::Diffuse { reflectance: Rgb::splat(0.5) }
@@ -42,6 +85,15 @@ impl Material {
     /// pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha`.
     pub fn roughness_to_alpha(roughness: f32) -> f32 {
         roughness.max(0.0).sqrt()
+    }
+
+    /// The principled `specular` whose dielectric reflectance at normal
+    /// incidence (`0.08 specular`) is that of an interface of index `eta`,
+    /// `((eta - 1) / (eta + 1))²`: 0.5 for `eta` 1.5. pbrt-v3's `disney` and
+    /// glTF derive the specular reflection from the index this way.
+    pub fn specular_from_eta(eta: f32) -> f32 {
+        let r0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+        r0 / 0.08
     }
 
     /// pbrt-v4 turns a conductor's `reflectance` into `eta = 1` and this `k`,

@@ -26,6 +26,9 @@ pub struct TriangleMesh {
     /// `normalize(cross(p0 - p2, p1 - p2))`, negated when this is set
     /// (pbrt-v4's convention, which decides which side a one-sided light emits on).
     pub flip_normals: bool,
+    /// Alpha mask cutting holes into the surface (pbrt's shape `alpha`,
+    /// glTF `MASK`, OBJ `map_d`); needs `uvs` unless the texture is constant.
+    pub alpha: Option<crate::MeshAlpha>,
 }
 
 impl TriangleMesh {

@@ -17,20 +17,38 @@
 //! - Otherwise `Diffuse` with `Kd` (0.5 grey when absent).
 //! - `Ke` (emission) becomes a one-sided `AreaEmission` on the meshes.
 //!
-//! Textures (`map_Kd`, `map_Bump`/`norm`) are recorded in
-//! [`LoadedScene::textures`] and warned about; they are not rendered yet.
+//! Textures ([`mtl_textures`]; images decoded once per file):
+//! - `map_Kd` (sRGB) times `Kd`, as the MTL spec says, bound to a diffuse
+//!   material's reflectance (warned about and ignored on the others).
+//! - `map_d` cuts the meshes: solid where the map is at least 0.5
+//!   (`AlphaMode::Cutoff`), reading the image's alpha when it has a
+//!   non-opaque one, else the mean of its colour (linear), or the channel
+//!   `-imfchan` names. Without `map_d`, a `map_Kd` with a non-opaque alpha
+//!   channel cuts the same way (what viewers and Blender do with such
+//!   images). Otherwise `d` (or `1 - Tr`) below 1 makes a stochastic alpha
+//!   of that constant, pbrt's shape `alpha`; `d 0` is taken for an
+//!   exporter's mistake and ignored.
+//! - Map options `-s` and `-o` become the uv mapping (`uv * s + o`, as
+//!   three.js and Blender read them), `-clamp on` clamps; others are ignored.
+//! - `vt` v = 0 is the bottom of the image, as in pbrt: no flip.
+//! - Bump and normal maps are warned about and ignored.
+//!
+//! A mesh without `vt` reads its textures at pbrt's default per-triangle uvs.
 
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::io::{BufRead, Read};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
 use crate::error::{FileLoc, SceneError};
-use crate::load::{add_world_object, TextureRef};
+use crate::load::add_world_object;
 use crate::pbrt::WarningSink;
-use crate::{AreaEmission, LoadedScene, Material, MaterialId, Rgb, TriangleMesh};
+use crate::{
+    AlphaMode, AreaEmission, Channel, ColorEncoding, ImageCache, LoadedScene, Material, MaterialId,
+    MeshAlpha, Rgb, TexInput, Texture, TextureBinding, TexturedParam, TriangleMesh, UvMapping, Wrap,
+};
 
 /// Loads an OBJ file and the MTL files it names (relative to its directory).
 pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
@@ -88,7 +106,8 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
     let materials = materials.unwrap_or_default();
 
     let mut loaded = LoadedScene::default();
-    let mut ids: HashMap<Option<usize>, MaterialId> = HashMap::new();
+    let mut images = ImageCache::default();
+    let mut ids: HashMap<Option<usize>, (MaterialId, Option<MeshAlpha>)> = HashMap::new();
     let mut meshes = Vec::new();
     for model in models {
         let m = &model.mesh;
@@ -99,9 +118,9 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
         // An unknown `usemtl` name leaves no material id: those share the default.
         let mat = model.mesh.material_id.and_then(|i| materials.get(i));
         let key = mat.and(model.mesh.material_id);
-        let material = *ids.entry(key).or_insert_with(|| match mat {
-            Some(mtl) => add_mtl_material(mtl, &mut loaded, dir, &whole, &mut w),
-            None => loaded.scene.add_material(Material::default_diffuse()),
+        let (material, alpha) = *ids.entry(key).or_insert_with(|| match mat {
+            Some(mtl) => add_mtl_material(mtl, &mut loaded, &mut images, dir, &whole, &mut w),
+            None => (loaded.scene.add_material(Material::default_diffuse()), None),
         });
         let mut mesh = TriangleMesh {
             name: model.name.clone(),
@@ -112,6 +131,7 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
             material,
             emission: mat.and_then(mtl_emission),
             flip_normals: false,
+            alpha,
         };
         // Faces mixing vertices with and without normals (or uvs) leave them partial: drop them.
         if mesh.normals.len() != mesh.positions.len() {
@@ -160,46 +180,192 @@ fn decode_text(bytes: &[u8]) -> (std::borrow::Cow<'_, str>, bool) {
     }
 }
 
-/// Adds the atoll material for an MTL material, records its textures.
+/// Adds the atoll material for an MTL material with its textures; returns
+/// its id and the alpha mask of the meshes that use it.
 fn add_mtl_material(
     mtl: &tobj::Material,
     loaded: &mut LoadedScene,
+    images: &mut ImageCache,
     dir: &Path,
     loc: &FileLoc,
     w: &mut WarningSink,
-) -> MaterialId {
-    let id = loaded.scene.add_material(mtl_material(mtl));
-    let maps = [(&mtl.diffuse_texture, "map_Kd", "reflectance"), (&mtl.normal_texture, "norm", "normalmap")];
-    for (map, keyword, parameter) in maps {
-        let Some(tex) = map.as_deref().filter(|t| !t.is_empty()) else { continue };
-        w.warn(
-            loc,
-            format!(
-                "material '{}': {keyword} '{tex}' recorded but textures are not rendered yet; using its constant value",
-                mtl.name
-            ),
-        );
-        record_texture(&mut loaded.textures, tex, dir, id, parameter);
+) -> (MaterialId, Option<MeshAlpha>) {
+    let material = mtl_material(mtl);
+    let diffuse = matches!(material, Material::Diffuse { .. });
+    let id = loaded.scene.add_material(material);
+    let t = mtl_textures(mtl, diffuse, &mut loaded.scene.textures, images, dir, loc, w);
+    if let Some(texture) = t.reflectance {
+        loaded.scene.textures.bind(TextureBinding {
+            material: id,
+            param: TexturedParam::Reflectance,
+            texture,
+            remap_roughness: false,
+        });
     }
-    if mtl.dissolve.is_some_and(|d| d < 1.0) && !is_refractive(mtl) {
-        w.warn(
-            loc,
-            format!("material '{}': transparency (d < 1) is not supported; rendered opaque", mtl.name),
-        );
-    }
-    id
+    (id, t.alpha)
 }
 
-/// Records a use of image texture `name` (one [`TextureRef`] per image).
-fn record_texture(textures: &mut Vec<TextureRef>, name: &str, dir: &Path, id: MaterialId, parameter: &str) {
-    let use_ = (id, parameter.to_string());
-    if let Some(t) = textures.iter_mut().find(|t| t.name == name) {
-        t.uses.push(use_);
-        return;
+/// The textures of one MTL material (rules in the module docs).
+struct MtlTextures {
+    /// `map_Kd` × `Kd`, for the material's reflectance.
+    reflectance: Option<crate::TextureId>,
+    alpha: Option<MeshAlpha>,
+}
+
+/// A texture map statement: the file and the options atoll reads.
+#[derive(Debug, PartialEq)]
+struct MapSpec {
+    file: String,
+    mapping: UvMapping,
+    wrap: Wrap,
+    channel: Option<Channel>,
+}
+
+/// Parses `[-option values...] file` of a `map_*` statement (tobj keeps
+/// the whole line). The file name may contain spaces.
+fn parse_map(spec: &str) -> MapSpec {
+    let mut words = spec.split_whitespace().peekable();
+    let mut m =
+        MapSpec { file: String::new(), mapping: UvMapping::default(), wrap: Wrap::Repeat, channel: None };
+    let mut rest: Vec<&str> = Vec::new();
+    while let Some(word) = words.next() {
+        if !rest.is_empty() || !word.starts_with('-') {
+            rest.push(word);
+            continue;
+        }
+        // Up to three numbers (`-s`, `-o`, `-t`), else the option's fixed argument count.
+        let mut numbers = |max: usize| -> Vec<f32> {
+            let mut v = Vec::new();
+            while v.len() < max {
+                match words.peek().and_then(|x| x.parse::<f32>().ok()) {
+                    Some(x) => {
+                        v.push(x);
+                        words.next();
+                    }
+                    None => break,
+                }
+            }
+            v
+        };
+        match word {
+            "-s" => {
+                let v = numbers(3);
+                m.mapping.su = v.first().copied().unwrap_or(1.0);
+                m.mapping.sv = v.get(1).copied().unwrap_or(m.mapping.su);
+            }
+            "-o" => {
+                let v = numbers(3);
+                m.mapping.du = v.first().copied().unwrap_or(0.0);
+                m.mapping.dv = v.get(1).copied().unwrap_or(0.0);
+            }
+            "-t" => {
+                numbers(3);
+            }
+            "-mm" => {
+                numbers(2);
+            }
+            "-clamp" => m.wrap = if words.next() == Some("on") { Wrap::Clamp } else { Wrap::Repeat },
+            "-imfchan" => {
+                m.channel = match words.next() {
+                    Some("r") => Some(Channel::Red),
+                    Some("g") => Some(Channel::Green),
+                    Some("b") => Some(Channel::Blue),
+                    Some("m") => Some(Channel::Alpha),
+                    Some("l") => Some(Channel::Average),
+                    _ => None,
+                }
+            }
+            // -blendu, -blendv, -cc, -bm, -boost, -texres, -type: one argument each.
+            _ => {
+                words.next();
+            }
+        }
     }
     // Exporters on Windows write `.\tex.jpg`.
-    let filename = Some(dir.join(PathBuf::from(name.replace('\\', "/"))));
-    textures.push(TextureRef { name: name.into(), class: "image".into(), filename, uses: vec![use_] });
+    m.file = rest.join(" ").replace('\\', "/");
+    m
+}
+
+impl MapSpec {
+    /// The image texture reading `channel` of `image` with this map's options.
+    fn texture(&self, image: crate::ImageId, channel: Channel) -> Texture {
+        Texture::Image { image, mapping: self.mapping, wrap: self.wrap, channel, scale: 1.0, invert: false }
+    }
+}
+
+/// The textures of `mtl` (rules in the module docs); `diffuse` says whether
+/// its atoll material takes a reflectance texture.
+fn mtl_textures(
+    mtl: &tobj::Material,
+    diffuse: bool,
+    textures: &mut crate::Textures,
+    images: &mut ImageCache,
+    dir: &Path,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> MtlTextures {
+    let what = format!("material '{}'", mtl.name);
+    let spec = |m: &Option<String>| m.as_deref().map(str::trim).filter(|t| !t.is_empty()).map(parse_map);
+    // The map's image, or `None` after a warning when it cannot be read.
+    let mut load = |map: &MapSpec, keyword: &str, encoding, textures: &mut crate::Textures| {
+        images
+            .load(textures, &dir.join(&map.file), encoding)
+            .map_err(|e| w.warn(loc, format!("{what}: {keyword}: {e}; ignored")))
+            .ok()
+    };
+    let mut out = MtlTextures { reflectance: None, alpha: None };
+    let mut kd_alpha = None;
+    if let Some(map) = spec(&mtl.diffuse_texture) {
+        if let Some(image) = load(&map, "map_Kd", ColorEncoding::Srgb, textures) {
+            let tex = textures.add(map.texture(image, Channel::Rgb));
+            let kd = mtl.diffuse.map(Rgb::from).unwrap_or(Rgb::ONE);
+            out.reflectance = Some(if kd == Rgb::ONE {
+                tex
+            } else {
+                textures.add(Texture::Scale { tex: TexInput::Texture(tex), scale: TexInput::Value(kd) })
+            });
+            if textures.images[image as usize].has_alpha() {
+                kd_alpha = Some(map.texture(image, Channel::Alpha));
+            }
+        }
+    }
+    let cutout = |texture| Some(MeshAlpha { texture, mode: AlphaMode::Cutoff(0.5) });
+    if let Some(map) = spec(&mtl.dissolve_texture) {
+        // A mask is data, not colour: read linearly.
+        if let Some(image) = load(&map, "map_d", ColorEncoding::Linear, textures) {
+            let alpha =
+                if textures.images[image as usize].has_alpha() { Channel::Alpha } else { Channel::Average };
+            out.alpha = cutout(textures.add(map.texture(image, map.channel.unwrap_or(alpha))));
+        }
+    } else if let Some(texture) = kd_alpha {
+        out.alpha = cutout(textures.add(texture));
+    }
+    if out.reflectance.is_some() && !diffuse {
+        w.warn(loc, format!("{what}: map_Kd is ignored (it colours diffuse materials only)"));
+        out.reflectance = None;
+    }
+    // `d` is opacity; `Tr` its complement, written by some exporters instead.
+    let tr = mtl.unknown_param.get("Tr").and_then(|t| t.trim().parse::<f32>().ok());
+    match mtl.dissolve.or(tr.map(|t| 1.0 - t)) {
+        Some(d) if d < 1.0 && out.alpha.is_none() && !is_refractive(mtl) => {
+            if d > 0.0 {
+                let texture = textures.add(Texture::Constant(Rgb::splat(d)));
+                out.alpha = Some(MeshAlpha { texture, mode: AlphaMode::Stochastic });
+            } else {
+                w.warn(
+                    loc,
+                    format!(
+                        "{what}: d 0 (fully transparent) is taken for an exporter's mistake; rendered opaque"
+                    ),
+                );
+            }
+        }
+        _ => {}
+    }
+    if spec(&mtl.normal_texture).is_some() {
+        w.warn(loc, format!("{what}: bump and normal maps are not supported; ignored"));
+    }
+    out
 }
 
 fn is_refractive(mtl: &tobj::Material) -> bool {

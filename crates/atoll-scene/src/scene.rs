@@ -40,6 +40,8 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Lights not attached to geometry; area lights live on their meshes.
     pub lights: Vec<Light>,
+    /// Images, texture nodes and their bindings to material parameters.
+    pub textures: crate::Textures,
 }
 
 /// Counts and sizes for `atoll info` and memory planning.
@@ -57,6 +59,11 @@ pub struct SceneStats {
     pub materials: usize,
     /// Bytes of mesh data (positions, normals, uvs, indices).
     pub geometry_bytes: u64,
+    /// Texture nodes and the decoded images they read.
+    pub textures: usize,
+    pub texture_images: usize,
+    /// Bytes of image texels (every device holds all of them).
+    pub texture_bytes: u64,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
 }
@@ -137,6 +144,9 @@ impl Scene {
             lights: self.lights.len(),
             materials: self.materials.len(),
             geometry_bytes: self.meshes.iter().map(|m| m.memory_bytes()).sum(),
+            textures: self.textures.textures.len(),
+            texture_images: self.textures.images.len(),
+            texture_bytes: self.textures.memory_bytes(),
             bounds_min,
             bounds_max,
         }

@@ -4,7 +4,10 @@
 
 mod common;
 
-use atoll_scene::{load_any, AreaEmission, Light, Material, Rgb};
+use atoll_scene::{
+    load_any, AlphaMode, AreaEmission, Channel, Light, Material, Rgb, TexInput, Texels, Texture,
+    TexturedParam, UvMapping, Wrap,
+};
 use common::{assert_close, temp_dir, write};
 use glam::{UVec2, Vec3};
 use serde_json::json;
@@ -62,13 +65,11 @@ fn obj_with_mtl() {
     assert_eq!(*mat(3), Material::Dielectric { eta: 1.45, alpha_x: 0.0, alpha_y: 0.0 });
     // Negative indices count back from the last vertex: -4 -3 -1 are 1 2 4.
     assert_eq!(s.meshes[3].triangle(0), [Vec3::ZERO, Vec3::X, Vec3::Y]);
-    assert_eq!(loaded.textures.len(), 1);
-    assert_eq!(loaded.textures[0].name, "tex\\red.png");
-    assert_eq!(loaded.textures[0].filename.as_deref(), Some(dir.join("tex/red.png").as_path()));
-    assert_eq!(loaded.textures[0].uses, [(s.meshes[0].material, "reflectance".to_string())]);
+    // `map_Kd tex\red.png` names no file here: warned about, the material keeps Kd.
+    assert!(s.textures.images.is_empty() && s.textures.bindings.is_empty());
     let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
     assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].contains("map_Kd 'tex\\red.png' recorded"), "{w:?}");
+    assert!(w[0].starts_with("material 'red': map_Kd: ") && w[0].contains("tex/red.png"), "{w:?}");
     // Emissive meshes light the scene: no default sky or sun.
     assert!(s.lights.is_empty());
     assert_eq!(s.settings.film.resolution, UVec2::new(1024, 768));
@@ -142,7 +143,7 @@ fn gltf_json(buffer_uri: Option<String>) -> serde_json::Value {
     json!({
         "asset": {"version": "2.0"},
         "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission", "KHR_materials_ior",
-                           "KHR_materials_emissive_strength"],
+                           "KHR_materials_emissive_strength", "KHR_texture_transform", "KHR_materials_clearcoat"],
         "scene": 0,
         "scenes": [{"nodes": [0, 3, 4, 5, 6, 7, 8]}],
         "nodes": [
@@ -164,14 +165,18 @@ fn gltf_json(buffer_uri: Option<String>) -> serde_json::Value {
             {"name": "lamp", "primitives": [{"attributes": {"POSITION": 0}, "material": 3}]}
         ],
         "materials": [
-            {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.1, 1], "metallicFactor": 0,
-                                      "baseColorTexture": {"index": 0}}},
-            {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.5, 1], "metallicFactor": 1, "roughnessFactor": 0.5}},
-            {"pbrMetallicRoughness": {"roughnessFactor": 0},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.2, 0.1, 0.5], "metallicFactor": 0,
+                                      "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform":
+                                          {"offset": [0.5, 0.25], "scale": [2, 4]}}}},
+             "alphaMode": "MASK", "alphaCutoff": 0.3},
+            {"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.8, 0.5, 1], "metallicFactor": 1, "roughnessFactor": 0.5},
+             "extensions": {"KHR_materials_clearcoat": {"clearcoatFactor": 0.5, "clearcoatRoughnessFactor": 0.1}}},
+            {"pbrMetallicRoughness": {"roughnessFactor": 0, "metallicFactor": 0},
              "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1}, "KHR_materials_ior": {"ior": 1.33}}},
             {"emissiveFactor": [1, 0.5, 0.25], "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4}}}
         ],
-        "textures": [{"source": 0}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "samplers": [{"wrapS": 33648, "wrapT": 33648}],
         "images": [{"uri": "tex/wood%20dark.png"}],
         "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "aspectRatio": 1.5, "znear": 0.1}}],
         "extensions": {"KHR_lights_punctual": {"lights": [
@@ -230,17 +235,31 @@ fn base64(bytes: &[u8]) -> String {
 fn gltf_scene_in_all_three_packagings() {
     let dir = temp_dir("gltf");
     write(&dir, "scene.bin", gltf_bin());
+    // The base colour image: 2x1, sRGB, alpha 1 and 0.4.
+    std::fs::create_dir_all(dir.join("tex")).unwrap();
+    let image = image::RgbaImage::from_raw(2, 1, vec![255, 128, 0, 255, 0, 64, 255, 102]).unwrap();
+    image.save(dir.join("tex/wood dark.png")).unwrap();
     let external = write(&dir, "external.gltf", gltf_json(Some("scene.bin".into())).to_string());
     let data_uri = format!("data:application/octet-stream;base64,{}", base64(&gltf_bin()));
     let embedded = write(&dir, "embedded.gltf", gltf_json(Some(data_uri)).to_string());
     let binary = write(&dir, "binary.glb", glb(&gltf_json(None), &gltf_bin()));
-    for path in [external, embedded, binary] {
-        let loaded = load_any(&path).unwrap_or_else(|e| panic!("{e}"));
-        check_gltf_scene(&loaded, &dir);
+    for path in [&external, &embedded, &binary] {
+        let loaded = load_any(path).unwrap_or_else(|e| panic!("{e}"));
+        check_gltf_scene(&loaded);
     }
+    // Without its image the material keeps its factors (after a warning), and
+    // the constant alpha 0.5 passes the 0.3 cutoff: no mask.
+    std::fs::remove_file(dir.join("tex/wood dark.png")).unwrap();
+    let loaded = load_any(&external).unwrap();
+    let s = &loaded.scene;
+    assert!(s.textures.images.is_empty() && s.textures.bindings.is_empty());
+    assert!(s.meshes.iter().all(|m| m.alpha.is_none()));
+    let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].starts_with("image 0 ('tex/wood%20dark.png') cannot be read: "), "{w:?}");
 }
 
-fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
+fn check_gltf_scene(loaded: &atoll_scene::LoadedScene) {
     let s = &loaded.scene;
     // Mesh "tri" is used by two nodes but stored once.
     assert_eq!((s.objects.len(), s.meshes.len(), s.instances.len()), (3, 4, 4));
@@ -255,10 +274,62 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
     assert_eq!((tri.normals.len(), tri.uvs.len(), tri.flip_normals), (3, 3, false));
     assert!(tri.geometric_normal(0).z > 0.0, "glTF front faces are counter-clockwise");
     let m = |mesh: usize| &s.materials[s.meshes[mesh].material as usize];
-    assert_eq!(*m(0), Material::Diffuse { reflectance: Rgb::new(0.8, 0.2, 0.1) });
-    let k = Material::conductor_k_from_reflectance(Rgb::new(0.9, 0.8, 0.5));
-    assert_eq!(*m(1), Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.25, alpha_y: 0.25 });
-    assert_eq!(*m(2), Material::Dielectric { eta: 1.33, alpha_x: 0.0, alpha_y: 0.0 });
+    // (base colour, metallic, roughness), (clearcoat, gloss), (transmission, ior).
+    let principled = |(base, metallic, roughness): (Rgb, f32, f32), coat: (f32, f32), glass: (f32, f32)| {
+        Material::Principled {
+            base_color: base,
+            metallic,
+            roughness,
+            specular: Material::specular_from_eta(glass.1),
+            specular_tint: 0.0,
+            sheen: 0.0,
+            sheen_tint: 0.0,
+            clearcoat: coat.0,
+            clearcoat_gloss: coat.1,
+            transmission: glass.0,
+            eta: glass.1,
+        }
+    };
+    let (no_coat, no_glass) = ((0.0, 1.0), (0.0, 1.5));
+    assert_eq!(*m(0), principled((Rgb::new(0.8, 0.2, 0.1), 0.0, 1.0), no_coat, no_glass));
+    // Clearcoat roughness r = 0.1: the gloss whose GTR1 alpha (0.1 - 0.099 gloss) is r².
+    let coat = (0.5, (0.1f32 - 0.1 * 0.1) / 0.099);
+    assert_eq!(*m(1), principled((Rgb::new(0.9, 0.8, 0.5), 1.0, 0.5), coat, no_glass));
+    assert_eq!(*m(2), principled((Rgb::ONE, 0.0, 0.0), no_coat, (1.0, 1.33)));
+    // The lamp has no material: glTF's default, white metal of roughness 1.
+    assert_eq!(*m(3), principled((Rgb::ONE, 1.0, 1.0), no_coat, no_glass));
+    // The base colour texture: the sRGB image, times the factor, bound to the
+    // reflectance, mirrored, offset and scaled with v flipped.
+    let t = &s.textures;
+    assert_eq!(t.images.len(), 1);
+    let img = &t.images[0];
+    assert_eq!((img.width, img.height), (2, 1));
+    let Texels::Rgba8 { srgb: true, data } = &img.texels else { panic!("{:?}", img.texels) };
+    assert_eq!(data, &[[255, 128, 0, 255], [0, 64, 255, 102]]);
+    let bound: Vec<_> = t.bindings_of(s.meshes[0].material).collect();
+    assert_eq!(bound.len(), 1);
+    assert_eq!((bound[0].param, bound[0].remap_roughness), (TexturedParam::Reflectance, false));
+    let Texture::Scale { tex: TexInput::Texture(image), scale } = t.textures[bound[0].texture as usize]
+    else {
+        panic!("{:?}", t.textures)
+    };
+    assert_eq!(scale, TexInput::Value(Rgb::new(0.8, 0.2, 0.1)));
+    let mapping = UvMapping { su: 2.0, sv: -4.0, du: 0.5, dv: 0.75 };
+    let node = |channel: Channel, scale: f32| Texture::Image {
+        image: 0,
+        mapping,
+        wrap: Wrap::Mirror,
+        channel,
+        scale,
+        invert: false,
+    };
+    assert_eq!(t.textures[image as usize], node(Channel::Rgb, 1.0));
+    // MASK: the image's alpha times the factor's (0.5) against the cutoff, on both
+    // primitives of the material and no other mesh.
+    let alpha = s.meshes[0].alpha.expect("a mask");
+    assert_eq!(alpha.mode, AlphaMode::Cutoff(0.3));
+    assert_eq!(t.textures[alpha.texture as usize], node(Channel::Alpha, 0.5));
+    assert!(s.meshes[1..].iter().all(|m| m.alpha.is_none()));
     assert_eq!(
         s.meshes[3].emission,
         Some(AreaEmission { radiance: Rgb::new(4.0, 2.0, 1.0), two_sided: false })
@@ -284,13 +355,9 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene, dir: &std::path::Path) {
     let Light::Distant { direction, radiance } = s.lights[2] else { panic!("{:?}", s.lights[2]) };
     assert_close(direction, -Vec3::Y, 1e-6);
     assert_close(radiance, Rgb::new(2.0, 1.8, 1.6), 1e-6);
-    let t = &loaded.textures;
-    assert_eq!(t.len(), 1);
-    assert_eq!(t[0].filename.as_deref(), Some(dir.join("tex/wood dark.png").as_path()));
-    assert_eq!(t[0].uses, [(s.meshes[0].material, "reflectance".to_string())]);
+    assert_eq!(img.name, "tex/wood%20dark.png");
     let w: Vec<&str> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
-    assert!(!w.iter().any(|w| w.contains("spot")), "{w:?}");
-    assert_eq!(w.iter().filter(|w| w.contains("principled material")).count(), 1, "{w:?}");
+    assert!(w.is_empty(), "{w:?}");
 }
 
 #[test]

@@ -3,7 +3,7 @@
 
 mod common;
 
-use atoll_scene::{AreaEmission, IntegratorSettings, Light, Material, Rgb};
+use atoll_scene::{AreaEmission, IntegratorSettings, Light, Material, Rgb, Texture, TexturedParam};
 use common::{assert_close, load_world, tri};
 use glam::Vec3;
 
@@ -235,6 +235,60 @@ fn diffuse_transmission_and_thin_dielectric() {
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
 }
 
+/// pbrt-v4's `coateddiffuse`: defaults, every parameter, roughness
+/// remapping, and `file:line:col` errors for walk counts out of range.
+#[test]
+fn coated_diffuse() {
+    let world = format!(
+        "Material \"coateddiffuse\"\n{t}\n\
+         Material \"coateddiffuse\" \"rgb reflectance\" [0.2 0.4 0.6] \"float uroughness\" 0.09 \
+         \"float vroughness\" 0.25 \"float thickness\" 0.5 \"float eta\" 1.33 \"rgb albedo\" [0.9 0.8 0.7] \
+         \"float g\" -0.3 \"integer maxdepth\" 32 \"integer nsamples\" 4\n{t}\n\
+         Material \"coateddiffuse\" \"float roughness\" 0.2 \"bool remaproughness\" false\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    let defaults = Material::CoatedDiffuse {
+        reflectance: Rgb::splat(0.5),
+        eta: 1.5,
+        alpha_x: 0.0,
+        alpha_y: 0.0,
+        thickness: 0.01,
+        albedo: Rgb::ZERO,
+        g: 0.0,
+        max_depth: 10,
+        n_samples: 1,
+    };
+    assert_eq!(*m[0], defaults);
+    assert_eq!(
+        *m[1],
+        Material::CoatedDiffuse {
+            reflectance: Rgb::new(0.2, 0.4, 0.6),
+            eta: 1.33,
+            alpha_x: 0.3,
+            alpha_y: 0.5,
+            thickness: 0.5,
+            albedo: Rgb::new(0.9, 0.8, 0.7),
+            g: -0.3,
+            max_depth: 32,
+            n_samples: 4,
+        }
+    );
+    let Material::CoatedDiffuse { alpha_x, alpha_y, .. } = *m[2] else { panic!("{:?}", m[2]) };
+    assert_eq!((alpha_x, alpha_y), (0.2, 0.2));
+
+    // The error is at the parameter (column 26, after `Material "coateddiffuse" `).
+    for bad in ["\"integer nsamples\" 0", "\"integer maxdepth\" -1", "\"integer maxdepth\" 5000"] {
+        let e = load_world("", &format!("Material \"coateddiffuse\" {bad}\n{}", tri(UNIT_TRI)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("test.pbrt:3:26: ") && e.contains("must be between"), "{e}");
+    }
+}
+
 #[test]
 fn default_material_and_texture_references() {
     let world = format!(
@@ -244,15 +298,13 @@ fn default_material_and_texture_references() {
     let loaded = load_world("", &world).unwrap();
     let s = &loaded.scene;
     assert_eq!(s.materials[s.meshes[0].material as usize], Material::default_diffuse());
-    assert_eq!(s.materials[s.meshes[1].material as usize], Material::default_diffuse());
-    assert_eq!(loaded.warnings.len(), 2, "{:?}", loaded.warnings);
-    assert!(loaded.warnings[0].message.contains("texture \"checks\" recorded"), "{:?}", loaded.warnings);
-    assert_eq!(loaded.textures.len(), 1);
-    assert_eq!(
-        (loaded.textures[0].name.as_str(), loaded.textures[0].class.as_str()),
-        ("checks", "checkerboard")
-    );
-    assert!(loaded.warnings[1].message.contains("texture \"checks\" replaced by the default"));
+    // The textured material keeps pbrt's default as its constant; the binding overrides it.
+    let textured = s.meshes[1].material;
+    assert_eq!(s.materials[textured as usize], Material::default_diffuse());
+    let b: Vec<_> = s.textures.bindings_of(textured).map(|b| (b.param, b.texture)).collect();
+    assert_eq!(b, [(TexturedParam::Reflectance, 0)]);
+    assert!(matches!(s.textures.textures[0], Texture::Checkerboard { .. }));
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
 }
 
 #[test]

@@ -1,11 +1,12 @@
 //! pbrt-v3 scenes: v3 materials mapped to atoll's with one warning each,
-//! `Texture` statements recorded, `mix`, v3 spellings of types, Booleans,
+//! textures bound to the mapped materials, `mix`, v3 spellings of types, Booleans,
 //! films, cameras and lights, and skipped curves counted.
 
 mod common;
 
 use atoll_scene::pbrt::load_str;
-use atoll_scene::{Light, Material, Rgb};
+use atoll_scene::texture::srgb8_to_linear;
+use atoll_scene::{Channel, Light, Material, Rgb, TexInput, Texture, TexturedParam};
 use common::assert_close;
 use std::path::Path;
 
@@ -37,7 +38,7 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
         "Material \"mirror\" \"rgb Kr\" [0.8 0.8 0.8]",
         "Material \"fourier\" \"string bsdffile\" \"paint.bsdf\"",
         "Material \"kdsubsurface\" \"rgb Kd\" [0.9 0.8 0.7] \"float mfp\" 1",
-        "Material \"disney\" \"rgb color\" [0.2 0.4 0.6] \"float metallic\" 1 \"float roughness\" 0.5",
+        "Material \"disney\" \"rgb color\" [0.2 0.4 0.6] \"float metallic\" 1 \"float roughness\" 0.5 \"float anisotropic\" 0.3",
         "Material \"hair\" \"rgb color\" [0.3 0.2 0.1]",
         "Material \"metal\"",
         "Material \"glass\" \"bool remaproughness\" \"false\" \"float uroughness\" 0.01 \"float vroughness\" 0.04",
@@ -49,8 +50,20 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     assert_eq!(m.len(), materials.len());
     let diffuse = |r: [f32; 3]| Material::Diffuse { reflectance: Rgb::from(r) };
     assert_eq!(*m[0], diffuse([0.1, 0.2, 0.3]));
-    assert_eq!(*m[1], diffuse([0.4, 0.4, 0.4]));
-    assert_eq!(*m[2], diffuse([0.3, 0.2, 0.1]));
+    // plastic and substrate: coateddiffuse, as pbrt-v4's upgrade does, with v3's defaults.
+    let coated = |r: [f32; 3], ax: f32, ay: f32| Material::CoatedDiffuse {
+        reflectance: Rgb::from(r),
+        eta: 1.5,
+        alpha_x: Material::roughness_to_alpha(ax),
+        alpha_y: Material::roughness_to_alpha(ay),
+        thickness: 0.01,
+        albedo: Rgb::ZERO,
+        g: 0.0,
+        max_depth: 10,
+        n_samples: 1,
+    };
+    assert_eq!(*m[1], coated([0.4, 0.4, 0.4], 0.1, 0.1));
+    assert_eq!(*m[2], coated([0.3, 0.2, 0.1], 0.2, 0.1));
     assert_eq!(*m[3], diffuse([0.6, 0.5, 0.4]));
     assert_eq!(
         *m[4],
@@ -63,8 +76,21 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     assert_eq!(*m[7], Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.0, alpha_y: 0.0 });
     assert_eq!(*m[8], Material::default_diffuse());
     assert_eq!(*m[9], diffuse([0.9, 0.8, 0.7]));
-    let k = Material::conductor_k_from_reflectance(Rgb::new(0.2, 0.4, 0.6));
-    assert_eq!(*m[10], Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.25, alpha_y: 0.25 });
+    // disney: principled with pbrt-v3's defaults; the anisotropy is what it warns about.
+    let principled = Material::Principled {
+        base_color: Rgb::new(0.2, 0.4, 0.6),
+        metallic: 1.0,
+        roughness: 0.5,
+        specular: Material::specular_from_eta(1.5),
+        specular_tint: 0.0,
+        sheen: 0.0,
+        sheen_tint: 0.5,
+        clearcoat: 0.0,
+        clearcoat_gloss: 1.0,
+        transmission: 0.0,
+        eta: 1.5,
+    };
+    assert_eq!(*m[10], principled);
     assert_eq!(*m[11], diffuse([0.3, 0.2, 0.1]));
     // v3 metal defaults: copper, roughness 0.01 remapped to alpha 0.1.
     let Material::Conductor { alpha_x, eta, .. } = m[12] else { panic!("{:?}", m[12]) };
@@ -79,8 +105,10 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     assert!(mapped[0]
         .message
         .starts_with("pbrt-v3 material \"matte\" is not supported; read as \"diffuse\""));
-    assert!(mapped[1].message.contains("specular layer dropped"), "{}", mapped[1]);
+    assert!(mapped[1].message.contains("read as \"coateddiffuse\""), "{}", mapped[1]);
+    assert!(mapped[3].message.contains("specular layer dropped"), "{}", mapped[3]);
     assert!(mapped[11].message.starts_with("material \"hair\" is not supported"), "{}", mapped[11]);
+    assert!(mapped[10].message.ends_with("principled material without anisotropy"), "{}", mapped[10]);
     // The mapping's warning covers the parameters it does not use.
     assert!(
         !loaded.warnings.iter().any(|w| w.message.contains("unused parameter")),
@@ -109,27 +137,65 @@ fn v3_options_film_camera_and_booleans() {
 }
 
 #[test]
-fn textures_are_recorded_and_warned_about_once() {
+fn v3_textures_bind_to_the_mapped_materials() {
+    let dir = common::temp_dir("v3-textures");
+    std::fs::create_dir_all(dir.join("textures")).unwrap();
+    image::RgbImage::from_pixel(2, 2, image::Rgb([255, 128, 0])).save(dir.join("textures/wood.png")).unwrap();
     let text = "WorldBegin\n\
         Texture \"wood\" \"color\" \"imagemap\" \"string filename\" \"textures/wood.png\" \"bool trilinear\" \"true\"\n\
+        Texture \"raw\" \"color\" \"imagemap\" \"string filename\" \"textures/wood.png\" \"bool gamma\" \"false\"\n\
         Texture \"bump\" \"float\" \"imagemap\" \"string filename\" \"textures/bump.png\"\n\
-        Texture \"checks\" \"spectrum\" \"checkerboard\" \"float uscale\" 4\n\
-        Material \"matte\" \"texture Kd\" \"wood\"\n"
+        Texture \"tint\" \"color\" \"scale\" \"texture tex1\" \"wood\" \"color tex2\" [0.5 0.5 0.5]\n\
+        Material \"matte\" \"texture Kd\" \"wood\" \"texture bumpmap\" \"bump\"\n"
         .to_string()
+        + TRI
+        + "\nMaterial \"translucent\" \"texture Kd\" \"tint\" \"color transmit\" [0.25 0.25 0.25]\n"
+        + TRI
+        + "\nMaterial \"plastic\" \"texture Kd\" \"raw\" \"texture bumpmap\" \"bump\"\n"
         + TRI;
-    let loaded = load_str(&text, "t.pbrt", Path::new("/scenes")).unwrap();
-    let names: Vec<_> = loaded.textures.iter().map(|t| (t.name.as_str(), t.class.as_str())).collect();
-    assert_eq!(names, [("wood", "imagemap"), ("bump", "imagemap"), ("checks", "checkerboard")]);
-    assert_eq!(loaded.textures[0].filename.as_deref(), Some(Path::new("/scenes/textures/wood.png")));
-    assert_eq!(loaded.textures[2].filename, None);
+    let loaded = load_str(&text, "t.pbrt", &dir).unwrap();
+    let s = &loaded.scene;
+    let t = &s.textures;
+    // One file, decoded once per encoding: sRGB by default (pbrt-v3's `gamma` for PNG), linear for "raw".
+    assert_eq!(t.images.len(), 2);
+    assert_eq!(t.images[0].texel(1, 1), [1.0, srgb8_to_linear()[128], 0.0, 1.0]);
+    assert_eq!(t.images[1].texel(0, 0)[1], 128.0 / 255.0);
+    assert!(matches!(t.textures[0], Texture::Image { image: 0, channel: Channel::Rgb, .. }));
+    assert!(matches!(t.textures[1], Texture::Image { image: 1, .. }));
+    // The missing bump map became a float constant 1 (and is ignored anyway).
+    assert_eq!(t.textures[2], Texture::Constant(Rgb::ONE));
+    assert_eq!(
+        t.textures[3],
+        Texture::Scale { tex: TexInput::Texture(0), scale: TexInput::Value(Rgb::splat(0.5)) }
+    );
+    let bindings = |mesh: usize| -> Vec<(TexturedParam, u32)> {
+        t.bindings_of(s.meshes[mesh].material).map(|b| (b.param, b.texture)).collect()
+    };
+    assert_eq!(bindings(0), [(TexturedParam::Reflectance, 0)]);
+    assert_eq!(
+        s.materials[s.meshes[0].material as usize],
+        Material::Diffuse { reflectance: Rgb::splat(0.5) }
+    );
+    // translucent: Kd × reflect (0.5 default) and Kd × transmit, as Scale nodes over "tint".
+    assert_eq!(bindings(1), [(TexturedParam::Reflectance, 4), (TexturedParam::Transmittance, 5)]);
+    assert_eq!(
+        t.textures[4],
+        Texture::Scale { tex: TexInput::Texture(3), scale: TexInput::Value(Rgb::splat(0.5)) }
+    );
+    assert_eq!(
+        t.textures[5],
+        Texture::Scale { tex: TexInput::Texture(3), scale: TexInput::Value(Rgb::splat(0.25)) }
+    );
+    assert_eq!(bindings(2), [(TexturedParam::Reflectance, 1)]);
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(w.iter().filter(|w| w.contains("textures are not rendered yet")).count(), 1, "{w:#?}");
-    assert!(w[0].starts_with("t.pbrt:2:1: texture \"wood\" recorded"), "{w:#?}");
-    // The material parameter that uses a texture keeps its default, with a warning at the material.
-    assert!(w
-        .iter()
-        .any(|w| w.starts_with("t.pbrt:5:1:") && w.contains("texture \"wood\" replaced by the default")));
-    assert_eq!(loaded.scene.materials[0], Material::Diffuse { reflectance: Rgb::splat(0.5) });
+    let missing = w.iter().find(|w| w.contains("bump.png")).expect("a warning for the missing file");
+    assert!(
+        missing.starts_with("t.pbrt:4:1: texture \"bump\": ") && missing.ends_with("; using a constant"),
+        "{w:#?}"
+    );
+    assert_eq!(w.iter().filter(|w| w.contains("bump, displacement and normal maps")).count(), 1, "{w:#?}");
+    assert!(!w.iter().any(|w| w.contains("unused") || w.contains("trilinear")), "{w:#?}");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -202,4 +268,71 @@ fn v3_lights() {
     // A missing map: a warning naming it, constant white instead.
     assert!(w[0].contains("sky.exr") && w[0].contains("using constant white"), "{w:#?}");
     assert!(!w.iter().any(|w| w.contains("unused parameter")), "{w:#?}");
+}
+
+/// pbrt-v3's `disney`: every parameter read into the principled material
+/// (silently when nothing is dropped), `color`/`metallic`/`roughness`
+/// textures bound (roughness not remapped), what atoll does not model named
+/// in one warning, and a bad `eta` an error at its line.
+#[test]
+fn disney_reads_as_the_principled_material() {
+    let dir = common::temp_dir("v3-disney");
+    image::RgbImage::from_pixel(2, 2, image::Rgb([255, 128, 0])).save(dir.join("mr.png")).unwrap();
+    let full = "Material \"disney\" \"rgb color\" [0.8 0.5 0.2] \"float metallic\" 0.25 \"float eta\" 1.33 \
+                \"float roughness\" 0.3 \"float speculartint\" 0.5 \"float sheen\" 0.75 \"float sheentint\" 0.25 \
+                \"float clearcoat\" 0.5 \"float clearcoatgloss\" 0.6 \"float spectrans\" 0.4 \
+                \"float flatness\" 0.2 \"float difftrans\" 0.5";
+    let textured = "Texture \"m\" \"float\" \"imagemap\" \"string filename\" \"mr.png\"\n\
+                    Texture \"c\" \"color\" \"imagemap\" \"string filename\" \"mr.png\"\n\
+                    Material \"disney\" \"texture color\" \"c\" \"texture metallic\" \"m\" \"texture roughness\" \"m\" \
+                    \"float specular\" 0.7";
+    let dropped = "Material \"disney\" \"bool thin\" \"true\" \"rgb scatterdistance\" [1 1 1] \
+                   \"texture sheen\" \"m\" \"float clearcoat\" 2";
+    let loaded = load_str(&v3_scene(&[full, textured, dropped]), "d.pbrt", &dir).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    let expected = Material::Principled {
+        base_color: Rgb::new(0.8, 0.5, 0.2),
+        metallic: 0.25,
+        roughness: 0.3,
+        specular: Material::specular_from_eta(1.33),
+        specular_tint: 0.5,
+        sheen: 0.75,
+        sheen_tint: 0.25,
+        clearcoat: 0.5,
+        clearcoat_gloss: 0.6,
+        transmission: 0.4,
+        eta: 1.33,
+    };
+    assert_eq!(*m[0], expected);
+    assert!((Material::specular_from_eta(1.5) - 0.5).abs() < 1e-6);
+    let Material::Principled { base_color, metallic, roughness, specular, .. } = *m[1] else {
+        panic!("{:?}", m[1])
+    };
+    assert_eq!((base_color, metallic, roughness, specular), (Rgb::splat(0.5), 0.0, 0.5, 0.7));
+    let bound: Vec<(TexturedParam, bool)> =
+        s.textures.bindings_of(s.meshes[1].material).map(|b| (b.param, b.remap_roughness)).collect();
+    assert_eq!(
+        bound,
+        [
+            (TexturedParam::Reflectance, false),
+            (TexturedParam::Metallic, false),
+            (TexturedParam::Roughness, false)
+        ]
+    );
+    let Material::Principled { clearcoat, sheen, .. } = *m[2] else { panic!("{:?}", m[2]) };
+    assert_eq!((clearcoat, sheen), (1.0, 0.0));
+    let disney: Vec<String> =
+        loaded.warnings.iter().filter(|w| w.message.contains("disney")).map(|w| w.to_string()).collect();
+    assert_eq!(disney.len(), 1, "{disney:#?}");
+    for part in
+        ["subsurface scattering", "thin-surface mode", "the \"sheen\" texture", "\"clearcoat\" 2 outside"]
+    {
+        assert!(disney[0].contains(part), "{part}: {}", disney[0]);
+    }
+    assert!(disney[0].starts_with("d.pbrt:18:1: "), "{}", disney[0]);
+    assert!(!loaded.warnings.iter().any(|w| w.message.contains("unused")), "{:#?}", loaded.warnings);
+    let e = load_str(&v3_scene(&["Material \"disney\" \"float eta\" 0"]), "e.pbrt", &dir).unwrap_err();
+    assert!((e.line, e.message.contains("\"eta\" must be positive")) == (8, true), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -9,7 +9,9 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use atoll_scene::{load_any, LoadedScene, Material};
+use atoll_scene::{
+    load_any, AlphaMode, Channel, LoadedScene, Material, Texels, Texture, TexturedParam, UvMapping, Wrap,
+};
 use common::{assert_close, temp_dir, write};
 use glam::{UVec2, Vec3};
 
@@ -65,7 +67,15 @@ fn gltf_2cylinder_engine_instances_its_meshes_and_keeps_its_camera() {
     assert_eq!((st.unique_triangles, st.instanced_triangles), (75730, 121496));
     assert_bounds(&l, [-373.2935, -188.2828, -140.0], [371.6922, 115.2585, 135.2584], 1e-3);
     assert_eq!(st.materials, 34);
-    assert_eq!(kinds(&l), [34, 0, 0], "metallicFactor is 0 throughout");
+    // Principled, and metallicFactor is 0 throughout.
+    assert!(
+        l.scene
+            .materials
+            .iter()
+            .all(|m| matches!(m, Material::Principled { metallic, .. } if *metallic == 0.0)),
+        "{:?}",
+        l.scene.materials
+    );
     let cam = &l.scene.settings.camera;
     assert!((cam.fov_degrees - 0.314_346_37_f32.to_degrees()).abs() < 1e-4);
     assert_eq!(l.scene.settings.film.resolution, UVec2::new(1024, 1024), "aspectRatio 1");
@@ -100,26 +110,129 @@ fn gltf_cameras_file_gives_the_known_camera() {
 
 #[test]
 fn gltf_box_textured_in_three_packagings() {
-    for rel in [
-        "BoxTextured-glTF/BoxTextured.gltf",
-        "BoxTextured-glTF-Embedded/BoxTextured.gltf",
-        "BoxTextured-glTF-Binary/BoxTextured.glb",
+    let mut texels = Vec::new();
+    // The JSON file's sampler mirrors in u and clamps in v (u's is used and
+    // the difference noted); the others repeat.
+    for (rel, wrap_u) in [
+        ("BoxTextured-glTF/BoxTextured.gltf", Wrap::Mirror),
+        ("BoxTextured-glTF-Embedded/BoxTextured.gltf", Wrap::Repeat),
+        ("BoxTextured-glTF-Binary/BoxTextured.glb", Wrap::Repeat),
     ] {
         let Some(p) = assimp(&format!("glTF2/{rel}")) else { return };
         let l = load(&p);
-        assert_eq!(l.scene.stats().unique_triangles, 12, "{rel}");
+        let s = &l.scene;
+        assert_eq!(s.stats().unique_triangles, 12, "{rel}");
         assert_bounds(&l, [-0.5; 3], [0.5; 3], 1e-6);
-        assert_eq!(l.scene.materials.len(), 1);
-        assert_eq!(l.textures.len(), 1, "{rel}");
-        if rel.contains("Embedded") || rel.ends_with(".glb") {
-            assert_eq!(l.textures[0].filename, None, "{rel}: the image is in the file");
-        } else {
-            let f = l.textures[0].filename.as_ref().unwrap();
-            assert!(f.ends_with("CesiumLogoFlat.png") && f.exists(), "{f:?}");
-        }
-        // Textured base colour: the factor alone (white) until textures exist.
-        assert!(l.warnings.iter().any(|w| w.message.contains("1 textures recorded but not rendered yet")));
+        assert_eq!(s.materials.len(), 1);
+        let Material::Principled { base_color, metallic, roughness, .. } = s.materials[0] else {
+            panic!("{rel}: {:?}", s.materials[0])
+        };
+        assert_eq!((base_color, metallic, roughness), (Vec3::ONE, 0.0, 1.0), "{rel}");
+        // TEXCOORD_0 are the mesh's uvs.
+        assert!(s.meshes.iter().all(|m| m.uvs.len() == m.positions.len() && !m.uvs.is_empty()), "{rel}");
+        // The base colour: CesiumLogoFlat.png (211x211, sRGB) from a file, a
+        // data URI or the GLB's buffer, bound with the factor (white) left out.
+        let t = &s.textures;
+        assert_eq!(t.images.len(), 1, "{rel}");
+        let image = &t.images[0];
+        assert_eq!((image.width, image.height), (211, 211), "{rel}");
+        assert!(matches!(image.texels, Texels::Rgba8 { srgb: true, .. }), "{rel}");
+        texels.push(image.texels.clone());
+        let b: Vec<_> = t.bindings_of(0).collect();
+        assert_eq!((b.len(), b[0].param), (1, TexturedParam::Reflectance), "{rel}");
+        let Texture::Image { image: 0, mapping, wrap, channel: Channel::Rgb, scale, invert: false } =
+            t.textures[b[0].texture as usize]
+        else {
+            panic!("{rel}: {:?}", t.textures)
+        };
+        assert_eq!((mapping, wrap, scale), (UvMapping::FLIP_V, wrap_u, 1.0), "{rel}");
+        assert!(s.meshes.iter().all(|m| m.alpha.is_none()), "{rel}: opaque");
+        let w: Vec<&str> = l.warnings.iter().map(|w| w.message.as_str()).collect();
+        let noted: &[&str] = match wrap_u {
+            Wrap::Mirror => &["not supported, ignored: v wrap modes that differ from u's (u's is used)"],
+            _ => &[],
+        };
+        assert_eq!(w, noted, "{rel}");
     }
+    assert!(texels.windows(2).all(|p| p[0] == p[1]), "the three packagings decode alike");
+}
+
+/// KHR_materials_clearcoat's test model: clearcoat factors, a
+/// metallicRoughnessTexture bound to metallic (blue) and roughness (green),
+/// a BLEND material with a textured alpha, and the textures atoll ignores
+/// named in one warning.
+#[test]
+fn gltf_clearcoat_test_binds_metallic_roughness_and_blends() {
+    let Some(p) = assimp("glTF2/ClearCoat-glTF/ClearCoatTest.gltf") else { return };
+    let l = load(&p);
+    let s = &l.scene;
+    let t = &s.textures;
+    let principled: Vec<(f32, f32, f32)> = s
+        .materials
+        .iter()
+        .map(|m| match *m {
+            Material::Principled { clearcoat, clearcoat_gloss, roughness, .. } => {
+                (clearcoat, clearcoat_gloss, roughness)
+            }
+            _ => panic!("{m:?}"),
+        })
+        .collect();
+    assert_eq!(principled.len(), 19);
+    // Coats of roughness 0.03 (gloss 1 after clamping) and 1 (gloss 0); the bases are uncoated.
+    assert_eq!(principled.iter().filter(|p| p.0 == 1.0 && p.1 == 1.0).count(), 5);
+    assert_eq!(principled.iter().filter(|p| p.0 == 1.0 && p.1 == 0.0).count(), 1);
+    assert_eq!(principled.iter().filter(|p| p.0 == 0.0).count(), 13);
+    // RoughVariations_Coating: RoughnessStripes.png, linear, read twice.
+    let metallic: Vec<_> = t.bindings.iter().filter(|b| b.param == TexturedParam::Metallic).collect();
+    assert_eq!(metallic.len(), 1);
+    let material = metallic[0].material;
+    let mut bound: Vec<(TexturedParam, Texture)> =
+        t.bindings_of(material).map(|b| (b.param, t.textures[b.texture as usize].clone())).collect();
+    bound.sort_by_key(|(p, _)| *p as u32);
+    let [(TexturedParam::Roughness, rough), (TexturedParam::Metallic, metal)] = &bound[..] else {
+        panic!("{bound:?}")
+    };
+    let Texture::Image { image, channel: Channel::Green, scale: 1.0, .. } = *rough else {
+        panic!("{rough:?}")
+    };
+    assert!(
+        matches!(*metal, Texture::Image { image: i, channel: Channel::Blue, scale: 0.0, .. } if i == image)
+    );
+    assert!(t.bindings_of(material).all(|b| !b.remap_roughness));
+    let stripes = &t.images[image as usize];
+    assert_eq!((stripes.width, stripes.height), (512, 512));
+    assert!(matches!(stripes.texels, Texels::Rgba8 { srgb: false, .. }));
+    assert!(stripes.name.ends_with("RoughnessStripes.png"), "{}", stripes.name);
+    // Partial_Coating: BLEND, its base colour image's alpha as a hit probability.
+    let blended: Vec<_> = s.meshes.iter().filter_map(|m| m.alpha).collect();
+    assert_eq!(blended.len(), 1);
+    assert_eq!(blended[0].mode, AlphaMode::Stochastic);
+    let Texture::Image { image, channel: Channel::Alpha, scale: 1.0, .. } =
+        t.textures[blended[0].texture as usize]
+    else {
+        panic!("{:?}", t.textures[blended[0].texture as usize])
+    };
+    assert!(t.images[image as usize].name.ends_with("PartialCoating_Alpha.png"));
+    assert!(t.images[image as usize].has_alpha());
+    let w: Vec<&str> = l.warnings.iter().map(|w| w.message.as_str()).collect();
+    assert_eq!(w.len(), 1, "{w:?}");
+    for part in ["normal maps", "clearcoat normal maps", "clearcoat and sheen textures", "emissive textures"]
+    {
+        assert!(w[0].starts_with("not supported, ignored: ") && w[0].contains(part), "{part}: {w:?}");
+    }
+}
+
+/// A metallicRoughnessTexture on TEXCOORD_1: atoll reads only TEXCOORD_0,
+/// so it is left out (and said so), while the base colour binds.
+#[test]
+fn gltf_textures_on_a_second_uv_set_are_skipped() {
+    let Some(p) = assimp("glTF2/BoxTexcoords-glTF/boxTexcoords.gltf") else { return };
+    let l = load(&p);
+    let t = &l.scene.textures;
+    let params: Vec<TexturedParam> = t.bindings.iter().map(|b| b.param).collect();
+    assert_eq!(params, [TexturedParam::Reflectance]);
+    assert_eq!(t.images.len(), 1);
+    assert!(l.warnings.iter().any(|w| w.message.contains("textures on TEXCOORD_1")), "{:?}", l.warnings);
 }
 
 #[test]
@@ -192,13 +305,40 @@ fn obj_spider_with_its_mtl() {
         .scene
         .materials
         .contains(&Material::Diffuse { reflectance: Vec3::new(0.827451, 0.792157, 0.772549) }));
-    let mut textures: Vec<&str> = l.textures.iter().map(|t| t.name.as_str()).collect();
-    textures.sort();
-    assert_eq!(
-        textures,
-        [".\\SpiderTex.jpg", ".\\drkwood2.jpg", ".\\engineflare1.jpg", ".\\wal67ar_small.jpg"]
-    );
-    assert!(l.textures.iter().all(|t| t.filename.as_ref().is_some_and(|f| f.exists())), "{:?}", l.textures);
+    // The four used materials' `map_Kd .\\x.jpg` images, decoded (sRGB JPEGs), times Kd.
+    let t = &l.scene.textures;
+    let mut names: Vec<String> = t
+        .images
+        .iter()
+        .map(|i| Path::new(&i.name).file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["SpiderTex.jpg", "drkwood2.jpg", "engineflare1.jpg", "wal67ar_small.jpg"]);
+    for image in &t.images {
+        assert!(image.width >= 32 && image.height >= 32, "{}: {}x{}", image.name, image.width, image.height);
+        assert!(matches!(image.texels, atoll_scene::Texels::Rgba8 { srgb: true, .. }), "{}", image.name);
+        let mean: f32 = (0..image.height)
+            .flat_map(|y| (0..image.width).map(move |x| (x, y)))
+            .map(|(x, y)| image.texel(x, y)[..3].iter().sum::<f32>() / 3.0)
+            .sum::<f32>()
+            / (image.width * image.height) as f32;
+        assert!(mean > 0.01 && mean < 0.99, "{}: mean {mean}", image.name);
+    }
+    assert_eq!(t.bindings.len(), 4);
+    for b in &t.bindings {
+        assert_eq!(b.param, atoll_scene::TexturedParam::Reflectance);
+        let atoll_scene::Texture::Scale { tex: atoll_scene::TexInput::Texture(image), scale } =
+            t.textures[b.texture as usize]
+        else {
+            panic!("{:?}", t.textures[b.texture as usize])
+        };
+        assert!(matches!(t.textures[image as usize], atoll_scene::Texture::Image { .. }));
+        let atoll_scene::Material::Diffuse { reflectance } = l.scene.materials[b.material as usize] else {
+            panic!()
+        };
+        assert_eq!(scale, atoll_scene::TexInput::Value(reflectance), "Kd scales the map");
+    }
+    assert!(l.warnings.is_empty(), "{:?}", l.warnings);
     // Framed: the camera looks at the centre of the bounds.
     let cam = &l.scene.settings.camera;
     let (lo, hi) = l.scene.world_bounds().unwrap();

@@ -34,6 +34,7 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("emissive triangles {}", s.emissive_triangles);
     println!("lights             {} (plus area lights)", s.lights);
     println!("materials          {}", s.materials);
+    println!("textures           {} ({} images, {})", s.textures, s.texture_images, mib(s.texture_bytes));
     println!("bounds             {:?} .. {:?}", s.bounds_min.to_array(), s.bounds_max.to_array());
     let r = &scene.settings;
     println!(
@@ -45,7 +46,11 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     let bvh_bytes = b.bytes as u64;
     println!("geometry memory    {}", mib(s.geometry_bytes));
     println!("BVH memory         {}", mib(bvh_bytes));
-    println!("memory estimate    {} (geometry + BVH)", mib(s.geometry_bytes + bvh_bytes));
+    println!("texture memory     {}", mib(s.texture_bytes));
+    println!(
+        "memory estimate    {} (geometry + BVH + textures)",
+        mib(s.geometry_bytes + bvh_bytes + s.texture_bytes)
+    );
     println!(
         "BVH build          {:.1} ms ({} BLAS over {} triangles, TLAS over {} instances)",
         b.build_ms, b.blas_count, b.triangles, b.instances

@@ -63,6 +63,29 @@ fn info_reports_counts() {
     assert!(stdout.contains("SAH cost"), "{stdout}");
 }
 
+/// Textures count in `atoll info`; an image that cannot be read is a
+/// warning with its line (the texture becomes a constant), not an error.
+#[test]
+fn info_reports_textures_and_warns_about_unreadable_images() {
+    let dir = scratch("info-textures");
+    exr::prelude::write_rgba_file(dir.join("wood.exr"), 4, 2, |_, _| (0.8f32, 0.4f32, 0.2f32, 1.0f32))
+        .unwrap();
+    let scene = "WorldBegin\n\
+                 Texture \"wood\" \"spectrum\" \"imagemap\" \"string filename\" \"wood.exr\"\n\
+                 Texture \"gone\" \"float\" \"imagemap\" \"string filename\" \"gone.png\"\n\
+                 Material \"conductor\" \"texture reflectance\" \"wood\" \"texture roughness\" \"gone\"\n\
+                 Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n";
+    std::fs::write(dir.join("t.pbrt"), scene).unwrap();
+    let out = atoll(&dir, &["info", "t.pbrt"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("textures           2 (1 images, 0.00 MiB)"), "{stdout}");
+    assert!(stdout.contains("(geometry + BVH + textures)"), "{stdout}");
+    let err = stderr(&out);
+    assert!(err.contains("t.pbrt:3:1: texture \"gone\": ") && err.contains("gone.png"), "{err}");
+    assert!(err.contains("; using a constant"), "{err}");
+}
+
 /// Each malformed scene: exit code 2, a `file:line:` message, no panic, and
 /// an image already at the output path left untouched.
 #[test]

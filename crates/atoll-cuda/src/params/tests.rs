@@ -116,11 +116,12 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!((g.p[6], g.p[7]), (cos_falloff_start, cos_falloff_end));
                 assert_eq!(g.radiance, intensity.to_array());
             }
-            Emitter::Triangle { p, normal, area, radiance, two_sided } => {
+            Emitter::Triangle { p, normal, area, radiance, two_sided, texture } => {
                 assert_eq!(g.kind, emitter_kind::TRIANGLE);
                 assert_eq!(&g.p[6..9], &p[2].to_array());
                 assert_eq!((g.normal, g.area, g.radiance), (normal.to_array(), area, radiance.to_array()));
                 assert_eq!(g.two_sided, two_sided as u32);
+                assert_eq!(texture.is_none(), g.table == crate::params::NO_EMISSION_TEXTURE);
             }
         }
     }

@@ -76,7 +76,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
 
     // Emission of the surface hit, MIS-weighted against light sampling.
     if r.light != NO_LIGHT {
-        let le = lights.emitted(r.light, -dir);
+        let le = lights.emitted(r.light, -dir, r.emission_scale);
         if le != Vec3::ZERO {
             let w = if specular {
                 1.0
@@ -151,7 +151,11 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     let wi = frame.from_local(bs.wi).normalize();
     let mut next = continuation(r, p, ng, wi);
     next.throughput = beta.to_array();
-    next.bsdf_pdf = bs.pdf;
+    // A stochastic BSDF's sample density is only proportional to the real
+    // one; MIS at the next vertex needs its `pdf` (pbrt's `pdfIsProportional`).
+    // Specular samples skip MIS, so their probability is kept as it is.
+    let proportional = bsdf.sampled_pdf_is_proportional() && !bs.delta;
+    next.bsdf_pdf = if proportional { bsdf.pdf(wo, bs.wi) } else { bs.pdf };
     next.depth += 1;
     next.flags = if bs.delta { flags::SPECULAR } else { 0 };
     out.next = Some(next);

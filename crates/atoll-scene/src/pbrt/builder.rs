@@ -20,12 +20,14 @@ use glam::{Affine3A, DMat3, DMat4, DVec3, UVec2};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    AreaEmission, Instance, IntegratorSettings, Material, MaterialId, MeshId, Object, Scene, TriangleMesh,
+    AlphaMode, AreaEmission, Instance, IntegratorSettings, Material, MaterialId, MeshAlpha, MeshId, Object,
+    Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam, TriangleMesh,
 };
 
 use super::params::{Param, ParamList, ParamType};
 use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
 use super::shapes::{self, ShapeMesh};
+use super::textures::{NamedTextures, TexCtx};
 use super::tokenizer::Tokenizer;
 use super::{entities, transform, LoadedScene, WarningSink};
 
@@ -56,6 +58,8 @@ struct GraphicsState {
     reverse_orientation: bool,
     material: MaterialRef,
     area_light: Option<AreaEmission>,
+    /// The area light's emission image (`filename`), as a texture.
+    area_light_texture: Option<crate::TextureId>,
     shape_attributes: Vec<Param>,
     light_attributes: Vec<Param>,
     material_attributes: Vec<Param>,
@@ -69,6 +73,7 @@ impl Default for GraphicsState {
             reverse_orientation: false,
             material: MaterialRef::Default,
             area_light: None,
+            area_light_texture: None,
             shape_attributes: Vec::new(),
             light_attributes: Vec::new(),
             material_attributes: Vec::new(),
@@ -92,7 +97,24 @@ struct ObjectDef {
 /// A material waiting for its id until a shape uses it.
 struct MaterialSlot {
     material: Material,
+    /// Its texture bindings: (parameter, texture, remap roughness).
+    bindings: Vec<(TexturedParam, TextureId, bool)>,
     id: Option<MaterialId>,
+}
+
+impl MaterialSlot {
+    /// The material's id, adding it and its bindings to `scene` on first use.
+    fn id(&mut self, scene: &mut Scene) -> MaterialId {
+        if let Some(id) = self.id {
+            return id;
+        }
+        let material = scene.add_material(self.material.clone());
+        for &(param, texture, remap_roughness) in &self.bindings {
+            scene.textures.bind(TextureBinding { material, param, texture, remap_roughness });
+        }
+        self.id = Some(material);
+        material
+    }
 }
 
 /// Loader state for one scene.
@@ -117,8 +139,10 @@ pub struct Builder {
     active_object: Option<usize>,
     instance_uses: Vec<(String, DMat4, FileLoc)>,
     warned_transform_begin: bool,
-    /// `Texture` statements, recorded for the texture step (not rendered yet).
-    textures: Vec<crate::TextureRef>,
+    /// Named float and spectrum textures, and the decoded images.
+    textures: NamedTextures,
+    /// Whether bump, displacement and normal maps were warned about.
+    warned_bump_maps: bool,
     /// Unsupported shape types: how many were skipped, and where the first was.
     skipped_shapes: Vec<(String, u64, FileLoc)>,
     /// pbrt-v3 spellings already warned about.
@@ -150,7 +174,8 @@ impl Builder {
             active_object: None,
             instance_uses: Vec::new(),
             warned_transform_begin: false,
-            textures: Vec::new(),
+            textures: NamedTextures::default(),
+            warned_bump_maps: false,
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
         }
@@ -339,7 +364,7 @@ impl Builder {
                     self.warn(&loc, "participating media are not supported; MediumInterface ignored");
                 }
             }
-            S::Texture { name, ty, class, params } => self.texture(name, &ty, class, params, &loc)?,
+            S::Texture { name, ty, class, params } => self.texture(name, &ty, &class, params, &loc)?,
             S::Entity { kind, name, params } => self.entity(kind, name, params, loc)?,
         }
         Ok(())
@@ -452,17 +477,18 @@ impl Builder {
             }
             E::Shape => {
                 if let Some(mesh) = shapes::shape_mesh(&name, &p, &loc, &self.base_dir, w)? {
-                    self.add_shape(mesh, &loc)?;
+                    let alpha = self.shape_alpha(&name, &p, &loc)?;
+                    self.add_shape(mesh, alpha, &loc)?;
                 }
             }
             E::Material if name == "mix" => {
                 let material = self.mix(&p, "Material \"mix\"", &loc)?;
-                self.anonymous.push(MaterialSlot { material, id: None });
+                self.anonymous.push(MaterialSlot { material, bindings: Vec::new(), id: None });
                 self.gs.material = MaterialRef::Anonymous(self.anonymous.len() - 1);
             }
             E::Material => {
-                let material = entities::material(&name, &p, &loc, w)?;
-                self.anonymous.push(MaterialSlot { material, id: None });
+                let slot = self.material(&name, &p, &loc)?;
+                self.anonymous.push(slot);
                 self.gs.material = MaterialRef::Anonymous(self.anonymous.len() - 1);
             }
             E::MakeNamedMaterial => {
@@ -475,19 +501,31 @@ impl Builder {
                 if self.named_materials.contains_key(&name) {
                     return Err(SceneError::at(&loc, format!("named material \"{name}\" is defined twice")));
                 }
-                let material = if ty == "mix" {
-                    self.mix(&p, &format!("mix \"{name}\""), &loc)?
+                let slot = if ty == "mix" {
+                    let material = self.mix(&p, &format!("mix \"{name}\""), &loc)?;
+                    MaterialSlot { material, bindings: Vec::new(), id: None }
                 } else {
-                    entities::material(&ty, &p, &loc, w)?
+                    self.material(&ty, &p, &loc)?
                 };
-                self.named_materials.insert(name.clone(), MaterialSlot { material, id: None });
+                self.named_materials.insert(name.clone(), slot);
             }
             E::LightSource => {
                 if let Some(light) = entities::light(&name, &p, &self.gs.ctm, &self.base_dir, &loc, w)? {
                     self.scene.lights.push(light);
                 }
             }
-            E::AreaLightSource => self.gs.area_light = entities::area_light(&name, &p, &loc, w)?,
+            E::AreaLightSource => {
+                self.gs.area_light = entities::area_light(&name, &p, &loc, w)?;
+                self.gs.area_light_texture = None;
+                if let (Some(_), Some(file)) = (self.gs.area_light, p.string("filename")?) {
+                    match self.textures.emission_image(&file, &self.base_dir, &mut self.scene.textures) {
+                        Ok(t) => self.gs.area_light_texture = Some(t),
+                        Err(e) => {
+                            w.warn(&loc, format!("area light image: {e}; emitting \"scale\" uniformly"))
+                        }
+                    }
+                }
+            }
             E::Camera => self.camera(&name, &p, &loc)?,
             E::Film => {
                 let res = |v: Option<i64>, d: u32| -> Result<u32, SceneError> {
@@ -563,7 +601,7 @@ impl Builder {
         let (first, second, amount) = super::v3::mix_parts(p, loc, &mut self.warnings)?;
         let mut id = |name: &str| -> MaterialId {
             match self.named_materials.get_mut(name) {
-                Some(slot) => *slot.id.get_or_insert_with(|| self.scene.add_material(slot.material.clone())),
+                Some(slot) => slot.id(&mut self.scene),
                 None => {
                     let msg =
                         format!("{what}: material \"{name}\" is not defined before it; using diffuse 0.5");
@@ -576,27 +614,64 @@ impl Builder {
         Ok(Material::Mix { materials, amount })
     }
 
-    /// `Texture "name" "float"|"spectrum"|"color" "class" params`: recorded for
-    /// the texture step. Materials that use a texture keep their parameter's
-    /// default (they warn about it); this warns once a file that textures are
-    /// not rendered yet.
+    /// `Texture "name" "float"|"spectrum"|"color" "class" params` (see [`super::textures`]).
     fn texture(
         &mut self,
         name: String,
         ty: &str,
-        class: String,
+        class: &str,
         raw: Vec<RawParam>,
         loc: &FileLoc,
     ) -> Result<(), SceneError> {
         self.require_world("Texture", loc)?;
         let p = self.params(raw)?;
-        let texture = super::v3::texture(name, ty, class, &p, &self.base_dir, loc)?;
-        if self.textures.is_empty() {
-            let msg = format!("texture \"{}\" recorded; textures are not rendered yet, so the material parameters using them keep their defaults (warned once)", texture.name);
-            self.warn(loc, msg);
-        }
-        self.textures.push(texture);
+        let store = &mut self.scene.textures;
+        self.textures.define(name.clone(), ty, class, &p, &self.base_dir, store, loc, &mut self.warnings)?;
+        self.warn_unused(&p, &format!("Texture \"{name}\""));
         Ok(())
+    }
+
+    /// A material of pbrt type `ty` with the bindings of its texture-valued
+    /// parameters. Bump, displacement and normal maps are warned about once
+    /// a scene and ignored.
+    fn material(&mut self, ty: &str, p: &ParamList, loc: &FileLoc) -> Result<MaterialSlot, SceneError> {
+        let bumps = [("bumpmap", ParamType::Texture), ("displacement", ParamType::Texture)]
+            .into_iter()
+            .chain([("displacement", ParamType::Float), ("normalmap", ParamType::String)]);
+        let mut found = false;
+        for (name, ty) in bumps {
+            found |= p.find(name, &[ty]).is_some();
+        }
+        if found && !self.warned_bump_maps {
+            self.warned_bump_maps = true;
+            self.warn(loc, "bump, displacement and normal maps are not supported; ignored (reported once)");
+        }
+        let mut tex = TexCtx::new(&self.textures, &mut self.scene.textures);
+        let material = entities::material(ty, p, loc, &mut self.warnings, &mut tex)?;
+        Ok(MaterialSlot { material, bindings: tex.bindings, id: None })
+    }
+
+    /// A shape's `alpha` (pbrt-v4's `float alpha` or `texture alpha`): a
+    /// stochastic mask, `None` for the default of 1. A mesh without uvs
+    /// reads a textured mask with pbrt's per-triangle default uvs (the
+    /// renderer's convention), so none are generated here.
+    fn shape_alpha(
+        &mut self,
+        ty: &str,
+        p: &ParamList,
+        loc: &FileLoc,
+    ) -> Result<Option<MeshAlpha>, SceneError> {
+        // pbrt-v3's separate shadow mask: pbrt-v4 (and atoll) cut shadow rays with `alpha` too.
+        p.find("shadowalpha", &[ParamType::Texture, ParamType::Float]);
+        let tex = TexCtx::new(&self.textures, &mut self.scene.textures);
+        let what = format!("shape \"{ty}\"");
+        let texture = match tex.float(p, "alpha", &what, loc, &mut self.warnings)? {
+            None => return Ok(None),
+            Some(TexInput::Value(a)) if a.x >= 1.0 => return Ok(None),
+            Some(TexInput::Value(a)) => self.scene.textures.add(Texture::Constant(Rgb::splat(a.x.max(0.0)))),
+            Some(TexInput::Texture(t)) => t,
+        };
+        Ok(Some(MeshAlpha { texture, mode: AlphaMode::Stochastic }))
     }
 
     /// `Attribute "shape"|"light"|"material" params`: defaults for later directives.
@@ -680,20 +755,19 @@ impl Builder {
             MaterialRef::Default => Some(
                 *self.default_material.get_or_insert_with(|| scene.add_material(Material::default_diffuse())),
             ),
-            MaterialRef::Anonymous(i) => {
-                let slot = &mut self.anonymous[*i];
-                Some(*slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone())))
-            }
-            MaterialRef::Named(name, _) => {
-                let slot = self.named_materials.get_mut(name)?;
-                Some(*slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone())))
-            }
+            MaterialRef::Anonymous(i) => Some(self.anonymous[*i].id(scene)),
+            MaterialRef::Named(name, _) => Some(self.named_materials.get_mut(name)?.id(scene)),
         }
     }
 
     /// Transforms a shape's mesh by the CTM and adds it to the world or to the
     /// object being defined.
-    fn add_shape(&mut self, shape: ShapeMesh, loc: &FileLoc) -> Result<(), SceneError> {
+    fn add_shape(
+        &mut self,
+        shape: ShapeMesh,
+        alpha: Option<MeshAlpha>,
+        loc: &FileLoc,
+    ) -> Result<(), SceneError> {
         if shape.indices.is_empty() {
             self.warn(loc, format!("shape \"{}\" has no triangles; skipped", shape.name));
             return Ok(());
@@ -733,9 +807,14 @@ impl Builder {
             material: material.unwrap_or(0),
             emission,
             flip_normals: reverse ^ transform::swaps_handedness(&ctm),
+            alpha,
         };
         mesh.validate().map_err(|m| SceneError::at(loc, format!("shape \"{}\": {m}", mesh.name)))?;
+        let emits = mesh.emission.is_some();
         let id = self.scene.add_mesh(mesh);
+        if let (true, Some(texture)) = (emits, self.gs.area_light_texture) {
+            self.scene.textures.bind_emission(id, texture);
+        }
         if material.is_none() {
             if let MaterialRef::Named(name, at) = &self.gs.material {
                 self.pending_materials.push((id, name.clone(), at.clone()));
@@ -776,9 +855,8 @@ impl Builder {
                     format!("NamedMaterial: material \"{name}\" is not defined"),
                 ));
             };
-            let scene = &mut self.scene;
-            let id = *slot.id.get_or_insert_with(|| scene.add_material(slot.material.clone()));
-            scene.meshes[mesh as usize].material = id;
+            let id = slot.id(&mut self.scene);
+            self.scene.meshes[mesh as usize].material = id;
         }
         if !self.world_meshes.is_empty() {
             let id = self
@@ -803,6 +881,6 @@ impl Builder {
                 self.scene.instances.push(Instance { object: ids[i], object_to_world });
             }
         }
-        Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list, textures: self.textures })
+        Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list })
     }
 }

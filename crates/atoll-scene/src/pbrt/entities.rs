@@ -6,15 +6,18 @@
 use glam::{DMat4, DVec3, Vec3};
 
 use crate::error::{FileLoc, SceneError};
-use crate::{AreaEmission, Light, Material, Rgb};
+use crate::{AreaEmission, Light, Material, Rgb, TexInput, TexturedParam};
 
-use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
+use super::params::{ParamList, ParamType, SpectrumParam};
 use super::spectrum;
+use super::textures::TexCtx;
 use super::transform;
 use super::WarningSink;
 
-/// A reflectance-like spectrum as RGB; `None` (after a warning) for textures
-/// and names we cannot turn into a colour, so the caller uses its default.
+/// A reflectance-like spectrum as RGB; `None` (after a warning) for names we
+/// cannot turn into a colour and for textures where the caller takes none
+/// (texture-valued parameters go through [`TexCtx`]), so the caller uses its
+/// default.
 pub(super) fn reflectance_rgb(
     sp: SpectrumParam,
     what: &str,
@@ -34,89 +37,120 @@ pub(super) fn reflectance_rgb(
             }
         },
         SpectrumParam::Texture(t) => {
-            w.warn(
-                loc,
-                format!("{what}: textures are not supported yet; texture \"{t}\" replaced by the default"),
-            );
+            w.warn(loc, format!("{what}: texture \"{t}\" cannot be used here; using the default"));
             None
         }
     }
 }
 
-/// A float parameter that may be a texture (unsupported: warn, use default).
-fn float_param(
-    p: &ParamList,
-    name: &str,
-    what: &str,
-    loc: &FileLoc,
-    w: &mut WarningSink,
-) -> Result<Option<f32>, SceneError> {
-    Ok(match p.float_or_texture(name)? {
-        Some(FloatOrTexture::Value(v)) => Some(v),
-        Some(FloatOrTexture::Texture(t)) => {
-            w.warn(loc, format!("{what}: textures are not supported yet; texture \"{t}\" for \"{name}\" replaced by the default"));
-            None
-        }
-        None => None,
-    })
-}
-
 /// pbrt's roughness parameters: `uroughness`/`vroughness` default to
 /// `roughness` (default `default`: 0 in pbrt-v4), remapped to GGX alpha
-/// unless `remaproughness` is false.
+/// unless `remaproughness` is false. A texture-valued one is bound (one
+/// `Roughness` binding when both directions read the same texture) and
+/// leaves `default` in the material.
 pub(super) fn alphas(
     p: &ParamList,
     what: &str,
     default: f32,
     loc: &FileLoc,
     w: &mut WarningSink,
+    tex: &mut TexCtx,
 ) -> Result<(f32, f32), SceneError> {
-    let r = float_param(p, "roughness", what, loc, w)?.unwrap_or(default);
-    let u = float_param(p, "uroughness", what, loc, w)?.unwrap_or(r);
-    let v = float_param(p, "vroughness", what, loc, w)?.unwrap_or(r);
-    if p.bool_or("remaproughness", true)? {
-        Ok((Material::roughness_to_alpha(u), Material::roughness_to_alpha(v)))
-    } else {
-        Ok((u, v))
+    let r = tex.float(p, "roughness", what, loc, w)?;
+    let u = tex.float(p, "uroughness", what, loc, w)?.or(r);
+    let v = tex.float(p, "vroughness", what, loc, w)?.or(r);
+    let remap = p.bool_or("remaproughness", true)?;
+    match (u, v) {
+        (Some(TexInput::Texture(a)), Some(TexInput::Texture(b))) if a == b => {
+            tex.bindings.push((TexturedParam::Roughness, a, remap))
+        }
+        _ => {
+            for (input, param) in [(u, TexturedParam::URoughness), (v, TexturedParam::VRoughness)] {
+                if let Some(TexInput::Texture(t)) = input {
+                    tex.bindings.push((param, t, remap));
+                }
+            }
+        }
     }
+    let alpha = |input: Option<TexInput>| {
+        let r = match input {
+            Some(TexInput::Value(c)) => c.x,
+            _ => default,
+        };
+        if remap {
+            Material::roughness_to_alpha(r)
+        } else {
+            r
+        }
+    };
+    Ok((alpha(u), alpha(v)))
 }
 
-/// A material of pbrt type `ty` (`MakeNamedMaterial` passes its `string type`).
-pub fn material(ty: &str, p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<Material, SceneError> {
+/// A reflectance-like parameter of the material being made: its value, or
+/// `default` with a binding of `param` when a texture gives it.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn reflectance_param(
+    p: &ParamList,
+    name: &str,
+    param: TexturedParam,
+    default: Rgb,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Rgb, SceneError> {
+    Ok(match tex.spectrum(p, name, what, loc, w)? {
+        Some(input) => tex.value_or_bind(input, param, default),
+        None => default,
+    })
+}
+
+/// A material of pbrt type `ty` (`MakeNamedMaterial` passes its `string
+/// type`); texture-valued parameters become bindings in `tex`.
+pub fn material(
+    ty: &str,
+    p: &ParamList,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
     let what = format!("material \"{ty}\"");
+    let reflectance = TexturedParam::Reflectance;
     Ok(match ty {
-        "diffuse" => {
-            let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
-            Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
-        }
-        "conductor" => conductor(p, &what, 0.0, loc, w)?,
+        "diffuse" => Material::Diffuse {
+            reflectance: reflectance_param(
+                p,
+                "reflectance",
+                reflectance,
+                Rgb::splat(0.5),
+                &what,
+                loc,
+                w,
+                tex,
+            )?,
+        },
+        "conductor" => conductor(p, &what, 0.0, loc, w, tex)?,
         "dielectric" => {
             let eta = dielectric_eta(p, &what, loc, w)?;
-            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w, tex)?;
             Material::Dielectric { eta, alpha_x, alpha_y }
         }
         "interface" | "" | "none" => Material::Interface,
         "diffusetransmission" => {
-            let scale = p.float_or("scale", 1.0)?;
-            let mut rgb = |name: &str| -> Result<Rgb, SceneError> {
-                let v = p.spectrum(name, true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
-                Ok(v.unwrap_or(Rgb::splat(0.25)) * scale)
+            let scale = TexInput::Value(Rgb::splat(p.float_or("scale", 1.0)?));
+            let default = TexInput::Value(Rgb::splat(0.25));
+            let mut scaled = |name: &str, param: TexturedParam| -> Result<Rgb, SceneError> {
+                let input = tex.spectrum(p, name, &what, loc, w)?.unwrap_or(default);
+                let input = tex.product(input, scale);
+                Ok(tex.value_or_bind(input, param, Rgb::splat(0.25)))
             };
-            let reflectance = rgb("reflectance")?;
-            let transmittance = rgb("transmittance")?;
+            let reflectance = scaled("reflectance", reflectance)?;
+            let transmittance = scaled("transmittance", TexturedParam::Transmittance)?;
             Material::DiffuseTransmission { reflectance, transmittance }
         }
         "thindielectric" => Material::ThinDielectric { eta: dielectric_eta(p, &what, loc, w)? },
-        "coateddiffuse" => {
-            let r = p.spectrum("reflectance", true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
-            p.mark_all_used();
-            w.warn(
-                loc,
-                "material \"coateddiffuse\" is not supported yet; rendered as diffuse with its reflectance",
-            );
-            Material::Diffuse { reflectance: r.unwrap_or(Rgb::splat(0.5)) }
-        }
-        _ => match super::v3::material(ty, p, loc, w)? {
+        "coateddiffuse" => coated_diffuse(p, &what, "reflectance", (0.5, 0.0), loc, w, tex)?,
+        _ => match super::v3::material(ty, p, loc, w, tex)? {
             Some(m) => m,
             None => {
                 p.mark_all_used();
@@ -135,20 +169,22 @@ pub(super) fn conductor(
     default_roughness: f32,
     loc: &FileLoc,
     w: &mut WarningSink,
+    tex: &mut TexCtx,
 ) -> Result<Material, SceneError> {
     let eta = p.spectrum("eta", true)?;
     let k = p.spectrum("k", true)?;
-    let reflectance = p.spectrum("reflectance", true)?;
-    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w)?;
-    if reflectance.is_some() && (eta.is_some() || k.is_some()) {
+    let reflectance = p.has("reflectance");
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w, tex)?;
+    if reflectance && (eta.is_some() || k.is_some()) {
         return Err(SceneError::at(
             loc,
             "conductor: \"reflectance\" cannot be given together with \"eta\" and \"k\"",
         ));
     }
     let (cu_eta, cu_k) = (spectrum::CU_ETA, spectrum::CU_K);
-    if let Some(r) = reflectance {
-        let r = reflectance_rgb(r, what, loc, w).unwrap_or(Rgb::ONE);
+    if reflectance {
+        // A textured reflectance gives k per hit the same way.
+        let r = reflectance_param(p, "reflectance", TexturedParam::Reflectance, Rgb::ONE, what, loc, w, tex)?;
         return Ok(Material::Conductor {
             eta: Rgb::ONE,
             k: Material::conductor_k_from_reflectance(r),
@@ -167,6 +203,75 @@ pub(super) fn conductor(
     let eta = metal(eta, cu_eta, "eta");
     let k = metal(k, cu_k, "k");
     Ok(Material::Conductor { eta, k, alpha_x, alpha_y })
+}
+
+/// pbrt-v4's `coateddiffuse` (defaults: `reflectance` 0.5, `roughness` 0,
+/// `thickness` 0.01, `eta` 1.5, `albedo` 0, `g` 0, `maxdepth` 10,
+/// `nsamples` 1). pbrt-v3's `plastic` and `substrate` are read with it too:
+/// they name the base colour `base` ("Kd") and bring their own
+/// `(reflectance, roughness)` defaults.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn coated_diffuse(
+    p: &ParamList,
+    what: &str,
+    base: &str,
+    (default_reflectance, default_roughness): (f32, f32),
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
+    let default = Rgb::splat(default_reflectance);
+    let reflectance = reflectance_param(p, base, TexturedParam::Reflectance, default, what, loc, w, tex)?;
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w, tex)?;
+    let eta = dielectric_eta(p, what, loc, w)?;
+    // Per-hit textures reach the reflectance and roughness only.
+    let thickness = tex.float(p, "thickness", what, loc, w)?;
+    let thickness = untextured(thickness, "thickness", Rgb::splat(0.01), what, loc, w).x;
+    let albedo = tex.spectrum(p, "albedo", what, loc, w)?;
+    let albedo = untextured(albedo, "albedo", Rgb::ZERO, what, loc, w);
+    let g = tex.float(p, "g", what, loc, w)?;
+    let g = untextured(g, "g", Rgb::ZERO, what, loc, w).x;
+    let count = |name: &str, default: i64, min: i64| -> Result<u32, SceneError> {
+        let v = p.int(name)?.unwrap_or(default);
+        let max = Material::COATED_MAX_COUNT as i64;
+        if (min..=max).contains(&v) {
+            return Ok(v as u32);
+        }
+        let at = p.find(name, &[ParamType::Integer]).map_or(loc, |q| &q.loc);
+        Err(SceneError::at(at, format!("{what}: \"{name}\" must be between {min} and {max}, found {v}")))
+    };
+    let (max_depth, n_samples) = (count("maxdepth", 10, 0)?, count("nsamples", 1, 1)?);
+    Ok(Material::CoatedDiffuse {
+        reflectance,
+        eta,
+        alpha_x,
+        alpha_y,
+        thickness,
+        albedo,
+        g,
+        max_depth,
+        n_samples,
+    })
+}
+
+/// The value of a parameter that cannot be textured: `default` when
+/// absent, and after a warning when a texture is given.
+fn untextured(
+    input: Option<TexInput>,
+    name: &str,
+    default: Rgb,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Rgb {
+    match input {
+        Some(TexInput::Value(v)) => v,
+        Some(TexInput::Texture(_)) => {
+            w.warn(loc, format!("{what}: a texture for \"{name}\" is not supported; using {}", default.x));
+            default
+        }
+        None => default,
+    }
 }
 
 /// A dielectric's `eta` in any of its spellings (default 1.5).
@@ -240,10 +345,17 @@ pub fn area_light(
     let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).unwrap_or(Rgb::ONE);
     let scale = p.float_or("scale", 1.0)?;
     let two_sided = p.bool_or("twosided", false)?;
-    if let Some(f) = p.string("filename")? {
-        w.warn(loc, format!("{what}: image emission \"{f}\" is not supported yet; using \"L\""));
-    }
-    Ok(Some(AreaEmission { radiance: l * scale, two_sided }))
+    // An image (`filename`, read by the builder) replaces "L": the radiance
+    // is `scale` times the image (pbrt-v4 refuses both; we warn).
+    let radiance = if p.string("filename")?.is_some() {
+        if p.spectrum("L", false)?.is_some() {
+            w.warn(loc, format!("{what}: both \"L\" and \"filename\" given; the image is used"));
+        }
+        Rgb::splat(scale)
+    } else {
+        l * scale
+    };
+    Ok(Some(AreaEmission { radiance, two_sided }))
 }
 
 /// `LightSource`; `None` (after a warning) for unsupported types. `ctm` is

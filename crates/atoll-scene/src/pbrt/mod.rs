@@ -9,11 +9,15 @@
 //! a file, line and column; everything ignored or approximated is a
 //! [`Warning`], also emitted with `tracing::warn!`.
 //!
+//! Textures ([`textures`]) fill [`crate::Scene::textures`]: `Texture`
+//! statements become texture nodes, texture-valued material parameters
+//! become bindings, and a shape's `alpha` a mask on its mesh.
+//!
 //! pbrt-v3 files load too: v3 type spellings (`point`, `color`, Booleans as
-//! strings), `Texture` statements (recorded in [`LoadedScene::textures`], not
-//! rendered yet), v3 materials mapped by [`v3`], `mix` resolved to its first
-//! material, `WorldEnd`, `Film "image"`, two-value `blackbody`, the infinite
-//! light's `mapname`; what cannot be honoured is warned about.
+//! strings), v3 texture parameters (`gamma`, `scale`'s `tex1`/`tex2`), v3
+//! materials mapped by [`v3`], `mix` resolved to its first material,
+//! `WorldEnd`, `Film "image"`, two-value `blackbody`, the infinite light's
+//! `mapname`; what cannot be honoured is warned about.
 
 pub mod builder;
 pub mod entities;
@@ -22,6 +26,7 @@ pub mod parser;
 pub mod shapes;
 pub mod spectrum;
 pub mod subdivision;
+pub mod textures;
 pub mod tokenizer;
 pub mod transform;
 pub mod v3;

@@ -5,26 +5,30 @@
 //! | material | becomes | from |
 //! |---|---|---|
 //! | `matte` | `Diffuse` | `Kd` (0.5); Oren–Nayar `sigma` ignored |
-//! | `plastic`, `substrate`, `uber`, `kdsubsurface` | `Diffuse` | `Kd` (v3 defaults); the specular layer, subsurface dropped |
+//! | `plastic`, `substrate` | `CoatedDiffuse` (as pbrt-v4's upgrade; a `plastic` with `Ks` 0 is `Diffuse`) | `Kd` (0.25, 0.5), `roughness` or `uroughness`/`vroughness` (0.1), `remaproughness`; `Ks` dropped (the coating's Fresnel sets the specular) |
+//! | `uber`, `kdsubsurface` | `Diffuse` | `Kd` (v3 defaults); the specular layer, subsurface dropped |
 //! | `translucent` | `DiffuseTransmission` | `Kd` × `reflect`, `Kd` × `transmit` (0.25, 0.5, 0.5); the glossy lobe dropped |
 //! | `metal` | `Conductor` | `eta`, `k` (copper), `roughness` (0.01) or `uroughness`/`vroughness`, `remaproughness` |
 //! | `glass` | `Dielectric` | `eta` or `index` (1.5), `uroughness`/`vroughness` (0); `Kr`/`Kt` tints ignored |
 //! | `mirror` | smooth `Conductor` | reflectance `Kr` (0.9) |
-//! | `disney` | like glTF: `Dielectric` if `spectrans` ≥ 0.5, `Conductor` if `metallic` ≥ 0.5, else `Diffuse` | `color` (0.5), `roughness` (0.5) |
+//! | `disney` | `Principled`, without a warning unless something is dropped ([`disney`]) | all but `scatterdistance`, `thin` (with `flatness`, `difftrans`) and `anisotropic` |
 //! | `hair` | `Diffuse` | `color` (0.5) |
 //! | `fourier` | `Diffuse` 0.5 | the measured BSDF file is ignored |
 //!
 //! `mix` names two named materials ([`mix_parts`]); the builder makes a `Material::Mix` of them.
-//! `Texture` statements are recorded ([`texture`]), not rendered yet.
-
-use std::path::Path;
+//!
+//! Textures given for the colours above (`Kd`, `Kr`, `color`, and the
+//! roughnesses) are bound to the mapped material's `Reflectance` (and
+//! `Transmittance`, roughness); `translucent`'s products become `Scale`
+//! textures. Bump maps are ignored (the builder warns once).
 
 use crate::error::{FileLoc, SceneError};
-use crate::{Material, Rgb, TextureRef};
+use crate::{Material, Rgb, TexInput, TexturedParam};
 
-use super::entities::{alphas, reflectance_rgb};
+use super::entities::{alphas, reflectance_param};
 use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
 use super::parser::ParamValues;
+use super::textures::TexCtx;
 use super::WarningSink;
 
 /// The material for `ty` when it is one of the names above; `None` otherwise.
@@ -33,15 +37,17 @@ pub fn material(
     p: &ParamList,
     loc: &FileLoc,
     w: &mut WarningSink,
+    tex: &mut TexCtx,
 ) -> Result<Option<Material>, SceneError> {
     let what = format!("material \"{ty}\"");
-    let rgb = |name: &str, default: f32, w: &mut WarningSink| -> Result<Rgb, SceneError> {
-        let v = p.spectrum(name, true)?.and_then(|s| reflectance_rgb(s, &what, loc, w));
-        Ok(v.unwrap_or(Rgb::splat(default)))
+    // A colour parameter bound to the mapped material's reflectance when textured.
+    let rgb = |name: &str, default: f32, w: &mut WarningSink, tex: &mut TexCtx| -> Result<Rgb, SceneError> {
+        let reflectance = TexturedParam::Reflectance;
+        reflectance_param(p, name, reflectance, Rgb::splat(default), &what, loc, w, tex)
     };
     let (material, how) = match ty {
         "matte" => {
-            let kd = rgb("Kd", 0.5, w)?;
+            let kd = rgb("Kd", 0.5, w, tex)?;
             let sigma = match p.float_or_texture("sigma")? {
                 Some(FloatOrTexture::Value(s)) if s != 0.0 => " (Oren-Nayar sigma ignored)",
                 Some(FloatOrTexture::Texture(_)) => " (Oren-Nayar sigma ignored)",
@@ -51,18 +57,30 @@ pub fn material(
         }
         "translucent" => {
             // pbrt-v3's TranslucentMaterial: Kd (0.25) split by reflect and transmit (0.5 each).
-            let kd = rgb("Kd", 0.25, w)?;
-            let (reflect, transmit) = (rgb("reflect", 0.5, w)?, rgb("transmit", 0.5, w)?);
+            let mut input = |name: &str, default: f32| -> Result<TexInput, SceneError> {
+                Ok(tex.spectrum(p, name, &what, loc, w)?.unwrap_or(TexInput::Value(Rgb::splat(default))))
+            };
+            let (kd, reflect, transmit) =
+                (input("Kd", 0.25)?, input("reflect", 0.5)?, input("transmit", 0.5)?);
+            let (r, t) = (tex.product(kd, reflect), tex.product(kd, transmit));
+            let reflectance = tex.value_or_bind(r, TexturedParam::Reflectance, Rgb::splat(0.125));
+            let transmittance = tex.value_or_bind(t, TexturedParam::Transmittance, Rgb::splat(0.125));
             (
-                Material::DiffuseTransmission { reflectance: kd * reflect, transmittance: kd * transmit },
+                Material::DiffuseTransmission { reflectance, transmittance },
                 "read as \"diffusetransmission\" (Kd × reflect, Kd × transmit; the glossy Ks lobe dropped)"
                     .into(),
             )
         }
+        "plastic" | "substrate" if !(ty == "plastic" && specular_is_black(p)?) => {
+            // pbrt-v3's Kd default differs; both default to roughness 0.1.
+            let kd = if ty == "plastic" { 0.25 } else { 0.5 };
+            let m = super::entities::coated_diffuse(p, &what, "Kd", (kd, 0.1), loc, w, tex)?;
+            (m, "read as \"coateddiffuse\" with \"Kd\" as its reflectance (\"Ks\" dropped)".to_string())
+        }
         "plastic" | "substrate" | "uber" | "kdsubsurface" => {
             // pbrt-v3's defaults for Kd.
             let default = if matches!(ty, "plastic" | "uber") { 0.25 } else { 0.5 };
-            let kd = rgb("Kd", default, w)?;
+            let kd = rgb("Kd", default, w, tex)?;
             let dropped = match ty {
                 "kdsubsurface" => "subsurface scattering dropped",
                 _ => "specular layer dropped",
@@ -75,7 +93,7 @@ pub fn material(
         "metal" => {
             // The copper defaults, eta/k spellings and roughness rules are pbrt-v4's
             // conductor's, except v3's default roughness of 0.01.
-            let conductor = super::entities::conductor(p, &what, 0.01, loc, w)?;
+            let conductor = super::entities::conductor(p, &what, 0.01, loc, w, tex)?;
             (conductor, "read as \"conductor\"".to_string())
         }
         "glass" => {
@@ -83,33 +101,20 @@ pub fn material(
                 Some(i) => i,
                 None => super::entities::dielectric_eta(p, &what, loc, w)?,
             };
-            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w, tex)?;
             let tinted = [p.spectrum("Kr", true)?, p.spectrum("Kt", true)?].iter().flatten().count() > 0;
             let note = if tinted { " (\"Kr\"/\"Kt\" tints ignored)" } else { "" };
             (Material::Dielectric { eta, alpha_x, alpha_y }, format!("read as \"dielectric\"{note}"))
         }
         "mirror" => {
-            let kr = rgb("Kr", 0.9, w)?;
+            let kr = rgb("Kr", 0.9, w, tex)?;
             let k = Material::conductor_k_from_reflectance(kr);
             let m = Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.0, alpha_y: 0.0 };
             (m, "read as a smooth \"conductor\" with reflectance \"Kr\"".to_string())
         }
-        "disney" => {
-            let color = rgb("color", 0.5, w)?;
-            let roughness = p.float_or("roughness", 0.5)?.clamp(0.0, 1.0);
-            let alpha = roughness * roughness;
-            let m = if p.float_or("spectrans", 0.0)? >= 0.5 {
-                Material::Dielectric { eta: p.float_or("eta", 1.5)?, alpha_x: alpha, alpha_y: alpha }
-            } else if p.float_or("metallic", 0.0)? >= 0.5 {
-                let k = Material::conductor_k_from_reflectance(color);
-                Material::Conductor { eta: Rgb::ONE, k, alpha_x: alpha, alpha_y: alpha }
-            } else {
-                Material::Diffuse { reflectance: color }
-            };
-            (m, "approximated by a diffuse, conductor or dielectric material (principled material not available yet)".into())
-        }
+        "disney" => return disney(p, &what, loc, w, tex).map(Some),
         "hair" => {
-            let color = rgb("color", 0.5, w)?;
+            let color = rgb("color", 0.5, w, tex)?;
             (
                 Material::Diffuse { reflectance: color },
                 "approximated by \"diffuse\" with its \"color\"".into(),
@@ -125,6 +130,120 @@ pub fn material(
     let version = if matches!(ty, "hair") { "" } else { "pbrt-v3 " };
     w.warn(loc, format!("{version}material \"{ty}\" is not supported; {how}"));
     Ok(Some(material))
+}
+
+/// pbrt-v3's `Ks` given as a constant zero: a plastic without its specular
+/// layer, which pbrt-v4's upgrade turns into `diffuse`.
+fn specular_is_black(p: &ParamList) -> Result<bool, SceneError> {
+    Ok(match p.spectrum("Ks", true)? {
+        Some(SpectrumParam::Constant(c)) => c == 0.0,
+        Some(SpectrumParam::Rgb(c)) => c == Rgb::ZERO,
+        _ => false,
+    })
+}
+
+/// pbrt-v3's `disney` as atoll's principled material, with the parameters
+/// and defaults of pbrt-v3's `CreateDisneyMaterial`: `color` (0.5),
+/// `metallic` (0), `eta` (1.5), `roughness` (0.5), `speculartint` (0),
+/// `sheen` (0), `sheentint` (0.5), `clearcoat` (0), `clearcoatgloss` (1),
+/// `spectrans` (0), plus atoll's `specular`, which pbrt-v3 derives from
+/// `eta` ([`Material::specular_from_eta`], the default) and atoll's writer
+/// gives. `color`, `metallic` and `roughness` may be textures (bound).
+/// One warning names what atoll does not model: subsurface scattering
+/// (`scatterdistance`), the thin-surface mode (`thin`, with `flatness` and
+/// `difftrans`), anisotropy, textures of the other parameters and weights
+/// outside [0, 1] (clamped); without any, the material loads silently.
+pub fn disney(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
+    let mut dropped: Vec<String> = Vec::new();
+    let base_color =
+        reflectance_param(p, "color", TexturedParam::Reflectance, Rgb::splat(0.5), what, loc, w, tex)?;
+    // A float parameter: its value, or for a texture the default and a
+    // binding of `bind` (or a note that the texture is ignored).
+    let mut float = |name: &str, default: f32, bind: Option<TexturedParam>, w: &mut WarningSink| {
+        let v = match tex.float(p, name, what, loc, w)? {
+            None => default,
+            Some(TexInput::Value(v)) => v.x,
+            Some(TexInput::Texture(t)) => {
+                match bind {
+                    // Principled roughness is perceptual: no remapping.
+                    Some(param) => tex.bindings.push((param, t, false)),
+                    None => dropped.push(format!("the \"{name}\" texture (using {default})")),
+                }
+                default
+            }
+        };
+        Ok::<f32, SceneError>(v)
+    };
+    let metallic = float("metallic", 0.0, Some(TexturedParam::Metallic), w)?;
+    let roughness = float("roughness", 0.5, Some(TexturedParam::Roughness), w)?;
+    let eta = float("eta", 1.5, None, w)?;
+    let specular_tint = float("speculartint", 0.0, None, w)?;
+    let sheen = float("sheen", 0.0, None, w)?;
+    let sheen_tint = float("sheentint", 0.5, None, w)?;
+    let clearcoat = float("clearcoat", 0.0, None, w)?;
+    let clearcoat_gloss = float("clearcoatgloss", 1.0, None, w)?;
+    let transmission = float("spectrans", 0.0, None, w)?;
+    let anisotropic = float("anisotropic", 0.0, None, w)?;
+    if !(eta.is_finite() && eta > 0.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"eta\" must be positive, not {eta}")));
+    }
+    let specular = p.float("specular")?.unwrap_or_else(|| Material::specular_from_eta(eta));
+    if !(specular.is_finite() && specular >= 0.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"specular\" must be 0 or more, not {specular}")));
+    }
+    if anisotropic != 0.0 {
+        dropped.push("anisotropy".into());
+    }
+    let subsurface = match p.spectrum("scatterdistance", true)? {
+        None => false,
+        Some(SpectrumParam::Rgb(c)) => c != Rgb::ZERO,
+        Some(SpectrumParam::Constant(c)) => c != 0.0,
+        Some(_) => true,
+    };
+    if subsurface {
+        dropped.push("subsurface scattering (\"scatterdistance\")".into());
+    }
+    if p.bool_or("thin", false)? {
+        dropped.push("the thin-surface mode (read as a solid)".into());
+    }
+    // Only the thin-surface mode reads these.
+    p.find("flatness", &[ParamType::Float, ParamType::Texture]);
+    p.find("difftrans", &[ParamType::Float, ParamType::Texture]);
+    let mut unit = |name: &str, v: f32| {
+        if !(0.0..=1.0).contains(&v) {
+            dropped.push(format!("\"{name}\" {v} outside [0, 1] (clamped)"));
+        }
+        v.clamp(0.0, 1.0)
+    };
+    let m = Material::Principled {
+        base_color,
+        metallic: unit("metallic", metallic),
+        roughness: unit("roughness", roughness),
+        specular,
+        specular_tint: unit("speculartint", specular_tint),
+        sheen: unit("sheen", sheen),
+        sheen_tint: unit("sheentint", sheen_tint),
+        clearcoat: unit("clearcoat", clearcoat),
+        clearcoat_gloss: unit("clearcoatgloss", clearcoat_gloss),
+        transmission: unit("spectrans", transmission),
+        eta,
+    };
+    if !dropped.is_empty() {
+        w.warn(
+            loc,
+            format!(
+                "pbrt-v3 material \"disney\" is read as atoll's principled material without {}",
+                dropped.join(", ")
+            ),
+        );
+    }
+    Ok(m)
 }
 
 /// The first material of a `mix`: pbrt-v4's `string materials` or pbrt-v3's
@@ -167,26 +286,4 @@ pub fn mix_parts(
     };
     p.mark_all_used();
     Ok((first, second, amount.clamp(0.0, 1.0)))
-}
-
-/// The record of `Texture "name" "ty" "class" params` (pbrt-v3 also wrote
-/// `color` for `spectrum`); its image file resolves against `base_dir`.
-pub fn texture(
-    name: String,
-    ty: &str,
-    class: String,
-    p: &ParamList,
-    base_dir: &Path,
-    loc: &FileLoc,
-) -> Result<TextureRef, SceneError> {
-    if !matches!(ty, "float" | "spectrum" | "color" | "rgb") {
-        return Err(SceneError::at(
-            loc,
-            format!("Texture \"{name}\": type must be \"float\" or \"spectrum\", found \"{ty}\""),
-        ));
-    }
-    let filename = p.string("filename")?.map(|f| base_dir.join(f));
-    // Texture parameters are the texture step's business.
-    p.mark_all_used();
-    Ok(TextureRef { name, class, filename, uses: Vec::new() })
 }

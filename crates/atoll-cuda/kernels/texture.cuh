@@ -1,0 +1,310 @@
+// Texture programs at hit points: the GPU port of `atoll_render::texture`
+// (run_program, image lookups, alpha tests), operation by operation, so a
+// textured hit gets the same coefficients on every device.
+#pragma once
+
+#include "common.cuh"
+#include "layout.cuh"
+#include "params.cuh"
+#include "rng.cuh"
+
+/// Mirror of `texture::TexOp` (32 bytes).
+struct __align__(16) TexOp {
+    unsigned int code, a, b, c;
+    float f[4];
+};
+
+/// Mirror of `texture::ProgramRange`.
+struct ProgramRange {
+    unsigned int start, len;
+};
+
+/// Mirror of `texture::AlphaProgram` (16 bytes).
+struct AlphaProgram {
+    ProgramRange program;
+    unsigned int mode;
+    float cutoff;
+};
+
+// BEGIN GENERATED texture (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
+inline constexpr unsigned int TEXTURE_STACK = 8u;
+inline constexpr unsigned int TEX_CONSTANT = 0u;
+inline constexpr unsigned int TEX_IMAGE = 1u;
+inline constexpr unsigned int TEX_CHECKERBOARD = 2u;
+inline constexpr unsigned int TEX_SCALE = 3u;
+inline constexpr unsigned int TEX_MIX = 4u;
+inline constexpr unsigned int TEX_STORE = 5u;
+inline constexpr unsigned int STORE_RGB = 0u;
+inline constexpr unsigned int STORE_FLOAT = 1u;
+inline constexpr unsigned int STORE_ROUGHNESS = 2u;
+inline constexpr unsigned int STORE_CONDUCTOR_REFLECTANCE = 3u;
+inline constexpr unsigned int ALPHA_NONE = 0u;
+inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
+inline constexpr unsigned int ALPHA_CUTOFF = 2u;
+inline constexpr unsigned int WRAP_REPEAT = 0u;
+inline constexpr unsigned int WRAP_CLAMP = 1u;
+inline constexpr unsigned int WRAP_BLACK = 2u;
+inline constexpr unsigned int WRAP_MIRROR = 3u;
+inline constexpr unsigned int CHANNEL_RGB = 0u;
+inline constexpr unsigned int CHANNEL_AVERAGE = 1u;
+inline constexpr unsigned int CHANNEL_ALPHA = 2u;
+inline constexpr unsigned int CHANNEL_RED = 3u;
+inline constexpr unsigned int CHANNEL_GREEN = 4u;
+inline constexpr unsigned int CHANNEL_BLUE = 5u;
+static_assert(sizeof(TexOp) == 32, "TexOp: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(TexOp, code) == 0 && sizeof(TexOp::code) == 4, "TexOp.code: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TexOp, a) == 4 && sizeof(TexOp::a) == 4, "TexOp.a: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TexOp, b) == 8 && sizeof(TexOp::b) == 4, "TexOp.b: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TexOp, c) == 12 && sizeof(TexOp::c) == 4, "TexOp.c: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TexOp, f) == 16 && sizeof(TexOp::f) == 16, "TexOp.f: offset or size differs from Rust");
+#endif
+static_assert(sizeof(ProgramRange) == 8, "ProgramRange: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(ProgramRange, start) == 0 && sizeof(ProgramRange::start) == 4, "ProgramRange.start: offset or size differs from Rust");
+static_assert(__builtin_offsetof(ProgramRange, len) == 4 && sizeof(ProgramRange::len) == 4, "ProgramRange.len: offset or size differs from Rust");
+#endif
+static_assert(sizeof(AlphaProgram) == 16, "AlphaProgram: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(AlphaProgram, program) == 0 && sizeof(AlphaProgram::program) == 8, "AlphaProgram.program: offset or size differs from Rust");
+static_assert(__builtin_offsetof(AlphaProgram, mode) == 8 && sizeof(AlphaProgram::mode) == 4, "AlphaProgram.mode: offset or size differs from Rust");
+static_assert(__builtin_offsetof(AlphaProgram, cutoff) == 12 && sizeof(AlphaProgram::cutoff) == 4, "AlphaProgram.cutoff: offset or size differs from Rust");
+#endif
+// END GENERATED texture
+
+/// `texture::hit_uv`: interpolated uvs, or pbrt's default (0,0), (1,0), (1,1).
+__device__ __forceinline__ float2 hit_uv(const SceneView& s, const GpuMesh& mesh, unsigned int i0, unsigned int i1,
+                                         unsigned int i2, float b1, float b2) {
+    const float b0 = 1.0f - b1 - b2;
+    if (mesh.flags & MESH_HAS_UVS) {
+        const float2 a = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
+        const float2 b = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
+        const float2 c = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
+        // glam: a * b0 + b * b1 + c * b2, left to right.
+        return make_float2(a.x * b0 + b.x * b1 + c.x * b2, a.y * b0 + b.y * b1 + c.y * b2);
+    }
+    return make_float2(b1 + b2, b2);
+}
+
+/// `TextureImage::texel`: linear RGBA of texel (x, y).
+__device__ __forceinline__ float4 image_texel(const FrameParams& p, const GpuImage& img, unsigned int x,
+                                              unsigned int y) {
+    const unsigned long long i = (unsigned long long)y * img.width + x;
+    if (img.format == IMAGE_RGBA_F32) {
+        const unsigned int* w = p.texels + img.texel_offset + 4ull * i;
+        return make_float4(__uint_as_float(w[0]), __uint_as_float(w[1]), __uint_as_float(w[2]),
+                           __uint_as_float(w[3]));
+    }
+    const unsigned int w = p.texels[img.texel_offset + i];
+    const unsigned int r = w & 0xffu, g = (w >> 8) & 0xffu, b = (w >> 16) & 0xffu, a = w >> 24;
+    const float inv = 1.0f / 255.0f;
+    if (img.format == IMAGE_RGBA8_SRGB) {
+        return make_float4(p.srgb_to_linear[r], p.srgb_to_linear[g], p.srgb_to_linear[b], (float)a * inv);
+    }
+    return make_float4((float)r * inv, (float)g * inv, (float)b * inv, (float)a * inv);
+}
+
+/// `texture::wrap_coord`; false: black.
+__device__ __forceinline__ bool wrap_coord(int i, int n, unsigned int wrap, int* out) {
+    if (i >= 0 && i < n) {
+        *out = i;
+        return true;
+    }
+    if (wrap == WRAP_CLAMP) {
+        *out = i < 0 ? 0 : n - 1;
+        return true;
+    }
+    if (wrap == WRAP_BLACK) return false;
+    if (wrap == WRAP_MIRROR) {
+        int period = i % (2 * n);
+        if (period < 0) period += 2 * n;
+        *out = period < n ? period : 2 * n - 1 - period;
+        return true;
+    }
+    int m = i % n;
+    if (m < 0) m += n;
+    *out = m;
+    return true;
+}
+
+__device__ __forceinline__ float4 wrapped_texel(const FrameParams& p, const GpuImage& img, int x, int y,
+                                                unsigned int wrap) {
+    int wx, wy;
+    if (!wrap_coord(x, (int)img.width, wrap, &wx) || !wrap_coord(y, (int)img.height, wrap, &wy))
+        return make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+    return image_texel(p, img, (unsigned int)wx, (unsigned int)wy);
+}
+
+__device__ __forceinline__ float2 apply_mapping(const TexOp& o, float2 uv) {
+    return make_float2(o.f[0] * uv.x + o.f[2], o.f[1] * uv.y + o.f[3]);
+}
+
+__device__ __forceinline__ float3 max0(float3 v) {
+    return make_float3(fmaxf(v.x, 0.0f), fmaxf(v.y, 0.0f), fmaxf(v.z, 0.0f));
+}
+
+/// `texture::image_lookup`: bilinear, pbrt-v4 texel addressing.
+__device__ float3 image_lookup(const FrameParams& p, const TexOp& o, float2 uv) {
+    const GpuImage img = p.images[o.a];
+    const unsigned int wrap = o.b & 0xffu, channel = (o.b >> 8) & 0xffu;
+    const bool invert = ((o.b >> 16) & 1u) != 0u;
+    const float scale = __uint_as_float(o.c);
+    const float2 st = apply_mapping(o, uv);
+    const float x = st.x * (float)img.width - 0.5f;
+    const float y = (1.0f - st.y) * (float)img.height - 0.5f;
+    const float xf = floorf(x), yf = floorf(y);
+    const float dx = x - xf, dy = y - yf;
+    const int x0 = (int)clampf(xf, -1e8f, 1e8f), y0 = (int)clampf(yf, -1e8f, 1e8f);
+    const float4 t00 = wrapped_texel(p, img, x0, y0, wrap), t10 = wrapped_texel(p, img, x0 + 1, y0, wrap);
+    const float4 t01 = wrapped_texel(p, img, x0, y0 + 1, wrap),
+                 t11 = wrapped_texel(p, img, x0 + 1, y0 + 1, wrap);
+    float px[4];
+    const float a00[4] = {t00.x, t00.y, t00.z, t00.w}, a10[4] = {t10.x, t10.y, t10.z, t10.w};
+    const float a01[4] = {t01.x, t01.y, t01.z, t01.w}, a11[4] = {t11.x, t11.y, t11.z, t11.w};
+#pragma unroll
+    for (int c = 0; c < 4; ++c)
+        px[c] = ((1.0f - dx) * a00[c] + dx * a10[c]) * (1.0f - dy) + ((1.0f - dx) * a01[c] + dx * a11[c]) * dy;
+    float3 v;
+    if (channel == CHANNEL_AVERAGE) {
+        const float m = (px[0] + px[1] + px[2]) * (1.0f / 3.0f);
+        v = make_float3(m, m, m);
+    } else if (channel == CHANNEL_ALPHA) {
+        v = make_float3(px[3], px[3], px[3]);
+    } else if (channel == CHANNEL_RED) {
+        v = make_float3(px[0], px[0], px[0]);
+    } else if (channel == CHANNEL_GREEN) {
+        v = make_float3(px[1], px[1], px[1]);
+    } else if (channel == CHANNEL_BLUE) {
+        v = make_float3(px[2], px[2], px[2]);
+    } else {
+        v = make_float3(px[0], px[1], px[2]);
+    }
+    v = v * scale;
+    return invert ? max0(make_float3(1.0f, 1.0f, 1.0f) - v) : max0(v);
+}
+
+/// `Material::conductor_k_from_reflectance` for one channel.
+__device__ __forceinline__ float conductor_k(float r) {
+    r = clampf(r, 0.0f, 0.9999f);
+    return 2.0f * sqrtf(r) / sqrtf(1.0f - r);
+}
+
+/// `texture::store_value` into f16 coefficients.
+__device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigned int how, unsigned short* coeffs) {
+    v = max0(v);
+    if (how == STORE_RGB) {
+        coeffs[slot] = f32_to_f16(v.x);
+        coeffs[slot + 1] = f32_to_f16(v.y);
+        coeffs[slot + 2] = f32_to_f16(v.z);
+    } else if (how == STORE_FLOAT) {
+        coeffs[slot] = f32_to_f16(v.x);
+    } else if (how == STORE_ROUGHNESS) {
+        coeffs[slot] = f32_to_f16(sqrtf(v.x));
+    } else if (how == STORE_CONDUCTOR_REFLECTANCE) {
+        const unsigned short one = f32_to_f16(1.0f);
+        coeffs[slot] = coeffs[slot + 1] = coeffs[slot + 2] = one;
+        coeffs[slot + 3] = f32_to_f16(conductor_k(v.x));
+        coeffs[slot + 4] = f32_to_f16(conductor_k(v.y));
+        coeffs[slot + 5] = f32_to_f16(conductor_k(v.z));
+    }
+}
+
+/// `texture::run_program`: stores go into `coeffs` (may be null for alpha
+/// programs); returns the top of the stack.
+__device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange range, float2 uv,
+                                           unsigned short* coeffs) {
+    float3 stack[TEXTURE_STACK];
+    int sp = 0;
+    const TexOp* ops = reinterpret_cast<const TexOp*>(p.texture_ops) + range.start;
+    for (unsigned int k = 0; k < range.len; ++k) {
+        const TexOp o = ops[k];
+        if (o.code == TEX_CONSTANT) {
+            stack[sp++] = make_float3(o.f[0], o.f[1], o.f[2]);
+        } else if (o.code == TEX_IMAGE) {
+            stack[sp++] = image_lookup(p, o, uv);
+        } else if (o.code == TEX_CHECKERBOARD) {
+            const float2 st = apply_mapping(o, uv);
+            float parity = fmodf(floorf(st.x) + floorf(st.y), 2.0f);
+            if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
+            --sp;
+            if (parity != 0.0f) stack[sp - 1] = stack[sp];
+        } else if (o.code == TEX_SCALE) {
+            --sp;
+            stack[sp - 1] = stack[sp - 1] * stack[sp];
+        } else if (o.code == TEX_MIX) {
+            sp -= 2;
+            const float amount = stack[sp + 1].x;
+            stack[sp - 1] = stack[sp - 1] * (1.0f - amount) + stack[sp] * amount;
+        } else if (o.code == TEX_STORE) {
+            --sp;
+            if (coeffs) store_value(stack[sp], o.a, o.b, coeffs);
+        }
+    }
+    return sp > 0 ? stack[sp - 1] : make_float3(0.0f, 0.0f, 0.0f);
+}
+
+/// `record::pack_rgb9e5`, bit for bit.
+__device__ __forceinline__ unsigned int pack_rgb9e5(float3 v) {
+    const float max_value = 511.0f / 512.0f * 65536.0f;
+    const float r = v.x > 0.0f ? fminf(v.x, max_value) : 0.0f;
+    const float g = v.y > 0.0f ? fminf(v.y, max_value) : 0.0f;
+    const float b = v.z > 0.0f ? fminf(v.z, max_value) : 0.0f;
+    const float max_c = fmaxf(fmaxf(r, g), b);
+    if (max_c < 1.17549435e-38f) return 0u;
+    const int floor_log2 = (int)((__float_as_uint(max_c) >> 23) & 0xffu) - 127;
+    int exp_shared = max(floor_log2, -16) + 1 + 15;
+    float inv_denom = __uint_as_float((unsigned int)(127 - (exp_shared - 24)) << 23);
+    if (floorf(max_c * inv_denom + 0.5f) >= 512.0f) {
+        ++exp_shared;
+        inv_denom = __uint_as_float((unsigned int)(127 - (exp_shared - 24)) << 23);
+    }
+    const unsigned int mr = min((unsigned int)floorf(r * inv_denom + 0.5f), 511u);
+    const unsigned int mg = min((unsigned int)floorf(g * inv_denom + 0.5f), 511u);
+    const unsigned int mb = min((unsigned int)floorf(b * inv_denom + 0.5f), 511u);
+    return mr | mg << 9 | mb << 18 | (unsigned int)exp_shared << 27;
+}
+
+/// `record::unpack_rgb9e5`.
+__device__ __forceinline__ float3 unpack_rgb9e5(unsigned int bits) {
+    const int e = (int)(bits >> 27) - 24;
+    const float scale = __uint_as_float((unsigned int)(127 + e) << 23);
+    return make_float3((float)(bits & 511u) * scale, (float)((bits >> 9) & 511u) * scale,
+                       (float)((bits >> 18) & 511u) * scale);
+}
+
+/// `LightSet::texture_value`: emission texture `t` at barycentrics `b`.
+__device__ __forceinline__ float3 emission_texture_value(const FrameParams& p, unsigned int table, float3 b) {
+    const GpuEmissionTexture t = reinterpret_cast<const GpuEmissionTexture*>(p.emission_textures)[table];
+    // glam: uv0 * b0 + uv1 * b1 + uv2 * b2, left to right.
+    const float2 uv = make_float2(t.uv[0] * b.x + t.uv[2] * b.y + t.uv[4] * b.z,
+                                  t.uv[1] * b.x + t.uv[3] * b.y + t.uv[5] * b.z);
+    ProgramRange range;
+    range.start = t.start;
+    range.len = t.len;
+    return run_program(p, range, uv, nullptr);
+}
+
+/// `texture::alpha_hash`.
+__device__ __forceinline__ float alpha_hash(float3 o, float3 d, float t) {
+    const float words[7] = {o.x, o.y, o.z, d.x, d.y, d.z, t};
+    unsigned int h = 0x9e3779b9u;
+#pragma unroll
+    for (int k = 0; k < 7; ++k) h = pcg_hash(h ^ __float_as_uint(words[k]));
+    return (float)(h >> 8) * (1.0f / 16777216.0f);
+}
+
+/// `SceneTextures::keeps`: whether the candidate hit of global triangle
+/// `tri` at (u, v, t) of the object-space ray (o, d) survives its mesh's
+/// alpha mask. Called by traversal only when `p.mesh_alpha` is set.
+__device__ __noinline__ bool alpha_keeps(const FrameParams& p, const SceneView& s, unsigned int tri, float u, float v,
+                                         float t, float3 o, float3 d) {
+    const GpuMesh& mesh = s.meshes[s.triangle_mesh[tri]];
+    const AlphaProgram ap = reinterpret_cast<const AlphaProgram*>(p.mesh_alpha)[mesh.scene_mesh];
+    if (ap.mode == ALPHA_NONE) return true;
+    const unsigned int i0 = s.triangles[3ull * tri], i1 = s.triangles[3ull * tri + 1],
+                       i2 = s.triangles[3ull * tri + 2];
+    const float2 uv = hit_uv(s, mesh, i0, i1, i2, u, v);
+    const float alpha = run_program(p, ap.program, uv, nullptr).x;
+    if (ap.mode == ALPHA_CUTOFF) return alpha >= ap.cutoff;
+    return alpha >= 1.0f || (alpha > 0.0f && alpha_hash(o, d, t) < alpha);
+}

@@ -1,0 +1,713 @@
+//! Textures at hit points: the scene's texture trees ([`atoll_scene::Textures`])
+//! flattened into small stack programs that the CPU (here) and the GPU
+//! (`kernels/texture.cuh`, a line-by-line port) run alike.
+//!
+//! A material with textured parameters gets one program: each bound texture
+//! is evaluated and *stored* into the record's material coefficients after
+//! the material was packed, so the hit carries the textured values to
+//! whichever device shades it (one ray record). A mesh with an alpha mask
+//! gets a program that leaves the alpha on the stack; traversal runs it for
+//! candidate hits ([`AlphaFilter`]) so cut-out geometry neither blocks
+//! shadow rays nor is found by closest-hit rays.
+//!
+//! Images are filtered bilinearly (no MIP-maps yet), with pbrt-v4's texel
+//! addressing: `(s, t)` → `(s * width - 0.5, (1 - t) * height - 0.5)`, row
+//! 0 at the top of the picture.
+
+use std::sync::Arc;
+
+use atoll_bvh::HitFilter;
+#[cfg(test)]
+use atoll_scene::Rgb;
+use atoll_scene::{
+    AlphaMode, Channel, Material, Scene, TexInput, Texels, Texture, TextureId, TextureImage, TexturedParam,
+    UvMapping, Wrap,
+};
+use bytemuck::{Pod, Zeroable};
+use glam::{Vec2, Vec3, Vec3A};
+use half::f16;
+
+use crate::record::{MaterialKind, MATERIAL_COEFFS};
+use crate::rng::pcg_hash;
+
+/// Most values a texture program keeps on its stack (deeper texture trees
+/// are refused when flattening).
+pub const TEXTURE_STACK: usize = 8;
+
+/// Op codes of [`TexOp::code`].
+pub mod op {
+    /// Push `f[0..3]`.
+    pub const CONSTANT: u32 = 0;
+    /// Push an image lookup: `a` image, `b` = wrap | channel << 8 | invert << 16,
+    /// `c` the scale (f32 bits), `f` the uv mapping (su, sv, du, dv).
+    pub const IMAGE: u32 = 1;
+    /// Pop `second`, `first`; push `first` where `floor(s) + floor(t)` is
+    /// even, else `second`; `f` the uv mapping.
+    pub const CHECKERBOARD: u32 = 2;
+    /// Pop two, push their product.
+    pub const SCALE: u32 = 3;
+    /// Pop `amount`, `second`, `first`; push `lerp(first, second, amount.x)`.
+    pub const MIX: u32 = 4;
+    /// Pop a value and store it into coefficients `a ..` as [`super::store`] `b` says.
+    pub const STORE: u32 = 5;
+}
+
+/// How [`op::STORE`] writes a value into the material coefficients.
+pub mod store {
+    /// Three coefficients: the colour.
+    pub const RGB: u32 = 0;
+    /// One coefficient: the first channel.
+    pub const FLOAT: u32 = 1;
+    /// One coefficient: `sqrt(x)`, pbrt's `RoughnessToAlpha` (remapped roughness).
+    pub const ROUGHNESS: u32 = 2;
+    /// Six coefficients: `eta = 1` and the `k` that gives reflectance `x`
+    /// at normal incidence (pbrt-v4's conductor `reflectance`).
+    pub const CONDUCTOR_REFLECTANCE: u32 = 3;
+}
+
+/// One instruction of a texture program (32 bytes; the GPU reads the same bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct TexOp {
+    pub code: u32,
+    pub a: u32,
+    pub b: u32,
+    pub c: u32,
+    pub f: [f32; 4],
+}
+
+/// A run of [`TexOp`]s in [`TextureTables::ops`]; `len == 0`: none.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq, Eq)]
+pub struct ProgramRange {
+    pub start: u32,
+    pub len: u32,
+}
+
+impl ProgramRange {
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+/// `AlphaProgram::mode` values.
+pub mod alpha_mode {
+    /// No alpha: the mesh is solid.
+    pub const NONE: u32 = 0;
+    /// Kept with probability alpha (pbrt).
+    pub const STOCHASTIC: u32 = 1;
+    /// Kept where alpha ≥ the cutoff (glTF `MASK`).
+    pub const CUTOFF: u32 = 2;
+}
+
+/// A mesh's alpha test (16 bytes, mirrored by the GPU).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct AlphaProgram {
+    pub program: ProgramRange,
+    /// [`alpha_mode`].
+    pub mode: u32,
+    pub cutoff: f32,
+}
+
+/// The texture programs of a frame: per material and per mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TextureTables {
+    pub ops: Vec<TexOp>,
+    /// By material id: the program storing its textured parameters.
+    pub materials: Vec<ProgramRange>,
+    /// By scene mesh id; empty when no mesh has alpha.
+    pub mesh_alpha: Vec<AlphaProgram>,
+}
+
+impl TextureTables {
+    /// Flattens the scene's texture bindings and alpha masks. Bindings a
+    /// material kind has no coefficient for, and texture trees deeper than
+    /// [`TEXTURE_STACK`], are dropped with a warning.
+    pub fn new(scene: &Scene, kinds: &[MaterialKind]) -> Self {
+        let textures = &scene.textures;
+        let mut tables =
+            TextureTables { materials: vec![ProgramRange::default(); kinds.len()], ..Default::default() };
+        for (id, kind) in kinds.iter().enumerate() {
+            let start = tables.ops.len() as u32;
+            for binding in textures.bindings_of(id as u32) {
+                let targets = store_targets(*kind, binding.param, binding.remap_roughness);
+                if targets.is_empty() {
+                    tracing::warn!(
+                        "material {id}: a {:?} material has no parameter \"{}\" to texture; ignored",
+                        kind,
+                        binding.param.pbrt_name()
+                    );
+                    continue;
+                }
+                let mut program = Vec::new();
+                if let Err(e) = compile(scene, binding.texture, &mut program, 0, 0) {
+                    tracing::warn!(
+                        "material {id}: texture for \"{}\": {e}; ignored",
+                        binding.param.pbrt_name()
+                    );
+                    continue;
+                }
+                // One evaluation, stored as often as the parameter has slots
+                // (roughness drives both alphas): duplicate the value first.
+                for (i, (slot, how)) in targets.iter().enumerate() {
+                    if i + 1 < targets.len() {
+                        tables.ops.extend_from_slice(&program);
+                    } else {
+                        tables.ops.append(&mut program);
+                    }
+                    tables.ops.push(TexOp { code: op::STORE, a: *slot, b: *how, ..Default::default() });
+                }
+            }
+            tables.materials[id] = ProgramRange { start, len: tables.ops.len() as u32 - start };
+        }
+        if scene.meshes.iter().any(|m| m.alpha.is_some()) {
+            tables.mesh_alpha = scene
+                .meshes
+                .iter()
+                .enumerate()
+                .map(|(id, mesh)| {
+                    let Some(alpha) = mesh.alpha else { return AlphaProgram::default() };
+                    let start = tables.ops.len() as u32;
+                    let mut program = Vec::new();
+                    if let Err(e) = compile(scene, alpha.texture, &mut program, 0, 0) {
+                        tracing::warn!("mesh {id} ({}): alpha texture: {e}; the mesh is solid", mesh.name);
+                        return AlphaProgram::default();
+                    }
+                    tables.ops.append(&mut program);
+                    let program = ProgramRange { start, len: tables.ops.len() as u32 - start };
+                    match alpha.mode {
+                        AlphaMode::Stochastic => {
+                            AlphaProgram { program, mode: alpha_mode::STOCHASTIC, cutoff: 0.0 }
+                        }
+                        AlphaMode::Cutoff(c) => AlphaProgram { program, mode: alpha_mode::CUTOFF, cutoff: c },
+                    }
+                })
+                .collect();
+        }
+        tables
+    }
+
+    /// The alpha test of scene mesh `mesh`, if it has one.
+    #[inline]
+    pub fn alpha_of(&self, mesh: u32) -> Option<&AlphaProgram> {
+        self.mesh_alpha.get(mesh as usize).filter(|a| a.mode != alpha_mode::NONE)
+    }
+
+    pub fn has_alpha(&self) -> bool {
+        !self.mesh_alpha.is_empty()
+    }
+
+    /// Bytes the GPU holds for these tables (images not included).
+    pub fn bytes(&self) -> u64 {
+        (self.ops.len() * std::mem::size_of::<TexOp>()
+            + self.materials.len() * 8
+            + self.mesh_alpha.len() * std::mem::size_of::<AlphaProgram>()) as u64
+    }
+}
+
+/// Appends the program of texture `id` (leaving its value on the stack)
+/// to `out`; errors name what is wrong with the texture tree.
+pub fn compile_texture(scene: &Scene, id: TextureId, out: &mut Vec<TexOp>) -> Result<(), String> {
+    compile(scene, id, out, 0, 0)
+}
+
+/// Most nested textures a tree may have (stops reference cycles).
+const MAX_TEXTURE_NESTING: usize = 64;
+
+/// Appends the postfix program of texture `id` (children first) to `out`.
+/// `depth` is the stack depth before it runs, `nesting` how many textures
+/// enclose it.
+fn compile(
+    scene: &Scene,
+    id: TextureId,
+    out: &mut Vec<TexOp>,
+    depth: usize,
+    nesting: usize,
+) -> Result<(), String> {
+    if depth >= TEXTURE_STACK {
+        return Err(format!("texture tree needs more than {TEXTURE_STACK} stack values"));
+    }
+    if nesting > MAX_TEXTURE_NESTING {
+        return Err(format!("textures nested more than {MAX_TEXTURE_NESTING} deep (a cycle?)"));
+    }
+    let textures = &scene.textures;
+    let texture = textures.textures.get(id as usize).ok_or_else(|| format!("texture {id} does not exist"))?;
+    let input = |out: &mut Vec<TexOp>, input: &TexInput, depth: usize| match *input {
+        TexInput::Value(v) => {
+            out.push(constant(v));
+            Ok(())
+        }
+        TexInput::Texture(t) => compile(scene, t, out, depth, nesting + 1),
+    };
+    match texture {
+        Texture::Constant(v) => out.push(constant(*v)),
+        Texture::Image { image, mapping, wrap, channel, scale, invert } => {
+            if *image as usize >= textures.images.len() {
+                return Err(format!("image {image} does not exist"));
+            }
+            out.push(TexOp {
+                code: op::IMAGE,
+                a: *image,
+                b: *wrap as u32 | (*channel as u32) << 8 | (*invert as u32) << 16,
+                c: scale.to_bits(),
+                f: mapping_words(mapping),
+            })
+        }
+        Texture::Checkerboard { mapping, tex } => {
+            input(out, &tex[0], depth)?;
+            input(out, &tex[1], depth + 1)?;
+            out.push(TexOp { code: op::CHECKERBOARD, f: mapping_words(mapping), ..Default::default() });
+        }
+        Texture::Scale { tex, scale } => {
+            input(out, tex, depth)?;
+            input(out, scale, depth + 1)?;
+            out.push(TexOp { code: op::SCALE, ..Default::default() });
+        }
+        Texture::Mix { tex, amount } => {
+            input(out, &tex[0], depth)?;
+            input(out, &tex[1], depth + 1)?;
+            input(out, amount, depth + 2)?;
+            out.push(TexOp { code: op::MIX, ..Default::default() });
+        }
+    }
+    Ok(())
+}
+
+fn constant(v: Vec3) -> TexOp {
+    TexOp { code: op::CONSTANT, f: [v.x, v.y, v.z, 0.0], ..Default::default() }
+}
+
+fn mapping_words(m: &UvMapping) -> [f32; 4] {
+    [m.su, m.sv, m.du, m.dv]
+}
+
+/// Where a textured parameter goes in the coefficients of a material kind
+/// (see [`MaterialKind`]'s layouts): `(first coefficient, store mode)` per store.
+pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
+    use TexturedParam as P;
+    let roughness = if remap { store::ROUGHNESS } else { store::FLOAT };
+    match (kind, param) {
+        (MaterialKind::Diffuse, P::Reflectance) => vec![(0, store::RGB)],
+        (MaterialKind::DiffuseTransmission, P::Reflectance) => vec![(0, store::RGB)],
+        (MaterialKind::DiffuseTransmission, P::Transmittance) => vec![(3, store::RGB)],
+        (MaterialKind::Conductor, P::Reflectance) => vec![(0, store::CONDUCTOR_REFLECTANCE)],
+        (MaterialKind::Conductor, P::Roughness) => vec![(6, roughness), (7, roughness)],
+        (MaterialKind::Conductor, P::URoughness) => vec![(6, roughness)],
+        (MaterialKind::Conductor, P::VRoughness) => vec![(7, roughness)],
+        (MaterialKind::Dielectric, P::Roughness) => vec![(1, roughness), (2, roughness)],
+        (MaterialKind::Dielectric, P::URoughness) => vec![(1, roughness)],
+        (MaterialKind::Dielectric, P::VRoughness) => vec![(2, roughness)],
+        (MaterialKind::CoatedDiffuse, P::Reflectance) => vec![(0, store::RGB)],
+        (MaterialKind::CoatedDiffuse, P::Roughness) => vec![(3, roughness), (4, roughness)],
+        (MaterialKind::CoatedDiffuse, P::URoughness) => vec![(3, roughness)],
+        (MaterialKind::CoatedDiffuse, P::VRoughness) => vec![(4, roughness)],
+        // Base colour, metallic, and perceptual roughness (never remapped:
+        // the principled BSDF squares it itself).
+        (MaterialKind::Principled, P::Reflectance) => vec![(0, store::RGB)],
+        (MaterialKind::Principled, P::Metallic) => vec![(3, store::FLOAT)],
+        (MaterialKind::Principled, P::Roughness) => vec![(4, store::FLOAT)],
+        _ => Vec::new(),
+    }
+}
+
+/// Texture coordinates of a hit at barycentrics `(b1, b2)` of a triangle
+/// whose corners have `uvs` (`None`: pbrt's default per-triangle
+/// parameterisation (0,0), (1,0), (1,1)).
+#[inline]
+pub fn hit_uv(uvs: Option<[Vec2; 3]>, b1: f32, b2: f32) -> Vec2 {
+    let b0 = 1.0 - b1 - b2;
+    match uvs {
+        Some([a, b, c]) => a * b0 + b * b1 + c * b2,
+        None => Vec2::new(b1 + b2, b2),
+    }
+}
+
+/// Runs `ops` at `uv`: stores go into `coeffs`; returns what is left on
+/// top of the stack (an alpha program's alpha).
+pub fn run_program(
+    ops: &[TexOp],
+    images: &[Arc<TextureImage>],
+    uv: Vec2,
+    coeffs: &mut [f16; MATERIAL_COEFFS],
+) -> Vec3 {
+    let mut stack = [Vec3::ZERO; TEXTURE_STACK];
+    let mut sp = 0usize;
+    for o in ops {
+        match o.code {
+            op::CONSTANT => {
+                stack[sp] = Vec3::new(o.f[0], o.f[1], o.f[2]);
+                sp += 1;
+            }
+            op::IMAGE => {
+                stack[sp] = image_lookup(o, images, uv);
+                sp += 1;
+            }
+            op::CHECKERBOARD => {
+                let st = apply_mapping(o.f, uv);
+                let even = (st.x.floor() + st.y.floor()).rem_euclid(2.0) == 0.0;
+                sp -= 1;
+                if even {
+                    // Keep `first` (below `second`).
+                } else {
+                    stack[sp - 1] = stack[sp];
+                }
+            }
+            op::SCALE => {
+                sp -= 1;
+                stack[sp - 1] *= stack[sp];
+            }
+            op::MIX => {
+                sp -= 2;
+                let amount = stack[sp + 1].x;
+                stack[sp - 1] = stack[sp - 1] * (1.0 - amount) + stack[sp] * amount;
+            }
+            op::STORE => {
+                sp -= 1;
+                store_value(stack[sp], o.a as usize, o.b, coeffs);
+            }
+            _ => {}
+        }
+    }
+    if sp > 0 {
+        stack[sp - 1]
+    } else {
+        Vec3::ZERO
+    }
+}
+
+fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFFS]) {
+    let v = v.max(Vec3::ZERO);
+    match how {
+        store::RGB => {
+            for (i, c) in v.to_array().into_iter().enumerate() {
+                coeffs[slot + i] = f16::from_f32(c);
+            }
+        }
+        store::FLOAT => coeffs[slot] = f16::from_f32(v.x),
+        store::ROUGHNESS => coeffs[slot] = f16::from_f32(v.x.sqrt()),
+        store::CONDUCTOR_REFLECTANCE => {
+            let k = Material::conductor_k_from_reflectance(v);
+            for i in 0..3 {
+                coeffs[slot + i] = f16::ONE;
+                coeffs[slot + 3 + i] = f16::from_f32(k[i]);
+            }
+        }
+        _ => {}
+    }
+}
+
+#[inline]
+fn apply_mapping(f: [f32; 4], uv: Vec2) -> Vec2 {
+    Vec2::new(f[0] * uv.x + f[2], f[1] * uv.y + f[3])
+}
+
+/// Bilinear lookup of an [`op::IMAGE`] op.
+fn image_lookup(o: &TexOp, images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
+    let image = &images[o.a as usize];
+    let wrap = o.b & 0xff;
+    let channel = (o.b >> 8) & 0xff;
+    let invert = (o.b >> 16) & 1 != 0;
+    let scale = f32::from_bits(o.c);
+    let st = apply_mapping(o.f, uv);
+    let (w, h) = (image.width as i32, image.height as i32);
+    let x = st.x * w as f32 - 0.5;
+    let y = (1.0 - st.y) * h as f32 - 0.5;
+    let (xf, yf) = (x.floor(), y.floor());
+    let (dx, dy) = (x - xf, y - yf);
+    // Far outside the image every wrap mode is periodic or constant:
+    // clamping keeps the integer conversion in range.
+    let (x0, y0) = (xf.clamp(-1e8, 1e8) as i32, yf.clamp(-1e8, 1e8) as i32);
+    let texel = |x: i32, y: i32| -> [f32; 4] {
+        match (wrap_coord(x, w, wrap), wrap_coord(y, h, wrap)) {
+            (Some(x), Some(y)) => image.texel(x as u32, y as u32),
+            _ => [0.0; 4],
+        }
+    };
+    let (t00, t10, t01, t11) = (texel(x0, y0), texel(x0 + 1, y0), texel(x0, y0 + 1), texel(x0 + 1, y0 + 1));
+    let mut px = [0f32; 4];
+    for c in 0..4 {
+        px[c] = ((1.0 - dx) * t00[c] + dx * t10[c]) * (1.0 - dy) + ((1.0 - dx) * t01[c] + dx * t11[c]) * dy;
+    }
+    let v = channel_value(px, channel) * scale;
+    if invert {
+        (Vec3::ONE - v).max(Vec3::ZERO)
+    } else {
+        v.max(Vec3::ZERO)
+    }
+}
+
+/// The texel a coordinate addresses under a wrap mode; `None`: black.
+#[inline]
+fn wrap_coord(i: i32, n: i32, wrap: u32) -> Option<i32> {
+    if (0..n).contains(&i) {
+        return Some(i);
+    }
+    match wrap {
+        w if w == Wrap::Clamp as u32 => Some(i.clamp(0, n - 1)),
+        w if w == Wrap::Black as u32 => None,
+        w if w == Wrap::Mirror as u32 => {
+            let period = i.rem_euclid(2 * n);
+            Some(if period < n { period } else { 2 * n - 1 - period })
+        }
+        _ => Some(i.rem_euclid(n)),
+    }
+}
+
+fn channel_value(px: [f32; 4], channel: u32) -> Vec3 {
+    let [r, g, b, a] = px;
+    match channel {
+        c if c == Channel::Average as u32 => Vec3::splat((r + g + b) * (1.0 / 3.0)),
+        c if c == Channel::Alpha as u32 => Vec3::splat(a),
+        c if c == Channel::Red as u32 => Vec3::splat(r),
+        c if c == Channel::Green as u32 => Vec3::splat(g),
+        c if c == Channel::Blue as u32 => Vec3::splat(b),
+        _ => Vec3::new(r, g, b),
+    }
+}
+
+/// The uniform number deciding a stochastic alpha test: a hash of the ray
+/// (as traversal sees it, in the space of the triangle) and the hit
+/// distance, so every device decides alike and stacked cut-outs along one
+/// ray decide independently. `kernels/texture.cuh` mirrors it.
+pub fn alpha_hash(origin: Vec3A, dir: Vec3A, t: f32) -> f32 {
+    let words = [origin.x, origin.y, origin.z, dir.x, dir.y, dir.z, t];
+    let mut h = 0x9e37_79b9u32;
+    for w in words {
+        h = pcg_hash(h ^ w.to_bits());
+    }
+    (h >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+/// Whether an alpha value keeps a hit.
+#[inline]
+pub fn alpha_keeps(program: &AlphaProgram, alpha: f32, origin: Vec3A, dir: Vec3A, t: f32) -> bool {
+    match program.mode {
+        alpha_mode::CUTOFF => alpha >= program.cutoff,
+        alpha_mode::STOCHASTIC => {
+            // pbrt-v4's rule: alpha >= 1 always hits, <= 0 never.
+            alpha >= 1.0 || (alpha > 0.0 && alpha_hash(origin, dir, t) < alpha)
+        }
+        _ => true,
+    }
+}
+
+/// Textured parameters and alpha masks of a scene, for the CPU device: the
+/// texture tables with the scene's images and meshes.
+pub struct SceneTextures<'a> {
+    pub scene: &'a Scene,
+    pub tables: &'a TextureTables,
+}
+
+impl SceneTextures<'_> {
+    /// Texture coordinates on triangle `triangle` of scene mesh `mesh`.
+    pub fn uv(&self, mesh: u32, triangle: u32, b1: f32, b2: f32) -> Vec2 {
+        let mesh = &self.scene.meshes[mesh as usize];
+        let uvs =
+            (!mesh.uvs.is_empty()).then(|| mesh.indices[triangle as usize].map(|i| mesh.uvs[i as usize]));
+        hit_uv(uvs, b1, b2)
+    }
+
+    /// Overwrites the textured coefficients of material `id` at `uv`.
+    pub fn apply(&self, id: u32, uv: Vec2, coeffs: &mut [f16; MATERIAL_COEFFS]) {
+        let range = self.tables.materials[id as usize];
+        if !range.is_empty() {
+            run_program(self.ops(range), &self.scene.textures.images, uv, coeffs);
+        }
+    }
+
+    fn ops(&self, r: ProgramRange) -> &[TexOp] {
+        &self.tables.ops[r.start as usize..(r.start + r.len) as usize]
+    }
+}
+
+impl HitFilter for SceneTextures<'_> {
+    fn filters(&self, mesh: u32) -> bool {
+        self.tables.alpha_of(mesh).is_some()
+    }
+
+    fn keeps(&self, mesh: u32, triangle: u32, u: f32, v: f32, t: f32, origin: Vec3A, dir: Vec3A) -> bool {
+        let Some(program) = self.tables.alpha_of(mesh) else { return true };
+        let uv = self.uv(mesh, triangle, u, v);
+        let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
+        let alpha = run_program(self.ops(program.program), &self.scene.textures.images, uv, &mut scratch).x;
+        alpha_keeps(program, alpha, origin, dir, t)
+    }
+}
+
+/// Bytes of one image's texels as the GPU stores them (8-bit RGBA words
+/// or float RGBA).
+pub fn gpu_image_words(image: &TextureImage) -> u64 {
+    match image.texels {
+        Texels::Rgba8 { ref data, .. } => data.len() as u64,
+        Texels::RgbaF32(ref data) => data.len() as u64 * 4,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use atoll_scene::{MeshAlpha, TextureBinding};
+
+    fn image(texels: Vec<[f32; 4]>, w: u32, h: u32) -> Arc<TextureImage> {
+        Arc::new(TextureImage::from_linear("t", w, h, texels))
+    }
+
+    fn image_op(wrap: Wrap, channel: Channel, scale: f32, invert: bool) -> TexOp {
+        TexOp {
+            code: op::IMAGE,
+            a: 0,
+            b: wrap as u32 | (channel as u32) << 8 | (invert as u32) << 16,
+            c: scale.to_bits(),
+            f: [1.0, 1.0, 0.0, 0.0],
+        }
+    }
+
+    fn eval(ops: &[TexOp], images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
+        run_program(ops, images, uv, &mut [f16::ZERO; MATERIAL_COEFFS])
+    }
+
+    /// Texel centres return the texel; halfway between two, their mean;
+    /// row 0 is the top of the image (t = 1).
+    #[test]
+    fn bilinear_lookups_follow_pbrt_addressing() {
+        let img = image(vec![[0.0, 0.0, 0.0, 1.0], [1.0, 0.5, 0.25, 0.0], [0.2; 4], [0.4; 4]], 2, 2);
+        let images = [img];
+        let o = [image_op(Wrap::Clamp, Channel::Rgb, 1.0, false)];
+        assert_eq!(eval(&o, &images, Vec2::new(0.75, 0.75)), Vec3::new(1.0, 0.5, 0.25));
+        assert_eq!(eval(&o, &images, Vec2::new(0.25, 0.25)), Vec3::splat(0.2));
+        let mid = eval(&o, &images, Vec2::new(0.5, 0.75));
+        assert!(mid.abs_diff_eq(Vec3::new(0.5, 0.25, 0.125), 1e-6), "{mid}");
+        // Channels, scale and invert.
+        let alpha = [image_op(Wrap::Clamp, Channel::Alpha, 1.0, false)];
+        assert_eq!(eval(&alpha, &images, Vec2::new(0.25, 0.75)), Vec3::ONE);
+        let avg = [image_op(Wrap::Clamp, Channel::Average, 2.0, true)];
+        let v = eval(&avg, &images, Vec2::new(0.75, 0.75));
+        assert!(v.abs_diff_eq(Vec3::splat(0.0), 1e-6), "1 - 2 * mean(1, .5, .25) clamps to 0: {v}");
+        let green = [image_op(Wrap::Clamp, Channel::Green, 1.0, false)];
+        assert_eq!(eval(&green, &images, Vec2::new(0.75, 0.75)), Vec3::splat(0.5));
+    }
+
+    #[test]
+    fn wrap_modes_address_outside_the_image() {
+        assert_eq!(wrap_coord(-1, 4, Wrap::Repeat as u32), Some(3));
+        assert_eq!(wrap_coord(9, 4, Wrap::Repeat as u32), Some(1));
+        assert_eq!(wrap_coord(-3, 4, Wrap::Clamp as u32), Some(0));
+        assert_eq!(wrap_coord(7, 4, Wrap::Clamp as u32), Some(3));
+        assert_eq!(wrap_coord(4, 4, Wrap::Black as u32), None);
+        assert_eq!(wrap_coord(4, 4, Wrap::Mirror as u32), Some(3));
+        assert_eq!(wrap_coord(-1, 4, Wrap::Mirror as u32), Some(0));
+        assert_eq!(wrap_coord(8, 4, Wrap::Mirror as u32), Some(0));
+        let images = [image(vec![[1.0; 4]], 1, 1)];
+        let black = [image_op(Wrap::Black, Channel::Rgb, 1.0, false)];
+        assert_eq!(eval(&black, &images, Vec2::new(0.5, 0.5)), Vec3::ONE);
+        assert_eq!(eval(&black, &images, Vec2::new(1.5, 0.5)), Vec3::ZERO);
+    }
+
+    /// Programs from texture trees: checkerboard of a constant and a
+    /// scaled mix, stored into a material's coefficients.
+    #[test]
+    fn texture_trees_compile_to_programs_that_store_parameters() {
+        let mut scene = Scene::default();
+        let m = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.5) });
+        let c = scene.add_material(Material::Conductor {
+            eta: Rgb::ONE,
+            k: Rgb::ONE,
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+        });
+        let t = &mut scene.textures;
+        let mix = t.add(Texture::Mix {
+            tex: [TexInput::Value(Rgb::splat(0.2)), TexInput::Value(Rgb::splat(0.6))],
+            amount: TexInput::Value(Rgb::splat(0.25)),
+        });
+        let scaled = t.add(Texture::Scale {
+            tex: TexInput::Texture(mix),
+            scale: TexInput::Value(Rgb::new(1.0, 0.5, 2.0)),
+        });
+        let checker = t.add(Texture::Checkerboard {
+            mapping: UvMapping { su: 2.0, sv: 2.0, du: 0.0, dv: 0.0 },
+            tex: [TexInput::Value(Rgb::splat(0.9)), TexInput::Texture(scaled)],
+        });
+        t.bind(TextureBinding {
+            material: m,
+            param: TexturedParam::Reflectance,
+            texture: checker,
+            remap_roughness: false,
+        });
+        let rough = t.add(Texture::Constant(Rgb::splat(0.25)));
+        t.bind(TextureBinding {
+            material: c,
+            param: TexturedParam::Roughness,
+            texture: rough,
+            remap_roughness: true,
+        });
+        t.bind(TextureBinding {
+            material: c,
+            param: TexturedParam::Reflectance,
+            texture: rough,
+            remap_roughness: false,
+        });
+        // Not a diffuse parameter: dropped.
+        t.bind(TextureBinding {
+            material: m,
+            param: TexturedParam::Transmittance,
+            texture: rough,
+            remap_roughness: false,
+        });
+        let kinds = [MaterialKind::Diffuse, MaterialKind::Conductor];
+        let tables = TextureTables::new(&scene, &kinds);
+        let st = SceneTextures { scene: &scene, tables: &tables };
+        let coeffs_at = |id: u32, uv: Vec2| {
+            let mut c = [f16::ZERO; MATERIAL_COEFFS];
+            st.apply(id, uv, &mut c);
+            c.map(f16::to_f32)
+        };
+        // (0.1, 0.1) → st (0.2, 0.2): even square, 0.9.
+        assert_eq!(coeffs_at(m, Vec2::new(0.1, 0.1))[..3], [f16::from_f32(0.9).to_f32(); 3]);
+        // (0.6, 0.1) → odd: (0.75 * 0.2 + 0.25 * 0.6) * (1, 0.5, 2) = 0.3 * ...
+        let odd = coeffs_at(m, Vec2::new(0.6, 0.1));
+        for (got, want) in odd[..3].iter().zip([0.3, 0.15, 0.6]) {
+            assert!((got - want).abs() < 1e-3, "{odd:?}");
+        }
+        let conductor = coeffs_at(c, Vec2::ZERO);
+        assert_eq!(conductor[6], 0.5, "sqrt of roughness 0.25");
+        assert_eq!(conductor[7], 0.5);
+        assert_eq!(conductor[..3], [1.0; 3], "eta 1 for a reflectance");
+        let k = Material::conductor_k_from_reflectance(Rgb::splat(0.25)).x;
+        assert!((conductor[3] - k).abs() < 1e-2 * k, "{conductor:?}");
+        assert!(!tables.has_alpha());
+    }
+
+    /// Stochastic alpha keeps a share `alpha` of hits, decided by the ray.
+    #[test]
+    fn stochastic_alpha_keeps_its_share_of_hits() {
+        let mut scene = Scene::default();
+        let material = scene.add_material(Material::default_diffuse());
+        let half = scene.textures.add(Texture::Constant(Rgb::splat(0.3)));
+        let mesh = scene.add_mesh(atoll_scene::TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            material,
+            alpha: Some(MeshAlpha { texture: half, mode: AlphaMode::Stochastic }),
+            ..Default::default()
+        });
+        let tables = TextureTables::new(&scene, &[MaterialKind::Diffuse]);
+        let st = SceneTextures { scene: &scene, tables: &tables };
+        assert!(st.filters(mesh));
+        let n = 20_000;
+        let kept = (0..n)
+            .filter(|&i| {
+                let o = Vec3A::new(i as f32 * 1e-3, 0.1, -1.0);
+                st.keeps(mesh, 0, 0.2, 0.2, 1.0, o, Vec3A::Z)
+            })
+            .count();
+        let share = kept as f64 / n as f64;
+        assert!((share - 0.3).abs() < 0.015, "{share}");
+        let o = Vec3A::new(0.5, 0.1, -1.0);
+        assert_eq!(
+            st.keeps(mesh, 0, 0.2, 0.2, 1.0, o, Vec3A::Z),
+            st.keeps(mesh, 0, 0.2, 0.2, 1.0, o, Vec3A::Z)
+        );
+    }
+}

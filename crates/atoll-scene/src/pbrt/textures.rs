@@ -1,0 +1,419 @@
+//! pbrt `Texture` statements and texture-valued parameters, following
+//! pbrt-v4's `textures.cpp` for names and defaults (pbrt-v3's spellings too).
+//!
+//! | class | parameters (default) |
+//! |---|---|
+//! | `imagemap` | `filename`, `wrap` (repeat), `scale` (1), `invert` (false), `encoding` (sRGB for 8-bit files; pbrt-v3: `bool gamma`); `filter`, `maxanisotropy`, `trilinear` ignored (atoll filters bilinearly) |
+//! | `checkerboard` | `tex1` (1), `tex2` (0); 2D only |
+//! | `constant` | `value` (1) |
+//! | `scale` | `tex` (1) × `scale` (1); pbrt-v3: `tex1` × `tex2` |
+//! | `mix` | `tex1` (0), `tex2` (1), `amount` (0.5, a float texture) |
+//!
+//! `imagemap` and `checkerboard` take pbrt's `uv` mapping (`uscale`,
+//! `vscale`, `udelta`, `vdelta`). Other classes (`ptex`, `marble`, `fbm`,
+//! ...), the 3D mappings and 3D checkerboards are warned about and replaced
+//! by a constant (0.5 grey, or 1 for float textures), as is an image that
+//! cannot be read (pbrt-v4 stops there; a warning loses less).
+//!
+//! Float and spectrum textures have separate namespaces, as in pbrt. A
+//! texture parameter names a texture defined earlier in the file (pbrt-v4
+//! also creates textures in file order).
+//!
+//! Materials read their texture-valued parameters through [`TexCtx`], which
+//! collects the bindings of the material being made; the builder attaches
+//! them to the material's id.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use crate::error::{FileLoc, SceneError};
+use crate::{
+    ColorEncoding, ImageCache, Rgb, TexInput, Texture, TextureId, TexturedParam, Textures, UvMapping, Wrap,
+};
+
+use super::entities::reflectance_rgb;
+use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
+use super::WarningSink;
+
+/// pbrt's two texture types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TexKind {
+    Float,
+    Spectrum,
+}
+
+impl TexKind {
+    fn name(self) -> &'static str {
+        match self {
+            TexKind::Float => "float",
+            TexKind::Spectrum => "spectrum",
+        }
+    }
+
+    /// What replaces a texture that cannot be made.
+    fn fallback(self) -> Rgb {
+        match self {
+            TexKind::Float => Rgb::ONE,
+            TexKind::Spectrum => Rgb::splat(0.5),
+        }
+    }
+}
+
+/// pbrt texture classes atoll has no texture for.
+const UNSUPPORTED: &[&str] =
+    &["ptex", "marble", "fbm", "wrinkled", "windy", "dots", "bilerp", "directionmix", "uv"];
+
+/// The named textures of a scene being loaded, and its image cache.
+#[derive(Debug, Default)]
+pub struct NamedTextures {
+    float: HashMap<String, TextureId>,
+    spectrum: HashMap<String, TextureId>,
+    images: ImageCache,
+}
+
+impl NamedTextures {
+    /// Runs `Texture "name" "ty" "class" params`, adding the texture to
+    /// `store`. Image files resolve against `base_dir`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn define(
+        &mut self,
+        name: String,
+        ty: &str,
+        class: &str,
+        p: &ParamList,
+        base_dir: &Path,
+        store: &mut Textures,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<(), SceneError> {
+        let kind = match ty {
+            "float" => TexKind::Float,
+            // pbrt-v3 wrote `color`.
+            "spectrum" | "color" | "rgb" => TexKind::Spectrum,
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("Texture \"{name}\": type must be \"float\" or \"spectrum\", found \"{ty}\""),
+                ))
+            }
+        };
+        let what = format!("texture \"{name}\"");
+        let id = match self.make(kind, class, p, base_dir, store, &what, loc, w)? {
+            Ok(texture) => store.add(texture),
+            Err(reason) => {
+                p.mark_all_used();
+                w.warn(loc, format!("{what}: {reason}; using a constant"));
+                store.add(Texture::Constant(kind.fallback()))
+            }
+        };
+        let names = match kind {
+            TexKind::Float => &mut self.float,
+            TexKind::Spectrum => &mut self.spectrum,
+        };
+        // pbrt-v4 rejects a second definition; pbrt-v3 let the later one win, which we follow.
+        if names.insert(name, id).is_some() {
+            w.warn(loc, format!("{what} is defined again; the later definition is used from here on"));
+        }
+        Ok(())
+    }
+
+    /// The texture node for `class`, or (the outer `Ok`) why it is replaced
+    /// by a constant. Errors are malformed parameters.
+    #[allow(clippy::too_many_arguments)]
+    fn make(
+        &mut self,
+        kind: TexKind,
+        class: &str,
+        p: &ParamList,
+        base_dir: &Path,
+        store: &mut Textures,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<Result<Texture, String>, SceneError> {
+        let input = |name: &str, k: TexKind, default: f32, w: &mut WarningSink| {
+            self.input(p, name, k, Rgb::splat(default), what, loc, w)
+        };
+        Ok(Ok(match class {
+            // A value only (as in pbrt): no texture may stand for it.
+            "constant" => Texture::Constant(match kind {
+                TexKind::Float => Rgb::splat(p.float_or("value", 1.0)?),
+                TexKind::Spectrum => p
+                    .spectrum("value", true)?
+                    .and_then(|sp| reflectance_rgb(sp, what, loc, w))
+                    .unwrap_or(Rgb::ONE),
+            }),
+            "scale" => {
+                // pbrt-v3's ScaleTexture multiplies `tex1` by `tex2`.
+                let (tex, scale) = if !p.has("tex") && (p.has("tex1") || p.has("tex2")) {
+                    (input("tex1", kind, 1.0, w)?, input("tex2", kind, 1.0, w)?)
+                } else {
+                    (input("tex", kind, 1.0, w)?, input("scale", TexKind::Float, 1.0, w)?)
+                };
+                match (tex, scale) {
+                    (TexInput::Value(a), TexInput::Value(b)) => Texture::Constant(a * b),
+                    _ => Texture::Scale { tex, scale },
+                }
+            }
+            "mix" => Texture::Mix {
+                tex: [input("tex1", kind, 0.0, w)?, input("tex2", kind, 1.0, w)?],
+                amount: input("amount", TexKind::Float, 0.5, w)?,
+            },
+            "checkerboard" => {
+                p.find("aamode", &[ParamType::String]); // pbrt-v3's antialiasing choice
+                match p.int("dimension")?.unwrap_or(2) {
+                    2 => {}
+                    3 => return Ok(Err("3D checkerboards are not supported".into())),
+                    d => return Ok(Err(format!("a {d}-dimensional checkerboard is not supported"))),
+                }
+                let mapping = match uv_mapping(p, what, loc, w)? {
+                    Ok(m) => m,
+                    Err(e) => return Ok(Err(e)),
+                };
+                Texture::Checkerboard {
+                    mapping,
+                    tex: [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?],
+                }
+            }
+            "imagemap" => return self.image(kind, p, base_dir, store, what, loc, w),
+            c if UNSUPPORTED.contains(&c) => return Ok(Err(format!("class \"{c}\" is not supported"))),
+            c => return Ok(Err(format!("unknown texture class \"{c}\""))),
+        }))
+    }
+
+    /// `imagemap`: the image decoded once per file and encoding.
+    #[allow(clippy::too_many_arguments)]
+    fn image(
+        &mut self,
+        kind: TexKind,
+        p: &ParamList,
+        base_dir: &Path,
+        store: &mut Textures,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<Result<Texture, String>, SceneError> {
+        // Filtering is bilinear whatever is asked: no warning for the hints.
+        p.find("filter", &[ParamType::String]);
+        p.find("maxanisotropy", &[ParamType::Float]);
+        p.find("trilinear", &[ParamType::Bool]);
+        let wrap = match p.string("wrap")? {
+            None => Wrap::Repeat,
+            Some(s) if s == "octahedralsphere" => {
+                w.warn(
+                    loc,
+                    format!("{what}: wrap mode \"octahedralsphere\" is not supported; using \"clamp\""),
+                );
+                Wrap::Clamp
+            }
+            Some(s) => Wrap::parse(&s).ok_or_else(|| {
+                SceneError::at(
+                    loc,
+                    format!("{what}: unknown wrap mode \"{s}\" (expected repeat, black, clamp or mirror)"),
+                )
+            })?,
+        };
+        let scale = p.float_or("scale", 1.0)?;
+        let invert = p.bool_or("invert", false)?;
+        // pbrt-v4's `encoding`; pbrt-v3's `gamma` says whether the sRGB curve applies.
+        let encoding = match (p.string("encoding")?, p.bool("gamma")?) {
+            (Some(e), _) => ColorEncoding::parse(&e).ok_or_else(|| {
+                SceneError::at(
+                    loc,
+                    format!("{what}: unknown encoding \"{e}\" (expected sRGB, linear or \"gamma G\")"),
+                )
+            })?,
+            (None, Some(false)) => ColorEncoding::Linear,
+            (None, _) => ColorEncoding::Srgb,
+        };
+        let mapping = match uv_mapping(p, what, loc, w)? {
+            Ok(m) => m,
+            Err(e) => return Ok(Err(e)),
+        };
+        let Some(file) = p.string("filename")? else {
+            return Ok(Err("no \"string filename\" given".into()));
+        };
+        let image = match self.images.load(store, &base_dir.join(&file), encoding) {
+            Ok(id) => id,
+            Err(e) => return Ok(Err(e)),
+        };
+        let channel = match kind {
+            TexKind::Float => crate::Channel::Average,
+            TexKind::Spectrum => crate::Channel::Rgb,
+        };
+        Ok(Ok(Texture::Image { image, mapping, wrap, channel, scale, invert }))
+    }
+
+    /// An area light's `filename`: the image as an RGB texture (sRGB for
+    /// 8-bit files, clamped at the edges as pbrt-v4's `DiffuseAreaLight`
+    /// reads it), through the scene's image cache.
+    pub fn emission_image(
+        &mut self,
+        file: &str,
+        base_dir: &Path,
+        store: &mut Textures,
+    ) -> Result<TextureId, String> {
+        let image = self.images.load(store, &base_dir.join(file), ColorEncoding::Srgb)?;
+        Ok(store.add(Texture::Image {
+            image,
+            mapping: UvMapping::default(),
+            wrap: Wrap::Clamp,
+            channel: crate::Channel::Rgb,
+            scale: 1.0,
+            invert: false,
+        }))
+    }
+
+    /// The texture called `name` of `kind`; `None` after a warning when
+    /// there is none.
+    fn lookup(
+        &self,
+        name: &str,
+        kind: TexKind,
+        param: &str,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Option<TextureId> {
+        let (own, other) = match kind {
+            TexKind::Float => (&self.float, &self.spectrum),
+            TexKind::Spectrum => (&self.spectrum, &self.float),
+        };
+        if let Some(&id) = own.get(name) {
+            return Some(id);
+        }
+        let why = if other.contains_key(name) {
+            format!("\"{name}\" is not a {} texture", kind.name())
+        } else {
+            format!("{} texture \"{name}\" is not defined before this line", kind.name())
+        };
+        w.warn(loc, format!("{what}: {why}; \"{param}\" uses its default"));
+        None
+    }
+
+    /// A texture parameter of `kind`: a value or a named texture; `default`
+    /// when absent or unusable.
+    #[allow(clippy::too_many_arguments)]
+    fn input(
+        &self,
+        p: &ParamList,
+        name: &str,
+        kind: TexKind,
+        default: Rgb,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<TexInput, SceneError> {
+        Ok(self.optional_input(p, name, kind, what, loc, w)?.unwrap_or(TexInput::Value(default)))
+    }
+
+    /// As [`NamedTextures::input`], `None` when absent or unusable.
+    fn optional_input(
+        &self,
+        p: &ParamList,
+        name: &str,
+        kind: TexKind,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<Option<TexInput>, SceneError> {
+        let named =
+            |t: &str, w: &mut WarningSink| self.lookup(t, kind, name, what, loc, w).map(TexInput::Texture);
+        Ok(match kind {
+            TexKind::Float => match p.float_or_texture(name)? {
+                None => None,
+                Some(FloatOrTexture::Value(v)) => Some(TexInput::Value(Rgb::splat(v))),
+                Some(FloatOrTexture::Texture(t)) => named(&t, w),
+            },
+            TexKind::Spectrum => match p.spectrum(name, true)? {
+                None => None,
+                Some(SpectrumParam::Texture(t)) => named(&t, w),
+                Some(sp) => reflectance_rgb(sp, what, loc, w).map(TexInput::Value),
+            },
+        })
+    }
+}
+
+/// pbrt's 2D texture mapping: the `uv` mapping, or why another cannot be had.
+fn uv_mapping(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Result<UvMapping, String>, SceneError> {
+    match p.string("mapping")?.as_deref() {
+        None | Some("uv") => {}
+        Some(m @ ("spherical" | "cylindrical" | "planar")) => {
+            return Ok(Err(format!("the \"{m}\" mapping is not supported")));
+        }
+        // pbrt-v4 reports an unknown mapping and uses `uv`.
+        Some(m) => w.warn(loc, format!("{what}: unknown mapping \"{m}\"; using \"uv\"")),
+    }
+    Ok(Ok(UvMapping {
+        su: p.float_or("uscale", 1.0)?,
+        sv: p.float_or("vscale", 1.0)?,
+        du: p.float_or("udelta", 0.0)?,
+        dv: p.float_or("vdelta", 0.0)?,
+    }))
+}
+
+/// Texture access while a material is made: looks up its texture-valued
+/// parameters and collects its bindings.
+pub struct TexCtx<'a> {
+    named: &'a NamedTextures,
+    store: &'a mut Textures,
+    /// The bindings of the material being made: (parameter, texture, remap roughness).
+    pub bindings: Vec<(TexturedParam, TextureId, bool)>,
+}
+
+impl<'a> TexCtx<'a> {
+    pub fn new(named: &'a NamedTextures, store: &'a mut Textures) -> Self {
+        TexCtx { named, store, bindings: Vec::new() }
+    }
+
+    /// A spectrum parameter (`rgb`, `spectrum`, `blackbody`, `float` or
+    /// `texture`); `None` when absent or unusable (after a warning).
+    pub fn spectrum(
+        &self,
+        p: &ParamList,
+        name: &str,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<Option<TexInput>, SceneError> {
+        self.named.optional_input(p, name, TexKind::Spectrum, what, loc, w)
+    }
+
+    /// A float parameter (`float` or `texture`); `None` when absent or unusable.
+    pub fn float(
+        &self,
+        p: &ParamList,
+        name: &str,
+        what: &str,
+        loc: &FileLoc,
+        w: &mut WarningSink,
+    ) -> Result<Option<TexInput>, SceneError> {
+        self.named.optional_input(p, name, TexKind::Float, what, loc, w)
+    }
+
+    /// The material's constant for `input`: the value itself, or for a
+    /// texture `default` (what the material keeps) with a binding of `param`.
+    pub fn value_or_bind(&mut self, input: TexInput, param: TexturedParam, default: Rgb) -> Rgb {
+        match input {
+            TexInput::Value(v) => v,
+            TexInput::Texture(t) => {
+                self.bindings.push((param, t, false));
+                default
+            }
+        }
+    }
+
+    /// The product of two inputs: a value when both are, else a `Scale` node.
+    pub fn product(&mut self, a: TexInput, b: TexInput) -> TexInput {
+        match (a, b) {
+            (TexInput::Value(x), TexInput::Value(y)) => TexInput::Value(x * y),
+            (t, TexInput::Value(v)) | (TexInput::Value(v), t) if v == Rgb::ONE => t,
+            _ => TexInput::Texture(self.store.add(Texture::Scale { tex: a, scale: b })),
+        }
+    }
+}

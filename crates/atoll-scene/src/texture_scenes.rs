@@ -1,0 +1,142 @@
+//! Scenes for testing textures on every device.
+//!
+//! [`cutout_scene`]'s image is known from geometry alone: a white ground lit
+//! by a distant light through a screen of stripes. The screen is
+//! either one quad whose alpha mask cuts the stripes out ([`Screen::AlphaMask`])
+//! or the solid stripes as separate quads ([`Screen::Strips`]); both must
+//! render the same image, shadows and all.
+//!
+//! The mask is a 2×1 image (alpha 0, 1), repeated, read bilinearly with a
+//! cutoff of 0.5: with `u = x` on the screen it is solid where
+//! `frac(x) ∈ [0.5, 1)` and a hole where `frac(x) ∈ [0, 0.5)`.
+
+use glam::{Affine3A, Mat4, Vec2, Vec3};
+
+use crate::{
+    AlphaMode, Camera, Channel, Instance, IntegratorSettings, Light, Material, MeshAlpha, Object, Rgb, Scene,
+    Texture, TextureBinding, TextureImage, TexturedParam, TriangleMesh, UvMapping, Wrap,
+};
+
+/// How the screen's stripes are made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Screen {
+    /// One quad with an alpha mask.
+    AlphaMask,
+    /// Quads where the mask is solid.
+    Strips,
+}
+
+/// Half the width of the ground and the screen.
+const EXTENT: f32 = 4.0;
+/// Height of the screen above the ground (z = 0).
+const SCREEN_HEIGHT: f32 = 1.0;
+
+fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> TriangleMesh {
+    let positions =
+        vec![Vec3::new(x0, y0, z), Vec3::new(x1, y0, z), Vec3::new(x1, y1, z), Vec3::new(x0, y1, z)];
+    let uvs = positions.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+    TriangleMesh {
+        name: "quad".into(),
+        positions,
+        uvs,
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material,
+        ..Default::default()
+    }
+}
+
+/// The scene, seen from `eye` (above the screen sees it and the ground
+/// through its holes; below it sees only the ground and the shadow).
+/// The ground is textured with a checkerboard of two whites (0.8 and 0.6
+/// reflectance, 1-unit squares), which also exercises textured parameters.
+pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
+    let mut scene = Scene::default();
+    let ground_material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.5) });
+    let screen_material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.05) });
+    let checker = scene.textures.add(Texture::Checkerboard {
+        mapping: UvMapping::default(),
+        tex: [crate::TexInput::Value(Rgb::splat(0.8)), crate::TexInput::Value(Rgb::splat(0.6))],
+    });
+    scene.textures.bind(TextureBinding {
+        material: ground_material,
+        param: TexturedParam::Reflectance,
+        texture: checker,
+        remap_roughness: false,
+    });
+    let mut meshes = vec![quad(-EXTENT, EXTENT, -EXTENT, EXTENT, 0.0, ground_material)];
+    match screen {
+        Screen::AlphaMask => {
+            let image = scene.textures.add_image(TextureImage::from_linear(
+                "stripes",
+                2,
+                1,
+                vec![[1.0, 1.0, 1.0, 0.0], [1.0, 1.0, 1.0, 1.0]],
+            ));
+            let mask = scene.textures.add(Texture::Image {
+                image,
+                mapping: UvMapping::default(),
+                wrap: Wrap::Repeat,
+                channel: Channel::Alpha,
+                scale: 1.0,
+                invert: false,
+            });
+            let mut q = quad(-EXTENT, EXTENT, -EXTENT, EXTENT, SCREEN_HEIGHT, screen_material);
+            q.alpha = Some(MeshAlpha { texture: mask, mode: AlphaMode::Cutoff(0.5) });
+            meshes.push(q);
+        }
+        Screen::Strips => {
+            let mut x = -EXTENT;
+            while x < EXTENT {
+                meshes.push(quad(x + 0.5, x + 1.0, -EXTENT, EXTENT, SCREEN_HEIGHT, screen_material));
+                x += 1.0;
+            }
+        }
+    }
+    let ids = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
+    let object = scene.add_object(Object { name: "world".into(), meshes: ids });
+    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    // Slightly off vertical so the shadow is displaced from the screen.
+    scene
+        .lights
+        .push(Light::Distant { direction: Vec3::new(0.3, 0.0, -1.0).normalize(), radiance: Rgb::splat(3.0) });
+    let target = Vec3::new(eye.x, eye.y, 0.0) + Vec3::new(0.0, 0.3, 0.0);
+    scene.settings.camera = Camera {
+        camera_to_world: crate::framing::look_at(eye, target, Vec3::Y).unwrap_or(Mat4::IDENTITY),
+        fov_degrees: 60.0,
+        ..Camera::default()
+    };
+    scene.settings.integrator = IntegratorSettings::Path { max_depth: 3 };
+    scene.settings.film.resolution = glam::UVec2::new(64, 64);
+    scene.settings.spp = 4;
+    scene
+}
+
+/// A floor under a 2×2 square area light facing down (radiance 1, scaled
+/// by `emission` when given: an emission texture over the light's uvs
+/// (0,0)–(1,1)), seen from `eye` looking at `target`.
+pub fn textured_light_scene(emission: Option<Texture>, eye: Vec3, target: Vec3) -> Scene {
+    let mut scene = Scene::default();
+    let material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.5) });
+    let floor = scene.add_mesh(quad(-6.0, 6.0, -6.0, 6.0, 0.0, material));
+    let mut light = quad(-1.0, 1.0, -1.0, 1.0, 2.0, material);
+    // Facing down, uvs (0,0)–(1,1) across it.
+    light.indices = vec![[0, 2, 1], [0, 3, 2]];
+    light.uvs = vec![Vec2::new(0.0, 0.0), Vec2::new(1.0, 0.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 1.0)];
+    light.emission = Some(crate::AreaEmission { radiance: Rgb::ONE, two_sided: false });
+    let light = scene.add_mesh(light);
+    if let Some(t) = emission {
+        let t = scene.textures.add(t);
+        scene.textures.bind_emission(light, t);
+    }
+    let object = scene.add_object(Object { name: "world".into(), meshes: vec![floor, light] });
+    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.settings.camera = Camera {
+        camera_to_world: crate::framing::look_at(eye, target, Vec3::Y).unwrap_or(Mat4::IDENTITY),
+        fov_degrees: 50.0,
+        ..Camera::default()
+    };
+    scene.settings.film.resolution = glam::UVec2::new(48, 48);
+    scene.settings.spp = 16;
+    scene.settings.integrator = IntegratorSettings::Path { max_depth: 2 };
+    scene
+}
