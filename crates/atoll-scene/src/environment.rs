@@ -162,6 +162,27 @@ impl EnvironmentImage {
     pub fn lookup(&self, d: Vec3) -> Rgb {
         self.pixels[self.pixel_index(self.layout.uv(d))]
     }
+
+    /// Illuminance (in luminance units) the image casts on a surface facing
+    /// light-space +z: `∫ luminance(L(ω)) cos θ dω` over the upper
+    /// hemisphere, summed over pixel centres (pbrt-v4's `k_e` for the
+    /// infinite light's `illuminance` parameter).
+    pub fn upper_hemisphere_illuminance(&self) -> f64 {
+        let (w, h) = (self.width as f64, self.height as f64);
+        let mut sum = 0.0;
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let uv = Vec2::new(((x as f64 + 0.5) / w) as f32, ((y as f64 + 0.5) / h) as f32);
+                let d = self.layout.direction(uv);
+                if d.z > 0.0 {
+                    let pixel = self.pixels[(y * self.width + x) as usize];
+                    let solid_angle = self.layout.solid_angle_per_area(uv) as f64 / (w * h);
+                    sum += crate::luminance(pixel) as f64 * d.z as f64 * solid_angle;
+                }
+            }
+        }
+        sum
+    }
 }
 
 #[cfg(test)]
@@ -184,6 +205,28 @@ mod tests {
         }
         // Equal areas: directions of a regular grid average to (almost) zero.
         assert!((mean / (n * n) as f32).length() < 1e-3, "{mean}");
+    }
+
+    /// A uniform image of radiance 1 casts π on an upward surface, in
+    /// either layout; one bright only below the horizon casts nothing.
+    #[test]
+    fn upper_hemisphere_illuminance_of_uniform_and_lower_skies() {
+        for (w, h, layout) in [(64, 64, EnvLayout::EqualArea), (128, 64, EnvLayout::LatLong)] {
+            let uniform = EnvironmentImage::new(w, h, vec![Rgb::ONE; (w * h) as usize], layout);
+            let e = uniform.upper_hemisphere_illuminance();
+            assert!((e - std::f64::consts::PI).abs() < 0.01, "{layout:?}: {e}");
+            let pixels = (0..w * h)
+                .map(|i| {
+                    let uv = Vec2::new(((i % w) as f32 + 0.5) / w as f32, ((i / w) as f32 + 0.5) / h as f32);
+                    if layout.direction(uv).z < 0.0 {
+                        Rgb::splat(5.0)
+                    } else {
+                        Rgb::ZERO
+                    }
+                })
+                .collect();
+            assert_eq!(EnvironmentImage::new(w, h, pixels, layout).upper_hemisphere_illuminance(), 0.0);
+        }
     }
 
     #[test]

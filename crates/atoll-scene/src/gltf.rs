@@ -32,7 +32,7 @@
 //!   per colour encoding; samplers' wrap modes map to [`Wrap`] (u's when u
 //!   and v differ); `KHR_texture_transform`'s offset and scale join the
 //!   `v` flip into the [`UvMapping`] (rotation is ignored). `TEXCOORD_0`
-//!   gives the meshes' uvs. What is not read (normal, emissive and
+//!   gives the meshes' uvs. What is not read (normal and
 //!   extension textures, textures on other texture coordinates, ...) is
 //!   named in one warning a file; an image that cannot be read leaves its
 //!   material with the factors, after a warning.
@@ -41,7 +41,8 @@
 //!   rendered as stochastic coverage (alpha is the probability that a ray
 //!   hits), which converges to the blend for a single layer.
 //! - **Emission**: `emissiveFactor × KHR_materials_emissive_strength`, when
-//!   non-zero, is a one-sided area light on the primitive's mesh.
+//!   non-zero, is a one-sided area light on the primitive's mesh, scaled
+//!   across it by `emissiveTexture` (sRGB) when there is one.
 //! - **Camera**: the first perspective camera met walking the scene's nodes
 //!   (see [`camera_to_world`] and [`camera_fov_and_resolution`]); without one,
 //!   [`crate::framing`] frames the model.
@@ -101,6 +102,8 @@ struct Loader<'a> {
     /// glTF material index (`None`: the default material) → atoll material
     /// and the alpha mask of the primitives that use it.
     materials: HashMap<Option<usize>, (MaterialId, Option<MeshAlpha>)>,
+    /// glTF material index → its emissive texture, if any.
+    emission_textures: HashMap<Option<usize>, Option<u32>>,
     /// (glTF image index, sRGB) → the decoded image (`None`: unreadable).
     images: HashMap<(usize, bool), Option<ImageId>>,
     /// What the file uses that atoll ignores, named in one warning.
@@ -124,6 +127,7 @@ fn convert(bytes: &[u8], name: &str, base: &Path) -> Result<LoadedScene, SceneEr
         out: LoadedScene::default(),
         w: WarningSink::default(),
         materials: HashMap::new(),
+        emission_textures: HashMap::new(),
         images: HashMap::new(),
         ignored: BTreeSet::new(),
         objects: HashMap::new(),
@@ -218,7 +222,13 @@ impl<'a> Loader<'a> {
         for prim in mesh.primitives() {
             let what = format!("{mesh_name}, primitive {}", prim.index());
             if let Some(m) = self.primitive(&prim, &what)? {
-                meshes.push(self.out.scene.add_mesh(m));
+                let emits = m.emission.is_some();
+                let id = self.out.scene.add_mesh(m);
+                // emissiveTexture scales the emissive factor across the mesh.
+                if let Some(texture) = emits.then(|| self.emission_texture(&prim.material())).flatten() {
+                    self.out.scene.textures.bind_emission(id, texture);
+                }
+                meshes.push(id);
             }
         }
         let object =
@@ -337,6 +347,18 @@ impl<'a> Loader<'a> {
         (id, alpha)
     }
 
+    /// The texture of `m`'s `emissiveTexture` (sRGB), added on first use.
+    fn emission_texture(&mut self, m: &::gltf::Material<'a>) -> Option<u32> {
+        if let Some(&known) = self.emission_textures.get(&m.index()) {
+            return known;
+        }
+        let texture = m.emissive_texture().and_then(|info| self.image_texture(&info, true)).map(
+            |(image, mapping, wrap)| self.add_texture(image_node(image, mapping, wrap, Channel::Rgb, 1.0)),
+        );
+        self.emission_textures.insert(m.index(), texture);
+        texture
+    }
+
     fn add_texture(&mut self, texture: Texture) -> u32 {
         self.out.scene.textures.add(texture)
     }
@@ -448,7 +470,6 @@ impl<'a> Loader<'a> {
         };
         let notes = [
             (m.normal_texture().is_some(), "normal maps"),
-            (m.emissive_texture().is_some(), "emissive textures (the emissive factor is used)"),
             (m.unlit(), "KHR_materials_unlit (shaded as lit)"),
             (m.volume().is_some(), "KHR_materials_volume (transmission is a refracting solid without absorption)"),
             (

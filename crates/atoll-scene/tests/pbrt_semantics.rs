@@ -434,6 +434,38 @@ fn infinite_light_with_an_image() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// pbrt-v4's `illuminance`: an infinite light is scaled so that an upward
+/// (+z in light space) surface receives that illuminance: π·luminance(L)
+/// for a constant one, the image's upper-hemisphere integral for a map.
+#[test]
+fn infinite_light_illuminance_sets_the_upward_illuminance() {
+    let dir = std::env::temp_dir().join(format!("atoll-pbrt-illum-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    exr::prelude::write_rgb_file(dir.join("sky.exr"), 64, 32, |_, y| {
+        if y < 16 {
+            (2.0, 2.0, 2.0)
+        } else {
+            (9.0, 0.0, 0.0)
+        }
+    })
+    .unwrap();
+    let text = r#"WorldBegin
+LightSource "infinite" "rgb L" [0.5 0.5 0.5] "float illuminance" 10 "float scale" 2
+LightSource "infinite" "string filename" "sky.exr" "float illuminance" 10
+"#;
+    let loaded = atoll_scene::pbrt::load_str(text, "env.pbrt", &dir).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let Light::Infinite { radiance } = loaded.scene.lights[0] else { panic!("{:?}", loaded.scene.lights) };
+    // 0.5 * 2 * 10 / (π * 0.5): illuminance 2 × 10 with the scale.
+    assert_close(radiance, Vec3::splat(20.0 / std::f32::consts::PI), 1e-5);
+    let Light::Environment { image, scale, .. } = &loaded.scene.lights[1] else { panic!() };
+    // The upper half (rows 0..16 of a lat-long map) is a uniform 2: E = 2π.
+    let e = image.upper_hemisphere_illuminance() * scale.x as f64;
+    assert!((e - 10.0).abs() < 0.05, "{e}");
+    assert!((scale.x - 10.0 / (2.0 * std::f32::consts::PI)).abs() < 0.01, "{scale}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `loopsubdiv` is refined at load (4^levels triangles per control
 /// triangle, smooth normals); `bilinearmesh` patches become triangles.
 #[test]

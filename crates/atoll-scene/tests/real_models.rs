@@ -159,8 +159,8 @@ fn gltf_box_textured_in_three_packagings() {
 
 /// KHR_materials_clearcoat's test model: clearcoat factors, a
 /// metallicRoughnessTexture bound to metallic (blue) and roughness (green),
-/// a BLEND material with a textured alpha, and the textures atoll ignores
-/// named in one warning.
+/// a BLEND material with a textured alpha, emissive labels scaled by their
+/// emissiveTexture, and the textures atoll ignores named in one warning.
 #[test]
 fn gltf_clearcoat_test_binds_metallic_roughness_and_blends() {
     let Some(p) = assimp("glTF2/ClearCoat-glTF/ClearCoatTest.gltf") else { return };
@@ -216,9 +216,18 @@ fn gltf_clearcoat_test_binds_metallic_roughness_and_blends() {
     assert!(t.images[image as usize].has_alpha());
     let w: Vec<&str> = l.warnings.iter().map(|w| w.message.as_str()).collect();
     assert_eq!(w.len(), 1, "{w:?}");
-    for part in ["normal maps", "clearcoat normal maps", "clearcoat and sheen textures", "emissive textures"]
-    {
+    for part in ["normal maps", "clearcoat normal maps", "clearcoat and sheen textures"] {
         assert!(w[0].starts_with("not supported, ignored: ") && w[0].contains(part), "{part}: {w:?}");
+    }
+    // LabelMaterial: emissive factor 1 scaled by its emissiveTexture (sRGB) on the label meshes.
+    let emissive: Vec<usize> = (0..s.meshes.len()).filter(|&m| s.meshes[m].emission.is_some()).collect();
+    assert!(!emissive.is_empty());
+    for m in emissive {
+        let e = t.emission_of(m as u32).expect("the label's emission is textured");
+        let Texture::Image { image, channel: Channel::Rgb, .. } = t.textures[e as usize] else {
+            panic!("{:?}", t.textures[e as usize])
+        };
+        assert!(matches!(t.images[image as usize].texels, Texels::Rgba8 { srgb: true, .. }));
     }
 }
 

@@ -423,6 +423,18 @@ pub fn light(
         "infinite" => {
             let l = p.spectrum("L", false)?;
             let scale = p.float_or("scale", 1.0)?;
+            // pbrt-v4's "illuminance": scale the light so that a surface
+            // facing up (+z in the light's space) receives this illuminance
+            // (luminance units; atoll renders RGB, so the light's luminance
+            // stands for pbrt's photometric normalisation).
+            let illuminance = p.float_or("illuminance", -1.0)?;
+            let normalise = |k_e: f64| -> f32 {
+                if illuminance > 0.0 && k_e > 0.0 {
+                    (illuminance as f64 / k_e) as f32
+                } else {
+                    1.0
+                }
+            };
             // pbrt-v3 called the environment map "mapname".
             let filename = match p.string("filename")? {
                 Some(f) => Some(f),
@@ -435,11 +447,10 @@ pub fn light(
                 ));
             }
             if let Some(f) = filename {
-                // The image's radiance times `scale` (pbrt-v4 also
-                // normalises by the image's illuminance when "illuminance"
-                // is given; that parameter is not supported).
+                // The image's radiance times `scale`.
                 match crate::EnvironmentImage::load(&base_dir.join(&f)) {
                     Ok(image) => {
+                        let scale = scale * normalise(image.upper_hemisphere_illuminance());
                         let m = glam::DMat3::from_mat4(*ctm).as_mat3();
                         // Columns normalised: the light's rotation without any scale.
                         let light_to_world = glam::Mat3::from_cols(
@@ -456,8 +467,9 @@ pub fn light(
                     Err(e) => w.warn(loc, format!("{what}: {e}; using constant white instead")),
                 }
             }
-            let radiance = l.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE) * scale;
-            Light::Infinite { radiance }
+            let l = l.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let k_e = std::f64::consts::PI * crate::luminance(l) as f64;
+            Light::Infinite { radiance: l * scale * normalise(k_e) }
         }
         _ => {
             p.mark_all_used();
