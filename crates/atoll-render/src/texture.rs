@@ -302,11 +302,20 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (MaterialKind::CoatedDiffuse, P::Roughness) => vec![(3, roughness), (4, roughness)],
         (MaterialKind::CoatedDiffuse, P::URoughness) => vec![(3, roughness)],
         (MaterialKind::CoatedDiffuse, P::VRoughness) => vec![(4, roughness)],
+        (MaterialKind::CoatedDiffuse, P::Thickness) => vec![(6, store::FLOAT)],
+        (MaterialKind::CoatedDiffuse, P::Albedo) => vec![(7, store::RGB)],
+        (MaterialKind::CoatedDiffuse, P::G) => vec![(10, store::FLOAT)],
         // Base colour, metallic, and perceptual roughness (never remapped:
         // the principled BSDF squares it itself).
         (MaterialKind::Principled, P::Reflectance) => vec![(0, store::RGB)],
         (MaterialKind::Principled, P::Metallic) => vec![(3, store::FLOAT)],
         (MaterialKind::Principled, P::Roughness) => vec![(4, store::FLOAT)],
+        (MaterialKind::Principled, P::SpecularTint) => vec![(6, store::FLOAT)],
+        (MaterialKind::Principled, P::Sheen) => vec![(7, store::FLOAT)],
+        (MaterialKind::Principled, P::SheenTint) => vec![(8, store::FLOAT)],
+        (MaterialKind::Principled, P::Clearcoat) => vec![(9, store::FLOAT)],
+        (MaterialKind::Principled, P::ClearcoatGloss) => vec![(10, store::FLOAT)],
+        (MaterialKind::Principled, P::Transmission) => vec![(11, store::FLOAT)],
         _ => Vec::new(),
     }
 }
@@ -709,5 +718,110 @@ mod tests {
             st.keeps(mesh, 0, 0.2, 0.2, 1.0, o, Vec3A::Z),
             st.keeps(mesh, 0, 0.2, 0.2, 1.0, o, Vec3A::Z)
         );
+    }
+}
+
+#[cfg(test)]
+mod binding_tests {
+    use super::*;
+    use crate::material_coeffs::PackedMaterial;
+    use atoll_scene::{Rgb, TextureBinding};
+
+    /// A parameter bound to a constant texture of value `v` packs like the
+    /// material with that parameter set to `v`: every store target is the
+    /// coefficient the material layout gives the parameter.
+    #[test]
+    fn constant_textures_store_like_material_values() {
+        let principled = Material::Principled {
+            base_color: Rgb::splat(0.5),
+            metallic: 0.0,
+            roughness: 0.5,
+            specular: 0.5,
+            specular_tint: 0.0,
+            sheen: 0.0,
+            sheen_tint: 0.5,
+            clearcoat: 0.0,
+            clearcoat_gloss: 1.0,
+            transmission: 0.0,
+            eta: 1.5,
+        };
+        let coated = Material::CoatedDiffuse {
+            reflectance: Rgb::splat(0.5),
+            eta: 1.5,
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+            thickness: 0.01,
+            albedo: Rgb::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            n_samples: 1,
+        };
+        let v = Rgb::new(0.25, 0.375, 0.625);
+        let s = v.x;
+        use TexturedParam as P;
+        // (material, parameter, texture value, the material with the value set)
+        let set = |m: &Material, f: &dyn Fn(&mut Material)| {
+            let mut m = m.clone();
+            f(&mut m);
+            m
+        };
+        macro_rules! field {
+            ($m:expr, $variant:ident, $field:ident, $value:expr) => {
+                set(&$m, &|m| {
+                    if let Material::$variant { $field, .. } = m {
+                        *$field = $value;
+                    }
+                })
+            };
+        }
+        let cases: Vec<(Material, P, Rgb, Material)> = vec![
+            (Material::default_diffuse(), P::Reflectance, v, Material::Diffuse { reflectance: v }),
+            (
+                Material::DiffuseTransmission { reflectance: Rgb::ONE, transmittance: Rgb::ONE },
+                P::Transmittance,
+                v,
+                Material::DiffuseTransmission { reflectance: Rgb::ONE, transmittance: v },
+            ),
+            (coated.clone(), P::Reflectance, v, field!(coated, CoatedDiffuse, reflectance, v)),
+            (coated.clone(), P::Albedo, v, field!(coated, CoatedDiffuse, albedo, v)),
+            (coated.clone(), P::Thickness, Rgb::splat(s), field!(coated, CoatedDiffuse, thickness, s)),
+            (coated.clone(), P::G, Rgb::splat(s), field!(coated, CoatedDiffuse, g, s)),
+            (principled.clone(), P::Reflectance, v, field!(principled, Principled, base_color, v)),
+            (principled.clone(), P::Metallic, Rgb::splat(s), field!(principled, Principled, metallic, s)),
+            (principled.clone(), P::Roughness, Rgb::splat(s), field!(principled, Principled, roughness, s)),
+            (
+                principled.clone(),
+                P::SpecularTint,
+                Rgb::splat(s),
+                field!(principled, Principled, specular_tint, s),
+            ),
+            (principled.clone(), P::Sheen, Rgb::splat(s), field!(principled, Principled, sheen, s)),
+            (principled.clone(), P::SheenTint, Rgb::splat(s), field!(principled, Principled, sheen_tint, s)),
+            (principled.clone(), P::Clearcoat, Rgb::splat(s), field!(principled, Principled, clearcoat, s)),
+            (
+                principled.clone(),
+                P::ClearcoatGloss,
+                Rgb::splat(s),
+                field!(principled, Principled, clearcoat_gloss, s),
+            ),
+            (
+                principled.clone(),
+                P::Transmission,
+                Rgb::splat(s),
+                field!(principled, Principled, transmission, s),
+            ),
+        ];
+        for (base, param, value, expected) in cases {
+            let mut scene = Scene::default();
+            let m = scene.add_material(base.clone());
+            let t = scene.textures.add(Texture::Constant(value));
+            scene.textures.bind(TextureBinding { material: m, param, texture: t, remap_roughness: false });
+            let packed = PackedMaterial::pack(&base);
+            let tables = TextureTables::new(&scene, &[packed.kind]);
+            assert!(!tables.materials[0].is_empty(), "{param:?} on {base:?} was dropped");
+            let mut coeffs = packed.coeffs;
+            SceneTextures { scene: &scene, tables: &tables }.apply(m, Vec2::ZERO, &mut coeffs);
+            assert_eq!(coeffs, PackedMaterial::pack(&expected).coeffs, "{param:?} on {base:?}");
+        }
     }
 }

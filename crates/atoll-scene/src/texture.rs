@@ -372,6 +372,17 @@ pub enum TexturedParam {
     VRoughness,
     /// Principled metalness.
     Metallic,
+    /// Coated diffuse: the medium's thickness, albedo and asymmetry `g`.
+    Thickness,
+    Albedo,
+    G,
+    /// Principled weights (pbrt-v3 `disney` names in [`TexturedParam::pbrt_name`]).
+    SpecularTint,
+    Sheen,
+    SheenTint,
+    Clearcoat,
+    ClearcoatGloss,
+    Transmission,
 }
 
 impl TexturedParam {
@@ -384,6 +395,15 @@ impl TexturedParam {
             TexturedParam::URoughness => "uroughness",
             TexturedParam::VRoughness => "vroughness",
             TexturedParam::Metallic => "metallic",
+            TexturedParam::Thickness => "thickness",
+            TexturedParam::Albedo => "albedo",
+            TexturedParam::G => "g",
+            TexturedParam::SpecularTint => "speculartint",
+            TexturedParam::Sheen => "sheen",
+            TexturedParam::SheenTint => "sheentint",
+            TexturedParam::Clearcoat => "clearcoat",
+            TexturedParam::ClearcoatGloss => "clearcoatgloss",
+            TexturedParam::Transmission => "spectrans",
         }
     }
 }

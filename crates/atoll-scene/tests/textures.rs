@@ -373,3 +373,28 @@ fn area_light_images_bind_emission_textures() {
     assert!(w.contains("t.pbrt:7") && w.contains("nope.png"), "{w}");
     assert!(w.contains("both \"L\" and \"filename\""), "{w}");
 }
+
+/// coateddiffuse's medium parameters may be textures too: bound per hit,
+/// the material keeping pbrt's defaults.
+#[test]
+fn coated_diffuse_medium_textures_are_bound() {
+    let dir = temp_dir("tex-coated");
+    let l = load(
+        &dir,
+        &format!(
+            "Texture \"f\" \"float\" \"constant\" \"float value\" 0.3\n\
+             Texture \"c\" \"spectrum\" \"constant\" \"rgb value\" [0.9 0.5 0.1]\n\
+             Material \"coateddiffuse\" \"texture thickness\" \"f\" \"texture albedo\" \"c\" \"texture g\" \"f\"\n{TRI}"
+        ),
+    );
+    let mut bound: Vec<TexturedParam> = bindings(&l, 0).into_iter().map(|(p, _, _)| p).collect();
+    bound.sort_by_key(|p| *p as u32);
+    assert_eq!(bound, [TexturedParam::Thickness, TexturedParam::Albedo, TexturedParam::G]);
+    let Material::CoatedDiffuse { thickness, albedo, g, .. } =
+        l.scene.materials[l.scene.meshes[0].material as usize]
+    else {
+        panic!()
+    };
+    assert_eq!((thickness, albedo, g), (0.01, Rgb::ZERO, 0.0));
+    assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
+}

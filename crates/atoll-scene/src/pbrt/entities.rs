@@ -224,13 +224,17 @@ pub(super) fn coated_diffuse(
     let reflectance = reflectance_param(p, base, TexturedParam::Reflectance, default, what, loc, w, tex)?;
     let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w, tex)?;
     let eta = dielectric_eta(p, what, loc, w)?;
-    // Per-hit textures reach the reflectance and roughness only.
+    // A textured medium parameter keeps its default here, bound per hit.
+    let medium = |tex: &mut TexCtx, input: Option<TexInput>, param, default: Rgb| match input {
+        Some(input) => tex.value_or_bind(input, param, default),
+        None => default,
+    };
     let thickness = tex.float(p, "thickness", what, loc, w)?;
-    let thickness = untextured(thickness, "thickness", Rgb::splat(0.01), what, loc, w).x;
+    let thickness = medium(tex, thickness, TexturedParam::Thickness, Rgb::splat(0.01)).x;
     let albedo = tex.spectrum(p, "albedo", what, loc, w)?;
-    let albedo = untextured(albedo, "albedo", Rgb::ZERO, what, loc, w);
+    let albedo = medium(tex, albedo, TexturedParam::Albedo, Rgb::ZERO);
     let g = tex.float(p, "g", what, loc, w)?;
-    let g = untextured(g, "g", Rgb::ZERO, what, loc, w).x;
+    let g = medium(tex, g, TexturedParam::G, Rgb::ZERO).x;
     let count = |name: &str, default: i64, min: i64| -> Result<u32, SceneError> {
         let v = p.int(name)?.unwrap_or(default);
         let max = Material::COATED_MAX_COUNT as i64;
@@ -252,26 +256,6 @@ pub(super) fn coated_diffuse(
         max_depth,
         n_samples,
     })
-}
-
-/// The value of a parameter that cannot be textured: `default` when
-/// absent, and after a warning when a texture is given.
-fn untextured(
-    input: Option<TexInput>,
-    name: &str,
-    default: Rgb,
-    what: &str,
-    loc: &FileLoc,
-    w: &mut WarningSink,
-) -> Rgb {
-    match input {
-        Some(TexInput::Value(v)) => v,
-        Some(TexInput::Texture(_)) => {
-            w.warn(loc, format!("{what}: a texture for \"{name}\" is not supported; using {}", default.x));
-            default
-        }
-        None => default,
-    }
 }
 
 /// A dielectric's `eta` in any of its spellings (default 1.5).

@@ -183,12 +183,12 @@ pub fn disney(
     let metallic = float("metallic", 0.0, Some(TexturedParam::Metallic), w)?;
     let roughness = float("roughness", 0.5, Some(TexturedParam::Roughness), w)?;
     let eta = float("eta", 1.5, None, w)?;
-    let specular_tint = float("speculartint", 0.0, None, w)?;
-    let sheen = float("sheen", 0.0, None, w)?;
-    let sheen_tint = float("sheentint", 0.5, None, w)?;
-    let clearcoat = float("clearcoat", 0.0, None, w)?;
-    let clearcoat_gloss = float("clearcoatgloss", 1.0, None, w)?;
-    let transmission = float("spectrans", 0.0, None, w)?;
+    let specular_tint = float("speculartint", 0.0, Some(TexturedParam::SpecularTint), w)?;
+    let sheen = float("sheen", 0.0, Some(TexturedParam::Sheen), w)?;
+    let sheen_tint = float("sheentint", 0.5, Some(TexturedParam::SheenTint), w)?;
+    let clearcoat = float("clearcoat", 0.0, Some(TexturedParam::Clearcoat), w)?;
+    let clearcoat_gloss = float("clearcoatgloss", 1.0, Some(TexturedParam::ClearcoatGloss), w)?;
+    let transmission = float("spectrans", 0.0, Some(TexturedParam::Transmission), w)?;
     let anisotropic = float("anisotropic", 0.0, None, w)?;
     if !(eta.is_finite() && eta > 0.0) {
         return Err(SceneError::at(loc, format!("{what}: \"eta\" must be positive, not {eta}")));
