@@ -66,7 +66,16 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         float u = stream_bounce(sample_stream(p.seed, record->pixel, record->sample), record->depth,
                                 BOUNCE_DIM_MATERIAL_CHOICE, 0);
         for (unsigned int level = 0; level < MAX_MIX_DEPTH && meta.x == MATERIAL_MIX; ++level) {
-            const float amount = __uint_as_float(meta.w);
+            float amount = __uint_as_float(meta.w);
+#if ATOLL_WITH_TEXTURES
+            // A textured amount: its program's range in the first two words.
+            if (c0.y != 0u) {
+                ProgramRange range;
+                range.start = c0.x;
+                range.len = c0.y;
+                amount = clampf(run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), nullptr).x, 0.0f, 1.0f);
+            }
+#endif
             unsigned int next;
             if (u < amount) {
                 next = meta.z;

@@ -171,14 +171,21 @@ pub struct GpuMaterial {
 
 impl GpuMaterial {
     /// For a `mix`, `pad` holds its two material ids and the probability of
-    /// the second (f32 bits); otherwise the start and length of its texture
-    /// program (`textures`): see `write_surface`.
-    pub fn new(m: &PackedMaterial, textures: ProgramRange) -> Self {
+    /// the second (f32 bits), and the first two coefficient words the start
+    /// and length of its amount's texture program (`mix_amount`); otherwise
+    /// `pad` holds the start and length of its texture program (`textures`):
+    /// see `write_surface`.
+    pub fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
+        let mut coeffs = m.coeffs.map(|c| c.to_bits());
         let pad = match m.mix {
-            Some(([a, b], amount)) => [a, b, amount.to_bits()],
+            Some(([a, b], amount)) => {
+                let words = [mix_amount.start, mix_amount.len];
+                coeffs[..4].copy_from_slice(bytemuck::cast_slice(&words));
+                [a, b, amount.to_bits()]
+            }
             None => [textures.start, textures.len, 0],
         };
-        GpuMaterial { coeffs: m.coeffs.map(|c| c.to_bits()), kind: m.kind as u32, pad }
+        GpuMaterial { coeffs, kind: m.kind as u32, pad }
     }
 
     pub fn field_layout() -> FieldLayout {
@@ -464,8 +471,8 @@ impl FrameTables {
             materials: frame
                 .materials
                 .iter()
-                .zip(&frame.textures.materials)
-                .map(|(m, t)| GpuMaterial::new(m, *t))
+                .zip(frame.textures.materials.iter().zip(&frame.textures.mix_amount))
+                .map(|(m, (t, amount))| GpuMaterial::new(m, *t, *amount))
                 .collect(),
             texture_ops: bytemuck::cast_slice(&frame.textures.ops)
                 .iter()

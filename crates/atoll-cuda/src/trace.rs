@@ -40,7 +40,12 @@ impl TraceFeatures {
     pub fn of(frame: &atoll_render::FrameContext) -> Self {
         TraceFeatures {
             alpha: frame.textures.has_alpha(),
-            textures: frame.textures.materials.iter().any(|r| !r.is_empty())
+            textures: frame
+                .textures
+                .materials
+                .iter()
+                .chain(&frame.textures.mix_amount)
+                .any(|r| !r.is_empty())
                 || !frame.lights.emission_ops.is_empty(),
         }
     }

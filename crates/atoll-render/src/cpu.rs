@@ -173,12 +173,12 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     };
     r.emission_scale =
         if r.light != NO_LIGHT { frame.lights.emission_scale(r.light, hit.u, hit.v) } else { 0 };
-    let (material, packed) = frame.material_at(mesh.material, r);
-    packed.store(r);
     let textures = res.textures(frame);
+    let uv = || textures.uv(hit.mesh, hit.triangle, hit.u, hit.v);
+    let (material, packed) = frame.material_at(mesh.material, r, uv);
+    packed.store(r);
     if !frame.textures.materials[material as usize].is_empty() {
-        let uv = textures.uv(hit.mesh, hit.triangle, hit.u, hit.v);
-        textures.apply(material, uv, &mut r.coeffs);
+        textures.apply(material, uv(), &mut r.coeffs);
     }
 }
 

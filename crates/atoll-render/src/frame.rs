@@ -1,15 +1,18 @@
 //! What a frame is rendered with: options from the command line and scene,
 //! and the context every device holds a copy of (camera, lights, materials).
 
-use atoll_scene::{IntegratorSettings, Scene};
-use glam::UVec2;
+use std::sync::Arc;
+
+use atoll_scene::{IntegratorSettings, Scene, TextureImage};
+use glam::{UVec2, Vec2};
 
 use crate::camera::CameraRays;
 use crate::lights::LightSet;
 use crate::material_coeffs::PackedMaterial;
 use crate::record::RayRecord;
+use crate::record::MATERIAL_COEFFS;
 use crate::rng::{BounceDim, SampleStream};
-use crate::texture::TextureTables;
+use crate::texture::{run_program, TextureTables};
 
 /// Most nested `mix` materials a hit resolves.
 pub const MAX_MIX_DEPTH: u32 = 8;
@@ -65,6 +68,8 @@ pub struct FrameContext {
     pub materials: Vec<PackedMaterial>,
     /// Textured material parameters and alpha masks as programs.
     pub textures: TextureTables,
+    /// The scene's texture images (shared), which the programs read.
+    pub images: Vec<Arc<TextureImage>>,
 }
 
 impl FrameContext {
@@ -75,6 +80,7 @@ impl FrameContext {
             camera: CameraRays::new(&scene.settings.camera, options.resolution),
             lights: LightSet::new(scene),
             textures: TextureTables::new(scene, &kinds),
+            images: scene.textures.images.clone(),
             materials,
             options,
         }
@@ -84,8 +90,10 @@ impl FrameContext {
     /// `id`: the material itself, or for a `mix` one of its two, chosen with
     /// the vertex's [`BounceDim::MaterialChoice`] number (nested mixes reuse
     /// what is left of it, rescaled). The GPU's `write_surface` mirrors it.
-    /// Returns the chosen material's id with it (its textures apply).
-    pub fn material_at(&self, id: u32, r: &RayRecord) -> (u32, &PackedMaterial) {
+    /// Returns the chosen material's id with it (its textures apply). A
+    /// mix whose amount is a texture evaluates it at the hit's `uv`
+    /// (computed only then).
+    pub fn material_at(&self, id: u32, r: &RayRecord, uv: impl Fn() -> Vec2) -> (u32, &PackedMaterial) {
         let mut id = id;
         let mut m = &self.materials[id as usize];
         if m.mix.is_none() {
@@ -99,6 +107,14 @@ impl FrameContext {
         // Bounded: a mix that (indirectly) contains itself stops somewhere.
         for _ in 0..MAX_MIX_DEPTH {
             let Some(([first, second], amount)) = m.mix else { break };
+            let program = self.textures.mix_amount[id as usize];
+            let amount = if program.is_empty() {
+                amount
+            } else {
+                let ops = &self.textures.ops[program.start as usize..(program.start + program.len) as usize];
+                let value = run_program(ops, &self.images, uv(), &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
+                value.clamp(0.0, 1.0)
+            };
             if u < amount {
                 id = second;
                 u /= amount;
@@ -169,8 +185,12 @@ mod tests {
         for i in 0..n {
             let mut r = RayRecord::zeroed();
             (r.pixel, r.sample, r.depth) = (i, i % 7, (i % 3) as u16);
-            let chosen = frame.material_at(abc, &r).1.coeffs[0].to_f32();
-            assert_eq!(frame.material_at(abc, &r).1.coeffs[0].to_f32(), chosen, "deterministic");
+            let chosen = frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[0].to_f32();
+            assert_eq!(
+                frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[0].to_f32(),
+                chosen,
+                "deterministic"
+            );
             *counts.entry((chosen * 10.0).round() as u32).or_insert(0u32) += 1;
         }
         // c half the time; of the other half, b a quarter.
@@ -178,7 +198,30 @@ mod tests {
             let share = counts[&key] as f64 / n as f64;
             assert!((share - expected).abs() < 0.01, "material {key}: {share} vs {expected}");
         }
+        // A textured amount chooses by the texture at the hit: a checkerboard
+        // of 0 and 1 picks the first material on even squares, the second on odd.
+        let checker = scene.textures.add(atoll_scene::Texture::Checkerboard {
+            mapping: atoll_scene::UvMapping::default(),
+            tex: [atoll_scene::TexInput::Value(Rgb::ZERO), atoll_scene::TexInput::Value(Rgb::ONE)],
+        });
+        let textured = scene.add_material(Material::Mix { materials: [a, b], amount: 0.5 });
+        scene.textures.bind(atoll_scene::TextureBinding {
+            material: textured,
+            param: atoll_scene::TexturedParam::Amount,
+            texture: checker,
+            remap_roughness: false,
+        });
+        let frame = FrameContext::new(&scene, RenderOptions::from_scene(&scene));
+        for i in 0..200 {
+            let mut r = RayRecord::zeroed();
+            (r.pixel, r.sample) = (i, 3);
+            assert_eq!(frame.material_at(textured, &r, || Vec2::new(0.5, 0.5)).0, a);
+            assert_eq!(frame.material_at(textured, &r, || Vec2::new(1.5, 0.5)).0, b);
+        }
         // A plain material is itself.
-        assert_eq!(frame.material_at(a, &RayRecord::zeroed()), (a, &frame.materials[a as usize]));
+        assert_eq!(
+            frame.material_at(a, &RayRecord::zeroed(), || Vec2::ZERO),
+            (a, &frame.materials[a as usize])
+        );
     }
 }

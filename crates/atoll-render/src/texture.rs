@@ -116,6 +116,9 @@ pub struct TextureTables {
     pub ops: Vec<TexOp>,
     /// By material id: the program storing its textured parameters.
     pub materials: Vec<ProgramRange>,
+    /// By material id: for a `mix` with a textured amount, the program
+    /// leaving the amount on the stack.
+    pub mix_amount: Vec<ProgramRange>,
     /// By scene mesh id; empty when no mesh has alpha.
     pub mesh_alpha: Vec<AlphaProgram>,
 }
@@ -126,9 +129,29 @@ impl TextureTables {
     /// [`TEXTURE_STACK`], are dropped with a warning.
     pub fn new(scene: &Scene, kinds: &[MaterialKind]) -> Self {
         let textures = &scene.textures;
-        let mut tables =
-            TextureTables { materials: vec![ProgramRange::default(); kinds.len()], ..Default::default() };
+        let mut tables = TextureTables {
+            materials: vec![ProgramRange::default(); kinds.len()],
+            mix_amount: vec![ProgramRange::default(); kinds.len()],
+            ..Default::default()
+        };
         for (id, kind) in kinds.iter().enumerate() {
+            if *kind == MaterialKind::Mix {
+                let amount = textures.bindings_of(id as u32).find(|b| b.param == TexturedParam::Amount);
+                if let Some(b) = amount {
+                    let start = tables.ops.len() as u32;
+                    match compile(scene, b.texture, &mut tables.ops, 0, 0) {
+                        Ok(()) => {
+                            tables.mix_amount[id] =
+                                ProgramRange { start, len: tables.ops.len() as u32 - start }
+                        }
+                        Err(e) => {
+                            tables.ops.truncate(start as usize);
+                            tracing::warn!("material {id}: texture for \"amount\": {e}; ignored");
+                        }
+                    }
+                }
+                continue;
+            }
             let start = tables.ops.len() as u32;
             for binding in textures.bindings_of(id as u32) {
                 let targets = store_targets(*kind, binding.param, binding.remap_roughness);
@@ -201,7 +224,7 @@ impl TextureTables {
     /// Bytes the GPU holds for these tables (images not included).
     pub fn bytes(&self) -> u64 {
         (self.ops.len() * std::mem::size_of::<TexOp>()
-            + self.materials.len() * 8
+            + (self.materials.len() + self.mix_amount.len()) * 8
             + self.mesh_alpha.len() * std::mem::size_of::<AlphaProgram>()) as u64
     }
 }
@@ -292,6 +315,8 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (MaterialKind::DiffuseTransmission, P::Reflectance) => vec![(0, store::RGB)],
         (MaterialKind::DiffuseTransmission, P::Transmittance) => vec![(3, store::RGB)],
         (MaterialKind::Conductor, P::Reflectance) => vec![(0, store::CONDUCTOR_REFLECTANCE)],
+        (MaterialKind::Conductor, P::Eta) => vec![(0, store::RGB)],
+        (MaterialKind::Conductor, P::K) => vec![(3, store::RGB)],
         (MaterialKind::Conductor, P::Roughness) => vec![(6, roughness), (7, roughness)],
         (MaterialKind::Conductor, P::URoughness) => vec![(6, roughness)],
         (MaterialKind::Conductor, P::VRoughness) => vec![(7, roughness)],
@@ -774,8 +799,15 @@ mod binding_tests {
                 })
             };
         }
+        let conductor = Material::Conductor { eta: Rgb::ONE, k: Rgb::ONE, alpha_x: 0.0, alpha_y: 0.0 };
         let cases: Vec<(Material, P, Rgb, Material)> = vec![
             (Material::default_diffuse(), P::Reflectance, v, Material::Diffuse { reflectance: v }),
+            (conductor.clone(), P::Eta, v, field!(conductor, Conductor, eta, v)),
+            (conductor.clone(), P::K, v, field!(conductor, Conductor, k, v)),
+            (conductor.clone(), P::Roughness, Rgb::splat(s), {
+                let m = field!(conductor, Conductor, alpha_x, s);
+                field!(m, Conductor, alpha_y, s)
+            }),
             (
                 Material::DiffuseTransmission { reflectance: Rgb::ONE, transmittance: Rgb::ONE },
                 P::Transmittance,

@@ -372,6 +372,12 @@ pub enum TexturedParam {
     VRoughness,
     /// Principled metalness.
     Metallic,
+    /// A `mix` material's probability of its second material (read as a
+    /// float: the first channel).
+    Amount,
+    /// Conductor's complex index of refraction (spectrum textures).
+    Eta,
+    K,
     /// Coated diffuse: the medium's thickness, albedo and asymmetry `g`.
     Thickness,
     Albedo,
@@ -395,6 +401,9 @@ impl TexturedParam {
             TexturedParam::URoughness => "uroughness",
             TexturedParam::VRoughness => "vroughness",
             TexturedParam::Metallic => "metallic",
+            TexturedParam::Amount => "amount",
+            TexturedParam::Eta => "eta",
+            TexturedParam::K => "k",
             TexturedParam::Thickness => "thickness",
             TexturedParam::Albedo => "albedo",
             TexturedParam::G => "g",

@@ -48,11 +48,26 @@ fn quad(x0: f32, x1: f32, y0: f32, y1: f32, z: f32, material: u32) -> TriangleMe
 /// The scene, seen from `eye` (above the screen sees it and the ground
 /// through its holes; below it sees only the ground and the shadow).
 /// The ground is textured with a checkerboard of two whites (0.8 and 0.6
-/// reflectance, 1-unit squares), which also exercises textured parameters.
+/// reflectance, 1-unit squares), and the screen is a `mix` of two materials
+/// chosen by a checkerboard texture, which exercises textured parameters.
 pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
     let mut scene = Scene::default();
     let ground_material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.5) });
-    let screen_material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.05) });
+    // The screen: dark grey or dark red in a checkerboard, a `mix` whose
+    // amount is a texture (0 or 1: the choice is exact on every device).
+    let dark = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.05) });
+    let red = scene.add_material(Material::Diffuse { reflectance: Rgb::new(0.3, 0.02, 0.02) });
+    let screen_material = scene.add_material(Material::Mix { materials: [dark, red], amount: 0.5 });
+    let squares = scene.textures.add(Texture::Checkerboard {
+        mapping: UvMapping { su: 0.5, sv: 0.5, du: 0.0, dv: 0.0 },
+        tex: [crate::TexInput::Value(Rgb::ZERO), crate::TexInput::Value(Rgb::ONE)],
+    });
+    scene.textures.bind(TextureBinding {
+        material: screen_material,
+        param: TexturedParam::Amount,
+        texture: squares,
+        remap_roughness: false,
+    });
     let checker = scene.textures.add(Texture::Checkerboard {
         mapping: UvMapping::default(),
         tex: [crate::TexInput::Value(Rgb::splat(0.8)), crate::TexInput::Value(Rgb::splat(0.6))],

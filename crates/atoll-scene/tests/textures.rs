@@ -398,3 +398,43 @@ fn coated_diffuse_medium_textures_are_bound() {
     assert_eq!((thickness, albedo, g), (0.01, Rgb::ZERO, 0.0));
     assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
 }
+
+/// A conductor's `eta` and `k` may be spectrum textures (pbrt-v4): bound
+/// per hit, copper's values kept in the material.
+#[test]
+fn conductor_eta_and_k_textures_are_bound() {
+    let dir = temp_dir("tex-conductor");
+    let l = load(
+        &dir,
+        &format!(
+            "Texture \"e\" \"spectrum\" \"constant\" \"rgb value\" [0.2 0.9 1.1]\n\
+             Material \"conductor\" \"texture eta\" \"e\" \"texture k\" \"e\"\n{TRI}"
+        ),
+    );
+    let bound: Vec<TexturedParam> = bindings(&l, 0).into_iter().map(|(p, _, _)| p).collect();
+    assert_eq!(bound, [TexturedParam::Eta, TexturedParam::K]);
+    assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
+}
+
+/// A `mix` material's `amount` may be a float texture (pbrt-v4): bound to
+/// the mix, chosen per hit; the constant stays 0.5.
+#[test]
+fn mix_amount_textures_are_bound() {
+    let dir = temp_dir("tex-mix");
+    let l = load(
+        &dir,
+        &format!(
+            "Texture \"f\" \"float\" \"checkerboard\" \"float tex1\" 0 \"float tex2\" 1\n\
+             MakeNamedMaterial \"a\" \"string type\" \"diffuse\"\n\
+             MakeNamedMaterial \"b\" \"string type\" \"conductor\"\n\
+             Material \"mix\" \"string materials\" [\"a\" \"b\"] \"texture amount\" \"f\"\n{TRI}"
+        ),
+    );
+    let bound: Vec<TexturedParam> = bindings(&l, 0).into_iter().map(|(p, _, _)| p).collect();
+    assert_eq!(bound, [TexturedParam::Amount]);
+    let Material::Mix { amount, .. } = l.scene.materials[l.scene.meshes[0].material as usize] else {
+        panic!()
+    };
+    assert_eq!(amount, 0.5);
+    assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
+}

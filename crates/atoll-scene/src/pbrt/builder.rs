@@ -482,8 +482,8 @@ impl Builder {
                 }
             }
             E::Material if name == "mix" => {
-                let material = self.mix(&p, "Material \"mix\"", &loc)?;
-                self.anonymous.push(MaterialSlot { material, bindings: Vec::new(), id: None });
+                let slot = self.mix(&p, "Material \"mix\"", &loc)?;
+                self.anonymous.push(slot);
                 self.gs.material = MaterialRef::Anonymous(self.anonymous.len() - 1);
             }
             E::Material => {
@@ -502,8 +502,7 @@ impl Builder {
                     return Err(SceneError::at(&loc, format!("named material \"{name}\" is defined twice")));
                 }
                 let slot = if ty == "mix" {
-                    let material = self.mix(&p, &format!("mix \"{name}\""), &loc)?;
-                    MaterialSlot { material, bindings: Vec::new(), id: None }
+                    self.mix(&p, &format!("mix \"{name}\""), &loc)?
                 } else {
                     self.material(&ty, &p, &loc)?
                 };
@@ -597,7 +596,15 @@ impl Builder {
     /// A `mix` of two named materials (pbrt-v4's `string materials`,
     /// pbrt-v3's `namedmaterial1/2`), both added to the scene now. A name
     /// not defined before the mix becomes diffuse 0.5, with a warning.
-    fn mix(&mut self, p: &ParamList, what: &str, loc: &FileLoc) -> Result<Material, SceneError> {
+    fn mix(&mut self, p: &ParamList, what: &str, loc: &FileLoc) -> Result<MaterialSlot, SceneError> {
+        // pbrt-v4's `amount` may be a float texture: bound per hit.
+        let mut bindings = Vec::new();
+        if p.find("amount", &[ParamType::Texture]).is_some() {
+            let tex = TexCtx::new(&self.textures, &mut self.scene.textures);
+            if let Some(TexInput::Texture(t)) = tex.float(p, "amount", what, loc, &mut self.warnings)? {
+                bindings.push((TexturedParam::Amount, t, false));
+            }
+        }
         let (first, second, amount) = super::v3::mix_parts(p, loc, &mut self.warnings)?;
         let mut id = |name: &str| -> MaterialId {
             match self.named_materials.get_mut(name) {
@@ -611,7 +618,7 @@ impl Builder {
             }
         };
         let materials = [id(&first), id(&second)];
-        Ok(Material::Mix { materials, amount })
+        Ok(MaterialSlot { material: Material::Mix { materials, amount }, bindings, id: None })
     }
 
     /// `Texture "name" "float"|"spectrum"|"color" "class" params` (see [`super::textures`]).

@@ -192,7 +192,7 @@ pub(super) fn conductor(
             alpha_y,
         });
     }
-    let mut metal = |sp: Option<SpectrumParam>, default: Rgb, name: &str| match sp {
+    let metal = |sp: Option<SpectrumParam>, default: Rgb, name: &str, w: &mut WarningSink| match sp {
         None => default,
         Some(SpectrumParam::Named(n)) => spectrum::named_metal(&n).unwrap_or_else(|| {
             w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"{name}\"; using copper"));
@@ -200,8 +200,19 @@ pub(super) fn conductor(
         }),
         Some(s) => reflectance_rgb(s, what, loc, w).unwrap_or(default),
     };
-    let eta = metal(eta, cu_eta, "eta");
-    let k = metal(k, cu_k, "k");
+    // Textured `eta`/`k` (spectrum textures in pbrt-v4) bind per hit; the
+    // material keeps copper's value where a texture gives one.
+    let is_texture = |sp: &Option<SpectrumParam>| matches!(sp, Some(SpectrumParam::Texture(_)));
+    let eta = if is_texture(&eta) {
+        reflectance_param(p, "eta", TexturedParam::Eta, cu_eta, what, loc, w, tex)?
+    } else {
+        metal(eta, cu_eta, "eta", w)
+    };
+    let k = if is_texture(&k) {
+        reflectance_param(p, "k", TexturedParam::K, cu_k, what, loc, w, tex)?
+    } else {
+        metal(k, cu_k, "k", w)
+    };
     Ok(Material::Conductor { eta, k, alpha_x, alpha_y })
 }
 

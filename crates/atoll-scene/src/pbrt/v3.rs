@@ -270,8 +270,9 @@ pub fn mix_parts(
         },
     };
     // pbrt-v4's amount is a float; pbrt-v3's a spectrum (its mean is taken).
+    // A float texture is the builder's to bind (`amount` then stays 0.5).
     let amount = match p.spectrum("amount", true)? {
-        None => 0.5,
+        None | Some(SpectrumParam::Texture(_)) => 0.5,
         Some(SpectrumParam::Constant(a)) => a,
         Some(SpectrumParam::Rgb(c)) => {
             if c.max_element() - c.min_element() > 1e-6 {
@@ -280,7 +281,7 @@ pub fn mix_parts(
             (c.x + c.y + c.z) / 3.0
         }
         Some(_) => {
-            w.warn(loc, "material \"mix\": this \"amount\" (a texture or spectrum) is replaced by 0.5");
+            w.warn(loc, "material \"mix\": this \"amount\" (a spectrum) is replaced by 0.5");
             0.5
         }
     };
