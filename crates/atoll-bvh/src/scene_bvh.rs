@@ -322,31 +322,31 @@ impl<L: BvhLayout> SceneBvh<L> {
                 TraversalRay::new(m.transform_point3a(world.origin), m.transform_vector3a(world.dir))
             };
             let ray4 = Ray4::new(ray.origin, ray.dir);
-            blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
-                let mut hit = false;
-                let lanes = Tri4::LANES as u32;
-                for block in first / lanes..(first + count).div_ceil(lanes) {
-                    let tris = &blas.tris[block as usize];
-                    if blas.filtered {
-                        // Every candidate lane, nearest kept one wins.
-                        let (mut mask, t, u, v) = tris.test(&ray4, *t_max);
+            let lanes = Tri4::LANES as u32;
+            if blas.filtered {
+                // Alpha-masked meshes: every candidate lane goes through the
+                // filter, the nearest kept one wins. A traversal of its own,
+                // so the unfiltered leaf loop below stays as lean as before.
+                return blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+                    let mut hit = false;
+                    for block in first / lanes..(first + count).div_ceil(lanes) {
+                        let (mut mask, t, u, v) = blas.tris[block as usize].test(&ray4, *t_max);
                         while mask != 0 {
                             let lane = mask.trailing_zeros() as usize;
                             mask &= mask - 1;
                             let prim = block * lanes + lane as u32;
                             let id = blas.prims[prim as usize];
-                            if t[lane] >= *t_max
-                                || (filter.filters(id.mesh)
-                                    && !filter.keeps(
-                                        id.mesh,
-                                        id.triangle,
-                                        u[lane],
-                                        v[lane],
-                                        t[lane],
-                                        ray.origin,
-                                        ray.dir,
-                                    ))
-                            {
+                            let cut = filter.filters(id.mesh)
+                                && !filter.keeps(
+                                    id.mesh,
+                                    id.triangle,
+                                    u[lane],
+                                    v[lane],
+                                    t[lane],
+                                    ray.origin,
+                                    ray.dir,
+                                );
+                            if t[lane] >= *t_max || cut {
                                 continue;
                             }
                             best = Some((t[lane], leaf, prim, u[lane], v[lane]));
@@ -356,7 +356,15 @@ impl<L: BvhLayout> SceneBvh<L> {
                             }
                             *t_max = t[lane];
                         }
-                    } else if ANY {
+                    }
+                    hit
+                });
+            }
+            blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+                let mut hit = false;
+                for block in first / lanes..(first + count).div_ceil(lanes) {
+                    let tris = &blas.tris[block as usize];
+                    if ANY {
                         let mask = tris.test(&ray4, *t_max).0;
                         if mask != 0 {
                             best = Some((0.0, leaf, block * lanes + mask.trailing_zeros(), 0.0, 0.0));
