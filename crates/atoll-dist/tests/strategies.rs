@@ -162,3 +162,23 @@ fn a_ring_over_spatial_slabs_is_one_device() {
     let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring over spatial slabs");
 }
+
+/// Textures and alpha masks on a ring: the striped screen (alpha cut-outs,
+/// a textured mix) and the checkerboard ground split over two devices; the
+/// cut-out test runs on whichever part holds the screen, closest hits and
+/// shadow rays alike, and the image equals one device's.
+#[test]
+fn a_ring_over_textured_and_alpha_masked_parts_is_one_device() {
+    use atoll_scene::texture_scenes::{cutout_scene, Screen};
+    for eye in [glam::Vec3::new(0.0, 0.0, 3.0), glam::Vec3::new(0.0, 0.0, 0.6)] {
+        let scene = Arc::new(cutout_scene(Screen::AlphaMask, eye));
+        let opts = options(&scene, 4);
+        let reference = single(&scene, &opts);
+        let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+        assert!(p.parts.iter().all(|part| !part.instances.is_empty() || !part.object_subsets.is_empty()));
+        let mut devices = cpus(2, None);
+        let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
+        let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
+        assert_same_image(&reference, &out.film, &format!("textured ring from {eye}"));
+    }
+}
