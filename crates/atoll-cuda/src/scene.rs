@@ -90,7 +90,7 @@ impl TableCounts {
         // part's materials and alpha masks (images split with their
         // meshes are future work).
         c.images = scene.textures.images.len() as u64;
-        c.texel_words = scene.textures.images.iter().map(|i| atoll_render::texture::gpu_image_words(i)).sum();
+        c.texel_words = scene.textures.images.iter().map(|i| texel_words(i)).sum();
         c
     }
 
@@ -109,6 +109,15 @@ impl TableCounts {
             + self.meshes.max(1) * std::mem::size_of::<GpuMesh>() as u64
             + self.objects.max(1) * std::mem::size_of::<GpuObject>() as u64
             + self.instances.max(1) * std::mem::size_of::<GpuInstance>() as u64
+    }
+}
+
+/// u32 words of one image's texels on the device: one per 8-bit RGBA
+/// texel, four per float texel ([`SceneTables::push_image`]).
+fn texel_words(image: &TextureImage) -> u64 {
+    match &image.texels {
+        Texels::Rgba8 { data, .. } => data.len() as u64,
+        Texels::RgbaF32(data) => data.len() as u64 * 4,
     }
 }
 

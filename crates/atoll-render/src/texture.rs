@@ -20,7 +20,7 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, Material, Scene, TexInput, Texels, Texture, TextureId, TextureImage, TexturedParam,
+    AlphaMode, Channel, Material, Scene, TexInput, Texture, TextureId, TextureImage, TexturedParam,
     UvMapping, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
@@ -566,15 +566,6 @@ impl HitFilter for SceneTextures<'_> {
         let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
         let alpha = run_program(self.ops(program.program), &self.scene.textures.images, uv, &mut scratch).x;
         alpha_keeps(program, alpha, origin, dir, t)
-    }
-}
-
-/// Bytes of one image's texels as the GPU stores them (8-bit RGBA words
-/// or float RGBA).
-pub fn gpu_image_words(image: &TextureImage) -> u64 {
-    match image.texels {
-        Texels::Rgba8 { ref data, .. } => data.len() as u64,
-        Texels::RgbaF32(ref data) => data.len() as u64 * 4,
     }
 }
 
