@@ -512,3 +512,28 @@ fn the_feature_scene_loads_cleanly() {
     assert!(matches!(kinds[2], Material::ThinDielectric { .. }));
     assert!(matches!(kinds[3], Material::DiffuseTransmission { .. }));
 }
+
+/// The repository's texture scene (scenes/textures.pbrt, rendered on CPU
+/// and GPU by scripts/gpu-check) loads without a warning, with its images,
+/// bindings, alpha masks and emission image.
+#[test]
+fn the_texture_scene_loads_cleanly() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/textures.pbrt");
+    let loaded = atoll_scene::pbrt::load_file(&path).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let s = &loaded.scene;
+    let t = &s.textures;
+    assert_eq!(t.images.len(), 3, "bricks, leaf, leaf mask (bricks decoded once for two uses)");
+    assert_eq!(s.meshes.iter().filter(|m| m.alpha.is_some()).count(), 4, "three leaves and the pane");
+    assert_eq!(t.emission.len(), 1, "the glowing sign");
+    let params: std::collections::HashSet<_> = t.bindings.iter().map(|b| b.param).collect();
+    for p in [
+        atoll_scene::TexturedParam::Reflectance,
+        atoll_scene::TexturedParam::Roughness,
+        atoll_scene::TexturedParam::Amount,
+    ] {
+        assert!(params.contains(&p), "{p:?} bound");
+    }
+    assert!(s.materials.iter().any(|m| matches!(m, Material::CoatedDiffuse { .. })));
+    assert!(s.materials.iter().any(|m| matches!(m, Material::Principled { .. })));
+}
