@@ -29,27 +29,7 @@ fn cube(material: u32, emission: Option<AreaEmission>) -> TriangleMesh {
 
 /// A UV sphere of radius 1 with smooth normals.
 fn sphere(material: u32) -> TriangleMesh {
-    let (rings, segments) = (48u32, 96u32);
-    let mut positions = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * i as f32 / rings as f32;
-        for j in 0..segments {
-            let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
-            positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
-        }
-    }
-    let mut indices = Vec::new();
-    for i in 0..rings {
-        for j in 0..segments {
-            let a = i * segments + j;
-            let b = i * segments + (j + 1) % segments;
-            let (c, d) = (a + segments, b + segments);
-            indices.push([a, c, b]);
-            indices.push([b, c, d]);
-        }
-    }
-    let normals = positions.clone();
-    TriangleMesh { name: "sphere".into(), positions, normals, indices, material, ..Default::default() }
+    common::uv_sphere(material, 48, 96)
 }
 
 fn scene_with(meshes: Vec<TriangleMesh>, materials: Vec<Material>, eye: Vec3, target: Vec3) -> Scene {
