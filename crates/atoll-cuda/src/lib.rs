@@ -54,3 +54,12 @@ pub use device::CudaDevice;
 pub use error::CudaError;
 pub use gpu::{device_count, Gpu};
 pub use scene::GpuScene;
+
+/// Paths in flight per GPU device unless asked otherwise (CPU devices keep
+/// [`atoll_render::RenderOptions`]'s default). A GPU needs more than a CPU:
+/// on the landscape most paths end after a bounce or two, and with 262144
+/// the later bounces' kernels leave an H100 partly idle. `atoll render
+/// landscape:100 --res 1280x720 --spp 64` on one H100 (BENCHMARKS.md, issue
+/// 4): 174 M samples/s with 262144, 219 with 524288, 244 with 1048576 and
+/// 2097152. Queues cost 4 × 128 B per path: 512 MiB.
+pub const DEFAULT_WAVE_SIZE: u32 = 1 << 20;

@@ -76,10 +76,14 @@ impl TableCounts {
             instances: scene.instances.len() as u64,
             ..Default::default()
         };
+        // Vertex arrays once per mesh, however many ranges of it the part holds.
+        let mut stored = std::collections::HashSet::new();
         for ranges in part_ranges(scene, part).iter().flatten() {
             for range in ranges {
                 let mesh = &scene.meshes[range.mesh as usize];
-                c.vertices += mesh.positions.len() as u64;
+                if stored.insert(range.mesh) {
+                    c.vertices += mesh.positions.len() as u64;
+                }
                 c.triangles += range.triangles.len() as u64;
                 c.meshes += 1;
                 c.has_normals |= !mesh.normals.is_empty();
@@ -172,7 +176,9 @@ impl SceneTables {
     /// every object and instance keeps its row (hits and lights use
     /// scene-wide indices), instances outside the part marked `excluded`.
     /// A mesh held only in part keeps all its vertices (the triangle ranges
-    /// index them) but only its range of triangles.
+    /// index them), once however many ranges of it the part holds (a
+    /// terrain cut into interleaved chunks has thousands), but only its
+    /// ranges of triangles.
     pub fn build_part(scene: &Scene, part: &ScenePart) -> Self {
         let counts = TableCounts::of_part(scene, part);
         let mut instances: Vec<GpuInstance> = scene.instances.iter().map(gpu_instance).collect();
@@ -198,12 +204,14 @@ impl SceneTables {
         for image in &scene.textures.images {
             t.push_image(image);
         }
+        let mut vertex_blocks: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
         for ranges in part_ranges(scene, part) {
             let first_triangle = t.triangle_mesh.len() as u32;
             let first_mesh = t.meshes.len() as u32;
             for range in ranges.iter().flatten() {
                 let mesh = &scene.meshes[range.mesh as usize];
-                let first_vertex = (t.vertices.len() / 3) as u32;
+                let first_vertex =
+                    *vertex_blocks.entry(range.mesh).or_insert_with(|| t.push_vertices(mesh, &counts));
                 let gpu_mesh_index = t.meshes.len() as u32;
                 let mut flags = 0;
                 if !mesh.normals.is_empty() {
@@ -229,21 +237,6 @@ impl SceneTables {
                     scene_mesh: range.mesh,
                     first_scene_triangle: range.triangles.start,
                 });
-                t.vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
-                if counts.has_normals {
-                    if mesh.normals.is_empty() {
-                        t.normals.resize(t.vertices.len(), 0.0);
-                    } else {
-                        t.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
-                    }
-                }
-                if counts.has_uvs {
-                    if mesh.uvs.is_empty() {
-                        t.uvs.resize(t.vertices.len() / 3 * 2, 0.0);
-                    } else {
-                        t.uvs.extend(mesh.uvs.iter().flat_map(|uv| uv.to_array()));
-                    }
-                }
                 t.triangles.extend(triangles.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
                 t.triangle_mesh.extend(std::iter::repeat_n(gpu_mesh_index, triangles.len()));
             }
@@ -255,6 +248,28 @@ impl SceneTables {
             });
         }
         t
+    }
+
+    /// Appends `mesh`'s vertex arrays (normals and uvs zero-filled where
+    /// the mesh has none but others do); returns its first vertex.
+    fn push_vertices(&mut self, mesh: &atoll_scene::TriangleMesh, counts: &TableCounts) -> u32 {
+        let first_vertex = (self.vertices.len() / 3) as u32;
+        self.vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
+        if counts.has_normals {
+            if mesh.normals.is_empty() {
+                self.normals.resize(self.vertices.len(), 0.0);
+            } else {
+                self.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
+            }
+        }
+        if counts.has_uvs {
+            if mesh.uvs.is_empty() {
+                self.uvs.resize(self.vertices.len() / 3 * 2, 0.0);
+            } else {
+                self.uvs.extend(mesh.uvs.iter().flat_map(|uv| uv.to_array()));
+            }
+        }
+        first_vertex
     }
 
     pub fn counts(&self) -> TableCounts {

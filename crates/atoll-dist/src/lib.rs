@@ -19,6 +19,7 @@ pub mod partition;
 pub mod render;
 pub mod spatial;
 mod vote;
+pub mod work;
 
 pub use partition::{
     min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,

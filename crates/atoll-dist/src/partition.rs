@@ -475,7 +475,7 @@ pub fn partition(
 impl Partition {
     /// The partition made of `parts` (each a valid [`ScenePart`] of
     /// `scene`), with its byte sizes under `model` and its owner index.
-    pub(crate) fn from_parts(scene: &Scene, parts: Vec<ScenePart>, model: &ByteModel) -> Self {
+    pub fn from_parts(scene: &Scene, parts: Vec<ScenePart>, model: &ByteModel) -> Self {
         let bytes = parts.iter().map(|p| part_bytes(scene, p, model)).collect();
         let mut instance_parts = vec![Vec::new(); scene.instances.len()];
         for (p, part) in parts.iter().enumerate() {

@@ -399,7 +399,14 @@ impl RingLink<'_> {
     fn send_peer(&self, device: &mut dyn Device, queue: Queue, step: usize, report: &mut DeviceReport) {
         let cuda = cuda_device(device);
         let mine = &self.events[self.member];
-        let slot = cuda.record(&mine.ready[step % 2]).and_then(|()| cuda.incoming_slot(queue));
+        // The slot first: its first use allocates and zero-fills it on this
+        // device's stream, which must come before `ready` (the sender waits
+        // only for that). Recorded the other way round, a sender on the same
+        // GPU could write into the slot before the fill wiped it (seen as
+        // lost shadow rays with two devices on one GPU; invisible across
+        // two GPUs, where the send always lands later).
+        let slot =
+            cuda.incoming_slot(queue).and_then(|slot| cuda.record(&mine.ready[step % 2]).map(|()| slot));
         *self.slots[self.member].lock().unwrap_or_else(|p| p.into_inner()) = slot.as_ref().ok().copied();
         report.wait_seconds += self.vote.any(false).1.as_secs_f64();
         let next = (self.member + 1) % self.size;

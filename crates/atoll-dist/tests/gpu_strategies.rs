@@ -1,29 +1,42 @@
-//! Two GPUs render the same image as one: replicate, ring with peer copies
-//! and ring through the host. Skipped (with a message) on machines with
-//! fewer than two GPUs, unless `ATOLL_REQUIRE_GPUS=2` asks for them.
+//! Two GPU devices render the same image as one: replicate, ring with peer
+//! copies and ring through the host, over memory-balanced parts and over
+//! work-balanced chunks. With one GPU both devices are made on it (the
+//! ring's copies are then copies within that GPU); `ATOLL_REQUIRE_GPUS=2`
+//! makes a machine with fewer than two GPUs a failure. Skipped (with a
+//! message) without a GPU.
 
 use std::sync::Arc;
 
 use atoll_cuda::CudaDevice;
+use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{partition, render_multi, Layout, PartitionOptions, Transport};
 use atoll_render::{render, Device, Film, RenderOptions};
 use atoll_scene::{IntegratorSettings, Scene};
 use glam::UVec2;
 
-fn two_gpus_or_skip(test: &str) -> bool {
+/// The ordinals of two devices: two GPUs where there are, else both on
+/// GPU 0; `None` (skip) without a GPU.
+fn two_devices_or_skip(test: &str) -> Option<[usize; 2]> {
     let count = atoll_cuda::device_count().unwrap_or(0);
-    if count >= 2 {
-        return true;
+    let required = std::env::var("ATOLL_REQUIRE_GPUS").map_or(0, |v| v.parse::<usize>().unwrap_or(0));
+    if count < required {
+        panic!("{test}: ATOLL_REQUIRE_GPUS={required} but {count} GPUs found");
     }
-    if std::env::var("ATOLL_REQUIRE_GPUS").is_ok_and(|v| v.parse::<usize>().unwrap_or(0) >= 2) {
-        panic!("{test}: ATOLL_REQUIRE_GPUS=2 but {count} GPUs found");
+    match count {
+        0 => {
+            eprintln!("{test}: skipped, no GPU");
+            None
+        }
+        1 => {
+            eprintln!("{test}: one GPU, both devices on it");
+            Some([0, 0])
+        }
+        _ => Some([0, 1]),
     }
-    eprintln!("{test}: skipped, {count} GPU(s) (needs 2)");
-    false
 }
 
-fn gpus() -> Vec<Box<dyn Device>> {
-    (0..2).map(|i| Box::new(CudaDevice::new(i).unwrap()) as Box<dyn Device>).collect()
+fn gpus(ordinals: [usize; 2]) -> Vec<Box<dyn Device>> {
+    ordinals.iter().map(|&i| Box::new(CudaDevice::new(i).unwrap()) as Box<dyn Device>).collect()
 }
 
 fn options(scene: &Scene) -> RenderOptions {
@@ -34,8 +47,9 @@ fn options(scene: &Scene) -> RenderOptions {
     o
 }
 
-/// Per-pixel relative error within 1e-3 except for rare hit ties, equal means.
-fn assert_same_image(a: &Film, b: &Film, what: &str) {
+/// Per-pixel relative error within 1e-3 except for rare hit ties, equal
+/// means; `Err` says how they differ.
+fn same_image(a: &Film, b: &Film, what: &str) -> Result<(), String> {
     let (pa, pb) = (a.pixels(), b.pixels());
     let differing = pa
         .iter()
@@ -45,9 +59,11 @@ fn assert_same_image(a: &Film, b: &Film, what: &str) {
         })
         .count();
     eprintln!("{what}: {differing} of {} pixels differ beyond rounding", pa.len());
-    assert!(differing * 200 <= pa.len(), "{what}: {differing} of {} pixels differ", pa.len());
     let (ma, mb) = (a.mean(), b.mean());
-    assert!((ma - mb).abs().max_element() <= 1e-3 * ma.max_element(), "{what}: means {ma} vs {mb}");
+    if differing * 200 > pa.len() || (ma - mb).abs().max_element() > 1e-3 * ma.max_element() {
+        return Err(format!("{what}: {differing} of {} pixels differ, means {ma} vs {mb}", pa.len()));
+    }
+    Ok(())
 }
 
 fn scenes() -> Vec<(&'static str, Arc<Scene>)> {
@@ -61,9 +77,12 @@ fn scenes() -> Vec<(&'static str, Arc<Scene>)> {
 
 #[test]
 fn replicate_and_ring_on_two_gpus_are_one_gpu() {
-    if !two_gpus_or_skip("replicate_and_ring_on_two_gpus_are_one_gpu") {
+    let Some(ordinals) = two_devices_or_skip("replicate_and_ring_on_two_gpus_are_one_gpu") else {
         return;
-    }
+    };
+    // Every combination runs before the test fails: which ones differ says
+    // more than the first.
+    let mut failures = Vec::new();
     for (name, scene) in scenes() {
         let opts = options(&scene);
         let mut one = CudaDevice::new(0).unwrap();
@@ -71,18 +90,33 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
         reference.spp = opts.spp;
         assert!(one.error().is_none());
 
-        let out = render_multi(&mut gpus(), &scene, opts.clone(), &Layout::Replicate, None, &mut |_, _| {})
-            .unwrap();
-        assert_same_image(&reference, &out.film, &format!("{name} replicate"));
+        let out =
+            render_multi(&mut gpus(ordinals), &scene, opts.clone(), &Layout::Replicate, None, &mut |_, _| {})
+                .unwrap();
+        failures.extend(same_image(&reference, &out.film, &format!("{name} replicate")).err());
 
-        let p = partition(&scene, 2, &atoll_cuda::scene::byte_model(), &PartitionOptions::default()).unwrap();
-        let layout = Layout::Ring { parts: p.parts, islands: 1 };
-        for transport in [Transport::Peer, Transport::Host] {
-            let out =
-                render_multi(&mut gpus(), &scene, opts.clone(), &layout, Some(transport), &mut |_, _| {})
-                    .unwrap();
-            assert_same_image(&reference, &out.film, &format!("{name} ring ({transport:?})"));
-            assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
+        let model = atoll_cuda::scene::byte_model();
+        let none = PartitionOptions::default();
+        let memory = partition(&scene, 2, &model, &none).unwrap();
+        let work = partition_work_balanced(&scene, 2, opts.resolution, &model, &none).unwrap();
+        for (parts, p) in [("memory", memory), ("work", work)] {
+            let layout = Layout::Ring { parts: p.parts, islands: 1 };
+            for transport in [Transport::Peer, Transport::Host] {
+                let out = render_multi(
+                    &mut gpus(ordinals),
+                    &scene,
+                    opts.clone(),
+                    &layout,
+                    Some(transport),
+                    &mut |_, _| {},
+                )
+                .unwrap();
+                failures.extend(
+                    same_image(&reference, &out.film, &format!("{name} ring ({parts}, {transport:?})")).err(),
+                );
+                assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
+            }
         }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }

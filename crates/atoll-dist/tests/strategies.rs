@@ -163,6 +163,30 @@ fn a_ring_over_spatial_slabs_is_one_device() {
     assert_same_image(&reference, &out.film, "ring over spatial slabs");
 }
 
+/// The default ring partition: chunks balanced by bytes and by where the
+/// camera's rays will work; interleaved, the ground is cut into many
+/// triangle runs per part.
+#[test]
+fn a_ring_over_work_balanced_chunks_is_one_device() {
+    let scene = ground_scene();
+    let opts = options(&scene, 2);
+    let reference = single(&scene, &opts);
+    let p = atoll_dist::work::partition_work_balanced(
+        &scene,
+        3,
+        opts.resolution,
+        &ByteModel::CPU,
+        &PartitionOptions::default(),
+    )
+    .unwrap();
+    let ground_runs: usize =
+        p.parts.iter().flat_map(|part| &part.object_subsets).filter(|s| s.0 == 0).map(|s| s.1.len()).sum();
+    assert!(ground_runs > 3, "the ground is cut into {ground_runs} runs");
+    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "ring over work-balanced chunks");
+}
+
 /// Textures and alpha masks on a ring: the striped screen (alpha cut-outs,
 /// a textured mix) and the checkerboard ground split over two devices; the
 /// cut-out test runs on whichever part holds the screen, closest hits and

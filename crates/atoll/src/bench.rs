@@ -59,7 +59,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     options.spp = args.spp;
     options.integrator = IntegratorSettings::Path { max_depth: 15 };
     options.russian_roulette = false;
-    args.waves.apply(&mut options);
+    args.waves.apply(&mut options, selected.gpu.is_some());
     let mut run_once = |spp: u32| {
         let options = RenderOptions { spp, ..options.clone() };
         let out = render(selected.device.as_mut(), &scene, options, &mut |_, _| {})

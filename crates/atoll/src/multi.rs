@@ -8,6 +8,7 @@ use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::spatial::partition_spatial;
+use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
     partition, plan, render_multi, Layout, MultiOutput, Partition, PartitionOptions, Plan, Strategy,
     Transport,
@@ -30,7 +31,9 @@ pub enum DeviceSpec {
 pub struct DeviceList(pub Vec<DeviceSpec>);
 
 /// Parses `--devices`: comma-separated `cpu`, `cpu:N` (N CPU devices
-/// sharing the cores), `cuda:I` (GPU I).
+/// sharing the cores), `cuda:I` (GPU I). A GPU listed twice is two devices
+/// sharing it (its time and memory): a ring's or replica's total work
+/// measured on one GPU, and the multi-device paths tested without two.
 pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
     let mut devices = Vec::new();
     for item in s.split(',').map(|i| i.trim().to_ascii_lowercase()) {
@@ -51,12 +54,6 @@ pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
     }
     if devices.is_empty() {
         return Err("--devices: no devices listed".into());
-    }
-    let mut gpus: Vec<usize> =
-        devices.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
-    gpus.sort_unstable();
-    if gpus.windows(2).any(|w| w[0] == w[1]) {
-        return Err(format!("{s:?}: a GPU is listed twice"));
     }
     Ok(DeviceList(devices))
 }
@@ -138,23 +135,38 @@ pub fn render(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, CliError> {
     let mut devices = open_devices(args.specs, args.budget, args.threads)?;
+    let mut gpus: Vec<usize> =
+        args.specs.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
+    gpus.sort_unstable();
+    for shared in gpus.chunk_by(|a, b| a == b).filter(|c| c.len() > 1) {
+        eprintln!("note: {} devices share cuda:{} (its time and memory)", shared.len(), shared[0]);
+    }
     let model = byte_model(args.specs);
     let budget = scene_budget(&mut devices, args.budget, &options);
+    let options_resolution = options.resolution;
     let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
         .map_err(|e| CliError::Runtime(e.to_string()))?;
     let (layout, partition) = match plan {
         Plan::Replicate => (Layout::Replicate, None),
         Plan::Ring { k, islands } => {
             let options = PartitionOptions { budget, ..Default::default() };
-            let memory = || partition(scene, k, &model, &options);
+            let memory = || partition(scene, k, &model, &options).map(|p| (p, "memory-balanced"));
             let spatial = || partition_spatial(scene, k, &model, &options).map(|p| (p, "spatial slabs"));
-            let memory = || memory().map(|p| (p, "memory-balanced"));
+            let work = || {
+                partition_work_balanced(scene, k, options_resolution, &model, &options)
+                    .map(|p| (p, "work-balanced chunks"))
+            };
             let (p, kind) = match args.partitioning {
                 Partitioning::Memory => memory(),
                 Partitioning::Spatial => spatial(),
-                // Memory-balanced parts: on 2 H200s they rendered faster than
-                // spatial slabs (landscape:100 ring of 2: 226 vs 174 M samples/s,
-                // BENCHMARKS.md 2026-11-24) although slabs let rays skip parts.
+                Partitioning::Work => work(),
+                // Memory-balanced parts: of the three, the least total work
+                // on a GPU (a ring of two on one H100, waves of 2^20:
+                // 1.00-1.02x replicate's samples/s, work-balanced chunks
+                // 0.80-0.83x, spatial slabs 0.80-0.81x; BENCHMARKS.md, issue 4).
+                // Work-balanced chunks even out the devices' busy times
+                // (CPU devices: 19.85 / 19.84 s against 14.2 / 21.5 s), which
+                // may win on two GPUs; not measured there yet.
                 Partitioning::Auto => memory(),
             }
             .map_err(|e| CliError::Runtime(e.to_string()))?;
@@ -196,7 +208,9 @@ fn scene_budget(
         .iter_mut()
         .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
         .collect();
-    let free = gpus.iter().filter_map(|g| g.free_memory().ok()).min();
+    // Devices sharing a GPU (`cuda:0,cuda:0`) share its free memory.
+    let sharing = |ordinal: usize| gpus.iter().filter(|g| g.ordinal == ordinal).count() as u64;
+    let free = gpus.iter().filter_map(|g| g.free_memory().ok().map(|f| f / sharing(g.ordinal))).min();
     let total = match (budget, free) {
         (Some(b), Some(f)) => Some(b.min(f)),
         (Some(b), None) => Some(b),
@@ -276,10 +290,13 @@ pub fn device_table(out: &MultiOutput) -> String {
 /// How `--partition` makes a ring's parts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Partitioning {
-    /// Memory-balanced parts (measured faster than slabs; see `render`).
+    /// Memory-balanced parts (measured the least work; see `render`).
     #[default]
     Auto,
-    /// Slabs along the scene's longest axis ([`partition_spatial`]).
+    /// Compact chunks balanced by bytes and by the frame's estimated ray
+    /// work ([`partition_work_balanced`]).
+    Work,
+    /// Spatial slabs, one region per part ([`partition_spatial`]).
     Spatial,
     /// Objects greedily onto the least-loaded part ([`partition`]).
     Memory,
@@ -289,9 +306,10 @@ pub enum Partitioning {
 pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "auto" => Ok(Partitioning::Auto),
+        "work" => Ok(Partitioning::Work),
         "spatial" => Ok(Partitioning::Spatial),
         "memory" => Ok(Partitioning::Memory),
-        _ => Err(format!("{s:?}: expected auto, spatial or memory")),
+        _ => Err(format!("{s:?}: expected auto, work, spatial or memory")),
     }
 }
 
@@ -316,7 +334,7 @@ mod tests {
             Ok(DeviceList(vec![DeviceSpec::Cuda(0), DeviceSpec::Cuda(1)]))
         );
         assert_eq!(parse_devices("cpu, cuda:1"), Ok(DeviceList(vec![DeviceSpec::Cpu, DeviceSpec::Cuda(1)])));
-        assert!(parse_devices("cuda:0,cuda:0").unwrap_err().contains("twice"));
+        assert_eq!(parse_devices("cuda:0,cuda:0"), Ok(DeviceList(vec![DeviceSpec::Cuda(0); 2])));
         assert!(parse_devices("cpu:0").is_err());
         assert!(parse_devices("tpu:1").is_err());
         assert!(parse_devices("").is_err());

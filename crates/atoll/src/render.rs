@@ -25,16 +25,21 @@ pub struct WaveArgs {
     /// in the slots finished paths free (wave-front merging).
     #[arg(long)]
     pub no_merge: bool,
-    /// Paths in flight per device (default 262144; queues take about 4 x 128 B each).
+    /// Paths in flight per device (default 1048576 on GPUs, 262144 on the
+    /// CPU; queues take about 4 x 128 B each).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub wave_size: Option<u32>,
 }
 
 impl WaveArgs {
-    pub fn apply(&self, options: &mut RenderOptions) {
+    /// Sets the options' wave settings; `gpu`: a CUDA device renders (its
+    /// default wave is larger).
+    pub fn apply(&self, options: &mut RenderOptions, gpu: bool) {
         options.merge_waves = !self.no_merge;
-        if let Some(size) = self.wave_size {
-            options.wave_size = size;
+        match self.wave_size {
+            Some(size) => options.wave_size = size,
+            None if gpu => options.wave_size = atoll_cuda::DEFAULT_WAVE_SIZE,
+            None => {}
         }
     }
 }
@@ -76,7 +81,9 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_transport, requires = "devices")]
     pub ring_transport: Option<Transport>,
     /// How a ring's scene parts are made: auto (memory-balanced: measured
-    /// faster), memory, or spatial (slabs along the longest axis).
+    /// the least work), memory, work (compact chunks balanced by bytes and
+    /// by the frame's estimated ray work), or spatial (one compact region
+    /// per part).
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "devices")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
@@ -129,7 +136,6 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     }
     options.seed = args.seed;
     options.russian_roulette = !args.no_rr;
-    args.waves.apply(&mut options);
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
     });
@@ -141,9 +147,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
     let scene = Arc::new(scene);
     if let Some(DeviceList(specs)) = &args.devices {
+        args.waves.apply(&mut options, specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_))));
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
     let mut selected = select(&args.device, args.threads)?;
+    args.waves.apply(&mut options, selected.gpu.is_some());
     if args.warmup {
         render(selected.device.as_mut(), &scene, RenderOptions { spp: 1, ..options.clone() }, &mut |_, _| {})
             .map_err(|e| CliError::Runtime(e.to_string()))?;

@@ -179,6 +179,26 @@ fn part_tables_hold_only_the_part_with_scene_wide_indices() {
     assert_eq!(SceneTables::build_part(&scene, &ScenePart::whole(&scene)), SceneTables::build(&scene));
 }
 
+/// Interleaved partitions cut a mesh into many ranges per part: its
+/// vertices are stored once, every range indexing the same block.
+#[test]
+fn ranges_of_one_mesh_share_its_vertices() {
+    let scene = instanced_scene();
+    let ranges = vec![MeshRange { mesh: 2, triangles: 0..1 }, MeshRange { mesh: 2, triangles: 2..3 }];
+    let part = ScenePart { instances: vec![0], object_subsets: vec![(1, ranges)] };
+    let t = SceneTables::build_part(&scene, &part);
+    assert_eq!(t.counts(), TableCounts::of_part(&scene, &part));
+    assert_eq!(t.counts().vertices, scene.meshes[2].positions.len() as u64, "one vertex block");
+    let meshes = &t.meshes[t.objects[1].first_mesh as usize..][..2];
+    assert_eq!(meshes[0].first_vertex, meshes[1].first_vertex);
+    assert_eq!((meshes[0].first_scene_triangle, meshes[1].first_scene_triangle), (0, 2));
+    for (k, local) in [0usize, 2].into_iter().enumerate() {
+        for c in 0..3 {
+            assert_eq!(t.triangles[k * 3 + c] - meshes[0].first_vertex, scene.meshes[2].indices[local][c]);
+        }
+    }
+}
+
 #[test]
 fn empty_scene_has_empty_tables_and_positive_size() {
     let t = SceneTables::build(&Scene::default());
