@@ -8,8 +8,12 @@
 //! - [`render_multi`]: one frame on many devices placed by a [`Layout`]
 //!   (replicate with dynamic waves; ring with queues cycling, GPU to GPU by
 //!   peer copies where every member is a GPU).
-//! - [`spatial::partition_spatial`]: the same as slabs along the longest
-//!   axis, so that rays rarely enter more than one part's bounds.
+//! - [`spatial`]: parts made of compact chunks along a Morton curve: one
+//!   per part (slabs: rays rarely enter more than one part's bounds) or
+//!   several dealt out in turn ([`spatial::partition_interleaved`]).
+//! - [`work`]: where a frame's rays will work, estimated on a box proxy of
+//!   the scene, and the ring partition whose chunks share out that work
+//!   as well as the bytes ([`work::partition_work_balanced`]).
 //! - [`ownership`]: the false-colour view of which device holds what.
 
 #![warn(missing_docs)]

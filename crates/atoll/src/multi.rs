@@ -81,7 +81,11 @@ fn open_devices(
             }
             DeviceSpec::Cuda(ordinal) => {
                 let mut d = CudaDevice::new(ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
-                if let Some(b) = budget {
+                // Devices sharing a GPU prepare at once: each checks its plan
+                // against its share of the free memory, not all of it.
+                let sharing = specs.iter().filter(|s| **s == DeviceSpec::Cuda(ordinal)).count() as u64;
+                let share = (sharing > 1).then(|| d.gpu().free_memory().ok().map(|f| f / sharing)).flatten();
+                if let Some(b) = budget.into_iter().chain(share).min() {
                     d = d.with_memory_budget(b);
                 }
                 devices.push(Box::new(d));
