@@ -98,14 +98,44 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
         .collect()
 }
 
-/// What `prepare` made resident.
-struct Resident {
-    frame: Arc<FrameContext>,
+/// A frame's scene on one GPU: tables, BVH and frame parameters. Read-only
+/// once prepared, so devices on the same GPU holding the same part share
+/// one ([`CudaDevice::prepare_sharing`]).
+struct SceneOnGpu {
     scene: GpuScene,
     bvh: bvh::GpuSceneBvh,
     params: FrameParamsHost,
     /// One [`SceneView`] on the device (what `write_surface` reads).
     scene_view: CudaSlice<SceneView>,
+}
+
+/// A device's hold on a [`SceneOnGpu`]. Its buffers are freed on the
+/// stream of the device that built it, which does not wait for the
+/// others' kernels: each holder finishes its own work before letting go.
+struct SceneHold {
+    shared: Arc<SceneOnGpu>,
+    gpu: Arc<Gpu>,
+}
+
+impl Drop for SceneHold {
+    fn drop(&mut self) {
+        if let Err(e) = self.gpu.synchronize() {
+            tracing::error!("{}: finishing before releasing the scene: {e}", self.gpu.label());
+        }
+    }
+}
+
+impl std::ops::Deref for SceneHold {
+    type Target = SceneOnGpu;
+    fn deref(&self) -> &SceneOnGpu {
+        &self.shared
+    }
+}
+
+/// What `prepare` made resident.
+struct Resident {
+    frame: Arc<FrameContext>,
+    scene: SceneHold,
     kernels: Kernels,
     /// What the trace kernels are specialised for.
     trace_features: TraceFeatures,
@@ -182,6 +212,11 @@ impl CudaDevice {
         self
     }
 
+    /// Replaces the memory budget (`None`: the GPU's free memory).
+    pub fn set_memory_budget(&mut self, bytes: Option<u64>) {
+        self.memory_budget = bytes;
+    }
+
     pub fn gpu(&self) -> &Arc<Gpu> {
         &self.gpu
     }
@@ -237,16 +272,21 @@ impl CudaDevice {
         Ok(())
     }
 
+    /// Frees the previous frame's buffers (before planning the new one)
+    /// and clears the counters.
+    fn release(&mut self) {
+        self.resident = None;
+        self.stats = DeviceStats::default();
+        *self.busy.lock().unwrap_or_else(|p| p.into_inner()) = BusyTime::default();
+    }
+
     fn try_prepare(
         &mut self,
         scene: &Arc<Scene>,
         part: &ScenePart,
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, CudaError> {
-        // Free the previous frame's buffers before planning the new one.
-        self.resident = None;
-        self.stats = DeviceStats::default();
-        *self.busy.lock().unwrap_or_else(|p| p.into_inner()) = BusyTime::default();
+        self.release();
         let gpu = self.gpu.clone();
         let options = &frame.options;
         let capacity = options.wave_size.min(options.pixel_count()).max(1);
@@ -261,12 +301,35 @@ impl CudaDevice {
         let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
         gpu.synchronize()?;
         let bvh_build_seconds = start.elapsed().as_secs_f64();
-        let trace_features = TraceFeatures::of(frame);
-        trace::load_default_kernels(&gpu, &bvh, trace_features)?;
         let params = FrameParamsHost::for_scene(&gpu, frame, Some(&gpu_scene))?;
         let view = [SceneView::of(&gpu_scene)];
         let scene_view =
             gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"))?;
+        let shared = Arc::new(SceneOnGpu { scene: gpu_scene, bvh, params, scene_view });
+        let mut stats = self.make_resident(frame, shared, kernels, capacity)?;
+        stats.scene_bytes = {
+            let s = &self.resident()?.scene;
+            s.scene.bytes() + s.bvh.bytes()
+        };
+        stats.bvh_build_seconds = bvh_build_seconds;
+        stats.bvh_sah_cost = self.resident()?.scene.bvh.sah_cost();
+        Ok(stats)
+    }
+
+    /// The per-device state over a prepared scene: trace kernels, queues,
+    /// film, counters, wave feed. Stats count the frame's bytes only.
+    fn make_resident(
+        &mut self,
+        frame: &Arc<FrameContext>,
+        shared: Arc<SceneOnGpu>,
+        kernels: Kernels,
+        capacity: u32,
+    ) -> Result<PrepareStats, CudaError> {
+        let gpu = self.gpu.clone();
+        let options = &frame.options;
+        let film_bytes = options.pixel_count() as u64 * 12;
+        let trace_features = TraceFeatures::of(frame);
+        trace::load_default_kernels(&gpu, &shared.bvh, trace_features)?;
         let queues = Queues::new(&gpu, capacity)?;
         let film = gpu
             .stream
@@ -281,17 +344,12 @@ impl CudaDevice {
         let work = WorkFeed::new(&gpu, WAVEFRONT)?;
         gpu.synchronize()?;
         let stats = PrepareStats {
-            scene_bytes: gpu_scene.bytes() + bvh.bytes(),
-            frame_bytes: queue_bytes(capacity) + FEED_BYTES + film_bytes + params.bytes(),
-            bvh_build_seconds,
-            bvh_sah_cost: bvh.sah_cost(),
+            frame_bytes: queue_bytes(capacity) + FEED_BYTES + film_bytes + shared.params.bytes(),
+            ..Default::default()
         };
         self.resident = Some(Resident {
             frame: frame.clone(),
-            scene: gpu_scene,
-            bvh,
-            params,
-            scene_view,
+            scene: SceneHold { shared, gpu: gpu.clone() },
             kernels,
             trace_features,
             queues,
@@ -301,6 +359,45 @@ impl CudaDevice {
             work,
         });
         Ok(stats)
+    }
+
+    /// Prepares this device for `frame` over the scene `leader` (a device
+    /// on the same GPU, prepared for the same frame) already holds: one
+    /// copy of the tables and BVH serves both, each with its own queues
+    /// and film. Two devices on one GPU keep it busier than one (its
+    /// kernels fill each other's gaps; BENCHMARKS.md, issue 4), and this
+    /// way at no cost in scene memory.
+    pub fn prepare_sharing(
+        &mut self,
+        leader: &CudaDevice,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError> {
+        let label = self.gpu.label();
+        let shared = match &leader.resident {
+            Some(r) if leader.gpu.ordinal == self.gpu.ordinal && Arc::ptr_eq(&r.frame, frame) => {
+                r.scene.shared.clone()
+            }
+            _ => {
+                return Err(CudaError::Usage(format!(
+                    "{label}: can share only the scene of a device on the same GPU prepared for this frame"
+                ))
+                .into_device_error(&label))
+            }
+        };
+        let attempt = |d: &mut Self| -> Result<PrepareStats, CudaError> {
+            d.release();
+            let options = &frame.options;
+            let capacity = options.wave_size.min(options.pixel_count()).max(1);
+            let frame_bytes = queue_bytes(capacity) + FEED_BYTES + options.pixel_count() as u64 * 12;
+            let plan = crate::scene::MemoryPlan { queues: frame_bytes, ..Default::default() };
+            plan.check(&label, d.memory_budget, d.gpu.free_memory()?)?;
+            let kernels = Kernels::load(&d.gpu, frame)?;
+            d.make_resident(frame, shared, kernels, capacity)
+        };
+        attempt(self).map_err(|e| {
+            self.resident = None;
+            e.into_device_error(&label)
+        })
     }
 
     fn try_queue_work(&mut self, wave: &Wave) -> Result<(), CudaError> {
@@ -314,7 +411,7 @@ impl CudaDevice {
 
     fn try_refill(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        self.with_resident(|r| r.work.refill(&gpu, &r.params.device, &mut r.queues, BLOCK))
+        self.with_resident(|r| r.work.refill(&gpu, &r.scene.params.device, &mut r.queues, BLOCK))
     }
 
     fn try_trace_paths(&mut self) -> Result<(), CudaError> {
@@ -329,12 +426,12 @@ impl CudaDevice {
             let length = DeviceQueueLength { length: &q.path_count, traced: &mut r.traced_paths };
             // Hit attributes are written by the traversal kernel itself (the
             // `surface` stage folded in): one pass over the records fewer.
-            let surface = SurfaceTables { params: &r.params.device, scene: &r.scene_view };
+            let surface = SurfaceTables { params: &r.scene.params.device, scene: &r.scene.scene_view };
             let features = r.trace_features;
             trace::trace_closest_queued(
                 &gpu,
-                &r.scene,
-                &r.bvh,
+                &r.scene.scene,
+                &r.scene.bvh,
                 &mut q.paths,
                 max,
                 &mut q.hits,
@@ -355,7 +452,7 @@ impl CudaDevice {
             gpu.stream.memset_zeros(&mut q.shadow_count).map_err(CudaError::driver(context()))?;
             let mut launch = gpu.stream.launch_builder(&r.kernels.shade);
             launch
-                .arg(&r.params.device)
+                .arg(&r.scene.params.device)
                 .arg(&q.paths)
                 .arg(&q.path_count)
                 .arg(&mut q.next)
@@ -386,11 +483,11 @@ impl CudaDevice {
             let q = &mut r.queues;
             let max = q.launch_len(Queue::Shadows);
             let length = DeviceQueueLength { length: &q.shadow_count, traced: &mut r.traced_shadows };
-            let tables = SurfaceTables { params: &r.params.device, scene: &r.scene_view };
+            let tables = SurfaceTables { params: &r.scene.params.device, scene: &r.scene.scene_view };
             trace::trace_any_queued(
                 &gpu,
-                &r.scene,
-                &r.bvh,
+                &r.scene.scene,
+                &r.scene.bvh,
                 &mut q.shadows,
                 max,
                 length,

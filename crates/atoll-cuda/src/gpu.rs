@@ -27,6 +27,9 @@ pub fn device_count() -> Result<usize, CudaError> {
 /// is queued on [`Gpu::stream`], in order.
 pub struct Gpu {
     pub ordinal: usize,
+    /// Unique per opened `Gpu` (several may be opened on one ordinal, each
+    /// with its own stream): keys per-stream state such as tracers.
+    pub id: u64,
     pub ctx: Arc<CudaContext>,
     /// atoll's one stream on this GPU: every allocation, copy and kernel
     /// goes here, in order. A dedicated (non-null) stream, so that work on
@@ -88,8 +91,10 @@ impl Gpu {
             .attribute(CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT)
             .map_err(CudaError::driver(what("reading the multiprocessor count")))?;
         let compute_capability = (major as u32, minor as u32);
+        static OPENED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         Ok(Arc::new(Gpu {
             ordinal,
+            id: OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             ctx,
             stream,
             name,

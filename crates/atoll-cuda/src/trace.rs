@@ -238,6 +238,9 @@ impl Tracer {
         let mut wide = bvh.wide.lock().unwrap_or_else(|p| p.into_inner());
         if variant.wide() && wide.is_none() {
             *wide = Some(WideBvh::build(gpu, bvh)?);
+            // Devices sharing the BVH trace on other streams: the collapse
+            // must have finished before any of them reads it.
+            gpu.synchronize()?;
         }
         let mut launch = gpu.stream.launch_builder(&function);
         launch.arg(&bvh.tlas_nodes).arg(&bvh.blas_nodes);
@@ -299,11 +302,17 @@ fn with_tracer<R>(
     bvh: &GpuSceneBvh,
     f: impl FnOnce(&mut Tracer) -> Result<R, CudaError>,
 ) -> Result<R, CudaError> {
-    let mut slot = bvh.tracer.lock().unwrap_or_else(|p| p.into_inner());
-    if slot.is_none() {
-        *slot = Some(Tracer::new(gpu)?);
-    }
-    f(slot.as_mut().expect("made above"))
+    // One tracer per GPU stream: devices sharing the BVH must not share
+    // the persistent-threads work counter.
+    let mut slots = bvh.tracers.lock().unwrap_or_else(|p| p.into_inner());
+    let at = match slots.iter().position(|(id, _)| *id == gpu.id) {
+        Some(at) => at,
+        None => {
+            slots.push((gpu.id, Tracer::new(gpu)?));
+            slots.len() - 1
+        }
+    };
+    f(&mut slots[at].1)
 }
 
 /// Compiles (or loads from the kernel cache) the default variant's

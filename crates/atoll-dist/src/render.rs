@@ -140,7 +140,9 @@ fn check(device: &dyn Device) -> Result<(), DeviceError> {
 }
 
 /// Prepares every device with its part, all at once (uploads and BVH builds
-/// of different devices overlap).
+/// of different devices overlap). CUDA devices on one GPU holding the same
+/// part share one copy of it: the first of them prepares it, then the
+/// others borrow it ([`CudaDevice::prepare_sharing`]).
 fn prepare_all(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
@@ -148,21 +150,45 @@ fn prepare_all(
     layout: &Layout,
 ) -> Result<Vec<PrepareStats>, DeviceError> {
     let whole = ScenePart::whole(scene);
+    let part_index = |d: usize| match layout {
+        Layout::Replicate => 0,
+        Layout::Ring { parts, .. } => d % parts.len(),
+    };
     let part_of = |d: usize| match layout {
         Layout::Replicate => &whole,
         Layout::Ring { parts, .. } => &parts[d % parts.len()],
     };
-    std::thread::scope(|scope| {
+    // Per device, the earlier device whose scene it borrows.
+    let ordinals: Vec<Option<usize>> = devices
+        .iter_mut()
+        .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().ordinal))
+        .collect();
+    let leader: Vec<Option<usize>> = (0..devices.len())
+        .map(|d| {
+            let ordinal = ordinals[d]?;
+            (0..d).find(|&e| ordinals[e] == Some(ordinal) && part_index(e) == part_index(d))
+        })
+        .collect();
+    let mut stats: Vec<Option<Result<PrepareStats, DeviceError>>> = std::thread::scope(|scope| {
         let handles: Vec<_> = devices
             .iter_mut()
             .enumerate()
             .map(|(d, device)| {
                 let part = part_of(d);
-                scope.spawn(move || device.prepare(scene, part, frame))
+                let leads = leader[d].is_none();
+                scope.spawn(move || leads.then(|| device.prepare(scene, part, frame)))
             })
             .collect();
         handles.into_iter().map(|h| h.join().expect("device prepare panicked")).collect()
-    })
+    });
+    for d in 0..devices.len() {
+        let Some(l) = leader[d] else { continue };
+        let (before, rest) = devices.split_at_mut(d);
+        let lead = before[l].as_any_mut().downcast_mut::<CudaDevice>().expect("a CUDA leader");
+        let this = rest[0].as_any_mut().downcast_mut::<CudaDevice>().expect("a CUDA follower");
+        stats[d] = Some(this.prepare_sharing(lead, frame));
+    }
+    stats.into_iter().map(|s| s.expect("every device prepared")).collect()
 }
 
 /// Renders a frame on `devices` placed by `layout`, ring queues moving by

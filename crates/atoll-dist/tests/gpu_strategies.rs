@@ -94,6 +94,11 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
             render_multi(&mut gpus(ordinals), &scene, opts.clone(), &Layout::Replicate, None, &mut |_, _| {})
                 .unwrap();
         failures.extend(same_image(&reference, &out.film, &format!("{name} replicate")).err());
+        if ordinals[0] == ordinals[1] {
+            // Replicas on one GPU share one copy of the scene.
+            let held: Vec<u64> = out.devices.iter().map(|d| d.prepare.scene_bytes).collect();
+            assert!(held[0] > 0 && held[1] == 0, "{name}: scene bytes per replica {held:?}");
+        }
 
         let model = atoll_cuda::scene::byte_model();
         let none = PartitionOptions::default();

@@ -151,7 +151,17 @@ pub fn render(
     let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
         .map_err(|e| CliError::Runtime(e.to_string()))?;
     let (layout, partition) = match plan {
-        Plan::Replicate => (Layout::Replicate, None),
+        Plan::Replicate => {
+            // Replicas on one GPU share one copy of the scene (the first
+            // prepares it, the others add only their queues and film, each
+            // checked against what is then free): no halved budgets.
+            for d in devices.iter_mut() {
+                if let Some(cuda) = d.as_any_mut().downcast_mut::<CudaDevice>() {
+                    cuda.set_memory_budget(args.budget);
+                }
+            }
+            (Layout::Replicate, None)
+        }
         Plan::Ring { k, islands } => {
             let options = PartitionOptions { budget, ..Default::default() };
             let memory = || partition(scene, k, &model, &options).map(|p| (p, "memory-balanced"));

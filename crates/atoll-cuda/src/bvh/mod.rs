@@ -143,8 +143,10 @@ pub struct GpuSceneBvh {
     stats: GpuBvhStats,
     /// Triangles of the scene it was built for (checked by the trace functions).
     pub(crate) scene_triangles: u64,
-    /// Trace kernels and the persistent-threads counter, made on first use.
-    pub(crate) tracer: Mutex<Option<Tracer>>,
+    /// Per [`crate::Gpu`] (by its `id`: one stream each) that traces this
+    /// BVH, the trace kernels and the persistent-threads counter, made on
+    /// first use.
+    pub(crate) tracers: Mutex<Vec<(u64, Tracer)>>,
     /// The compressed wide BVH, collapsed from this one at the first wide trace.
     pub(crate) wide: Mutex<Option<wide::WideBvh>>,
 }
@@ -403,7 +405,7 @@ impl GpuSceneBvh {
             options: *options,
             stats,
             scene_triangles: scene.counts.triangles,
-            tracer: Mutex::new(None),
+            tracers: Mutex::new(Vec::new()),
             wide: Mutex::new(None),
         };
         let bytes = bvh.bytes();
