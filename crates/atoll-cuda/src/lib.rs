@@ -63,3 +63,11 @@ pub use scene::GpuScene;
 /// 4): 174 M samples/s with 262144, 219 with 524288, 244 with 1048576 and
 /// 2097152. Queues cost 4 × 128 B per path: 512 MiB.
 pub const DEFAULT_WAVE_SIZE: u32 = 1 << 20;
+
+/// Devices (wavefronts, each with its own stream, queues and film) per GPU
+/// unless asked otherwise, sharing one copy of the scene: one device's
+/// kernels leave the GPU partly idle, two or three fill each other's gaps.
+/// One H100, waves of 2^20 (BENCHMARKS.md, issue 4), M samples/s for 1, 2
+/// and 3 devices: Cornell 512² 243.5, 285.0, 312.6; `landscape:100` 243.9,
+/// 276.7, 280.0; `landscape:1000` 203.2, 233.8, 240.7.
+pub const DEFAULT_STREAMS: usize = 3;

@@ -3,6 +3,7 @@
 
 use std::sync::Arc;
 
+use atoll_dist::Layout;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
 use clap::Args;
@@ -44,7 +45,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     if args.peer {
         return peer_copies();
     }
-    let mut selected = select(&args.device, None)?;
+    let selected = select(&args.device, None)?;
     if !args.no_traversal {
         match &selected.gpu {
             Some(gpu) => gpu_traversal(&args, gpu)?,
@@ -60,26 +61,45 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     options.integrator = IntegratorSettings::Path { max_depth: 15 };
     options.russian_roulette = false;
     args.waves.apply(&mut options, selected.gpu.is_some());
+    // Wavefronts sharing the GPU (`--streams`), as `atoll render` uses them.
+    let more = match selected.gpu.clone() {
+        Some(gpu) => crate::multi::extra_streams(&gpu, args.waves.streams(), &scene, &options, None)?,
+        None => Vec::new(),
+    };
+    let streams = more.len() + 1;
+    let mut devices = vec![selected.device];
+    devices.extend(more);
+    // (seconds, samples/s, rays/s) of one frame.
     let mut run_once = |spp: u32| {
         let options = RenderOptions { spp, ..options.clone() };
-        let out = render(selected.device.as_mut(), &scene, options, &mut |_, _| {})
-            .map_err(|e| CliError::Runtime(e.to_string()))?;
-        Ok::<_, CliError>(out)
+        if devices.len() == 1 {
+            let out = render(devices[0].as_mut(), &scene, options, &mut |_, _| {})
+                .map_err(|e| CliError::Runtime(e.to_string()))?;
+            return Ok::<_, CliError>((out.render_seconds, out.samples_per_second(), out.rays_per_second()));
+        }
+        let out =
+            atoll_dist::render_multi(&mut devices, &scene, options, &Layout::Replicate, None, &mut |_, _| {})
+                .map_err(|e| CliError::Runtime(e.to_string()))?;
+        let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
+        Ok((out.render_seconds, out.samples_per_second(), rays as f64 / out.render_seconds.max(1e-9)))
     };
     // Warm-up: kernel compilation, caches, clocks.
     run_once(1)?;
     let mut runs = (0..args.runs.max(1)).map(|_| run_once(args.spp)).collect::<Result<Vec<_>, _>>()?;
-    selected.check()?;
-    runs.sort_by(|a, b| a.render_seconds.total_cmp(&b.render_seconds));
-    let out = &runs[runs.len() / 2];
+    if let Some(message) = devices.iter().find_map(|d| d.error()) {
+        return Err(CliError::Runtime(format!("rendering failed: {message}")));
+    }
+    runs.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (seconds, samples, rays) = runs[runs.len() / 2];
     println!(
-        "path tracing  cornell box 512x512, {} spp, depth 15, no RR, waves of {}{}: {:.3} M samples/s, {:.2} M rays/s ({:.3} s median of {}, on {})",
+        "path tracing  cornell box 512x512, {} spp, depth 15, no RR, waves of {}{}{}: {:.3} M samples/s, {:.2} M rays/s ({:.3} s median of {}, on {})",
         args.spp,
         options.wave_size,
         if options.merge_waves { " merged" } else { "" },
-        out.samples_per_second() / 1e6,
-        out.rays_per_second() / 1e6,
-        out.render_seconds,
+        if streams > 1 { format!(", {streams} wavefronts") } else { String::new() },
+        samples / 1e6,
+        rays / 1e6,
+        seconds,
         runs.len(),
         selected.description
     );

@@ -29,9 +29,24 @@ pub struct WaveArgs {
     /// CPU; queues take about 4 x 128 B each).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub wave_size: Option<u32>,
+    /// Wavefronts per GPU when it renders alone or replicates: devices on
+    /// it sharing one copy of the scene, each with its own queues and film
+    /// (default 3, fewer when memory is short; 1 with --no-merge, whose
+    /// reruns are then bit-identical).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub streams: Option<u32>,
 }
 
 impl WaveArgs {
+    /// Wavefronts wanted per GPU (see `--streams`).
+    pub fn streams(&self) -> usize {
+        match (self.no_merge, self.streams) {
+            (_, Some(n)) => n as usize,
+            (true, None) => 1,
+            (false, None) => atoll_cuda::DEFAULT_STREAMS,
+        }
+    }
+
     /// Sets the options' wave settings; `gpu`: a CUDA device renders (its
     /// default wave is larger).
     pub fn apply(&self, options: &mut RenderOptions, gpu: bool) {
@@ -147,11 +162,26 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
     let scene = Arc::new(scene);
     if let Some(DeviceList(specs)) = &args.devices {
-        args.waves.apply(&mut options, specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_))));
+        let gpus = specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_)));
+        args.waves.apply(&mut options, gpus);
+        if let (true, None, Some(budget)) = (gpus, args.waves.wave_size, args.device.device_memory) {
+            multi::fit_wave_to_budget(&mut options, budget);
+        }
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
     let mut selected = select(&args.device, args.threads)?;
     args.waves.apply(&mut options, selected.gpu.is_some());
+    if let (Some(gpu), None) = (&selected.gpu, args.waves.wave_size) {
+        let whole = atoll_bvh::ScenePart::whole(&scene);
+        multi::fit_wave_size(gpu, &scene, &whole, &mut options, args.device.device_memory);
+    }
+    if let Some(gpu) = selected.gpu.clone() {
+        let more =
+            multi::extra_streams(&gpu, args.waves.streams(), &scene, &options, args.device.device_memory)?;
+        if !more.is_empty() {
+            return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
+        }
+    }
     if args.warmup {
         render(selected.device.as_mut(), &scene, RenderOptions { spp: 1, ..options.clone() }, &mut |_, _| {})
             .map_err(|e| CliError::Runtime(e.to_string()))?;
@@ -177,6 +207,60 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
         out.rays_per_second() / 1e6,
+    );
+    Ok(())
+}
+
+/// One GPU rendering with several wavefronts (`--streams`): the selected
+/// device and `more` on its GPU replicate the frame, sharing one copy of
+/// the scene; reported like a single device.
+fn render_streams(
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    args: &RenderArgs,
+    selected: crate::device::Selected,
+    more: Vec<Box<dyn atoll_render::Device>>,
+    output: &Path,
+    load_seconds: f64,
+) -> Result<(), CliError> {
+    let description = selected.description.clone();
+    let mut devices = vec![selected.device];
+    devices.extend(more);
+    let run = |devices: &mut [Box<dyn atoll_render::Device>], options: RenderOptions, bar: &ProgressBar| {
+        atoll_dist::render_multi(
+            devices,
+            scene,
+            options,
+            &atoll_dist::Layout::Replicate,
+            None,
+            &mut |done, total| {
+                bar.set_length(total as u64);
+                bar.set_position(done as u64);
+            },
+        )
+        .map_err(|e| CliError::Runtime(e.to_string()))
+    };
+    if args.warmup {
+        run(&mut devices, RenderOptions { spp: 1, ..options.clone() }, &ProgressBar::hidden())?;
+    }
+    let bar = progress_bar(args.quiet);
+    let out = run(&mut devices, options.clone(), &bar)?;
+    bar.finish_and_clear();
+    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
+    println!(
+        "{}: {}x{} {} spp on {} x {} wavefronts in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
+        output.display(),
+        options.resolution.x,
+        options.resolution.y,
+        options.spp,
+        description,
+        devices.len(),
+        out.render_seconds,
+        load_seconds,
+        out.prepare_seconds,
+        out.samples_per_second() / 1e6,
+        rays as f64 / out.render_seconds.max(1e-9) / 1e6,
     );
     Ok(())
 }
@@ -211,6 +295,7 @@ fn render_on_devices(
         ownership: args.ownership.as_deref(),
         transport: args.ring_transport,
         partitioning: args.partitioning,
+        streams: args.waves.streams(),
     };
     if args.warmup {
         multi::render(scene, RenderOptions { spp: 1, ..options.clone() }, &multi_args, &mut |_, _| {})?;
@@ -229,11 +314,32 @@ fn render_on_devices(
         options.resolution.x,
         options.resolution.y,
         options.spp,
-        specs.len(),
+        out.devices.len(),
         out.render_seconds,
         load_seconds,
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wavefronts_per_gpu() {
+        let waves = |no_merge, streams| WaveArgs { no_merge, wave_size: None, streams };
+        assert_eq!(waves(false, None).streams(), atoll_cuda::DEFAULT_STREAMS);
+        assert_eq!(waves(true, None).streams(), 1, "--no-merge keeps reruns bit-identical");
+        assert_eq!(waves(true, Some(2)).streams(), 2);
+        let mut options = RenderOptions::from_scene(&atoll_scene::cornell::builtin_cornell_box());
+        let cpu_default = options.wave_size;
+        waves(false, None).apply(&mut options, false);
+        assert_eq!(options.wave_size, cpu_default);
+        waves(false, None).apply(&mut options, true);
+        assert_eq!(options.wave_size, atoll_cuda::DEFAULT_WAVE_SIZE);
+        WaveArgs { wave_size: Some(4096), ..waves(false, None) }.apply(&mut options, true);
+        assert_eq!(options.wave_size, 4096);
+    }
 }
