@@ -153,7 +153,7 @@ pub fn render(
     let options_resolution = options.resolution;
     let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
         .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let (layout, partition) = match plan {
+    let (mut layout, partition) = match plan {
         Plan::Replicate => {
             // Replicas on one GPU share one copy of the scene (the first
             // prepares it, the others add only their queues and film, each
@@ -208,6 +208,26 @@ pub fn render(
         );
     }
     devices.truncate(used);
+    if let (Layout::Ring { parts, islands }, Some(p)) = (&mut layout, &partition) {
+        // More islands over the same GPUs, each member sharing the part of
+        // the device it copies: while one ring waits on a hand-over, the
+        // others' kernels keep the GPUs busy.
+        let copies = ring_stream_copies(&mut devices, args.streams, p, &options, args.budget);
+        let ring = parts.len();
+        for _ in 0..copies {
+            for d in 0..ring * *islands {
+                let ordinal = devices[d].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().ordinal);
+                let Some(ordinal) = ordinal else { continue };
+                let mut more = CudaDevice::new(ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
+                more.set_memory_budget(args.budget);
+                devices.push(Box::new(more));
+            }
+        }
+        if copies > 0 {
+            eprintln!("{} islands of {ring} sharing their GPUs' parts", *islands * (copies + 1));
+            *islands *= copies + 1;
+        }
+    }
     if matches!(plan, Plan::Replicate) {
         // More wavefronts on each GPU listed once, sharing its replica.
         for spec in args.specs {
@@ -300,6 +320,33 @@ pub fn fit_wave_to_budget(options: &mut RenderOptions, budget: u64) {
     while options.wave_size > 1 << 16 && gpu_frame_bytes(options) > budget / 8 {
         options.wave_size /= 2;
     }
+}
+
+/// How many more copies of a ring's devices (`--streams`) fit: every GPU
+/// device of the ring must hold another frame beside its part (the
+/// partition's estimate) within its share of its GPU's free memory (or
+/// `budget`). 0 unless every device is a GPU.
+fn ring_stream_copies(
+    devices: &mut [Box<dyn Device>],
+    streams: usize,
+    partition: &Partition,
+    options: &RenderOptions,
+    budget: Option<u64>,
+) -> usize {
+    let gpus: Option<Vec<Arc<Gpu>>> = devices
+        .iter_mut()
+        .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
+        .collect();
+    let (Some(gpus), true) = (gpus, streams > 1) else { return 0 };
+    let frame = gpu_frame_bytes(options).max(1);
+    let fit = gpus.iter().enumerate().map(|(d, gpu)| {
+        let sharing = gpus.iter().filter(|g| g.ordinal == gpu.ordinal).count() as u64;
+        let Ok(free) = gpu.free_memory() else { return 0 };
+        let available = budget.map_or(free / sharing, |b| b.min(free / sharing));
+        let part = partition.bytes[d % partition.parts.len()];
+        (available.saturating_sub(part) / frame).saturating_sub(1) as usize
+    });
+    fit.min().unwrap_or(0).min(streams - 1)
 }
 
 /// Up to `streams - 1` more devices on `gpu` for replicas sharing the
