@@ -63,7 +63,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     args.waves.apply(&mut options, selected.gpu.is_some());
     // Wavefronts sharing the GPU (`--streams`), as `atoll render` uses them.
     let more = match selected.gpu.clone() {
-        Some(gpu) => crate::multi::extra_streams(&gpu, args.waves.streams(), &scene, &options, None)?,
+        Some(gpu) => crate::streams::extra_streams(&gpu, args.waves.streams(), &scene, &options, None)?,
         None => Vec::new(),
     };
     let streams = more.len() + 1;

@@ -8,6 +8,7 @@ mod info;
 mod load;
 mod multi;
 mod render;
+mod streams;
 
 use std::process::ExitCode;
 

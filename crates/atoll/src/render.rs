@@ -29,10 +29,10 @@ pub struct WaveArgs {
     /// CPU; queues take about 4 x 128 B each).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub wave_size: Option<u32>,
-    /// Wavefronts per GPU when it renders alone or replicates: devices on
-    /// it sharing one copy of the scene, each with its own queues and film
-    /// (default 3, fewer when memory is short; 1 with --no-merge, whose
-    /// reruns are then bit-identical).
+    /// Wavefronts per GPU: devices on it sharing one copy of the scene (or,
+    /// on a ring, of their parts: more islands), each with its own queues
+    /// and film (default 3, fewer when memory is short; 1 with --no-merge,
+    /// whose reruns are then bit-identical).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=8))]
     pub streams: Option<u32>,
 }
@@ -165,7 +165,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         let gpus = specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_)));
         args.waves.apply(&mut options, gpus);
         if let (true, None, Some(budget)) = (gpus, args.waves.wave_size, args.device.device_memory) {
-            multi::fit_wave_to_budget(&mut options, budget);
+            crate::streams::fit_wave_to_budget(&mut options, budget);
         }
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
@@ -173,11 +173,16 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     args.waves.apply(&mut options, selected.gpu.is_some());
     if let (Some(gpu), None) = (&selected.gpu, args.waves.wave_size) {
         let whole = atoll_bvh::ScenePart::whole(&scene);
-        multi::fit_wave_size(gpu, &scene, &whole, &mut options, args.device.device_memory);
+        crate::streams::fit_wave_size(gpu, &scene, &whole, &mut options, args.device.device_memory);
     }
     if let Some(gpu) = selected.gpu.clone() {
-        let more =
-            multi::extra_streams(&gpu, args.waves.streams(), &scene, &options, args.device.device_memory)?;
+        let more = crate::streams::extra_streams(
+            &gpu,
+            args.waves.streams(),
+            &scene,
+            &options,
+            args.device.device_memory,
+        )?;
         if !more.is_empty() {
             return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
         }
