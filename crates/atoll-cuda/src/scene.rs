@@ -319,6 +319,34 @@ pub fn bvh_estimate_bytes(triangles: u64, instances: u64) -> u64 {
     crate::bvh::estimate_bytes(triangles, instances)
 }
 
+/// Bytes of the rows every device's tables keep for the whole scene,
+/// whatever part it holds (every instance and object, so that hits and
+/// lights use scene-wide indices): what [`byte_model`], which charges
+/// only the part's instances and objects, leaves out. Planners reserve it
+/// beside the part.
+pub fn scene_wide_rows(scene: &Scene) -> u64 {
+    (scene.instances.len() * std::mem::size_of::<GpuInstance>()
+        + scene.objects.len() * std::mem::size_of::<GpuObject>()) as u64
+}
+
+/// The scene side of a device's memory plan for `part`: its tables and
+/// the BVH build's peak, with the BLASes and instances the build will
+/// really have (objects of the part with triangles, the part's instances),
+/// not the scene's (the tables keep every row; the BVH only the part's).
+pub fn part_plan(scene: &Scene, part: &ScenePart) -> MemoryPlan {
+    let counts = TableCounts::of_part(scene, part);
+    let blases = part_ranges(scene, part)
+        .iter()
+        .flatten()
+        .filter(|ranges| ranges.iter().any(|r| !r.triangles.is_empty()))
+        .count() as u64;
+    MemoryPlan {
+        scene_tables: counts.bytes(),
+        bvh: crate::bvh::build_bytes(counts.triangles, blases, part.instances.len() as u64),
+        ..Default::default()
+    }
+}
+
 /// The GPU's memory use per scene element, for partitioning scenes over
 /// GPUs (`atoll_bvh::part_bytes`): derived from the same sizes the memory
 /// plan checks ([`TableCounts::bytes`], [`crate::bvh::build_bytes`]). The
@@ -429,13 +457,7 @@ impl GpuScene {
         budget: Option<u64>,
         frame_bytes: u64,
     ) -> Result<GpuScene, CudaError> {
-        let counts = TableCounts::of_part(scene, part);
-        let plan = MemoryPlan {
-            scene_tables: counts.bytes(),
-            bvh: bvh_estimate_bytes(counts.triangles, counts.instances),
-            queues: frame_bytes,
-            ..Default::default()
-        };
+        let plan = MemoryPlan { queues: frame_bytes, ..part_plan(scene, part) };
         plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
         Self::upload_tables(gpu, SceneTables::build_part(scene, part))
     }

@@ -150,7 +150,7 @@ pub fn render(
         eprintln!("note: {} devices share cuda:{} (its time and memory)", shared.len(), shared[0]);
     }
     let model = byte_model(args.specs);
-    let budget = scene_budget(&mut devices, args.budget, &options);
+    let budget = scene_budget(&mut devices, scene, args.budget, &options);
     let options_resolution = options.resolution;
     let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
         .map_err(|e| CliError::Runtime(e.to_string()))?;
@@ -261,6 +261,7 @@ pub fn render(
 /// allocates for the frame itself (queues, film, parameters, headroom).
 fn scene_budget(
     devices: &mut [Box<dyn Device>],
+    scene: &Scene,
     budget: Option<u64>,
     options: &RenderOptions,
 ) -> Option<u64> {
@@ -281,7 +282,9 @@ fn scene_budget(
     if gpus.is_empty() {
         return Some(total);
     }
-    Some(total.saturating_sub(gpu_frame_bytes(options)))
+    // The rows every GPU's tables keep for the whole scene are not in the
+    // byte model's charge for a part.
+    Some(total.saturating_sub(gpu_frame_bytes(options) + atoll_cuda::scene::scene_wide_rows(scene)))
 }
 
 /// One line saying what was chosen and why.
