@@ -29,8 +29,8 @@ use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
 use atoll_scene::{
-    AreaEmission, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light, Material, Object, Rgb,
-    Scene, TriangleMesh,
+    AreaEmission, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light, Material, Object,
+    PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -829,9 +829,9 @@ fn shade_materials_matches_the_cpu_stage(materials: &[PackedMaterial]) {
 fn principled_materials() -> Vec<PackedMaterial> {
     // (base colour, metallic, roughness, transmission), then (sheen,
     // clearcoat, clearcoat gloss, specular and sheen tint).
-    let p =
-        |(base_color, metallic, roughness, transmission): (Rgb, f32, f32, f32),
-         (sheen, clearcoat, clearcoat_gloss, tint): (f32, f32, f32, f32)| Material::Principled {
+    let p = |(base_color, metallic, roughness, transmission): (Rgb, f32, f32, f32),
+             (sheen, clearcoat, clearcoat_gloss, tint): (f32, f32, f32, f32)| {
+        Material::Principled(PrincipledParams {
             base_color,
             metallic,
             roughness,
@@ -843,7 +843,8 @@ fn principled_materials() -> Vec<PackedMaterial> {
             clearcoat_gloss,
             transmission,
             eta: 1.5,
-        };
+        })
+    };
     let orange = Rgb::new(0.8, 0.4, 0.1);
     let plain = (0.0, 0.0, 1.0, 0.0);
     [

@@ -202,31 +202,7 @@ impl Bsdf {
             })),
             // A mix is one of its materials per hit (`FrameContext::material_at`).
             Material::Mix { .. } => None,
-            Material::Principled {
-                base_color,
-                metallic,
-                roughness,
-                specular,
-                specular_tint,
-                sheen,
-                sheen_tint,
-                clearcoat,
-                clearcoat_gloss,
-                transmission,
-                eta,
-            } => Some(Bsdf::Principled(Principled {
-                base_color,
-                metallic,
-                roughness,
-                specular,
-                specular_tint,
-                sheen,
-                sheen_tint,
-                clearcoat,
-                clearcoat_gloss,
-                transmission,
-                eta,
-            })),
+            Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),
         }
     }
 

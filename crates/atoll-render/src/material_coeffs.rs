@@ -1,7 +1,7 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::Material;
+use atoll_scene::{Material, PrincipledParams};
 use half::f16;
 
 use crate::bsdf::{Bsdf, CoatedDiffuse, Principled};
@@ -78,33 +78,21 @@ impl PackedMaterial {
                 c[12] = n_samples.min(Material::COATED_MAX_COUNT) as f32;
                 MaterialKind::CoatedDiffuse
             }
-            Material::Principled {
-                base_color,
-                metallic,
-                roughness,
-                specular,
-                specular_tint,
-                sheen,
-                sheen_tint,
-                clearcoat,
-                clearcoat_gloss,
-                transmission,
-                eta,
-            } => {
+            Material::Principled(p) => {
                 // Base colour, metallic and roughness first: per-hit textures
                 // overwrite them (`MaterialKind::Principled` has the layout).
-                c[..3].copy_from_slice(&base_color.to_array());
+                c[..3].copy_from_slice(&p.base_color.to_array());
                 c[3..13].copy_from_slice(&[
-                    metallic,
-                    roughness,
-                    specular,
-                    specular_tint,
-                    sheen,
-                    sheen_tint,
-                    clearcoat,
-                    clearcoat_gloss,
-                    transmission,
-                    eta,
+                    p.metallic,
+                    p.roughness,
+                    p.specular,
+                    p.specular_tint,
+                    p.sheen,
+                    p.sheen_tint,
+                    p.clearcoat,
+                    p.clearcoat_gloss,
+                    p.transmission,
+                    p.eta,
                 ]);
                 MaterialKind::Principled
             }
@@ -148,7 +136,7 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             max_depth: r.coeff(11) as u32,
             n_samples: r.coeff(12) as u32,
         })),
-        MaterialKind::Principled => Some(Bsdf::Principled(Principled {
+        MaterialKind::Principled => Some(Bsdf::Principled(Principled(PrincipledParams {
             base_color: r.coeff3(0),
             metallic: r.coeff(3),
             roughness: r.coeff(4),
@@ -160,7 +148,7 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             clearcoat_gloss: r.coeff(10),
             transmission: r.coeff(11),
             eta: r.coeff(12),
-        })),
+        }))),
     }
 }
 
@@ -221,7 +209,7 @@ mod tests {
                 max_depth: 10,
                 n_samples: 3,
             },
-            Material::Principled {
+            Material::Principled(PrincipledParams {
                 base_color: Rgb::new(0.25, 0.5, 0.75),
                 metallic: 0.125,
                 roughness: 0.375,
@@ -233,7 +221,7 @@ mod tests {
                 clearcoat_gloss: 0.875,
                 transmission: 0.75,
                 eta: 1.5,
-            },
+            }),
         ];
         for m in &materials {
             let mut r = RayRecord::zeroed();
@@ -260,19 +248,7 @@ mod tests {
                     max_depth: c.max_depth,
                     n_samples: c.n_samples,
                 },
-                Bsdf::Principled(p) => Material::Principled {
-                    base_color: p.base_color,
-                    metallic: p.metallic,
-                    roughness: p.roughness,
-                    specular: p.specular,
-                    specular_tint: p.specular_tint,
-                    sheen: p.sheen,
-                    sheen_tint: p.sheen_tint,
-                    clearcoat: p.clearcoat,
-                    clearcoat_gloss: p.clearcoat_gloss,
-                    transmission: p.transmission,
-                    eta: p.eta,
-                },
+                Bsdf::Principled(p) => Material::Principled(p.0),
             };
             // f16 keeps ~3 significant digits.
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
@@ -294,7 +270,7 @@ mod tests {
                 (Material::DiffuseTransmission { .. }, Material::DiffuseTransmission { .. })
                 | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. })
                 | (Material::CoatedDiffuse { .. }, Material::CoatedDiffuse { .. })
-                | (Material::Principled { .. }, Material::Principled { .. }) => assert_eq!(m, &back),
+                | (Material::Principled(_), Material::Principled(_)) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }
         }

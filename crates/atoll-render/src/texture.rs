@@ -741,14 +741,14 @@ mod tests {
 mod binding_tests {
     use super::*;
     use crate::material_coeffs::PackedMaterial;
-    use atoll_scene::{Rgb, TextureBinding};
+    use atoll_scene::{PrincipledParams, Rgb, TextureBinding};
 
     /// A parameter bound to a constant texture of value `v` packs like the
     /// material with that parameter set to `v`: every store target is the
     /// coefficient the material layout gives the parameter.
     #[test]
     fn constant_textures_store_like_material_values() {
-        let principled = Material::Principled {
+        let principled = Material::Principled(PrincipledParams {
             base_color: Rgb::splat(0.5),
             metallic: 0.0,
             roughness: 0.5,
@@ -760,7 +760,7 @@ mod binding_tests {
             clearcoat_gloss: 1.0,
             transmission: 0.0,
             eta: 1.5,
-        };
+        });
         let coated = Material::CoatedDiffuse {
             reflectance: Rgb::splat(0.5),
             eta: 1.5,
@@ -790,6 +790,15 @@ mod binding_tests {
                 })
             };
         }
+        macro_rules! principled_field {
+            ($m:expr, $field:ident, $value:expr) => {
+                set(&$m, &|m| {
+                    if let Material::Principled(p) = m {
+                        p.$field = $value;
+                    }
+                })
+            };
+        }
         let conductor = Material::Conductor { eta: Rgb::ONE, k: Rgb::ONE, alpha_x: 0.0, alpha_y: 0.0 };
         let cases: Vec<(Material, P, Rgb, Material)> = vec![
             (Material::default_diffuse(), P::Reflectance, v, Material::Diffuse { reflectance: v }),
@@ -809,29 +818,29 @@ mod binding_tests {
             (coated.clone(), P::Albedo, v, field!(coated, CoatedDiffuse, albedo, v)),
             (coated.clone(), P::Thickness, Rgb::splat(s), field!(coated, CoatedDiffuse, thickness, s)),
             (coated.clone(), P::G, Rgb::splat(s), field!(coated, CoatedDiffuse, g, s)),
-            (principled.clone(), P::Reflectance, v, field!(principled, Principled, base_color, v)),
-            (principled.clone(), P::Metallic, Rgb::splat(s), field!(principled, Principled, metallic, s)),
-            (principled.clone(), P::Roughness, Rgb::splat(s), field!(principled, Principled, roughness, s)),
+            (principled.clone(), P::Reflectance, v, principled_field!(principled, base_color, v)),
+            (principled.clone(), P::Metallic, Rgb::splat(s), principled_field!(principled, metallic, s)),
+            (principled.clone(), P::Roughness, Rgb::splat(s), principled_field!(principled, roughness, s)),
             (
                 principled.clone(),
                 P::SpecularTint,
                 Rgb::splat(s),
-                field!(principled, Principled, specular_tint, s),
+                principled_field!(principled, specular_tint, s),
             ),
-            (principled.clone(), P::Sheen, Rgb::splat(s), field!(principled, Principled, sheen, s)),
-            (principled.clone(), P::SheenTint, Rgb::splat(s), field!(principled, Principled, sheen_tint, s)),
-            (principled.clone(), P::Clearcoat, Rgb::splat(s), field!(principled, Principled, clearcoat, s)),
+            (principled.clone(), P::Sheen, Rgb::splat(s), principled_field!(principled, sheen, s)),
+            (principled.clone(), P::SheenTint, Rgb::splat(s), principled_field!(principled, sheen_tint, s)),
+            (principled.clone(), P::Clearcoat, Rgb::splat(s), principled_field!(principled, clearcoat, s)),
             (
                 principled.clone(),
                 P::ClearcoatGloss,
                 Rgb::splat(s),
-                field!(principled, Principled, clearcoat_gloss, s),
+                principled_field!(principled, clearcoat_gloss, s),
             ),
             (
                 principled.clone(),
                 P::Transmission,
                 Rgb::splat(s),
-                field!(principled, Principled, transmission, s),
+                principled_field!(principled, transmission, s),
             ),
         ];
         for (base, param, value, expected) in cases {

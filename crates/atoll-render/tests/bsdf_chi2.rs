@@ -12,7 +12,7 @@
 //! sample is an error too).
 
 use atoll_render::bsdf::{Bsdf, Principled};
-use atoll_scene::Rgb;
+use atoll_scene::{PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
 use std::f64::consts::PI;
 
@@ -319,7 +319,7 @@ fn all_cases() -> Vec<Case> {
 /// The principled BSDF: metallic 0 and 1, roughness 0.05, 0.5 and 1,
 /// clearcoat, sheen, transmission from both sides, and everything at once.
 fn principled_cases(cases: &mut Vec<Case>) {
-    let base = Principled {
+    let base = PrincipledParams {
         base_color: Rgb::new(0.8, 0.5, 0.2),
         metallic: 0.0,
         roughness: 0.5,
@@ -333,20 +333,23 @@ fn principled_cases(cases: &mut Vec<Case>) {
         eta: 1.5,
     };
     let variants = [
-        ("dielectric r=0.5", Principled { ..base }),
-        ("dielectric r=0.05", Principled { roughness: 0.05, ..base }),
-        ("dielectric r=1", Principled { roughness: 1.0, specular_tint: 1.0, ..base }),
-        ("metallic r=0.5", Principled { metallic: 1.0, ..base }),
-        ("metallic r=0.05", Principled { metallic: 1.0, roughness: 0.05, ..base }),
-        ("metallic r=1", Principled { metallic: 1.0, roughness: 1.0, ..base }),
-        ("clearcoat gloss=0.5", Principled { clearcoat: 1.0, clearcoat_gloss: 0.5, metallic: 0.3, ..base }),
-        ("clearcoat gloss=1", Principled { clearcoat: 0.6, roughness: 0.3, ..base }),
-        ("sheen", Principled { sheen: 1.0, roughness: 0.8, ..base }),
-        ("glass r=0.3", Principled { transmission: 1.0, roughness: 0.3, ..base }),
-        ("glass η=0.667 r=0.5", Principled { transmission: 1.0, eta: 1.0 / 1.5, ..base }),
+        ("dielectric r=0.5", PrincipledParams { ..base }),
+        ("dielectric r=0.05", PrincipledParams { roughness: 0.05, ..base }),
+        ("dielectric r=1", PrincipledParams { roughness: 1.0, specular_tint: 1.0, ..base }),
+        ("metallic r=0.5", PrincipledParams { metallic: 1.0, ..base }),
+        ("metallic r=0.05", PrincipledParams { metallic: 1.0, roughness: 0.05, ..base }),
+        ("metallic r=1", PrincipledParams { metallic: 1.0, roughness: 1.0, ..base }),
+        (
+            "clearcoat gloss=0.5",
+            PrincipledParams { clearcoat: 1.0, clearcoat_gloss: 0.5, metallic: 0.3, ..base },
+        ),
+        ("clearcoat gloss=1", PrincipledParams { clearcoat: 0.6, roughness: 0.3, ..base }),
+        ("sheen", PrincipledParams { sheen: 1.0, roughness: 0.8, ..base }),
+        ("glass r=0.3", PrincipledParams { transmission: 1.0, roughness: 0.3, ..base }),
+        ("glass η=0.667 r=0.5", PrincipledParams { transmission: 1.0, eta: 1.0 / 1.5, ..base }),
         (
             "everything",
-            Principled {
+            PrincipledParams {
                 metallic: 0.3,
                 roughness: 0.4,
                 specular: 0.8,
@@ -371,7 +374,7 @@ fn principled_cases(cases: &mut Vec<Case>) {
         for &(t, phi, below) in angles {
             cases.push(Case {
                 name: format!("principled {name} wo θ={t} below={below}"),
-                bsdf: Bsdf::Principled(p),
+                bsdf: Bsdf::Principled(Principled(p)),
                 wo: wo_at(t, phi, below),
             });
         }

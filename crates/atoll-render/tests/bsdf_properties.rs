@@ -5,7 +5,7 @@
 
 use atoll_render::bsdf::{fr_complex, fr_dielectric, refract, Bsdf, Principled};
 use atoll_render::sampling::sample_uniform_sphere;
-use atoll_scene::{Material, Rgb};
+use atoll_scene::{Material, PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
 
 /// xorshift64*, enough for tests without an RNG dependency.
@@ -349,7 +349,7 @@ fn refraction_follows_snell() {
 /// A principled surface with the given weights (specular 0.5, eta 1.5,
 /// sheen tint 0.5, gloss 1 unless set after).
 fn principled(base: Rgb, metallic: f32, roughness: f32, transmission: f32) -> Principled {
-    Principled {
+    Principled(PrincipledParams {
         base_color: base,
         metallic,
         roughness,
@@ -361,7 +361,7 @@ fn principled(base: Rgb, metallic: f32, roughness: f32, transmission: f32) -> Pr
         clearcoat_gloss: 1.0,
         transmission,
         eta: 1.5,
-    }
+    })
 }
 
 /// Principled parameter sets covering every lobe, rough and smooth.
@@ -378,17 +378,17 @@ fn principled_set(base: Rgb) -> Vec<Principled> {
         }
     }
     let p = principled(base, 0.0, 1.0, 0.0);
-    v.push(Principled { sheen: 1.0, sheen_tint: 0.0, ..p });
-    v.push(Principled { sheen: 1.0, specular: 1.0, ..principled(base, 0.0, 0.0, 0.0) });
-    v.push(Principled { specular: 0.0, ..p });
-    v.push(Principled { specular: 1.0, specular_tint: 1.0, roughness: 0.2, ..p });
+    v.push(Principled(PrincipledParams { sheen: 1.0, sheen_tint: 0.0, ..p.0 }));
+    v.push(Principled(PrincipledParams { sheen: 1.0, specular: 1.0, ..principled(base, 0.0, 0.0, 0.0).0 }));
+    v.push(Principled(PrincipledParams { specular: 0.0, ..p.0 }));
+    v.push(Principled(PrincipledParams { specular: 1.0, specular_tint: 1.0, roughness: 0.2, ..p.0 }));
     for (metallic, roughness) in [(1.0, 0.0), (1.0, 0.3), (0.0, 1.0), (0.0, 0.05)] {
         for gloss in [0.0, 1.0] {
             let p = principled(base, metallic, roughness, 0.0);
-            v.push(Principled { clearcoat: 1.0, clearcoat_gloss: gloss, ..p });
+            v.push(Principled(PrincipledParams { clearcoat: 1.0, clearcoat_gloss: gloss, ..p.0 }));
         }
     }
-    v.push(Principled {
+    v.push(Principled(PrincipledParams {
         metallic: 0.3,
         roughness: 0.4,
         specular: 0.8,
@@ -397,8 +397,8 @@ fn principled_set(base: Rgb) -> Vec<Principled> {
         clearcoat: 0.7,
         clearcoat_gloss: 0.8,
         transmission: 0.4,
-        ..principled(base, 0.0, 0.0, 0.0)
-    });
+        ..principled(base, 0.0, 0.0, 0.0).0
+    }));
     v
 }
 
@@ -496,7 +496,7 @@ fn smooth_principled_metal_is_a_mirror_of_its_base_colour() {
     let (a, _) = albedo(&nearly, Vec3::Z, 20_000, false, &mut rng);
     assert!((a - base).abs().max_element() < 0.01, "{a} vs {base}");
     // With a clearcoat there is a glossy lobe to light-sample.
-    let coated = Principled { clearcoat: 1.0, ..principled(base, 1.0, 0.0, 0.0) };
+    let coated = Principled(PrincipledParams { clearcoat: 1.0, ..principled(base, 1.0, 0.0, 0.0).0 });
     assert!(!Bsdf::Principled(coated).is_delta());
 }
 
@@ -506,10 +506,11 @@ fn smooth_principled_metal_is_a_mirror_of_its_base_colour() {
 #[test]
 fn smooth_principled_glass_is_the_dielectric() {
     for eta in [1.5f32, 1.0 / 1.5] {
-        let p = Principled { eta, ..principled(Rgb::ONE, 0.0, 0.0, 1.0) };
+        let p = Principled(PrincipledParams { eta, ..principled(Rgb::ONE, 0.0, 0.0, 1.0).0 });
         let glass = Bsdf::Principled(p);
         assert!(glass.is_delta());
-        let tinted = Bsdf::Principled(Principled { base_color: Rgb::new(0.25, 1.0, 0.64), ..p });
+        let tinted =
+            Bsdf::Principled(Principled(PrincipledParams { base_color: Rgb::new(0.25, 1.0, 0.64), ..p.0 }));
         let mut rng = Rng(14);
         for _ in 0..200 {
             let wo = sample_uniform_sphere(rng.vec2());

@@ -6,7 +6,8 @@ use std::sync::Arc;
 
 use atoll_render::RenderOptions;
 use atoll_scene::{
-    AreaEmission, Camera, Instance, IntegratorSettings, Light, Material, Object, Rgb, Scene, TriangleMesh,
+    AreaEmission, Camera, Instance, IntegratorSettings, Light, Material, Object, PrincipledParams, Rgb,
+    Scene, TriangleMesh,
 };
 use common::{assert_finite, mean_and_stderr, render_with};
 use glam::{Affine3A, UVec2, Vec3};
@@ -157,18 +158,20 @@ fn ambient_occlusion_extremes() {
 /// of it (the single-scattering lobes lose a little).
 #[test]
 fn white_principled_spheres_under_uniform_sky() {
-    let p = |metallic: f32, roughness: f32, transmission: f32, clearcoat: f32| Material::Principled {
-        base_color: Rgb::ONE,
-        metallic,
-        roughness,
-        specular: 0.5,
-        specular_tint: 0.0,
-        sheen: 0.0,
-        sheen_tint: 0.5,
-        clearcoat,
-        clearcoat_gloss: 1.0,
-        transmission,
-        eta: 1.5,
+    let p = |metallic: f32, roughness: f32, transmission: f32, clearcoat: f32| {
+        Material::Principled(PrincipledParams {
+            base_color: Rgb::ONE,
+            metallic,
+            roughness,
+            specular: 0.5,
+            specular_tint: 0.0,
+            sheen: 0.0,
+            sheen_tint: 0.5,
+            clearcoat,
+            clearcoat_gloss: 1.0,
+            transmission,
+            eta: 1.5,
+        })
     };
     for (material, lo, hi) in [
         (p(1.0, 0.0, 0.0, 0.0), 1.0, 1.0),

@@ -66,8 +66,8 @@ use crate::error::{FileLoc, SceneError};
 use crate::pbrt::WarningSink;
 use crate::{
     luminance, AlphaMode, AreaEmission, Camera, Channel, ImageId, Instance, Light, LoadedScene, Material,
-    MaterialId, MeshAlpha, Object, ObjectId, Rgb, TexInput, Texels, Texture, TextureBinding, TextureImage,
-    TexturedParam, TriangleMesh, UvMapping, Wrap,
+    MaterialId, MeshAlpha, Object, ObjectId, PrincipledParams, Rgb, TexInput, Texels, Texture,
+    TextureBinding, TextureImage, TexturedParam, TriangleMesh, UvMapping, Wrap,
 };
 
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
@@ -601,7 +601,7 @@ pub fn convert_material(m: &::gltf::Material) -> Material {
         .and_then(|v| v.get("sheenColorFactor"))
         .and_then(serde_json::Value::as_array)
         .map_or(0.0, |c| c.iter().filter_map(serde_json::Value::as_f64).fold(0.0, f64::max) as f32);
-    Material::Principled {
+    Material::Principled(PrincipledParams {
         base_color: base_color.clamp(Rgb::ZERO, Rgb::ONE),
         metallic: unit(metallic),
         roughness: unit(roughness),
@@ -613,7 +613,7 @@ pub fn convert_material(m: &::gltf::Material) -> Material {
         clearcoat_gloss,
         transmission: unit(m.transmission().map_or(0.0, |t| t.transmission_factor())),
         eta: ior,
-    }
+    })
 }
 
 /// An image texture node with no inversion.

@@ -57,19 +57,27 @@ pub enum Material {
     /// transmission of index `eta` weighted by `transmission`. `roughness`
     /// is perceptual (GGX alpha = roughness²); every weight is in [0, 1].
     /// No subsurface scattering, no thin-surface mode.
-    Principled {
-        base_color: Rgb,
-        metallic: f32,
-        roughness: f32,
-        specular: f32,
-        specular_tint: f32,
-        sheen: f32,
-        sheen_tint: f32,
-        clearcoat: f32,
-        clearcoat_gloss: f32,
-        transmission: f32,
-        eta: f32,
-    },
+    Principled(PrincipledParams),
+}
+
+/// The parameters of a [`Material::Principled`] surface, shared with the
+/// renderer's principled BSDF (one field list for the scene, the BSDF, the
+/// GPU packing and the writer).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrincipledParams {
+    pub base_color: Rgb,
+    pub metallic: f32,
+    /// Perceptual roughness: GGX alpha is its square.
+    pub roughness: f32,
+    pub specular: f32,
+    pub specular_tint: f32,
+    pub sheen: f32,
+    pub sheen_tint: f32,
+    pub clearcoat: f32,
+    pub clearcoat_gloss: f32,
+    pub transmission: f32,
+    /// Relative index of refraction of the glass part (inside / outside).
+    pub eta: f32,
 }
 
 impl Material {

@@ -5,8 +5,8 @@
 mod common;
 
 use atoll_scene::{
-    load_any, AlphaMode, AreaEmission, Channel, Light, Material, Rgb, TexInput, Texels, Texture,
-    TexturedParam, UvMapping, Wrap,
+    load_any, AlphaMode, AreaEmission, Channel, Light, Material, PrincipledParams, Rgb, TexInput, Texels,
+    Texture, TexturedParam, UvMapping, Wrap,
 };
 use common::{assert_close, temp_dir, write};
 use glam::{UVec2, Vec3};
@@ -276,7 +276,7 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene) {
     let m = |mesh: usize| &s.materials[s.meshes[mesh].material as usize];
     // (base colour, metallic, roughness), (clearcoat, gloss), (transmission, ior).
     let principled = |(base, metallic, roughness): (Rgb, f32, f32), coat: (f32, f32), glass: (f32, f32)| {
-        Material::Principled {
+        Material::Principled(PrincipledParams {
             base_color: base,
             metallic,
             roughness,
@@ -288,7 +288,7 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene) {
             clearcoat_gloss: coat.1,
             transmission: glass.0,
             eta: glass.1,
-        }
+        })
     };
     let (no_coat, no_glass) = ((0.0, 1.0), (0.0, 1.5));
     assert_eq!(*m(0), principled((Rgb::new(0.8, 0.2, 0.1), 0.0, 1.0), no_coat, no_glass));

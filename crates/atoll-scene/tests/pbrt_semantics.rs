@@ -3,7 +3,9 @@
 
 mod common;
 
-use atoll_scene::{AreaEmission, IntegratorSettings, Light, Material, Rgb, Texture, TexturedParam};
+use atoll_scene::{
+    AreaEmission, IntegratorSettings, Light, Material, PrincipledParams, Rgb, Texture, TexturedParam,
+};
 use common::{assert_close, load_world, tri};
 use glam::Vec3;
 
@@ -535,5 +537,5 @@ fn the_texture_scene_loads_cleanly() {
         assert!(params.contains(&p), "{p:?} bound");
     }
     assert!(s.materials.iter().any(|m| matches!(m, Material::CoatedDiffuse { .. })));
-    assert!(s.materials.iter().any(|m| matches!(m, Material::Principled { .. })));
+    assert!(s.materials.iter().any(|m| matches!(m, Material::Principled(PrincipledParams { .. }))));
 }

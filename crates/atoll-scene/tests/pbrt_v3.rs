@@ -6,7 +6,7 @@ mod common;
 
 use atoll_scene::pbrt::load_str;
 use atoll_scene::texture::srgb8_to_linear;
-use atoll_scene::{Channel, Light, Material, Rgb, TexInput, Texture, TexturedParam};
+use atoll_scene::{Channel, Light, Material, PrincipledParams, Rgb, TexInput, Texture, TexturedParam};
 use common::assert_close;
 use std::path::Path;
 
@@ -77,7 +77,7 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     assert_eq!(*m[8], Material::default_diffuse());
     assert_eq!(*m[9], diffuse([0.9, 0.8, 0.7]));
     // disney: principled with pbrt-v3's defaults; the anisotropy is what it warns about.
-    let principled = Material::Principled {
+    let principled = Material::Principled(PrincipledParams {
         base_color: Rgb::new(0.2, 0.4, 0.6),
         metallic: 1.0,
         roughness: 0.5,
@@ -89,7 +89,7 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
         clearcoat_gloss: 1.0,
         transmission: 0.0,
         eta: 1.5,
-    };
+    });
     assert_eq!(*m[10], principled);
     assert_eq!(*m[11], diffuse([0.3, 0.2, 0.1]));
     // v3 metal defaults: copper, roughness 0.01 remapped to alpha 0.1.
@@ -291,7 +291,7 @@ fn disney_reads_as_the_principled_material() {
     let loaded = load_str(&v3_scene(&[full, textured, dropped]), "d.pbrt", &dir).unwrap();
     let s = &loaded.scene;
     let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
-    let expected = Material::Principled {
+    let expected = Material::Principled(PrincipledParams {
         base_color: Rgb::new(0.8, 0.5, 0.2),
         metallic: 0.25,
         roughness: 0.3,
@@ -303,10 +303,11 @@ fn disney_reads_as_the_principled_material() {
         clearcoat_gloss: 0.6,
         transmission: 0.4,
         eta: 1.33,
-    };
+    });
     assert_eq!(*m[0], expected);
     assert!((Material::specular_from_eta(1.5) - 0.5).abs() < 1e-6);
-    let Material::Principled { base_color, metallic, roughness, specular, .. } = *m[1] else {
+    let Material::Principled(PrincipledParams { base_color, metallic, roughness, specular, .. }) = *m[1]
+    else {
         panic!("{:?}", m[1])
     };
     assert_eq!((base_color, metallic, roughness, specular), (Rgb::splat(0.5), 0.0, 0.5, 0.7));
@@ -320,7 +321,7 @@ fn disney_reads_as_the_principled_material() {
             (TexturedParam::Roughness, false)
         ]
     );
-    let Material::Principled { clearcoat, sheen, .. } = *m[2] else { panic!("{:?}", m[2]) };
+    let Material::Principled(PrincipledParams { clearcoat, sheen, .. }) = *m[2] else { panic!("{:?}", m[2]) };
     assert_eq!((clearcoat, sheen), (1.0, 0.0));
     // A textured sheen is bound (its default stays in the material).
     let bound: Vec<TexturedParam> = s.textures.bindings_of(s.meshes[2].material).map(|b| b.param).collect();

@@ -10,7 +10,8 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use atoll_scene::{
-    load_any, AlphaMode, Channel, LoadedScene, Material, Texels, Texture, TexturedParam, UvMapping, Wrap,
+    load_any, AlphaMode, Channel, LoadedScene, Material, PrincipledParams, Texels, Texture, TexturedParam,
+    UvMapping, Wrap,
 };
 use common::{assert_close, temp_dir, write};
 use glam::{UVec2, Vec3};
@@ -69,10 +70,9 @@ fn gltf_2cylinder_engine_instances_its_meshes_and_keeps_its_camera() {
     assert_eq!(st.materials, 34);
     // Principled, and metallicFactor is 0 throughout.
     assert!(
-        l.scene
-            .materials
-            .iter()
-            .all(|m| matches!(m, Material::Principled { metallic, .. } if *metallic == 0.0)),
+        l.scene.materials.iter().all(
+            |m| matches!(m, Material::Principled(PrincipledParams { metallic, .. }) if *metallic == 0.0)
+        ),
         "{:?}",
         l.scene.materials
     );
@@ -124,7 +124,8 @@ fn gltf_box_textured_in_three_packagings() {
         assert_eq!(s.stats().unique_triangles, 12, "{rel}");
         assert_bounds(&l, [-0.5; 3], [0.5; 3], 1e-6);
         assert_eq!(s.materials.len(), 1);
-        let Material::Principled { base_color, metallic, roughness, .. } = s.materials[0] else {
+        let Material::Principled(PrincipledParams { base_color, metallic, roughness, .. }) = s.materials[0]
+        else {
             panic!("{rel}: {:?}", s.materials[0])
         };
         assert_eq!((base_color, metallic, roughness), (Vec3::ONE, 0.0, 1.0), "{rel}");
@@ -171,7 +172,7 @@ fn gltf_clearcoat_test_binds_metallic_roughness_and_blends() {
         .materials
         .iter()
         .map(|m| match *m {
-            Material::Principled { clearcoat, clearcoat_gloss, roughness, .. } => {
+            Material::Principled(PrincipledParams { clearcoat, clearcoat_gloss, roughness, .. }) => {
                 (clearcoat, clearcoat_gloss, roughness)
             }
             _ => panic!("{m:?}"),

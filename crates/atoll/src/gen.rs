@@ -209,27 +209,25 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         // pbrt-v4 has no principled material: pbrt-v3's `disney` (which
         // atoll reads in either version) with its parameters, plus atoll's
         // `specular` (pbrt-v3 derives it from `eta`).
-        Material::Principled {
-            base_color,
-            metallic,
-            roughness,
-            specular,
-            specular_tint,
-            sheen,
-            sheen_tint,
-            clearcoat,
-            clearcoat_gloss,
-            transmission,
-            eta,
-        } => writeln!(
+        Material::Principled(p) => writeln!(
             out,
-            "\"string type\" \"disney\" \"rgb color\" {} \"float metallic\" [ {metallic} ] \
-             \"float roughness\" [ {roughness} ] \"float specular\" [ {specular} ] \
-             \"float speculartint\" [ {specular_tint} ] \"float sheen\" [ {sheen} ] \
-             \"float sheentint\" [ {sheen_tint} ] \"float clearcoat\" [ {clearcoat} ] \
-             \"float clearcoatgloss\" [ {clearcoat_gloss} ] \"float spectrans\" [ {transmission} ] \
-             \"float eta\" [ {eta} ]",
-            rgb(*base_color)
+            "\"string type\" \"disney\" \"rgb color\" {} \"float metallic\" [ {} ] \
+             \"float roughness\" [ {} ] \"float specular\" [ {} ] \
+             \"float speculartint\" [ {} ] \"float sheen\" [ {} ] \
+             \"float sheentint\" [ {} ] \"float clearcoat\" [ {} ] \
+             \"float clearcoatgloss\" [ {} ] \"float spectrans\" [ {} ] \
+             \"float eta\" [ {} ]",
+            rgb(p.base_color),
+            p.metallic,
+            p.roughness,
+            p.specular,
+            p.specular_tint,
+            p.sheen,
+            p.sheen_tint,
+            p.clearcoat,
+            p.clearcoat_gloss,
+            p.transmission,
+            p.eta
         ),
         // Materials are written in id order, so a mix's parts come first
         // whenever they have smaller ids (as loaders make them).
@@ -378,6 +376,7 @@ pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resu
 #[cfg(test)]
 mod tests {
     use super::*;
+    use atoll_scene::PrincipledParams;
 
     /// Writes `scene`, reads it back with atoll's PBRT loader (no warnings
     /// allowed: every parameter written must be understood).
@@ -489,7 +488,7 @@ mod tests {
     #[test]
     fn principled_materials_round_trip_as_disney() {
         let mut scene = atoll_scene::cornell::builtin_cornell_box();
-        let principled = Material::Principled {
+        let principled = Material::Principled(PrincipledParams {
             base_color: Vec3::new(0.8, 0.5, 0.2),
             metallic: 0.25,
             roughness: 0.3,
@@ -501,7 +500,7 @@ mod tests {
             clearcoat_gloss: 0.6,
             transmission: 0.4,
             eta: 1.33,
-        };
+        });
         let id = scene.meshes[0].material as usize;
         scene.materials[id] = principled.clone();
         let back = round_trip(&scene);

@@ -58,7 +58,7 @@
 //! reflection lobes mirrored, and the glass part from inside (`1 / eta`,
 //! total internal reflection included).
 
-use atoll_scene::{luminance, Rgb};
+use atoll_scene::{luminance, PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, PI};
 
@@ -67,23 +67,16 @@ use super::microfacet::TrowbridgeReitz;
 use super::{conductor, dielectric, same_hemisphere, BsdfSample};
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere, spherical_direction};
 
-/// Parameters of a principled surface (see [`atoll_scene::Material::Principled`]);
-/// values outside their range are clamped when the BSDF is evaluated.
+/// A principled surface: its [`PrincipledParams`] (fields read through
+/// `Deref`); values outside their range are clamped when it is evaluated.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Principled {
-    pub base_color: Rgb,
-    pub metallic: f32,
-    /// Perceptual roughness: GGX alpha is its square.
-    pub roughness: f32,
-    pub specular: f32,
-    pub specular_tint: f32,
-    pub sheen: f32,
-    pub sheen_tint: f32,
-    pub clearcoat: f32,
-    pub clearcoat_gloss: f32,
-    pub transmission: f32,
-    /// Relative index of refraction of the glass part (inside / outside).
-    pub eta: f32,
+pub struct Principled(pub PrincipledParams);
+
+impl std::ops::Deref for Principled {
+    type Target = PrincipledParams;
+    fn deref(&self) -> &PrincipledParams {
+        &self.0
+    }
 }
 
 /// Largest f32 below 1 (pbrt's `OneMinusEpsilon`), for remapped sample values.

@@ -23,7 +23,7 @@
 //! textures. Bump maps are ignored (the builder warns once).
 
 use crate::error::{FileLoc, SceneError};
-use crate::{Material, Rgb, TexInput, TexturedParam};
+use crate::{Material, PrincipledParams, Rgb, TexInput, TexturedParam};
 
 use super::entities::{alphas, reflectance_param};
 use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
@@ -221,7 +221,7 @@ pub fn disney(
         }
         v.clamp(0.0, 1.0)
     };
-    let m = Material::Principled {
+    let m = Material::Principled(PrincipledParams {
         base_color,
         metallic: unit("metallic", metallic),
         roughness: unit("roughness", roughness),
@@ -233,7 +233,7 @@ pub fn disney(
         clearcoat_gloss: unit("clearcoatgloss", clearcoat_gloss),
         transmission: unit("spectrans", transmission),
         eta,
-    };
+    });
     if !dropped.is_empty() {
         w.warn(
             loc,
