@@ -29,8 +29,8 @@ use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
 use atoll_scene::{
-    AreaEmission, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light, Material, Object,
-    PrincipledParams, Rgb, Scene, TriangleMesh,
+    AreaEmission, CoatedDiffuseParams, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light,
+    Material, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -757,7 +757,7 @@ fn bsdfs_match_value_by_value() {
 fn coated_materials() -> Vec<PackedMaterial> {
     let coated =
         |reflectance: Rgb, alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32, n_samples: u32| {
-            Material::CoatedDiffuse {
+            Material::CoatedDiffuse(CoatedDiffuseParams {
                 reflectance,
                 eta: 1.5,
                 alpha_x: alpha.0,
@@ -767,7 +767,7 @@ fn coated_materials() -> Vec<PackedMaterial> {
                 g,
                 max_depth: 10,
                 n_samples,
-            }
+            })
         };
     [
         coated(Rgb::new(0.8, 0.4, 0.1), (0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1),

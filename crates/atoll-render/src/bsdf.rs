@@ -179,27 +179,7 @@ impl Bsdf {
                 Some(Bsdf::DiffuseTransmission { reflectance, transmittance })
             }
             Material::ThinDielectric { eta } => Some(Bsdf::ThinDielectric { eta }),
-            Material::CoatedDiffuse {
-                reflectance,
-                eta,
-                alpha_x,
-                alpha_y,
-                thickness,
-                albedo,
-                g,
-                max_depth,
-                n_samples,
-            } => Some(Bsdf::CoatedDiffuse(CoatedDiffuse {
-                reflectance,
-                eta,
-                alpha_x,
-                alpha_y,
-                thickness,
-                albedo,
-                g,
-                max_depth,
-                n_samples,
-            })),
+            Material::CoatedDiffuse(params) => Some(Bsdf::CoatedDiffuse(CoatedDiffuse(params))),
             // A mix is one of its materials per hit (`FrameContext::material_at`).
             Material::Mix { .. } => None,
             Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),

@@ -1,7 +1,7 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::{Material, PrincipledParams};
+use atoll_scene::{CoatedDiffuseParams, Material, PrincipledParams};
 use half::f16;
 
 use crate::bsdf::{Bsdf, CoatedDiffuse, Principled};
@@ -54,28 +54,18 @@ impl PackedMaterial {
                 mix = Some((materials, amount));
                 MaterialKind::Mix
             }
-            Material::CoatedDiffuse {
-                reflectance,
-                eta,
-                alpha_x,
-                alpha_y,
-                thickness,
-                albedo,
-                g,
-                max_depth,
-                n_samples,
-            } => {
+            Material::CoatedDiffuse(p) => {
                 // Reflectance and roughness first, where per-hit textures
                 // overwrite them (`MaterialKind::CoatedDiffuse` has the layout).
-                c[..3].copy_from_slice(&reflectance.to_array());
-                c[3] = alpha_x;
-                c[4] = alpha_y;
-                c[5] = eta;
-                c[6] = thickness;
-                c[7..10].copy_from_slice(&albedo.to_array());
-                c[10] = g;
-                c[11] = max_depth.min(Material::COATED_MAX_COUNT) as f32;
-                c[12] = n_samples.min(Material::COATED_MAX_COUNT) as f32;
+                c[..3].copy_from_slice(&p.reflectance.to_array());
+                c[3] = p.alpha_x;
+                c[4] = p.alpha_y;
+                c[5] = p.eta;
+                c[6] = p.thickness;
+                c[7..10].copy_from_slice(&p.albedo.to_array());
+                c[10] = p.g;
+                c[11] = p.max_depth.min(Material::COATED_MAX_COUNT) as f32;
+                c[12] = p.n_samples.min(Material::COATED_MAX_COUNT) as f32;
                 MaterialKind::CoatedDiffuse
             }
             Material::Principled(p) => {
@@ -125,7 +115,7 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             Some(Bsdf::DiffuseTransmission { reflectance: r.coeff3(0), transmittance: r.coeff3(3) })
         }
         MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(0) }),
-        MaterialKind::CoatedDiffuse => Some(Bsdf::CoatedDiffuse(CoatedDiffuse {
+        MaterialKind::CoatedDiffuse => Some(Bsdf::CoatedDiffuse(CoatedDiffuse(CoatedDiffuseParams {
             reflectance: r.coeff3(0),
             alpha_x: r.coeff(3),
             alpha_y: r.coeff(4),
@@ -135,7 +125,7 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             g: r.coeff(10),
             max_depth: r.coeff(11) as u32,
             n_samples: r.coeff(12) as u32,
-        })),
+        }))),
         MaterialKind::Principled => Some(Bsdf::Principled(Principled(PrincipledParams {
             base_color: r.coeff3(0),
             metallic: r.coeff(3),
@@ -162,7 +152,7 @@ mod tests {
     /// coated diffuse keeps them where `MaterialKind::CoatedDiffuse` says.
     #[test]
     fn coated_diffuse_layout() {
-        let m = Material::CoatedDiffuse {
+        let m = Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::new(0.25, 0.5, 0.75),
             eta: 1.25,
             alpha_x: 0.125,
@@ -172,7 +162,7 @@ mod tests {
             g: -0.25,
             max_depth: 2048,
             n_samples: 4000,
-        };
+        });
         let p = PackedMaterial::pack(&m);
         let c: Vec<f32> = p.coeffs.iter().map(|h| h.to_f32()).collect();
         let expected =
@@ -198,7 +188,7 @@ mod tests {
                 transmittance: Rgb::splat(0.75),
             },
             Material::ThinDielectric { eta: 1.25 },
-            Material::CoatedDiffuse {
+            Material::CoatedDiffuse(CoatedDiffuseParams {
                 reflectance: Rgb::new(0.25, 0.5, 0.125),
                 eta: 1.5,
                 alpha_x: 0.25,
@@ -208,7 +198,7 @@ mod tests {
                 g: -0.5,
                 max_depth: 10,
                 n_samples: 3,
-            },
+            }),
             Material::Principled(PrincipledParams {
                 base_color: Rgb::new(0.25, 0.5, 0.75),
                 metallic: 0.125,
@@ -237,17 +227,7 @@ mod tests {
                     Material::DiffuseTransmission { reflectance, transmittance }
                 }
                 Bsdf::ThinDielectric { eta } => Material::ThinDielectric { eta },
-                Bsdf::CoatedDiffuse(c) => Material::CoatedDiffuse {
-                    reflectance: c.reflectance,
-                    eta: c.eta,
-                    alpha_x: c.alpha_x,
-                    alpha_y: c.alpha_y,
-                    thickness: c.thickness,
-                    albedo: c.albedo,
-                    g: c.g,
-                    max_depth: c.max_depth,
-                    n_samples: c.n_samples,
-                },
+                Bsdf::CoatedDiffuse(c) => Material::CoatedDiffuse(c.0),
                 Bsdf::Principled(p) => Material::Principled(p.0),
             };
             // f16 keeps ~3 significant digits.
@@ -269,7 +249,7 @@ mod tests {
                 // Values exact in f16: the round trip is exact.
                 (Material::DiffuseTransmission { .. }, Material::DiffuseTransmission { .. })
                 | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. })
-                | (Material::CoatedDiffuse { .. }, Material::CoatedDiffuse { .. })
+                | (Material::CoatedDiffuse(_), Material::CoatedDiffuse(_))
                 | (Material::Principled(_), Material::Principled(_)) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }

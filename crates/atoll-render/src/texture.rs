@@ -741,7 +741,7 @@ mod tests {
 mod binding_tests {
     use super::*;
     use crate::material_coeffs::PackedMaterial;
-    use atoll_scene::{PrincipledParams, Rgb, TextureBinding};
+    use atoll_scene::{CoatedDiffuseParams, PrincipledParams, Rgb, TextureBinding};
 
     /// A parameter bound to a constant texture of value `v` packs like the
     /// material with that parameter set to `v`: every store target is the
@@ -761,7 +761,7 @@ mod binding_tests {
             transmission: 0.0,
             eta: 1.5,
         });
-        let coated = Material::CoatedDiffuse {
+        let coated = Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::splat(0.5),
             eta: 1.5,
             alpha_x: 0.0,
@@ -771,7 +771,7 @@ mod binding_tests {
             g: 0.0,
             max_depth: 10,
             n_samples: 1,
-        };
+        });
         let v = Rgb::new(0.25, 0.375, 0.625);
         let s = v.x;
         use TexturedParam as P;
@@ -790,10 +790,11 @@ mod binding_tests {
                 })
             };
         }
-        macro_rules! principled_field {
-            ($m:expr, $field:ident, $value:expr) => {
+        // The same for materials whose parameters are a struct.
+        macro_rules! params_field {
+            ($m:expr, $variant:ident, $field:ident, $value:expr) => {
                 set(&$m, &|m| {
-                    if let Material::Principled(p) = m {
+                    if let Material::$variant(p) = m {
                         p.$field = $value;
                     }
                 })
@@ -814,33 +815,53 @@ mod binding_tests {
                 v,
                 Material::DiffuseTransmission { reflectance: Rgb::ONE, transmittance: v },
             ),
-            (coated.clone(), P::Reflectance, v, field!(coated, CoatedDiffuse, reflectance, v)),
-            (coated.clone(), P::Albedo, v, field!(coated, CoatedDiffuse, albedo, v)),
-            (coated.clone(), P::Thickness, Rgb::splat(s), field!(coated, CoatedDiffuse, thickness, s)),
-            (coated.clone(), P::G, Rgb::splat(s), field!(coated, CoatedDiffuse, g, s)),
-            (principled.clone(), P::Reflectance, v, principled_field!(principled, base_color, v)),
-            (principled.clone(), P::Metallic, Rgb::splat(s), principled_field!(principled, metallic, s)),
-            (principled.clone(), P::Roughness, Rgb::splat(s), principled_field!(principled, roughness, s)),
+            (coated.clone(), P::Reflectance, v, params_field!(coated, CoatedDiffuse, reflectance, v)),
+            (coated.clone(), P::Albedo, v, params_field!(coated, CoatedDiffuse, albedo, v)),
+            (coated.clone(), P::Thickness, Rgb::splat(s), params_field!(coated, CoatedDiffuse, thickness, s)),
+            (coated.clone(), P::G, Rgb::splat(s), params_field!(coated, CoatedDiffuse, g, s)),
+            (principled.clone(), P::Reflectance, v, params_field!(principled, Principled, base_color, v)),
+            (
+                principled.clone(),
+                P::Metallic,
+                Rgb::splat(s),
+                params_field!(principled, Principled, metallic, s),
+            ),
+            (
+                principled.clone(),
+                P::Roughness,
+                Rgb::splat(s),
+                params_field!(principled, Principled, roughness, s),
+            ),
             (
                 principled.clone(),
                 P::SpecularTint,
                 Rgb::splat(s),
-                principled_field!(principled, specular_tint, s),
+                params_field!(principled, Principled, specular_tint, s),
             ),
-            (principled.clone(), P::Sheen, Rgb::splat(s), principled_field!(principled, sheen, s)),
-            (principled.clone(), P::SheenTint, Rgb::splat(s), principled_field!(principled, sheen_tint, s)),
-            (principled.clone(), P::Clearcoat, Rgb::splat(s), principled_field!(principled, clearcoat, s)),
+            (principled.clone(), P::Sheen, Rgb::splat(s), params_field!(principled, Principled, sheen, s)),
+            (
+                principled.clone(),
+                P::SheenTint,
+                Rgb::splat(s),
+                params_field!(principled, Principled, sheen_tint, s),
+            ),
+            (
+                principled.clone(),
+                P::Clearcoat,
+                Rgb::splat(s),
+                params_field!(principled, Principled, clearcoat, s),
+            ),
             (
                 principled.clone(),
                 P::ClearcoatGloss,
                 Rgb::splat(s),
-                principled_field!(principled, clearcoat_gloss, s),
+                params_field!(principled, Principled, clearcoat_gloss, s),
             ),
             (
                 principled.clone(),
                 P::Transmission,
                 Rgb::splat(s),
-                principled_field!(principled, transmission, s),
+                params_field!(principled, Principled, transmission, s),
             ),
         ];
         for (base, param, value, expected) in cases {

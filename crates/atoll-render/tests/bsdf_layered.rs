@@ -28,7 +28,10 @@ use atoll_render::bsdf::layered::DIRECTION_SEED_DROP_BITS;
 use atoll_render::bsdf::{fr_dielectric, refract, Bsdf, CoatedDiffuse};
 use atoll_render::sampling::{sample_cosine_hemisphere, sample_uniform_sphere};
 use atoll_render::RenderOptions;
-use atoll_scene::{Camera, Instance, IntegratorSettings, Light, Material, Object, Rgb, Scene, TriangleMesh};
+use atoll_scene::{
+    Camera, CoatedDiffuseParams, Instance, IntegratorSettings, Light, Material, Object, Rgb, Scene,
+    TriangleMesh,
+};
 use common::{assert_finite, mean_and_stderr, render_with};
 use glam::{Affine3A, UVec2, Vec2, Vec3};
 
@@ -48,7 +51,7 @@ impl Rng {
 }
 
 fn coated(reflectance: Rgb, alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32) -> CoatedDiffuse {
-    CoatedDiffuse {
+    CoatedDiffuse(CoatedDiffuseParams {
         reflectance,
         eta: 1.5,
         alpha_x: alpha.0,
@@ -58,7 +61,7 @@ fn coated(reflectance: Rgb, alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f
         g,
         max_depth: 10,
         n_samples: 1,
-    }
+    })
 }
 
 fn wo_at(theta_deg: f32, phi_deg: f32) -> Vec3 {
@@ -197,7 +200,7 @@ fn energy_is_conserved_with_a_scattering_medium() {
                 assert!(m < 1.0 + 5.0 * e && m > 0.5, "{c:?} θ={theta}: albedo {m} ± {e}");
             }
         }
-        let grey = CoatedDiffuse { albedo: Rgb::splat(0.5), ..c };
+        let grey = CoatedDiffuse(CoatedDiffuseParams { albedo: Rgb::splat(0.5), ..c.0 });
         let s = sampled_albedo(&grey, wo_at(30.0, 0.0), 20_000, &mut rng);
         assert!(s.mean(0) < 0.95, "{grey:?}: albedo {}", s.mean(0));
     }
@@ -212,8 +215,13 @@ fn energy_is_conserved_with_a_scattering_medium() {
 fn black_base_leaves_the_coating_alone() {
     let smooth = coated(Rgb::ZERO, (0.0, 0.0), 0.01, Rgb::ZERO, 0.0);
     assert!(Bsdf::CoatedDiffuse(smooth).is_delta());
-    assert!(!Bsdf::CoatedDiffuse(CoatedDiffuse { reflectance: Rgb::splat(0.1), ..smooth }).is_delta());
-    assert!(!Bsdf::CoatedDiffuse(CoatedDiffuse { albedo: Rgb::splat(0.1), ..smooth }).is_delta());
+    assert!(!Bsdf::CoatedDiffuse(CoatedDiffuse(CoatedDiffuseParams {
+        reflectance: Rgb::splat(0.1),
+        ..smooth.0
+    }))
+    .is_delta());
+    assert!(!Bsdf::CoatedDiffuse(CoatedDiffuse(CoatedDiffuseParams { albedo: Rgb::splat(0.1), ..smooth.0 }))
+        .is_delta());
     let bsdf = Bsdf::CoatedDiffuse(smooth);
     let mut rng = Rng(3);
     for theta in [0.0f32, 30.0, 60.0, 85.0] {
@@ -467,7 +475,7 @@ fn sphere(material: u32) -> TriangleMesh {
 /// layered `pdf` (not the walk's density) for the two strategies to sum up.
 #[test]
 fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
-    let material = Material::CoatedDiffuse {
+    let material = Material::CoatedDiffuse(CoatedDiffuseParams {
         reflectance: Rgb::ONE,
         eta: 1.5,
         alpha_x: 0.0,
@@ -477,7 +485,7 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
         g: 0.0,
         max_depth: 100,
         n_samples: 1,
-    };
+    });
     let mut scene = Scene { materials: vec![material], ..Default::default() };
     let mesh = scene.add_mesh(sphere(0));
     let object = scene.add_object(Object { name: "world".into(), meshes: vec![mesh] });

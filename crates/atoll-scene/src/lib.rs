@@ -33,7 +33,7 @@ pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
 pub use load::{load_any, LoadedScene};
-pub use material::{Material, MaterialId, PrincipledParams};
+pub use material::{CoatedDiffuseParams, Material, MaterialId, PrincipledParams};
 pub use mesh::{MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
 pub use texture::{

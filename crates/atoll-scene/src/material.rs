@@ -37,17 +37,7 @@ pub enum Material {
     /// single-scattering `albedo` and Henyey–Greenstein asymmetry `g`. Light
     /// between the layers is followed by a random walk of at most
     /// `max_depth` events, `n_samples` walks per evaluation.
-    CoatedDiffuse {
-        reflectance: Rgb,
-        eta: f32,
-        alpha_x: f32,
-        alpha_y: f32,
-        thickness: f32,
-        albedo: Rgb,
-        g: f32,
-        max_depth: u32,
-        n_samples: u32,
-    },
+    CoatedDiffuse(CoatedDiffuseParams),
     /// A Disney-principled surface (Burley 2012/2015, as pbrt-v3's `disney`
     /// material; glTF's metallic-roughness maps onto it): Burley diffuse
     /// with retro-reflection and sheen, a GGX specular lobe whose
@@ -58,6 +48,30 @@ pub enum Material {
     /// is perceptual (GGX alpha = roughness²); every weight is in [0, 1].
     /// No subsurface scattering, no thin-surface mode.
     Principled(PrincipledParams),
+}
+
+/// The parameters of a [`Material::CoatedDiffuse`] surface, shared with
+/// the renderer's layered BSDF.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoatedDiffuseParams {
+    /// Lambertian reflectance of the base.
+    pub reflectance: Rgb,
+    /// Relative index of refraction of the coating (inside / outside).
+    pub eta: f32,
+    /// GGX roughness of the coating along local x.
+    pub alpha_x: f32,
+    /// GGX roughness of the coating along local y.
+    pub alpha_y: f32,
+    /// Optical depth of the medium between coating and base.
+    pub thickness: f32,
+    /// Single-scattering albedo of the medium; zero for a purely absorbing one.
+    pub albedo: Rgb,
+    /// Henyey–Greenstein asymmetry of the medium's phase function.
+    pub g: f32,
+    /// Most scattering events of one random walk.
+    pub max_depth: u32,
+    /// Random walks averaged per estimate.
+    pub n_samples: u32,
 }
 
 /// The parameters of a [`Material::Principled`] surface, shared with the

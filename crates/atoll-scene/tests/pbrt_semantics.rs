@@ -4,7 +4,8 @@
 mod common;
 
 use atoll_scene::{
-    AreaEmission, IntegratorSettings, Light, Material, PrincipledParams, Rgb, Texture, TexturedParam,
+    AreaEmission, CoatedDiffuseParams, IntegratorSettings, Light, Material, PrincipledParams, Rgb, Texture,
+    TexturedParam,
 };
 use common::{assert_close, load_world, tri};
 use glam::Vec3;
@@ -253,7 +254,7 @@ fn coated_diffuse() {
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let s = &loaded.scene;
     let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
-    let defaults = Material::CoatedDiffuse {
+    let defaults = Material::CoatedDiffuse(CoatedDiffuseParams {
         reflectance: Rgb::splat(0.5),
         eta: 1.5,
         alpha_x: 0.0,
@@ -263,11 +264,11 @@ fn coated_diffuse() {
         g: 0.0,
         max_depth: 10,
         n_samples: 1,
-    };
+    });
     assert_eq!(*m[0], defaults);
     assert_eq!(
         *m[1],
-        Material::CoatedDiffuse {
+        Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::new(0.2, 0.4, 0.6),
             eta: 1.33,
             alpha_x: 0.3,
@@ -277,9 +278,11 @@ fn coated_diffuse() {
             g: -0.3,
             max_depth: 32,
             n_samples: 4,
-        }
+        })
     );
-    let Material::CoatedDiffuse { alpha_x, alpha_y, .. } = *m[2] else { panic!("{:?}", m[2]) };
+    let Material::CoatedDiffuse(CoatedDiffuseParams { alpha_x, alpha_y, .. }) = *m[2] else {
+        panic!("{:?}", m[2])
+    };
     assert_eq!((alpha_x, alpha_y), (0.2, 0.2));
 
     // The error is at the parameter (column 26, after `Material "coateddiffuse" `).
@@ -536,6 +539,6 @@ fn the_texture_scene_loads_cleanly() {
     ] {
         assert!(params.contains(&p), "{p:?} bound");
     }
-    assert!(s.materials.iter().any(|m| matches!(m, Material::CoatedDiffuse { .. })));
+    assert!(s.materials.iter().any(|m| matches!(m, Material::CoatedDiffuse(CoatedDiffuseParams { .. }))));
     assert!(s.materials.iter().any(|m| matches!(m, Material::Principled(PrincipledParams { .. }))));
 }

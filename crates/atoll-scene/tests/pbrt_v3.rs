@@ -6,7 +6,9 @@ mod common;
 
 use atoll_scene::pbrt::load_str;
 use atoll_scene::texture::srgb8_to_linear;
-use atoll_scene::{Channel, Light, Material, PrincipledParams, Rgb, TexInput, Texture, TexturedParam};
+use atoll_scene::{
+    Channel, CoatedDiffuseParams, Light, Material, PrincipledParams, Rgb, TexInput, Texture, TexturedParam,
+};
 use common::assert_close;
 use std::path::Path;
 
@@ -51,16 +53,18 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     let diffuse = |r: [f32; 3]| Material::Diffuse { reflectance: Rgb::from(r) };
     assert_eq!(*m[0], diffuse([0.1, 0.2, 0.3]));
     // plastic and substrate: coateddiffuse, as pbrt-v4's upgrade does, with v3's defaults.
-    let coated = |r: [f32; 3], ax: f32, ay: f32| Material::CoatedDiffuse {
-        reflectance: Rgb::from(r),
-        eta: 1.5,
-        alpha_x: Material::roughness_to_alpha(ax),
-        alpha_y: Material::roughness_to_alpha(ay),
-        thickness: 0.01,
-        albedo: Rgb::ZERO,
-        g: 0.0,
-        max_depth: 10,
-        n_samples: 1,
+    let coated = |r: [f32; 3], ax: f32, ay: f32| {
+        Material::CoatedDiffuse(CoatedDiffuseParams {
+            reflectance: Rgb::from(r),
+            eta: 1.5,
+            alpha_x: Material::roughness_to_alpha(ax),
+            alpha_y: Material::roughness_to_alpha(ay),
+            thickness: 0.01,
+            albedo: Rgb::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            n_samples: 1,
+        })
     };
     assert_eq!(*m[1], coated([0.4, 0.4, 0.4], 0.1, 0.1));
     assert_eq!(*m[2], coated([0.3, 0.2, 0.1], 0.2, 0.1));

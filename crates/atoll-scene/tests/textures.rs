@@ -10,8 +10,8 @@ use std::path::Path;
 use atoll_scene::pbrt::{load_str, LoadedScene};
 use atoll_scene::texture::srgb8_to_linear;
 use atoll_scene::{
-    load_any, AlphaMode, Channel, Material, MeshAlpha, Rgb, TexInput, Texels, Texture, TexturedParam,
-    UvMapping, Wrap,
+    load_any, AlphaMode, Channel, CoatedDiffuseParams, Material, MeshAlpha, Rgb, TexInput, Texels, Texture,
+    TexturedParam, UvMapping, Wrap,
 };
 use common::{temp_dir, write};
 
@@ -390,7 +390,7 @@ fn coated_diffuse_medium_textures_are_bound() {
     let mut bound: Vec<TexturedParam> = bindings(&l, 0).into_iter().map(|(p, _, _)| p).collect();
     bound.sort_by_key(|p| *p as u32);
     assert_eq!(bound, [TexturedParam::Thickness, TexturedParam::Albedo, TexturedParam::G]);
-    let Material::CoatedDiffuse { thickness, albedo, g, .. } =
+    let Material::CoatedDiffuse(CoatedDiffuseParams { thickness, albedo, g, .. }) =
         l.scene.materials[l.scene.meshes[0].material as usize]
     else {
         panic!()

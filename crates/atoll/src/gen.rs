@@ -187,24 +187,19 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         Material::ThinDielectric { eta } => {
             writeln!(out, "\"string type\" \"thindielectric\" \"float eta\" [ {eta} ]")
         }
-        Material::CoatedDiffuse {
-            reflectance,
-            eta,
-            alpha_x,
-            alpha_y,
-            thickness,
-            albedo,
-            g,
-            max_depth,
-            n_samples,
-        } => writeln!(
+        Material::CoatedDiffuse(c) => writeln!(
             out,
-            "\"string type\" \"coateddiffuse\" \"rgb reflectance\" {} {} \"float eta\" [ {eta} ] \
-             \"float thickness\" [ {thickness} ] \"rgb albedo\" {} \"float g\" [ {g} ] \
-             \"integer maxdepth\" [ {max_depth} ] \"integer nsamples\" [ {n_samples} ]",
-            rgb(*reflectance),
-            rough(*alpha_x, *alpha_y),
-            rgb(*albedo)
+            "\"string type\" \"coateddiffuse\" \"rgb reflectance\" {} {} \"float eta\" [ {} ] \
+             \"float thickness\" [ {} ] \"rgb albedo\" {} \"float g\" [ {} ] \
+             \"integer maxdepth\" [ {} ] \"integer nsamples\" [ {} ]",
+            rgb(c.reflectance),
+            rough(c.alpha_x, c.alpha_y),
+            c.eta,
+            c.thickness,
+            rgb(c.albedo),
+            c.g,
+            c.max_depth,
+            c.n_samples
         ),
         // pbrt-v4 has no principled material: pbrt-v3's `disney` (which
         // atoll reads in either version) with its parameters, plus atoll's
@@ -376,7 +371,7 @@ pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resu
 #[cfg(test)]
 mod tests {
     use super::*;
-    use atoll_scene::PrincipledParams;
+    use atoll_scene::{CoatedDiffuseParams, PrincipledParams};
 
     /// Writes `scene`, reads it back with atoll's PBRT loader (no warnings
     /// allowed: every parameter written must be understood).
@@ -467,7 +462,7 @@ mod tests {
     #[test]
     fn coated_diffuse_round_trips() {
         let mut scene = atoll_scene::cornell::builtin_cornell_box();
-        scene.materials[0] = Material::CoatedDiffuse {
+        scene.materials[0] = Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Vec3::new(0.2, 0.4, 0.6),
             eta: 1.33,
             alpha_x: 0.1,
@@ -477,7 +472,7 @@ mod tests {
             g: -0.4,
             max_depth: 17,
             n_samples: 3,
-        };
+        });
         let back = round_trip(&scene);
         assert_equal(&scene, &back);
         assert!(back.materials.contains(&scene.materials[0]));

@@ -32,7 +32,7 @@
 //! rather than its `f` and density separately, which underflow f32 on long
 //! walks (see [`CoatedDiffuse::sample`]).
 
-use atoll_scene::Rgb;
+use atoll_scene::{CoatedDiffuseParams, Rgb};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -42,27 +42,22 @@ use super::{same_hemisphere, Bsdf, BsdfSample};
 use crate::rng::pcg_hash;
 use crate::sampling::{henyey_greenstein, power_heuristic, sample_exponential, sample_henyey_greenstein};
 
-/// Parameters of a coated diffuse surface (see [`atoll_scene::Material::CoatedDiffuse`]).
+/// A coated diffuse surface: its [`CoatedDiffuseParams`] (fields through
+/// `Deref`).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CoatedDiffuse {
-    /// Lambertian reflectance of the base.
-    pub reflectance: Rgb,
-    /// Relative index of refraction of the coating (inside / outside).
-    pub eta: f32,
-    /// GGX roughness of the coating along local x.
-    pub alpha_x: f32,
-    /// GGX roughness of the coating along local y.
-    pub alpha_y: f32,
-    /// Optical depth of the medium between coating and base.
-    pub thickness: f32,
-    /// Single-scattering albedo of the medium; zero for a purely absorbing one.
-    pub albedo: Rgb,
-    /// Henyey–Greenstein asymmetry of the medium's phase function.
-    pub g: f32,
-    /// Most scattering events of one random walk.
-    pub max_depth: u32,
-    /// Random walks averaged per estimate.
-    pub n_samples: u32,
+pub struct CoatedDiffuse(pub CoatedDiffuseParams);
+
+impl std::ops::Deref for CoatedDiffuse {
+    type Target = CoatedDiffuseParams;
+    fn deref(&self) -> &CoatedDiffuseParams {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for CoatedDiffuse {
+    fn deref_mut(&mut self) -> &mut CoatedDiffuseParams {
+        &mut self.0
+    }
 }
 
 /// Domain tags that keep the three estimates' random streams apart (the

@@ -79,6 +79,12 @@ impl std::ops::Deref for Principled {
     }
 }
 
+impl std::ops::DerefMut for Principled {
+    fn deref_mut(&mut self) -> &mut PrincipledParams {
+        &mut self.0
+    }
+}
+
 /// Largest f32 below 1 (pbrt's `OneMinusEpsilon`), for remapped sample values.
 const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 

@@ -6,7 +6,7 @@
 use glam::{DMat4, DVec3, Vec3};
 
 use crate::error::{FileLoc, SceneError};
-use crate::{AreaEmission, Light, Material, Rgb, TexInput, TexturedParam};
+use crate::{AreaEmission, CoatedDiffuseParams, Light, Material, Rgb, TexInput, TexturedParam};
 
 use super::params::{ParamList, ParamType, SpectrumParam};
 use super::spectrum;
@@ -256,7 +256,7 @@ pub(super) fn coated_diffuse(
         Err(SceneError::at(at, format!("{what}: \"{name}\" must be between {min} and {max}, found {v}")))
     };
     let (max_depth, n_samples) = (count("maxdepth", 10, 0)?, count("nsamples", 1, 1)?);
-    Ok(Material::CoatedDiffuse {
+    Ok(Material::CoatedDiffuse(CoatedDiffuseParams {
         reflectance,
         eta,
         alpha_x,
@@ -266,7 +266,7 @@ pub(super) fn coated_diffuse(
         g,
         max_depth,
         n_samples,
-    })
+    }))
 }
 
 /// A dielectric's `eta` in any of its spellings (default 1.5).
