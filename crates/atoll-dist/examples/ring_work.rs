@@ -23,23 +23,16 @@ use std::time::Instant;
 use atoll_bvh::{ByteModel, Hit, Ray, SceneBvh};
 use atoll_dist::{partition, spatial::partition_interleaved, Partition, PartitionOptions};
 use atoll_render::camera::CameraRays;
+use atoll_render::rng::pcg_hash;
 use atoll_render::sampling::sample_cosine_hemisphere;
 use atoll_scene::landscape::Landscape;
 use atoll_scene::{Light, Scene};
 use glam::{UVec2, Vec2, Vec3};
 use rayon::prelude::*;
 
-/// A 32-bit integer hash (for the bounce directions).
-fn hash(mut x: u32) -> u32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846ca68b);
-    x ^ (x >> 16)
-}
-
+/// A uniform number in [0, 1) from `x` (for the bounce directions).
 fn u01(x: u32) -> f32 {
-    (hash(x) >> 8) as f32 / (1u32 << 24) as f32
+    (pcg_hash(x) >> 8) as f32 / (1u32 << 24) as f32
 }
 
 struct RaySet {

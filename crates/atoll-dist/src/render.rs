@@ -99,6 +99,12 @@ impl MultiOutput {
     pub fn samples_per_second(&self) -> f64 {
         self.film.pixel_count() as f64 * self.film.spp as f64 / self.render_seconds.max(1e-9)
     }
+
+    /// Rays (path segments and shadow rays) traced by every device together, per second.
+    pub fn rays_per_second(&self) -> f64 {
+        let rays: u64 = self.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
+        rays as f64 / self.render_seconds.max(1e-9)
+    }
 }
 
 /// The waves of a frame for `workers` devices or rings taking them

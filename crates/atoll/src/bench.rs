@@ -80,8 +80,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         let out =
             atoll_dist::render_multi(&mut devices, &scene, options, &Layout::Replicate, None, &mut |_, _| {})
                 .map_err(|e| CliError::Runtime(e.to_string()))?;
-        let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
-        Ok((out.render_seconds, out.samples_per_second(), rays as f64 / out.render_seconds.max(1e-9)))
+        Ok((out.render_seconds, out.samples_per_second(), out.rays_per_second()))
     };
     // Warm-up: kernel compilation, caches, clocks.
     run_once(1)?;

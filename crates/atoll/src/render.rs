@@ -252,7 +252,6 @@ fn render_streams(
     let out = run(&mut devices, options.clone(), &bar)?;
     bar.finish_and_clear();
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
-    let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
     println!(
         "{}: {}x{} {} spp on {} x {} wavefronts in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
         output.display(),
@@ -265,7 +264,7 @@ fn render_streams(
         load_seconds,
         out.prepare_seconds,
         out.samples_per_second() / 1e6,
-        rays as f64 / out.render_seconds.max(1e-9) / 1e6,
+        out.rays_per_second() / 1e6,
     );
     Ok(())
 }
