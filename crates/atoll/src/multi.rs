@@ -16,7 +16,7 @@ use atoll_dist::{
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
 
-use crate::streams::{extra_streams, gpu_frame_bytes, ring_stream_copies};
+use crate::streams::{extra_streams, free_share, gpu_frame_bytes, ring_stream_copies};
 use crate::CliError;
 
 /// One entry of `--devices`.
@@ -269,9 +269,7 @@ fn scene_budget(
         .iter_mut()
         .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
         .collect();
-    // Devices sharing a GPU (`cuda:0,cuda:0`) share its free memory.
-    let sharing = |ordinal: usize| gpus.iter().filter(|g| g.ordinal == ordinal).count() as u64;
-    let free = gpus.iter().filter_map(|g| g.free_memory().ok().map(|f| f / sharing(g.ordinal))).min();
+    let free = gpus.iter().filter_map(|g| free_share(&gpus, g)).min();
     let total = match (budget, free) {
         (Some(b), Some(f)) => Some(b.min(f)),
         (Some(b), None) => Some(b),

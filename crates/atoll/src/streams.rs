@@ -70,13 +70,19 @@ pub fn ring_stream_copies(
     let (Some(gpus), true) = (gpus, streams > 1) else { return 0 };
     let frame = gpu_frame_bytes(options).max(1);
     let fit = gpus.iter().enumerate().map(|(d, gpu)| {
-        let sharing = gpus.iter().filter(|g| g.ordinal == gpu.ordinal).count() as u64;
-        let Ok(free) = gpu.free_memory() else { return 0 };
-        let available = budget.map_or(free / sharing, |b| b.min(free / sharing));
+        let Some(share) = free_share(&gpus, gpu) else { return 0 };
+        let available = budget.map_or(share, |b| b.min(share));
         let part = partition.bytes[d % partition.parts.len()];
         (available.saturating_sub(part) / frame).saturating_sub(1) as usize
     });
     fit.min().unwrap_or(0).min(streams - 1)
+}
+
+/// `gpu`'s free memory divided among the devices of `gpus` on it (devices
+/// listed on one GPU, `cuda:0,cuda:0`, share it); `None` when unreadable.
+pub fn free_share(gpus: &[Arc<Gpu>], gpu: &Gpu) -> Option<u64> {
+    let sharing = gpus.iter().filter(|g| g.ordinal == gpu.ordinal).count().max(1) as u64;
+    gpu.free_memory().ok().map(|free| free / sharing)
 }
 
 /// Up to `streams - 1` more devices on `gpu` for replicas sharing the
