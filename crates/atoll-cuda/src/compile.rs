@@ -189,7 +189,8 @@ impl CompileOptions {
         options
     }
 
-    fn extension(&self) -> &'static str {
+    /// The file extension of the output: `ptx` or `cubin`.
+    pub fn extension(&self) -> &'static str {
         match self.output {
             Output::Ptx => "ptx",
             Output::Cubin => "cubin",

@@ -400,6 +400,21 @@ impl CudaDevice {
         })
     }
 
+    /// Zeroes the film and the kernels' counters (queued on the stream).
+    fn try_reset_frame(&mut self) -> Result<(), CudaError> {
+        self.stop_wave_timer()?;
+        let gpu = self.gpu.clone();
+        let r = self.resident()?;
+        let what = || format!("{}: clearing the film and counters", gpu.label());
+        gpu.stream.memset_zeros(&mut r.film).map_err(CudaError::driver(what()))?;
+        gpu.stream.memset_zeros(&mut r.traced_paths).map_err(CudaError::driver(what()))?;
+        gpu.stream.memset_zeros(&mut r.traced_shadows).map_err(CudaError::driver(what()))?;
+        gpu.stream.memset_zeros(&mut r.queues.sent_bytes).map_err(CudaError::driver(what()))?;
+        self.stats = DeviceStats::default();
+        *self.busy.lock().unwrap_or_else(|p| p.into_inner()) = BusyTime::default();
+        Ok(())
+    }
+
     fn try_queue_work(&mut self, wave: &Wave) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
         if self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()).is_none() {
@@ -564,6 +579,10 @@ impl Device for CudaDevice {
             self.resident = None;
             e.into_device_error(&self.gpu.label())
         })
+    }
+
+    fn reset_frame(&mut self) {
+        self.stage("reset_frame", |d| d.try_reset_frame());
     }
 
     fn queue_work(&mut self, wave: &Wave) {

@@ -23,6 +23,36 @@ pub fn device_count() -> Result<usize, CudaError> {
     }
 }
 
+/// One compiled image, filled by the first caller asking for it.
+type CompiledSlot = Arc<Mutex<Option<Arc<Vec<u8>>>>>;
+
+/// Kernel file `file` compiled with `options`, once per process: every
+/// opened [`Gpu`] (several per GPU with `--streams`, one per device of a
+/// ring) loads its own modules, but they all ask for the same images at
+/// once while preparing. Without this each compiled its own copy on a cold
+/// disk cache (a ring of 6 devices spent 17 s preparing, issue 4); now the
+/// first compiles and the others wait for its image. Failures are not kept:
+/// a later caller tries again and gets its own error.
+fn compile_once(file: &str, options: &CompileOptions) -> Result<Arc<Vec<u8>>, CudaError> {
+    static COMPILED: std::sync::OnceLock<Mutex<HashMap<String, CompiledSlot>>> = std::sync::OnceLock::new();
+    let key = format!("{file} {:?} {}", options.nvrtc_options(), options.extension());
+    let slot = {
+        let mut compiled = COMPILED.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
+        compiled.entry(key).or_default().clone()
+    };
+    let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some(image) = slot.as_ref() {
+        return Ok(image.clone());
+    }
+    let compiled = compile(file, options)?;
+    if !compiled.log.trim().is_empty() {
+        tracing::debug!("{file}: NVRTC log:\n{}", compiled.log);
+    }
+    let image = Arc::new(compiled.image);
+    *slot = Some(image.clone());
+    Ok(image)
+}
+
 /// An opened GPU. Cheap to share (`Arc<Gpu>`); everything atoll does on it
 /// is queued on [`Gpu::stream`], in order.
 pub struct Gpu {
@@ -144,13 +174,10 @@ impl Gpu {
         }
         let mut options = self.compile_options.clone();
         options.extra.extend(extra.iter().cloned());
-        let compiled = compile(file, &options)?;
-        if !compiled.log.trim().is_empty() {
-            tracing::debug!("{file}: NVRTC log:\n{}", compiled.log);
-        }
+        let compiled = compile_once(file, &options)?;
         let image = match self.compile_options.output {
-            Output::Cubin => Ptx::from_binary(compiled.image),
-            Output::Ptx => Ptx::from_src(String::from_utf8_lossy(&compiled.image).into_owned()),
+            Output::Cubin => Ptx::from_binary(compiled.to_vec()),
+            Output::Ptx => Ptx::from_src(String::from_utf8_lossy(&compiled).into_owned()),
         };
         let module = self
             .ctx

@@ -8,6 +8,7 @@ use std::sync::Arc;
 
 use atoll_bvh::ScenePart;
 use atoll_cuda::CudaDevice;
+use atoll_render::integrator::render_warmed;
 use atoll_render::record::flags;
 use atoll_render::{render, CpuDevice, Device, DeviceError, FrameContext, Queue, RenderOptions, Wave};
 use atoll_scene::{IntegratorSettings, Scene};
@@ -89,8 +90,15 @@ fn cornell_box_matches_the_cpu_device_and_is_deterministic() {
     // atomics never race: reruns are identical bit for bit.
     let one_at_a_time = RenderOptions { merge_waves: false, ..o };
     let c = render(&mut cuda, &scene, one_at_a_time.clone(), &mut |_, _| {}).unwrap();
-    let d = render(&mut cuda, &scene, one_at_a_time, &mut |_, _| {}).unwrap();
+    let d = render(&mut cuda, &scene, one_at_a_time.clone(), &mut |_, _| {}).unwrap();
+    // A warmed frame: the first sample rendered on the prepared device,
+    // then film and counters cleared; the frame after is the cold one.
+    let warmed = render_warmed(&mut cuda, &scene, one_at_a_time, &mut |_, _| {}).unwrap();
     assert_eq!(errors.get(), None);
+    assert_eq!(warmed.film.sum, d.film.sum, "a warmed frame is the cold frame");
+    assert_eq!(warmed.device.rays_traced, d.device.rays_traced);
+    assert_eq!(warmed.device.shadow_rays_traced, d.device.shadow_rays_traced);
+    assert!(warmed.device.busy_seconds <= warmed.render_seconds * 1.5, "the warm-up's busy time is cleared");
     let (mc, mg) = (cpu.film.mean(), a.film.mean());
     println!("mean cpu {mc}, gpu {mg}; gpu {:.2} M rays/s", a.rays_per_second() / 1e6);
     assert!(mean_diff(mc, mg) < 0.02, "means differ: cpu {mc}, gpu {mg}");

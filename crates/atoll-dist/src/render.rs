@@ -20,7 +20,7 @@ use atoll_bvh::ScenePart;
 use atoll_cuda::peer::IncomingSlot;
 use atoll_cuda::CudaDevice;
 use atoll_render::device::{DeviceStats, PrepareStats};
-use atoll_render::integrator::render_waves;
+use atoll_render::integrator::{render_waves, warm_up_waves};
 use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave};
 use atoll_scene::Scene;
 use cudarc::driver::CudaEvent;
@@ -208,6 +208,33 @@ pub fn render_multi(
     transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
+    render_multi_frame(devices, scene, options, layout, transport, false, progress)
+}
+
+/// [`render_multi`] after an untimed pass over the frame's first sample on
+/// the prepared devices, cleared after ([`Device::reset_frame`]): kernel
+/// loading, clocks and first-touch costs stay out of the timed frame, and
+/// every device is prepared once.
+pub fn render_multi_warmed(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    layout: &Layout,
+    transport: Option<Transport>,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<MultiOutput, DeviceError> {
+    render_multi_frame(devices, scene, options, layout, transport, true, progress)
+}
+
+fn render_multi_frame(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    layout: &Layout,
+    transport: Option<Transport>,
+    warmup: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<MultiOutput, DeviceError> {
     if devices.is_empty() {
         return Err(DeviceError::Other {
             device: "devices".into(),
@@ -231,14 +258,78 @@ pub fn render_multi(
         Layout::Replicate => (1, devices.len()),
         Layout::Ring { parts, islands } => (parts.len(), *islands),
     };
+    let shape = RunShape {
+        ring,
+        merge: frame.options.merge_waves,
+        transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
+    };
     let waves = work_units(&frame.options, islands);
+    if warmup {
+        let first: Vec<Wave> = warm_up_waves(&waves).collect();
+        let reports = run_waves(devices, &first, shape, &mut |_, _| {})?;
+        if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
+            return Err(DeviceError::Other {
+                device: failed.name.clone(),
+                message: failed.error.clone().unwrap_or_default(),
+            });
+        }
+        for device in devices.iter_mut() {
+            check(device.as_ref())?;
+            device.reset_frame();
+        }
+    }
+    let start = Instant::now();
+    let mut reports = run_waves(devices, &waves, shape, progress)?;
+    let render_seconds = start.elapsed().as_secs_f64();
+
+    let mut film = Film::new(frame.options.resolution);
+    for ((device, report), prepare) in devices.iter_mut().zip(&mut reports).zip(prepared) {
+        check(device.as_ref())?;
+        if let Some(message) = &report.error {
+            return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
+        }
+        film.merge(&device.film());
+        report.stats = device.stats();
+        if shape.transport == Transport::Peer {
+            // Counted by the send kernel: the host never learns the lengths.
+            let cuda =
+                device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on CUDA devices");
+            report.bytes_sent = cuda
+                .bytes_sent()
+                .map_err(|e| DeviceError::Other { device: report.name.clone(), message: e.to_string() })?;
+        }
+        report.prepare = prepare;
+    }
+    film.spp = frame.options.spp;
+    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds })
+}
+
+/// How the devices of a frame work together.
+#[derive(Clone, Copy, Debug)]
+struct RunShape {
+    /// Devices per ring (1: replicate).
+    ring: usize,
+    /// Wave-front merging.
+    merge: bool,
+    transport: Transport,
+}
+
+/// Renders `waves` on the prepared `devices`, one thread each, waves taken
+/// dynamically by the devices (replicate) or rings (ring); every device's
+/// report, in device order (counters and film are read by the caller).
+fn run_waves(
+    devices: &mut [Box<dyn Device>],
+    waves: &[Wave],
+    shape: RunShape,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<DeviceReport>, DeviceError> {
+    let RunShape { ring, merge, transport } = shape;
+    let islands = devices.len() / ring;
     let next = AtomicUsize::new(0);
     let take = || {
         let i = next.fetch_add(1, Ordering::Relaxed);
         waves.get(i)
     };
-    let merge = frame.options.merge_waves;
-    let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
         (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
@@ -249,7 +340,7 @@ pub fn render_multi(
     let (done_tx, done_rx) = mpsc::channel::<()>();
 
     let start = Instant::now();
-    let mut reports: Vec<DeviceReport> = std::thread::scope(|scope| {
+    let reports = std::thread::scope(|scope| {
         let handles: Vec<_> = devices
             .iter_mut()
             .enumerate()
@@ -299,28 +390,7 @@ pub fn render_multi(
         }
         handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
     });
-    let render_seconds = start.elapsed().as_secs_f64();
-
-    let mut film = Film::new(frame.options.resolution);
-    for ((device, report), prepare) in devices.iter_mut().zip(&mut reports).zip(prepared) {
-        check(device.as_ref())?;
-        if let Some(message) = &report.error {
-            return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
-        }
-        film.merge(&device.film());
-        report.stats = device.stats();
-        if transport == Transport::Peer {
-            // Counted by the send kernel: the host never learns the lengths.
-            let cuda =
-                device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on CUDA devices");
-            report.bytes_sent = cuda
-                .bytes_sent()
-                .map_err(|e| DeviceError::Other { device: report.name.clone(), message: e.to_string() })?;
-        }
-        report.prepare = prepare;
-    }
-    film.spp = frame.options.spp;
-    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds })
+    Ok(reports)
 }
 
 /// What passes from a ring member to the next at each step.

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use atoll_cuda::CudaDevice;
 use atoll_dist::work::partition_work_balanced;
-use atoll_dist::{partition, render_multi, Layout, PartitionOptions, Transport};
+use atoll_dist::{partition, render_multi, render_multi_warmed, Layout, PartitionOptions, Transport};
 use atoll_render::{render, Device, Film, RenderOptions};
 use atoll_scene::{IntegratorSettings, Scene};
 use glam::UVec2;
@@ -86,7 +86,8 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
     for (name, scene) in scenes() {
         let opts = options(&scene);
         let mut one = CudaDevice::new(0).unwrap();
-        let mut reference = render(&mut one, &scene, opts.clone(), &mut |_, _| {}).unwrap().film;
+        let single = render(&mut one, &scene, opts.clone(), &mut |_, _| {}).unwrap();
+        let mut reference = single.film;
         reference.spp = opts.spp;
         assert!(one.error().is_none());
 
@@ -107,7 +108,10 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
         for (parts, p) in [("memory", memory), ("work", work)] {
             let layout = Layout::Ring { parts: p.parts, islands: 1 };
             for transport in [Transport::Peer, Transport::Host] {
-                let out = render_multi(
+                // Peer rings warmed (first sample, then cleared): the
+                // reset must leave no warm-up rays in film or counters.
+                let render = if transport == Transport::Peer { render_multi_warmed } else { render_multi };
+                let out = render(
                     &mut gpus(ordinals),
                     &scene,
                     opts.clone(),
@@ -120,6 +124,14 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
                     same_image(&reference, &out.film, &format!("{name} ring ({parts}, {transport:?})")).err(),
                 );
                 assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
+                for d in &out.devices {
+                    if d.stats.rays_traced != single.device.rays_traced {
+                        failures.push(format!(
+                            "{name} ring ({parts}, {transport:?}): {} traced {} path rays, one device {}",
+                            d.name, d.stats.rays_traced, single.device.rays_traced
+                        ));
+                    }
+                }
             }
         }
     }

@@ -206,3 +206,47 @@ fn a_ring_over_textured_and_alpha_masked_parts_is_one_device() {
         assert_same_image(&reference, &out.film, &format!("textured ring from {eye}"));
     }
 }
+
+/// A warmed frame (the first sample rendered untimed on the prepared
+/// devices, then cleared) is the cold frame: same image, same ray counts,
+/// and no ray of the warm-up left in the counters or the bytes sent.
+#[test]
+fn warmed_ring_renders_the_cold_frame() {
+    let scene = scene();
+    let opts = RenderOptions { wave_size: 500, ..options(&scene, 3) };
+    let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let cold = render_multi(&mut cpus(2, None), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap();
+    let mut progress = 0;
+    let warm =
+        atoll_dist::render_multi_warmed(&mut cpus(2, None), &scene, opts, &layout, None, &mut |done, _| {
+            progress = done
+        })
+        .unwrap();
+    assert_same_image(&cold.film, &warm.film, "warmed ring");
+    assert_eq!(warm.film.spp, cold.film.spp);
+    assert_eq!(
+        progress,
+        warm.devices.iter().map(|d| d.waves).sum::<usize>(),
+        "progress counts the timed frame"
+    );
+    // Every ray visits every member; which member generates (and so
+    // sends) a wave depends on timing, so bytes are compared in all.
+    for (c, w) in cold.devices.iter().zip(&warm.devices) {
+        assert_eq!(c.stats.rays_traced, w.stats.rays_traced, "{}", c.name);
+        assert_eq!(c.stats.shadow_rays_traced, w.stats.shadow_rays_traced, "{}", c.name);
+    }
+    let one = render(
+        &mut CpuDevice::new(),
+        &scene,
+        RenderOptions { wave_size: 500, ..options(&scene, 3) },
+        &mut |_, _| {},
+    )
+    .unwrap();
+    assert!(
+        warm.devices.iter().all(|d| d.stats.rays_traced == one.device.rays_traced),
+        "every member traces every path ray"
+    );
+    let sent = |out: &atoll_dist::MultiOutput| out.devices.iter().map(|d| d.bytes_sent).sum::<u64>();
+    assert_eq!(sent(&cold), sent(&warm));
+}

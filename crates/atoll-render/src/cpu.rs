@@ -367,6 +367,11 @@ impl Device for CpuDevice {
         q.extend_from_slice(records);
     }
 
+    fn reset_frame(&mut self) {
+        self.film = Film::new(self.film.resolution);
+        self.stats = DeviceStats::default();
+    }
+
     fn film(&self) -> Film {
         self.film.clone()
     }

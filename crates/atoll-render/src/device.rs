@@ -68,6 +68,12 @@ pub trait Device: Send {
         frame: &Arc<FrameContext>,
     ) -> Result<PrepareStats, DeviceError>;
 
+    /// Zeroes the film and the counters (rays, busy time) for another
+    /// frame over what `prepare` made resident: the scene stays, and so do
+    /// the queues, which a finished frame leaves empty. Warm-up passes use
+    /// it, so that the timed frame needs no second upload and BVH build.
+    fn reset_frame(&mut self);
+
     /// Adds the camera paths of `wave` to this device's pending work, after
     /// what is already pending; [`Device::refill`] starts them as the path
     /// queue has room. Waves pass through in order, so a device that is

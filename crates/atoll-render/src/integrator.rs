@@ -74,10 +74,49 @@ pub fn render(
     options: RenderOptions,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<RenderOutput, DeviceError> {
+    render_frame(device, scene, options, false, progress)
+}
+
+/// [`render`] after an untimed [`warm_up`] on the prepared device
+/// (benchmarks: kernel loading, clocks and first-touch costs stay out of
+/// the reported speed, and the scene is prepared once).
+pub fn render_warmed(
+    device: &mut dyn Device,
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RenderOutput, DeviceError> {
+    render_frame(device, scene, options, true, progress)
+}
+
+/// The waves of a warm-up pass: those of the frame's first sample.
+pub fn warm_up_waves(waves: &[Wave]) -> impl Iterator<Item = Wave> + '_ {
+    waves.iter().copied().filter(|w| w.sample == 0)
+}
+
+/// Renders the first sample of `frame` on a prepared `device`, then clears
+/// its film and counters ([`Device::reset_frame`]).
+pub fn warm_up(device: &mut dyn Device, frame: &FrameContext) {
+    let waves = Wave::all(&frame.options);
+    let mut first = warm_up_waves(&waves);
+    render_waves(device, frame.options.merge_waves, &mut || first.next());
+    device.reset_frame();
+}
+
+fn render_frame(
+    device: &mut dyn Device,
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    warmup: bool,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<RenderOutput, DeviceError> {
     let start = Instant::now();
     let frame = Arc::new(FrameContext::new(scene, options));
     let prepare = device.prepare(scene, &ScenePart::whole(scene), &frame)?;
     let prepare_seconds = start.elapsed().as_secs_f64();
+    if warmup {
+        warm_up(device, &frame);
+    }
     let waves = Wave::all(&frame.options);
     let start = Instant::now();
     let mut taken = 0;

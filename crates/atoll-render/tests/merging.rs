@@ -33,6 +33,9 @@ impl Device for Counting {
     ) -> Result<PrepareStats, DeviceError> {
         self.inner.prepare(scene, part, frame)
     }
+    fn reset_frame(&mut self) {
+        self.inner.reset_frame()
+    }
     fn queue_work(&mut self, wave: &Wave) {
         self.inner.queue_work(wave)
     }
@@ -117,4 +120,21 @@ fn merged_waves_trace_the_same_paths_in_fewer_fuller_bounces() {
     assert!(full * 2 > b.bounces, "queue full in only {full} of {} merged bounces", b.bounces);
     // Without merging no queue is fuller than a wave; with it, none overflows.
     assert!(a.queue_lengths.iter().chain(&b.queue_lengths).all(|&n| n <= 1000));
+}
+
+/// `render_warmed` prepares once, renders the first sample untimed and
+/// clears it: the frame after is the cold frame, counters included.
+#[test]
+fn a_warmed_frame_is_the_cold_frame() {
+    let scene = Arc::new(atoll_scene::cornell::builtin_cornell_box());
+    let mut options = RenderOptions::from_scene(&scene);
+    options.resolution = UVec2::new(32, 32);
+    options.spp = 3;
+    let cold = render(&mut CpuDevice::new(), &scene, options.clone(), &mut |_, _| {}).unwrap();
+    let mut device = Counting { inner: CpuDevice::new(), bounces: 0, queue_lengths: Vec::new() };
+    let warm = atoll_render::integrator::render_warmed(&mut device, &scene, options, &mut |_, _| {}).unwrap();
+    assert_eq!(cold.device.rays_traced, warm.device.rays_traced);
+    assert_eq!(cold.device.shadow_rays_traced, warm.device.shadow_rays_traced);
+    assert_eq!(cold.film.sum, warm.film.sum, "one device, one order: the same sums");
+    assert!(device.bounces > 0);
 }

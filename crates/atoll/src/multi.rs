@@ -10,8 +10,8 @@ use atoll_cuda::error::fmt_bytes;
 use atoll_dist::spatial::partition_spatial;
 use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
-    partition, plan, render_multi, Layout, MultiOutput, Partition, PartitionOptions, Plan, Strategy,
-    Transport,
+    partition, plan, render_multi, render_multi_warmed, Layout, MultiOutput, Partition, PartitionOptions,
+    Plan, Strategy, Transport,
 };
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
@@ -132,6 +132,8 @@ pub struct MultiArgs<'a> {
     /// Wavefronts per GPU (`--streams`): when replicating, per GPU listed
     /// once; on a ring, copies of the ring as more islands.
     pub streams: usize,
+    /// Render the frame's first sample untimed first, on the prepared devices.
+    pub warmup: bool,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -150,10 +152,19 @@ pub fn render(
         eprintln!("note: {} devices share cuda:{} (its time and memory)", shared.len(), shared[0]);
     }
     let model = byte_model(args.specs);
-    let budget = scene_budget(&mut devices, scene, args.budget, &options);
+    // Replicas on one GPU share one copy of the scene; ring members on one
+    // GPU hold different parts, so each has its share of the memory.
+    let replica_budget = scene_budget(&mut devices, scene, args.budget, &options, Sharing::Scene);
+    let budget = scene_budget(&mut devices, scene, args.budget, &options, Sharing::Memory);
     let options_resolution = options.resolution;
-    let plan = plan(scene, &model, args.specs.len(), budget, Some(args.strategy))
-        .map_err(|e| CliError::Runtime(e.to_string()))?;
+    let n = args.specs.len();
+    let plan = match args.strategy {
+        Strategy::Ring => plan(scene, &model, n, budget, Some(Strategy::Ring)),
+        Strategy::Replicate => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)),
+        Strategy::Auto => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
+            .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto))),
+    }
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
     let (mut layout, partition) = match plan {
         Plan::Replicate => {
             // Replicas on one GPU share one copy of the scene (the first
@@ -251,25 +262,46 @@ pub fn render(
             }
         }
     }
-    let out = render_multi(&mut devices, scene, options, &layout, args.transport, progress)
-        .map_err(|e| CliError::Runtime(e.to_string()))?;
-    Ok(out)
+    let render = if args.warmup { render_multi_warmed } else { render_multi };
+    render(&mut devices, scene, options, &layout, args.transport, progress)
+        .map_err(|e| CliError::Runtime(e.to_string()))
+}
+
+/// What devices listed on one GPU share of it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Sharing {
+    /// One copy of the scene (replicas): each adds only its frame.
+    Scene,
+    /// The memory, evenly (ring members holding different parts).
+    Memory,
 }
 
 /// Bytes of scene (geometry, BVH) each device may hold: the budget (or,
-/// for GPUs without one, their free memory) less what every device
-/// allocates for the frame itself (queues, film, parameters, headroom).
+/// for GPUs without one, their free memory, shared as `sharing` says)
+/// less what every device allocates for the frame itself (queues, film,
+/// parameters, headroom).
 fn scene_budget(
     devices: &mut [Box<dyn Device>],
     scene: &Scene,
     budget: Option<u64>,
     options: &RenderOptions,
+    sharing: Sharing,
 ) -> Option<u64> {
     let gpus: Vec<_> = devices
         .iter_mut()
         .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
         .collect();
-    let free = gpus.iter().filter_map(|g| free_share(&gpus, g)).min();
+    let frame = gpu_frame_bytes(options);
+    let free = gpus
+        .iter()
+        .filter_map(|g| match sharing {
+            Sharing::Memory => free_share(&gpus, g),
+            Sharing::Scene => {
+                let others = gpus.iter().filter(|o| o.ordinal == g.ordinal).count().saturating_sub(1) as u64;
+                g.free_memory().ok().map(|f| f.saturating_sub(others * frame))
+            }
+        })
+        .min();
     let total = match (budget, free) {
         (Some(b), Some(f)) => Some(b.min(f)),
         (Some(b), None) => Some(b),
@@ -282,7 +314,7 @@ fn scene_budget(
     }
     // The rows every GPU's tables keep for the whole scene are not in the
     // byte model's charge for a part.
-    Some(total.saturating_sub(gpu_frame_bytes(options) + atoll_cuda::scene::scene_wide_rows(scene)))
+    Some(total.saturating_sub(frame + atoll_cuda::scene::scene_wide_rows(scene)))
 }
 
 /// One line saying what was chosen and why.

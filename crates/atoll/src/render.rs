@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use atoll_dist::{Strategy, Transport};
+use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
 use atoll_scene::Scene;
@@ -187,10 +188,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
             return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
         }
     }
-    if args.warmup {
-        render(selected.device.as_mut(), &scene, RenderOptions { spp: 1, ..options.clone() }, &mut |_, _| {})
-            .map_err(|e| CliError::Runtime(e.to_string()))?;
-    }
+    let render = if args.warmup { render_warmed } else { render };
     let bar = progress_bar(args.quiet);
     let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
         bar.set_length(total as u64);
@@ -231,25 +229,20 @@ fn render_streams(
     let description = selected.description.clone();
     let mut devices = vec![selected.device];
     devices.extend(more);
-    let run = |devices: &mut [Box<dyn atoll_render::Device>], options: RenderOptions, bar: &ProgressBar| {
-        atoll_dist::render_multi(
-            devices,
-            scene,
-            options,
-            &atoll_dist::Layout::Replicate,
-            None,
-            &mut |done, total| {
-                bar.set_length(total as u64);
-                bar.set_position(done as u64);
-            },
-        )
-        .map_err(|e| CliError::Runtime(e.to_string()))
-    };
-    if args.warmup {
-        run(&mut devices, RenderOptions { spp: 1, ..options.clone() }, &ProgressBar::hidden())?;
-    }
+    let render = if args.warmup { atoll_dist::render_multi_warmed } else { atoll_dist::render_multi };
     let bar = progress_bar(args.quiet);
-    let out = run(&mut devices, options.clone(), &bar)?;
+    let out = render(
+        &mut devices,
+        scene,
+        options.clone(),
+        &atoll_dist::Layout::Replicate,
+        None,
+        &mut |done, total| {
+            bar.set_length(total as u64);
+            bar.set_position(done as u64);
+        },
+    )
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
     println!(
@@ -300,10 +293,8 @@ fn render_on_devices(
         transport: args.ring_transport,
         partitioning: args.partitioning,
         streams: args.waves.streams(),
+        warmup: args.warmup,
     };
-    if args.warmup {
-        multi::render(scene, RenderOptions { spp: 1, ..options.clone() }, &multi_args, &mut |_, _| {})?;
-    }
     let bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {
         bar.set_length(total as u64);
