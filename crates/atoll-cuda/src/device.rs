@@ -156,6 +156,8 @@ struct Resident {
 struct BusyTime {
     finished_ms: f64,
     pending: Vec<Timer>,
+    /// Timers already read, for reuse.
+    spare: Vec<Timer>,
 }
 
 impl BusyTime {
@@ -165,11 +167,27 @@ impl BusyTime {
         for timer in self.pending.drain(..) {
             if wait || timer.is_done() {
                 self.finished_ms += timer.elapsed_ms()? as f64;
+                self.spare.push(timer);
             } else {
                 still.push(timer);
             }
         }
         self.pending = still;
+        Ok(())
+    }
+
+    /// A timer started now on `gpu`'s stream (a spare one when there is).
+    fn start(&mut self, gpu: &Gpu) -> Result<Timer, CudaError> {
+        match self.spare.pop() {
+            Some(mut timer) => timer.restart(gpu).map(|()| timer),
+            None => gpu.start_timer(),
+        }
+    }
+
+    /// Clears the time, keeping the timers for reuse.
+    fn reset(&mut self) -> Result<(), CudaError> {
+        self.collect(true)?;
+        self.finished_ms = 0.0;
         Ok(())
     }
 }
@@ -185,6 +203,8 @@ pub struct CudaDevice {
     /// Times the wave in flight, from `generate` to the `has_paths` that
     /// finds the path queue empty.
     wave_timer: Mutex<Option<Timer>>,
+    /// Time each stage rather than whole waves ([`CudaDevice::time_stages`]).
+    stage_timing: bool,
 }
 
 impl CudaDevice {
@@ -203,6 +223,7 @@ impl CudaDevice {
             stats: DeviceStats::default(),
             busy: Mutex::new(BusyTime::default()),
             wave_timer: Mutex::new(None),
+            stage_timing: false,
         }
     }
 
@@ -236,6 +257,36 @@ impl CudaDevice {
         }
     }
 
+    /// Busy time from the stages themselves instead of whole waves. A ring
+    /// member's stream waits between its stages for its neighbours' queues,
+    /// and a wave's time would count those waits as work; each stage is
+    /// then timed by a pair of events (kept for reuse: a ring's bounces are
+    /// large enough that recording them costs nothing measurable, unlike
+    /// the small bounces of one device, which keeps timing waves).
+    pub fn time_stages(&mut self, on: bool) {
+        self.stage_timing = on;
+    }
+
+    /// [`CudaDevice::stage`] between a pair of timing events when stages are timed.
+    fn timed_stage(&mut self, name: &str, f: impl FnOnce(&mut Self) -> Result<(), CudaError>) {
+        if !self.stage_timing {
+            return self.stage(name, f);
+        }
+        self.stage(name, |d| {
+            let mut busy = d.busy.lock().unwrap_or_else(|p| p.into_inner());
+            if busy.pending.len() >= 32 {
+                // Read the finished ones (never waits), so timers get reused.
+                busy.collect(false)?;
+            }
+            let mut timer = busy.start(&d.gpu)?;
+            drop(busy);
+            let done = f(d);
+            timer.stop(&d.gpu)?;
+            d.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
+            done
+        });
+    }
+
     fn resident(&mut self) -> Result<&mut Resident, CudaError> {
         self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
     }
@@ -259,6 +310,9 @@ impl CudaDevice {
 
     fn start_wave_timer(&self) -> Result<(), CudaError> {
         self.stop_wave_timer()?;
+        if self.stage_timing {
+            return Ok(());
+        }
         *self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()) = Some(self.gpu.start_timer()?);
         Ok(())
     }
@@ -411,8 +465,7 @@ impl CudaDevice {
         gpu.stream.memset_zeros(&mut r.traced_shadows).map_err(CudaError::driver(what()))?;
         gpu.stream.memset_zeros(&mut r.queues.sent_bytes).map_err(CudaError::driver(what()))?;
         self.stats = DeviceStats::default();
-        *self.busy.lock().unwrap_or_else(|p| p.into_inner()) = BusyTime::default();
-        Ok(())
+        self.busy.lock().unwrap_or_else(|p| p.into_inner()).reset()
     }
 
     fn try_queue_work(&mut self, wave: &Wave) -> Result<(), CudaError> {
@@ -601,23 +654,23 @@ impl Device for CudaDevice {
     }
 
     fn refill(&mut self) {
-        self.stage("refill", |d| d.try_refill());
+        self.timed_stage("refill", |d| d.try_refill());
     }
 
     fn trace_paths(&mut self) {
-        self.stage("trace_paths", |d| d.try_trace_paths());
+        self.timed_stage("trace_paths", |d| d.try_trace_paths());
     }
 
     fn shade(&mut self) {
-        self.stage("shade", |d| d.try_shade());
+        self.timed_stage("shade", |d| d.try_shade());
     }
 
     fn trace_shadows(&mut self) {
-        self.stage("trace_shadows", |d| d.try_trace_shadows());
+        self.timed_stage("trace_shadows", |d| d.try_trace_shadows());
     }
 
     fn resolve_shadows(&mut self) {
-        self.stage("resolve_shadows", |d| d.try_resolve_shadows());
+        self.timed_stage("resolve_shadows", |d| d.try_resolve_shadows());
     }
 
     /// From the status of the last refill (see [`crate::work`]): waits for

@@ -232,6 +232,16 @@ impl Timer {
         Ok(())
     }
 
+    /// Starts timing again from now on the stream, reusing the events
+    /// (creating a pair costs more host time than recording one).
+    pub fn restart(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
+        self.start
+            .record(&gpu.stream)
+            .map_err(CudaError::driver(format!("{}: timing event", gpu.label())))?;
+        self.stopped = false;
+        Ok(())
+    }
+
     /// Whether the timed work has finished (never blocks).
     pub fn is_done(&self) -> bool {
         self.stopped && self.end.is_complete()

@@ -263,6 +263,13 @@ fn render_multi_frame(
         merge: frame.options.merge_waves,
         transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
     };
+    for device in devices.iter_mut() {
+        if let Some(cuda) = device.as_any_mut().downcast_mut::<CudaDevice>() {
+            // A ring member's stream waits for its neighbours between
+            // stages: time the stages, not the waves, for its busy time.
+            cuda.time_stages(ring > 1);
+        }
+    }
     let waves = work_units(&frame.options, islands);
     if warmup {
         let first: Vec<Wave> = warm_up_waves(&waves).collect();

@@ -125,6 +125,15 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
                 );
                 assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
                 for d in &out.devices {
+                    // Stages timed on the GPU: within the frame (its last
+                    // kernels may end just after the host's clock stops).
+                    let busy = d.stats.busy_seconds;
+                    if !(busy > 0.0 && busy <= out.render_seconds * 1.1 + 0.01) {
+                        failures.push(format!(
+                            "{name} ring ({parts}, {transport:?}): {} busy {busy:.4} s of {:.4} s",
+                            d.name, out.render_seconds
+                        ));
+                    }
                     if d.stats.rays_traced != single.device.rays_traced {
                         failures.push(format!(
                             "{name} ring ({parts}, {transport:?}): {} traced {} path rays, one device {}",

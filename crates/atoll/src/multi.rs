@@ -349,14 +349,18 @@ fn write_ownership(
     Ok(())
 }
 
-/// The per-device table printed after a multi-device render.
+/// The per-device table printed after a multi-device render. Busy: the
+/// device's own work (CPU: inside its stages; GPU: its kernels, timed on
+/// the GPU); idle: the rest of its time in the frame, waiting for ring
+/// neighbours, for the host or for work; wait and send: host time blocked
+/// on neighbours and spent sending queues.
 pub fn device_table(out: &MultiOutput) -> String {
     let mut s = String::from(
-        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   wait s   send s  sent\n",
+        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   idle s   wait s   send s  sent\n",
     );
     for d in &out.devices {
         s += &format!(
-            "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.2}  {:>7.2}  {:>6.2}  {}\n",
+            "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.2}  {:>7.2}  {:>7.2}  {:>6.2}  {}\n",
             d.name,
             d.island,
             d.member,
@@ -366,6 +370,7 @@ pub fn device_table(out: &MultiOutput) -> String {
             d.stats.rays_traced as f64 / 1e6,
             d.stats.shadow_rays_traced as f64 / 1e6,
             d.stats.busy_seconds,
+            (d.wall_seconds - d.stats.busy_seconds).max(0.0),
             d.wait_seconds,
             d.send_seconds,
             fmt_bytes(d.bytes_sent),
