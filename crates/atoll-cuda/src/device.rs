@@ -192,6 +192,13 @@ impl BusyTime {
     }
 }
 
+/// Whether `ATOLL_SERIAL_STAGES=1` asks timed stages to run one at a time
+/// ([`CudaDevice::time_stages`]).
+fn serial_stages() -> bool {
+    static SERIAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *SERIAL.get_or_init(|| std::env::var("ATOLL_SERIAL_STAGES").is_ok_and(|v| v == "1"))
+}
+
 /// A device that runs every stage on one CUDA GPU.
 pub struct CudaDevice {
     gpu: Arc<Gpu>,
@@ -272,6 +279,16 @@ impl CudaDevice {
         if !self.stage_timing {
             return self.stage(name, f);
         }
+        // Measurement aid (`ATOLL_SERIAL_STAGES=1`): every timed stage runs
+        // alone in the process, finished before the next starts, so each
+        // device's busy time is what its stages take without the others
+        // sharing its GPU: with a ring's members on one GPU, what each
+        // would take on a GPU of its own (issue 4; BENCHMARKS.md).
+        static SERIAL: Mutex<()> = Mutex::new(());
+        let serial = serial_stages().then(|| SERIAL.lock().unwrap_or_else(|p| p.into_inner()));
+        if serial.is_some() {
+            self.stage("synchronize", |d| d.gpu.synchronize());
+        }
         self.stage(name, |d| {
             let mut busy = d.busy.lock().unwrap_or_else(|p| p.into_inner());
             if busy.pending.len() >= 32 {
@@ -285,6 +302,9 @@ impl CudaDevice {
             d.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
             done
         });
+        if serial.is_some() {
+            self.stage("synchronize", |d| d.gpu.synchronize());
+        }
     }
 
     fn resident(&mut self) -> Result<&mut Resident, CudaError> {
