@@ -581,7 +581,8 @@ fn choose_transport(
                 .map_err(|e| DeviceError::Other { device: "peer access".into(), message: e.to_string() })?;
             for (i, row) in access.iter().enumerate() {
                 for (j, &direct) in row.iter().enumerate() {
-                    if i != j && !direct {
+                    // Devices sharing a GPU copy within its memory.
+                    if gpus[i].ordinal != gpus[j].ordinal && !direct {
                         tracing::warn!(
                             "{} cannot access {} directly: ring copies between them go through the host",
                             gpus[i].label(),
