@@ -114,8 +114,9 @@ pub struct RenderArgs {
     /// Render ambient occlusion instead of the scene's integrator, with this max distance.
     #[arg(long)]
     pub ao: Option<f32>,
-    /// Render an untimed 1-spp frame first (benchmarks: kernel loading,
-    /// clocks and first-touch costs stay out of the reported speed).
+    /// Render the frame's first sample untimed on the prepared devices,
+    /// then clear it (benchmarks: kernel loading, clocks and first-touch
+    /// costs stay out of the reported speed).
     #[arg(long)]
     pub warmup: bool,
     /// Hide the progress bar.
