@@ -29,4 +29,6 @@ pub use partition::{
     min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
     Strategy,
 };
-pub use render::{render_multi, render_multi_warmed, DeviceReport, Layout, MultiOutput, Transport};
+pub use render::{
+    render_multi, render_multi_warmed, DeviceReport, Layout, MultiOutput, RingOrder, Transport,
+};

@@ -39,7 +39,28 @@ pub enum Layout {
         parts: Vec<ScenePart>,
         /// Rings, each rendering its share of the waves.
         islands: usize,
+        /// Where queues start and end their cycles.
+        order: RingOrder,
     },
+}
+
+/// Where a ring's queues are made, first traced and shaded.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RingOrder {
+    /// Every member makes queues from its share of the waves; a queue is
+    /// traced first where it was made and shaded where its cycle ends
+    /// (any member can shade any hit): K − 1 sends per trace, the least
+    /// traffic, and on one GPU the most throughput.
+    #[default]
+    Spread,
+    /// Member 0 makes and shades every queue (Wald et al.'s home device,
+    /// one for all): every ray is traced first on part 0, the partition's
+    /// heaviest piece (a landscape's ground), and reaches the others with
+    /// its closest hit so far, so they skip what lies behind it. K sends
+    /// per trace. The parts' work evens out: on the landscape, busy times
+    /// of the members alone went from 0.047 / 0.091 s to 0.068 / 0.077 s
+    /// (BENCHMARKS.md, issue 4).
+    Home,
 }
 
 impl Layout {
@@ -47,7 +68,7 @@ impl Layout {
     pub fn devices(&self) -> Option<usize> {
         match self {
             Layout::Replicate => None,
-            Layout::Ring { parts, islands } => Some(parts.len() * islands),
+            Layout::Ring { parts, islands, .. } => Some(parts.len() * islands),
         }
     }
 }
@@ -254,12 +275,13 @@ fn render_multi_frame(
     let prepared = prepare_all(devices, scene, &frame, layout)?;
     let prepare_seconds = start.elapsed().as_secs_f64();
 
-    let (ring, islands) = match layout {
-        Layout::Replicate => (1, devices.len()),
-        Layout::Ring { parts, islands } => (parts.len(), *islands),
+    let (ring, islands, order) = match layout {
+        Layout::Replicate => (1, devices.len(), RingOrder::Spread),
+        Layout::Ring { parts, islands, order } => (parts.len(), *islands, *order),
     };
     let shape = RunShape {
         ring,
+        order,
         merge: frame.options.merge_waves,
         transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
     };
@@ -316,6 +338,7 @@ fn render_multi_frame(
 struct RunShape {
     /// Devices per ring (1: replicate).
     ring: usize,
+    order: RingOrder,
     /// Wave-front merging.
     merge: bool,
     transport: Transport,
@@ -330,7 +353,7 @@ fn run_waves(
     shape: RunShape,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<DeviceReport>, DeviceError> {
-    let RunShape { ring, merge, transport } = shape;
+    let RunShape { ring, order, merge, transport } = shape;
     let islands = devices.len() / ring;
     let next = AtomicUsize::new(0);
     let take = || {
@@ -365,6 +388,7 @@ fn run_waves(
                     events: events.get(island * ring..(island + 1) * ring).unwrap_or(&[]),
                     steps: Cell::new(0),
                     vote,
+                    order,
                 };
                 let done = done_tx.clone();
                 let take = &take;
@@ -435,6 +459,7 @@ struct RingLink<'a> {
     /// Steps taken (the parity picks the events).
     steps: Cell<usize>,
     vote: &'a Vote,
+    order: RingOrder,
 }
 
 /// One ring member's events for the peer transport, by step parity.
@@ -448,13 +473,15 @@ struct PeerEvents {
 impl RingLink<'_> {
     /// Traces `queue` with `trace` on this device, passing it on between
     /// traces: after `size` traces every queue of the ring has visited every
-    /// member once, and is shaded (or resolved) where it is then, not sent
-    /// home: any member can shade any hit (the record carries it, materials
-    /// and lights are on every device, films are summed at the end), and a
-    /// ring of K sends K - 1 times per trace instead of K (for K = 2, half
-    /// the traffic, measured in BENCHMARKS.md). A closest hit found earlier
-    /// shortens `t_max`, so later members only report nearer hits; shadow
-    /// rays found occluded are skipped by the later members.
+    /// member once. With [`RingOrder::Spread`] it is then shaded (or
+    /// resolved) where it is, not sent home: any member can shade any hit
+    /// (the record carries it, materials and lights are on every device,
+    /// films are summed at the end), and a ring of K sends K - 1 times per
+    /// trace instead of K (for K = 2, half the traffic, measured in
+    /// BENCHMARKS.md); with [`RingOrder::Home`] it goes on to where it was
+    /// made. A closest hit found earlier shortens `t_max`, so later members
+    /// only report nearer hits; shadow rays found occluded are skipped by
+    /// the later members.
     fn cycle(
         &self,
         device: &mut dyn Device,
@@ -462,9 +489,10 @@ impl RingLink<'_> {
         trace: fn(&mut dyn Device),
         report: &mut DeviceReport,
     ) -> Result<(), String> {
+        let home = self.order == RingOrder::Home;
         for i in 0..self.size {
             trace(device);
-            if i + 1 == self.size {
+            if i + 1 == self.size && !home {
                 break;
             }
             let step = self.steps.get();
@@ -615,7 +643,9 @@ fn ring_loop<'w>(
     loop {
         // A device that failed takes no more work but keeps stepping (with
         // empty queues) so that the others are not left waiting for it.
-        if device.error().is_none() && (!device.has_paths() || (merge && device.wants_work())) {
+        let makes_queues = link.order == RingOrder::Spread || link.member == 0;
+        if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
+        {
             if let Some(wave) = take() {
                 device.queue_work(wave);
                 report.waves += 1;

@@ -9,7 +9,9 @@ use std::sync::Arc;
 
 use atoll_cuda::CudaDevice;
 use atoll_dist::work::partition_work_balanced;
-use atoll_dist::{partition, render_multi, render_multi_warmed, Layout, PartitionOptions, Transport};
+use atoll_dist::{
+    partition, render_multi, render_multi_warmed, Layout, PartitionOptions, RingOrder, Transport,
+};
 use atoll_render::{render, Device, Film, RenderOptions};
 use atoll_scene::{IntegratorSettings, Scene};
 use glam::UVec2;
@@ -106,8 +108,13 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
         let memory = partition(&scene, 2, &model, &none).unwrap();
         let work = partition_work_balanced(&scene, 2, opts.resolution, &model, &none).unwrap();
         for (parts, p) in [("memory", memory), ("work", work)] {
-            let layout = Layout::Ring { parts: p.parts, islands: 1 };
-            for transport in [Transport::Peer, Transport::Host] {
+            let orders = [
+                (Transport::Peer, RingOrder::Spread),
+                (Transport::Host, RingOrder::Spread),
+                (Transport::Peer, RingOrder::Home),
+            ];
+            for (transport, order) in orders {
+                let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order };
                 // Peer rings warmed (first sample, then cleared): the
                 // reset must leave no warm-up rays in film or counters.
                 let render = if transport == Transport::Peer { render_multi_warmed } else { render_multi };
@@ -121,7 +128,12 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
                 )
                 .unwrap();
                 failures.extend(
-                    same_image(&reference, &out.film, &format!("{name} ring ({parts}, {transport:?})")).err(),
+                    same_image(
+                        &reference,
+                        &out.film,
+                        &format!("{name} ring ({parts}, {transport:?}, {order:?})"),
+                    )
+                    .err(),
                 );
                 assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
                 for d in &out.devices {
@@ -130,13 +142,13 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
                     let busy = d.stats.busy_seconds;
                     if !(busy > 0.0 && busy <= out.render_seconds * 1.1 + 0.01) {
                         failures.push(format!(
-                            "{name} ring ({parts}, {transport:?}): {} busy {busy:.4} s of {:.4} s",
+                            "{name} ring ({parts}, {transport:?}, {order:?}): {} busy {busy:.4} s of {:.4} s",
                             d.name, out.render_seconds
                         ));
                     }
                     if d.stats.rays_traced != single.device.rays_traced {
                         failures.push(format!(
-                            "{name} ring ({parts}, {transport:?}): {} traced {} path rays, one device {}",
+                            "{name} ring ({parts}, {transport:?}, {order:?}): {} traced {} path rays, one device {}",
                             d.name, d.stats.rays_traced, single.device.rays_traced
                         ));
                     }

@@ -9,7 +9,7 @@
 use std::sync::Arc;
 
 use atoll_bvh::{ByteModel, ScenePart};
-use atoll_dist::{partition, render_multi, Layout, PartitionOptions};
+use atoll_dist::{partition, render_multi, Layout, PartitionOptions, RingOrder};
 use atoll_render::{render, CpuDevice, Device, Film, RenderOptions};
 use atoll_scene::Scene;
 use glam::UVec2;
@@ -98,7 +98,7 @@ fn ring_of_three_parts_is_one_device() {
             &Arc::new(atoll_render::FrameContext::new(&scene, opts.clone()))
         )
         .is_err());
-    let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
+    let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order: RingOrder::Spread };
     // Queues of 500 paths: waves end mid-image, so merging has work to merge.
     for merge in [true, false] {
         let opts = RenderOptions { merge_waves: merge, wave_size: 500, ..opts.clone() };
@@ -117,7 +117,7 @@ fn islands_of_two_rings_of_two_are_one_device() {
     let opts = options(&scene, 6);
     let reference = single(&scene, &opts);
     let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
-    let layout = Layout::Ring { parts: p.parts, islands: 2 };
+    let layout = Layout::Ring { parts: p.parts, islands: 2, order: RingOrder::Spread };
     let mut devices = cpus(4, None);
     let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "2 islands of 2");
@@ -146,7 +146,7 @@ fn a_ground_object_too_big_for_one_device_is_split() {
         .unwrap();
     assert!(p.parts.iter().any(|part| !part.object_subsets.is_empty()), "an object was split");
     let mut devices = cpus(3, Some(budget));
-    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
     let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring with a split ground");
 }
@@ -158,7 +158,7 @@ fn a_ring_over_spatial_slabs_is_one_device() {
     let reference = single(&scene, &opts);
     let p = atoll_dist::spatial::partition_spatial(&scene, 3, &ByteModel::CPU, &PartitionOptions::default())
         .unwrap();
-    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
     let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring over spatial slabs");
 }
@@ -182,7 +182,7 @@ fn a_ring_over_work_balanced_chunks_is_one_device() {
     let ground_runs: usize =
         p.parts.iter().flat_map(|part| &part.object_subsets).filter(|s| s.0 == 0).map(|s| s.1.len()).sum();
     assert!(ground_runs > 3, "the ground is cut into {ground_runs} runs");
-    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
     let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
     assert_same_image(&reference, &out.film, "ring over work-balanced chunks");
 }
@@ -201,7 +201,7 @@ fn a_ring_over_textured_and_alpha_masked_parts_is_one_device() {
         let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
         assert!(p.parts.iter().all(|part| !part.instances.is_empty() || !part.object_subsets.is_empty()));
         let mut devices = cpus(2, None);
-        let layout = Layout::Ring { parts: p.parts.clone(), islands: 1 };
+        let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order: RingOrder::Spread };
         let out = render_multi(&mut devices, &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
         assert_same_image(&reference, &out.film, &format!("textured ring from {eye}"));
     }
@@ -215,7 +215,7 @@ fn warmed_ring_renders_the_cold_frame() {
     let scene = scene();
     let opts = RenderOptions { wave_size: 500, ..options(&scene, 3) };
     let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
-    let layout = Layout::Ring { parts: p.parts, islands: 1 };
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
     let cold = render_multi(&mut cpus(2, None), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap();
     let mut progress = 0;
     let warm =
@@ -249,4 +249,31 @@ fn warmed_ring_renders_the_cold_frame() {
     );
     let sent = |out: &atoll_dist::MultiOutput| out.devices.iter().map(|d| d.bytes_sent).sum::<u64>();
     assert_eq!(sent(&cold), sent(&warm));
+}
+
+/// With [`RingOrder::Home`] member 0 makes and shades every queue (every
+/// ray is traced there first): the same image, every wave taken by member
+/// 0, and every record sent twice per cycle (home and back) against once.
+#[test]
+fn a_ring_with_one_home_renders_the_same_image() {
+    let scene = scene();
+    let opts = RenderOptions { wave_size: 500, ..options(&scene, 3) };
+    let reference = single(&scene, &opts);
+    let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+    let ring = |order| {
+        let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order };
+        render_multi(&mut cpus(2, None), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap()
+    };
+    let (spread, home) = (ring(RingOrder::Spread), ring(RingOrder::Home));
+    assert_same_image(&reference, &home.film, "ring with one home");
+    assert!(home.devices[0].waves > 0 && home.devices[1].waves == 0, "member 0 takes every wave");
+    let sent = |out: &atoll_dist::MultiOutput| out.devices.iter().map(|d| d.bytes_sent).sum::<u64>();
+    assert_eq!(sent(&home), 2 * sent(&spread));
+    for d in &home.devices {
+        assert_eq!(
+            d.stats.rays_traced, spread.devices[0].stats.rays_traced,
+            "{}: every ray on every member",
+            d.name
+        );
+    }
 }

@@ -11,7 +11,7 @@ use atoll_dist::spatial::partition_spatial;
 use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
     partition, plan, render_multi, render_multi_warmed, Layout, MultiOutput, Partition, PartitionOptions,
-    Plan, Strategy, Transport,
+    Plan, RingOrder, Strategy, Transport,
 };
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
@@ -134,6 +134,8 @@ pub struct MultiArgs<'a> {
     pub streams: usize,
     /// Render the frame's first sample untimed first, on the prepared devices.
     pub warmup: bool,
+    /// Where a ring's queues start and end their cycles.
+    pub ring_order: RingOrder,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -200,10 +202,13 @@ pub fn render(
             }
             .map_err(|e| CliError::Runtime(e.to_string()))?;
             eprintln!("partition: {kind}");
-            (Layout::Ring { parts: p.parts.clone(), islands }, Some(p))
+            (Layout::Ring { parts: p.parts.clone(), islands, order: args.ring_order }, Some(p))
         }
     };
     eprintln!("{}", describe(&plan, partition.as_ref(), args.specs.len()));
+    if matches!(layout, Layout::Ring { order: RingOrder::Home, .. }) {
+        eprintln!("ring order: member 0 makes and shades every queue");
+    }
     if let Some(path) = args.ownership {
         write_ownership(scene, &options, partition.as_ref(), path)?;
     }
@@ -220,7 +225,7 @@ pub fn render(
         );
     }
     devices.truncate(used);
-    if let (Layout::Ring { parts, islands }, Some(p)) = (&mut layout, &partition) {
+    if let (Layout::Ring { parts, islands, .. }, Some(p)) = (&mut layout, &partition) {
         // More islands over the same GPUs, each member sharing the part of
         // the device it copies: while one ring waits on a hand-over, the
         // others' kernels keep the GPUs busy.
@@ -405,6 +410,15 @@ pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
     }
 }
 
+/// Parses `--ring-order`.
+pub fn parse_ring_order(s: &str) -> Result<RingOrder, String> {
+    match s.trim().to_ascii_lowercase().as_str() {
+        "spread" => Ok(RingOrder::Spread),
+        "home" => Ok(RingOrder::Home),
+        _ => Err(format!("{s:?}: expected spread or home")),
+    }
+}
+
 /// Parses `--ring-transport`.
 pub fn parse_transport(s: &str) -> Result<Transport, String> {
     match s.trim().to_ascii_lowercase().as_str() {
@@ -430,5 +444,12 @@ mod tests {
         assert!(parse_devices("cpu:0").is_err());
         assert!(parse_devices("tpu:1").is_err());
         assert!(parse_devices("").is_err());
+    }
+
+    #[test]
+    fn ring_orders() {
+        assert_eq!(parse_ring_order("home"), Ok(RingOrder::Home));
+        assert_eq!(parse_ring_order(" Spread "), Ok(RingOrder::Spread));
+        assert!(parse_ring_order("first").is_err());
     }
 }

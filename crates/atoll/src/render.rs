@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use atoll_dist::{Strategy, Transport};
+use atoll_dist::{RingOrder, Strategy, Transport};
 use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::IntegratorSettings;
@@ -15,7 +15,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use crate::device::{select, DeviceArgs};
 use crate::load::load_scene;
 use crate::multi::{
-    self, parse_devices, parse_partitioning, parse_transport, DeviceList, DeviceSpec, MultiArgs, Partitioning,
+    self, parse_devices, parse_partitioning, parse_ring_order, parse_transport, DeviceList, DeviceSpec,
+    MultiArgs, Partitioning,
 };
 use crate::CliError;
 
@@ -96,6 +97,13 @@ pub struct RenderArgs {
     /// default for GPUs) or host (through host memory, any device).
     #[arg(long, value_parser = parse_transport, requires = "devices")]
     pub ring_transport: Option<Transport>,
+    /// Where a ring's queues are made and shaded: spread (every member
+    /// makes queues from its share of the pixels; shading where a queue's
+    /// cycle ends: the least traffic) or home (member 0, holding the
+    /// largest piece, makes and shades every queue, so every ray is traced
+    /// there first: the other parts skip what lies behind its hits).
+    #[arg(long, default_value = "spread", value_parser = parse_ring_order, requires = "devices")]
+    pub ring_order: RingOrder,
     /// How a ring's scene parts are made: auto (memory-balanced: measured
     /// the least work), memory, work (compact chunks balanced by bytes and
     /// by the frame's estimated ray work), or spatial (one compact region
@@ -295,6 +303,7 @@ fn render_on_devices(
         partitioning: args.partitioning,
         streams: args.waves.streams(),
         warmup: args.warmup,
+        ring_order: args.ring_order,
     };
     let bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {
