@@ -57,8 +57,8 @@ pub enum RingOrder {
     /// one for all): every ray is traced first on part 0, the partition's
     /// heaviest piece (a landscape's ground), and reaches the others with
     /// its closest hit so far, so they skip what lies behind it. K sends
-    /// per path trace (K − 1 per shadow trace). The parts' work evens out: on the landscape, busy times
-    /// of the members alone went from 0.047 / 0.091 s to 0.072 / 0.079 s
+    /// per trace. The parts' work evens out: on the landscape, busy times
+    /// of the members alone went from 0.047 / 0.091 s to 0.068 / 0.077 s
     /// (BENCHMARKS.md, issue 4).
     Home,
 }
@@ -478,8 +478,8 @@ impl RingLink<'_> {
     /// (the record carries it, materials and lights are on every device,
     /// films are summed at the end), and a ring of K sends K - 1 times per
     /// trace instead of K (for K = 2, half the traffic, measured in
-    /// BENCHMARKS.md); with [`RingOrder::Home`] a path queue goes on to
-    /// where it was made (shadow queues never need to). A closest hit found earlier shortens `t_max`, so later members
+    /// BENCHMARKS.md); with [`RingOrder::Home`] it goes on to where it was
+    /// made. A closest hit found earlier shortens `t_max`, so later members
     /// only report nearer hits; shadow rays found occluded are skipped by
     /// the later members.
     fn cycle(
@@ -489,9 +489,7 @@ impl RingLink<'_> {
         trace: fn(&mut dyn Device),
         report: &mut DeviceReport,
     ) -> Result<(), String> {
-        // Only paths go home, to be shaded there; shadow records are
-        // resolved where their cycle ends (the film is summed at the end).
-        let home = self.order == RingOrder::Home && queue == Queue::Paths;
+        let home = self.order == RingOrder::Home;
         for i in 0..self.size {
             trace(device);
             if i + 1 == self.size && !home {
