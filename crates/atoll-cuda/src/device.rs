@@ -368,15 +368,7 @@ impl CudaDevice {
         let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
         let frame_bytes = queue_bytes(capacity) + FEED_BYTES + film_bytes + params_bytes;
 
-        // Compile (or load from the cache) before the clock of the first
-        // wave starts; every module this prepare needs at once.
-        let mut modules = vec![
-            (WAVEFRONT, shade_features(frame)),
-            (WAVEFRONT, Vec::new()),
-            (trace::FILE, TraceFeatures::of(frame).defines()),
-        ];
-        modules.extend(bvh::BUILD_FILES.map(|file| (file, Vec::new())));
-        gpu.prefetch(modules);
+        // Compile (or load from the cache) before the clock of the first wave starts.
         let kernels = Kernels::load(&gpu, frame)?;
         let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
         let start = Instant::now();

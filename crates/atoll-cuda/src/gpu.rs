@@ -187,20 +187,6 @@ impl Gpu {
         Ok(module)
     }
 
-    /// Starts compiling `modules` (kernel file, extra options) on threads
-    /// of their own, without waiting: NVRTC compiles one module on one
-    /// core, and a device's first `prepare` on a cold disk cache asked for
-    /// its modules one after another. A module still compiling when it is
-    /// needed is waited for ([`compile_once`]); a failure is left for that
-    /// request to report.
-    pub fn prefetch(&self, modules: Vec<(&'static str, Vec<String>)>) {
-        for (file, extra) in modules {
-            let mut options = self.compile_options.clone();
-            options.extra.extend(extra);
-            std::thread::spawn(move || compile_once(file, &options).map(|_| ()));
-        }
-    }
-
     /// Kernel `name` of kernel file `file` (an `extern "C" __global__` function).
     pub fn function(&self, file: &str, name: &str) -> Result<CudaFunction, CudaError> {
         self.function_with(file, name, &[])

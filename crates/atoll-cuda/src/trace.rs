@@ -20,7 +20,7 @@ use crate::gpu::Gpu;
 use crate::layout::{GpuRecord, HitRef};
 use crate::scene::GpuScene;
 
-pub(crate) const FILE: &str = "trace.cu";
+const FILE: &str = "trace.cu";
 
 /// What the trace module is compiled for: a frame's features, each of which
 /// costs the kernels registers even where no ray takes it, so modules are

@@ -12,9 +12,7 @@ use super::BuildOptions;
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu};
 
-pub(crate) const FILE: &str = "lbvh.cu";
-/// The treelet-optimisation kernels.
-pub(crate) const TREELET_FILE: &str = "treelet.cu";
+const FILE: &str = "lbvh.cu";
 /// Threads per block of the build kernels (BUILD_THREADS in lbvh.cu).
 pub(crate) const THREADS: u32 = 256;
 /// Primitives per block of the box kernels (BUILD_THREADS * BOX_ITEMS).
@@ -49,7 +47,7 @@ impl LbvhKernels {
             morton: f("lbvh_morton")?,
             karras: f("lbvh_karras")?,
             bounds: f("lbvh_bounds")?,
-            treelet: gpu.function(TREELET_FILE, "lbvh_treelet")?,
+            treelet: gpu.function("treelet.cu", "lbvh_treelet")?,
             mark: f("lbvh_mark")?,
             emit_nodes: f("lbvh_emit_nodes")?,
             emit_roots: f("lbvh_emit_roots")?,

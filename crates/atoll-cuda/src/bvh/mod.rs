@@ -21,9 +21,6 @@ pub mod testing;
 mod treelet_reference;
 pub mod wide;
 
-/// The kernel files a BVH build uses (compiled ahead by `prepare`).
-pub(crate) const BUILD_FILES: [&str; 3] = [sort::FILE, lbvh::FILE, lbvh::TREELET_FILE];
-
 use std::sync::Mutex;
 use std::time::Instant;
 

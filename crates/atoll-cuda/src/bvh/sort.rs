@@ -20,7 +20,7 @@ const THREADS: u32 = 256;
 pub const SORT_TILE: u32 = 4096;
 /// Elements per scan tile (SCAN_TILE in sort.cu).
 pub const SCAN_TILE: u32 = 2048;
-pub(crate) const FILE: &str = "sort.cu";
+const FILE: &str = "sort.cu";
 
 /// One radix pass: the 8 bits at `shift` of the key, or of the segment of
 /// the value (a primitive index) when `from_segment`.
