@@ -58,7 +58,7 @@ pub enum RingOrder {
     /// heaviest piece (a landscape's ground), and reaches the others with
     /// its closest hit so far, so they skip what lies behind it. K sends
     /// per trace. The parts' work evens out: on the landscape, busy times
-    /// of the members alone went from 0.047 / 0.091 s to 0.068 / 0.077 s
+    /// of the members alone went from 0.047 / 0.091 s to 0.072 / 0.079 s
     /// (BENCHMARKS.md, issue 4).
     Home,
 }
