@@ -253,27 +253,28 @@ fn warmed_ring_renders_the_cold_frame() {
 
 /// With [`RingOrder::Home`] member 0 makes and shades every queue (every
 /// ray is traced there first): the same image, every wave taken by member
-/// 0, and every record sent twice per cycle (home and back) against once.
+/// 0, every ray on every member, and every record sent K times per cycle
+/// (round the ring and home) against K − 1.
 #[test]
 fn a_ring_with_one_home_renders_the_same_image() {
     let scene = scene();
     let opts = RenderOptions { wave_size: 500, ..options(&scene, 3) };
     let reference = single(&scene, &opts);
-    let p = partition(&scene, 2, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
-    let ring = |order| {
-        let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order };
-        render_multi(&mut cpus(2, None), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap()
-    };
-    let (spread, home) = (ring(RingOrder::Spread), ring(RingOrder::Home));
-    assert_same_image(&reference, &home.film, "ring with one home");
-    assert!(home.devices[0].waves > 0 && home.devices[1].waves == 0, "member 0 takes every wave");
-    let sent = |out: &atoll_dist::MultiOutput| out.devices.iter().map(|d| d.bytes_sent).sum::<u64>();
-    assert_eq!(sent(&home), 2 * sent(&spread));
-    for d in &home.devices {
-        assert_eq!(
-            d.stats.rays_traced, spread.devices[0].stats.rays_traced,
-            "{}: every ray on every member",
-            d.name
-        );
+    for k in [2, 3] {
+        let p = partition(&scene, k, &ByteModel::CPU, &PartitionOptions::default()).unwrap();
+        let ring = |order| {
+            let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order };
+            render_multi(&mut cpus(k, None), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap()
+        };
+        let (spread, home) = (ring(RingOrder::Spread), ring(RingOrder::Home));
+        assert_same_image(&reference, &home.film, &format!("ring of {k} with one home"));
+        assert!(home.devices[0].waves > 0, "member 0 takes the waves");
+        assert!(home.devices[1..].iter().all(|d| d.waves == 0), "only member 0 takes waves");
+        let sent = |out: &atoll_dist::MultiOutput| out.devices.iter().map(|d| d.bytes_sent).sum::<u64>();
+        assert_eq!(sent(&home) * (k as u64 - 1), sent(&spread) * k as u64, "ring of {k}");
+        for d in &home.devices {
+            let rays = spread.devices[0].stats.rays_traced;
+            assert_eq!(d.stats.rays_traced, rays, "{}: every ray on every member", d.name);
+        }
     }
 }
