@@ -17,7 +17,9 @@
 //! - Pieces go heaviest first to the part they leave least loaded (the
 //!   paper's least-loaded device, counting what the part already holds:
 //!   another piece of a mesh there does not pay for its vertices again),
-//!   skipping parts the piece would take over the budget.
+//!   skipping parts the piece would take over the budget. Ties go to the
+//!   lowest part, so the heaviest piece (a landscape's ground) is on part
+//!   0, where [`crate::RingOrder::Home`] traces every ray first.
 //!
 //! Triangle ranges follow the mesh's index order, which for grid-like
 //! meshes (terrains) is already spatially coherent. No further spatial

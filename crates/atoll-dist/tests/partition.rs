@@ -318,3 +318,17 @@ fn gpu_parts_fit_what_the_partitioner_charged() {
         }
     }
 }
+
+/// The heaviest piece goes to part 0 (`RingOrder::Home` traces every ray
+/// there first: on a landscape, the ground). With a threshold splitting
+/// nothing, the ground object is that piece.
+#[test]
+fn the_heaviest_piece_goes_to_part_zero() {
+    let scene = ground_scene();
+    let options = PartitionOptions { split_threshold: Some(u64::MAX), ..Default::default() };
+    for parts in [2, 3] {
+        let p = partition(&scene, parts, &MODEL, &options).unwrap();
+        check_exactly_once(&scene, &p);
+        assert_eq!(p.owner(0, 0, 0), Some(0), "{parts} parts: the ground is on part 0");
+    }
+}
