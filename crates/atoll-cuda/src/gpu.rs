@@ -67,6 +67,10 @@ pub struct Gpu {
     /// event tracking is off, so such streams must be ordered with events
     /// explicitly.
     pub stream: Arc<CudaStream>,
+    /// The green context of a GPU part ([`Gpu::open_partition`]).
+    green: Option<GreenContext>,
+    /// (index, parts) of a GPU part.
+    pub part: Option<(usize, usize)>,
     /// e.g. "NVIDIA H200".
     pub name: String,
     /// (major, minor), e.g. (9, 0).
@@ -78,6 +82,33 @@ pub struct Gpu {
     modules: Mutex<HashMap<String, Arc<CudaModule>>>,
     /// Extra NVRTC options for every kernel of this GPU (e.g. fast math).
     compile_options: CompileOptions,
+}
+
+/// A green context handle (kept for making more streams on it; never
+/// destroyed: parts live as long as the process).
+#[derive(Clone, Copy)]
+struct GreenContext(cudarc::driver::sys::CUgreenCtx);
+
+// SAFETY: a green context handle may be used from any thread.
+unsafe impl Send for GreenContext {}
+unsafe impl Sync for GreenContext {}
+
+/// A non-blocking stream of green context `green` (which `ctx` wraps).
+///
+/// # Safety
+/// `green` must be the live green context `ctx` was made from.
+unsafe fn green_stream(
+    ctx: &Arc<CudaContext>,
+    green: cudarc::driver::sys::CUgreenCtx,
+    label: &str,
+) -> Result<Arc<CudaStream>, CudaError> {
+    use cudarc::driver::sys;
+    let mut stream: sys::CUstream = std::ptr::null_mut();
+    let flags = sys::CUstream_flags::CU_STREAM_NON_BLOCKING as u32;
+    match sys::cuGreenCtxStreamCreate(&mut stream, green, flags, 0) {
+        sys::CUresult::CUDA_SUCCESS => Ok(ctx.wrap_borrowed_stream(stream)),
+        r => Err(CudaError::Usage(format!("{label}: creating a stream: {r:?}"))),
+    }
 }
 
 impl std::fmt::Debug for Gpu {
@@ -112,14 +143,135 @@ impl Gpu {
         // are not needed. Code that adds streams must order them itself.
         unsafe { ctx.disable_event_tracking() };
         let stream = ctx.new_stream().map_err(CudaError::driver(what("creating a stream")))?;
+        Self::with_context(ordinal, ctx, stream, None, None)
+    }
+
+    /// Opens part `index` of GPU `ordinal` split into `parts` equal groups
+    /// of multiprocessors (a CUDA green context), with a stream of its own.
+    /// Devices on the parts of one GPU stand in for separate GPUs: their
+    /// kernels run apart, while memory, its bandwidth and the L2 cache stay
+    /// shared. A ring's lock-step and hand-overs can so be measured against
+    /// replication without a second GPU (issue 4).
+    pub fn open_partition(ordinal: usize, parts: usize, index: usize) -> Result<Arc<Gpu>, CudaError> {
+        use cudarc::driver::sys;
+        let count = device_count()?;
+        if ordinal >= count {
+            return Err(if count == 0 { CudaError::NoGpu } else { CudaError::BadOrdinal { ordinal, count } });
+        }
+        require_nvrtc()?;
+        let label = format!("cuda:{ordinal}/{parts}");
+        let failed = |what: &str, r: sys::CUresult| CudaError::Usage(format!("{label}: {what}: {r:?}"));
+        let check = |what: &str, r: sys::CUresult| match r {
+            sys::CUresult::CUDA_SUCCESS => Ok(()),
+            r => Err(failed(what, r)),
+        };
+        // SAFETY: plain driver calls on out-parameters sized for them; the
+        // resources and descriptor live until the green context is made.
+        unsafe {
+            let mut device: sys::CUdevice = 0;
+            check("getting the device", sys::cuDeviceGet(&mut device, ordinal as i32))?;
+            let mut all: sys::CUdevResource = std::mem::zeroed();
+            check(
+                "reading its multiprocessors",
+                sys::cuDeviceGetDevResource(
+                    device,
+                    &mut all,
+                    sys::CUdevResourceType::CU_DEV_RESOURCE_TYPE_SM,
+                ),
+            )?;
+            let total = all.__bindgen_anon_1.sm.smCount;
+            // Groups of a multiple of 8 (Hopper's granularity), as many as asked.
+            let per_part = (total / parts.max(1) as u32) / 8 * 8;
+            if per_part == 0 || index >= parts {
+                return Err(CudaError::Usage(format!(
+                    "{label}: {total} multiprocessors make no {parts} parts"
+                )));
+            }
+            let mut groups: Vec<sys::CUdevResource> = vec![std::mem::zeroed(); parts];
+            let mut made = parts as u32;
+            let mut rest: sys::CUdevResource = std::mem::zeroed();
+            check(
+                "splitting its multiprocessors",
+                sys::cuDevSmResourceSplitByCount(
+                    groups.as_mut_ptr(),
+                    &mut made,
+                    &all,
+                    &mut rest,
+                    0,
+                    per_part,
+                ),
+            )?;
+            if (made as usize) < parts {
+                return Err(CudaError::Usage(format!(
+                    "{label}: only {made} groups of {per_part} multiprocessors"
+                )));
+            }
+            let mut desc: sys::CUdevResourceDesc = std::ptr::null_mut();
+            check("describing a group", sys::cuDevResourceGenerateDesc(&mut desc, &mut groups[index], 1))?;
+            let mut green: sys::CUgreenCtx = std::ptr::null_mut();
+            let flags = sys::CUgreenCtxCreate_flags::CU_GREEN_CTX_DEFAULT_STREAM as u32;
+            check("creating a green context", sys::cuGreenCtxCreate(&mut green, desc, device, flags))?;
+            let mut raw: sys::CUcontext = std::ptr::null_mut();
+            check("its context", sys::cuCtxFromGreenCtx(&mut raw, green))?;
+            let ctx = CudaContext::from_raw_context(ordinal, device, raw)
+                .map_err(CudaError::driver(format!("{label}: wrapping the context")))?;
+            // A green context is destroyed by cuGreenCtxDestroy, not by the
+            // cuCtxDestroy cudarc calls when its last handle drops: keep one
+            // handle for the process's life (parts are opened a few times).
+            std::mem::forget(ctx.clone());
+            ctx.disable_event_tracking();
+            let stream = green_stream(&ctx, green, &label)?;
+            let gpu = Self::with_context(
+                ordinal,
+                ctx,
+                stream,
+                Some(green),
+                Some(groups[index].__bindgen_anon_1.sm.smCount),
+            )?;
+            Ok(Arc::new(Gpu { part: Some((index, parts)), ..Arc::into_inner(gpu).expect("just made") }))
+        }
+    }
+
+    /// Another handle on this GPU (or GPU part) with a stream of its own:
+    /// a further wavefront sharing its context, modules and memory.
+    pub fn another_stream(&self) -> Result<Arc<Gpu>, CudaError> {
+        let label = self.label();
+        let stream = match self.green {
+            // SAFETY: `green` is the live green context `ctx` was made from.
+            Some(green) => unsafe { green_stream(&self.ctx, green.0, &label)? },
+            None => {
+                self.ctx.new_stream().map_err(CudaError::driver(format!("{label}: creating a stream")))?
+            }
+        };
+        let gpu = Self::with_context(
+            self.ordinal,
+            self.ctx.clone(),
+            stream,
+            self.green.map(|g| g.0),
+            Some(self.multiprocessors),
+        )?;
+        Ok(Arc::new(Gpu { part: self.part, ..Arc::into_inner(gpu).expect("just made") }))
+    }
+
+    fn with_context(
+        ordinal: usize,
+        ctx: Arc<CudaContext>,
+        stream: Arc<CudaStream>,
+        green: Option<cudarc::driver::sys::CUgreenCtx>,
+        multiprocessors: Option<u32>,
+    ) -> Result<Arc<Gpu>, CudaError> {
+        let what = |w: &str| format!("cuda:{ordinal}: {w}");
         let name = ctx.name().map_err(CudaError::driver(what("reading the name")))?;
         let (major, minor) =
             ctx.compute_capability().map_err(CudaError::driver(what("reading the compute capability")))?;
         let total_memory =
             ctx.total_mem().map_err(CudaError::driver(what("reading the memory size")))? as u64;
-        let multiprocessors = ctx
-            .attribute(CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT)
-            .map_err(CudaError::driver(what("reading the multiprocessor count")))?;
+        let multiprocessors = match multiprocessors {
+            Some(n) => n as i32,
+            None => ctx
+                .attribute(CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT)
+                .map_err(CudaError::driver(what("reading the multiprocessor count")))?,
+        };
         let compute_capability = (major as u32, minor as u32);
         static OPENED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
         Ok(Arc::new(Gpu {
@@ -127,6 +279,8 @@ impl Gpu {
             id: OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             ctx,
             stream,
+            green: green.map(GreenContext),
+            part: None,
             name,
             compute_capability,
             total_memory,
@@ -138,9 +292,12 @@ impl Gpu {
         }))
     }
 
-    /// `cuda:N`.
+    /// `cuda:N`, or `cuda:N[I/P]` for part I of P ([`Gpu::open_partition`]).
     pub fn label(&self) -> String {
-        format!("cuda:{}", self.ordinal)
+        match self.part {
+            Some((index, parts)) => format!("cuda:{}[{index}/{parts}]", self.ordinal),
+            None => format!("cuda:{}", self.ordinal),
+        }
     }
 
     /// Bytes currently free on the GPU (all processes).

@@ -24,6 +24,22 @@ use crate::CliError;
 pub enum DeviceSpec {
     Cpu,
     Cuda(usize),
+    /// `cuda:I/P`: a part of GPU I split into P groups of multiprocessors,
+    /// each listing the next part ([`atoll_cuda::Gpu::open_partition`]).
+    CudaPart {
+        ordinal: usize,
+        parts: usize,
+    },
+}
+
+impl DeviceSpec {
+    /// The GPU this names, if any.
+    pub fn ordinal(&self) -> Option<usize> {
+        match *self {
+            DeviceSpec::Cpu => None,
+            DeviceSpec::Cuda(ordinal) | DeviceSpec::CudaPart { ordinal, .. } => Some(ordinal),
+        }
+    }
 }
 
 /// The parsed `--devices` list (a newtype: clap would take a bare `Vec`
@@ -38,7 +54,11 @@ pub struct DeviceList(pub Vec<DeviceSpec>);
 pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
     let mut devices = Vec::new();
     for item in s.split(',').map(|i| i.trim().to_ascii_lowercase()) {
-        let bad = || format!("{item:?} in {s:?}: expected cpu, cpu:N (N CPU devices) or cuda:I");
+        let bad = || {
+            format!(
+                "{item:?} in {s:?}: expected cpu, cpu:N (N CPU devices), cuda:I or cuda:I/P (a part of P)"
+            )
+        };
         match item.split_once(':') {
             None if item == "cpu" => devices.push(DeviceSpec::Cpu),
             None if item == "cuda" => devices.push(DeviceSpec::Cuda(0)),
@@ -49,7 +69,17 @@ pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
                 }
                 devices.extend(std::iter::repeat_n(DeviceSpec::Cpu, n));
             }
-            Some(("cuda", i)) => devices.push(DeviceSpec::Cuda(i.parse().map_err(|_| bad())?)),
+            Some(("cuda", i)) => match i.split_once('/') {
+                None => devices.push(DeviceSpec::Cuda(i.parse().map_err(|_| bad())?)),
+                Some((i, p)) => {
+                    let ordinal = i.parse().map_err(|_| bad())?;
+                    let parts: usize = p.parse().map_err(|_| bad())?;
+                    if !(2..=16).contains(&parts) {
+                        return Err(format!("{item:?}: a GPU splits into 2 to 16 parts"));
+                    }
+                    devices.push(DeviceSpec::CudaPart { ordinal, parts });
+                }
+            },
             _ => return Err(bad()),
         }
     }
@@ -80,11 +110,29 @@ fn open_devices(
                 }
                 devices.push(Box::new(d));
             }
-            DeviceSpec::Cuda(ordinal) => {
-                let mut d = CudaDevice::new(ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
+            DeviceSpec::Cuda(_) | DeviceSpec::CudaPart { .. } => {
+                let ordinal = spec.ordinal().expect("a GPU");
+                let gpu = match *spec {
+                    DeviceSpec::CudaPart { parts, .. } => {
+                        let index = devices
+                            .iter_mut()
+                            .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>())
+                            .filter(|d| d.gpu().ordinal == ordinal && d.gpu().part.is_some())
+                            .count();
+                        if index >= parts {
+                            return Err(CliError::Input(format!(
+                                "cuda:{ordinal}/{parts} is listed more than {parts} times"
+                            )));
+                        }
+                        atoll_cuda::Gpu::open_partition(ordinal, parts, index)
+                    }
+                    _ => atoll_cuda::Gpu::open(ordinal),
+                }
+                .map_err(|e| CliError::Runtime(e.to_string()))?;
+                let mut d = CudaDevice::on(gpu);
                 // Devices sharing a GPU prepare at once: each checks its plan
                 // against its share of the free memory, not all of it.
-                let sharing = specs.iter().filter(|s| **s == DeviceSpec::Cuda(ordinal)).count() as u64;
+                let sharing = specs.iter().filter(|s| s.ordinal() == Some(ordinal)).count() as u64;
                 let share = (sharing > 1).then(|| d.gpu().free_memory().ok().map(|f| f / sharing)).flatten();
                 if let Some(b) = budget.into_iter().chain(share).min() {
                     d = d.with_memory_budget(b);
@@ -103,7 +151,7 @@ fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
     if specs.contains(&DeviceSpec::Cpu) {
         models.push(ByteModel::CPU);
     }
-    if specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_))) {
+    if specs.iter().any(|s| s.ordinal().is_some()) {
         models.push(atoll_cuda::scene::byte_model());
     }
     models
@@ -152,6 +200,12 @@ pub fn render(
     gpus.sort_unstable();
     for shared in gpus.chunk_by(|a, b| a == b).filter(|c| c.len() > 1) {
         eprintln!("note: {} devices share cuda:{} (its time and memory)", shared.len(), shared[0]);
+    }
+    for spec in args.specs {
+        if let DeviceSpec::CudaPart { ordinal, parts } = *spec {
+            eprintln!("note: cuda:{ordinal} split into {parts} parts (multiprocessors apart; memory and its bandwidth shared)");
+            break;
+        }
     }
     let model = byte_model(args.specs);
     // Replicas on one GPU share one copy of the scene; ring members on one
@@ -233,9 +287,10 @@ pub fn render(
         let ring = parts.len();
         for _ in 0..copies {
             for d in 0..ring * *islands {
-                let ordinal = devices[d].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().ordinal);
-                let Some(ordinal) = ordinal else { continue };
-                let mut more = CudaDevice::new(ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
+                let gpu = devices[d].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone());
+                let Some(gpu) = gpu else { continue };
+                let more = gpu.another_stream().map_err(|e| CliError::Runtime(e.to_string()))?;
+                let mut more = CudaDevice::on(more);
                 more.set_memory_budget(args.budget);
                 devices.push(Box::new(more));
             }
@@ -246,19 +301,16 @@ pub fn render(
         }
     }
     if matches!(plan, Plan::Replicate) {
-        // More wavefronts on each GPU listed once, sharing its replica.
-        for spec in args.specs {
-            let DeviceSpec::Cuda(ordinal) = *spec else { continue };
-            if args.specs.iter().filter(|s| **s == *spec).count() > 1 {
-                continue;
-            }
-            let gpu = devices
-                .iter_mut()
-                .find_map(|d| {
-                    d.as_any_mut().downcast_mut::<CudaDevice>().filter(|c| c.gpu().ordinal == ordinal)
-                })
-                .map(|c| c.gpu().clone());
-            if let Some(gpu) = gpu {
+        // More wavefronts on each GPU listed once (and on each GPU part),
+        // sharing its replica.
+        let listed: Vec<Arc<atoll_cuda::Gpu>> = devices
+            .iter_mut()
+            .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
+            .collect();
+        for gpu in listed {
+            let alone = gpu.part.is_some()
+                || args.specs.iter().filter(|s| **s == DeviceSpec::Cuda(gpu.ordinal)).count() == 1;
+            if alone {
                 let more = extra_streams(&gpu, args.streams, scene, &options, args.budget)?;
                 if !more.is_empty() {
                     eprintln!("{}: {} wavefronts sharing its replica", gpu.label(), more.len() + 1);
@@ -441,6 +493,9 @@ mod tests {
         );
         assert_eq!(parse_devices("cpu, cuda:1"), Ok(DeviceList(vec![DeviceSpec::Cpu, DeviceSpec::Cuda(1)])));
         assert_eq!(parse_devices("cuda:0,cuda:0"), Ok(DeviceList(vec![DeviceSpec::Cuda(0); 2])));
+        let half = DeviceSpec::CudaPart { ordinal: 1, parts: 2 };
+        assert_eq!(parse_devices("cuda:1/2,cuda:1/2"), Ok(DeviceList(vec![half; 2])));
+        assert!(parse_devices("cuda:0/1").is_err() && parse_devices("cuda:0/x").is_err());
         assert!(parse_devices("cpu:0").is_err());
         assert!(parse_devices("tpu:1").is_err());
         assert!(parse_devices("").is_err());

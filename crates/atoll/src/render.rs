@@ -172,7 +172,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
     let scene = Arc::new(scene);
     if let Some(DeviceList(specs)) = &args.devices {
-        let gpus = specs.iter().any(|s| matches!(s, DeviceSpec::Cuda(_)));
+        let gpus = specs.iter().any(|s| s.ordinal().is_some());
         args.waves.apply(&mut options, gpus);
         if let (true, None, Some(budget)) = (gpus, args.waves.wave_size, args.device.device_memory) {
             crate::streams::fit_wave_to_budget(&mut options, budget);

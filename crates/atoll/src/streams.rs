@@ -109,7 +109,8 @@ pub fn extra_streams(
     }
     (1..n)
         .map(|_| {
-            let mut d = CudaDevice::new(gpu.ordinal).map_err(|e| CliError::Runtime(e.to_string()))?;
+            let more = gpu.another_stream().map_err(|e| CliError::Runtime(e.to_string()))?;
+            let mut d = CudaDevice::on(more);
             d.set_memory_budget(budget);
             Ok(Box::new(d) as Box<dyn Device>)
         })
