@@ -58,7 +58,10 @@ pub enum RingOrder {
     /// heaviest piece (a landscape's ground), and reaches the others with
     /// its closest hit so far, so they skip what lies behind it. K sends
     /// per trace. The parts' work evens out: on the landscape, busy times
-    /// of the members alone went from 0.047 / 0.091 s to 0.072 / 0.079 s
+    /// of the members alone went from 0.047 / 0.091 s to 0.072 / 0.079 s.
+    /// But each ring then has one queue in flight instead of K, and on two
+    /// halves of an H100 standing in for two GPUs it rendered at 0.72–0.92×
+    /// `Spread`'s speed (1 to 6 islands), its members idle most of the time
     /// (BENCHMARKS.md, issue 4).
     Home,
 }

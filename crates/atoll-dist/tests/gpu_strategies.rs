@@ -158,3 +158,49 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// Devices on two parts of GPU 0 (green contexts: multiprocessors apart,
+/// memory shared, standing in for two GPUs): replicate and both ring
+/// orders render the one-device image, and each part has its share of the
+/// multiprocessors.
+#[test]
+fn replicate_and_ring_on_two_gpu_parts_are_one_gpu() {
+    if two_devices_or_skip("replicate_and_ring_on_two_gpu_parts_are_one_gpu").is_none() {
+        return;
+    }
+    let parts = || -> Vec<Box<dyn Device>> {
+        (0..2)
+            .map(|i| {
+                let gpu = atoll_cuda::Gpu::open_partition(0, 2, i).unwrap();
+                Box::new(CudaDevice::on(gpu)) as Box<dyn Device>
+            })
+            .collect()
+    };
+    let whole = atoll_cuda::Gpu::open(0).unwrap().multiprocessors;
+    let mut failures = Vec::new();
+    for (name, scene) in scenes() {
+        let opts = options(&scene);
+        let mut reference =
+            render(&mut CudaDevice::new(0).unwrap(), &scene, opts.clone(), &mut |_, _| {}).unwrap().film;
+        reference.spp = opts.spp;
+        let mut devices = parts();
+        for d in devices.iter_mut() {
+            let gpu = d.as_any_mut().downcast_mut::<CudaDevice>().unwrap().gpu().clone();
+            assert!(gpu.multiprocessors * 2 <= whole && gpu.multiprocessors * 4 > whole, "{}", gpu.label());
+        }
+        let out = render_multi(&mut devices, &scene, opts.clone(), &Layout::Replicate, None, &mut |_, _| {})
+            .unwrap();
+        failures.extend(same_image(&reference, &out.film, &format!("{name} replicate on parts")).err());
+        let p = partition(&scene, 2, &atoll_cuda::scene::byte_model(), &PartitionOptions::default()).unwrap();
+        for order in [RingOrder::Spread, RingOrder::Home] {
+            let layout = Layout::Ring { parts: p.parts.clone(), islands: 1, order };
+            let out =
+                render_multi(&mut parts(), &scene, opts.clone(), &layout, None, &mut |_, _| {}).unwrap();
+            failures.extend(
+                same_image(&reference, &out.film, &format!("{name} ring on parts ({order:?})")).err(),
+            );
+            assert!(out.devices.iter().all(|d| d.bytes_sent > 0));
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -86,7 +86,9 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub waves: WaveArgs,
     /// Render on several devices: comma-separated cpu, cpu:N (N CPU devices
-    /// sharing the cores) or cuda:I; `--device-memory` is then per device.
+    /// sharing the cores), cuda:I, or cuda:I/P (the next of P parts of GPU
+    /// I's multiprocessors: a stand-in for P GPUs); `--device-memory` is
+    /// then per device.
     #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
     pub devices: Option<DeviceList>,
     /// How several devices share the work: auto (replicate when the scene
