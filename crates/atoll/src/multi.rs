@@ -184,6 +184,9 @@ pub struct MultiArgs<'a> {
     pub warmup: bool,
     /// Where a ring's queues start and end their cycles.
     pub ring_order: RingOrder,
+    /// Devices per ring (`--ring-size`), the rest of the devices forming
+    /// more islands; `None`: the fewest the budget allows.
+    pub ring_size: Option<usize>,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -214,10 +217,16 @@ pub fn render(
     let budget = scene_budget(&mut devices, scene, args.budget, &options, Sharing::Memory);
     let options_resolution = options.resolution;
     let n = args.specs.len();
-    let plan = match args.strategy {
-        Strategy::Ring => plan(scene, &model, n, budget, Some(Strategy::Ring)),
-        Strategy::Replicate => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)),
-        Strategy::Auto => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
+    let plan = match (args.strategy, args.ring_size) {
+        (Strategy::Ring, Some(k)) if (2..=n).contains(&k) => Ok(Plan::Ring { k, islands: n / k }),
+        (_, Some(k)) => {
+            return Err(CliError::Input(format!(
+                "--ring-size {k}: needs --strategy ring and between 2 and {n} (the devices listed)"
+            )))
+        }
+        (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring)),
+        (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)),
+        (Strategy::Auto, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
             .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto))),
     }
     .map_err(|e| CliError::Runtime(e.to_string()))?;

@@ -106,6 +106,11 @@ pub struct RenderArgs {
     /// there first: the other parts skip what lies behind its hits).
     #[arg(long, default_value = "spread", value_parser = parse_ring_order, requires = "devices")]
     pub ring_order: RingOrder,
+    /// Devices per ring with `--strategy ring` (the scene split into this
+    /// many parts; the devices beyond form more islands). Default: the
+    /// fewest that fit `--device-memory`, or all devices without one.
+    #[arg(long, requires = "devices")]
+    pub ring_size: Option<usize>,
     /// How a ring's scene parts are made: auto (memory-balanced: measured
     /// the least work), memory, work (compact chunks balanced by bytes and
     /// by the frame's estimated ray work), or spatial (one compact region
@@ -306,6 +311,7 @@ fn render_on_devices(
         streams: args.waves.streams(),
         warmup: args.warmup,
         ring_order: args.ring_order,
+        ring_size: args.ring_size,
     };
     let bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {

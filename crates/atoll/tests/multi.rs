@@ -83,6 +83,14 @@ fn a_budget_that_splits_the_scene_gives_rings_and_the_same_image() {
         render(&dir, &["--devices", "cpu:2", "--strategy", "ring", "--ring-transport", "host"], "forced.exr");
     assert!(text(&out.stderr).contains("strategy: ring of 2 (1 island)"), "{}", text(&out.stderr));
     assert_same_as_single(&dir, "forced.exr");
+
+    // A ring size chosen: rings of 2 on four devices, two islands, every
+    // queue made and shaded on member 0.
+    let args = ["--devices", "cpu:4", "--strategy", "ring", "--ring-size", "2", "--ring-order", "home"];
+    let out = render(&dir, &args, "sized.exr");
+    let stderr = text(&out.stderr);
+    assert!(stderr.contains("strategy: ring of 2 (2 islands)") && stderr.contains("ring order"), "{stderr}");
+    assert_same_as_single(&dir, "sized.exr");
 }
 
 #[test]
@@ -105,6 +113,10 @@ fn scenes_that_cannot_fit_and_bad_flags_are_clear_errors() {
         vec!["--devices", "cpu:2", "--strategy", "scatter"],
         vec!["--devices", "cpu:2", "--device", "cpu"],
         vec!["--devices", "cpu:2", "--ring-transport", "pigeon"],
+        vec!["--devices", "cpu:2", "--ring-order", "random"],
+        vec!["--devices", "cpu:2", "--strategy", "ring", "--ring-size", "3"],
+        vec!["--devices", "cpu:2", "--ring-size", "2"],
+        vec!["--devices", "cuda:0/1"],
     ] {
         let out = render(&dir, &args, "x.exr");
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", text(&out.stderr));
