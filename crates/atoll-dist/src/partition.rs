@@ -39,7 +39,23 @@ pub struct PartitionOptions {
     /// Units heavier than this are split into pieces of about this weight.
     /// Default: the scene's weight / (2 K), and never above the budget.
     pub split_threshold: Option<u64>,
+    /// Balance parts by ray work rather than bytes alone: a part's load is
+    /// its bytes plus this many per instance it holds (0: bytes only, the
+    /// memory-balanced partition). See [`GPU_INSTANCE_COST`].
+    pub instance_cost: u64,
 }
+
+/// What a part's instances cost a GPU's rays, in bytes of part per
+/// instance: a part's ray work measured as its bytes plus this per
+/// instance. Fitted to the one-GPU measurement of memory-balanced rings
+/// (`scripts/gpu-multi SERIAL=1`, H100, BENCHMARKS.md issue 4): on the
+/// landscape the terrain's part (1 instance, 600 MB) took 0.075 s and the
+/// plants' (83929 instances, 452 MB) 0.157 s, a fit of 9.6 KB per
+/// instance; at growth 1000 (1 against 834136 instances, 6.0 and 4.5 GB)
+/// 0.046 and 0.091 s, 8.8 KB. Instances cost beyond their bytes because
+/// every ray walks the top-level BVH over them, dense and overlapping, and
+/// descends into each one it enters.
+pub const GPU_INSTANCE_COST: u64 = 9 << 10;
 
 /// A scene split into parts, one per device of a ring.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -222,6 +238,8 @@ impl Costs<'_> {
 /// O(pieces × K), not a search through what each part holds.
 struct Load {
     bytes: u64,
+    /// Scene instances the part holds (each object's once).
+    instances: u64,
     /// Per mesh, whether the part holds its vertices.
     meshes: Vec<bool>,
     /// Per object, its triangles in the part (`None`: not in the part).
@@ -235,6 +253,7 @@ impl Load {
         Load {
             // Every part holds all texture images (see `part_bytes`).
             bytes: scene.textures.memory_bytes(),
+            instances: 0,
             meshes: vec![false; scene.meshes.len()],
             objects: vec![None; scene.objects.len()],
             largest: 0,
@@ -270,8 +289,18 @@ impl Load {
         vertices + tris * (12 + m.per_triangle) + object + instances + scratch
     }
 
+    /// Instances `piece` would add: none for a further geometry piece of
+    /// an object already here (it carries the same instances).
+    fn added_instances(&self, piece: &Piece) -> u64 {
+        match (&piece.ranges, self.objects[piece.object as usize]) {
+            (Some(_), Some(_)) => 0,
+            _ => piece.instances.len() as u64,
+        }
+    }
+
     fn add(&mut self, costs: &Costs, piece: &Piece, ranges: &[MeshRange]) {
         self.bytes += self.added(costs, piece, ranges);
+        self.instances += self.added_instances(piece);
         for r in ranges.iter().filter(|r| !r.triangles.is_empty()) {
             self.meshes[r.mesh as usize] = true;
         }
@@ -443,17 +472,24 @@ pub fn partition(
             return Err(PartitionError::PieceTooBig { what, needed: p.weight, budget });
         }
     }
-    // Heaviest first; the sort is stable, so ties keep scene order.
-    pieces.sort_by_key(|p| std::cmp::Reverse(p.weight));
+    // Heaviest first (bytes, plus instances at their cost); the sort is
+    // stable, so ties keep scene order.
+    let per_instance = options.instance_cost;
+    pieces.sort_by_key(|p| std::cmp::Reverse(p.weight + per_instance * p.instances.len() as u64));
 
     let mut loads: Vec<Load> = (0..parts).map(|_| Load::new(scene)).collect();
     let mut assigned: Vec<Vec<usize>> = vec![Vec::new(); parts];
     let budget = options.budget.unwrap_or(u64::MAX);
     for (index, piece) in pieces.iter().enumerate() {
         let ranges = piece.ranges.clone().unwrap_or_else(|| costs.whole(piece.object));
+        // To the part it leaves least loaded, within the budget.
         let best = (0..parts)
-            .map(|p| (loads[p].bytes + loads[p].added(&costs, piece, &ranges), p))
-            .filter(|&(after, _)| after <= budget)
+            .filter(|&p| loads[p].bytes + loads[p].added(&costs, piece, &ranges) <= budget)
+            .map(|p| {
+                let load = &loads[p];
+                let bytes = load.bytes + load.added(&costs, piece, &ranges);
+                (bytes + per_instance * (load.instances + load.added_instances(piece)), p)
+            })
             .min();
         let Some((_, p)) = best else {
             let least_loaded = loads.iter().map(|l| l.bytes).min().unwrap_or(0);
@@ -551,7 +587,7 @@ fn smallest_fitting(
     budget: u64,
     mut ks: impl Iterator<Item = usize>,
 ) -> Option<usize> {
-    let options = PartitionOptions { budget: Some(budget), split_threshold: None };
+    let options = PartitionOptions { budget: Some(budget), ..Default::default() };
     ks.find(|&k| partition(scene, k, model, &options).is_ok())
 }
 

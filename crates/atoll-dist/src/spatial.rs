@@ -448,7 +448,7 @@ mod tests {
         let b = partition_spatial(&scene, 2, &model, &PartitionOptions::default()).unwrap();
         assert_eq!(a, b);
         let tight =
-            PartitionOptions { budget: Some(a.bytes.iter().max().unwrap() - 1), split_threshold: None };
+            PartitionOptions { budget: Some(a.bytes.iter().max().unwrap() - 1), ..Default::default() };
         assert!(matches!(
             partition_spatial(&scene, 2, &model, &tight),
             Err(PartitionError::DoesNotFit { .. })

@@ -122,7 +122,7 @@ fn big_ground_object_is_split_to_fit_three_budgets() {
     place(&mut alone, o, 0.0);
     let ground_bytes = whole_bytes(&alone);
     let budget = ground_bytes * 3 / 4;
-    let options = PartitionOptions { budget: Some(budget), split_threshold: None };
+    let options = PartitionOptions { budget: Some(budget), ..Default::default() };
     let p = partition(&scene, 3, &MODEL, &options).expect("three parts hold the scene");
     check_exactly_once(&scene, &p);
     assert!(p.bytes.iter().all(|&b| b <= budget), "{:?} over {budget}", p.bytes);
@@ -150,7 +150,7 @@ fn objects_split_by_meshes_before_triangle_ranges() {
     place(&mut scene, o, 0.0);
     let total = whole_bytes(&scene);
     // Any two meshes together are above the threshold, one alone is not.
-    let options = PartitionOptions { budget: None, split_threshold: Some(total / 3) };
+    let options = PartitionOptions { budget: None, split_threshold: Some(total / 3), ..Default::default() };
     let p = partition(&scene, 2, &MODEL, &options).unwrap();
     check_exactly_once(&scene, &p);
     for part in &p.parts {
@@ -202,7 +202,7 @@ fn errors_say_what_does_not_fit_with_numbers() {
 
     // Two parts of a third of the scene each cannot hold it.
     let budget = total / 3;
-    let err = partition(&scene, 2, &MODEL, &PartitionOptions { budget: Some(budget), split_threshold: None })
+    let err = partition(&scene, 2, &MODEL, &PartitionOptions { budget: Some(budget), ..Default::default() })
         .unwrap_err();
     assert!(matches!(err, PartitionError::DoesNotFit { parts: 2, .. }), "{err:?}");
     let message = err.to_string();
@@ -211,7 +211,7 @@ fn errors_say_what_does_not_fit_with_numbers() {
     // The terrain's vertices alone exceed the budget: no split helps.
     let vertices = 49 * 49 * 32;
     let err =
-        partition(&scene, 8, &MODEL, &PartitionOptions { budget: Some(vertices), split_threshold: None })
+        partition(&scene, 8, &MODEL, &PartitionOptions { budget: Some(vertices), ..Default::default() })
             .unwrap_err();
     let PartitionError::PieceTooBig { ref what, needed, budget } = err else { panic!("{err:?}") };
     assert!(what.contains("mesh 0 ('terrain'") && what.contains("object 0 ('ground')"), "{what}");
@@ -229,7 +229,7 @@ fn min_parts_is_the_smallest_that_fits() {
     let budget = total * 2 / 5;
     let k = min_parts(&scene, &MODEL, budget, 8).expect("fits in 8");
     assert!(k >= 3, "{k} parts of {budget} for {total}");
-    let options = PartitionOptions { budget: Some(budget), split_threshold: None };
+    let options = PartitionOptions { budget: Some(budget), ..Default::default() };
     assert!(partition(&scene, k, &MODEL, &options).is_ok());
     assert!(partition(&scene, k - 1, &MODEL, &options).is_err());
 }
@@ -244,7 +244,7 @@ fn every_part_holds_the_texture_images() {
     assert_eq!(whole_bytes(&scene), whole_bytes(&plain) + tex);
     let budget = whole_bytes(&plain) * 2 / 5;
     let k = min_parts(&plain, &MODEL, budget, 8).expect("fits in 8");
-    let options = PartitionOptions { budget: Some(budget + tex), split_threshold: None };
+    let options = PartitionOptions { budget: Some(budget + tex), ..Default::default() };
     let p = partition(&scene, k, &MODEL, &options).expect("the same parts with room for the images");
     check_exactly_once(&scene, &p);
     assert!(p.bytes.iter().all(|&b| b > tex && b <= budget + tex), "{:?}", p.bytes);

@@ -142,7 +142,7 @@ fn a_ground_object_too_big_for_one_device_is_split() {
     let model = ByteModel::CPU;
     let whole = atoll_bvh::part_bytes(&scene, &ScenePart::whole(&scene), &model);
     let budget = whole * 2 / 5;
-    let p = partition(&scene, 3, &model, &PartitionOptions { budget: Some(budget), split_threshold: None })
+    let p = partition(&scene, 3, &model, &PartitionOptions { budget: Some(budget), ..Default::default() })
         .unwrap();
     assert!(p.parts.iter().any(|part| !part.object_subsets.is_empty()), "an object was split");
     let mut devices = cpus(3, Some(budget));

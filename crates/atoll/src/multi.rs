@@ -7,6 +7,7 @@ use std::sync::Arc;
 use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
+use atoll_dist::partition::GPU_INSTANCE_COST;
 use atoll_dist::spatial::partition_spatial;
 use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
@@ -250,8 +251,13 @@ pub fn render(
                 partition_work_balanced(scene, k, options_resolution, &model, &options)
                     .map(|p| (p, "work-balanced chunks"))
             };
+            let cost = |per_instance: u64| {
+                let options = PartitionOptions { instance_cost: per_instance, ..options };
+                partition(scene, k, &model, &options).map(|p| (p, "balanced by bytes and instances"))
+            };
             let (p, kind) = match args.partitioning {
                 Partitioning::Memory => memory(),
+                Partitioning::Cost(per_instance) => cost(per_instance),
                 Partitioning::Spatial => spatial(),
                 Partitioning::Work => work(),
                 // Memory-balanced parts: of the three, the least total work
@@ -458,6 +464,9 @@ pub enum Partitioning {
     Spatial,
     /// Objects greedily onto the least-loaded part ([`partition`]).
     Memory,
+    /// As `Memory`, a part's load being its bytes plus this many per
+    /// instance it holds: the GPU's ray work ([`GPU_INSTANCE_COST`]).
+    Cost(u64),
 }
 
 /// Parses `--partition`.
@@ -467,7 +476,11 @@ pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
         "work" => Ok(Partitioning::Work),
         "spatial" => Ok(Partitioning::Spatial),
         "memory" => Ok(Partitioning::Memory),
-        _ => Err(format!("{s:?}: expected auto, work, spatial or memory")),
+        "cost" => Ok(Partitioning::Cost(GPU_INSTANCE_COST)),
+        other => match other.strip_prefix("cost=").map(str::parse::<u64>) {
+            Some(Ok(bytes)) => Ok(Partitioning::Cost(bytes)),
+            _ => Err(format!("{s:?}: expected auto, cost, cost=BYTES (per instance), work, spatial or memory")),
+        },
     }
 }
 
