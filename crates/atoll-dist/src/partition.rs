@@ -55,6 +55,12 @@ pub struct PartitionOptions {
 /// 0.046 and 0.091 s, 8.8 KB. Instances cost beyond their bytes because
 /// every ray walks the top-level BVH over them, dense and overlapping, and
 /// descends into each one it enters.
+///
+/// Balancing by it spreads instanced objects over the parts, which costs
+/// every ray more walks in total (23% on a ring of 2) but stops one part
+/// holding all of them: measured on quarters of an H100, a ring of 4 went
+/// from 1.47-1.55x to 2.13-2.14x one quarter's speed, while a ring of 2
+/// did no better than bytes alone (BENCHMARKS.md, issue 6).
 pub const GPU_INSTANCE_COST: u64 = 9 << 10;
 
 /// A scene split into parts, one per device of a ring.

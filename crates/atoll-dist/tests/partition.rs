@@ -332,3 +332,34 @@ fn the_heaviest_piece_goes_to_part_zero() {
         assert_eq!(p.owner(0, 0, 0), Some(0), "{parts} parts: the ground is on part 0");
     }
 }
+
+/// Balanced by bytes plus a cost per instance, a ground and light objects
+/// with many instances no longer put every instance on the part without
+/// the ground (what bytes alone do: the landscape's plants, BENCHMARKS.md
+/// issue 6); every triangle is still placed exactly once.
+#[test]
+fn instance_costs_spread_instanced_objects_over_the_parts() {
+    let mut scene = Scene::default();
+    let ground = object(&mut scene, "ground", vec![grid("terrain", 48, 0.0)]);
+    place(&mut scene, ground, 0.0);
+    for kind in 0..6 {
+        let plant = object(&mut scene, &format!("plant{kind}"), vec![grid("leaf", 1, 0.0)]);
+        for copy in 0..60 {
+            place(&mut scene, plant, (kind * 60 + copy) as f32 * 0.1);
+        }
+    }
+    // Whole objects: the ground alone outweighs all the plants in bytes.
+    let whole = PartitionOptions { split_threshold: Some(u64::MAX), ..Default::default() };
+    let bytes_only = partition(&scene, 2, &MODEL, &whole).unwrap();
+    assert_eq!(bytes_only.parts[0].instances, vec![0], "by bytes: the ground alone on part 0");
+    let costed = partition(&scene, 2, &MODEL, &PartitionOptions { instance_cost: 4 << 10, ..whole }).unwrap();
+    check_exactly_once(&scene, &costed);
+    let plants_on = |p: usize| costed.parts[p].instances.iter().filter(|&&i| i != 0).count();
+    assert!(
+        plants_on(0) >= 60 && plants_on(1) >= 60,
+        "plants per part: {} and {}",
+        plants_on(0),
+        plants_on(1)
+    );
+    assert_eq!(costed.owner(0, 0, 0), Some(0), "the ground stays on part 0");
+}

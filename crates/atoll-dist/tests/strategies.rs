@@ -278,3 +278,18 @@ fn a_ring_with_one_home_renders_the_same_image() {
         }
     }
 }
+
+/// A ring of 3 over parts balanced by bytes and instances renders the
+/// one-device image.
+#[test]
+fn ring_over_instance_cost_parts_is_one_device() {
+    let scene = scene();
+    let opts = options(&scene, 3);
+    let reference = single(&scene, &opts);
+    let costed =
+        PartitionOptions { instance_cost: atoll_dist::partition::GPU_INSTANCE_COST, ..Default::default() };
+    let p = partition(&scene, 3, &ByteModel::CPU, &costed).unwrap();
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
+    let out = render_multi(&mut cpus(3, None), &scene, opts, &layout, None, &mut |_, _| {}).unwrap();
+    assert_same_image(&reference, &out.film, "ring over instance-cost parts");
+}

@@ -260,13 +260,15 @@ pub fn render(
                 Partitioning::Cost(per_instance) => cost(per_instance),
                 Partitioning::Spatial => spatial(),
                 Partitioning::Work => work(),
-                // Memory-balanced parts: of the three, the least total work
-                // on a GPU (a ring of two on one H100, waves of 2^20:
-                // 1.00-1.02x replicate's samples/s, work-balanced chunks
-                // 0.80-0.83x, spatial slabs 0.80-0.81x; BENCHMARKS.md, issue 4).
-                // Work-balanced chunks even out the devices' busy times
-                // (CPU devices: 19.85 / 19.84 s against 14.2 / 21.5 s), which
-                // may win on two GPUs; not measured there yet.
+                // Rings of 2: memory-balanced parts, the least total work
+                // (a ring of two on one H100: 1.00-1.02x replicate's work,
+                // work chunks 0.80-0.83x, slabs 0.80-0.81x) and on two
+                // halves of an H100 0.80-0.87x replicate's speed (BENCHMARKS.md,
+                // issue 4). Longer rings: bytes and instances, or one part
+                // gets every instanced object (a ring of 4 on H100 quarters:
+                // 2.13x one quarter against 1.47-1.55x; issue 6); bytes
+                // alone where that does not fit the budget.
+                Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
                 Partitioning::Auto => memory(),
             }
             .map_err(|e| CliError::Runtime(e.to_string()))?;
@@ -454,7 +456,8 @@ pub fn device_table(out: &MultiOutput) -> String {
 /// How `--partition` makes a ring's parts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Partitioning {
-    /// Memory-balanced parts (measured the least work; see `render`).
+    /// `Memory` for rings of 2, `Cost` for longer rings (what measured
+    /// fastest; see `render`).
     #[default]
     Auto,
     /// Compact chunks balanced by bytes and by the frame's estimated ray
@@ -479,7 +482,9 @@ pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
         "cost" => Ok(Partitioning::Cost(GPU_INSTANCE_COST)),
         other => match other.strip_prefix("cost=").map(str::parse::<u64>) {
             Some(Ok(bytes)) => Ok(Partitioning::Cost(bytes)),
-            _ => Err(format!("{s:?}: expected auto, cost, cost=BYTES (per instance), work, spatial or memory")),
+            _ => {
+                Err(format!("{s:?}: expected auto, cost, cost=BYTES (per instance), work, spatial or memory"))
+            }
         },
     }
 }

@@ -111,10 +111,12 @@ pub struct RenderArgs {
     /// fewest that fit `--device-memory`, or all devices without one.
     #[arg(long, requires = "devices")]
     pub ring_size: Option<usize>,
-    /// How a ring's scene parts are made: auto (memory-balanced: measured
-    /// the least work), memory, work (compact chunks balanced by bytes and
-    /// by the frame's estimated ray work), or spatial (one compact region
-    /// per part).
+    /// How a ring's scene parts are made: auto (memory for rings of 2, cost
+    /// for longer rings: what measured fastest), memory (objects balanced
+    /// by bytes), cost or cost=BYTES (by bytes plus 9 KiB, or BYTES, per
+    /// instance: instanced objects spread over the parts), work (compact
+    /// chunks balanced by bytes and by the frame's estimated ray work), or
+    /// spatial (one compact region per part).
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "devices")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
