@@ -93,6 +93,16 @@ struct GreenContext(cudarc::driver::sys::CUgreenCtx);
 unsafe impl Send for GreenContext {}
 unsafe impl Sync for GreenContext {}
 
+/// What sets a GPU part apart from the whole GPU.
+#[derive(Clone, Copy)]
+struct GpuPart {
+    green: GreenContext,
+    /// Which part, of how many.
+    index: usize,
+    parts: usize,
+    multiprocessors: u32,
+}
+
 /// A non-blocking stream of green context `green` (which `ctx` wraps).
 ///
 /// # Safety
@@ -143,7 +153,7 @@ impl Gpu {
         // are not needed. Code that adds streams must order them itself.
         unsafe { ctx.disable_event_tracking() };
         let stream = ctx.new_stream().map_err(CudaError::driver(what("creating a stream")))?;
-        Self::with_context(ordinal, ctx, stream, None, None)
+        Self::with_context(ordinal, ctx, stream, None)
     }
 
     /// Opens part `index` of GPU `ordinal` split into `parts` equal groups
@@ -221,14 +231,9 @@ impl Gpu {
             std::mem::forget(ctx.clone());
             ctx.disable_event_tracking();
             let stream = green_stream(&ctx, green, &label)?;
-            let gpu = Self::with_context(
-                ordinal,
-                ctx,
-                stream,
-                Some(green),
-                Some(groups[index].__bindgen_anon_1.sm.smCount),
-            )?;
-            Ok(Arc::new(Gpu { part: Some((index, parts)), ..Arc::into_inner(gpu).expect("just made") }))
+            let multiprocessors = groups[index].__bindgen_anon_1.sm.smCount;
+            let part = GpuPart { green: GreenContext(green), index, parts, multiprocessors };
+            Self::with_context(ordinal, ctx, stream, Some(part))
         }
     }
 
@@ -243,22 +248,20 @@ impl Gpu {
                 self.ctx.new_stream().map_err(CudaError::driver(format!("{label}: creating a stream")))?
             }
         };
-        let gpu = Self::with_context(
-            self.ordinal,
-            self.ctx.clone(),
-            stream,
-            self.green.map(|g| g.0),
-            Some(self.multiprocessors),
-        )?;
-        Ok(Arc::new(Gpu { part: self.part, ..Arc::into_inner(gpu).expect("just made") }))
+        let part = self.green.zip(self.part).map(|(green, (index, parts))| GpuPart {
+            green,
+            index,
+            parts,
+            multiprocessors: self.multiprocessors,
+        });
+        Self::with_context(self.ordinal, self.ctx.clone(), stream, part)
     }
 
     fn with_context(
         ordinal: usize,
         ctx: Arc<CudaContext>,
         stream: Arc<CudaStream>,
-        green: Option<cudarc::driver::sys::CUgreenCtx>,
-        multiprocessors: Option<u32>,
+        part: Option<GpuPart>,
     ) -> Result<Arc<Gpu>, CudaError> {
         let what = |w: &str| format!("cuda:{ordinal}: {w}");
         let name = ctx.name().map_err(CudaError::driver(what("reading the name")))?;
@@ -266,8 +269,8 @@ impl Gpu {
             ctx.compute_capability().map_err(CudaError::driver(what("reading the compute capability")))?;
         let total_memory =
             ctx.total_mem().map_err(CudaError::driver(what("reading the memory size")))? as u64;
-        let multiprocessors = match multiprocessors {
-            Some(n) => n as i32,
+        let multiprocessors = match part {
+            Some(p) => p.multiprocessors as i32,
             None => ctx
                 .attribute(CUdevice_attribute::CU_DEVICE_ATTRIBUTE_MULTIPROCESSOR_COUNT)
                 .map_err(CudaError::driver(what("reading the multiprocessor count")))?,
@@ -279,8 +282,8 @@ impl Gpu {
             id: OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             ctx,
             stream,
-            green: green.map(GreenContext),
-            part: None,
+            green: part.map(|p| p.green),
+            part: part.map(|p| (p.index, p.parts)),
             name,
             compute_capability,
             total_memory,

@@ -216,19 +216,14 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     bar.finish_and_clear();
     selected.check()?;
     out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
-    println!(
-        "{}: {}x{} {} spp on {} in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
-        output.display(),
-        options.resolution.x,
-        options.resolution.y,
-        options.spp,
-        selected.description,
-        out.render_seconds,
+    let run = Run {
         load_seconds,
-        out.prepare_seconds,
-        out.samples_per_second() / 1e6,
-        out.rays_per_second() / 1e6,
-    );
+        prepare_seconds: out.prepare_seconds,
+        render_seconds: out.render_seconds,
+        samples_per_second: out.samples_per_second(),
+        rays_per_second: out.rays_per_second(),
+    };
+    print_summary(&output, &options, &selected.description, run);
     Ok(())
 }
 
@@ -263,21 +258,47 @@ fn render_streams(
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    let on = format!("{description} x {} wavefronts", devices.len());
+    print_summary(output, &options, &on, Run::of(&out, load_seconds));
+    Ok(())
+}
+
+/// How a render went, for the line it ends with.
+struct Run {
+    load_seconds: f64,
+    prepare_seconds: f64,
+    render_seconds: f64,
+    samples_per_second: f64,
+    rays_per_second: f64,
+}
+
+impl Run {
+    fn of(out: &atoll_dist::MultiOutput, load_seconds: f64) -> Self {
+        Run {
+            load_seconds,
+            prepare_seconds: out.prepare_seconds,
+            render_seconds: out.render_seconds,
+            samples_per_second: out.samples_per_second(),
+            rays_per_second: out.rays_per_second(),
+        }
+    }
+}
+
+/// The line every render ends with: the image, its size, what rendered it,
+/// the times and the speed (scripts read the `M samples/s`).
+fn print_summary(output: &Path, options: &RenderOptions, on: &str, run: Run) {
     println!(
-        "{}: {}x{} {} spp on {} x {} wavefronts in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
+        "{}: {}x{} {} spp on {on} in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
         output.display(),
         options.resolution.x,
         options.resolution.y,
         options.spp,
-        description,
-        devices.len(),
-        out.render_seconds,
-        load_seconds,
-        out.prepare_seconds,
-        out.samples_per_second() / 1e6,
-        out.rays_per_second() / 1e6,
+        run.render_seconds,
+        run.load_seconds,
+        run.prepare_seconds,
+        run.samples_per_second / 1e6,
+        run.rays_per_second / 1e6,
     );
-    Ok(())
 }
 
 fn parse_strategy(s: &str) -> Result<Strategy, String> {
@@ -323,18 +344,8 @@ fn render_on_devices(
     bar.finish_and_clear();
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
     print!("{}", multi::device_table(&out));
-    println!(
-        "{}: {}x{} {} spp on {} devices in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s",
-        output.display(),
-        options.resolution.x,
-        options.resolution.y,
-        options.spp,
-        out.devices.len(),
-        out.render_seconds,
-        load_seconds,
-        out.prepare_seconds,
-        out.samples_per_second() / 1e6,
-    );
+    let on = format!("{} devices", out.devices.len());
+    print_summary(output, &options, &on, Run::of(&out, load_seconds));
     Ok(())
 }
 
