@@ -8,20 +8,23 @@
 //! Device threads ask for waves themselves, so MPI must allow calls from
 //! any thread (`MPI_THREAD_MULTIPLE`; Open MPI 4.1 gives it).
 
+use std::cell::Cell;
+use std::mem::size_of;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use atoll_render::{DeviceError, Film};
+use atoll_render::{Device, DeviceError, Film, Queue, RayRecord};
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::Universe;
-use mpi::topology::SimpleCommunicator;
+use mpi::topology::{Color, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Threading;
 
 use crate::handout::WaveHandout;
+use crate::render::{DeviceReport, RingOrder, RingPeers};
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
 const TAKE: i32 = 701;
@@ -87,6 +90,14 @@ impl Ranks {
         totals
     }
 
+    /// Collective: the smallest and the largest of every process's `value`.
+    pub fn extremes(&self, value: u64) -> (u64, u64) {
+        let mut largest = [0u64; 2];
+        // One reduction: the largest of the complements is the smallest.
+        self.world.all_reduce_into(&[!value, value][..], &mut largest[..], SystemOperation::max());
+        (!largest[0], largest[1])
+    }
+
     /// Collective: the largest of every process's `value`.
     pub fn max(&self, value: f64) -> f64 {
         let mut largest = 0f64;
@@ -140,6 +151,18 @@ impl Ranks {
         sleeping_barrier(&self.world);
     }
 
+    /// Collective: rings of `size` consecutive ranks (rank r is member
+    /// r mod `size` of ring r / `size`), queues moving between them as MPI
+    /// messages; `None` for the ranks past the last whole ring.
+    pub fn ring(&self, size: usize, order: RingOrder) -> Option<RankRing> {
+        let rank = self.rank();
+        let island = rank / size.max(1);
+        let whole = island < self.size() / size.max(1);
+        let color = if whole { Color::with_value(island as i32) } else { Color::undefined() };
+        let comm = self.world.split_by_color(color)?;
+        Some(RankRing { comm, member: rank % size, size, island, order, steps: Cell::new(0) })
+    }
+
     /// The waves of the next frame, shared by every process.
     pub fn waves(&self) -> RankWaves {
         RankWaves {
@@ -152,6 +175,100 @@ impl Ranks {
             exhausted: AtomicBool::new(false),
             server: Mutex::new(None),
         }
+    }
+}
+
+/// One rank's links to the other ranks of its ring (see [`Ranks::ring`]):
+/// queues go to the next rank as MPI messages, each member polling for the
+/// previous one's while its own is on the way; the end-of-frame vote is an
+/// all-reduce over the ring's communicator.
+pub struct RankRing {
+    comm: SimpleCommunicator,
+    member: usize,
+    size: usize,
+    /// Which ring of ranks this is.
+    island: usize,
+    order: RingOrder,
+    /// Steps taken: each one's messages carry its tag, so that a step's
+    /// queue is never taken for another's.
+    steps: Cell<i32>,
+}
+
+/// An empty queue still goes as one byte: Open MPI reads the address of an
+/// empty buffer (Rust's dangling 0x1) as MPI_IN_PLACE.
+const EMPTY_QUEUE: [u8; 1] = [0];
+
+impl RingPeers for RankRing {
+    fn size(&self) -> usize {
+        self.size
+    }
+
+    fn member(&self) -> usize {
+        self.member
+    }
+
+    fn order(&self) -> RingOrder {
+        self.order
+    }
+
+    fn island(&self) -> usize {
+        self.island
+    }
+
+    fn any(&self, mine: bool) -> (bool, Duration) {
+        let start = Instant::now();
+        let (mine, mut any) = (mine as u8, 0u8);
+        mpi::request::scope(|scope| {
+            let vote = self.comm.immediate_all_reduce_into(scope, &mine, &mut any, SystemOperation::max());
+            sleep_until_done(vote);
+        });
+        (any != 0, start.elapsed())
+    }
+
+    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
+        let step = self.steps.get();
+        self.steps.set((step + 1) % RING_TAGS);
+        let sending = Instant::now();
+        let records = device.read_queue(queue);
+        report.send_seconds += sending.elapsed().as_secs_f64();
+        let bytes: &[u8] = if records.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&records) };
+        report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+        let next = self.comm.process_at_rank(((self.member + 1) % self.size) as i32);
+        let prev = self.comm.process_at_rank(((self.member + self.size - 1) % self.size) as i32);
+        let waited = Instant::now();
+        let incoming: Vec<u8> = mpi::request::scope(|scope| {
+            let sent = next.immediate_send_with_tag(scope, bytes, step);
+            let incoming = loop {
+                if let Some(probed) = prev.immediate_matched_probe_with_tag(step) {
+                    break probed.matched_receive_vec::<u8>().0;
+                }
+                std::thread::sleep(POLL);
+            };
+            sleep_until_done(sent);
+            incoming
+        });
+        report.wait_seconds += waited.elapsed().as_secs_f64();
+        let records: Vec<RayRecord> = if incoming.len() < size_of::<RayRecord>() {
+            Vec::new()
+        } else {
+            bytemuck::pod_collect_to_vec(&incoming)
+        };
+        device.write_queue(queue, &records);
+        Ok(())
+    }
+}
+
+/// Tags of ring steps, reused in turn (MPI guarantees tags up to 32767).
+const RING_TAGS: i32 = 1 << 14;
+
+/// Waits for `request`, sleeping between looks (see [`POLL`]).
+fn sleep_until_done<'a, D: ?Sized, S: mpi::request::Scope<'a>>(mut request: mpi::request::Request<'a, D, S>) {
+    loop {
+        match request.test() {
+            Ok(_) => return,
+            Err(pending) => request = pending,
+        }
+        std::thread::sleep(POLL);
     }
 }
 
@@ -287,12 +404,5 @@ impl WaveHandout for RankWaves {
 
 /// A barrier that sleeps between looks instead of spinning (see [`POLL`]).
 fn sleeping_barrier(world: &SimpleCommunicator) {
-    let mut barrier = world.immediate_barrier();
-    loop {
-        match barrier.test() {
-            Ok(_) => return,
-            Err(pending) => barrier = pending,
-        }
-        std::thread::sleep(POLL);
-    }
+    sleep_until_done(world.immediate_barrier());
 }

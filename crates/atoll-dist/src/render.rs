@@ -250,10 +250,21 @@ pub fn render_multi_warmed(
     render_multi_with(devices, scene, options, layout, transport, true, None, progress)
 }
 
-/// [`render_multi`] (or with `warmup`, [`render_multi_warmed`]), the waves
-/// taken from `handout` when other processes share the frame (`None`: this
+/// What other processes share of a frame (MPI ranks, `crate::ranks`).
+#[derive(Clone, Copy)]
+pub struct Shared<'a> {
+    /// Hands out the frame's waves to every process.
+    pub handout: &'a dyn WaveHandout,
+    /// Set when this process's one device is a member of a ring whose
+    /// other members are other processes: its links to them. The layout
+    /// is then a ring of one part, this member's.
+    pub ring: Option<&'a dyn RingPeers>,
+}
+
+/// [`render_multi`] (or with `warmup`, [`render_multi_warmed`]), with
+/// other processes sharing the frame when `shared` says so (`None`: this
 /// process renders it alone). Each process then returns its devices' part
-/// of the film. `handout` is joined even when this process fails to
+/// of the film. The handout is joined even when this process fails to
 /// prepare, so that the others learn of it instead of waiting.
 #[allow(clippy::too_many_arguments)]
 pub fn render_multi_with(
@@ -263,23 +274,30 @@ pub fn render_multi_with(
     layout: &Layout,
     transport: Option<Transport>,
     warmup: bool,
-    handout: Option<&dyn WaveHandout>,
+    shared: Option<Shared<'_>>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
     let alone = LocalHandout::default();
-    let handout = handout.unwrap_or(&alone);
-    let islands = match layout {
-        Layout::Replicate => devices.len(),
-        Layout::Ring { islands, .. } => *islands,
+    let handout = shared.map_or(&alone as &dyn WaveHandout, |s| s.handout);
+    let remote = shared.and_then(|s| s.ring);
+    // Rings, or devices replicating: what takes waves. A ring of processes
+    // counts once, at its member 0.
+    let islands = match (layout, remote) {
+        (_, Some(link)) => (link.member() == 0) as usize,
+        (Layout::Replicate, None) => devices.len(),
+        (Layout::Ring { islands, .. }, None) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
-    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup);
+    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup, remote);
     let workers = handout.join(ready.is_ok(), islands);
     let Ready { prepared, prepare_seconds, shape } = ready?;
     let waves = work_units(&frame.options, workers?);
     handout.begin(waves.len());
     let start = Instant::now();
-    let reports = run_waves(devices, &waves, shape, handout, progress);
+    let reports = match remote {
+        Some(link) => run_member(devices, &waves, shape, link, handout, progress),
+        None => run_waves(devices, &waves, shape, handout, progress),
+    };
     let render_seconds = start.elapsed().as_secs_f64();
     handout.end();
     let mut reports = reports?;
@@ -315,7 +333,7 @@ struct Ready {
 
 /// Checks `layout` against `devices`, prepares them, picks the ring
 /// transport and, with `warmup`, renders the frame's first sample and
-/// clears it.
+/// clears it (on a ring of processes, `remote`, with its members).
 fn ready_frame(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
@@ -323,11 +341,20 @@ fn ready_frame(
     layout: &Layout,
     transport: Option<Transport>,
     warmup: bool,
+    remote: Option<&dyn RingPeers>,
 ) -> Result<Ready, DeviceError> {
     if devices.is_empty() {
         return Err(DeviceError::Other {
             device: "devices".into(),
             message: "no devices to render on".into(),
+        });
+    }
+    if remote.is_some()
+        && (devices.len() != 1 || !matches!(layout, Layout::Ring { parts, .. } if parts.len() == 1))
+    {
+        return Err(DeviceError::Other {
+            device: "devices".into(),
+            message: "a member of a ring of processes renders on one device holding one part".into(),
         });
     }
     if let Some(needed) = layout.devices() {
@@ -364,8 +391,17 @@ fn ready_frame(
         // no other process.
         let first: Vec<Wave> = warm_up_waves(&work_units(&frame.options, islands)).collect();
         let handout = LocalHandout::default();
-        handout.begin(first.len());
-        let reports = run_waves(devices, &first, shape, &handout, &mut |_, _| {})?;
+        let reports = match remote {
+            // Member 0 alone makes the ring's warm-up queues.
+            Some(link) => {
+                handout.begin(if link.member() == 0 { first.len() } else { 0 });
+                run_member(devices, &first, shape, link, &handout, &mut |_, _| {})?
+            }
+            None => {
+                handout.begin(first.len());
+                run_waves(devices, &first, shape, &handout, &mut |_, _| {})?
+            }
+        };
         if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
             return Err(DeviceError::Other {
                 device: failed.name.clone(),
@@ -389,6 +425,32 @@ struct RunShape {
     /// Wave-front merging.
     merge: bool,
     transport: Transport,
+}
+
+/// Renders `waves` on this process's one device, a member of a ring of
+/// processes linked by `link` (on this thread: the others are elsewhere).
+fn run_member(
+    devices: &mut [Box<dyn Device>],
+    waves: &[Wave],
+    shape: RunShape,
+    link: &dyn RingPeers,
+    handout: &dyn WaveHandout,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<DeviceReport>, DeviceError> {
+    let start = Instant::now();
+    let device = devices[0].as_mut();
+    let mut report = DeviceReport {
+        name: device.name(),
+        island: link.island(),
+        member: link.member(),
+        ..Default::default()
+    };
+    let take = || handout.next().and_then(|i| waves.get(i));
+    let progress = std::cell::RefCell::new(progress);
+    let taken = || (progress.borrow_mut())(handout.taken(), waves.len());
+    ring_loop(device, link, shape.merge, &take, &taken, &mut report);
+    report.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(vec![report])
 }
 
 /// Renders `waves` on the prepared `devices`, one thread each, waves taken
@@ -450,7 +512,10 @@ fn run_waves(
                             wave
                         });
                     } else {
-                        ring_loop(device, &link, merge, take, &done, &mut report);
+                        let taken = || {
+                            let _ = done.send(());
+                        };
+                        ring_loop(device, &link, merge, take, &taken, &mut report);
                     }
                     report.wall_seconds = start.elapsed().as_secs_f64();
                     report
@@ -464,6 +529,58 @@ fn run_waves(
         handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
     });
     Ok(reports)
+}
+
+/// A ring member's neighbours: where its queues go, where the next ones
+/// come from, and with whom it decides when the frame is done. Devices of
+/// one process link through channels ([`RingLink`]); a ring whose members
+/// are processes links through MPI (`crate::ranks::RankRing`).
+pub trait RingPeers {
+    /// Members of the ring.
+    fn size(&self) -> usize;
+    /// This member's place in the ring (the scene part it holds).
+    fn member(&self) -> usize;
+    /// Where the ring's queues are made and shaded.
+    fn order(&self) -> RingOrder;
+    /// Which of several rings this is (islands).
+    fn island(&self) -> usize {
+        0
+    }
+    /// Blocks until every member has voted; true when any voted true. Also
+    /// how long this member waited.
+    fn any(&self, mine: bool) -> (bool, Duration);
+    /// Sends `device`'s `queue` to the next member and puts the previous
+    /// member's in its place. An error means a neighbour is gone: the frame
+    /// cannot finish.
+    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String>;
+}
+
+/// Traces `queue` with `trace` on this device, passing it on between
+/// traces: after `size` traces every queue of the ring has visited every
+/// member once. With [`RingOrder::Spread`] it is then shaded (or resolved)
+/// where it is, not sent home: any member can shade any hit (the record
+/// carries it, materials and lights are on every device, films are summed
+/// at the end), and a ring of K sends K - 1 times per trace instead of K
+/// (for K = 2, half the traffic, measured in BENCHMARKS.md); with
+/// [`RingOrder::Home`] it goes on to where it was made. A closest hit
+/// found earlier shortens `t_max`, so later members only report nearer
+/// hits; shadow rays found occluded are skipped by the later members.
+fn cycle(
+    link: &dyn RingPeers,
+    device: &mut dyn Device,
+    queue: Queue,
+    trace: fn(&mut dyn Device),
+    report: &mut DeviceReport,
+) -> Result<(), String> {
+    let home = link.order() == RingOrder::Home;
+    for i in 0..link.size() {
+        trace(device);
+        if i + 1 == link.size() && !home {
+            break;
+        }
+        link.pass(device, queue, report)?;
+    }
+    Ok(())
 }
 
 /// What passes from a ring member to the next at each step.
@@ -512,65 +629,59 @@ struct PeerEvents {
     sent: [CudaEvent; 2],
 }
 
-impl RingLink<'_> {
-    /// Traces `queue` with `trace` on this device, passing it on between
-    /// traces: after `size` traces every queue of the ring has visited every
-    /// member once. With [`RingOrder::Spread`] it is then shaded (or
-    /// resolved) where it is, not sent home: any member can shade any hit
-    /// (the record carries it, materials and lights are on every device,
-    /// films are summed at the end), and a ring of K sends K - 1 times per
-    /// trace instead of K (for K = 2, half the traffic, measured in
-    /// BENCHMARKS.md); with [`RingOrder::Home`] it goes on to where it was
-    /// made. A closest hit found earlier shortens `t_max`, so later members
-    /// only report nearer hits; shadow rays found occluded are skipped by
-    /// the later members.
-    fn cycle(
-        &self,
-        device: &mut dyn Device,
-        queue: Queue,
-        trace: fn(&mut dyn Device),
-        report: &mut DeviceReport,
-    ) -> Result<(), String> {
-        let home = self.order == RingOrder::Home;
-        for i in 0..self.size {
-            trace(device);
-            if i + 1 == self.size && !home {
-                break;
+impl RingPeers for RingLink<'_> {
+    fn size(&self) -> usize {
+        self.size
+    }
+
+    fn member(&self) -> usize {
+        self.member
+    }
+
+    fn order(&self) -> RingOrder {
+        self.order
+    }
+
+    fn any(&self, mine: bool) -> (bool, Duration) {
+        self.vote.any(mine)
+    }
+
+    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
+        let step = self.steps.get();
+        self.steps.set(step + 1);
+        let handover = match self.transport {
+            Transport::Host => {
+                let sending = Instant::now();
+                let records = device.read_queue(queue);
+                report.send_seconds += sending.elapsed().as_secs_f64();
+                report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+                Handover::Records(records)
             }
-            let step = self.steps.get();
-            self.steps.set(step + 1);
-            let handover = match self.transport {
-                Transport::Host => {
-                    let sending = Instant::now();
-                    let records = device.read_queue(queue);
-                    report.send_seconds += sending.elapsed().as_secs_f64();
-                    report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
-                    Handover::Records(records)
-                }
-                Transport::Peer => {
-                    self.send_peer(device, queue, step, report);
-                    Handover::Copied
-                }
-            };
-            let waited = Instant::now();
-            self.to_next.send(handover).map_err(|_| "the next device of the ring stopped".to_string())?;
-            let incoming =
-                self.from_prev.recv().map_err(|_| "the previous device of the ring stopped".to_string())?;
-            report.wait_seconds += waited.elapsed().as_secs_f64();
-            match incoming {
-                Handover::Records(records) => device.write_queue(queue, &records),
-                Handover::Copied => {
-                    let prev = (self.member + self.size - 1) % self.size;
-                    let sent = &self.events[prev].sent[step % 2];
-                    if let Err(e) = cuda_device(device).accept_incoming(queue, sent) {
-                        report.error.get_or_insert(e.to_string());
-                    }
+            Transport::Peer => {
+                self.send_peer(device, queue, step, report);
+                Handover::Copied
+            }
+        };
+        let waited = Instant::now();
+        self.to_next.send(handover).map_err(|_| "the next device of the ring stopped".to_string())?;
+        let incoming =
+            self.from_prev.recv().map_err(|_| "the previous device of the ring stopped".to_string())?;
+        report.wait_seconds += waited.elapsed().as_secs_f64();
+        match incoming {
+            Handover::Records(records) => device.write_queue(queue, &records),
+            Handover::Copied => {
+                let prev = (self.member + self.size - 1) % self.size;
+                let sent = &self.events[prev].sent[step % 2];
+                if let Err(e) = cuda_device(device).accept_incoming(queue, sent) {
+                    report.error.get_or_insert(e.to_string());
                 }
             }
         }
         Ok(())
     }
+}
 
+impl RingLink<'_> {
     /// Marks this member ready, publishes its incoming slot, waits until
     /// every member has, and queues the copy of `queue` into the
     /// successor's slot (after the successor is ready). Nothing here waits
@@ -676,33 +787,33 @@ fn choose_transport(
 /// others until no member of the ring has paths or work left.
 fn ring_loop<'w>(
     device: &mut dyn Device,
-    link: &RingLink<'_>,
+    link: &dyn RingPeers,
     merge: bool,
     take: &dyn Fn() -> Option<&'w Wave>,
-    done: &mpsc::Sender<()>,
+    taken: &dyn Fn(),
     report: &mut DeviceReport,
 ) {
     loop {
         // A device that failed takes no more work but keeps stepping (with
         // empty queues) so that the others are not left waiting for it.
-        let makes_queues = link.order == RingOrder::Spread || link.member == 0;
+        let makes_queues = link.order() == RingOrder::Spread || link.member() == 0;
         if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
         {
             if let Some(wave) = take() {
                 device.queue_work(wave);
                 report.waves += 1;
-                let _ = done.send(());
+                taken();
             }
         }
-        let (any, waited): (bool, Duration) = link.vote.any(device.has_paths());
+        let (any, waited): (bool, Duration) = link.any(device.has_paths());
         report.wait_seconds += waited.as_secs_f64();
         if !any {
             return;
         }
         device.refill();
-        let traced = link.cycle(device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
+        let traced = cycle(link, device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
             device.shade();
-            link.cycle(device, Queue::Shadows, |d| d.trace_shadows(), report)
+            cycle(link, device, Queue::Shadows, |d| d.trace_shadows(), report)
         });
         if let Err(message) = traced {
             // Only when a neighbour's thread is gone (it panicked): the

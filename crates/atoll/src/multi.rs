@@ -145,9 +145,48 @@ fn open_devices(
     Ok(devices)
 }
 
+/// Parts for rings of `k` as `partitioning` says, and what they are.
+pub fn partition_for_ring(
+    scene: &Scene,
+    k: usize,
+    model: &ByteModel,
+    budget: Option<u64>,
+    resolution: glam::UVec2,
+    partitioning: Partitioning,
+) -> Result<(Partition, &'static str), CliError> {
+    let options = PartitionOptions { budget, ..Default::default() };
+    let memory = || partition(scene, k, model, &options).map(|p| (p, "memory-balanced"));
+    let spatial = || partition_spatial(scene, k, model, &options).map(|p| (p, "spatial slabs"));
+    let work = || {
+        partition_work_balanced(scene, k, resolution, model, &options).map(|p| (p, "work-balanced chunks"))
+    };
+    let cost = |per_instance: u64| {
+        let options = PartitionOptions { instance_cost: per_instance, ..options };
+        partition(scene, k, model, &options).map(|p| (p, "balanced by bytes and instances"))
+    };
+    let (p, kind) = match partitioning {
+        Partitioning::Memory => memory(),
+        Partitioning::Cost(per_instance) => cost(per_instance),
+        Partitioning::Spatial => spatial(),
+        Partitioning::Work => work(),
+        // Rings of 2: memory-balanced parts, the least total work (a ring
+        // of two on one H100: 1.00-1.02x replicate's work, work chunks
+        // 0.80-0.83x, slabs 0.80-0.81x) and on two halves of an H100
+        // 0.80-0.87x replicate's speed (BENCHMARKS.md, issue 4). Longer
+        // rings: bytes and instances, or one part gets every instanced
+        // object (a ring of 4 on H100 quarters: 2.13x one quarter against
+        // 1.47-1.55x; issue 6); bytes alone where that does not fit the
+        // budget.
+        Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
+        Partitioning::Auto => memory(),
+    }
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
+    Ok((p, kind))
+}
+
 /// The byte model partitioning uses: the largest need per element of the
 /// device kinds present, so that every device can hold any part.
-fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
+pub fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
     let mut models = Vec::new();
     if specs.contains(&DeviceSpec::Cpu) {
         models.push(ByteModel::CPU);
@@ -257,34 +296,8 @@ pub fn setup(
             (Layout::Replicate, None)
         }
         Plan::Ring { k, islands } => {
-            let options = PartitionOptions { budget, ..Default::default() };
-            let memory = || partition(scene, k, &model, &options).map(|p| (p, "memory-balanced"));
-            let spatial = || partition_spatial(scene, k, &model, &options).map(|p| (p, "spatial slabs"));
-            let work = || {
-                partition_work_balanced(scene, k, options_resolution, &model, &options)
-                    .map(|p| (p, "work-balanced chunks"))
-            };
-            let cost = |per_instance: u64| {
-                let options = PartitionOptions { instance_cost: per_instance, ..options };
-                partition(scene, k, &model, &options).map(|p| (p, "balanced by bytes and instances"))
-            };
-            let (p, kind) = match args.partitioning {
-                Partitioning::Memory => memory(),
-                Partitioning::Cost(per_instance) => cost(per_instance),
-                Partitioning::Spatial => spatial(),
-                Partitioning::Work => work(),
-                // Rings of 2: memory-balanced parts, the least total work
-                // (a ring of two on one H100: 1.00-1.02x replicate's work,
-                // work chunks 0.80-0.83x, slabs 0.80-0.81x) and on two
-                // halves of an H100 0.80-0.87x replicate's speed (BENCHMARKS.md,
-                // issue 4). Longer rings: bytes and instances, or one part
-                // gets every instanced object (a ring of 4 on H100 quarters:
-                // 2.13x one quarter against 1.47-1.55x; issue 6); bytes
-                // alone where that does not fit the budget.
-                Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
-                Partitioning::Auto => memory(),
-            }
-            .map_err(|e| CliError::Runtime(e.to_string()))?;
+            let (p, kind) =
+                partition_for_ring(scene, k, &model, budget, options_resolution, args.partitioning)?;
             eprintln!("partition: {kind}");
             (Layout::Ring { parts: p.parts.clone(), islands, order: args.ring_order }, Some(p))
         }
@@ -354,7 +367,7 @@ pub fn setup(
 
 /// What devices listed on one GPU share of it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Sharing {
+pub enum Sharing {
     /// One copy of the scene (replicas): each adds only its frame.
     Scene,
     /// The memory, evenly (ring members holding different parts).
@@ -365,7 +378,7 @@ enum Sharing {
 /// for GPUs without one, their free memory, shared as `sharing` says)
 /// less what every device allocates for the frame itself (queues, film,
 /// parameters, headroom).
-fn scene_budget(
+pub fn scene_budget(
     devices: &mut [Box<dyn Device>],
     scene: &Scene,
     budget: Option<u64>,

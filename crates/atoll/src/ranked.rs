@@ -8,11 +8,17 @@
 //! Every step that can fail on one rank is followed by a vote, so that the
 //! others stop with it instead of waiting for it forever.
 
-use atoll_dist::ranks::Ranks;
-use atoll_dist::{render_multi_with, Layout, MultiOutput};
-use atoll_render::Device;
+use std::sync::Arc;
 
-use crate::multi::{self, DeviceList};
+use atoll_bvh::{part_bytes, ScenePart};
+use atoll_cuda::device::CudaDevice;
+use atoll_cuda::error::fmt_bytes;
+use atoll_dist::ranks::{RankRing, Ranks};
+use atoll_dist::{min_parts, render_multi_with, Layout, MultiOutput, RingPeers, Shared};
+use atoll_render::{Device, RenderOptions};
+use atoll_scene::Scene;
+
+use crate::multi::{self, DeviceList, DeviceSpec, Sharing};
 use crate::render::{
     load_frame, multi_args, open_device, print_summary, progress_bar, set_waves_for_devices, Frame,
     RenderArgs, Run,
@@ -26,6 +32,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         together(&ranks, load_frame(&args), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
         together(&ranks, rank_devices(&args, &scene, &mut options), "open their devices")?;
+    let ring = together(&ranks, rank_ring(&ranks, &args, &scene, &options, &mut devices), "plan rings")?;
+    let layout = match &ring {
+        Some((ring, part)) => Layout::Ring { parts: vec![part.clone()], islands: 1, order: ring.order() },
+        None => layout,
+    };
     if ranks.is_root() {
         eprintln!("{} ranks; rank 0: {description}", ranks.size());
     }
@@ -39,7 +50,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         &layout,
         args.ring_transport,
         args.warmup,
-        Some(&handout),
+        Some(Shared { handout: &handout, ring: ring.as_ref().map(|(r, _)| r as &dyn RingPeers) }),
         &mut |done, total| {
             bar.set_length(total as u64);
             bar.set_position(done as u64);
@@ -102,6 +113,93 @@ fn rank_devices(
     Ok(RankDevices { devices, layout: Layout::Replicate, description })
 }
 
+/// The ring of ranks this rank belongs to and the part it holds, when
+/// `--ring-ranks` asks for rings or the scene does not fit the smallest
+/// rank's device (`None`: every rank holds the whole scene, or plans its
+/// own `--devices`). Rings of ranks need one `--device` per rank, and take
+/// one wavefront on it: the wavefronts `--streams` added are dropped.
+/// Every rank calls it at the same point (collectives inside).
+fn rank_ring(
+    ranks: &Ranks,
+    args: &RenderArgs,
+    scene: &Arc<Scene>,
+    options: &RenderOptions,
+    devices: &mut Vec<Box<dyn Device>>,
+) -> Result<Option<(RankRing, ScenePart)>, CliError> {
+    // What every rank must agree on, gathered first (collectives), so that
+    // every rank then plans the same rings. Ranks with `--devices` plan
+    // their own: they only say so.
+    let alone = args.devices.is_none();
+    let gpu = devices.iter_mut().any(|d| d.as_any_mut().downcast_mut::<CudaDevice>().is_some());
+    let budget = match alone {
+        true => {
+            multi::scene_budget(&mut devices[..1], scene, args.device.device_memory, options, Sharing::Memory)
+        }
+        false => None,
+    };
+    let (smallest, _) = ranks.extremes(budget.unwrap_or(u64::MAX));
+    let [gpus, planning_alone] = ranks.sums([gpu as u64, alone as u64]);
+    let cpus = ranks.size() as u64 - gpus;
+    let kinds: Vec<DeviceSpec> = [(cpus > 0, DeviceSpec::Cpu), (gpus > 0, DeviceSpec::Cuda(0))]
+        .into_iter()
+        .filter_map(|(present, kind)| present.then_some(kind))
+        .collect();
+    let model = multi::byte_model(&kinds);
+    let whole = part_bytes(scene, &ScenePart::whole(scene), &model);
+    let scenes = ranks.extremes(whole);
+    let asked = ranks.extremes(args.ring_ranks.map_or(0, u64::from));
+
+    if scenes.0 != scenes.1 {
+        return Err(CliError::Input(
+            "the ranks loaded different scenes: every rank needs the same one".into(),
+        ));
+    }
+    if asked.0 != asked.1 {
+        return Err(CliError::Input("--ring-ranks differs between ranks: every rank needs the same".into()));
+    }
+    let n = ranks.size();
+    if planning_alone < n as u64 {
+        // Some rank plans its own devices: no rings of ranks.
+        return match asked.1 {
+            0 | 1 => Ok(None),
+            _ => Err(CliError::Input("--ring-ranks: rings of ranks need one --device on every rank".into())),
+        };
+    }
+    let budget = (smallest != u64::MAX).then_some(smallest);
+    let k = match (asked.0 as usize, budget) {
+        (0, None) => 1,
+        (0, Some(b)) if whole <= b => 1,
+        // The fewest parts that fit, made a divisor of the ranks.
+        (0, Some(b)) => min_parts(scene, &model, b, n)
+            .and_then(|k| (k..=n).find(|d| n.is_multiple_of(*d)))
+            .ok_or_else(|| {
+            CliError::Runtime(format!(
+                "the scene ({}) does not fit {n} ranks whose smallest device holds {}",
+                fmt_bytes(whole),
+                fmt_bytes(b)
+            ))
+        })?,
+        (k, _) if !n.is_multiple_of(k) => {
+            return Err(CliError::Input(format!("--ring-ranks {k}: must divide the {n} ranks")));
+        }
+        (k, _) => k,
+    };
+    if k == 1 {
+        return Ok(None);
+    }
+    let (partition, kind) =
+        multi::partition_for_ring(scene, k, &model, budget, options.resolution, args.partitioning)?;
+    let ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
+    if ranks.is_root() {
+        let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
+        eprintln!("partition: {kind}");
+        eprintln!("strategy: rings of {k} ranks ({} islands); parts {}", n / k, sizes.join(", "));
+    }
+    devices.truncate(1);
+    let part = partition.parts[ring.member()].clone();
+    Ok(Some((ring, part)))
+}
+
 /// This rank's rows of the device table, each led by the rank.
 fn rank_rows(rank: usize, out: &MultiOutput) -> String {
     multi::device_rows(out).lines().map(|row| format!("{rank:>4}  {row}\n")).collect()
@@ -121,14 +219,28 @@ fn together<T>(ranks: &Ranks, result: Result<T, CliError>, what: &str) -> Result
     let rank = ranks.rank();
     let mine = match &result {
         Ok(_) => String::new(),
-        Err(CliError::Input(message) | CliError::Runtime(message)) => format!("rank {rank}: {message}"),
+        Err(CliError::Input(message) | CliError::Runtime(message)) => message.clone(),
     };
     let all = ranks.gather_text(&mine);
     let message = if ranks.is_root() {
-        let failures: Vec<&str> = all.iter().map(String::as_str).filter(|m| !m.is_empty()).collect();
-        format!("{failed} of {} ranks could not {what}:\n  {}", ranks.size(), failures.join("\n  "))
+        // The same failure on several ranks is said once, with their ranks.
+        let mut failures: Vec<(Vec<usize>, &str)> = Vec::new();
+        for (r, m) in all.iter().enumerate().filter(|(_, m)| !m.is_empty()) {
+            match failures.iter_mut().find(|(_, seen)| *seen == m) {
+                Some((ranks, _)) => ranks.push(r),
+                None => failures.push((vec![r], m)),
+            }
+        }
+        let lines: Vec<String> = failures
+            .iter()
+            .map(|(rs, m)| {
+                let rs: Vec<String> = rs.iter().map(usize::to_string).collect();
+                format!("rank {}: {m}", rs.join(", "))
+            })
+            .collect();
+        format!("{failed} of {} ranks could not {what}:\n  {}", ranks.size(), lines.join("\n  "))
     } else if result.is_err() {
-        mine
+        format!("rank {rank}: {mine}")
     } else {
         format!("rank {rank}: stopping: {failed} rank(s) could not {what}")
     };

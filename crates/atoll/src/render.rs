@@ -62,6 +62,7 @@ impl WaveArgs {
 }
 
 #[derive(Args, Default)]
+#[command(group(clap::ArgGroup::new("placement").args(["devices", "mpi"]).multiple(true)))]
 pub struct RenderArgs {
     /// Scene file (.pbrt, .obj, .gltf/.glb, .ply, .off) or a generated `landscape:GROWTH[:SEED]`;
     /// the built-in Cornell box when omitted.
@@ -104,7 +105,7 @@ pub struct RenderArgs {
     /// cycle ends: the least traffic) or home (member 0, holding the
     /// largest piece, makes and shades every queue, so every ray is traced
     /// there first: the other parts skip what lies behind its hits).
-    #[arg(long, default_value = "spread", value_parser = parse_ring_order, requires = "devices")]
+    #[arg(long, default_value = "spread", value_parser = parse_ring_order, requires = "placement")]
     pub ring_order: RingOrder,
     /// Devices per ring with `--strategy ring` (the scene split into this
     /// many parts; the devices beyond form more islands). Default: the
@@ -117,7 +118,7 @@ pub struct RenderArgs {
     /// instance: instanced objects spread over the parts), work (compact
     /// chunks balanced by bytes and by the frame's estimated ray work), or
     /// spatial (one compact region per part).
-    #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "devices")]
+    #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "placement")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
     #[arg(long, value_name = "IMAGE", requires = "devices")]
@@ -146,6 +147,13 @@ pub struct RenderArgs {
     /// Needs an atoll built with `--features mpi`.
     #[arg(long)]
     pub mpi: bool,
+    /// With --mpi and one device per rank: ranks per ring, each holding one
+    /// part of the scene, queues cycling between ranks as MPI messages (it
+    /// must divide the ranks; the rings share the waves). Default: 1 (every
+    /// rank holds the whole scene) when the scene fits the smallest rank's
+    /// device, else the fewest ranks whose parts fit.
+    #[arg(long, requires = "mpi", conflicts_with = "devices", value_parser = clap::value_parser!(u32).range(1..))]
+    pub ring_ranks: Option<u32>,
 }
 
 fn parse_resolution(s: &str) -> Result<UVec2, String> {

@@ -82,17 +82,43 @@ fn assert_same_pixels(dir: &Path, a: &str, b: &str) {
     assert!(a.iter().any(|p| p[0] > 0.0), "the image is not black");
 }
 
-/// Per rank of the device table on stdout, the waves its devices took.
+/// One row of the device table rank 0 prints.
+#[derive(Debug)]
+struct Row {
+    rank: usize,
+    ring: usize,
+    member: usize,
+    waves: usize,
+    /// Millions of path and shadow rays traced, as printed.
+    rays: (String, String),
+    sent: String,
+}
+
+fn table(stdout: &str) -> Vec<Row> {
+    stdout
+        .lines()
+        .skip_while(|l| !l.starts_with("rank"))
+        .skip(1)
+        .map_while(|row| {
+            // rank device ring member scene-mem (2) frame-mem (2) waves rays shadow busy idle wait send sent (2)
+            let f: Vec<&str> = row.split_whitespace().collect();
+            Some(Row {
+                rank: f.first()?.parse().ok()?,
+                ring: f.get(2)?.parse().ok()?,
+                member: f.get(3)?.parse().ok()?,
+                waves: f.get(8)?.parse().ok()?,
+                rays: (f.get(9)?.to_string(), f.get(10)?.to_string()),
+                sent: f.get(15..17)?.join(" "),
+            })
+        })
+        .collect()
+}
+
+/// Per rank, the waves its devices took.
 fn waves_by_rank(stdout: &str, ranks: usize) -> Vec<usize> {
     let mut waves = vec![0; ranks];
-    for row in stdout.lines().skip_while(|l| !l.starts_with("rank")).skip(1) {
-        let fields: Vec<&str> = row.split_whitespace().collect();
-        let (Some(Ok(rank)), Some(Ok(taken))) =
-            (fields.first().map(|f| f.parse::<usize>()), fields.get(8).map(|f| f.parse::<usize>()))
-        else {
-            break;
-        };
-        waves[rank] += taken;
+    for row in table(stdout) {
+        waves[row.rank] += row.waves;
     }
     waves
 }
@@ -142,10 +168,14 @@ fn a_failing_rank_stops_them_all_and_keeps_the_old_image() {
     let dir = scratch("fail");
     std::fs::write(dir.join("kept.exr"), b"an earlier image").unwrap();
 
-    // Rank 1's device is too small for the scene: it cannot prepare.
+    // Rank 1's device is too small for the scene, and every rank is told
+    // to hold the whole scene: rank 1 cannot prepare.
     let out = mpirun(
         &dir,
-        &[(1, &["--device", "cpu"]), (1, &["--device", "cpu", "--device-memory", "1K"])],
+        &[
+            (1, &["--device", "cpu", "--ring-ranks", "1"]),
+            (1, &["--device", "cpu", "--ring-ranks", "1", "--device-memory", "1K"]),
+        ],
         "kept.exr",
     );
     let stderr = text(&out.stderr);
@@ -166,4 +196,69 @@ fn a_failing_rank_stops_them_all_and_keeps_the_old_image() {
     assert!(stderr.contains("1 of 2 ranks could not load the scene"), "{stderr}");
     assert!(stderr.contains("rank 1: missing.pbrt"), "{stderr}");
     assert_eq!(std::fs::read(dir.join("kept.exr")).unwrap(), b"an earlier image");
+}
+
+#[test]
+fn rings_of_ranks_render_the_image_of_one_process() {
+    let dir = scratch("rings");
+    let scene = ["landscape:1"];
+    let alone = render_alone(&dir, &[&scene[..], &["--device", "cpu"]].concat(), "alone.exr");
+    assert!(alone.status.success(), "{}", text(&alone.stderr));
+
+    // Four ranks, rings of two: two islands sharing the waves.
+    let args = [&scene[..], &["--device", "cpu", "--threads", "1", "--ring-ranks", "2"]].concat();
+    let out = mpirun(&dir, &[(4, &args)], "rings.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks (2 islands)"), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "rings.exr");
+    let rows = table(&stdout);
+    assert_eq!(rows.len(), 4, "{stdout}");
+    for (rank, row) in rows.iter().enumerate() {
+        assert_eq!((row.rank, row.ring, row.member), (rank, rank / 2, rank % 2), "{stdout}");
+        assert!(row.waves > 0, "every member of a spread ring makes queues: {stdout}");
+        assert_ne!(row.sent, "0 B", "queues went between ranks: {stdout}");
+    }
+    // Every ray is traced by every member of its ring.
+    assert_eq!(rows[0].rays, rows[1].rays, "{stdout}");
+    assert_eq!(rows[2].rays, rows[3].rays, "{stdout}");
+
+    // A ring of three, member 0 making and shading every queue, warmed up.
+    let args = [
+        &scene[..],
+        &["--device", "cpu", "--threads", "1", "--ring-ranks", "3", "--ring-order", "home", "--warmup"],
+    ]
+    .concat();
+    let out = mpirun(&dir, &[(3, &args)], "home.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "home.exr");
+    let waves: Vec<usize> = table(&stdout).iter().map(|r| r.waves).collect();
+    assert!(waves[0] > 0 && waves[1..] == [0, 0], "{stdout}");
+}
+
+#[test]
+fn a_scene_too_big_for_a_rank_is_split_over_ranks() {
+    let dir = scratch("auto");
+    let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
+    assert!(alone.status.success(), "{}", text(&alone.stderr));
+    // The Cornell box takes about 8 KiB on a CPU device: two parts of it fit.
+    let out =
+        mpirun(&dir, &[(2, &["--device", "cpu", "--threads", "1", "--device-memory", "5K"])], "split.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks (1 islands)"), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "split.exr");
+
+    // Three ranks cannot form rings of two; ranks must ask for the same rings.
+    let out = mpirun(&dir, &[(3, &["--device", "cpu", "--ring-ranks", "2"])], "bad.exr");
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--ring-ranks 2: must divide the 3 ranks"), "{stderr}");
+    let out =
+        mpirun(&dir, &[(1, &["--device", "cpu", "--ring-ranks", "2"]), (1, &["--device", "cpu"])], "bad.exr");
+    let stderr = text(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--ring-ranks differs between ranks"), "{stderr}");
+    assert!(!dir.join("bad.exr").exists());
 }
