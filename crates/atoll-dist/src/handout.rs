@@ -18,12 +18,12 @@ use atoll_render::DeviceError;
 /// [`next`]: WaveHandout::next
 /// [`end`]: WaveHandout::end
 pub trait WaveHandout: Sync {
-    /// Every process sharing the frame calls this once, prepared or not
-    /// (`ready`), with its own workers (devices replicating, or rings):
-    /// all their workers together, which sets the size of the waves, or an
-    /// error when another process could not prepare (each process then
-    /// stops instead of waiting for the others forever).
-    fn join(&self, ready: bool, workers: usize) -> Result<usize, DeviceError>;
+    /// Every process sharing the frame calls this once, prepared or not:
+    /// what they agree on, from which each cuts the same list of waves; an
+    /// error when another process could not prepare or renders another
+    /// frame (each process then stops instead of waiting for the others
+    /// forever).
+    fn join(&self, me: Joining) -> Result<Joined, DeviceError>;
     /// The frame has `waves` waves.
     fn begin(&self, waves: usize);
     /// The next wave to render, `None` when all are taken.
@@ -35,6 +35,29 @@ pub trait WaveHandout: Sync {
     fn end(&self);
 }
 
+/// What a process brings to a frame it shares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Joining {
+    /// Its devices are prepared.
+    pub ready: bool,
+    /// What takes waves: devices replicating, or rings.
+    pub workers: usize,
+    /// The most pixels its devices take per wave.
+    pub wave_size: u32,
+    /// Pixels times samples per pixel of its frame.
+    pub samples: u64,
+}
+
+/// What the processes sharing a frame agreed on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Joined {
+    /// Every process's workers: the waves are cut for all of them.
+    pub workers: usize,
+    /// The smallest wave size of any process (a GPU's devices take several
+    /// small waves at once when they merge wave-fronts).
+    pub wave_size: u32,
+}
+
 /// The waves of a frame rendered by this process alone.
 #[derive(Debug, Default)]
 pub struct LocalHandout {
@@ -43,8 +66,8 @@ pub struct LocalHandout {
 }
 
 impl WaveHandout for LocalHandout {
-    fn join(&self, _ready: bool, workers: usize) -> Result<usize, DeviceError> {
-        Ok(workers)
+    fn join(&self, me: Joining) -> Result<Joined, DeviceError> {
+        Ok(Joined { workers: me.workers, wave_size: me.wave_size })
     }
 
     fn begin(&self, waves: usize) {
@@ -71,7 +94,8 @@ mod tests {
     #[test]
     fn local_handout_gives_every_wave_once_then_none() {
         let handout = LocalHandout::default();
-        assert_eq!(handout.join(true, 3).unwrap(), 3);
+        let me = Joining { ready: true, workers: 3, wave_size: 4096, samples: 64 };
+        assert_eq!(handout.join(me).unwrap(), Joined { workers: 3, wave_size: 4096 });
         handout.begin(5);
         let taken: Vec<_> = std::iter::from_fn(|| handout.next()).collect();
         assert_eq!(taken, vec![0, 1, 2, 3, 4]);

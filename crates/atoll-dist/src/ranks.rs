@@ -23,7 +23,7 @@ use mpi::topology::{Color, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Threading;
 
-use crate::handout::WaveHandout;
+use crate::handout::{Joined, Joining, WaveHandout};
 use crate::render::{DeviceReport, RingOrder, RingPeers};
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
@@ -342,18 +342,28 @@ fn serve(next: Arc<AtomicUsize>, waves: Arc<AtomicUsize>, ranks: usize) {
 }
 
 impl WaveHandout for RankWaves {
-    fn join(&self, ready: bool, workers: usize) -> Result<usize, DeviceError> {
+    fn join(&self, me: Joining) -> Result<Joined, DeviceError> {
         let world = SimpleCommunicator::world();
-        let mine = [(!ready) as u64, workers as u64];
-        let mut all = [0u64; 2];
-        world.all_reduce_into(&mine[..], &mut all[..], SystemOperation::sum());
-        match all {
-            [0, workers] => Ok(workers as usize),
-            [failed, _] => Err(DeviceError::Other {
-                device: "ranks".into(),
-                message: format!("{failed} of {} ranks could not prepare their devices", self.size),
-            }),
+        let sums = [(!me.ready) as u64, me.workers as u64];
+        let mut summed = [0u64; 2];
+        world.all_reduce_into(&sums[..], &mut summed[..], SystemOperation::sum());
+        // Smallest values as the largest of their complements.
+        let maxima = [!(me.wave_size as u64), me.samples, !me.samples];
+        let mut largest = [0u64; 3];
+        world.all_reduce_into(&maxima[..], &mut largest[..], SystemOperation::max());
+        let [failed, workers] = summed;
+        let (wave_size, samples) = (!largest[0] as u32, (!largest[2], largest[1]));
+        let error = |message: String| Err(DeviceError::Other { device: "ranks".into(), message });
+        if failed > 0 {
+            return error(format!("{failed} of {} ranks could not prepare their devices", self.size));
         }
+        if samples.0 != samples.1 {
+            return error(format!(
+                "the ranks render different frames ({} to {} samples): every rank needs the same resolution and spp",
+                samples.0, samples.1
+            ));
+        }
+        Ok(Joined { workers: workers as usize, wave_size })
     }
 
     fn begin(&self, waves: usize) {

@@ -24,7 +24,7 @@ use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Re
 use atoll_scene::Scene;
 use cudarc::driver::CudaEvent;
 
-use crate::handout::{LocalHandout, WaveHandout};
+use crate::handout::{Joining, LocalHandout, WaveHandout};
 use crate::vote::Vote;
 
 /// Where the scene goes: what each device holds and who it works with.
@@ -289,9 +289,18 @@ pub fn render_multi_with(
     };
     let frame = Arc::new(FrameContext::new(scene, options));
     let ready = ready_frame(devices, scene, &frame, layout, transport, warmup, remote);
-    let workers = handout.join(ready.is_ok(), islands);
+    let joined = handout.join(Joining {
+        ready: ready.is_ok(),
+        workers: islands,
+        wave_size: frame.options.wave_size,
+        samples: frame.options.pixel_count() as u64 * frame.options.spp as u64,
+    });
     let Ready { prepared, prepare_seconds, shape } = ready?;
-    let waves = work_units(&frame.options, workers?);
+    let joined = joined?;
+    // Every process cuts the same waves (only their sizes may differ from
+    // what this process's devices would take alone).
+    let cut = RenderOptions { wave_size: joined.wave_size, ..frame.options.clone() };
+    let waves = work_units(&cut, joined.workers);
     handout.begin(waves.len());
     let start = Instant::now();
     let reports = match remote {

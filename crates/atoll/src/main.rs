@@ -45,6 +45,8 @@ pub enum CliError {
     Input(String),
     /// Anything else (device, output): exit code 1.
     Runtime(String),
+    /// Already said (by MPI rank 0, for every rank): exit with this code.
+    Reported(u8),
 }
 
 fn main() -> ExitCode {
@@ -75,5 +77,6 @@ fn main() -> ExitCode {
             eprintln!("error: {message}");
             ExitCode::from(1)
         }
+        Err(CliError::Reported(code)) => ExitCode::from(code),
     }
 }

@@ -26,10 +26,13 @@ pub enum DeviceSpec {
     Cpu,
     Cuda(usize),
     /// `cuda:I/P`: a part of GPU I split into P groups of multiprocessors,
-    /// each listing the next part ([`atoll_cuda::Gpu::open_partition`]).
+    /// each listing the next part ([`atoll_cuda::Gpu::open_partition`]);
+    /// `cuda:I[J/P]` (the label atoll prints) names part J itself, e.g.
+    /// for processes sharing a GPU under mpirun.
     CudaPart {
         ordinal: usize,
         parts: usize,
+        index: Option<usize>,
     },
 }
 
@@ -57,7 +60,7 @@ pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
     for item in s.split(',').map(|i| i.trim().to_ascii_lowercase()) {
         let bad = || {
             format!(
-                "{item:?} in {s:?}: expected cpu, cpu:N (N CPU devices), cuda:I or cuda:I/P (a part of P)"
+                "{item:?} in {s:?}: expected cpu, cpu:N (N CPU devices), cuda:I, cuda:I/P (the next part of P) or cuda:I[J/P] (part J of P)"
             )
         };
         match item.split_once(':') {
@@ -73,12 +76,21 @@ pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
             Some(("cuda", i)) => match i.split_once('/') {
                 None => devices.push(DeviceSpec::Cuda(i.parse().map_err(|_| bad())?)),
                 Some((i, p)) => {
+                    // `I/P`, or `I[J/P]`: part J named.
+                    let (i, index, p) = match (i.split_once('['), p.strip_suffix(']')) {
+                        (Some((i, j)), Some(p)) => (i, Some(j.parse::<usize>().map_err(|_| bad())?), p),
+                        (None, None) => (i, None, p),
+                        _ => return Err(bad()),
+                    };
                     let ordinal = i.parse().map_err(|_| bad())?;
                     let parts: usize = p.parse().map_err(|_| bad())?;
                     if !(2..=16).contains(&parts) {
                         return Err(format!("{item:?}: a GPU splits into 2 to 16 parts"));
                     }
-                    devices.push(DeviceSpec::CudaPart { ordinal, parts });
+                    if index.is_some_and(|j| j >= parts) {
+                        return Err(format!("{item:?}: parts of {parts} are numbered 0 to {}", parts - 1));
+                    }
+                    devices.push(DeviceSpec::CudaPart { ordinal, parts, index });
                 }
             },
             _ => return Err(bad()),
@@ -91,7 +103,7 @@ pub fn parse_devices(s: &str) -> Result<DeviceList, String> {
 }
 
 /// The devices, created (GPUs opened) but not prepared.
-fn open_devices(
+pub fn open_devices(
     specs: &[DeviceSpec],
     budget: Option<u64>,
     threads: Option<usize>,
@@ -114,7 +126,10 @@ fn open_devices(
             DeviceSpec::Cuda(_) | DeviceSpec::CudaPart { .. } => {
                 let ordinal = spec.ordinal().expect("a GPU");
                 let gpu = match *spec {
-                    DeviceSpec::CudaPart { parts, .. } => {
+                    DeviceSpec::CudaPart { parts, index: Some(index), .. } => {
+                        atoll_cuda::Gpu::open_partition(ordinal, parts, index)
+                    }
+                    DeviceSpec::CudaPart { parts, index: None, .. } => {
                         let index = devices
                             .iter_mut()
                             .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>())
@@ -258,7 +273,7 @@ pub fn setup(
         eprintln!("note: {} devices share cuda:{} (its time and memory)", shared.len(), shared[0]);
     }
     for spec in args.specs {
-        if let DeviceSpec::CudaPart { ordinal, parts } = *spec {
+        if let DeviceSpec::CudaPart { ordinal, parts, .. } = *spec {
             eprintln!("note: cuda:{ordinal} split into {parts} parts (multiprocessors apart; memory and its bandwidth shared)");
             break;
         }
@@ -552,8 +567,11 @@ mod tests {
         );
         assert_eq!(parse_devices("cpu, cuda:1"), Ok(DeviceList(vec![DeviceSpec::Cpu, DeviceSpec::Cuda(1)])));
         assert_eq!(parse_devices("cuda:0,cuda:0"), Ok(DeviceList(vec![DeviceSpec::Cuda(0); 2])));
-        let half = DeviceSpec::CudaPart { ordinal: 1, parts: 2 };
+        let half = DeviceSpec::CudaPart { ordinal: 1, parts: 2, index: None };
         assert_eq!(parse_devices("cuda:1/2,cuda:1/2"), Ok(DeviceList(vec![half; 2])));
+        let second = DeviceSpec::CudaPart { ordinal: 0, parts: 4, index: Some(1) };
+        assert_eq!(parse_devices("cuda:0[1/4]"), Ok(DeviceList(vec![second])));
+        assert!(parse_devices("cuda:0[4/4]").is_err() && parse_devices("cuda:0[1/4").is_err());
         assert!(parse_devices("cuda:0/1").is_err() && parse_devices("cuda:0/x").is_err());
         assert!(parse_devices("cpu:0").is_err());
         assert!(parse_devices("tpu:1").is_err());

@@ -20,19 +20,45 @@ use atoll_scene::Scene;
 
 use crate::multi::{self, DeviceList, DeviceSpec, Sharing};
 use crate::render::{
-    load_frame, multi_args, open_device, print_summary, progress_bar, set_waves_for_devices, Frame,
-    RenderArgs, Run,
+    gpu_wavefronts, load_frame, multi_args, open_device, print_summary, progress_bar, set_waves_for_devices,
+    Frame, RenderArgs, Run,
 };
 use crate::CliError;
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
     let ranks = Ranks::init().map_err(|e| CliError::Runtime(format!("--mpi: {e}")))?;
+    let result = render_on_ranks(&ranks, args);
+    // On a failure rank 0 knows every rank's reason (`together`): it says
+    // it first, then every rank stops with its exit code. mpirun stops the
+    // job at the first process that exits with an error, so a rank leaving
+    // before rank 0 has spoken could silence it.
+    let code = match &result {
+        Ok(()) => None,
+        Err(CliError::Input(_)) => Some(2),
+        Err(CliError::Runtime(_)) => Some(1),
+        Err(CliError::Reported(code)) => Some(*code),
+    };
+    if let (true, Err(CliError::Input(message) | CliError::Runtime(message))) = (ranks.is_root(), &result) {
+        eprintln!("error: {message}");
+    }
+    ranks.wait_for_all();
+    code.map_or(Ok(()), |code| Err(CliError::Reported(code)))
+}
+
+fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     let rank = ranks.rank();
     let Frame { scene, mut options, output, load_seconds } =
-        together(&ranks, load_frame(&args), "load the scene")?;
+        together(ranks, load_frame(&args), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
-        together(&ranks, rank_devices(&args, &scene, &mut options), "open their devices")?;
-    let ring = together(&ranks, rank_ring(&ranks, &args, &scene, &options, &mut devices), "plan rings")?;
+        together(ranks, rank_devices(&args, &scene, &mut options), "open their devices")?;
+    let ring = together(ranks, rank_ring(ranks, &args, &scene, &options, &mut devices), "plan rings")?;
+    // (Every rank votes, whether it adds wavefronts or not.)
+    let one_device = args.devices.as_ref().is_none_or(|d| d.0.len() == 1);
+    let more = match ring.is_none() && one_device {
+        true => add_wavefronts(&args, &scene, &options, &mut devices),
+        false => Ok(()),
+    };
+    together(ranks, more, "open more wavefronts")?;
     let layout = match &ring {
         Some((ring, part)) => Layout::Ring { parts: vec![part.clone()], islands: 1, order: ring.order() },
         None => layout,
@@ -58,7 +84,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     )
     .map_err(|e| CliError::Runtime(e.to_string()));
     bar.finish_and_clear();
-    let mut out = together(&ranks, rendered, "render their share")?;
+    let mut out = together(ranks, rendered, "render their share")?;
 
     ranks.sum_films(&mut out.film);
     let rows = ranks.gather_text(&rank_rows(rank, &out));
@@ -94,31 +120,54 @@ struct RankDevices {
 
 fn rank_devices(
     args: &RenderArgs,
-    scene: &std::sync::Arc<atoll_scene::Scene>,
-    options: &mut atoll_render::RenderOptions,
+    scene: &Arc<Scene>,
+    options: &mut RenderOptions,
 ) -> Result<RankDevices, CliError> {
-    if let Some(DeviceList(specs)) = &args.devices {
-        set_waves_for_devices(args, specs, options);
-        let (devices, layout) = multi::setup(scene, options, &multi_args(args, specs))?;
-        let description = format!("{} devices", devices.len());
-        return Ok(RankDevices { devices, layout, description });
+    match &args.devices {
+        Some(DeviceList(specs)) if specs.len() > 1 => {
+            set_waves_for_devices(args, specs, options);
+            let (devices, layout) = multi::setup(scene, options, &multi_args(args, specs))?;
+            let description = format!("{} devices", devices.len());
+            Ok(RankDevices { devices, layout, description })
+        }
+        Some(DeviceList(specs)) => {
+            set_waves_for_devices(args, specs, options);
+            let devices = multi::open_devices(specs, args.device.device_memory, args.threads)?;
+            let description = devices[0].name();
+            Ok(RankDevices { devices, layout: Layout::Replicate, description })
+        }
+        None => {
+            let selected = open_device(args, scene, options)?;
+            Ok(RankDevices {
+                devices: vec![selected.device],
+                layout: Layout::Replicate,
+                description: selected.description,
+            })
+        }
     }
-    let (selected, more) = open_device(args, scene, options)?;
-    let description = match more.len() {
-        0 => selected.description.clone(),
-        n => format!("{} x {} wavefronts", selected.description, n + 1),
-    };
-    let mut devices = vec![selected.device];
-    devices.extend(more);
-    Ok(RankDevices { devices, layout: Layout::Replicate, description })
+}
+
+/// A GPU rank holding the whole scene renders with the further wavefronts
+/// `--streams` asks for, sharing its copy.
+fn add_wavefronts(
+    args: &RenderArgs,
+    scene: &Arc<Scene>,
+    options: &RenderOptions,
+    devices: &mut Vec<Box<dyn Device>>,
+) -> Result<(), CliError> {
+    let gpu = devices[0].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone());
+    if let Some(gpu) = gpu {
+        devices.extend(gpu_wavefronts(&gpu, args, scene, options)?);
+    }
+    Ok(())
 }
 
 /// The ring of ranks this rank belongs to and the part it holds, when
 /// `--ring-ranks` asks for rings or the scene does not fit the smallest
 /// rank's device (`None`: every rank holds the whole scene, or plans its
-/// own `--devices`). Rings of ranks need one `--device` per rank, and take
-/// one wavefront on it: the wavefronts `--streams` added are dropped.
-/// Every rank calls it at the same point (collectives inside).
+/// own `--devices`). Rings of ranks need one device per rank (`--device`,
+/// or one listed in `--devices`). Every rank calls it at the same point
+/// (collectives inside).
 fn rank_ring(
     ranks: &Ranks,
     args: &RenderArgs,
@@ -129,7 +178,7 @@ fn rank_ring(
     // What every rank must agree on, gathered first (collectives), so that
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
-    let alone = args.devices.is_none();
+    let alone = args.devices.as_ref().is_none_or(|d| d.0.len() == 1);
     let gpu = devices.iter_mut().any(|d| d.as_any_mut().downcast_mut::<CudaDevice>().is_some());
     let budget = match alone {
         true => {
@@ -162,7 +211,7 @@ fn rank_ring(
         // Some rank plans its own devices: no rings of ranks.
         return match asked.1 {
             0 | 1 => Ok(None),
-            _ => Err(CliError::Input("--ring-ranks: rings of ranks need one --device on every rank".into())),
+            _ => Err(CliError::Input("--ring-ranks: rings of ranks need one device on every rank".into())),
         };
     }
     let budget = (smallest != u64::MAX).then_some(smallest);
@@ -195,7 +244,6 @@ fn rank_ring(
         eprintln!("partition: {kind}");
         eprintln!("strategy: rings of {k} ranks ({} islands); parts {}", n / k, sizes.join(", "));
     }
-    devices.truncate(1);
     let part = partition.parts[ring.member()].clone();
     Ok(Some((ring, part)))
 }
@@ -207,19 +255,18 @@ fn rank_rows(rank: usize, out: &MultiOutput) -> String {
 
 /// `result` if every rank got that far, else an error on every rank (a
 /// collective: every rank calls it at the same point). Rank 0's error
-/// gives every failed rank's own message: mpirun stops the job as soon as
-/// one process exits with an error, so the others might not get to print
-/// theirs. It is an input error (exit 2) when any rank's was.
+/// gives every failed rank's own message (only rank 0 speaks, see `run`).
+/// It is an input error (exit 2) when any rank's was.
 fn together<T>(ranks: &Ranks, result: Result<T, CliError>, what: &str) -> Result<T, CliError> {
     let input = matches!(result, Err(CliError::Input(_)));
     let [failed, inputs] = ranks.sums([result.is_err() as u64, input as u64]);
     if failed == 0 {
         return result;
     }
-    let rank = ranks.rank();
     let mine = match &result {
         Ok(_) => String::new(),
         Err(CliError::Input(message) | CliError::Runtime(message)) => message.clone(),
+        Err(CliError::Reported(code)) => format!("failed (exit code {code})"),
     };
     let all = ranks.gather_text(&mine);
     let message = if ranks.is_root() {
@@ -239,10 +286,9 @@ fn together<T>(ranks: &Ranks, result: Result<T, CliError>, what: &str) -> Result
             })
             .collect();
         format!("{failed} of {} ranks could not {what}:\n  {}", ranks.size(), lines.join("\n  "))
-    } else if result.is_err() {
-        format!("rank {rank}: {mine}")
     } else {
-        format!("rank {rank}: stopping: {failed} rank(s) could not {what}")
+        // Rank 0 says it for all (see `run`).
+        String::new()
     };
     Err(if inputs > 0 { CliError::Input(message) } else { CliError::Runtime(message) })
 }

@@ -88,8 +88,9 @@ pub struct RenderArgs {
     pub waves: WaveArgs,
     /// Render on several devices: comma-separated cpu, cpu:N (N CPU devices
     /// sharing the cores), cuda:I, or cuda:I/P (the next of P parts of GPU
-    /// I's multiprocessors: a stand-in for P GPUs); `--device-memory` is
-    /// then per device.
+    /// I's multiprocessors: a stand-in for P GPUs; cuda:I[J/P] is part J);
+    /// `--device-memory` is then per device. With --mpi, one device listed
+    /// is this rank's one device.
     #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
     pub devices: Option<DeviceList>,
     /// How several devices share the work: auto (replicate when the scene
@@ -152,7 +153,7 @@ pub struct RenderArgs {
     /// must divide the ranks; the rings share the waves). Default: 1 (every
     /// rank holds the whole scene) when the scene fits the smallest rank's
     /// device, else the fewest ranks whose parts fit.
-    #[arg(long, requires = "mpi", conflicts_with = "devices", value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(long, requires = "mpi", value_parser = clap::value_parser!(u32).range(1..))]
     pub ring_ranks: Option<u32>,
 }
 
@@ -175,7 +176,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         set_waves_for_devices(&args, specs, &mut options);
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
-    let (mut selected, more) = open_device(&args, &scene, &mut options)?;
+    let mut selected = open_device(&args, &scene, &mut options)?;
+    let more = match &selected.gpu {
+        Some(gpu) => gpu_wavefronts(gpu, &args, &scene, &options)?,
+        None => Vec::new(),
+    };
     if !more.is_empty() {
         return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
     }
@@ -262,23 +267,29 @@ pub(crate) fn set_waves_for_devices(args: &RenderArgs, specs: &[DeviceSpec], opt
     }
 }
 
-/// `--device`: the selected device, its wave settings, and on a GPU the
-/// further wavefronts `--streams` asks for (sharing its scene).
+/// `--device`: the selected device, with its wave settings.
 pub(crate) fn open_device(
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &mut RenderOptions,
-) -> Result<(crate::device::Selected, Vec<Box<dyn atoll_render::Device>>), CliError> {
+) -> Result<crate::device::Selected, CliError> {
     let selected = select(&args.device, args.threads)?;
     args.waves.apply(options, selected.gpu.is_some());
-    let Some(gpu) = selected.gpu.clone() else { return Ok((selected, Vec::new())) };
-    if args.waves.wave_size.is_none() {
+    if let (Some(gpu), None) = (&selected.gpu, args.waves.wave_size) {
         let whole = atoll_bvh::ScenePart::whole(scene);
-        crate::streams::fit_wave_size(&gpu, scene, &whole, options, args.device.device_memory);
+        crate::streams::fit_wave_size(gpu, scene, &whole, options, args.device.device_memory);
     }
-    let more =
-        crate::streams::extra_streams(&gpu, args.waves.streams(), scene, options, args.device.device_memory)?;
-    Ok((selected, more))
+    Ok(selected)
+}
+
+/// The further wavefronts `--streams` asks for on `gpu`, sharing its scene.
+pub(crate) fn gpu_wavefronts(
+    gpu: &Arc<atoll_cuda::Gpu>,
+    args: &RenderArgs,
+    scene: &Arc<Scene>,
+    options: &RenderOptions,
+) -> Result<Vec<Box<dyn atoll_render::Device>>, CliError> {
+    crate::streams::extra_streams(gpu, args.waves.streams(), scene, options, args.device.device_memory)
 }
 
 /// One GPU rendering with several wavefronts (`--streams`): the selected

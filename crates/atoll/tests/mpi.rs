@@ -39,7 +39,8 @@ fn render_alone(dir: &Path, args: &[&str], output: &str) -> Output {
 
 /// `mpirun` with one `-n N atoll render --mpi FRAME ARGS -o OUTPUT` per
 /// entry of `ranks` (mpirun's `A : B` form: ranks with different
-/// arguments), killed after two minutes so that a hang fails the test.
+/// arguments; FRAME left out where ARGS give `--spp`), killed after two
+/// minutes so that a hang fails the test.
 fn mpirun(dir: &Path, ranks: &[(usize, &[&str])], output: &str) -> Output {
     let mut command = Command::new("timeout");
     command.args(["120", "mpirun", "--oversubscribe"]);
@@ -47,7 +48,8 @@ fn mpirun(dir: &Path, ranks: &[(usize, &[&str])], output: &str) -> Output {
         if i > 0 {
             command.arg(":");
         }
-        command.args(["-n", &n.to_string(), ATOLL, "render", "--mpi"]).args(FRAME).args(*args);
+        let frame = if args.contains(&"--spp") { &[][..] } else { &FRAME[..] };
+        command.args(["-n", &n.to_string(), ATOLL, "render", "--mpi"]).args(frame).args(*args);
         command.args(["-q", "-o", output]);
     }
     command
@@ -144,13 +146,13 @@ fn unequal_ranks_share_the_waves_and_warm_up_alone() {
     let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
     assert!(alone.status.success(), "{}", text(&alone.stderr));
 
-    // Rank 0 renders on two CPU devices, rank 1 on one, rank 2 on a ring
-    // of two devices that each hold half the scene.
+    // Rank 0 renders on two CPU devices, rank 1 on one taking smaller
+    // waves, rank 2 on a ring of two devices that each hold half the scene.
     let out = mpirun(
         &dir,
         &[
             (1, &["--devices", "cpu:2", "--threads", "1", "--warmup"]),
-            (1, &["--device", "cpu", "--threads", "1", "--warmup"]),
+            (1, &["--device", "cpu", "--threads", "1", "--warmup", "--wave-size", "1000"]),
             (1, &["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--warmup"]),
         ],
         "mixed.exr",
@@ -185,6 +187,14 @@ fn a_failing_rank_stops_them_all_and_keeps_the_old_image() {
     // before it prints).
     assert!(stderr.contains("ranks could not render their share"), "{stderr}");
     assert!(stderr.contains("rank 1: cpu: scene needs"), "{stderr}");
+    assert_eq!(std::fs::read(dir.join("kept.exr")).unwrap(), b"an earlier image");
+
+    // Rank 1 renders another frame.
+    let other = ["--spp", "8", "--res", "64x48", "--max-depth", "5", "--device", "cpu"];
+    let out = mpirun(&dir, &[(1, &["--device", "cpu"]), (1, &other)], "kept.exr");
+    let stderr = text(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("the ranks render different frames"), "{stderr}");
     assert_eq!(std::fs::read(dir.join("kept.exr")).unwrap(), b"an earlier image");
 
     // Rank 1 cannot read its scene.
