@@ -58,6 +58,69 @@ pub struct Joined {
     pub wave_size: u32,
 }
 
+/// How fast a taker of waves (a process and its workers) renders: one
+/// worker's seconds per wave, measured since the frame began.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Speed {
+    /// Seconds one worker takes per wave.
+    pub seconds_per_wave: f64,
+    /// Workers (devices or rings) taking waves.
+    pub workers: usize,
+}
+
+impl Speed {
+    /// From `taken` waves over `seconds` by `workers`; `None` before the
+    /// first wave is done (nothing to go by).
+    pub fn measured(taken: usize, seconds: f64, workers: usize) -> Option<Speed> {
+        (taken > 0 && workers > 0)
+            .then(|| Speed { seconds_per_wave: seconds * workers as f64 / taken as f64, workers })
+    }
+
+    fn waves_per_second(&self) -> f64 {
+        self.workers as f64 / self.seconds_per_wave.max(1e-9)
+    }
+}
+
+/// Who may take another wave as a frame runs out. A taker whose next wave
+/// would still be rendering when the others have finished all the rest
+/// only makes the frame wait for it, so it is refused and takes no more:
+/// on the H100 machine a CPU rank beside the GPU's took 4 of 280 waves and
+/// made the frame 1.7x as long as the GPU's alone (BENCHMARKS.md). The
+/// fastest taker, and any not yet measured, is never refused, so every
+/// wave is taken.
+#[derive(Clone, Debug, Default)]
+pub struct Pace {
+    speeds: Vec<Option<Speed>>,
+}
+
+impl Pace {
+    /// No taker measured yet.
+    pub fn new(takers: usize) -> Self {
+        Pace { speeds: vec![None; takers] }
+    }
+
+    /// `taker`'s latest speed.
+    pub fn report(&mut self, taker: usize, speed: Option<Speed>) {
+        if let Some(slot) = self.speeds.get_mut(taker) {
+            *slot = speed.or(*slot);
+        }
+    }
+
+    /// Whether `taker` should take one of the `remaining` waves.
+    pub fn allows(&self, taker: usize, remaining: usize) -> bool {
+        let Some(Some(mine)) = self.speeds.get(taker).copied() else { return true };
+        let known = self.speeds.iter().flatten();
+        let fastest = known.clone().map(|s| s.seconds_per_wave).fold(f64::INFINITY, f64::min);
+        if mine.seconds_per_wave <= fastest {
+            return true;
+        }
+        // When the others would be done with the rest without this taker.
+        let others: f64 = known.map(Speed::waves_per_second).sum::<f64>() - mine.waves_per_second();
+        let others_done = remaining.saturating_sub(1) as f64 / others.max(1e-9);
+        mine.seconds_per_wave <= others_done
+    }
+}
+
 /// The waves of a frame rendered by this process alone.
 #[derive(Debug, Default)]
 pub struct LocalHandout {
@@ -104,5 +167,32 @@ mod tests {
         handout.begin(2);
         assert_eq!(handout.taken(), 0);
         assert_eq!((handout.next(), handout.next(), handout.next()), (Some(0), Some(1), None));
+    }
+
+    #[test]
+    fn a_slow_taker_is_refused_only_when_the_others_would_finish_first() {
+        // A GPU process (3 workers, 10 ms a wave each: 300 waves/s) and a
+        // CPU process (1 worker, 90 ms a wave).
+        let gpu = Speed::measured(30, 0.1, 3).unwrap();
+        let cpu = Speed::measured(1, 0.09, 1).unwrap();
+        assert!((gpu.seconds_per_wave - 0.01).abs() < 1e-12 && (cpu.seconds_per_wave - 0.09).abs() < 1e-12);
+        let mut pace = Pace::new(2);
+        assert!(pace.allows(1, 1) && pace.allows(0, 1), "not measured yet: never refused");
+        pace.report(0, Some(gpu));
+        pace.report(1, Some(cpu));
+        // 100 waves left: the GPU needs 0.33 s for them, the CPU 0.09 s for one.
+        assert!(pace.allows(1, 100));
+        // 20 left: the GPU is done in 0.063 s, before the CPU's wave.
+        assert!(!pace.allows(1, 20));
+        // The fastest always gets one, to the last.
+        assert!(pace.allows(0, 1) && pace.allows(0, 20));
+        // A report without a measure keeps the last one.
+        pace.report(1, None);
+        assert!(!pace.allows(1, 20));
+        // Equal takers are never refused.
+        let mut equal = Pace::new(3);
+        (0..3).for_each(|t| equal.report(t, Some(cpu)));
+        assert!((0..3).all(|t| equal.allows(t, 1)));
+        assert_eq!(Speed::measured(0, 1.0, 2), None);
     }
 }

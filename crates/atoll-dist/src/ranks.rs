@@ -23,7 +23,7 @@ use mpi::topology::{Color, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Threading;
 
-use crate::handout::{Joined, Joining, WaveHandout};
+use crate::handout::{Joined, Joining, Pace, Speed, WaveHandout};
 use crate::render::{DeviceReport, RingOrder, RingPeers};
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
@@ -168,8 +168,9 @@ impl Ranks {
         RankWaves {
             rank: self.rank(),
             size: self.size(),
-            waves: Arc::new(AtomicUsize::new(0)),
-            next: Arc::new(AtomicUsize::new(0)),
+            counter: Arc::new(Counter::default()),
+            workers: AtomicUsize::new(0),
+            started: Mutex::new(Instant::now()),
             taken_here: AtomicUsize::new(0),
             asking: Mutex::new(()),
             exhausted: AtomicBool::new(false),
@@ -282,25 +283,64 @@ fn bytemuck_floats(sums: &mut [glam::Vec3]) -> &mut [f32] {
 /// as soon as it asks: rank 0's devices take from its counter directly, the
 /// other ranks' send a request and wait for the answer (one at a time per
 /// rank). A thread on rank 0 answers the requests until every other rank
-/// has been told that none are left.
+/// has been told that none are left for it. Each request says how fast its
+/// rank renders, so that near the end a rank too slow to finish another
+/// wave before the others finish the rest is told to stop ([`Pace`]).
 pub struct RankWaves {
     rank: usize,
     size: usize,
-    waves: Arc<AtomicUsize>,
-    /// Rank 0: the next wave to hand out.
-    next: Arc<AtomicUsize>,
+    /// Rank 0: the waves, and who may take them.
+    counter: Arc<Counter>,
+    /// This process's workers (devices or rings taking waves).
+    workers: AtomicUsize,
+    /// When this frame's waves began.
+    started: Mutex<Instant>,
     /// Waves this process's devices took.
     taken_here: AtomicUsize,
     /// Other ranks: one request in flight, so answers come back in order.
     asking: Mutex<()>,
-    /// Other ranks: rank 0 said none are left.
+    /// No more waves for this rank.
     exhausted: AtomicBool,
     /// Rank 0: the thread answering the others.
     server: Mutex<Option<JoinHandle<()>>>,
 }
 
+/// Rank 0's count of a frame's waves.
+#[derive(Default)]
+struct Counter {
+    waves: AtomicUsize,
+    next: AtomicUsize,
+    pace: Mutex<Pace>,
+}
+
+impl Counter {
+    /// The next wave for `rank`, going at `speed`; `None` when all are
+    /// taken or `rank` should take no more.
+    fn take(&self, rank: usize, speed: Option<Speed>) -> Option<usize> {
+        let waves = self.waves.load(Ordering::Relaxed);
+        let mut pace = self.pace.lock().unwrap_or_else(|p| p.into_inner());
+        pace.report(rank, speed);
+        let remaining = waves.saturating_sub(self.next.load(Ordering::Relaxed));
+        if remaining == 0 || !pace.allows(rank, remaining) {
+            return None;
+        }
+        let i = self.next.fetch_add(1, Ordering::Relaxed);
+        (i < waves).then_some(i)
+    }
+}
+
 impl RankWaves {
-    /// Rank ≠ 0: asks rank 0 for the next wave.
+    /// How fast this process has been taking waves this frame.
+    fn speed(&self) -> Option<Speed> {
+        let seconds = self.started.lock().unwrap_or_else(|p| p.into_inner()).elapsed().as_secs_f64();
+        Speed::measured(
+            self.taken_here.load(Ordering::Relaxed),
+            seconds,
+            self.workers.load(Ordering::Relaxed),
+        )
+    }
+
+    /// Rank ≠ 0: asks rank 0 for the next wave, saying how fast this rank goes.
     fn ask(&self) -> Option<usize> {
         let _one_at_a_time = self.asking.lock().unwrap_or_else(|p| p.into_inner());
         if self.exhausted.load(Ordering::Acquire) {
@@ -308,7 +348,11 @@ impl RankWaves {
         }
         let world = SimpleCommunicator::world();
         let root = world.process_at_rank(0);
-        root.send_with_tag(&(self.rank as i32), TAKE);
+        let request = match self.speed() {
+            Some(speed) => [speed.seconds_per_wave, speed.workers as f64],
+            None => [-1.0, 0.0],
+        };
+        root.send_with_tag(&request[..], TAKE);
         let answer = loop {
             if let Some((message, _)) = root.immediate_matched_probe_with_tag(GIVE) {
                 break message.matched_receive::<i64>().0;
@@ -324,20 +368,26 @@ impl RankWaves {
 }
 
 /// Rank 0's answering thread: one answer per request, until each of the
-/// other `ranks - 1` has been told that no wave is left.
-fn serve(next: Arc<AtomicUsize>, waves: Arc<AtomicUsize>, ranks: usize) {
+/// other `ranks - 1` has been told that no wave is left for it.
+fn serve(counter: Arc<Counter>, ranks: usize) {
     let world = SimpleCommunicator::world();
     let mut told_done = 0;
     while told_done + 1 < ranks {
-        let Some((message, status)) = world.any_process().immediate_matched_probe_with_tag(TAKE) else {
+        let Some(probed) = world.any_process().immediate_matched_probe_with_tag(TAKE) else {
             std::thread::sleep(POLL);
             continue;
         };
-        let _asker: i32 = message.matched_receive().0;
-        let i = next.fetch_add(1, Ordering::Relaxed);
-        let answer = if i < waves.load(Ordering::Relaxed) { i as i64 } else { -1 };
+        let (request, status) = probed.matched_receive_vec::<f64>();
+        let speed = match request[..] {
+            [seconds_per_wave, workers] if seconds_per_wave > 0.0 => {
+                Some(Speed { seconds_per_wave, workers: workers as usize })
+            }
+            _ => None,
+        };
+        let asker = status.source_rank();
+        let answer = counter.take(asker as usize, speed).map_or(-1, |i| i as i64);
         told_done += (answer < 0) as usize;
-        world.process_at_rank(status.source_rank()).send_with_tag(&answer, GIVE);
+        world.process_at_rank(asker).send_with_tag(&answer, GIVE);
     }
 }
 
@@ -363,27 +413,36 @@ impl WaveHandout for RankWaves {
                 samples.0, samples.1
             ));
         }
+        self.workers.store(me.workers, Ordering::Relaxed);
         Ok(Joined { workers: workers as usize, wave_size })
     }
 
     fn begin(&self, waves: usize) {
-        self.waves.store(waves, Ordering::Relaxed);
-        self.next.store(0, Ordering::Relaxed);
+        let counter = &self.counter;
+        counter.waves.store(waves, Ordering::Relaxed);
+        counter.next.store(0, Ordering::Relaxed);
+        *counter.pace.lock().unwrap_or_else(|p| p.into_inner()) = Pace::new(self.size);
         self.taken_here.store(0, Ordering::Relaxed);
         self.exhausted.store(false, Ordering::Relaxed);
         if self.rank == 0 && self.size > 1 {
-            let (next, waves, ranks) = (self.next.clone(), self.waves.clone(), self.size);
+            let (counter, ranks) = (self.counter.clone(), self.size);
             *self.server.lock().unwrap_or_else(|p| p.into_inner()) =
-                Some(std::thread::spawn(move || serve(next, waves, ranks)));
+                Some(std::thread::spawn(move || serve(counter, ranks)));
         }
         // Nobody asks before rank 0 has reset its counter and listens.
         SimpleCommunicator::world().barrier();
+        *self.started.lock().unwrap_or_else(|p| p.into_inner()) = Instant::now();
     }
 
     fn next(&self) -> Option<usize> {
         let wave = if self.rank == 0 {
-            let i = self.next.fetch_add(1, Ordering::Relaxed);
-            (i < self.waves.load(Ordering::Relaxed)).then_some(i)
+            // Once refused, rank 0's devices take no more either.
+            let wave = match self.exhausted.load(Ordering::Acquire) {
+                true => None,
+                false => self.counter.take(0, self.speed()),
+            };
+            self.exhausted.store(wave.is_none(), Ordering::Release);
+            wave
         } else {
             self.ask()
         };
@@ -394,8 +453,8 @@ impl WaveHandout for RankWaves {
     }
 
     fn taken(&self) -> usize {
-        let counter = if self.rank == 0 { &self.next } else { &self.taken_here };
-        counter.load(Ordering::Relaxed).min(self.waves.load(Ordering::Relaxed))
+        let counter = if self.rank == 0 { &self.counter.next } else { &self.taken_here };
+        counter.load(Ordering::Relaxed).min(self.counter.waves.load(Ordering::Relaxed))
     }
 
     fn end(&self) {
