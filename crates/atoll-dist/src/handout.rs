@@ -24,8 +24,8 @@ pub trait WaveHandout: Sync {
     /// frame (each process then stops instead of waiting for the others
     /// forever).
     fn join(&self, me: Joining) -> Result<Joined, DeviceError>;
-    /// The frame has `waves` waves.
-    fn begin(&self, waves: usize);
+    /// The frame has `waves` waves; `pacing` says how this process takes them.
+    fn begin(&self, waves: usize, pacing: Pacing);
     /// The next wave to render, `None` when all are taken.
     fn next(&self) -> Option<usize>;
     /// Waves taken so far: by every process where this one hands them out,
@@ -85,40 +85,69 @@ impl Speed {
 /// would still be rendering when the others have finished all the rest
 /// only makes the frame wait for it, so it is refused and takes no more:
 /// on the H100 machine a CPU rank beside the GPU's took 4 of 280 waves and
-/// made the frame 1.7x as long as the GPU's alone (BENCHMARKS.md). The
-/// fastest taker, and any not yet measured, is never refused, so every
-/// wave is taken.
+/// made the frame 1.7x as long as the GPU's alone (BENCHMARKS.md). Only
+/// takers still taking count as the others, and a taker is never refused
+/// when none of them is measured yet, nor when it is the fastest: so the
+/// last takers left always get the remaining waves.
 #[derive(Clone, Debug, Default)]
 pub struct Pace {
     speeds: Vec<Option<Speed>>,
+    /// Per taker, seconds until it is done with the waves it holds.
+    backlogs: Vec<f64>,
+    refused: Vec<bool>,
 }
 
 impl Pace {
     /// No taker measured yet.
     pub fn new(takers: usize) -> Self {
-        Pace { speeds: vec![None; takers] }
+        Pace { speeds: vec![None; takers], backlogs: vec![0.0; takers], refused: vec![false; takers] }
     }
 
-    /// `taker`'s latest speed.
-    pub fn report(&mut self, taker: usize, speed: Option<Speed>) {
-        if let Some(slot) = self.speeds.get_mut(taker) {
+    /// `taker`'s latest speed, and how long it will take to render the
+    /// waves it holds.
+    pub fn report(&mut self, taker: usize, speed: Option<Speed>, backlog_seconds: f64) {
+        if let (Some(slot), Some(backlog)) = (self.speeds.get_mut(taker), self.backlogs.get_mut(taker)) {
             *slot = speed.or(*slot);
+            *backlog = backlog_seconds.max(0.0);
         }
     }
 
-    /// Whether `taker` should take one of the `remaining` waves.
-    pub fn allows(&self, taker: usize, remaining: usize) -> bool {
+    /// Whether `taker` may take one of the `remaining` waves; once refused,
+    /// it is refused for the rest of the frame.
+    pub fn allows(&mut self, taker: usize, remaining: usize) -> bool {
+        if self.refused.get(taker).copied().unwrap_or(false) {
+            return false;
+        }
         let Some(Some(mine)) = self.speeds.get(taker).copied() else { return true };
-        let known = self.speeds.iter().flatten();
-        let fastest = known.clone().map(|s| s.seconds_per_wave).fold(f64::INFINITY, f64::min);
-        if mine.seconds_per_wave <= fastest {
+        let others: Vec<Speed> = (0..self.speeds.len())
+            .filter(|&t| t != taker && !self.refused[t])
+            .filter_map(|t| self.speeds[t])
+            .collect();
+        let fastest = others.iter().map(|s| s.seconds_per_wave).fold(f64::INFINITY, f64::min);
+        if others.is_empty() || mine.seconds_per_wave <= fastest {
             return true;
         }
-        // When the others would be done with the rest without this taker.
-        let others: f64 = known.map(Speed::waves_per_second).sum::<f64>() - mine.waves_per_second();
-        let others_done = remaining.saturating_sub(1) as f64 / others.max(1e-9);
-        mine.seconds_per_wave <= others_done
+        // When the others still taking would be done with the rest, and
+        // when this taker would be, with one more wave after those it holds.
+        let rate: f64 = others.iter().map(Speed::waves_per_second).sum();
+        let others_done = remaining.saturating_sub(1) as f64 / rate;
+        let allowed = self.backlogs[taker] + mine.seconds_per_wave <= others_done;
+        self.refused[taker] = !allowed;
+        allowed
     }
+}
+
+/// How a process takes a frame's waves, for judging its speed from the
+/// waves it took ([`Speed`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Pacing {
+    /// Waves its workers hold at once: merging wave-fronts, a device takes
+    /// the next wave when its queue has room, long before the last is done,
+    /// so the waves taken run ahead of those rendered by this many.
+    pub in_flight: usize,
+    /// Its speed measured on the frame's first sample (`--warmup`), until
+    /// it has rendered waves of the frame itself.
+    pub warmed: Option<Speed>,
 }
 
 /// The waves of a frame rendered by this process alone.
@@ -133,7 +162,7 @@ impl WaveHandout for LocalHandout {
         Ok(Joined { workers: me.workers, wave_size: me.wave_size })
     }
 
-    fn begin(&self, waves: usize) {
+    fn begin(&self, waves: usize, _pacing: Pacing) {
         self.waves.store(waves, Ordering::Relaxed);
         self.next.store(0, Ordering::Relaxed);
     }
@@ -159,12 +188,12 @@ mod tests {
         let handout = LocalHandout::default();
         let me = Joining { ready: true, workers: 3, wave_size: 4096, samples: 64 };
         assert_eq!(handout.join(me).unwrap(), Joined { workers: 3, wave_size: 4096 });
-        handout.begin(5);
+        handout.begin(5, Pacing::default());
         let taken: Vec<_> = std::iter::from_fn(|| handout.next()).collect();
         assert_eq!(taken, vec![0, 1, 2, 3, 4]);
         assert_eq!(handout.next(), None);
         assert_eq!(handout.taken(), 5);
-        handout.begin(2);
+        handout.begin(2, Pacing::default());
         assert_eq!(handout.taken(), 0);
         assert_eq!((handout.next(), handout.next(), handout.next()), (Some(0), Some(1), None));
     }
@@ -178,21 +207,64 @@ mod tests {
         assert!((gpu.seconds_per_wave - 0.01).abs() < 1e-12 && (cpu.seconds_per_wave - 0.09).abs() < 1e-12);
         let mut pace = Pace::new(2);
         assert!(pace.allows(1, 1) && pace.allows(0, 1), "not measured yet: never refused");
-        pace.report(0, Some(gpu));
-        pace.report(1, Some(cpu));
+        pace.report(0, Some(gpu), 0.0);
+        pace.report(1, Some(cpu), 0.0);
         // 100 waves left: the GPU needs 0.33 s for them, the CPU 0.09 s for one.
         assert!(pace.allows(1, 100));
+        // Not when it still holds 0.3 s of waves.
+        pace.report(1, Some(cpu), 0.3);
+        let mut holding = pace.clone();
+        assert!(!holding.allows(1, 100));
+        // A report without a measure keeps the last speed.
+        pace.report(1, None, 0.0);
         // 20 left: the GPU is done in 0.063 s, before the CPU's wave.
         assert!(!pace.allows(1, 20));
+        assert!(!pace.allows(1, 100), "refused for the rest of the frame");
         // The fastest always gets one, to the last.
         assert!(pace.allows(0, 1) && pace.allows(0, 20));
-        // A report without a measure keeps the last one.
-        pace.report(1, None);
-        assert!(!pace.allows(1, 20));
         // Equal takers are never refused.
         let mut equal = Pace::new(3);
-        (0..3).for_each(|t| equal.report(t, Some(cpu)));
+        (0..3).for_each(|t| equal.report(t, Some(cpu), 0.0));
         assert!((0..3).all(|t| equal.allows(t, 1)));
         assert_eq!(Speed::measured(0, 1.0, 2), None);
+    }
+
+    /// Takers of nearly equal, changing speeds ask as they free up, each
+    /// refused when it looks slower: every wave must still be taken.
+    #[test]
+    fn every_wave_is_taken_whoever_is_refused() {
+        for seed in 0..200u64 {
+            let mut random = seed.wrapping_mul(0x9e37_79b9_7f4a_7c15) | 1;
+            let mut next_random = move || {
+                random ^= random << 13;
+                random ^= random >> 7;
+                random ^= random << 17;
+                (random % 1000) as f64 / 1000.0
+            };
+            let takers = 2 + (seed % 4) as usize;
+            let waves = 10 + (seed % 50) as usize;
+            let base: Vec<f64> = (0..takers).map(|_| 0.01 + 0.1 * next_random()).collect();
+            let mut pace = Pace::new(takers);
+            let (mut free_at, mut taken, mut done) =
+                (vec![0.0f64; takers], vec![0usize; takers], vec![false; takers]);
+            let mut handed = 0;
+            while handed < waves && done.iter().any(|d| !d) {
+                // The next free taker asks, with its speed so far (noisy).
+                let t = (0..takers)
+                    .filter(|&t| !done[t])
+                    .min_by(|&a, &b| free_at[a].total_cmp(&free_at[b]))
+                    .unwrap();
+                let speed = Speed::measured(taken[t], free_at[t] * (0.8 + 0.4 * next_random()), 1);
+                pace.report(t, speed, base[t] * next_random());
+                if pace.allows(t, waves - handed) {
+                    handed += 1;
+                    taken[t] += 1;
+                    free_at[t] += base[t];
+                } else {
+                    done[t] = true;
+                }
+            }
+            assert_eq!(handed, waves, "seed {seed}: waves left untaken");
+        }
     }
 }

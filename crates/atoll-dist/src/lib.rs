@@ -31,7 +31,7 @@ pub mod spatial;
 mod vote;
 pub mod work;
 
-pub use handout::{Joined, Joining, LocalHandout, WaveHandout};
+pub use handout::{Joined, Joining, LocalHandout, Pace, Pacing, Speed, WaveHandout};
 pub use partition::{
     min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
     Strategy,

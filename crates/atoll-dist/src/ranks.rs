@@ -23,7 +23,7 @@ use mpi::topology::{Color, SimpleCommunicator};
 use mpi::traits::*;
 use mpi::Threading;
 
-use crate::handout::{Joined, Joining, Pace, Speed, WaveHandout};
+use crate::handout::{Joined, Joining, Pace, Pacing, Speed, WaveHandout};
 use crate::render::{DeviceReport, RingOrder, RingPeers};
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
@@ -171,6 +171,7 @@ impl Ranks {
             counter: Arc::new(Counter::default()),
             workers: AtomicUsize::new(0),
             started: Mutex::new(Instant::now()),
+            pacing: Mutex::new(Pacing::default()),
             taken_here: AtomicUsize::new(0),
             asking: Mutex::new(()),
             exhausted: AtomicBool::new(false),
@@ -295,6 +296,8 @@ pub struct RankWaves {
     workers: AtomicUsize,
     /// When this frame's waves began.
     started: Mutex<Instant>,
+    /// How this process takes waves (for its speed).
+    pacing: Mutex<Pacing>,
     /// Waves this process's devices took.
     taken_here: AtomicUsize,
     /// Other ranks: one request in flight, so answers come back in order.
@@ -314,12 +317,13 @@ struct Counter {
 }
 
 impl Counter {
-    /// The next wave for `rank`, going at `speed`; `None` when all are
-    /// taken or `rank` should take no more.
-    fn take(&self, rank: usize, speed: Option<Speed>) -> Option<usize> {
+    /// The next wave for `rank`, going at `speed` with `backlog` seconds of
+    /// waves in hand; `None` when all are taken or `rank` should take no more.
+    fn take(&self, rank: usize, (speed, backlog): (Option<Speed>, f64)) -> Option<usize> {
         let waves = self.waves.load(Ordering::Relaxed);
         let mut pace = self.pace.lock().unwrap_or_else(|p| p.into_inner());
-        pace.report(rank, speed);
+        // (A refusal is final: the rank is told none are left.)
+        pace.report(rank, speed, backlog);
         let remaining = waves.saturating_sub(self.next.load(Ordering::Relaxed));
         if remaining == 0 || !pace.allows(rank, remaining) {
             return None;
@@ -330,14 +334,20 @@ impl Counter {
 }
 
 impl RankWaves {
-    /// How fast this process has been taking waves this frame.
-    fn speed(&self) -> Option<Speed> {
+    /// How fast this process renders: from the waves of this frame it has
+    /// rendered (those taken, less those its devices may still hold), else
+    /// from its warm-up; and the seconds it still needs for the waves it
+    /// holds at that speed.
+    fn speed(&self) -> (Option<Speed>, f64) {
         let seconds = self.started.lock().unwrap_or_else(|p| p.into_inner()).elapsed().as_secs_f64();
-        Speed::measured(
-            self.taken_here.load(Ordering::Relaxed),
-            seconds,
-            self.workers.load(Ordering::Relaxed),
-        )
+        let pacing = *self.pacing.lock().unwrap_or_else(|p| p.into_inner());
+        let taken = self.taken_here.load(Ordering::Relaxed);
+        let workers = self.workers.load(Ordering::Relaxed);
+        let speed =
+            Speed::measured(taken.saturating_sub(pacing.in_flight), seconds, workers).or(pacing.warmed);
+        let backlog =
+            speed.map_or(0.0, |s| taken as f64 * s.seconds_per_wave / s.workers.max(1) as f64 - seconds);
+        (speed, backlog.max(0.0))
     }
 
     /// Rank ≠ 0: asks rank 0 for the next wave, saying how fast this rank goes.
@@ -349,8 +359,8 @@ impl RankWaves {
         let world = SimpleCommunicator::world();
         let root = world.process_at_rank(0);
         let request = match self.speed() {
-            Some(speed) => [speed.seconds_per_wave, speed.workers as f64],
-            None => [-1.0, 0.0],
+            (Some(speed), backlog) => [speed.seconds_per_wave, speed.workers as f64, backlog],
+            (None, _) => [-1.0, 0.0, 0.0],
         };
         root.send_with_tag(&request[..], TAKE);
         let answer = loop {
@@ -379,10 +389,10 @@ fn serve(counter: Arc<Counter>, ranks: usize) {
         };
         let (request, status) = probed.matched_receive_vec::<f64>();
         let speed = match request[..] {
-            [seconds_per_wave, workers] if seconds_per_wave > 0.0 => {
-                Some(Speed { seconds_per_wave, workers: workers as usize })
+            [seconds_per_wave, workers, backlog] if seconds_per_wave > 0.0 => {
+                (Some(Speed { seconds_per_wave, workers: workers as usize }), backlog)
             }
-            _ => None,
+            _ => (None, 0.0),
         };
         let asker = status.source_rank();
         let answer = counter.take(asker as usize, speed).map_or(-1, |i| i as i64);
@@ -417,7 +427,8 @@ impl WaveHandout for RankWaves {
         Ok(Joined { workers: workers as usize, wave_size })
     }
 
-    fn begin(&self, waves: usize) {
+    fn begin(&self, waves: usize, pacing: Pacing) {
+        *self.pacing.lock().unwrap_or_else(|p| p.into_inner()) = pacing;
         let counter = &self.counter;
         counter.waves.store(waves, Ordering::Relaxed);
         counter.next.store(0, Ordering::Relaxed);

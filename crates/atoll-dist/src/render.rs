@@ -24,7 +24,7 @@ use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Re
 use atoll_scene::Scene;
 use cudarc::driver::CudaEvent;
 
-use crate::handout::{Joining, LocalHandout, WaveHandout};
+use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
 use crate::vote::Vote;
 
 /// Where the scene goes: what each device holds and who it works with.
@@ -295,13 +295,13 @@ pub fn render_multi_with(
         wave_size: frame.options.wave_size,
         samples: frame.options.pixel_count() as u64 * frame.options.spp as u64,
     });
-    let Ready { prepared, prepare_seconds, shape } = ready?;
+    let Ready { prepared, prepare_seconds, shape, warmed } = ready?;
     let joined = joined?;
     // Every process cuts the same waves (only their sizes may differ from
     // what this process's devices would take alone).
     let cut = RenderOptions { wave_size: joined.wave_size, ..frame.options.clone() };
     let waves = work_units(&cut, joined.workers);
-    handout.begin(waves.len());
+    handout.begin(waves.len(), pacing(&frame.options, &waves, islands, warmed));
     let start = Instant::now();
     let reports = match remote {
         Some(link) => run_member(devices, &waves, shape, link, handout, progress),
@@ -338,6 +338,25 @@ struct Ready {
     prepared: Vec<PrepareStats>,
     prepare_seconds: f64,
     shape: RunShape,
+    /// Camera samples and seconds of the warm-up, if any.
+    warmed: Option<(u64, f64)>,
+}
+
+/// How this process takes `waves` with `workers` ([`Pacing`]): devices
+/// merging wave-fronts hold up to a queue's worth of them at once.
+fn pacing(options: &RenderOptions, waves: &[Wave], workers: usize, warmed: Option<(u64, f64)>) -> Pacing {
+    let samples: u64 = waves.iter().map(|w| w.pixel_count as u64).sum();
+    let per_wave = samples as f64 / waves.len().max(1) as f64;
+    let held = match options.merge_waves {
+        true => (options.wave_size as f64 / per_wave.max(1.0)).ceil() as usize + 1,
+        false => 1,
+    };
+    let warmed = warmed.and_then(|(samples, seconds)| {
+        let waves = samples as f64 / per_wave.max(1.0);
+        (waves > 0.0 && workers > 0)
+            .then(|| Speed { seconds_per_wave: seconds * workers as f64 / waves, workers })
+    });
+    Pacing { in_flight: workers * held, warmed }
 }
 
 /// Checks `layout` against `devices`, prepares them, picks the ring
@@ -395,22 +414,25 @@ fn ready_frame(
             cuda.time_stages(ring > 1);
         }
     }
+    let mut warmed = None;
     if warmup {
         // This process's own share of the first sample: warming up needs
         // no other process.
         let first: Vec<Wave> = warm_up_waves(&work_units(&frame.options, islands)).collect();
         let handout = LocalHandout::default();
-        let reports = match remote {
-            // Member 0 alone makes the ring's warm-up queues.
-            Some(link) => {
-                handout.begin(if link.member() == 0 { first.len() } else { 0 });
-                run_member(devices, &first, shape, link, &handout, &mut |_, _| {})?
-            }
-            None => {
-                handout.begin(first.len());
-                run_waves(devices, &first, shape, &handout, &mut |_, _| {})?
-            }
+        let warming = Instant::now();
+        // Member 0 alone makes a ring of processes' warm-up queues.
+        let mine = match remote {
+            Some(link) if link.member() != 0 => &first[..0],
+            _ => &first[..],
         };
+        handout.begin(mine.len(), Pacing::default());
+        let reports = match remote {
+            Some(link) => run_member(devices, mine, shape, link, &handout, &mut |_, _| {})?,
+            None => run_waves(devices, mine, shape, &handout, &mut |_, _| {})?,
+        };
+        let samples = mine.iter().map(|w| w.pixel_count as u64).sum();
+        warmed = Some((samples, warming.elapsed().as_secs_f64()));
         if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
             return Err(DeviceError::Other {
                 device: failed.name.clone(),
@@ -422,7 +444,7 @@ fn ready_frame(
             device.reset_frame();
         }
     }
-    Ok(Ready { prepared, prepare_seconds, shape })
+    Ok(Ready { prepared, prepare_seconds, shape, warmed })
 }
 
 /// How the devices of a frame work together.
