@@ -38,5 +38,5 @@ pub use partition::{
 };
 pub use render::{
     render_multi, render_multi_warmed, render_multi_with, DeviceReport, Layout, MultiOutput, RingOrder,
-    RingPeers, Shared, Transport,
+    RingPeers, RingPlace, Shared, Transport,
 };

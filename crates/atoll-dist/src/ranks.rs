@@ -24,7 +24,7 @@ use mpi::traits::*;
 use mpi::Threading;
 
 use crate::handout::{Joined, Joining, Pace, Pacing, Speed, WaveHandout};
-use crate::render::{DeviceReport, RingOrder, RingPeers};
+use crate::render::{DeviceReport, RingOrder, RingPeers, RingPlace};
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
 const TAKE: i32 = 701;
@@ -160,7 +160,8 @@ impl Ranks {
         let whole = island < self.size() / size.max(1);
         let color = if whole { Color::with_value(island as i32) } else { Color::undefined() };
         let comm = self.world.split_by_color(color)?;
-        Some(RankRing { comm, member: rank % size, size, island, order, steps: Cell::new(0) })
+        let place = RingPlace { size, member: rank % size, island, order };
+        Some(RankRing { comm, place, steps: Cell::new(0) })
     }
 
     /// The waves of the next frame, shared by every process.
@@ -186,11 +187,7 @@ impl Ranks {
 /// all-reduce over the ring's communicator.
 pub struct RankRing {
     comm: SimpleCommunicator,
-    member: usize,
-    size: usize,
-    /// Which ring of ranks this is.
-    island: usize,
-    order: RingOrder,
+    place: RingPlace,
     /// Steps taken: each one's messages carry its tag, so that a step's
     /// queue is never taken for another's.
     steps: Cell<i32>,
@@ -201,20 +198,8 @@ pub struct RankRing {
 const EMPTY_QUEUE: [u8; 1] = [0];
 
 impl RingPeers for RankRing {
-    fn size(&self) -> usize {
-        self.size
-    }
-
-    fn member(&self) -> usize {
-        self.member
-    }
-
-    fn order(&self) -> RingOrder {
-        self.order
-    }
-
-    fn island(&self) -> usize {
-        self.island
+    fn place(&self) -> RingPlace {
+        self.place
     }
 
     fn any(&self, mine: bool) -> (bool, Duration) {
@@ -235,8 +220,9 @@ impl RingPeers for RankRing {
         report.send_seconds += sending.elapsed().as_secs_f64();
         let bytes: &[u8] = if records.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&records) };
         report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
-        let next = self.comm.process_at_rank(((self.member + 1) % self.size) as i32);
-        let prev = self.comm.process_at_rank(((self.member + self.size - 1) % self.size) as i32);
+        let RingPlace { size, member, .. } = self.place;
+        let next = self.comm.process_at_rank(((member + 1) % size) as i32);
+        let prev = self.comm.process_at_rank(((member + size - 1) % size) as i32);
         let waited = Instant::now();
         let incoming: Vec<u8> = mpi::request::scope(|scope| {
             let sent = next.immediate_send_with_tag(scope, bytes, step);

@@ -283,7 +283,7 @@ pub fn render_multi_with(
     // Rings, or devices replicating: what takes waves. A ring of processes
     // counts once, at its member 0.
     let islands = match (layout, remote) {
-        (_, Some(link)) => (link.member() == 0) as usize,
+        (_, Some(link)) => (link.place().member == 0) as usize,
         (Layout::Replicate, None) => devices.len(),
         (Layout::Ring { islands, .. }, None) => *islands,
     };
@@ -423,7 +423,7 @@ fn ready_frame(
         let warming = Instant::now();
         // Member 0 alone makes a ring of processes' warm-up queues.
         let mine = match remote {
-            Some(link) if link.member() != 0 => &first[..0],
+            Some(link) if link.place().member != 0 => &first[..0],
             _ => &first[..],
         };
         handout.begin(mine.len(), Pacing::default());
@@ -472,8 +472,8 @@ fn run_member(
     let device = devices[0].as_mut();
     let mut report = DeviceReport {
         name: device.name(),
-        island: link.island(),
-        member: link.member(),
+        island: link.place().island,
+        member: link.place().member,
         ..Default::default()
     };
     let take = || handout.next().and_then(|i| waves.get(i));
@@ -567,16 +567,8 @@ fn run_waves(
 /// one process link through channels ([`RingLink`]); a ring whose members
 /// are processes links through MPI (`crate::ranks::RankRing`).
 pub trait RingPeers {
-    /// Members of the ring.
-    fn size(&self) -> usize;
-    /// This member's place in the ring (the scene part it holds).
-    fn member(&self) -> usize;
-    /// Where the ring's queues are made and shaded.
-    fn order(&self) -> RingOrder;
-    /// Which of several rings this is (islands).
-    fn island(&self) -> usize {
-        0
-    }
+    /// The ring, and this member's place in it.
+    fn place(&self) -> RingPlace;
     /// Blocks until every member has voted; true when any voted true. Also
     /// how long this member waited.
     fn any(&self, mine: bool) -> (bool, Duration);
@@ -584,6 +576,19 @@ pub trait RingPeers {
     /// member's in its place. An error means a neighbour is gone: the frame
     /// cannot finish.
     fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String>;
+}
+
+/// A ring member's place: its ring, and where in it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RingPlace {
+    /// Members of the ring.
+    pub size: usize,
+    /// This member's place in the ring (the scene part it holds).
+    pub member: usize,
+    /// Which of several rings this is (islands).
+    pub island: usize,
+    /// Where the ring's queues are made and shaded.
+    pub order: RingOrder,
 }
 
 /// Traces `queue` with `trace` on this device, passing it on between
@@ -603,10 +608,10 @@ fn cycle(
     trace: fn(&mut dyn Device),
     report: &mut DeviceReport,
 ) -> Result<(), String> {
-    let home = link.order() == RingOrder::Home;
-    for i in 0..link.size() {
+    let RingPlace { size, order, .. } = link.place();
+    for i in 0..size {
         trace(device);
-        if i + 1 == link.size() && !home {
+        if i + 1 == size && order != RingOrder::Home {
             break;
         }
         link.pass(device, queue, report)?;
@@ -661,16 +666,8 @@ struct PeerEvents {
 }
 
 impl RingPeers for RingLink<'_> {
-    fn size(&self) -> usize {
-        self.size
-    }
-
-    fn member(&self) -> usize {
-        self.member
-    }
-
-    fn order(&self) -> RingOrder {
-        self.order
+    fn place(&self) -> RingPlace {
+        RingPlace { size: self.size, member: self.member, island: 0, order: self.order }
     }
 
     fn any(&self, mine: bool) -> (bool, Duration) {
@@ -827,7 +824,7 @@ fn ring_loop<'w>(
     loop {
         // A device that failed takes no more work but keeps stepping (with
         // empty queues) so that the others are not left waiting for it.
-        let makes_queues = link.order() == RingOrder::Spread || link.member() == 0;
+        let makes_queues = link.place().order == RingOrder::Spread || link.place().member == 0;
         if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
         {
             if let Some(wave) = take() {

@@ -60,7 +60,9 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     };
     together(ranks, more, "open more wavefronts")?;
     let layout = match &ring {
-        Some((ring, part)) => Layout::Ring { parts: vec![part.clone()], islands: 1, order: ring.order() },
+        Some((ring, part)) => {
+            Layout::Ring { parts: vec![part.clone()], islands: 1, order: ring.place().order }
+        }
         None => layout,
     };
     if ranks.is_root() {
@@ -244,7 +246,7 @@ fn rank_ring(
         eprintln!("partition: {kind}");
         eprintln!("strategy: rings of {k} ranks ({} islands); parts {}", n / k, sizes.join(", "));
     }
-    let part = partition.parts[ring.member()].clone();
+    let part = partition.parts[ring.place().member].clone();
     Ok(Some((ring, part)))
 }
 
