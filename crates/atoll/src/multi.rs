@@ -446,7 +446,7 @@ fn describe(plan: &Plan, partition: Option<&Partition>, devices: usize) -> Strin
 }
 
 /// The false-colour view: by part (ring) or everything device 0's colour (replicate).
-fn write_ownership(
+pub fn write_ownership(
     scene: &Scene,
     options: &RenderOptions,
     partition: Option<&Partition>,

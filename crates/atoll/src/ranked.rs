@@ -14,7 +14,7 @@ use atoll_bvh::{part_bytes, ScenePart};
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::ranks::{RankRing, Ranks};
-use atoll_dist::{min_parts, render_multi_with, Layout, MultiOutput, RingPeers, Shared};
+use atoll_dist::{min_parts, render_multi_with, Layout, MultiOutput, Partition, RingPeers, Shared};
 use atoll_render::{Device, RenderOptions};
 use atoll_scene::Scene;
 
@@ -50,7 +50,7 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     let Frame { scene, mut options, output, load_seconds } =
         together(ranks, load_frame(&args), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
-        together(ranks, rank_devices(&args, &scene, &mut options), "open their devices")?;
+        together(ranks, rank_devices(ranks.is_root(), &args, &scene, &mut options), "open their devices")?;
     let ring = together(ranks, rank_ring(ranks, &args, &scene, &options, &mut devices), "plan rings")?;
     // (Every rank votes, whether it adds wavefronts or not.)
     let one_device = args.devices.as_ref().is_none_or(|d| d.0.len() == 1);
@@ -59,9 +59,19 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
         false => Ok(()),
     };
     together(ranks, more, "open more wavefronts")?;
+    let several = args.devices.as_ref().is_some_and(|d| d.0.len() > 1);
+    let ownership = match (ranks.is_root(), several, &args.ownership) {
+        // (Ranks with several devices: rank 0's own, written by `multi::setup`.)
+        (true, false, Some(path)) => {
+            multi::write_ownership(&scene, &options, ring.as_ref().map(|(_, p)| p), path)
+        }
+        _ => Ok(()),
+    };
+    together(ranks, ownership, "write the ownership view")?;
     let layout = match &ring {
-        Some((ring, part)) => {
-            Layout::Ring { parts: vec![part.clone()], islands: 1, order: ring.place().order }
+        Some((ring, partition)) => {
+            let part = partition.parts[ring.place().member].clone();
+            Layout::Ring { parts: vec![part], islands: 1, order: ring.place().order }
         }
         None => layout,
     };
@@ -121,6 +131,7 @@ struct RankDevices {
 }
 
 fn rank_devices(
+    root: bool,
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &mut RenderOptions,
@@ -128,7 +139,12 @@ fn rank_devices(
     match &args.devices {
         Some(DeviceList(specs)) if specs.len() > 1 => {
             set_waves_for_devices(args, specs, options);
-            let (devices, layout) = multi::setup(scene, options, &multi_args(args, specs))?;
+            // Rank 0 alone writes the ownership view.
+            let several = multi::MultiArgs {
+                ownership: args.ownership.as_deref().filter(|_| root),
+                ..multi_args(args, specs)
+            };
+            let (devices, layout) = multi::setup(scene, options, &several)?;
             let description = format!("{} devices", devices.len());
             Ok(RankDevices { devices, layout, description })
         }
@@ -164,7 +180,7 @@ fn add_wavefronts(
     Ok(())
 }
 
-/// The ring of ranks this rank belongs to and the part it holds, when
+/// The ring of ranks this rank belongs to and the partition of its parts, when
 /// `--ring-ranks` asks for rings or the scene does not fit the smallest
 /// rank's device (`None`: every rank holds the whole scene, or plans its
 /// own `--devices`). Rings of ranks need one device per rank (`--device`,
@@ -176,7 +192,7 @@ fn rank_ring(
     scene: &Arc<Scene>,
     options: &RenderOptions,
     devices: &mut Vec<Box<dyn Device>>,
-) -> Result<Option<(RankRing, ScenePart)>, CliError> {
+) -> Result<Option<(RankRing, Partition)>, CliError> {
     // What every rank must agree on, gathered first (collectives), so that
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
@@ -246,8 +262,7 @@ fn rank_ring(
         eprintln!("partition: {kind}");
         eprintln!("strategy: rings of {k} ranks ({} islands); parts {}", n / k, sizes.join(", "));
     }
-    let part = partition.parts[ring.place().member].clone();
-    Ok(Some((ring, part)))
+    Ok(Some((ring, partition)))
 }
 
 /// This rank's rows of the device table, each led by the rank.

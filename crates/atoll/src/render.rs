@@ -122,7 +122,7 @@ pub struct RenderArgs {
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "placement")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.
-    #[arg(long, value_name = "IMAGE", requires = "devices")]
+    #[arg(long, value_name = "IMAGE", requires = "placement")]
     pub ownership: Option<PathBuf>,
     /// Random seed; different seeds give independent images.
     #[arg(long, default_value_t = 0)]

@@ -216,11 +216,14 @@ fn rings_of_ranks_render_the_image_of_one_process() {
     assert!(alone.status.success(), "{}", text(&alone.stderr));
 
     // Four ranks, rings of two: two islands sharing the waves.
-    let args = [&scene[..], &["--device", "cpu", "--threads", "1", "--ring-ranks", "2"]].concat();
+    let args =
+        [&scene[..], &["--device", "cpu", "--threads", "1", "--ring-ranks", "2", "--ownership", "own.png"]]
+            .concat();
     let out = mpirun(&dir, &[(4, &args)], "rings.exr");
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stdout}{stderr}");
     assert!(stderr.contains("strategy: rings of 2 ranks (2 islands)"), "{stderr}");
+    assert!(stderr.contains("ownership view: own.png") && dir.join("own.png").exists(), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "rings.exr");
     let rows = table(&stdout);
     assert_eq!(rows.len(), 4, "{stdout}");
