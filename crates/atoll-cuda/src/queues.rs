@@ -7,10 +7,10 @@
 //! read-back, a write) and forgets it when a kernel may change it; a
 //! read-back happens only when the integrator asks ([`Queues::len`]).
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 
 use atoll_render::{Queue, RayRecord};
-use cudarc::driver::CudaSlice;
+use cudarc::driver::{CudaSlice, DevicePtrMut, PinnedHostSlice};
 
 use crate::error::CudaError;
 use crate::gpu::Gpu;
@@ -24,6 +24,25 @@ pub fn queue_bytes(capacity: u32) -> u64 {
     // before the strategy is known to the device), the hit references of
     // closest-hit tracing, three counters and the sent-bytes counter.
     capacity.max(1) as u64 * (4 * record + std::mem::size_of::<HitRef>() as u64) + 3 * 4 + 8
+}
+
+/// `staging`, grown to hold at least `records` records.
+fn staged<'a>(
+    staging: &'a mut Option<PinnedHostSlice<GpuRecord>>,
+    gpu: &Gpu,
+    records: usize,
+) -> Result<&'a mut PinnedHostSlice<GpuRecord>, CudaError> {
+    if staging.as_ref().is_none_or(|s| s.len() < records) {
+        // Room for half as much again: queues grow in waves.
+        let len = records + records / 2;
+        // SAFETY: only the first records copied in are ever read. Not
+        // write-combined (cudarc's `alloc_pinned`): the host reads it.
+        let pinned = unsafe { gpu.ctx.alloc_pinned_with_flags::<GpuRecord>(len, 0) }.map_err(
+            CudaError::driver(format!("{}: allocating {len} records of page-locked memory", gpu.label())),
+        )?;
+        *staging = Some(pinned);
+    }
+    Ok(staging.as_mut().expect("allocated above"))
 }
 
 /// The path and shadow queues of one device.
@@ -48,6 +67,11 @@ pub struct Queues {
     /// Host copies of the counters when known (`None`: only the device knows).
     path_len: Cell<Option<u32>>,
     shadow_len: Cell<Option<u32>>,
+    /// Page-locked host memory that queues read back or written go
+    /// through (allocated on first use: only rings through the host and
+    /// rings of processes need it). Copies from pageable memory are staged
+    /// by the driver at a fraction of the bus speed.
+    staging: RefCell<Option<PinnedHostSlice<GpuRecord>>>,
 }
 
 impl Queues {
@@ -76,6 +100,7 @@ impl Queues {
             sent_bytes: gpu.stream.alloc_zeros(1).map_err(CudaError::driver(what("sent counter")))?,
             path_len: Cell::new(Some(0)),
             shadow_len: Cell::new(Some(0)),
+            staging: RefCell::new(None),
         })
     }
 
@@ -107,6 +132,7 @@ impl Queues {
             .map_err(CudaError::driver(context()))?;
         grown.path_len.set(self.path_len.get());
         grown.shadow_len.set(self.shadow_len.get());
+        grown.staging = self.staging.take().into();
         *self = grown;
         Ok(())
     }
@@ -192,11 +218,13 @@ impl Queues {
             Queue::Paths => &self.paths,
             Queue::Shadows => &self.shadows,
         };
-        let records = gpu
-            .stream
-            .clone_dtoh(&buffer.slice(0..n))
-            .map_err(CudaError::driver(format!("{}: reading the {queue:?} queue", gpu.label())))?;
-        Ok(bytemuck::allocation::cast_vec(records))
+        let context = || format!("{}: reading the {queue:?} queue", gpu.label());
+        let mut staging = self.staging.borrow_mut();
+        let pinned = staged(&mut staging, gpu, n)?;
+        gpu.stream.memcpy_dtoh(&buffer.slice(0..n), pinned).map_err(CudaError::driver(context()))?;
+        // (Waits for the copy.)
+        let host = pinned.as_slice().map_err(CudaError::driver(context()))?;
+        Ok(bytemuck::cast_slice(&host[..n]).to_vec())
     }
 
     /// Replaces the queue's records (growing the queues when needed).
@@ -210,12 +238,23 @@ impl Queues {
             Queue::Shadows => (&mut self.shadows, &mut self.shadow_count),
         };
         if n > 0 {
-            let device: &[GpuRecord] = bytemuck::cast_slice(records);
-            gpu.stream
-                .memcpy_htod(device, &mut buffer.slice_mut(0..n as usize))
-                .map_err(CudaError::driver(context()))?;
+            let mut staging = self.staging.borrow_mut();
+            let pinned = staged(&mut staging, gpu, n as usize)?;
+            // (Waits for earlier copies out of it.)
+            let host = pinned.as_mut_slice().map_err(CudaError::driver(context()))?;
+            host[..n as usize].copy_from_slice(bytemuck::cast_slice(records));
+            let (device, _written) = buffer.device_ptr_mut(&gpu.stream);
+            // SAFETY: `device` holds at least `n` records (ensure_capacity),
+            // and the pinned memory is not touched again before the stream
+            // is synchronised below.
+            unsafe {
+                cudarc::driver::result::memcpy_htod_async(device, &host[..n as usize], gpu.stream.cu_stream())
+            }
+            .map_err(CudaError::driver(context()))?;
         }
         gpu.stream.memcpy_htod(&[n], counter).map_err(CudaError::driver(context()))?;
+        // The staging memory may be rewritten as soon as this returns.
+        gpu.stream.synchronize().map_err(CudaError::driver(context()))?;
         self.set_known_len(queue, Some(n));
         Ok(())
     }
