@@ -10,7 +10,7 @@
 use std::cell::{Cell, RefCell};
 
 use atoll_render::{Queue, RayRecord};
-use cudarc::driver::{CudaSlice, DevicePtrMut, PinnedHostSlice};
+use cudarc::driver::{CudaSlice, DevicePtr, DevicePtrMut, PinnedHostSlice};
 
 use crate::error::CudaError;
 use crate::gpu::Gpu;
@@ -220,10 +220,15 @@ impl Queues {
         };
         let context = || format!("{}: reading the {queue:?} queue", gpu.label());
         let mut staging = self.staging.borrow_mut();
-        let pinned = staged(&mut staging, gpu, n)?;
-        gpu.stream.memcpy_dtoh(&buffer.slice(0..n), pinned).map_err(CudaError::driver(context()))?;
-        // (Waits for the copy.)
-        let host = pinned.as_slice().map_err(CudaError::driver(context()))?;
+        // (Waits for earlier copies through it.)
+        let host = staged(&mut staging, gpu, n)?.as_mut_slice().map_err(CudaError::driver(context()))?;
+        let (device, _read) = buffer.device_ptr(&gpu.stream);
+        // SAFETY: `host` and the queue both hold at least `n` records
+        // (cudarc's own copy would take the staging memory's length), and
+        // the stream is synchronised before `host` is read.
+        unsafe { cudarc::driver::result::memcpy_dtoh_async(&mut host[..n], device, gpu.stream.cu_stream()) }
+            .map_err(CudaError::driver(context()))?;
+        gpu.stream.synchronize().map_err(CudaError::driver(context()))?;
         Ok(bytemuck::cast_slice(&host[..n]).to_vec())
     }
 
