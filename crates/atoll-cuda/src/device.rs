@@ -729,15 +729,16 @@ impl Device for CudaDevice {
         }) as usize
     }
 
-    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+        into.clear();
         if self.errors.is_set() {
-            return Vec::new();
+            return;
         }
-        let Some(r) = &self.resident else { return Vec::new() };
-        r.queues.read(&self.gpu, queue).unwrap_or_else(|e| {
+        let Some(r) = &self.resident else { return };
+        if let Err(e) = r.queues.read(&self.gpu, queue, into) {
             self.errors.set(format!("{} read_queue: {e}", self.gpu.label()));
-            Vec::new()
-        })
+            into.clear();
+        }
     }
 
     fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {

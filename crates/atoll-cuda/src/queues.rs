@@ -208,11 +208,12 @@ impl Queues {
         self.path_len.set(None);
     }
 
-    /// The queue's records, copied to the host.
-    pub fn read(&self, gpu: &Gpu, queue: Queue) -> Result<Vec<RayRecord>, CudaError> {
+    /// The queue's records, copied into `into` (on the host).
+    pub fn read(&self, gpu: &Gpu, queue: Queue, into: &mut Vec<RayRecord>) -> Result<(), CudaError> {
+        into.clear();
         let n = self.len(gpu, queue)? as usize;
         if n == 0 {
-            return Ok(Vec::new());
+            return Ok(());
         }
         let buffer = match queue {
             Queue::Paths => &self.paths,
@@ -229,7 +230,8 @@ impl Queues {
         unsafe { cudarc::driver::result::memcpy_dtoh_async(&mut host[..n], device, gpu.stream.cu_stream()) }
             .map_err(CudaError::driver(context()))?;
         gpu.stream.synchronize().map_err(CudaError::driver(context()))?;
-        Ok(bytemuck::cast_slice(&host[..n]).to_vec())
+        into.extend_from_slice(bytemuck::cast_slice(&host[..n]));
+        Ok(())
     }
 
     /// Replaces the queue's records (growing the queues when needed).

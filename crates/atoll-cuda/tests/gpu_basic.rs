@@ -117,13 +117,34 @@ fn queues_round_trip_and_grow_keeping_contents() {
     q.set_known_len(Queue::Paths, None);
     q.set_known_len(Queue::Shadows, None);
     assert_eq!(q.len(&gpu, Queue::Paths).unwrap(), 50);
-    assert_eq!(q.read(&gpu, Queue::Paths).unwrap(), paths);
+    assert_eq!(
+        {
+            let mut read = Vec::new();
+            q.read(&gpu, Queue::Paths, &mut read).unwrap();
+            read
+        },
+        paths
+    );
     // Writing more than the capacity grows every queue and keeps the other one.
     let many: Vec<RayRecord> = (0..1000).map(record).collect();
     q.write(&gpu, Queue::Paths, &many).unwrap();
     assert!(q.capacity >= 1000);
-    assert_eq!(q.read(&gpu, Queue::Paths).unwrap(), many);
-    assert_eq!(q.read(&gpu, Queue::Shadows).unwrap(), shadows);
+    assert_eq!(
+        {
+            let mut read = Vec::new();
+            q.read(&gpu, Queue::Paths, &mut read).unwrap();
+            read
+        },
+        many
+    );
+    assert_eq!(
+        {
+            let mut read = Vec::new();
+            q.read(&gpu, Queue::Shadows, &mut read).unwrap();
+            read
+        },
+        shadows
+    );
     q.clear(&gpu, Queue::Shadows).unwrap();
     q.set_known_len(Queue::Shadows, None);
     assert_eq!(q.len(&gpu, Queue::Shadows).unwrap(), 0);

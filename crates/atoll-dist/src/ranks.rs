@@ -8,7 +8,7 @@
 //! Device threads ask for waves themselves, so MPI must allow calls from
 //! any thread (`MPI_THREAD_MULTIPLE`; Open MPI 4.1 gives it).
 
-use std::cell::Cell;
+use std::cell::{Cell, RefCell};
 use std::mem::size_of;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -16,6 +16,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use atoll_render::{Device, DeviceError, Film, Queue, RayRecord};
+use bytemuck::Zeroable;
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::Universe;
@@ -161,7 +162,13 @@ impl Ranks {
         let color = if whole { Color::with_value(island as i32) } else { Color::undefined() };
         let comm = self.world.split_by_color(color)?;
         let place = RingPlace { size, member: rank % size, island, order };
-        Some(RankRing { comm, place, steps: Cell::new(0) })
+        Some(RankRing {
+            comm,
+            place,
+            steps: Cell::new(0),
+            outgoing: RefCell::default(),
+            incoming: RefCell::default(),
+        })
     }
 
     /// The waves of the next frame, shared by every process.
@@ -191,6 +198,9 @@ pub struct RankRing {
     /// Steps taken: each one's messages carry its tag, so that a step's
     /// queue is never taken for another's.
     steps: Cell<i32>,
+    /// The queue going out and the one coming in, kept from step to step.
+    outgoing: RefCell<Vec<RayRecord>>,
+    incoming: RefCell<Vec<RayRecord>>,
 }
 
 /// An empty queue still goes as one byte: Open MPI reads the address of an
@@ -215,33 +225,38 @@ impl RingPeers for RankRing {
     fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
         let step = self.steps.get();
         self.steps.set((step + 1) % RING_TAGS);
+        let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());
         let sending = Instant::now();
-        let records = device.read_queue(queue);
+        device.read_queue_into(queue, &mut outgoing);
         report.send_seconds += sending.elapsed().as_secs_f64();
-        let bytes: &[u8] = if records.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&records) };
-        report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+        let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };
+        report.bytes_sent += std::mem::size_of_val(outgoing.as_slice()) as u64;
         let RingPlace { size, member, .. } = self.place;
         let next = self.comm.process_at_rank(((member + 1) % size) as i32);
         let prev = self.comm.process_at_rank(((member + size - 1) % size) as i32);
         let waited = Instant::now();
-        let incoming: Vec<u8> = mpi::request::scope(|scope| {
+        mpi::request::scope(|scope| {
             let sent = next.immediate_send_with_tag(scope, bytes, step);
-            let incoming = loop {
+            let (message, status) = loop {
                 if let Some(probed) = prev.immediate_matched_probe_with_tag(step) {
-                    break probed.matched_receive_vec::<u8>().0;
+                    break probed;
                 }
                 std::thread::sleep(POLL);
             };
+            // Received straight into the records (their allocation kept
+            // from step to step); one byte is an empty queue.
+            let length = status.count(u8::equivalent_datatype()) as usize;
+            incoming.resize(length / size_of::<RayRecord>(), RayRecord::zeroed());
+            match incoming.is_empty() {
+                true => drop(message.matched_receive_into(&mut [0u8][..])),
+                false => drop(
+                    message.matched_receive_into(bytemuck::cast_slice_mut::<RayRecord, u8>(&mut incoming)),
+                ),
+            }
             sleep_until_done(sent);
-            incoming
         });
         report.wait_seconds += waited.elapsed().as_secs_f64();
-        let records: Vec<RayRecord> = if incoming.len() < size_of::<RayRecord>() {
-            Vec::new()
-        } else {
-            bytemuck::pod_collect_to_vec(&incoming)
-        };
-        device.write_queue(queue, &records);
+        device.write_queue(queue, &incoming);
         Ok(())
     }
 }

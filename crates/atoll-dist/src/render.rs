@@ -524,6 +524,7 @@ fn run_waves(
                     slots: &slots[island],
                     events: events.get(island * ring..(island + 1) * ring).unwrap_or(&[]),
                     steps: Cell::new(0),
+                    spare: Cell::default(),
                     vote,
                     order,
                 };
@@ -653,6 +654,9 @@ struct RingLink<'a> {
     events: &'a [PeerEvents],
     /// Steps taken (the parity picks the events).
     steps: Cell<usize>,
+    /// The last queue that came in through the host, its allocation kept
+    /// for the next one going out.
+    spare: Cell<Vec<RayRecord>>,
     vote: &'a Vote,
     order: RingOrder,
 }
@@ -680,7 +684,9 @@ impl RingPeers for RingLink<'_> {
         let handover = match self.transport {
             Transport::Host => {
                 let sending = Instant::now();
-                let records = device.read_queue(queue);
+                // Into the allocation of the queue that came in last.
+                let mut records = self.spare.take();
+                device.read_queue_into(queue, &mut records);
                 report.send_seconds += sending.elapsed().as_secs_f64();
                 report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
                 Handover::Records(records)
@@ -696,7 +702,10 @@ impl RingPeers for RingLink<'_> {
             self.from_prev.recv().map_err(|_| "the previous device of the ring stopped".to_string())?;
         report.wait_seconds += waited.elapsed().as_secs_f64();
         match incoming {
-            Handover::Records(records) => device.write_queue(queue, &records),
+            Handover::Records(records) => {
+                device.write_queue(queue, &records);
+                self.spare.replace(records);
+            }
             Handover::Copied => {
                 let prev = (self.member + self.size - 1) % self.size;
                 let sent = &self.events[prev].sent[step % 2];

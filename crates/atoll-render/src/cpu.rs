@@ -351,11 +351,12 @@ impl Device for CpuDevice {
         }
     }
 
-    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
-        match queue {
-            Queue::Paths => self.paths.clone(),
-            Queue::Shadows => self.shadows.clone(),
-        }
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+        into.clear();
+        into.extend_from_slice(match queue {
+            Queue::Paths => &self.paths,
+            Queue::Shadows => &self.shadows,
+        });
     }
 
     fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {

@@ -113,7 +113,17 @@ pub trait Device: Send {
     fn has_paths(&self) -> bool;
 
     fn queue_len(&self, queue: Queue) -> usize;
-    fn read_queue(&self, queue: Queue) -> Vec<RayRecord>;
+    /// `queue`'s records, copied into `into` (its contents replaced, its
+    /// allocation reused: a ring through the host moves a queue at every
+    /// step, and a fresh allocation of a wave's records costs more in page
+    /// faults than the copy itself).
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>);
+    /// `queue`'s records, in a new vector.
+    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
+        let mut records = Vec::new();
+        self.read_queue_into(queue, &mut records);
+        records
+    }
     fn write_queue(&mut self, queue: Queue, records: &[RayRecord]);
 
     /// The radiance sums this device accumulated.

@@ -65,8 +65,8 @@ impl Device for Counting {
     fn queue_len(&self, queue: Queue) -> usize {
         self.inner.queue_len(queue)
     }
-    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
-        self.inner.read_queue(queue)
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+        self.inner.read_queue_into(queue, into)
     }
     fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
         self.inner.write_queue(queue, records)

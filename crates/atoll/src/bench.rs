@@ -35,6 +35,11 @@ pub struct BenchArgs {
     /// through the host) instead of everything else.
     #[arg(long)]
     pub peer: bool,
+    /// Measure how fast a queue of ray records goes from the device to the
+    /// host and back (`read_queue`/`write_queue`: a ring's host transport,
+    /// and rings of processes) instead of everything else.
+    #[arg(long, conflicts_with = "peer")]
+    pub queue_copy: bool,
     #[command(flatten)]
     pub device: DeviceArgs,
     #[command(flatten)]
@@ -46,6 +51,9 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         return peer_copies();
     }
     let selected = select(&args.device, None)?;
+    if args.queue_copy {
+        return queue_copies(&args, selected);
+    }
     if !args.no_traversal {
         match &selected.gpu {
             Some(gpu) => gpu_traversal(&args, gpu)?,
@@ -136,6 +144,44 @@ fn traversal(args: &BenchArgs) -> Result<(), CliError> {
     );
     let report = atoll_bvh::bench::run_traversal_bench(&scene, &atoll_bvh::bench::BenchOptions::default());
     println!("{report}");
+    Ok(())
+}
+
+/// Device-to-host and host-to-device speed of the selected device's path
+/// queue holding queues of a few sizes, through the `Device` API: 10
+/// timed copies each way after an untimed one.
+fn queue_copies(args: &BenchArgs, mut selected: crate::device::Selected) -> Result<(), CliError> {
+    let scene = Arc::new(atoll_scene::cornell::builtin_cornell_box());
+    let mut options = RenderOptions::from_scene(&scene);
+    args.waves.apply(&mut options, selected.gpu.is_some());
+    let frame = Arc::new(atoll_render::FrameContext::new(&scene, options.clone()));
+    let device = selected.device.as_mut();
+    let runtime = |e: atoll_render::DeviceError| CliError::Runtime(e.to_string());
+    device.prepare(&scene, &atoll_bvh::ScenePart::whole(&scene), &frame).map_err(runtime)?;
+    let queue = atoll_render::Queue::Paths;
+    for records in [65_536usize, 262_144, 1_048_576].into_iter().filter(|&n| n <= options.wave_size as usize)
+    {
+        let wave = vec![<atoll_render::RayRecord as bytemuck::Zeroable>::zeroed(); records];
+        device.write_queue(queue, &wave);
+        let _ = device.read_queue(queue);
+        let timed = |copy: &mut dyn FnMut()| {
+            let start = std::time::Instant::now();
+            (0..10).for_each(|_| copy());
+            (10 * std::mem::size_of_val(wave.as_slice())) as f64 / start.elapsed().as_secs_f64() / 1e9
+        };
+        // Into one vector, as a ring's hand-overs do.
+        let mut back = Vec::new();
+        let down = timed(&mut || device.read_queue_into(queue, &mut back));
+        let up = timed(&mut || device.write_queue(queue, &wave));
+        if let Some(message) = device.error() {
+            return Err(CliError::Runtime(message));
+        }
+        println!(
+            "queue through the host  {records:>8} records ({:>4} MiB): to the host {down:.1} GB/s, to the device {up:.1} GB/s ({})",
+            std::mem::size_of_val(wave.as_slice()) >> 20,
+            selected.description
+        );
+    }
     Ok(())
 }
 
