@@ -5,6 +5,8 @@
 //! 2021, across nodes as well as across the devices of one node.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::time::Instant;
 
 use atoll_render::DeviceError;
 
@@ -24,10 +26,12 @@ pub trait WaveHandout: Sync {
     /// frame (each process then stops instead of waiting for the others
     /// forever).
     fn join(&self, me: Joining) -> Result<Joined, DeviceError>;
-    /// The frame has `waves` waves; `pacing` says how this process takes them.
+    /// The frame has `waves` waves; `pacing` says how this process's
+    /// workers take them.
     fn begin(&self, waves: usize, pacing: Pacing);
-    /// The next wave to render, `None` when all are taken.
-    fn next(&self) -> Option<usize>;
+    /// The next wave for worker `taker` of this process to render, `None`
+    /// when all are taken or it should take no more ([`Pace`]).
+    fn next(&self, taker: usize) -> Option<usize>;
     /// Waves taken so far: by every process where this one hands them out,
     /// else by this one (for progress bars).
     fn taken(&self) -> usize;
@@ -76,7 +80,8 @@ impl Speed {
             .then(|| Speed { seconds_per_wave: seconds * workers as f64 / taken as f64, workers })
     }
 
-    fn waves_per_second(&self) -> f64 {
+    /// Waves all its workers render per second.
+    pub fn waves_per_second(&self) -> f64 {
         self.workers as f64 / self.seconds_per_wave.max(1e-9)
     }
 }
@@ -137,24 +142,55 @@ impl Pace {
     }
 }
 
-/// How a process takes a frame's waves, for judging its speed from the
-/// waves it took ([`Speed`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// How a process's workers take a frame's waves, for judging their speed
+/// from the waves they took ([`Speed`]).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Pacing {
-    /// Waves its workers hold at once: merging wave-fronts, a device takes
+    /// Waves a worker holds at once: merging wave-fronts, a device takes
     /// the next wave when its queue has room, long before the last is done,
     /// so the waves taken run ahead of those rendered by this many.
     pub in_flight: usize,
-    /// Its speed measured on the frame's first sample (`--warmup`), until
-    /// it has rendered waves of the frame itself.
-    pub warmed: Option<Speed>,
+    /// Per worker, its speed measured on the frame's first sample
+    /// (`--warmup`), until it has rendered waves of the frame itself.
+    pub warmed: Vec<Option<Speed>>,
 }
 
-/// The waves of a frame rendered by this process alone.
+impl Pacing {
+    /// The workers together, as one taker: the waves they hold, and their
+    /// speed from the warm-up (one worker's seconds per wave at their
+    /// combined rate).
+    pub fn together(&self) -> (usize, Option<Speed>) {
+        let workers = self.warmed.len();
+        let rate: Option<f64> = self.warmed.iter().map(|s| s.map(|s| s.waves_per_second())).sum();
+        let warmed =
+            rate.filter(|&r| r > 0.0).map(|r| Speed { seconds_per_wave: workers as f64 / r, workers });
+        (self.in_flight * workers, warmed)
+    }
+}
+
+/// The waves of a frame rendered by this process alone, each worker
+/// paced ([`Pace`]): a device much slower than the others stops taking
+/// waves near the end instead of making the frame wait for its last one.
 #[derive(Debug, Default)]
 pub struct LocalHandout {
     waves: AtomicUsize,
     next: AtomicUsize,
+    paced: Mutex<Paced>,
+}
+
+/// The workers' takes and pace, behind one lock (a take per wave).
+#[derive(Debug)]
+struct Paced {
+    pace: Pace,
+    taken: Vec<usize>,
+    pacing: Pacing,
+    started: Instant,
+}
+
+impl Default for Paced {
+    fn default() -> Self {
+        Paced { pace: Pace::default(), taken: Vec::new(), pacing: Pacing::default(), started: Instant::now() }
+    }
 }
 
 impl WaveHandout for LocalHandout {
@@ -162,14 +198,34 @@ impl WaveHandout for LocalHandout {
         Ok(Joined { workers: me.workers, wave_size: me.wave_size })
     }
 
-    fn begin(&self, waves: usize, _pacing: Pacing) {
+    fn begin(&self, waves: usize, pacing: Pacing) {
         self.waves.store(waves, Ordering::Relaxed);
         self.next.store(0, Ordering::Relaxed);
+        let workers = pacing.warmed.len();
+        *self.paced.lock().unwrap_or_else(|p| p.into_inner()) =
+            Paced { pace: Pace::new(workers), taken: vec![0; workers], pacing, started: Instant::now() };
     }
 
-    fn next(&self) -> Option<usize> {
-        let i = self.next.fetch_add(1, Ordering::Relaxed);
-        (i < self.waves.load(Ordering::Relaxed)).then_some(i)
+    fn next(&self, taker: usize) -> Option<usize> {
+        let waves = self.waves.load(Ordering::Relaxed);
+        let mut paced = self.paced.lock().unwrap_or_else(|p| p.into_inner());
+        let Paced { pace, taken, pacing, started } = &mut *paced;
+        if let Some(&mine) = taken.get(taker) {
+            let seconds = started.elapsed().as_secs_f64();
+            let warmed = pacing.warmed.get(taker).copied().flatten();
+            let speed = Speed::measured(mine.saturating_sub(pacing.in_flight), seconds, 1).or(warmed);
+            let backlog = speed.map_or(0.0, |s| mine as f64 * s.seconds_per_wave - seconds);
+            pace.report(taker, speed, backlog);
+        }
+        let i = self.next.load(Ordering::Relaxed);
+        if i >= waves || !pace.allows(taker, waves - i) {
+            return None;
+        }
+        self.next.store(i + 1, Ordering::Relaxed);
+        if let Some(mine) = taken.get_mut(taker) {
+            *mine += 1;
+        }
+        Some(i)
     }
 
     fn taken(&self) -> usize {
@@ -189,13 +245,33 @@ mod tests {
         let me = Joining { ready: true, workers: 3, wave_size: 4096, samples: 64 };
         assert_eq!(handout.join(me).unwrap(), Joined { workers: 3, wave_size: 4096 });
         handout.begin(5, Pacing::default());
-        let taken: Vec<_> = std::iter::from_fn(|| handout.next()).collect();
+        let taken: Vec<_> = std::iter::from_fn(|| handout.next(0)).collect();
         assert_eq!(taken, vec![0, 1, 2, 3, 4]);
-        assert_eq!(handout.next(), None);
+        assert_eq!(handout.next(1), None);
         assert_eq!(handout.taken(), 5);
         handout.begin(2, Pacing::default());
         assert_eq!(handout.taken(), 0);
-        assert_eq!((handout.next(), handout.next(), handout.next()), (Some(0), Some(1), None));
+        assert_eq!((handout.next(0), handout.next(0), handout.next(0)), (Some(0), Some(1), None));
+    }
+
+    #[test]
+    fn a_device_too_slow_for_one_wave_is_refused_from_the_start() {
+        // Worker 0 renders a wave in 1 ms, worker 1 in 300 ms (measured on
+        // the warm-up); 100 waves: worker 0 alone is done in 0.1 s.
+        let handout = LocalHandout::default();
+        let fast = Speed { seconds_per_wave: 0.001, workers: 1 };
+        let slow = Speed { seconds_per_wave: 0.3, workers: 1 };
+        handout.begin(100, Pacing { in_flight: 1, warmed: vec![Some(fast), Some(slow)] });
+        assert_eq!(handout.next(0), Some(0));
+        assert_eq!(handout.next(1), None, "its one wave would outlast the whole frame");
+        let rest: Vec<_> = std::iter::from_fn(|| handout.next(0)).collect();
+        assert_eq!(rest.len(), 99, "every other wave goes to worker 0");
+        // Together they are one taker going at their combined rate.
+        let (held, together) = Pacing { in_flight: 2, warmed: vec![Some(fast), Some(slow)] }.together();
+        let together = together.unwrap();
+        assert_eq!((held, together.workers), (4, 2));
+        assert!((together.waves_per_second() - (1000.0 + 1.0 / 0.3)).abs() < 1e-6);
+        assert_eq!(Pacing { in_flight: 1, warmed: vec![Some(fast), None] }.together().1, None);
     }
 
     #[test]

@@ -341,11 +341,11 @@ impl RankWaves {
     /// holds at that speed.
     fn speed(&self) -> (Option<Speed>, f64) {
         let seconds = self.started.lock().unwrap_or_else(|p| p.into_inner()).elapsed().as_secs_f64();
-        let pacing = *self.pacing.lock().unwrap_or_else(|p| p.into_inner());
+        // The process's workers as one taker.
+        let (in_flight, warmed) = self.pacing.lock().unwrap_or_else(|p| p.into_inner()).together();
         let taken = self.taken_here.load(Ordering::Relaxed);
         let workers = self.workers.load(Ordering::Relaxed);
-        let speed =
-            Speed::measured(taken.saturating_sub(pacing.in_flight), seconds, workers).or(pacing.warmed);
+        let speed = Speed::measured(taken.saturating_sub(in_flight), seconds, workers).or(warmed);
         let backlog =
             speed.map_or(0.0, |s| taken as f64 * s.seconds_per_wave / s.workers.max(1) as f64 - seconds);
         (speed, backlog.max(0.0))
@@ -446,7 +446,8 @@ impl WaveHandout for RankWaves {
         *self.started.lock().unwrap_or_else(|p| p.into_inner()) = Instant::now();
     }
 
-    fn next(&self) -> Option<usize> {
+    /// (Ranks are paced as wholes: `_taker` does not matter.)
+    fn next(&self, _taker: usize) -> Option<usize> {
         let wave = if self.rank == 0 {
             // Once refused, rank 0's devices take no more either.
             let wave = match self.exhausted.load(Ordering::Acquire) {

@@ -288,7 +288,7 @@ pub fn render_multi_with(
         (Layout::Ring { islands, .. }, None) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
-    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup, remote);
+    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup.then_some(islands), remote);
     let joined = handout.join(Joining {
         ready: ready.is_ok(),
         workers: islands,
@@ -301,7 +301,7 @@ pub fn render_multi_with(
     // what this process's devices would take alone).
     let cut = RenderOptions { wave_size: joined.wave_size, ..frame.options.clone() };
     let waves = work_units(&cut, joined.workers);
-    handout.begin(waves.len(), pacing(&frame.options, &waves, islands, warmed));
+    handout.begin(waves.len(), pacing(&frame.options, &waves, islands, &warmed));
     let start = Instant::now();
     let reports = match remote {
         Some(link) => run_member(devices, &waves, shape, link, handout, progress),
@@ -338,37 +338,39 @@ struct Ready {
     prepared: Vec<PrepareStats>,
     prepare_seconds: f64,
     shape: RunShape,
-    /// Camera samples and seconds of the warm-up, if any.
-    warmed: Option<(u64, f64)>,
+    /// Per worker, camera samples and seconds of the warm-up (empty
+    /// without one).
+    warmed: Vec<(u64, f64)>,
 }
 
-/// How this process takes `waves` with `workers` ([`Pacing`]): devices
-/// merging wave-fronts hold up to a queue's worth of them at once.
-fn pacing(options: &RenderOptions, waves: &[Wave], workers: usize, warmed: Option<(u64, f64)>) -> Pacing {
+/// How this process's `workers` take `waves` ([`Pacing`]): devices
+/// merging wave-fronts hold up to a queue's worth of them at once; each
+/// worker's speed on the warm-up, if any.
+fn pacing(options: &RenderOptions, waves: &[Wave], workers: usize, warmed: &[(u64, f64)]) -> Pacing {
     let samples: u64 = waves.iter().map(|w| w.pixel_count as u64).sum();
-    let per_wave = samples as f64 / waves.len().max(1) as f64;
+    let per_wave = (samples as f64 / waves.len().max(1) as f64).max(1.0);
     let held = match options.merge_waves {
-        true => (options.wave_size as f64 / per_wave.max(1.0)).ceil() as usize + 1,
+        true => (options.wave_size as f64 / per_wave).ceil() as usize + 1,
         false => 1,
     };
-    let warmed = warmed.and_then(|(samples, seconds)| {
-        let waves = samples as f64 / per_wave.max(1.0);
-        (waves > 0.0 && workers > 0)
-            .then(|| Speed { seconds_per_wave: seconds * workers as f64 / waves, workers })
-    });
-    Pacing { in_flight: workers * held, warmed }
+    let speed = |w: usize| {
+        let &(samples, seconds) = warmed.get(w)?;
+        (samples > 0).then(|| Speed { seconds_per_wave: seconds * per_wave / samples as f64, workers: 1 })
+    };
+    Pacing { in_flight: held, warmed: (0..workers).map(speed).collect() }
 }
 
 /// Checks `layout` against `devices`, prepares them, picks the ring
-/// transport and, with `warmup`, renders the frame's first sample and
-/// clears it (on a ring of processes, `remote`, with its members).
+/// transport and, with `warmup` (this process's workers), renders the
+/// frame's first sample and clears it (on a ring of processes, `remote`,
+/// with its members), timing each worker.
 fn ready_frame(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
     frame: &Arc<FrameContext>,
     layout: &Layout,
     transport: Option<Transport>,
-    warmup: bool,
+    warmup: Option<usize>,
     remote: Option<&dyn RingPeers>,
 ) -> Result<Ready, DeviceError> {
     if devices.is_empty() {
@@ -414,13 +416,12 @@ fn ready_frame(
             cuda.time_stages(ring > 1);
         }
     }
-    let mut warmed = None;
-    if warmup {
+    let mut warmed = Vec::new();
+    if let Some(workers) = warmup {
         // This process's own share of the first sample: warming up needs
         // no other process.
         let first: Vec<Wave> = warm_up_waves(&work_units(&frame.options, islands)).collect();
         let handout = LocalHandout::default();
-        let warming = Instant::now();
         // Member 0 alone makes a ring of processes' warm-up queues.
         let mine = match remote {
             Some(link) if link.place().member != 0 => &first[..0],
@@ -431,8 +432,17 @@ fn ready_frame(
             Some(link) => run_member(devices, mine, shape, link, &handout, &mut |_, _| {})?,
             None => run_waves(devices, mine, shape, &handout, &mut |_, _| {})?,
         };
-        let samples = mine.iter().map(|w| w.pixel_count as u64).sum();
-        warmed = Some((samples, warming.elapsed().as_secs_f64()));
+        // Per worker (a device replicating, a ring), the samples it took
+        // and when its last device was done.
+        let per_wave = mine.iter().map(|w| w.pixel_count as u64).sum::<u64>() / mine.len().max(1) as u64;
+        warmed = vec![(0u64, 0f64); workers];
+        for report in &reports {
+            let worker = if remote.is_some() { 0 } else { report.island };
+            if let Some((samples, seconds)) = warmed.get_mut(worker) {
+                *samples += report.waves as u64 * per_wave;
+                *seconds = seconds.max(report.wall_seconds);
+            }
+        }
         if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
             return Err(DeviceError::Other {
                 device: failed.name.clone(),
@@ -476,7 +486,7 @@ fn run_member(
         member: link.place().member,
         ..Default::default()
     };
-    let take = || handout.next().and_then(|i| waves.get(i));
+    let take = || handout.next(0).and_then(|i| waves.get(i));
     let progress = std::cell::RefCell::new(progress);
     let taken = || (progress.borrow_mut())(handout.taken(), waves.len());
     ring_loop(device, link, shape.merge, &take, &taken, &mut report);
@@ -496,7 +506,8 @@ fn run_waves(
 ) -> Result<Vec<DeviceReport>, DeviceError> {
     let RunShape { ring, order, merge, transport } = shape;
     let islands = devices.len() / ring;
-    let take = || handout.next().and_then(|i| waves.get(i));
+    // Workers are devices replicating, or rings: the island.
+    let take = |worker: usize| handout.next(worker).and_then(|i| waves.get(i));
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
         (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
@@ -536,7 +547,7 @@ fn run_waves(
                     let device = device.as_mut();
                     if ring == 1 {
                         render_waves(device, merge, &mut || {
-                            let wave = take().copied();
+                            let wave = take(island).copied();
                             if wave.is_some() {
                                 report.waves += 1;
                                 let _ = done.send(());
@@ -547,7 +558,7 @@ fn run_waves(
                         let taken = || {
                             let _ = done.send(());
                         };
-                        ring_loop(device, &link, merge, take, &taken, &mut report);
+                        ring_loop(device, &link, merge, &|| take(island), &taken, &mut report);
                     }
                     report.wall_seconds = start.elapsed().as_secs_f64();
                     report
