@@ -289,10 +289,18 @@ pub fn render_multi_with(
     };
     let frame = Arc::new(FrameContext::new(scene, options));
     let ready = ready_frame(devices, scene, &frame, layout, transport, warmup.then_some(islands), remote);
+    // The CPU beside GPUs takes waves of its own size, not theirs: one
+    // GPU-sized wave kept it busy longer than the GPUs took for the whole
+    // frame (`--devices cuda:0,cpu` on the H100 machine, BENCHMARKS.md).
+    let gpus = devices.iter_mut().filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>()).count();
+    let wave_size = match gpus > 0 && gpus < devices.len() {
+        true => frame.options.wave_size.min(atoll_render::frame::DEFAULT_WAVE_SIZE),
+        false => frame.options.wave_size,
+    };
     let joined = handout.join(Joining {
         ready: ready.is_ok(),
         workers: islands,
-        wave_size: frame.options.wave_size,
+        wave_size,
         samples: frame.options.pixel_count() as u64 * frame.options.spp as u64,
     });
     let Ready { prepared, prepare_seconds, shape, warmed } = ready?;

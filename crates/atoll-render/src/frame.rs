@@ -38,6 +38,10 @@ pub struct RenderOptions {
     pub merge_waves: bool,
 }
 
+/// Paths in flight per wave on a CPU device (GPUs take more: the CUDA
+/// device's own default).
+pub const DEFAULT_WAVE_SIZE: u32 = 1 << 18;
+
 impl RenderOptions {
     /// The scene's own settings.
     pub fn from_scene(scene: &Scene) -> Self {
@@ -48,7 +52,7 @@ impl RenderOptions {
             integrator: s.integrator.clone(),
             seed: 0,
             russian_roulette: true,
-            wave_size: 1 << 18,
+            wave_size: DEFAULT_WAVE_SIZE,
             merge_waves: true,
         }
     }
