@@ -86,14 +86,18 @@ impl Speed {
     }
 }
 
+/// Takers whose time per wave is within this factor of the fastest's are
+/// never refused ([`Pace::allows`]).
+const SIMILAR: f64 = 2.0;
+
 /// Who may take another wave as a frame runs out. A taker whose next wave
 /// would still be rendering when the others have finished all the rest
 /// only makes the frame wait for it, so it is refused and takes no more:
 /// on the H100 machine a CPU rank beside the GPU's took 4 of 280 waves and
 /// made the frame 1.7x as long as the GPU's alone (BENCHMARKS.md). Only
 /// takers still taking count as the others, and a taker is never refused
-/// when none of them is measured yet, nor when it is the fastest: so the
-/// last takers left always get the remaining waves.
+/// when none of them is measured yet, nor when it is about as fast as the
+/// fastest of them: so the last takers left always get the remaining waves.
 #[derive(Clone, Debug, Default)]
 pub struct Pace {
     speeds: Vec<Option<Speed>>,
@@ -129,7 +133,10 @@ impl Pace {
             .filter_map(|t| self.speeds[t])
             .collect();
         let fastest = others.iter().map(|s| s.seconds_per_wave).fold(f64::INFINITY, f64::min);
-        if others.is_empty() || mine.seconds_per_wave <= fastest {
+        // Within twice the fastest's time per wave, never: among devices
+        // of about one speed the estimates' noise would refuse the wrong
+        // ones, and the frame's last waves, cut in four, even them out.
+        if others.is_empty() || mine.seconds_per_wave <= SIMILAR * fastest {
             return true;
         }
         // When the others still taking would be done with the rest, and
@@ -298,9 +305,10 @@ mod tests {
         assert!(!pace.allows(1, 100), "refused for the rest of the frame");
         // The fastest always gets one, to the last.
         assert!(pace.allows(0, 1) && pace.allows(0, 20));
-        // Equal takers are never refused.
+        // Equal takers, or nearly, are never refused.
         let mut equal = Pace::new(3);
         (0..3).for_each(|t| equal.report(t, Some(cpu), 0.0));
+        equal.report(2, Speed::measured(1, 0.17, 1), 0.5);
         assert!((0..3).all(|t| equal.allows(t, 1)));
         assert_eq!(Speed::measured(0, 1.0, 2), None);
     }
