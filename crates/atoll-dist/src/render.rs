@@ -886,6 +886,28 @@ mod tests {
     use super::*;
     use glam::UVec2;
 
+    /// Waves in flight per worker and warm-up speeds per wave of the frame.
+    #[test]
+    fn pacing_counts_waves_held_and_scales_warm_up_speeds() {
+        let scene = atoll_scene::cornell::builtin_cornell_box();
+        let mut options = RenderOptions::from_scene(&scene);
+        options.resolution = UVec2::new(256, 256);
+        options.spp = 4;
+        options.wave_size = 1 << 16;
+        let waves: Vec<Wave> = (0..16)
+            .map(|i| Wave { sample: i / 4, first_pixel: (i % 4) * 16384, pixel_count: 16384 })
+            .collect();
+        // Two workers: one rendered 32768 warm-up samples in 0.1 s, the other none.
+        let pacing = pacing(&options, &waves, 2, &[(32768, 0.1), (0, 0.2)]);
+        // A queue of 65536 holds 4 waves of 16384, and takes the next one early.
+        assert_eq!(pacing.in_flight, 5);
+        let first = pacing.warmed[0].expect("measured");
+        assert!((first.seconds_per_wave - 0.05).abs() < 1e-12, "{first:?}");
+        assert_eq!(pacing.warmed[1], None);
+        options.merge_waves = false;
+        assert_eq!(super::pacing(&options, &waves, 2, &[]).in_flight, 1);
+    }
+
     /// Every (pixel, sample) exactly once, whatever the split.
     #[test]
     fn work_units_cover_the_frame_once_with_a_finer_tail() {
