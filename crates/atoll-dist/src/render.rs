@@ -288,7 +288,6 @@ pub fn render_multi_with(
         (Layout::Ring { islands, .. }, None) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
-    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup.then_some(islands), remote);
     // The CPU beside GPUs takes waves of its own size, not theirs: one
     // GPU-sized wave kept it busy longer than the GPUs took for the whole
     // frame (`--devices cuda:0,cpu` on the H100 machine, BENCHMARKS.md).
@@ -297,6 +296,8 @@ pub fn render_multi_with(
         true => frame.options.wave_size.min(atoll_render::frame::DEFAULT_WAVE_SIZE),
         false => frame.options.wave_size,
     };
+    let warmup = warmup.then_some(WarmUp { workers: islands, wave_size });
+    let ready = ready_frame(devices, scene, &frame, layout, transport, warmup, remote);
     let joined = handout.join(Joining {
         ready: ready.is_ok(),
         workers: islands,
@@ -368,17 +369,27 @@ fn pacing(options: &RenderOptions, waves: &[Wave], workers: usize, warmed: &[(u6
     Pacing { in_flight: held, warmed: (0..workers).map(speed).collect() }
 }
 
+/// How a process warms its devices up: the frame's first sample, cut for
+/// its `workers` in waves of `wave_size` as the frame's will be, so that
+/// each worker's speed on it is its speed on the frame's waves (on tiny
+/// waves a GPU measured several times slower).
+#[derive(Clone, Copy, Debug)]
+struct WarmUp {
+    workers: usize,
+    wave_size: u32,
+}
+
 /// Checks `layout` against `devices`, prepares them, picks the ring
-/// transport and, with `warmup` (this process's workers), renders the
-/// frame's first sample and clears it (on a ring of processes, `remote`,
-/// with its members), timing each worker.
+/// transport and, with `warmup`, renders the frame's first sample and
+/// clears it (on a ring of processes, `remote`, with its members), timing
+/// each worker.
 fn ready_frame(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
     frame: &Arc<FrameContext>,
     layout: &Layout,
     transport: Option<Transport>,
-    warmup: Option<usize>,
+    warmup: Option<WarmUp>,
     remote: Option<&dyn RingPeers>,
 ) -> Result<Ready, DeviceError> {
     if devices.is_empty() {
@@ -425,10 +436,13 @@ fn ready_frame(
         }
     }
     let mut warmed = Vec::new();
-    if let Some(workers) = warmup {
+    if let Some(WarmUp { workers, wave_size }) = warmup {
         // This process's own share of the first sample: warming up needs
         // no other process.
-        let first: Vec<Wave> = warm_up_waves(&work_units(&frame.options, islands)).collect();
+        // (At least one wave per worker, so that every device warms up.)
+        let per_worker = frame.options.pixel_count().div_ceil(islands.max(1) as u32);
+        let cut = RenderOptions { wave_size: wave_size.min(per_worker.max(1)), ..frame.options.clone() };
+        let first: Vec<Wave> = warm_up_waves(&work_units(&cut, islands)).collect();
         let handout = LocalHandout::default();
         // Member 0 alone makes a ring of processes' warm-up queues.
         let mine = match remote {
