@@ -455,14 +455,16 @@ fn ready_frame(
             None => run_waves(devices, mine, shape, &handout, &mut |_, _| {})?,
         };
         // Per worker (a device replicating, a ring), the samples it took
-        // and when its last device was done.
+        // and the busy time of its busiest device: a GPU's warm-up is a few
+        // milliseconds of kernels in several times as long of start-up, and
+        // its wall time made it look several times slower than it is.
         let per_wave = mine.iter().map(|w| w.pixel_count as u64).sum::<u64>() / mine.len().max(1) as u64;
         warmed = vec![(0u64, 0f64); workers];
-        for report in &reports {
+        for (report, device) in reports.iter().zip(devices.iter()) {
             let worker = if remote.is_some() { 0 } else { report.island };
             if let Some((samples, seconds)) = warmed.get_mut(worker) {
                 *samples += report.waves as u64 * per_wave;
-                *seconds = seconds.max(report.wall_seconds);
+                *seconds = seconds.max(device.stats().busy_seconds);
             }
         }
         if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
