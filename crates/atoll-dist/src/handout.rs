@@ -80,6 +80,23 @@ impl Speed {
             .then(|| Speed { seconds_per_wave: seconds * workers as f64 / taken as f64, workers })
     }
 
+    /// How fast a taker goes and how long it still needs for the waves it
+    /// holds, from `taken` waves over `seconds` by `workers`: judged on the
+    /// waves it has rendered (those taken less the `in_flight` ones its
+    /// merging devices may still hold), else on `warmed` (its warm-up).
+    pub fn judged(
+        taken: usize,
+        in_flight: usize,
+        seconds: f64,
+        workers: usize,
+        warmed: Option<Speed>,
+    ) -> (Option<Speed>, f64) {
+        let speed = Speed::measured(taken.saturating_sub(in_flight), seconds, workers).or(warmed);
+        let backlog =
+            speed.map_or(0.0, |s| taken as f64 * s.seconds_per_wave / s.workers.max(1) as f64 - seconds);
+        (speed, backlog.max(0.0))
+    }
+
     /// Waves all its workers render per second.
     pub fn waves_per_second(&self) -> f64 {
         self.workers as f64 / self.seconds_per_wave.max(1e-9)
@@ -220,8 +237,7 @@ impl WaveHandout for LocalHandout {
         if let Some(&mine) = taken.get(taker) {
             let seconds = started.elapsed().as_secs_f64();
             let warmed = pacing.warmed.get(taker).copied().flatten();
-            let speed = Speed::measured(mine.saturating_sub(pacing.in_flight), seconds, 1).or(warmed);
-            let backlog = speed.map_or(0.0, |s| mine as f64 * s.seconds_per_wave - seconds);
+            let (speed, backlog) = Speed::judged(mine, pacing.in_flight, seconds, 1, warmed);
             pace.report(taker, speed, backlog);
         }
         let i = self.next.load(Ordering::Relaxed);
@@ -311,6 +327,12 @@ mod tests {
         equal.report(2, Speed::measured(1, 0.17, 1), 0.5);
         assert!((0..3).all(|t| equal.allows(t, 1)));
         assert_eq!(Speed::measured(0, 1.0, 2), None);
+        // 5 taken, 2 of them maybe still held: 3 rendered in 0.3 s, so
+        // 0.1 s a wave and 0.2 s of the 5 still to go.
+        let (speed, backlog) = Speed::judged(5, 2, 0.3, 1, None);
+        assert!((speed.unwrap().seconds_per_wave - 0.1).abs() < 1e-12 && (backlog - 0.2).abs() < 1e-12);
+        // Nothing rendered yet: the warm-up's speed.
+        assert_eq!(Speed::judged(2, 2, 0.3, 1, Some(cpu)).0, Some(cpu));
     }
 
     /// Takers of nearly equal, changing speeds ask as they free up, each

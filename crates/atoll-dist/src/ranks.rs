@@ -335,20 +335,14 @@ impl Counter {
 }
 
 impl RankWaves {
-    /// How fast this process renders: from the waves of this frame it has
-    /// rendered (those taken, less those its devices may still hold), else
-    /// from its warm-up; and the seconds it still needs for the waves it
-    /// holds at that speed.
+    /// How fast this process renders, and the seconds it still needs for
+    /// the waves it holds ([`Speed::judged`]).
     fn speed(&self) -> (Option<Speed>, f64) {
         let seconds = self.started.lock().unwrap_or_else(|p| p.into_inner()).elapsed().as_secs_f64();
         // The process's workers as one taker.
         let (in_flight, warmed) = self.pacing.lock().unwrap_or_else(|p| p.into_inner()).together();
         let taken = self.taken_here.load(Ordering::Relaxed);
-        let workers = self.workers.load(Ordering::Relaxed);
-        let speed = Speed::measured(taken.saturating_sub(in_flight), seconds, workers).or(warmed);
-        let backlog =
-            speed.map_or(0.0, |s| taken as f64 * s.seconds_per_wave / s.workers.max(1) as f64 - seconds);
-        (speed, backlog.max(0.0))
+        Speed::judged(taken, in_flight, seconds, self.workers.load(Ordering::Relaxed), warmed)
     }
 
     /// Rank ≠ 0: asks rank 0 for the next wave, saying how fast this rank goes.

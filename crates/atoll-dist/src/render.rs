@@ -370,9 +370,9 @@ fn pacing(options: &RenderOptions, waves: &[Wave], workers: usize, warmed: &[(u6
 }
 
 /// How a process warms its devices up: the frame's first sample, cut for
-/// its `workers` in waves of `wave_size` as the frame's will be, so that
-/// each worker's speed on it is its speed on the frame's waves (on tiny
-/// waves a GPU measured several times slower).
+/// its `workers` (at least one) in waves of `wave_size` as the frame's
+/// will be, and at least one per worker, so that every worker is timed on
+/// waves like the frame's.
 #[derive(Clone, Copy, Debug)]
 struct WarmUp {
     workers: usize,
@@ -418,9 +418,9 @@ fn ready_frame(
     let prepared = prepare_all(devices, scene, frame, layout)?;
     let prepare_seconds = start.elapsed().as_secs_f64();
 
-    let (ring, islands, order) = match layout {
-        Layout::Replicate => (1, devices.len(), RingOrder::Spread),
-        Layout::Ring { parts, islands, order } => (parts.len(), *islands, *order),
+    let (ring, order) = match layout {
+        Layout::Replicate => (1, RingOrder::Spread),
+        Layout::Ring { parts, order, .. } => (parts.len(), *order),
     };
     let shape = RunShape {
         ring,
@@ -439,10 +439,10 @@ fn ready_frame(
     if let Some(WarmUp { workers, wave_size }) = warmup {
         // This process's own share of the first sample: warming up needs
         // no other process.
-        // (At least one wave per worker, so that every device warms up.)
-        let per_worker = frame.options.pixel_count().div_ceil(islands.max(1) as u32);
+        let cutting_for = workers.max(1);
+        let per_worker = frame.options.pixel_count().div_ceil(cutting_for as u32);
         let cut = RenderOptions { wave_size: wave_size.min(per_worker.max(1)), ..frame.options.clone() };
-        let first: Vec<Wave> = warm_up_waves(&work_units(&cut, islands)).collect();
+        let first: Vec<Wave> = warm_up_waves(&work_units(&cut, cutting_for)).collect();
         let handout = LocalHandout::default();
         // Member 0 alone makes a ring of processes' warm-up queues.
         let mine = match remote {
