@@ -17,6 +17,8 @@ inline constexpr float FRAC_PI_2 = 1.5707964f;
 inline constexpr float FRAC_PI_4 = 0.7853982f;
 inline constexpr float UNIFORM_SPHERE_PDF = 0.07957747f;
 inline constexpr float SMOOTH_ALPHA = 0.001f;
+inline constexpr float SHADOW_EPSILON = 0.0001f;
+inline constexpr float ONE_MINUS_EPSILON = 0.99999994f;
 // END GENERATED constants
 
 /// +infinity (no math header: built from its bits).

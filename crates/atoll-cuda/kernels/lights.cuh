@@ -10,6 +10,8 @@
 #include "sampling.cuh"
 #include "environment.cuh"
 #include "texture.cuh"
+#include "spawn.cuh"
+#include "light_bvh.cuh"
 
 // Whether emitters may have emission textures: always, unless the device
 // compiles its shade kernel for a frame without any (`-DATOLL_WITH_EMISSION_TEXTURES=0`,
@@ -26,6 +28,7 @@ struct LightSample {
     float3 radiance;
     float pdf;
     bool delta;
+    SurfacePoint target;
 };
 
 /// Mirrors `LightSet::triangle_light`: global light index of triangle
@@ -47,9 +50,10 @@ __device__ __forceinline__ unsigned int light_triangle_index(const FrameParams& 
     return NO_LIGHT;
 }
 
-/// Mirrors `LightSet::select`: picks an emitter with `u` in [0, 1). Returns
-/// false when there are no emitters; else writes (index, probability).
-__device__ __forceinline__ bool light_select(const FrameParams& p, float u, unsigned int* index, float* pmf) {
+/// Mirrors `LightSet::select_by_power`: picks an emitter with `u` in [0, 1).
+/// Returns false when there are no emitters; else writes (index, probability).
+__device__ __forceinline__ bool light_select_by_power(const FrameParams& p, float u, unsigned int* index,
+                                                      float* pmf) {
     const unsigned int n = p.light_count;
     if (n == 0) return false;
     // partition_point(|c| c <= u) over cdf[0..=n]: the first entry > u.
@@ -70,6 +74,53 @@ __device__ __forceinline__ bool light_select(const FrameParams& p, float u, unsi
     return true;
 }
 
+/// Mirrors `LightSet::unbounded_probability`.
+__device__ __forceinline__ float light_unbounded_probability(const FrameParams& p) {
+    const float n = (float)p.unbounded_count;
+    const float tree = p.light_node_count == 0 ? 0.0f : 1.0f;
+    return n == 0.0f ? 0.0f : __fdiv_rn(n, n + tree);
+}
+
+/// Mirrors `LightSet::select`: picks an emitter for shading point `pos`.
+__device__ __forceinline__ bool light_select(const FrameParams& p, float3 pos, float u, unsigned int* index,
+                                             float* pmf) {
+    if (p.light_sampler == LIGHT_SAMPLER_POWER) return light_select_by_power(p, u, index, pmf);
+    const float p_unbounded = light_unbounded_probability(p);
+    if (u < p_unbounded) {
+        const unsigned int n = p.unbounded_count;
+        unsigned int k = (unsigned int)(__fdiv_rn(u, p_unbounded) * (float)n);
+        if (k > n - 1) k = n - 1;
+        *index = p.unbounded_lights[k];
+        *pmf = __fdiv_rn(p_unbounded, (float)n);
+        return true;
+    }
+    const float v = fminf(__fdiv_rn(u - p_unbounded, 1.0f - p_unbounded), ONE_MINUS_EPSILON);
+    float tree_pmf;
+    if (!light_bvh_sample(p, pos, v, index, &tree_pmf)) return false;
+    *pmf = (1.0f - p_unbounded) * tree_pmf;
+    return true;
+}
+
+/// Mirrors `LightSet::selection_pmf`.
+__device__ __forceinline__ float light_selection_pmf(const FrameParams& p, float3 pos, unsigned int index) {
+    if (p.light_sampler == LIGHT_SAMPLER_POWER) return p.light_pmf[index];
+    const unsigned int kind = p.emitters[index].kind;
+    if (kind == EMITTER_DISTANT || kind == EMITTER_INFINITE || kind == EMITTER_ENVIRONMENT) {
+        return __fdiv_rn(light_unbounded_probability(p), (float)p.unbounded_count);
+    }
+    return (1.0f - light_unbounded_probability(p)) * light_bvh_pmf(p, pos, index);
+}
+
+/// A point light's position or a light at infinity as a shadow ray's
+/// target (`lights::point_target`, `AT_INFINITY`).
+__device__ __forceinline__ SurfacePoint point_target(float3 p) {
+    SurfacePoint t;
+    t.p = p;
+    t.normal = zero3();
+    t.error = 0.0f;
+    return t;
+}
+
 /// Mirrors `lights::smooth_step` (pbrt's SmoothStep).
 __device__ __forceinline__ float smooth_step(float x, float a, float b) {
     if (a == b) return x < a ? 0.0f : 1.0f;
@@ -83,7 +134,8 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
                                              LightSample* out) {
     unsigned int index;
     float pmf;
-    if (!light_select(p, u_select, &index, &pmf)) return false;
+    if (!light_select(p, pos, u_select, &index, &pmf)) return false;
+    out->target = point_target(zero3());
     if (pmf <= 0.0f) return false;
     const GpuEmitter& e = p.emitters[index];
     if (e.kind == EMITTER_POINT) {
@@ -95,6 +147,7 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->radiance = load3(e.radiance) / dist2;
         out->pdf = pmf;
         out->delta = true;
+        out->target = point_target(load3(&e.p[0]));
         return true;
     }
     if (e.kind == EMITTER_SPOT) {
@@ -109,6 +162,7 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->radiance = load3(e.radiance) * __fdiv_rn(falloff, dist2);
         out->pdf = pmf;
         out->delta = true;
+        out->target = point_target(load3(&e.p[0]));
         return true;
     }
     if (e.kind == EMITTER_DISTANT) {
@@ -137,7 +191,8 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
     }
     // Triangle.
     const float3 b = sample_uniform_triangle(u);
-    const float3 q = load3(&e.p[0]) * b.x + load3(&e.p[3]) * b.y + load3(&e.p[6]) * b.z;
+    const float3 p0 = load3(&e.p[0]), p1 = load3(&e.p[3]), p2 = load3(&e.p[6]);
+    const float3 q = p0 * b.x + p1 * b.y + p2 * b.z;
     const float3 d = q - pos;
     const float dist2 = length_squared3(d);
     if (dist2 == 0.0f || e.area == 0.0f) return false;
@@ -153,6 +208,11 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
 #endif
     out->pdf = pmf * dist2 / (fabsf(cos_light) * e.area);
     out->delta = false;
+    // pbrt's bound for a sampled point, plus the corners' own (`LightSet::sample`).
+    const float3 normal = load3(e.normal);
+    out->target.p = q;
+    out->target.normal = normal;
+    out->target.error = error_along(normal, barycentric_magnitude(p0, p1, p2, b) * spawn_gamma(6)) + e.error;
     return true;
 }
 
@@ -170,13 +230,13 @@ __device__ __forceinline__ float3 light_emitted(const FrameParams& p, unsigned i
 
 /// Mirrors `LightSet::pdf_triangle`: the light-sampling density of the point
 /// at `distance` along `wi` on emissive triangle `index`.
-__device__ __forceinline__ float light_pdf_triangle(const FrameParams& p, unsigned int index, float3 wi,
-                                                    float distance) {
+__device__ __forceinline__ float light_pdf_triangle(const FrameParams& p, float3 from, unsigned int index,
+                                                    float3 wi, float distance) {
     const GpuEmitter& e = p.emitters[index];
     if (e.kind != EMITTER_TRIANGLE) return 0.0f;
     const float c = fabsf(dot3(load3(e.normal), wi));
     if (c == 0.0f || e.area == 0.0f) return 0.0f;
-    return p.light_pmf[index] * distance * distance / (c * e.area);
+    return light_selection_pmf(p, from, index) * distance * distance / (c * e.area);
 }
 
 /// Mirrors `LightSet::environment_radiance`.
@@ -187,8 +247,9 @@ __device__ __forceinline__ float3 light_environment_radiance(const FrameParams& 
 }
 
 /// Mirrors `LightSet::pdf_environment`.
-__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, unsigned int index, float3 w) {
+__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, float3 from, unsigned int index,
+                                                       float3 w) {
     const GpuEmitter& e = p.emitters[index];
     const float direction_pdf = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
-    return p.light_pmf[index] * direction_pdf;
+    return light_selection_pmf(p, from, index) * direction_pdf;
 }

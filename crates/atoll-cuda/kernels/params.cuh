@@ -10,7 +10,7 @@
 /// `kind` (`EMITTER_*`): point: `p[0..3]` position, `radiance` intensity;
 /// distant: `p[0..3]` direction of travel; infinite: `radiance` only;
 /// triangle: `p` the three world-space vertices, `normal`, `area`,
-/// `two_sided`.
+/// `two_sided`, `error` the corners' error bound along the normal.
 struct GpuEmitter {
     unsigned int kind;
     unsigned int two_sided;
@@ -19,7 +19,21 @@ struct GpuEmitter {
     float p[9];
     float normal[3];
     float radiance[3];
-    unsigned int pad2;
+    float error;
+};
+
+/// Mirror of `atoll_render::light_bvh::LightNode` (64 bytes).
+struct LightNode {
+    float min[3];
+    float phi;
+    float max[3];
+    float cos_theta_o;
+    float w[3];
+    float cos_theta_e;
+    unsigned int child_or_light;
+    unsigned int parent;
+    unsigned int flags;
+    unsigned int pad;
 };
 
 /// Mirror of `params::GpuMaterial` (48 bytes): a `PackedMaterial`, f16 bits.
@@ -58,7 +72,7 @@ struct FrameParams {
     unsigned int infinite_count;
     unsigned int triangle_key_count;
     unsigned int material_count;
-    unsigned int pad;
+    unsigned int light_sampler;
     // LightSet: emitters, pmf (light_count), cdf (light_count + 1), infinite
     // light indices, sorted (instance << 32 | mesh) keys and their base
     // light indices; the packed materials.
@@ -82,6 +96,13 @@ struct FrameParams {
     /// The scene's texture images and their texels (texture.cuh).
     const GpuImage* images;
     const unsigned int* texels;
+    // The BVH light sampler (light_bvh.cuh): its nodes, the leaf of each
+    // emitter, and the lights at infinity chosen apart from the tree.
+    const LightNode* light_nodes;
+    const unsigned int* light_leaf;
+    const unsigned int* unbounded_lights;
+    unsigned int light_node_count;
+    unsigned int unbounded_count;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -110,6 +131,11 @@ inline constexpr unsigned int EMITTER_SPOT = 4u;
 inline constexpr unsigned int EMITTER_ENVIRONMENT = 5u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
+inline constexpr unsigned int LIGHT_SAMPLER_POWER = 0u;
+inline constexpr unsigned int LIGHT_SAMPLER_BVH = 1u;
+inline constexpr unsigned int LIGHT_NODE_LEAF = 1u;
+inline constexpr unsigned int LIGHT_NODE_TWO_SIDED = 2u;
+inline constexpr unsigned int NO_LIGHT_NODE = 4294967295u;
 static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
@@ -119,13 +145,26 @@ static_assert(__builtin_offsetof(GpuEmitter, table) == 12 && sizeof(GpuEmitter::
 static_assert(__builtin_offsetof(GpuEmitter, p) == 16 && sizeof(GpuEmitter::p) == 36, "GpuEmitter.p: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, normal) == 52 && sizeof(GpuEmitter::normal) == 12, "GpuEmitter.normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, radiance) == 64 && sizeof(GpuEmitter::radiance) == 12, "GpuEmitter.radiance: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuEmitter, pad2) == 76 && sizeof(GpuEmitter::pad2) == 4, "GpuEmitter.pad2: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, error) == 76 && sizeof(GpuEmitter::error) == 4, "GpuEmitter.error: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuMaterial) == 48, "GpuMaterial: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial::coeffs) == 32, "GpuMaterial.coeffs: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
+#endif
+static_assert(sizeof(LightNode) == 64, "LightNode: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(LightNode, min) == 0 && sizeof(LightNode::min) == 12, "LightNode.min: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, phi) == 12 && sizeof(LightNode::phi) == 4, "LightNode.phi: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, max) == 16 && sizeof(LightNode::max) == 12, "LightNode.max: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, cos_theta_o) == 28 && sizeof(LightNode::cos_theta_o) == 4, "LightNode.cos_theta_o: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, w) == 32 && sizeof(LightNode::w) == 12, "LightNode.w: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, cos_theta_e) == 44 && sizeof(LightNode::cos_theta_e) == 4, "LightNode.cos_theta_e: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, child_or_light) == 48 && sizeof(LightNode::child_or_light) == 4, "LightNode.child_or_light: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, parent) == 52 && sizeof(LightNode::parent) == 4, "LightNode.parent: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, flags) == 56 && sizeof(LightNode::flags) == 4, "LightNode.flags: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, pad) == 60 && sizeof(LightNode::pad) == 4, "LightNode.pad: offset or size differs from Rust");
 #endif
 inline constexpr unsigned int NO_EMISSION_TEXTURE = 4294967295u;
 static_assert(sizeof(GpuEmissionTexture) == 32, "GpuEmissionTexture: size differs from Rust");
@@ -134,7 +173,7 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 240, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 272, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -152,7 +191,7 @@ static_assert(__builtin_offsetof(FrameParams, light_count) == 108 && sizeof(Fram
 static_assert(__builtin_offsetof(FrameParams, infinite_count) == 112 && sizeof(FrameParams::infinite_count) == 4, "FrameParams.infinite_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, triangle_key_count) == 116 && sizeof(FrameParams::triangle_key_count) == 4, "FrameParams.triangle_key_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, material_count) == 120 && sizeof(FrameParams::material_count) == 4, "FrameParams.material_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, pad) == 124 && sizeof(FrameParams::pad) == 4, "FrameParams.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_sampler) == 124 && sizeof(FrameParams::light_sampler) == 4, "FrameParams.light_sampler: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, emitters) == 128 && sizeof(FrameParams::emitters) == 8, "FrameParams.emitters: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, light_pmf) == 136 && sizeof(FrameParams::light_pmf) == 8, "FrameParams.light_pmf: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, light_cdf) == 144 && sizeof(FrameParams::light_cdf) == 8, "FrameParams.light_cdf: offset or size differs from Rust");
@@ -167,6 +206,11 @@ static_assert(__builtin_offsetof(FrameParams, srgb_to_linear) == 208 && sizeof(F
 static_assert(__builtin_offsetof(FrameParams, emission_textures) == 216 && sizeof(FrameParams::emission_textures) == 8, "FrameParams.emission_textures: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, images) == 224 && sizeof(FrameParams::images) == 8, "FrameParams.images: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, texels) == 232 && sizeof(FrameParams::texels) == 8, "FrameParams.texels: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_nodes) == 240 && sizeof(FrameParams::light_nodes) == 8, "FrameParams.light_nodes: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_leaf) == 248 && sizeof(FrameParams::light_leaf) == 8, "FrameParams.light_leaf: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, unbounded_lights) == 256 && sizeof(FrameParams::unbounded_lights) == 8, "FrameParams.unbounded_lights: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, light_node_count) == 264 && sizeof(FrameParams::light_node_count) == 4, "FrameParams.light_node_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, unbounded_count) == 268 && sizeof(FrameParams::unbounded_count) == 4, "FrameParams.unbounded_count: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -25,13 +25,14 @@ struct __align__(16) RayRecord {
     unsigned short geometric_normal[3];
     unsigned short material;
     unsigned short shading_normal[3];
-    unsigned short reserved2;
-    unsigned short coeffs[16];
+    unsigned short position_error;  // bfloat16 bits (spawn.cuh `unpack_error`)
+    unsigned short coeffs[15];
+    unsigned short eta_scale;  // f16: path state, kept by `write_surface`
 };
 
 // BEGIN GENERATED record (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int NO_LIGHT = 4294967295u;
-inline constexpr unsigned int MATERIAL_COEFFS = 16u;
+inline constexpr unsigned int MATERIAL_COEFFS = 15u;
 inline constexpr unsigned int MAX_MIX_DEPTH = 8u;
 inline constexpr unsigned short FLAG_SHADOW = 1;
 inline constexpr unsigned short FLAG_OCCLUDED = 2;
@@ -64,7 +65,8 @@ static_assert(__builtin_offsetof(RayRecord, emission_scale) == 76 && sizeof(RayR
 static_assert(__builtin_offsetof(RayRecord, geometric_normal) == 80 && sizeof(RayRecord::geometric_normal) == 6, "RayRecord.geometric_normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, material) == 86 && sizeof(RayRecord::material) == 2, "RayRecord.material: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, shading_normal) == 88 && sizeof(RayRecord::shading_normal) == 6, "RayRecord.shading_normal: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, reserved2) == 94 && sizeof(RayRecord::reserved2) == 2, "RayRecord.reserved2: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 32, "RayRecord.coeffs: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, position_error) == 94 && sizeof(RayRecord::position_error) == 2, "RayRecord.position_error: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 30, "RayRecord.coeffs: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, eta_scale) == 126 && sizeof(RayRecord::eta_scale) == 2, "RayRecord.eta_scale: offset or size differs from Rust");
 #endif
 // END GENERATED record

@@ -80,6 +80,7 @@ __device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigne
     r.throughput[0] = 1.0f;
     r.throughput[1] = 1.0f;
     r.throughput[2] = 1.0f;
+    r.eta_scale = 0x3c00;  // f16 1.0
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = FLAG_SPECULAR;
     return r;
@@ -169,40 +170,48 @@ struct ShadeOutcome {
     bool has_next;
     float3 next_origin, next_direction, next_throughput;
     float next_pdf;
-    unsigned short next_depth, next_flags;
+    unsigned short next_depth, next_flags, next_eta_scale;
     bool has_shadow;
     float3 shadow_origin, shadow_direction, shadow_radiance;
     float shadow_t_max;
 };
 
-/// Mirrors `stages::offset_origin`.
-__device__ __forceinline__ float3 offset_origin(float3 p, float3 ng, float3 w) {
-    const float eps = 1e-4f * (1.0f + max_element3(abs3(p)));
-    const float3 n = dot3(ng, w) < 0.0f ? -ng : ng;
-    return p + n * eps;
+/// Mirrors shade.rs's `hit_point`.
+__device__ __forceinline__ SurfacePoint hit_point(const RayRecord& r) {
+    SurfacePoint at;
+    at.p = load3(r.position);
+    at.normal = normalize_or_zero3(load_f16x3(r.geometric_normal));
+    at.error = unpack_error(r.position_error);
+    return at;
 }
 
-/// Mirrors shade.rs's `continuation`: the path goes on from `p` along `w`
-/// with the record's throughput, pdf, depth and flags (less HIT).
-__device__ __forceinline__ void set_continuation(ShadeOutcome& o, const RayRecord& r, float3 p, float3 ng, float3 w) {
+/// Mirrors shade.rs's `continuation`: the path goes on from the hit `at`
+/// along `w` with the record's throughput, pdf, depth, flags (less HIT)
+/// and eta scale.
+__device__ __forceinline__ void set_continuation(ShadeOutcome& o, const RayRecord& r, const SurfacePoint& at,
+                                                 float3 w) {
     o.has_next = true;
-    o.next_origin = offset_origin(p, ng, w);
+    o.next_origin = offset_ray_origin(at.p, at.error, at.normal, w);
     o.next_direction = w;
     o.next_throughput = load3(r.throughput);
     o.next_pdf = r.bsdf_pdf;
     o.next_depth = r.depth;
     o.next_flags = (unsigned short)(r.flags & ~FLAG_HIT);
+    o.next_eta_scale = r.eta_scale;
 }
 
-/// Mirrors shade.rs's `shadow_ray`.
-__device__ __forceinline__ void set_shadow(ShadeOutcome& o, float3 p, float3 ng, float3 w, float distance,
-                                           float3 radiance) {
+/// Mirrors shade.rs's `shadow_ray`: towards `target` when `target` is
+/// given, else along `w` up to `t_max`.
+__device__ __forceinline__ void set_shadow(ShadeOutcome& o, const SurfacePoint& at, const SurfacePoint* target,
+                                           float3 w, float t_max, float3 radiance) {
+    if (target) {
+        if (!spawn_ray_to(at, *target, &o.shadow_origin, &o.shadow_direction, &o.shadow_t_max)) return;
+    } else {
+        o.shadow_origin = offset_ray_origin(at.p, at.error, at.normal, w);
+        o.shadow_direction = w;
+        o.shadow_t_max = t_max;
+    }
     o.has_shadow = true;
-    const float3 origin = offset_origin(p, ng, w);
-    o.shadow_origin = origin;
-    o.shadow_direction = w;
-    // Stop just short of the light so it does not occlude itself.
-    o.shadow_t_max = is_finitef(distance) ? (distance - length3(origin - p)) * (1.0f - 1e-4f) : distance;
     o.shadow_radiance = radiance;
 }
 
@@ -211,13 +220,16 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     const float3 beta = load3(r.throughput);
     const float3 dir = load3(r.direction);
     const bool specular = (r.flags & FLAG_SPECULAR) != 0;
+    // Light selection may depend on where the path was: where this segment started.
+    const float3 from = load3(r.origin);
 
     // Escaped: environment lights, MIS-weighted against light sampling.
     if (!(r.flags & FLAG_HIT)) {
         for (unsigned int k = 0; k < params.infinite_count; ++k) {
             const unsigned int i = params.infinite_lights[k];
             const float3 le = light_environment_radiance(params, i, dir);
-            const float w = specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_environment(params, i, dir));
+            const float w =
+                specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_environment(params, from, i, dir));
             out.emitted = out.emitted + beta * le * w;
         }
         return;
@@ -228,17 +240,18 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
         const float3 le = light_emitted(params, r.light, -dir, r.emission_scale);
         if (!is_zero3(le)) {
             const float w =
-                specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_triangle(params, r.light, dir, r.t_max));
+                specular ? 1.0f
+                         : power_heuristic(r.bsdf_pdf, light_pdf_triangle(params, from, r.light, dir, r.t_max));
             out.emitted = out.emitted + beta * le * w;
         }
     }
 
-    const float3 p = load3(r.position);
-    const float3 ng = normalize_or_zero3(load_f16x3(r.geometric_normal));
+    const SurfacePoint at = hit_point(r);
+    const float3 p = at.p;
     const Bsdf bsdf = bsdf_from_record(r);
     if (bsdf.kind == MATERIAL_NONE) {
         // A surface that only bounds a medium: continue straight through.
-        set_continuation(out, r, p, ng, dir);
+        set_continuation(out, r, at, dir);
         return;
     }
     const unsigned int depth = r.depth;
@@ -259,7 +272,8 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
             if (ls.pdf > 0.0f && !is_zero3(f) && !is_zero3(ls.radiance)) {
                 const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf(bsdf, wo, wi));
                 const float3 contribution = beta * f * ls.radiance * (w / ls.pdf);
-                set_shadow(out, p, ng, ls.wi, ls.distance, contribution);
+                set_shadow(out, at, is_finitef(ls.distance) ? &ls.target : nullptr, ls.wi, f32_infinity(),
+                           contribution);
             }
         }
     }
@@ -271,9 +285,12 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     if (!bsdf_sample(bsdf, wo, stream_bounce(rng, depth, BOUNCE_DIM_BSDF_LOBE, 0), u_dir, &bs)) return;
     if (bs.pdf <= 0.0f || is_zero3(bs.f)) return;
     float3 next_beta = beta * bs.f * (fabsf(bs.wi.z) / bs.pdf);
-    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`).
+    float eta_scale = f16_to_f32(r.eta_scale);
+    if (bs.transmission) eta_scale *= bs.eta * bs.eta;
+    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
+    // the throughput without the radiance scaling of refractions.
     if (params.russian_roulette && depth >= 1) {
-        const float m = max_element3(next_beta);
+        const float m = max_element3(next_beta * eta_scale);
         if (m < 1.0f) {
             const float q = fmaxf(1.0f - m, 0.0f);
             if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
@@ -282,8 +299,10 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     }
     if (!is_finite3(next_beta)) return;
     const float3 wi = normalize3(frame_from_local(frame, bs.wi));
-    set_continuation(out, r, p, ng, wi);
+    set_continuation(out, r, at, wi);
     out.next_throughput = next_beta;
+    // Kept within f16's normal range (shade.rs).
+    out.next_eta_scale = (unsigned short)f32_to_f16(fminf(fmaxf(eta_scale, 6.1035156e-5f), 65504.0f));
     // A stochastic BSDF's sample density is only proportional to the real
     // one; MIS at the next vertex needs its pdf (shade.rs, pbrt's pdfIsProportional).
     out.next_pdf = bsdf_sampled_pdf_is_proportional(bsdf) && !bs.delta ? bsdf_pdf(bsdf, wo, bs.wi) : bs.pdf;
@@ -296,19 +315,18 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
 __device__ __forceinline__ void shade_ambient_occlusion(const FrameParams& params, const RayRecord& r,
                                                         ShadeOutcome& out) {
     if (!(r.flags & FLAG_HIT)) return;
-    const float3 p = load3(r.position);
+    const SurfacePoint at = hit_point(r);
     const float3 dir = load3(r.direction);
-    float3 ng = normalize_or_zero3(load_f16x3(r.geometric_normal));
     if (bsdf_from_record(r).kind == MATERIAL_NONE) {
-        set_continuation(out, r, p, ng, dir);
+        set_continuation(out, r, at, dir);
         return;
     }
-    if (dot3(ng, dir) > 0.0f) ng = -ng;
+    const float3 ng = dot3(at.normal, dir) > 0.0f ? -at.normal : at.normal;
     const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
     const float2 u = make_float2(stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 0),
                                  stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 1));
     const float3 w = normalize3(frame_from_local(frame_from_z(ng), sample_cosine_hemisphere(u)));
-    set_shadow(out, p, ng, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
+    set_shadow(out, at, nullptr, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
 }
 
 /// Shades `paths[0 .. *path_count]` with the frame's integrator: adds
@@ -345,6 +363,7 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
         n.bsdf_pdf = out.next_pdf;
         n.depth = out.next_depth;
         n.flags = out.next_flags;
+        n.eta_scale = out.next_eta_scale;
         n.light = NO_LIGHT;
         next[next_slot] = n;
     }

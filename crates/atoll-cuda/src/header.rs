@@ -20,16 +20,18 @@ use crate::layout::field_layout;
 
 use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
 use atoll_render::frame::MAX_MIX_DEPTH;
+use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
+use atoll_render::spawn::SHADOW_EPSILON;
 
 use crate::layout::{
     image_format, mesh_flags, FieldLayout, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
 };
 use crate::params::{
-    emitter_kind, integrator_kind, FrameParams, GpuEmissionTexture, GpuEmitter, GpuMaterial, SceneView,
-    NO_EMISSION_TEXTURE,
+    emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, FrameParams, GpuEmissionTexture,
+    GpuEmitter, GpuMaterial, SceneView, NO_EMISSION_TEXTURE,
 };
 use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
@@ -110,6 +112,8 @@ pub fn math_constants() -> String {
         const_float("FRAC_PI_4", FRAC_PI_4),
         const_float("UNIFORM_SPHERE_PDF", UNIFORM_SPHERE_PDF),
         const_float("SMOOTH_ALPHA", SMOOTH_ALPHA),
+        const_float("SHADOW_EPSILON", SHADOW_EPSILON),
+        const_float("ONE_MINUS_EPSILON", 1.0 - f32::EPSILON / 2.0),
     ]
     .concat()
 }
@@ -252,11 +256,17 @@ pub fn params_asserts() -> String {
         ("EMITTER_ENVIRONMENT", emitter_kind::ENVIRONMENT),
         ("INTEGRATOR_PATH", integrator_kind::PATH),
         ("INTEGRATOR_AMBIENT_OCCLUSION", integrator_kind::AMBIENT_OCCLUSION),
+        ("LIGHT_SAMPLER_POWER", light_sampler_kind::POWER),
+        ("LIGHT_SAMPLER_BVH", light_sampler_kind::BVH),
+        ("LIGHT_NODE_LEAF", node_flags::LEAF),
+        ("LIGHT_NODE_TWO_SIDED", node_flags::TWO_SIDED),
+        ("NO_LIGHT_NODE", NO_NODE),
     ] {
         s += &const_uint("unsigned int", name, value as u64);
     }
     s += &assert_struct::<GpuEmitter>("GpuEmitter", GpuEmitter::field_layout());
     s += &assert_struct::<GpuMaterial>("GpuMaterial", GpuMaterial::field_layout());
+    s += &assert_struct::<LightNode>("LightNode", light_node_layout());
     s += &const_uint("unsigned int", "NO_EMISSION_TEXTURE", NO_EMISSION_TEXTURE as u64);
     s += &assert_struct::<GpuEmissionTexture>("GpuEmissionTexture", GpuEmissionTexture::field_layout());
     s += &assert_struct::<FrameParams>("FrameParams", FrameParams::field_layout());

@@ -14,12 +14,13 @@
 use std::sync::Arc;
 
 use atoll_render::environment::EnvironmentSampler;
+use atoll_render::light_bvh::LightNode;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
 use atoll_render::record::MATERIAL_COEFFS;
 use atoll_render::texture::ProgramRange;
 use atoll_render::FrameContext;
-use atoll_scene::IntegratorSettings;
+use atoll_scene::{IntegratorSettings, LightSampler};
 use bytemuck::{Pod, Zeroable};
 use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
 
@@ -57,6 +58,28 @@ impl GpuEmissionTexture {
     }
 }
 
+/// [`FrameParams::light_sampler`] values, one per [`LightSampler`] variant.
+pub mod light_sampler_kind {
+    pub const POWER: u32 = 0;
+    pub const BVH: u32 = 1;
+}
+
+/// The layout of the BVH light sampler's nodes, which the kernels mirror.
+pub fn light_node_layout() -> FieldLayout {
+    field_layout!(LightNode {
+        min,
+        phi,
+        max,
+        cos_theta_o,
+        w,
+        cos_theta_e,
+        child_or_light,
+        parent,
+        flags,
+        pad
+    })
+}
+
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
 pub mod integrator_kind {
     pub const PATH: u32 = 0;
@@ -87,7 +110,8 @@ pub struct GpuEmitter {
     pub p: [f32; 9],
     pub normal: [f32; 3],
     pub radiance: [f32; 3],
-    pub pad2: u32,
+    /// Triangles: the corners' error bound along the normal (`Emitter::Triangle::corner_error`).
+    pub error: f32,
 }
 
 impl GpuEmitter {
@@ -120,7 +144,7 @@ impl GpuEmitter {
                 g.p[7] = cos_falloff_end;
                 g.radiance = intensity.to_array();
             }
-            Emitter::Triangle { p, normal, area, radiance, two_sided, .. } => {
+            Emitter::Triangle { p, normal, area, radiance, two_sided, corner_error, .. } => {
                 g.kind = emitter_kind::TRIANGLE;
                 // FrameTables::build points textured triangles at their texture.
                 g.table = NO_EMISSION_TEXTURE;
@@ -131,6 +155,7 @@ impl GpuEmitter {
                 g.area = area;
                 g.radiance = radiance.to_array();
                 g.two_sided = two_sided as u32;
+                g.error = corner_error;
             }
         }
         g
@@ -153,7 +178,7 @@ impl GpuEmitter {
     }
 
     pub fn field_layout() -> FieldLayout {
-        field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, pad2 })
+        field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, error })
     }
 }
 
@@ -162,8 +187,11 @@ impl GpuEmitter {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuMaterial {
-    /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`].
-    pub coeffs: [u16; MATERIAL_COEFFS],
+    /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`], and a
+    /// last one always 0: 32 bytes, which `write_surface` copies into the
+    /// record as two 16-byte words (it puts the record's `eta_scale` in
+    /// place of the last).
+    pub coeffs: [u16; MATERIAL_COEFFS + 1],
     /// [`atoll_render::record::MaterialKind`] as u32.
     pub kind: u32,
     pub pad: [u32; 3],
@@ -176,7 +204,10 @@ impl GpuMaterial {
     /// `pad` holds the start and length of its texture program (`textures`):
     /// see `write_surface`.
     pub fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
-        let mut coeffs = m.coeffs.map(|c| c.to_bits());
+        let mut coeffs = [0u16; MATERIAL_COEFFS + 1];
+        for (to, from) in coeffs.iter_mut().zip(m.coeffs) {
+            *to = from.to_bits();
+        }
         let pad = match m.mix {
             Some(([a, b], amount)) => {
                 let words = [mix_amount.start, mix_amount.len];
@@ -222,7 +253,8 @@ pub struct FrameParams {
     pub infinite_count: u32,
     pub triangle_key_count: u32,
     pub material_count: u32,
-    pub pad: u32,
+    /// [`light_sampler_kind`].
+    pub light_sampler: u32,
     /// `GpuEmitter[light_count]`.
     pub emitters: u64,
     /// `f32[light_count]`: selection probability per emitter.
@@ -251,6 +283,14 @@ pub struct FrameParams {
     /// The scene's `GpuImage`s and their `u32` texels (from the `GpuScene`).
     pub images: u64,
     pub texels: u64,
+    /// `LightNode[light_node_count]`: the BVH light sampler's tree.
+    pub light_nodes: u64,
+    /// `u32[light_count]`: the leaf of each emitter (`light_bvh::NO_NODE` outside the tree).
+    pub light_leaf: u64,
+    /// `u32[unbounded_count]`: the lights at infinity, chosen apart from the tree.
+    pub unbounded_lights: u64,
+    pub light_node_count: u32,
+    pub unbounded_count: u32,
 }
 
 impl FrameParams {
@@ -288,6 +328,12 @@ impl FrameParams {
             infinite_count: lights.infinite_lights().len() as u32,
             triangle_key_count: lights.triangle_keys().len() as u32,
             material_count: frame.materials.len() as u32,
+            light_sampler: match frame.options.light_sampler {
+                LightSampler::Power => light_sampler_kind::POWER,
+                LightSampler::Bvh => light_sampler_kind::BVH,
+            },
+            light_node_count: lights.bvh.nodes.len() as u32,
+            unbounded_count: lights.unbounded_lights().len() as u32,
             ..Zeroable::zeroed()
         }
     }
@@ -310,7 +356,7 @@ impl FrameParams {
             infinite_count,
             triangle_key_count,
             material_count,
-            pad,
+            light_sampler,
             emitters,
             light_pmf,
             light_cdf,
@@ -325,6 +371,11 @@ impl FrameParams {
             emission_textures,
             images,
             texels,
+            light_nodes,
+            light_leaf,
+            unbounded_lights,
+            light_node_count,
+            unbounded_count,
         })
     }
 }
@@ -407,7 +458,7 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 80);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<FrameParams>() == 240);
+    assert!(std::mem::size_of::<FrameParams>() == 272);
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 72);
 };
@@ -430,6 +481,11 @@ pub struct FrameTables {
     pub mesh_alpha: Vec<u32>,
     pub srgb_to_linear: Vec<f32>,
     pub emission_textures: Vec<GpuEmissionTexture>,
+    /// The BVH light sampler's nodes as u32 words (the struct belongs to
+    /// atoll-render), each emitter's leaf, and the lights at infinity.
+    pub light_nodes: Vec<u32>,
+    pub light_leaf: Vec<u32>,
+    pub unbounded_lights: Vec<u32>,
 }
 
 impl FrameTables {
@@ -482,6 +538,9 @@ impl FrameTables {
             emission_textures,
             mesh_alpha: bytemuck::cast_slice(&frame.textures.mesh_alpha).to_vec(),
             srgb_to_linear: atoll_scene::texture::srgb8_to_linear().to_vec(),
+            light_nodes: bytemuck::cast_slice(&lights.bvh.nodes).to_vec(),
+            light_leaf: lights.bvh.leaf_of.clone(),
+            unbounded_lights: lights.unbounded_lights().to_vec(),
         }
     }
 
@@ -503,6 +562,9 @@ impl FrameTables {
             + b(&self.mesh_alpha)
             + b(&self.srgb_to_linear)
             + b(&self.emission_textures)
+            + b(&self.light_nodes)
+            + b(&self.light_leaf)
+            + b(&self.unbounded_lights)
             + std::mem::size_of::<FrameParams>() as u64
     }
 }
@@ -527,6 +589,9 @@ pub struct FrameParamsHost {
     mesh_alpha: CudaSlice<u32>,
     srgb_to_linear: CudaSlice<f32>,
     emission_textures: CudaSlice<GpuEmissionTexture>,
+    light_nodes: CudaSlice<u32>,
+    light_leaf: CudaSlice<u32>,
+    unbounded_lights: CudaSlice<u32>,
 }
 
 impl FrameParamsHost {
@@ -555,6 +620,9 @@ impl FrameParamsHost {
         let mesh_alpha = upload(gpu, &t.mesh_alpha, "alpha masks")?;
         let srgb_to_linear = upload(gpu, &t.srgb_to_linear, "sRGB table")?;
         let emission_textures = upload(gpu, &t.emission_textures, "emission textures")?;
+        let light_nodes = upload(gpu, &t.light_nodes, "light BVH")?;
+        let light_leaf = upload(gpu, &t.light_leaf, "light BVH leaves")?;
+        let unbounded_lights = upload(gpu, &t.unbounded_lights, "lights at infinity")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -570,6 +638,9 @@ impl FrameParamsHost {
         params.mesh_alpha = if t.mesh_alpha.is_empty() { 0 } else { mesh_alpha.device_ptr(stream).0 };
         params.srgb_to_linear = srgb_to_linear.device_ptr(stream).0;
         params.emission_textures = emission_textures.device_ptr(stream).0;
+        params.light_nodes = light_nodes.device_ptr(stream).0;
+        params.light_leaf = light_leaf.device_ptr(stream).0;
+        params.unbounded_lights = unbounded_lights.device_ptr(stream).0;
         if let Some(scene) = scene {
             params.images = scene.images.device_ptr(stream).0;
             params.texels = scene.texels.device_ptr(stream).0;
@@ -590,6 +661,9 @@ impl FrameParamsHost {
             mesh_alpha,
             srgb_to_linear,
             emission_textures,
+            light_nodes,
+            light_leaf,
+            unbounded_lights,
         })
     }
 
@@ -607,7 +681,10 @@ impl FrameParamsHost {
             + self.texture_ops.num_bytes()
             + self.mesh_alpha.num_bytes()
             + self.srgb_to_linear.num_bytes()
-            + self.emission_textures.num_bytes()) as u64
+            + self.emission_textures.num_bytes()
+            + self.light_nodes.num_bytes()
+            + self.light_leaf.num_bytes()
+            + self.unbounded_lights.num_bytes()) as u64
     }
 }
 

@@ -13,6 +13,7 @@ use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, Wave};
 use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
+use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
 use crate::texture::SceneTextures;
 
@@ -142,8 +143,14 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     let (b1, b2) = (hit.u, hit.v);
     let b0 = 1.0 - b1 - b2;
     // Interpolating the vertices is more precise than origin + t * direction.
-    let p_obj = mesh.positions[i0] * b0 + mesh.positions[i1] * b1 + mesh.positions[i2] * b2;
+    let corners = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
+    let p_obj = corners[0] * b0 + corners[1] * b1 + corners[2] * b2;
     let p = to_world.transform_point3(p_obj);
+    let p_error = spawn::transformed_error(
+        to_world,
+        p_obj,
+        spawn::gamma(7) * spawn::barycentric_magnitude(corners, [b0, b1, b2]),
+    );
     let mut ng = (normal_to_world * mesh.geometric_normal(hit.triangle as usize)).normalize_or_zero();
     let ns = if mesh.normals.is_empty() {
         ng
@@ -163,6 +170,7 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     r.t_max = hit.t;
     r.flags |= flags::HIT;
     r.position = p.to_array();
+    r.position_error = spawn::pack_error(spawn::error_along(ng, p_error));
     r.instance = hit.instance;
     r.geometric_normal = to_f16x3(ng);
     r.shading_normal = to_f16x3(ns);

@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use atoll_scene::{IntegratorSettings, Scene, TextureImage};
+use atoll_scene::{IntegratorSettings, LightSampler, Scene, TextureImage};
 use glam::{UVec2, Vec2};
 
 use crate::camera::CameraRays;
@@ -28,6 +28,8 @@ pub struct RenderOptions {
     /// Russian roulette after the second bounce (pbrt-v4's rule). Unbiased
     /// either way; off gives the fixed-length paths benchmarks ask for.
     pub russian_roulette: bool,
+    /// How next-event estimation picks a light.
+    pub light_sampler: LightSampler,
     /// Paths in flight per wave. Memory is `wave_size * 128 B` per queue.
     pub wave_size: u32,
     /// Wave-front merging: start the next wave's camera paths in the slots
@@ -52,6 +54,7 @@ impl RenderOptions {
             integrator: s.integrator.clone(),
             seed: 0,
             russian_roulette: true,
+            light_sampler: s.light_sampler,
             wave_size: DEFAULT_WAVE_SIZE,
             merge_waves: true,
         }
@@ -82,7 +85,7 @@ impl FrameContext {
         let kinds: Vec<_> = materials.iter().map(|m| m.kind).collect();
         FrameContext {
             camera: CameraRays::new(&scene.settings.camera, options.resolution),
-            lights: LightSet::new(scene),
+            lights: LightSet::new(scene, options.light_sampler),
             textures: TextureTables::new(scene, &kinds),
             images: scene.textures.images.clone(),
             materials,

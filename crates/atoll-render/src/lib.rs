@@ -9,11 +9,13 @@ pub mod environment;
 pub mod film;
 pub mod frame;
 pub mod integrator;
+pub mod light_bvh;
 pub mod lights;
 pub mod material_coeffs;
 pub mod record;
 pub mod rng;
 pub mod sampling;
+pub mod spawn;
 pub mod stages;
 pub mod texture;
 

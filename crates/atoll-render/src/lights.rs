@@ -1,9 +1,12 @@
 //! Lights as the renderer samples them: one flat table of every emitter
 //! (point, distant, infinite and each emissive triangle in world space),
-//! chosen in proportion to power. The table is small and replicated on every
-//! device, so any device can do next-event estimation and MIS for any path.
+//! chosen by the frame's [`LightSampler`]: in proportion to power, or by a
+//! BVH over the lights ([`crate::light_bvh`]) that weighs each by what it
+//! can contribute at the shading point. The tables are small and
+//! replicated on every device, so any device can do next-event estimation
+//! and MIS for any path.
 
-use atoll_scene::{luminance, Light, Rgb, Scene};
+use atoll_scene::{luminance, Light, LightSampler, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
 use std::sync::Arc;
@@ -11,8 +14,10 @@ use std::sync::Arc;
 use atoll_scene::TextureImage;
 
 use crate::environment::EnvironmentSampler;
+use crate::light_bvh::{LightBounds, LightBvh};
 use crate::record::{pack_rgb9e5, unpack_rgb9e5};
 use crate::sampling::{sample_uniform_sphere, sample_uniform_triangle, UNIFORM_SPHERE_PDF};
+use crate::spawn;
 use crate::texture::{self, ProgramRange, TexOp};
 
 /// One emitter in world space.
@@ -50,6 +55,9 @@ pub enum Emitter {
         two_sided: bool,
         /// Emission texture scaling `radiance` across the triangle.
         texture: Option<EmissionTexture>,
+        /// Error bound along `normal` of the world-space corners (the
+        /// instance transform's rounding), added to a sampled point's own.
+        corner_error: f32,
     },
 }
 
@@ -74,13 +82,24 @@ pub struct LightSample {
     /// lights the selection probability alone.
     pub pdf: f32,
     pub delta: bool,
+    /// For lights at a finite distance, the sampled point (with its
+    /// surface normal, zero for point lights, and error bound) that a
+    /// shadow ray aims at ([`spawn::spawn_ray_to`]).
+    pub target: spawn::SurfacePoint,
 }
 
-/// All emitters of a scene with a power-proportional selection distribution.
+/// All emitters of a scene and how next-event estimation picks one.
 #[derive(Clone, Debug, Default)]
 pub struct LightSet {
     pub emitters: Vec<Emitter>,
-    /// Selection probability per emitter.
+    pub sampler: LightSampler,
+    /// [`LightSampler::Bvh`]: the tree over the emitters at a finite
+    /// distance (empty under [`LightSampler::Power`]).
+    pub bvh: LightBvh,
+    /// [`LightSampler::Bvh`]: lights at infinity (distant, infinite,
+    /// environment), chosen uniformly before the tree is asked.
+    unbounded: Vec<u32>,
+    /// Power selection probability per emitter.
     pmf: Vec<f32>,
     /// Cumulative distribution (len = emitters + 1, last = 1).
     cdf: Vec<f32>,
@@ -116,11 +135,64 @@ pub fn smooth_step(x: f32, a: f32, b: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
+/// A light at infinity: no point to aim a shadow ray at.
+const AT_INFINITY: spawn::SurfacePoint =
+    spawn::SurfacePoint { p: Vec3::ZERO, normal: Vec3::ZERO, error: 0.0 };
+
+/// A point light's position: exact, on no surface.
+fn point_target(p: Vec3) -> spawn::SurfacePoint {
+    spawn::SurfacePoint { p, normal: Vec3::ZERO, error: 0.0 }
+}
+
+/// Lights at infinity, which have no bounds ([`LightSampler::Bvh`]
+/// chooses among them apart from its tree).
+fn is_unbounded(e: &Emitter) -> bool {
+    matches!(e, Emitter::Distant { .. } | Emitter::Infinite { .. } | Emitter::Environment { .. })
+}
+
+/// The bounds of an emitter at a finite distance whose power is `phi`
+/// (pbrt-v4's `Bounds` of its lights); `None` for lights at infinity.
+fn light_bounds(e: &Emitter, phi: f32) -> Option<LightBounds> {
+    let whole_sphere = |position: Vec3| LightBounds {
+        min: position,
+        max: position,
+        w: Vec3::Z,
+        phi,
+        cos_theta_o: -1.0,
+        cos_theta_e: 0.0,
+        two_sided: false,
+    };
+    match *e {
+        Emitter::Point { position, .. } => Some(whole_sphere(position)),
+        Emitter::Spot { position, direction, cos_falloff_start, cos_falloff_end, .. } => {
+            // Light leaves within the falloff cone; the full cone is the
+            // start angle plus what the falloff band adds.
+            let theta_e = cos_falloff_end.clamp(-1.0, 1.0).acos() - cos_falloff_start.clamp(-1.0, 1.0).acos();
+            Some(LightBounds {
+                w: direction,
+                cos_theta_o: cos_falloff_start,
+                cos_theta_e: theta_e.cos(),
+                ..whole_sphere(position)
+            })
+        }
+        Emitter::Triangle { p, normal, two_sided, .. } => Some(LightBounds {
+            min: p[0].min(p[1]).min(p[2]),
+            max: p[0].max(p[1]).max(p[2]),
+            w: normal,
+            phi,
+            cos_theta_o: 1.0,
+            cos_theta_e: 0.0,
+            two_sided,
+        }),
+        Emitter::Distant { .. } | Emitter::Infinite { .. } | Emitter::Environment { .. } => None,
+    }
+}
+
 impl LightSet {
-    pub fn new(scene: &Scene) -> Self {
+    pub fn new(scene: &Scene, sampler: LightSampler) -> Self {
         let (lo, hi) = scene.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let scene_radius = 0.5 * (hi - lo).length().max(1e-3);
-        let mut set = LightSet::default();
+        let mut set = LightSet { sampler, ..Default::default() };
         let mut triangle_base = Vec::new();
         for light in &scene.lights {
             set.emitters.push(match *light {
@@ -166,8 +238,10 @@ impl LightSet {
                 let program = mesh_programs.get(&mesh_id).copied();
                 triangle_base.push((triangle_key(instance_id as u32, mesh_id), set.emitters.len() as u32));
                 let normal_to_world = instance.normal_to_world();
+                let to_world = &instance.object_to_world;
                 for t in 0..mesh.triangle_count() {
-                    let p = mesh.triangle(t).map(|v| instance.object_to_world.transform_point3(v));
+                    let corners = mesh.triangle(t);
+                    let p = corners.map(|v| to_world.transform_point3(v));
                     let area = 0.5 * (p[0] - p[2]).cross(p[1] - p[2]).length();
                     // Oriented exactly like the geometric normal of a hit
                     // (see the CPU device's `write_hit`), so one-sidedness
@@ -183,13 +257,21 @@ impl LightSet {
                         },
                         program,
                     });
+                    let normal = n.normalize_or_zero();
+                    let corner_error = corners
+                        .iter()
+                        .map(|&v| {
+                            spawn::error_along(normal, spawn::transformed_error(to_world, v, Vec3::ZERO))
+                        })
+                        .fold(0.0, f32::max);
                     set.emitters.push(Emitter::Triangle {
                         p,
-                        normal: n.normalize_or_zero(),
+                        normal,
                         area,
                         radiance: emission.radiance,
                         two_sided: emission.two_sided,
                         texture,
+                        corner_error,
                     });
                 }
             }
@@ -258,7 +340,36 @@ impl LightSet {
                 matches!(set.emitters[i as usize], Emitter::Infinite { .. } | Emitter::Environment { .. })
             })
             .collect();
+        if sampler == LightSampler::Bvh {
+            let mut bounded = Vec::new();
+            for (i, (e, &phi)) in set.emitters.iter().zip(&power).enumerate() {
+                match light_bounds(e, phi) {
+                    Some(b) => bounded.push((i as u32, b)),
+                    None => set.unbounded.push(i as u32),
+                }
+            }
+            set.bvh = LightBvh::build(&bounded, set.emitters.len());
+        }
         set
+    }
+
+    /// [`LightSampler::Bvh`]: the probability of choosing a light at
+    /// infinity rather than asking the tree (pbrt-v4's: each light at
+    /// infinity counts as much as the whole tree).
+    pub fn unbounded_probability(&self) -> f32 {
+        let n = self.unbounded.len() as f32;
+        let tree = if self.bvh.is_empty() { 0.0 } else { 1.0 };
+        if n == 0.0 {
+            0.0
+        } else {
+            n / (n + tree)
+        }
+    }
+
+    /// [`LightSampler::Bvh`]: the lights at infinity, in the order
+    /// selection numbers map to them.
+    pub fn unbounded_lights(&self) -> &[u32] {
+        &self.unbounded
     }
 
     pub fn is_empty(&self) -> bool {
@@ -302,8 +413,41 @@ impl LightSet {
         self.pmf[index as usize]
     }
 
-    /// Picks an emitter with `u` in [0,1): (index, probability).
-    pub fn select(&self, u: f32) -> Option<(u32, f32)> {
+    /// Picks an emitter for shading point `p` with `u` in [0,1): (index,
+    /// probability).
+    pub fn select(&self, p: Vec3, u: f32) -> Option<(u32, f32)> {
+        match self.sampler {
+            LightSampler::Power => self.select_by_power(u),
+            LightSampler::Bvh => {
+                let p_unbounded = self.unbounded_probability();
+                if u < p_unbounded {
+                    let n = self.unbounded.len();
+                    let k = (((u / p_unbounded) * n as f32) as usize).min(n - 1);
+                    return Some((self.unbounded[k], p_unbounded / n as f32));
+                }
+                let u = ((u - p_unbounded) / (1.0 - p_unbounded)).min(1.0 - f32::EPSILON / 2.0);
+                let (index, pmf) = self.bvh.sample(p, u)?;
+                Some((index, (1.0 - p_unbounded) * pmf))
+            }
+        }
+    }
+
+    /// The probability that [`Self::select`] at `p` picks emitter `index`.
+    pub fn selection_pmf(&self, p: Vec3, index: u32) -> f32 {
+        match self.sampler {
+            LightSampler::Power => self.pmf[index as usize],
+            LightSampler::Bvh => {
+                if is_unbounded(&self.emitters[index as usize]) {
+                    self.unbounded_probability() / self.unbounded.len() as f32
+                } else {
+                    (1.0 - self.unbounded_probability()) * self.bvh.pmf(p, index)
+                }
+            }
+        }
+    }
+
+    /// [`LightSampler::Power`]'s choice: `u` in [0,1) through the cdf.
+    pub fn select_by_power(&self, u: f32) -> Option<(u32, f32)> {
         if self.emitters.is_empty() {
             return None;
         }
@@ -315,7 +459,7 @@ impl LightSet {
     /// Samples incident light at `p` with selection number `u_select` and
     /// position numbers `u`. `None` when the chosen light cannot contribute.
     pub fn sample(&self, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
-        let (index, pmf) = self.select(u_select)?;
+        let (index, pmf) = self.select(p, u_select)?;
         if pmf <= 0.0 {
             return None;
         }
@@ -330,14 +474,27 @@ impl LightSet {
                     radiance: intensity / dist2,
                     pdf: pmf,
                     delta: true,
+                    target: point_target(position),
                 })
             }
-            Emitter::Distant { direction, radiance } => {
-                Some(LightSample { wi: -direction, distance: f32::INFINITY, radiance, pdf: pmf, delta: true })
-            }
+            Emitter::Distant { direction, radiance } => Some(LightSample {
+                wi: -direction,
+                distance: f32::INFINITY,
+                radiance,
+                pdf: pmf,
+                delta: true,
+                target: AT_INFINITY,
+            }),
             Emitter::Environment { index } => {
                 let (wi, radiance, pdf) = self.environments[index as usize].sample(u)?;
-                Some(LightSample { wi, distance: f32::INFINITY, radiance, pdf: pmf * pdf, delta: false })
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance,
+                    pdf: pmf * pdf,
+                    delta: false,
+                    target: AT_INFINITY,
+                })
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let d = position - p;
@@ -354,6 +511,7 @@ impl LightSet {
                     radiance: intensity * (falloff / dist2),
                     pdf: pmf,
                     delta: true,
+                    target: point_target(position),
                 })
             }
             Emitter::Infinite { radiance } => Some(LightSample {
@@ -362,10 +520,15 @@ impl LightSet {
                 radiance,
                 pdf: pmf * UNIFORM_SPHERE_PDF,
                 delta: false,
+                target: AT_INFINITY,
             }),
-            Emitter::Triangle { p: tri, normal, area, radiance, two_sided, texture } => {
+            Emitter::Triangle { p: tri, normal, area, radiance, two_sided, texture, corner_error } => {
                 let b = sample_uniform_triangle(u);
                 let q = tri[0] * b[0] + tri[1] * b[1] + tri[2] * b[2];
+                // pbrt's bound for a sampled point: γ₆ Σ |bᵢ pᵢ|, plus the corners' own.
+                let error =
+                    spawn::error_along(normal, spawn::gamma(6) * spawn::barycentric_magnitude(tri, b))
+                        + corner_error;
                 let d = q - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 || area == 0.0 {
@@ -382,7 +545,14 @@ impl LightSet {
                     Some(t) => radiance * self.texture_value(&t, b),
                     None => radiance,
                 };
-                Some(LightSample { wi, distance, radiance, pdf, delta: false })
+                Some(LightSample {
+                    wi,
+                    distance,
+                    radiance,
+                    pdf,
+                    delta: false,
+                    target: spawn::SurfacePoint { p: q, normal, error },
+                })
             }
         }
     }
@@ -424,17 +594,18 @@ impl LightSet {
         texture::run_program(ops, &self.images, uv, &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS])
     }
 
-    /// Solid-angle pdf (with selection) that [`LightSet::sample`] picks the
-    /// point at `distance` along `wi` on emissive triangle `index` — the
-    /// light-sampling side of MIS when a BSDF-sampled ray hits an emitter.
-    pub fn pdf_triangle(&self, index: u32, wi: Vec3, distance: f32) -> f32 {
+    /// Solid-angle pdf (with selection) that [`LightSet::sample`] at `p`
+    /// picks the point at `distance` along `wi` on emissive triangle `index`
+    /// — the light-sampling side of MIS when a BSDF-sampled ray from `p`
+    /// hits an emitter.
+    pub fn pdf_triangle(&self, p: Vec3, index: u32, wi: Vec3, distance: f32) -> f32 {
         match self.emitters[index as usize] {
             Emitter::Triangle { normal, area, .. } => {
                 let cos = normal.dot(wi).abs();
                 if cos == 0.0 || area == 0.0 {
                     0.0
                 } else {
-                    self.pmf[index as usize] * distance * distance / (cos * area)
+                    self.selection_pmf(p, index) * distance * distance / (cos * area)
                 }
             }
             _ => 0.0,
@@ -450,14 +621,14 @@ impl LightSet {
         }
     }
 
-    /// Solid-angle pdf (with selection) that light sampling picks direction
-    /// `w` from infinite light `index`.
-    pub fn pdf_environment(&self, index: u32, w: Vec3) -> f32 {
+    /// Solid-angle pdf (with selection) that light sampling at `p` picks
+    /// direction `w` from infinite light `index`.
+    pub fn pdf_environment(&self, p: Vec3, index: u32, w: Vec3) -> f32 {
         let direction_pdf = match self.emitters[index as usize] {
             Emitter::Environment { index } => self.environments[index as usize].pdf(w),
             _ => UNIFORM_SPHERE_PDF,
         };
-        self.pmf[index as usize] * direction_pdf
+        self.selection_pmf(p, index) * direction_pdf
     }
 }
 
@@ -502,7 +673,7 @@ mod tests {
     #[test]
     fn light_sampling_estimates_irradiance_of_a_square() {
         let (side, h, l) = (0.5f32, 0.8f32, 3.0f32);
-        let set = LightSet::new(&square_light(side, h, Rgb::splat(l)));
+        let set = LightSet::new(&square_light(side, h, Rgb::splat(l)), LightSampler::Power);
         assert_eq!(set.emitters.len(), 2);
         let n = 200_000;
         let mut sum = 0.0f64;
@@ -519,15 +690,15 @@ mod tests {
 
     #[test]
     fn sample_pdf_matches_hit_pdf_and_back_faces_are_dark() {
-        let set = LightSet::new(&square_light(1.0, 1.0, Rgb::ONE));
+        let set = LightSet::new(&square_light(1.0, 1.0, Rgb::ONE), LightSampler::Power);
         let p = Vec3::new(0.1, 0.0, -0.2);
         for i in 0..100 {
             let s = crate::rng::SampleStream::new(2, i, 0);
             let ls = set.sample(p, s.get(0), Vec2::new(s.get(1), s.get(2))).unwrap();
             // Which triangle was chosen is recorded by the selection; both
             // have equal power, so recompute via either.
-            let (index, _) = set.select(s.get(0)).unwrap();
-            let pdf = set.pdf_triangle(index, ls.wi, ls.distance);
+            let (index, _) = set.select_by_power(s.get(0)).unwrap();
+            let pdf = set.pdf_triangle(p, index, ls.wi, ls.distance);
             assert!((pdf - ls.pdf).abs() < 1e-4 * pdf, "{pdf} vs {}", ls.pdf);
             assert_eq!(set.emitted(index, -ls.wi, 0), Rgb::ONE);
             assert_eq!(set.emitted(index, ls.wi, 0), Rgb::ZERO);
@@ -543,7 +714,7 @@ mod tests {
     fn mirrored_instance_keeps_its_emitting_side() {
         let mut scene = square_light(1.0, 1.0, Rgb::ONE);
         scene.instances[0].object_to_world = Affine3A::from_scale(Vec3::new(-1.0, 1.0, 1.0));
-        let set = LightSet::new(&scene);
+        let set = LightSet::new(&scene, LightSampler::Power);
         assert!(set.sample(Vec3::ZERO, 0.3, Vec2::new(0.2, 0.4)).is_some());
         assert!(set.sample(Vec3::new(0.0, 2.0, 0.0), 0.3, Vec2::new(0.2, 0.4)).is_none());
     }
@@ -555,14 +726,14 @@ mod tests {
             position: Vec3::ZERO,
             intensity: Rgb::splat(1.0 / (4.0 * std::f32::consts::PI)),
         });
-        let set = LightSet::new(&scene);
+        let set = LightSet::new(&scene, LightSampler::Power);
         // Point: 4π · I = 1. Square: π · area · L = π. Two triangles of π/2.
         let total = 1.0 + std::f32::consts::PI;
         assert!((set.pmf(0) - 1.0 / total).abs() < 1e-6);
         assert!((set.pmf(1) - 0.5 * std::f32::consts::PI / total).abs() < 1e-6);
         let n = 100_000;
         let picked_point =
-            (0..n).filter(|&i| set.select((i as f32 + 0.5) / n as f32).unwrap().0 == 0).count();
+            (0..n).filter(|&i| set.select_by_power((i as f32 + 0.5) / n as f32).unwrap().0 == 0).count();
         assert!((picked_point as f32 / n as f32 - 1.0 / total).abs() < 1e-3);
     }
 
@@ -593,7 +764,7 @@ mod tests {
             object_to_world: Affine3A::from_translation(Vec3::new(3.0, 0.0, 0.0)),
         });
         scene.instances.push(Instance { object: mixed, object_to_world: Affine3A::IDENTITY });
-        let set = LightSet::new(&scene);
+        let set = LightSet::new(&scene, LightSampler::Power);
         // Instance 1: 2 triangles, instance 2: 2, instance 3: lamp 1 then light 2.
         assert_eq!(set.emitters.len(), 7);
         let keys = [triangle_key(1, 0), triangle_key(2, 0), triangle_key(3, 0), triangle_key(3, lamp)];
@@ -622,7 +793,7 @@ mod tests {
         let axis = Vec3::new(0.0, -1.0, 0.0);
         scene.lights.push(Light::spot(Vec3::new(0.0, 2.0, 0.0), axis, Rgb::splat(8.0), 30.0, 10.0));
         scene.lights.push(Light::Point { position: Vec3::new(5.0, 5.0, 5.0), intensity: Rgb::splat(8.0) });
-        let set = LightSet::new(&scene);
+        let set = LightSet::new(&scene, LightSampler::Power);
         let spot_pmf = set.pmf(0);
         // Power: a spot of cone 30 (falloff from 20) against a point light of equal intensity.
         let (start, end) = (20f32.to_radians().cos(), 30f32.to_radians().cos());

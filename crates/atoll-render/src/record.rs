@@ -14,7 +14,7 @@ use glam::Vec3;
 use half::f16;
 
 /// Number of f16 material coefficients carried by a hit.
-pub const MATERIAL_COEFFS: usize = 16;
+pub const MATERIAL_COEFFS: usize = 15;
 /// `RayRecord::light` value meaning "the hit surface does not emit".
 pub const NO_LIGHT: u32 = u32::MAX;
 
@@ -117,9 +117,16 @@ pub struct RayRecord {
     /// [`MaterialKind`] as u16.
     pub material: u16,
     pub shading_normal: [f16; 3],
-    /// Reserved.
-    pub reserved2: u16,
+    /// How far `position` may lie off the surface along the geometric
+    /// normal (its floating-point error bound), as bfloat16 bits rounded
+    /// up ([`crate::spawn::pack_error`]); rays leave the hit past it.
+    pub position_error: u16,
     pub coeffs: [f16; MATERIAL_COEFFS],
+    /// Path state: the product of η² over the refractions so far (pbrt-v4's
+    /// `etaScale`), which Russian roulette takes out of the throughput so
+    /// that radiance scaling at refractions does not end paths. 1 for
+    /// camera paths. Kept across hits (the GPU's hit writer preserves it).
+    pub eta_scale: f16,
 }
 
 // The CUDA header mirrors these numbers; change both together.
@@ -134,7 +141,9 @@ const _: () = {
     assert!(std::mem::offset_of!(RayRecord, position) == 64);
     assert!(std::mem::offset_of!(RayRecord, geometric_normal) == 80);
     assert!(std::mem::offset_of!(RayRecord, shading_normal) == 88);
+    assert!(std::mem::offset_of!(RayRecord, position_error) == 94);
     assert!(std::mem::offset_of!(RayRecord, coeffs) == 96);
+    assert!(std::mem::offset_of!(RayRecord, eta_scale) == 126);
 };
 
 /// `(name, offset, size)` of every field, for generating the CUDA header's
@@ -163,8 +172,9 @@ pub fn field_layout() -> Vec<(&'static str, usize, usize)> {
         f!(geometric_normal),
         f!(material),
         f!(shading_normal),
-        f!(reserved2),
+        f!(position_error),
         f!(coeffs),
+        f!(eta_scale),
     ]
 }
 
@@ -240,6 +250,13 @@ impl RayRecord {
     }
     pub fn coeff3(&self, i: usize) -> Vec3 {
         Vec3::new(self.coeff(i), self.coeff(i + 1), self.coeff(i + 2))
+    }
+    /// [`Self::position_error`] as a float.
+    pub fn position_error(&self) -> f32 {
+        crate::spawn::unpack_error(self.position_error)
+    }
+    pub fn eta_scale(&self) -> f32 {
+        self.eta_scale.to_f32()
     }
 }
 

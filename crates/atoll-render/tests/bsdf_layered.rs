@@ -503,6 +503,7 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
         integrator: IntegratorSettings::Path { max_depth: 8 },
         seed: 5,
         russian_roulette: true,
+        light_sampler: Default::default(),
         wave_size: 1 << 16,
         merge_waves: true,
     };

@@ -53,6 +53,7 @@ fn options(spp: u32, max_depth: u32) -> RenderOptions {
         integrator: IntegratorSettings::Path { max_depth },
         seed: 3,
         russian_roulette: true,
+        light_sampler: Default::default(),
         wave_size: 1 << 16,
         merge_waves: true,
     }

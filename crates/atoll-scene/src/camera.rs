@@ -53,6 +53,17 @@ impl Default for IntegratorSettings {
     }
 }
 
+/// How next-event estimation picks a light (pbrt-v4's `lightsampler`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LightSampler {
+    /// In proportion to each light's power, the same everywhere.
+    Power,
+    /// By each light's estimated contribution at the shading point, from a
+    /// BVH over the lights' bounds (pbrt-v4's default).
+    #[default]
+    Bvh,
+}
+
 /// Everything about *how* to render that the scene file can say.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct RenderSettings {
@@ -61,4 +72,6 @@ pub struct RenderSettings {
     /// Samples per pixel (`Sampler "integer pixelsamples"`).
     pub spp: u32,
     pub integrator: IntegratorSettings,
+    /// `Integrator "string lightsampler"`.
+    pub light_sampler: LightSampler,
 }

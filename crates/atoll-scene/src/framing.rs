@@ -49,6 +49,7 @@ pub fn default_settings() -> RenderSettings {
         film: crate::FilmSettings { resolution: RESOLUTION, filename: None },
         spp: SPP,
         integrator: IntegratorSettings::Path { max_depth: MAX_DEPTH },
+        light_sampler: Default::default(),
     }
 }
 

@@ -116,11 +116,12 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!((g.p[6], g.p[7]), (cos_falloff_start, cos_falloff_end));
                 assert_eq!(g.radiance, intensity.to_array());
             }
-            Emitter::Triangle { p, normal, area, radiance, two_sided, texture } => {
+            Emitter::Triangle { p, normal, area, radiance, two_sided, texture, corner_error } => {
                 assert_eq!(g.kind, emitter_kind::TRIANGLE);
                 assert_eq!(&g.p[6..9], &p[2].to_array());
                 assert_eq!((g.normal, g.area, g.radiance), (normal.to_array(), area, radiance.to_array()));
                 assert_eq!(g.two_sided, two_sided as u32);
+                assert_eq!(g.error, corner_error);
                 assert_eq!(texture.is_none(), g.table == crate::params::NO_EMISSION_TEXTURE);
             }
         }
@@ -133,7 +134,8 @@ fn frame_tables_mirror_the_light_set_and_materials() {
     assert_eq!(t.materials.len(), frame.materials.len());
     for (g, m) in t.materials.iter().zip(&frame.materials) {
         assert_eq!(g.kind, m.kind as u32);
-        assert_eq!(g.coeffs, m.coeffs.map(|c| c.to_bits()));
+        assert_eq!(g.coeffs[..MATERIAL_COEFFS], m.coeffs.map(|c| c.to_bits()));
+        assert_eq!(g.coeffs[MATERIAL_COEFFS], 0, "the record's eta_scale slot");
     }
     assert!(t.materials.iter().any(|m| m.kind == MaterialKind::Diffuse as u32));
     assert!(t.bytes() >= 184 + 80 * t.emitters.len() as u64);

@@ -5,13 +5,13 @@
 use atoll_scene::IntegratorSettings;
 use glam::{Vec2, Vec3};
 
-use super::offset_origin;
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
 use crate::material_coeffs::bsdf_from_record;
 use crate::record::{flags, RayRecord, NO_LIGHT};
 use crate::rng::{BounceDim, SampleStream};
 use crate::sampling::{power_heuristic, sample_cosine_hemisphere};
+use crate::spawn::{self, SurfacePoint};
 
 /// What shading one record produces.
 #[derive(Clone, Copy, Debug, Default)]
@@ -34,10 +34,11 @@ pub fn shade(ctx: &FrameContext, r: &RayRecord) -> ShadeOutcome {
     }
 }
 
-/// A new segment of the same path leaving `p` in unit direction `w`.
-fn continuation(r: &RayRecord, p: Vec3, ng: Vec3, w: Vec3) -> RayRecord {
+/// A new segment of the same path leaving the hit `at` in unit direction
+/// `w`, from just past the hit's error bound.
+fn continuation(r: &RayRecord, at: &SurfacePoint, w: Vec3) -> RayRecord {
     let mut next = *r;
-    next.origin = offset_origin(p, ng, w).to_array();
+    next.origin = spawn::offset_ray_origin(at.p, at.error, at.normal, w).to_array();
     next.direction = w.to_array();
     next.t_max = f32::INFINITY;
     next.flags &= !flags::HIT;
@@ -45,16 +46,45 @@ fn continuation(r: &RayRecord, p: Vec3, ng: Vec3, w: Vec3) -> RayRecord {
     next
 }
 
-/// A shadow ray from `p` towards `w`, reaching `distance` (infinite for
-/// lights at infinity), that adds `radiance` to the pixel if unoccluded.
-fn shadow_ray(r: &RayRecord, p: Vec3, ng: Vec3, w: Vec3, distance: f32, radiance: Vec3) -> RayRecord {
-    let mut s = continuation(r, p, ng, w);
-    let origin = Vec3::from(s.origin);
-    // Stop just short of the light so it does not occlude itself.
-    s.t_max = if distance.is_finite() { (distance - (origin - p).length()) * (1.0 - 1e-4) } else { distance };
+/// A shadow ray from the hit `at` that adds `radiance` to the pixel if
+/// unoccluded: towards `target` when the light is at a finite distance
+/// (`SpawnRayTo`, neither end's surface can occlude it), else along `w`
+/// up to `t_max`. `None` when the two ends coincide.
+fn shadow_ray(
+    r: &RayRecord,
+    at: &SurfacePoint,
+    target: Option<&SurfacePoint>,
+    w: Vec3,
+    t_max: f32,
+    radiance: Vec3,
+) -> Option<RayRecord> {
+    let mut s = *r;
+    match target {
+        Some(target) => {
+            let ray = spawn::spawn_ray_to(*at, *target)?;
+            s.origin = ray.origin.to_array();
+            s.direction = ray.direction.to_array();
+            s.t_max = ray.t_max;
+        }
+        None => {
+            s.origin = spawn::offset_ray_origin(at.p, at.error, at.normal, w).to_array();
+            s.direction = w.to_array();
+            s.t_max = t_max;
+        }
+    }
+    s.light = NO_LIGHT;
     s.throughput = radiance.to_array();
     s.flags = flags::SHADOW;
-    s
+    Some(s)
+}
+
+/// The shaded hit of `r` as a ray end: position, geometric normal, error.
+fn hit_point(r: &RayRecord) -> SurfacePoint {
+    SurfacePoint {
+        p: Vec3::from(r.position),
+        normal: r.geometric_normal().normalize_or_zero(),
+        error: r.position_error(),
+    }
 }
 
 fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome {
@@ -65,10 +95,17 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     let mut out = ShadeOutcome::default();
 
     // Escaped: environment lights, MIS-weighted against light sampling.
+    // Light selection may depend on where the path was (the BVH sampler):
+    // the previous vertex is where this segment started.
+    let from = r.origin();
     if !r.has(flags::HIT) {
         for &i in lights.infinite_lights() {
             let le = lights.environment_radiance(i, dir);
-            let w = if specular { 1.0 } else { power_heuristic(r.bsdf_pdf, lights.pdf_environment(i, dir)) };
+            let w = if specular {
+                1.0
+            } else {
+                power_heuristic(r.bsdf_pdf, lights.pdf_environment(from, i, dir))
+            };
             out.emitted += beta * le * w;
         }
         return out;
@@ -81,17 +118,17 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
             let w = if specular {
                 1.0
             } else {
-                power_heuristic(r.bsdf_pdf, lights.pdf_triangle(r.light, dir, r.t_max))
+                power_heuristic(r.bsdf_pdf, lights.pdf_triangle(from, r.light, dir, r.t_max))
             };
             out.emitted += beta * le * w;
         }
     }
 
-    let p = Vec3::from(r.position);
-    let ng = r.geometric_normal().normalize_or_zero();
+    let at = hit_point(r);
+    let p = at.p;
     let Some(bsdf) = bsdf_from_record(r) else {
         // A surface that only bounds a medium: continue straight through.
-        out.next = Some(continuation(r, p, ng, dir));
+        out.next = Some(continuation(r, &at, dir));
         return out;
     };
     let depth = r.depth as u32;
@@ -117,7 +154,8 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
             if ls.pdf > 0.0 && f != Vec3::ZERO && ls.radiance != Vec3::ZERO {
                 let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
                 let contribution = beta * f * ls.radiance * (w / ls.pdf);
-                out.shadow = Some(shadow_ray(r, p, ng, ls.wi, ls.distance, contribution));
+                let target = ls.distance.is_finite().then_some(&ls.target);
+                out.shadow = shadow_ray(r, &at, target, ls.wi, f32::INFINITY, contribution);
             }
         }
     }
@@ -134,9 +172,15 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
         return out;
     }
     let mut beta = beta * bs.f * (bs.wi.z.abs() / bs.pdf);
-    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`).
+    let mut eta_scale = r.eta_scale();
+    if bs.transmission {
+        eta_scale *= bs.eta * bs.eta;
+    }
+    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`),
+    // on the throughput without the radiance scaling of refractions, which
+    // would otherwise end most paths inside glass.
     if ctx.options.russian_roulette && depth >= 1 {
-        let max = beta.max_element();
+        let max = (beta * eta_scale).max_element();
         if max < 1.0 {
             let q = (1.0 - max).max(0.0);
             if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {
@@ -149,8 +193,11 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
         return out;
     }
     let wi = frame.from_local(bs.wi).normalize();
-    let mut next = continuation(r, p, ng, wi);
+    let mut next = continuation(r, &at, wi);
     next.throughput = beta.to_array();
+    // Kept within f16's normal range: roulette stays unbiased with any value.
+    next.eta_scale =
+        half::f16::from_f32(eta_scale.clamp(half::f16::MIN_POSITIVE.to_f32(), half::f16::MAX.to_f32()));
     // A stochastic BSDF's sample density is only proportional to the real
     // one; MIS at the next vertex needs its `pdf` (pbrt's `pdfIsProportional`).
     // Specular samples skip MIS, so their probability is kept as it is.
@@ -169,19 +216,16 @@ fn shade_ambient_occlusion(ctx: &FrameContext, r: &RayRecord, max_distance: f32)
     if !r.has(flags::HIT) {
         return out;
     }
-    let p = Vec3::from(r.position);
+    let at = hit_point(r);
     let dir = r.direction();
-    let mut ng = r.geometric_normal().normalize_or_zero();
     if bsdf_from_record(r).is_none() {
-        out.next = Some(continuation(r, p, ng, dir));
+        out.next = Some(continuation(r, &at, dir));
         return out;
     }
-    if ng.dot(dir) > 0.0 {
-        ng = -ng;
-    }
+    let ng = if at.normal.dot(dir) > 0.0 { -at.normal } else { at.normal };
     let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
     let u = Vec2::new(rng.bounce(0, BounceDim::BsdfDirection, 0), rng.bounce(0, BounceDim::BsdfDirection, 1));
     let w = Frame::from_z(ng).from_local(sample_cosine_hemisphere(u)).normalize();
-    out.shadow = Some(shadow_ray(r, p, ng, w, max_distance, Vec3::ONE));
+    out.shadow = shadow_ray(r, &at, None, w, max_distance, Vec3::ONE);
     out
 }

@@ -20,8 +20,8 @@ use glam::{Affine3A, DMat3, DMat4, DVec3, UVec2};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    AlphaMode, AreaEmission, Instance, IntegratorSettings, Material, MaterialId, MeshAlpha, MeshId, Object,
-    Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam, TriangleMesh,
+    AlphaMode, AreaEmission, Instance, IntegratorSettings, LightSampler, Material, MaterialId, MeshAlpha,
+    MeshId, Object, Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam, TriangleMesh,
 };
 
 use super::params::{Param, ParamList, ParamType};
@@ -734,6 +734,17 @@ impl Builder {
     }
 
     fn integrator(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        self.scene.settings.light_sampler = match p.string("lightsampler")?.as_deref() {
+            None | Some("bvh") => LightSampler::Bvh,
+            Some("power") => LightSampler::Power,
+            Some(other) => {
+                self.warn(
+                    loc,
+                    format!("Integrator: lightsampler \"{other}\" is not supported; using \"bvh\""),
+                );
+                LightSampler::Bvh
+            }
+        };
         self.scene.settings.integrator = if name == "ambientocclusion" {
             let max_distance = p.float_or("maxdistance", f32::INFINITY)?;
             IntegratorSettings::AmbientOcclusion { max_distance }
