@@ -6,7 +6,7 @@ use std::sync::Arc;
 use atoll_dist::{RingOrder, Strategy, Transport};
 use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
-use atoll_scene::IntegratorSettings;
+use atoll_scene::{IntegratorSettings, LightSampler};
 use atoll_scene::Scene;
 use clap::Args;
 use glam::UVec2;
@@ -130,6 +130,11 @@ pub struct RenderArgs {
     /// Disable Russian roulette (fixed-length paths).
     #[arg(long)]
     pub no_rr: bool,
+    /// How next-event estimation picks a light: `bvh` (by what each light
+    /// can contribute at the shading point) or `power`. Default: the
+    /// scene's `Integrator "string lightsampler"`, else `bvh`.
+    #[arg(long, value_parser = parse_light_sampler)]
+    pub light_sampler: Option<LightSampler>,
     /// Render ambient occlusion instead of the scene's integrator, with this max distance.
     #[arg(long)]
     pub ao: Option<f32>,
@@ -247,6 +252,9 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     }
     options.seed = args.seed;
     options.russian_roulette = !args.no_rr;
+    if let Some(sampler) = args.light_sampler {
+        options.light_sampler = sampler;
+    }
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
     });
@@ -436,5 +444,13 @@ mod tests {
         assert_eq!(options.wave_size, atoll_cuda::DEFAULT_WAVE_SIZE);
         WaveArgs { wave_size: Some(4096), ..waves(false, None) }.apply(&mut options, true);
         assert_eq!(options.wave_size, 4096);
+    }
+}
+
+fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
+    match name {
+        "bvh" => Ok(LightSampler::Bvh),
+        "power" => Ok(LightSampler::Power),
+        other => Err(format!("unknown light sampler \"{other}\" (bvh, power)")),
     }
 }
