@@ -18,6 +18,9 @@ inline constexpr float FRAC_PI_4 = 0.7853982f;
 inline constexpr float UNIFORM_SPHERE_PDF = 0.07957747f;
 inline constexpr float SMOOTH_ALPHA = 0.001f;
 inline constexpr float SHADOW_EPSILON = 0.0001f;
+inline constexpr float GAMMA_3 = 1.7881396e-7f;
+inline constexpr float GAMMA_6 = 3.57628e-7f;
+inline constexpr float GAMMA_7 = 4.1723268e-7f;
 inline constexpr float ONE_MINUS_EPSILON = 0.99999994f;
 // END GENERATED constants
 

@@ -19,35 +19,27 @@ __device__ __forceinline__ float sin_sub_clamped(float sin_a, float cos_a, float
     return cos_a > cos_b ? 0.0f : sin_a * cos_b - cos_a * sin_b;
 }
 
-/// Mirrors `light_bvh::cos_subtended`.
-__device__ __forceinline__ float cos_subtended(float3 lo, float3 hi, float3 p) {
-    if (p.x >= lo.x && p.y >= lo.y && p.z >= lo.z && p.x <= hi.x && p.y <= hi.y && p.z <= hi.z) return -1.0f;
-    const float3 center = (lo + hi) * 0.5f;
-    const float radius2 = length_squared3(hi - center);
-    const float distance2 = length_squared3(p - center);
-    if (distance2 < radius2) return -1.0f;
-    return safe_sqrtf(1.0f - __fdiv_rn(radius2, distance2));
-}
-
 /// Mirrors `LightNode::importance`.
 __device__ __forceinline__ float light_node_importance(const LightNode& n, float3 p) {
-    const float3 lo = load3(n.min), hi = load3(n.max);
-    const float3 center = (lo + hi) * 0.5f;
+    const float3 center = (load3(n.min) + load3(n.max)) * 0.5f;
     const float3 to_p = p - center;
-    const float half_diagonal2 = 0.25f * length_squared3(hi - lo);
-    const float distance2 = fmaxf(fmaxf(length_squared3(to_p), half_diagonal2), 1.17549435e-38f);
-    const float3 wi = normalize_or_zero3(to_p);
-    float cos_w = dot3(load3(n.w), wi);
+    const float distance2 = length_squared3(to_p);
+    const float radius2 = n.radius * n.radius;
+    float inv_distance = __fdiv_rn(1.0f, sqrtf(distance2));
+    if (!is_finitef(inv_distance)) inv_distance = 0.0f;
+    float cos_w = dot3(load3(n.w), to_p) * inv_distance;
     if (n.flags & LIGHT_NODE_TWO_SIDED) cos_w = fabsf(cos_w);
     const float sin_w = safe_sqrtf(1.0f - cos_w * cos_w);
-    const float cos_b = cos_subtended(lo, hi, p);
-    const float sin_b = safe_sqrtf(1.0f - cos_b * cos_b);
-    const float sin_o = safe_sqrtf(1.0f - n.cos_theta_o * n.cos_theta_o);
-    const float cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, n.cos_theta_o);
-    const float sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, n.cos_theta_o);
+    float cos_b = -1.0f, sin_b = 0.0f;
+    if (!(distance2 <= radius2)) {
+        cos_b = sqrtf(distance2 - radius2) * inv_distance;
+        sin_b = n.radius * inv_distance;
+    }
+    const float cos_x = cos_sub_clamped(sin_w, cos_w, n.sin_theta_o, n.cos_theta_o);
+    const float sin_x = sin_sub_clamped(sin_w, cos_w, n.sin_theta_o, n.cos_theta_o);
     const float cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
     if (cos_p <= n.cos_theta_e) return 0.0f;
-    return fmaxf(__fdiv_rn(n.phi * cos_p, distance2), 0.0f);
+    return fmaxf(__fdiv_rn(n.phi * cos_p, fmaxf(fmaxf(distance2, radius2), 1.17549435e-38f)), 0.0f);
 }
 
 /// Mirrors `LightBvh::sample`: false for `None`.

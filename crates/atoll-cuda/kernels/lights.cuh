@@ -212,7 +212,7 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
     const float3 normal = load3(e.normal);
     out->target.p = q;
     out->target.normal = normal;
-    out->target.error = error_along(normal, barycentric_magnitude(p0, p1, p2, b) * spawn_gamma(6)) + e.error;
+    out->target.error = error_along(normal, barycentric_magnitude(p0, p1, p2, b) * GAMMA_6) + e.error;
     return true;
 }
 

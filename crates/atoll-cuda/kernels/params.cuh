@@ -22,7 +22,7 @@ struct GpuEmitter {
     float error;
 };
 
-/// Mirror of `atoll_render::light_bvh::LightNode` (64 bytes).
+/// Mirror of `atoll_render::light_bvh::LightNode` (80 bytes).
 struct LightNode {
     float min[3];
     float phi;
@@ -30,10 +30,12 @@ struct LightNode {
     float cos_theta_o;
     float w[3];
     float cos_theta_e;
+    float sin_theta_o;
+    float radius;
     unsigned int child_or_light;
     unsigned int parent;
     unsigned int flags;
-    unsigned int pad;
+    unsigned int pad[3];
 };
 
 /// Mirror of `params::GpuMaterial` (48 bytes): a `PackedMaterial`, f16 bits.
@@ -153,7 +155,7 @@ static_assert(__builtin_offsetof(GpuMaterial, coeffs) == 0 && sizeof(GpuMaterial
 static_assert(__builtin_offsetof(GpuMaterial, kind) == 32 && sizeof(GpuMaterial::kind) == 4, "GpuMaterial.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMaterial, pad) == 36 && sizeof(GpuMaterial::pad) == 12, "GpuMaterial.pad: offset or size differs from Rust");
 #endif
-static_assert(sizeof(LightNode) == 64, "LightNode: size differs from Rust");
+static_assert(sizeof(LightNode) == 80, "LightNode: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(LightNode, min) == 0 && sizeof(LightNode::min) == 12, "LightNode.min: offset or size differs from Rust");
 static_assert(__builtin_offsetof(LightNode, phi) == 12 && sizeof(LightNode::phi) == 4, "LightNode.phi: offset or size differs from Rust");
@@ -161,10 +163,12 @@ static_assert(__builtin_offsetof(LightNode, max) == 16 && sizeof(LightNode::max)
 static_assert(__builtin_offsetof(LightNode, cos_theta_o) == 28 && sizeof(LightNode::cos_theta_o) == 4, "LightNode.cos_theta_o: offset or size differs from Rust");
 static_assert(__builtin_offsetof(LightNode, w) == 32 && sizeof(LightNode::w) == 12, "LightNode.w: offset or size differs from Rust");
 static_assert(__builtin_offsetof(LightNode, cos_theta_e) == 44 && sizeof(LightNode::cos_theta_e) == 4, "LightNode.cos_theta_e: offset or size differs from Rust");
-static_assert(__builtin_offsetof(LightNode, child_or_light) == 48 && sizeof(LightNode::child_or_light) == 4, "LightNode.child_or_light: offset or size differs from Rust");
-static_assert(__builtin_offsetof(LightNode, parent) == 52 && sizeof(LightNode::parent) == 4, "LightNode.parent: offset or size differs from Rust");
-static_assert(__builtin_offsetof(LightNode, flags) == 56 && sizeof(LightNode::flags) == 4, "LightNode.flags: offset or size differs from Rust");
-static_assert(__builtin_offsetof(LightNode, pad) == 60 && sizeof(LightNode::pad) == 4, "LightNode.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, sin_theta_o) == 48 && sizeof(LightNode::sin_theta_o) == 4, "LightNode.sin_theta_o: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, radius) == 52 && sizeof(LightNode::radius) == 4, "LightNode.radius: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, child_or_light) == 56 && sizeof(LightNode::child_or_light) == 4, "LightNode.child_or_light: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, parent) == 60 && sizeof(LightNode::parent) == 4, "LightNode.parent: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, flags) == 64 && sizeof(LightNode::flags) == 4, "LightNode.flags: offset or size differs from Rust");
+static_assert(__builtin_offsetof(LightNode, pad) == 68 && sizeof(LightNode::pad) == 12, "LightNode.pad: offset or size differs from Rust");
 #endif
 inline constexpr unsigned int NO_EMISSION_TEXTURE = 4294967295u;
 static_assert(sizeof(GpuEmissionTexture) == 32, "GpuEmissionTexture: size differs from Rust");

@@ -17,7 +17,8 @@ struct __align__(16) RayRecord {
     unsigned int sample;
     float bsdf_pdf;
     unsigned short depth;
-    unsigned short flags;
+    unsigned char flags;
+    unsigned char eta_scale;  // `pack_eta_scale` code: path state (0 is 1)
     unsigned int light;
     unsigned int instance;
     float position[3];
@@ -26,18 +27,38 @@ struct __align__(16) RayRecord {
     unsigned short material;
     unsigned short shading_normal[3];
     unsigned short position_error;  // bfloat16 bits (spawn.cuh `unpack_error`)
-    unsigned short coeffs[15];
-    unsigned short eta_scale;  // f16: path state, kept by `write_surface`
+    unsigned short coeffs[16];
 };
+
+/// Mirrors `record::pack_eta_scale`: a positive scale as an 8-bit float
+/// (5-bit two's-complement exponent, 3 mantissa bits), integer rounding.
+__device__ __forceinline__ unsigned char pack_eta_scale(float v) {
+    const float lo = 1.0f / 32768.0f, hi = 32768.0f * 1.875f;
+    v = v >= lo ? fminf(v, hi) : lo;
+    const unsigned int rounded = (__float_as_uint(v) + (1u << 19)) >> 20;
+    int exponent = (int)((rounded >> 3) & 0xffu) - 127;
+    unsigned int mantissa = rounded & 7u;
+    if (exponent > 15) {
+        exponent = 15;
+        mantissa = 7u;
+    }
+    return (unsigned char)((((unsigned int)exponent & 31u) << 3) | mantissa);
+}
+
+/// Mirrors `record::unpack_eta_scale`.
+__device__ __forceinline__ float unpack_eta_scale(unsigned char code) {
+    const int exponent = (int)((signed char)code >> 3);
+    return __uint_as_float(((unsigned int)(exponent + 127) << 23) | ((unsigned int)(code & 7u) << 20));
+}
 
 // BEGIN GENERATED record (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int NO_LIGHT = 4294967295u;
-inline constexpr unsigned int MATERIAL_COEFFS = 15u;
+inline constexpr unsigned int MATERIAL_COEFFS = 16u;
 inline constexpr unsigned int MAX_MIX_DEPTH = 8u;
-inline constexpr unsigned short FLAG_SHADOW = 1;
-inline constexpr unsigned short FLAG_OCCLUDED = 2;
-inline constexpr unsigned short FLAG_HIT = 4;
-inline constexpr unsigned short FLAG_SPECULAR = 8;
+inline constexpr unsigned char FLAG_SHADOW = 1;
+inline constexpr unsigned char FLAG_OCCLUDED = 2;
+inline constexpr unsigned char FLAG_HIT = 4;
+inline constexpr unsigned char FLAG_SPECULAR = 8;
 inline constexpr unsigned int MATERIAL_NONE = 0u;
 inline constexpr unsigned int MATERIAL_DIFFUSE = 1u;
 inline constexpr unsigned int MATERIAL_CONDUCTOR = 2u;
@@ -57,7 +78,8 @@ static_assert(__builtin_offsetof(RayRecord, throughput) == 32 && sizeof(RayRecor
 static_assert(__builtin_offsetof(RayRecord, sample) == 44 && sizeof(RayRecord::sample) == 4, "RayRecord.sample: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, bsdf_pdf) == 48 && sizeof(RayRecord::bsdf_pdf) == 4, "RayRecord.bsdf_pdf: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, depth) == 52 && sizeof(RayRecord::depth) == 2, "RayRecord.depth: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, flags) == 54 && sizeof(RayRecord::flags) == 2, "RayRecord.flags: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, flags) == 54 && sizeof(RayRecord::flags) == 1, "RayRecord.flags: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, eta_scale) == 55 && sizeof(RayRecord::eta_scale) == 1, "RayRecord.eta_scale: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, light) == 56 && sizeof(RayRecord::light) == 4, "RayRecord.light: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, instance) == 60 && sizeof(RayRecord::instance) == 4, "RayRecord.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, position) == 64 && sizeof(RayRecord::position) == 12, "RayRecord.position: offset or size differs from Rust");
@@ -66,7 +88,6 @@ static_assert(__builtin_offsetof(RayRecord, geometric_normal) == 80 && sizeof(Ra
 static_assert(__builtin_offsetof(RayRecord, material) == 86 && sizeof(RayRecord::material) == 2, "RayRecord.material: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, shading_normal) == 88 && sizeof(RayRecord::shading_normal) == 6, "RayRecord.shading_normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(RayRecord, position_error) == 94 && sizeof(RayRecord::position_error) == 2, "RayRecord.position_error: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 30, "RayRecord.coeffs: offset or size differs from Rust");
-static_assert(__builtin_offsetof(RayRecord, eta_scale) == 126 && sizeof(RayRecord::eta_scale) == 2, "RayRecord.eta_scale: offset or size differs from Rust");
+static_assert(__builtin_offsetof(RayRecord, coeffs) == 96 && sizeof(RayRecord::coeffs) == 32, "RayRecord.coeffs: offset or size differs from Rust");
 #endif
 // END GENERATED record

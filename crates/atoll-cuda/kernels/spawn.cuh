@@ -6,12 +6,6 @@
 
 #include "common.cuh"
 
-/// Mirrors `spawn::gamma` (pbrt's γn; unit roundoff 2^-24).
-__device__ __forceinline__ float spawn_gamma(unsigned int n) {
-    const float e = (float)n * 5.9604645e-8f;
-    return __fdiv_rn(e, 1.0f - e);
-}
-
 /// Mirrors `spawn::barycentric_magnitude`: Σ |bᵢ pᵢ|.
 __device__ __forceinline__ float3 barycentric_magnitude(float3 p0, float3 p1, float3 p2, float3 b) {
     return abs3(p0 * b.x) + abs3(p1 * b.y) + abs3(p2 * b.z);
@@ -26,7 +20,7 @@ __device__ __forceinline__ float3 transformed_error(const float* m, float3 p, fl
         r[row] = a0 * pa.x + a1 * pa.y + a2 * pa.z + fabsf(m[row * 4 + 3]);
         c[row] = a0 * e.x + a1 * e.y + a2 * e.z;
     }
-    const float g = spawn_gamma(3);
+    const float g = GAMMA_3;
     return make_float3(r[0], r[1], r[2]) * g + make_float3(c[0], c[1], c[2]) * (g + 1.0f);
 }
 
@@ -44,10 +38,21 @@ __device__ __forceinline__ unsigned int pack_error(float bound) {
 /// Mirrors `spawn::unpack_error`.
 __device__ __forceinline__ float unpack_error(unsigned short bits) { return __uint_as_float((unsigned int)bits << 16); }
 
+/// Rust's `f32::next_up` for finite `v` (integer steps on the bits: the
+/// library's `nextafterf` handles cases a ray origin never has, slowly).
+__device__ __forceinline__ float next_float_up(float v) {
+    const unsigned int bits = __float_as_uint(v);
+    if ((bits & 0x7fffffffu) == 0u) return __uint_as_float(1u);  // ±0
+    return __uint_as_float(v > 0.0f ? bits + 1u : bits - 1u);
+}
+
+/// Rust's `f32::next_down` for finite `v`.
+__device__ __forceinline__ float next_float_down(float v) { return -next_float_up(-v); }
+
 /// Mirrors `spawn::round_away`.
 __device__ __forceinline__ float round_away(float v, float offset) {
-    if (offset > 0.0f) return nextafterf(v, f32_infinity());
-    if (offset < 0.0f) return nextafterf(v, -f32_infinity());
+    if (offset > 0.0f) return next_float_up(v);
+    if (offset < 0.0f) return next_float_down(v);
     return v;
 }
 
@@ -75,7 +80,7 @@ __device__ __forceinline__ bool spawn_ray_to(const SurfacePoint& from, const Sur
     const float length = length3(d);
     if (!(length > 0.0f && is_finitef(length))) return false;
     *origin = o;
-    *direction = d / length;
+    *direction = d * __fdiv_rn(1.0f, length);
     *t_max = length * (1.0f - SHADOW_EPSILON);
     return true;
 }

@@ -40,7 +40,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const float3 position = affine_point(instance.object_to_world, p_obj);
     const float3 position_error =
         transformed_error(instance.object_to_world, p_obj,
-                          barycentric_magnitude(p0, p1, p2, make_float3(b0, b1, b2)) * spawn_gamma(7));
+                          barycentric_magnitude(p0, p1, p2, make_float3(b0, b1, b2)) * GAMMA_7);
     // TriangleMesh::geometric_normal: pbrt's orientation rule.
     float3 n_obj = cross3(p0 - p2, p1 - p2);
     if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
@@ -115,8 +115,6 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     uint4* words = reinterpret_cast<uint4*>(record);
     const uint4 w2 = words[2];  // throughput, sample: unchanged
     uint4 w3 = words[3];        // bsdf_pdf, depth | flags << 16, light, instance
-    // eta_scale (path state) shares the last word with the coefficients.
-    const unsigned int eta_scale = reinterpret_cast<const unsigned int*>(record)[31] & 0xffff0000u;
     w3.y |= (unsigned int)FLAG_HIT << 16;
     w3.z = light;
     w3.w = hit.instance;
@@ -133,7 +131,6 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const unsigned int error_bits = pack_error(error_along(ng, position_error));
     const uint4 w5 = make_uint4(ng0 | ng1 << 16, ng2 | (meta.x & 0xffffu) << 16, ns0 | ns1 << 16,
                                 ns2 | error_bits << 16);
-    c1.w = (c1.w & 0xffffu) | eta_scale;
     words[2] = w2;
     words[3] = w3;
     words[4] = w4;

@@ -80,7 +80,6 @@ __device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigne
     r.throughput[0] = 1.0f;
     r.throughput[1] = 1.0f;
     r.throughput[2] = 1.0f;
-    r.eta_scale = 0x3c00;  // f16 1.0
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = FLAG_SPECULAR;
     return r;
@@ -170,7 +169,8 @@ struct ShadeOutcome {
     bool has_next;
     float3 next_origin, next_direction, next_throughput;
     float next_pdf;
-    unsigned short next_depth, next_flags, next_eta_scale;
+    unsigned short next_depth;
+    unsigned char next_flags, next_eta_scale;
     bool has_shadow;
     float3 shadow_origin, shadow_direction, shadow_radiance;
     float shadow_t_max;
@@ -196,16 +196,17 @@ __device__ __forceinline__ void set_continuation(ShadeOutcome& o, const RayRecor
     o.next_throughput = load3(r.throughput);
     o.next_pdf = r.bsdf_pdf;
     o.next_depth = r.depth;
-    o.next_flags = (unsigned short)(r.flags & ~FLAG_HIT);
+    o.next_flags = (unsigned char)(r.flags & ~FLAG_HIT);
     o.next_eta_scale = r.eta_scale;
 }
 
-/// Mirrors shade.rs's `shadow_ray`: towards `target` when `target` is
-/// given, else along `w` up to `t_max`.
-__device__ __forceinline__ void set_shadow(ShadeOutcome& o, const SurfacePoint& at, const SurfacePoint* target,
-                                           float3 w, float t_max, float3 radiance) {
-    if (target) {
-        if (!spawn_ray_to(at, *target, &o.shadow_origin, &o.shadow_direction, &o.shadow_t_max)) return;
+/// Mirrors shade.rs's `shadow_ray`: towards `target` when `to_target`,
+/// else along `w` up to `t_max`. (A flag and a value rather than a
+/// pointer: taking the light sample's address put it in local memory.)
+__device__ __forceinline__ void set_shadow(ShadeOutcome& o, const SurfacePoint& at, bool to_target,
+                                           SurfacePoint target, float3 w, float t_max, float3 radiance) {
+    if (to_target) {
+        if (!spawn_ray_to(at, target, &o.shadow_origin, &o.shadow_direction, &o.shadow_t_max)) return;
     } else {
         o.shadow_origin = offset_ray_origin(at.p, at.error, at.normal, w);
         o.shadow_direction = w;
@@ -272,8 +273,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
             if (ls.pdf > 0.0f && !is_zero3(f) && !is_zero3(ls.radiance)) {
                 const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf(bsdf, wo, wi));
                 const float3 contribution = beta * f * ls.radiance * (w / ls.pdf);
-                set_shadow(out, at, is_finitef(ls.distance) ? &ls.target : nullptr, ls.wi, f32_infinity(),
-                           contribution);
+                set_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity(), contribution);
             }
         }
     }
@@ -285,7 +285,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     if (!bsdf_sample(bsdf, wo, stream_bounce(rng, depth, BOUNCE_DIM_BSDF_LOBE, 0), u_dir, &bs)) return;
     if (bs.pdf <= 0.0f || is_zero3(bs.f)) return;
     float3 next_beta = beta * bs.f * (fabsf(bs.wi.z) / bs.pdf);
-    float eta_scale = f16_to_f32(r.eta_scale);
+    float eta_scale = unpack_eta_scale(r.eta_scale);
     if (bs.transmission) eta_scale *= bs.eta * bs.eta;
     // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
     // the throughput without the radiance scaling of refractions.
@@ -301,8 +301,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     const float3 wi = normalize3(frame_from_local(frame, bs.wi));
     set_continuation(out, r, at, wi);
     out.next_throughput = next_beta;
-    // Kept within f16's normal range (shade.rs).
-    out.next_eta_scale = (unsigned short)f32_to_f16(fminf(fmaxf(eta_scale, 6.1035156e-5f), 65504.0f));
+    out.next_eta_scale = pack_eta_scale(eta_scale);
     // A stochastic BSDF's sample density is only proportional to the real
     // one; MIS at the next vertex needs its pdf (shade.rs, pbrt's pdfIsProportional).
     out.next_pdf = bsdf_sampled_pdf_is_proportional(bsdf) && !bs.delta ? bsdf_pdf(bsdf, wo, bs.wi) : bs.pdf;
@@ -326,7 +325,7 @@ __device__ __forceinline__ void shade_ambient_occlusion(const FrameParams& param
     const float2 u = make_float2(stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 0),
                                  stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 1));
     const float3 w = normalize3(frame_from_local(frame_from_z(ng), sample_cosine_hemisphere(u)));
-    set_shadow(out, at, nullptr, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
+    set_shadow(out, at, false, at, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
 }
 
 /// Shades `paths[0 .. *path_count]` with the frame's integrator: adds

@@ -24,7 +24,7 @@ use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
-use atoll_render::spawn::SHADOW_EPSILON;
+use atoll_render::spawn::{gamma, SHADOW_EPSILON};
 
 use crate::layout::{
     image_format, mesh_flags, FieldLayout, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
@@ -113,6 +113,9 @@ pub fn math_constants() -> String {
         const_float("UNIFORM_SPHERE_PDF", UNIFORM_SPHERE_PDF),
         const_float("SMOOTH_ALPHA", SMOOTH_ALPHA),
         const_float("SHADOW_EPSILON", SHADOW_EPSILON),
+        const_float("GAMMA_3", gamma(3)),
+        const_float("GAMMA_6", gamma(6)),
+        const_float("GAMMA_7", gamma(7)),
         const_float("ONE_MINUS_EPSILON", 1.0 - f32::EPSILON / 2.0),
     ]
     .concat()
@@ -131,7 +134,7 @@ pub fn record_asserts() -> String {
         ("FLAG_HIT", flags::HIT),
         ("FLAG_SPECULAR", flags::SPECULAR),
     ] {
-        s += &const_uint("unsigned short", name, value as u64);
+        s += &const_uint("unsigned char", name, value as u64);
     }
     for (name, kind) in [
         ("MATERIAL_NONE", MaterialKind::None),

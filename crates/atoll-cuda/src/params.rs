@@ -73,6 +73,8 @@ pub fn light_node_layout() -> FieldLayout {
         cos_theta_o,
         w,
         cos_theta_e,
+        sin_theta_o,
+        radius,
         child_or_light,
         parent,
         flags,
@@ -187,11 +189,8 @@ impl GpuEmitter {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuMaterial {
-    /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`], and a
-    /// last one always 0: 32 bytes, which `write_surface` copies into the
-    /// record as two 16-byte words (it puts the record's `eta_scale` in
-    /// place of the last).
-    pub coeffs: [u16; MATERIAL_COEFFS + 1],
+    /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`].
+    pub coeffs: [u16; MATERIAL_COEFFS],
     /// [`atoll_render::record::MaterialKind`] as u32.
     pub kind: u32,
     pub pad: [u32; 3],
@@ -204,10 +203,7 @@ impl GpuMaterial {
     /// `pad` holds the start and length of its texture program (`textures`):
     /// see `write_surface`.
     pub fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
-        let mut coeffs = [0u16; MATERIAL_COEFFS + 1];
-        for (to, from) in coeffs.iter_mut().zip(m.coeffs) {
-            *to = from.to_bits();
-        }
+        let mut coeffs = m.coeffs.map(|c| c.to_bits());
         let pad = match m.mix {
             Some(([a, b], amount)) => {
                 let words = [mix_amount.start, mix_amount.len];

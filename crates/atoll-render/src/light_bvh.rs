@@ -43,7 +43,7 @@ pub struct LightBounds {
     pub two_sided: bool,
 }
 
-/// One node of the tree (64 bytes): the bounds of the lights below it,
+/// One node of the tree (80 bytes): the bounds of the lights below it,
 /// and either its first child (the second follows it) or its light.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -54,12 +54,16 @@ pub struct LightNode {
     pub cos_theta_o: f32,
     pub w: [f32; 3],
     pub cos_theta_e: f32,
+    /// sin θo and the radius of the box's bounding sphere, kept so that
+    /// [`LightNode::importance`] needs two fewer square roots.
+    pub sin_theta_o: f32,
+    pub radius: f32,
     /// First child of an inner node; emitter index of a leaf.
     pub child_or_light: u32,
     pub parent: u32,
     /// [`node_flags`].
     pub flags: u32,
-    pub pad: u32,
+    pub pad: [u32; 3],
 }
 
 fn safe_sqrt(x: f32) -> f32 {
@@ -84,21 +88,6 @@ fn sin_sub_clamped(sin_a: f32, cos_a: f32, sin_b: f32, cos_b: f32) -> f32 {
     }
 }
 
-/// Cosine of the half-angle of a cone from `p` that holds the box
-/// `[min, max]` (through its bounding sphere); −1 from inside.
-fn cos_subtended(min: Vec3, max: Vec3, p: Vec3) -> f32 {
-    if p.cmpge(min).all() && p.cmple(max).all() {
-        return -1.0;
-    }
-    let center = 0.5 * (min + max);
-    let radius2 = (max - center).length_squared();
-    let distance2 = (p - center).length_squared();
-    if distance2 < radius2 {
-        return -1.0;
-    }
-    safe_sqrt(1.0 - radius2 / distance2)
-}
-
 impl LightNode {
     fn from_bounds(b: &LightBounds) -> Self {
         LightNode {
@@ -108,6 +97,8 @@ impl LightNode {
             cos_theta_o: b.cos_theta_o,
             w: b.w.to_array(),
             cos_theta_e: b.cos_theta_e,
+            sin_theta_o: safe_sqrt(1.0 - b.cos_theta_o * b.cos_theta_o),
+            radius: (b.max - 0.5 * (b.min + b.max)).length(),
             flags: if b.two_sided { node_flags::TWO_SIDED } else { 0 },
             parent: NO_NODE,
             ..Zeroable::zeroed()
@@ -124,34 +115,38 @@ impl LightNode {
     /// the ray record does not keep the previous vertex's normal). Power
     /// over squared distance, times the cosine of the smallest angle
     /// between the emission cone and the direction to `p` that the box
-    /// allows; 0 when even that is beyond the cone's reach. The squared
-    /// distance is clamped to the box's half-diagonal squared, so points
-    /// inside a node do not make it infinitely important.
+    /// allows (θb, the half-angle the box's bounding sphere subtends, is
+    /// taken off); 0 when even that is beyond the cone's reach. From inside
+    /// the sphere every direction is possible, and the squared distance is
+    /// clamped to the radius squared, so points inside a node do not make
+    /// it infinitely important. Three square roots and two divisions: this
+    /// runs twice per tree level for every light sample.
     /// `kernels/light_bvh.cuh` mirrors it.
     pub fn importance(&self, p: Vec3) -> f32 {
-        let min = Vec3::from(self.min);
-        let max = Vec3::from(self.max);
-        let center = 0.5 * (min + max);
+        let center = 0.5 * (Vec3::from(self.min) + Vec3::from(self.max));
         let to_p = p - center;
-        let half_diagonal2 = 0.25 * (max - min).length_squared();
-        let distance2 = to_p.length_squared().max(half_diagonal2).max(f32::MIN_POSITIVE);
-        let wi = to_p.normalize_or_zero();
-        let mut cos_w = Vec3::from(self.w).dot(wi);
+        let distance2 = to_p.length_squared();
+        let radius2 = self.radius * self.radius;
+        let inv_distance = 1.0 / distance2.sqrt();
+        let inv_distance = if inv_distance.is_finite() { inv_distance } else { 0.0 };
+        let mut cos_w = Vec3::from(self.w).dot(to_p) * inv_distance;
         if self.flags & node_flags::TWO_SIDED != 0 {
             cos_w = cos_w.abs();
         }
         let sin_w = safe_sqrt(1.0 - cos_w * cos_w);
-        let cos_b = cos_subtended(min, max, p);
-        let sin_b = safe_sqrt(1.0 - cos_b * cos_b);
-        let sin_o = safe_sqrt(1.0 - self.cos_theta_o * self.cos_theta_o);
+        let (cos_b, sin_b) = if distance2 <= radius2 {
+            (-1.0, 0.0)
+        } else {
+            ((distance2 - radius2).sqrt() * inv_distance, self.radius * inv_distance)
+        };
         // θx: the angle from the cone's edge to p; θ': less what the box spans.
-        let cos_x = cos_sub_clamped(sin_w, cos_w, sin_o, self.cos_theta_o);
-        let sin_x = sin_sub_clamped(sin_w, cos_w, sin_o, self.cos_theta_o);
+        let cos_x = cos_sub_clamped(sin_w, cos_w, self.sin_theta_o, self.cos_theta_o);
+        let sin_x = sin_sub_clamped(sin_w, cos_w, self.sin_theta_o, self.cos_theta_o);
         let cos_p = cos_sub_clamped(sin_x, cos_x, sin_b, cos_b);
         if cos_p <= self.cos_theta_e {
             return 0.0;
         }
-        (self.phi * cos_p / distance2).max(0.0)
+        (self.phi * cos_p / distance2.max(radius2).max(f32::MIN_POSITIVE)).max(0.0)
     }
 }
 

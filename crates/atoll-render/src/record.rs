@@ -14,21 +14,21 @@ use glam::Vec3;
 use half::f16;
 
 /// Number of f16 material coefficients carried by a hit.
-pub const MATERIAL_COEFFS: usize = 15;
+pub const MATERIAL_COEFFS: usize = 16;
 /// `RayRecord::light` value meaning "the hit surface does not emit".
 pub const NO_LIGHT: u32 = u32::MAX;
 
 /// Bit flags in [`RayRecord::flags`].
 pub mod flags {
     /// The record is a shadow/AO ray: trace asks "occluded?", not "closest hit".
-    pub const SHADOW: u16 = 1 << 0;
+    pub const SHADOW: u8 = 1 << 0;
     /// Set by any-hit tracing of a shadow ray that is blocked.
-    pub const OCCLUDED: u16 = 1 << 1;
+    pub const OCCLUDED: u8 = 1 << 1;
     /// Set by closest-hit tracing when the ray hit something (fields below are valid).
-    pub const HIT: u16 = 1 << 2;
+    pub const HIT: u8 = 1 << 2;
     /// The direction was sampled from a delta lobe (or is a camera ray): an
     /// emitter found along it is counted without MIS.
-    pub const SPECULAR: u16 = 1 << 3;
+    pub const SPECULAR: u8 = 1 << 3;
 }
 
 /// Which material model the coefficients describe ([`RayRecord::material`]).
@@ -101,7 +101,13 @@ pub struct RayRecord {
     /// Number of scattering events before this segment (camera ray: 0).
     pub depth: u16,
     /// [`flags`].
-    pub flags: u16,
+    pub flags: u8,
+    /// Path state: the product of η² over the refractions so far (pbrt-v4's
+    /// `etaScale`), which Russian roulette takes out of the throughput so
+    /// that radiance scaling at refractions does not end paths; packed by
+    /// [`pack_eta_scale`] (0 is 1, so camera paths need not set it). Beside
+    /// the flags because the GPU's hit writer rewrites this word anyway.
+    pub eta_scale: u8,
     // --- the hit (written by closest-hit tracing) ---
     /// Global light index when the hit surface emits, else [`NO_LIGHT`].
     pub light: u32,
@@ -122,11 +128,6 @@ pub struct RayRecord {
     /// up ([`crate::spawn::pack_error`]); rays leave the hit past it.
     pub position_error: u16,
     pub coeffs: [f16; MATERIAL_COEFFS],
-    /// Path state: the product of η² over the refractions so far (pbrt-v4's
-    /// `etaScale`), which Russian roulette takes out of the throughput so
-    /// that radiance scaling at refractions does not end paths. 1 for
-    /// camera paths. Kept across hits (the GPU's hit writer preserves it).
-    pub eta_scale: f16,
 }
 
 // The CUDA header mirrors these numbers; change both together.
@@ -143,7 +144,7 @@ const _: () = {
     assert!(std::mem::offset_of!(RayRecord, shading_normal) == 88);
     assert!(std::mem::offset_of!(RayRecord, position_error) == 94);
     assert!(std::mem::offset_of!(RayRecord, coeffs) == 96);
-    assert!(std::mem::offset_of!(RayRecord, eta_scale) == 126);
+    assert!(std::mem::offset_of!(RayRecord, eta_scale) == 55);
 };
 
 /// `(name, offset, size)` of every field, for generating the CUDA header's
@@ -165,6 +166,7 @@ pub fn field_layout() -> Vec<(&'static str, usize, usize)> {
         f!(bsdf_pdf),
         f!(depth),
         f!(flags),
+        f!(eta_scale),
         f!(light),
         f!(instance),
         f!(position),
@@ -174,7 +176,6 @@ pub fn field_layout() -> Vec<(&'static str, usize, usize)> {
         f!(shading_normal),
         f!(position_error),
         f!(coeffs),
-        f!(eta_scale),
     ]
 }
 
@@ -215,6 +216,31 @@ pub fn unpack_rgb9e5(bits: u32) -> Vec3 {
     Vec3::new((bits & 511) as f32, (bits >> 9 & 511) as f32, (bits >> 18 & 511) as f32) * scale
 }
 
+/// Packs a positive scale factor into 8 bits, a tiny float: a 5-bit
+/// exponent (two's complement, 2^-15 to 2^15) and 3 mantissa bits, rounded
+/// to nearest with integer arithmetic only, so `kernels/record.cuh` packs
+/// the same bits. 1 packs to 0. Values beyond the range are clamped: Russian
+/// roulette stays unbiased with any value, so 6% precision is plenty.
+pub fn pack_eta_scale(v: f32) -> u8 {
+    const MIN: f32 = 1.0 / 32768.0;
+    const MAX: f32 = 32768.0 * 1.875;
+    let v = if v >= MIN { v.min(MAX) } else { MIN };
+    let bits = v.to_bits();
+    // Round the mantissa to 3 bits; a carry steps the exponent up.
+    let rounded = (bits + (1 << 19)) >> 20;
+    let exponent = ((rounded >> 3) & 0xff) as i32 - 127;
+    let (exponent, mantissa) = if exponent > 15 { (15, 7) } else { (exponent, rounded & 7) };
+    (((exponent & 31) as u32) << 3 | mantissa) as u8
+}
+
+/// The value [`pack_eta_scale`] packed.
+pub fn unpack_eta_scale(code: u8) -> f32 {
+    // Sign-extend the 5-bit exponent.
+    let exponent = ((code as i8) >> 3) as i32;
+    let mantissa = (code & 7) as u32;
+    f32::from_bits(((exponent + 127) as u32) << 23 | mantissa << 20)
+}
+
 pub(crate) fn to_f16x3(v: Vec3) -> [f16; 3] {
     [f16::from_f32(v.x), f16::from_f32(v.y), f16::from_f32(v.z)]
 }
@@ -233,7 +259,7 @@ impl RayRecord {
     pub fn throughput(&self) -> Vec3 {
         Vec3::from(self.throughput)
     }
-    pub fn has(&self, flag: u16) -> bool {
+    pub fn has(&self, flag: u8) -> bool {
         self.flags & flag != 0
     }
     pub fn geometric_normal(&self) -> Vec3 {
@@ -256,7 +282,7 @@ impl RayRecord {
         crate::spawn::unpack_error(self.position_error)
     }
     pub fn eta_scale(&self) -> f32 {
-        self.eta_scale.to_f32()
+        unpack_eta_scale(self.eta_scale)
     }
 }
 
@@ -281,6 +307,23 @@ mod tests {
         // Negative and NaN channels become 0; huge ones saturate.
         let back = unpack_rgb9e5(pack_rgb9e5(Vec3::new(-1.0, f32::NAN, 1e9)));
         assert_eq!(back, Vec3::new(0.0, 0.0, 511.0 / 512.0 * 65536.0));
+    }
+
+    #[test]
+    fn eta_scale_packs_within_its_precision() {
+        assert_eq!(pack_eta_scale(1.0), 0);
+        assert_eq!(unpack_eta_scale(0), 1.0);
+        for v in [2.25f32, 1.0 / 2.25, 1.5 * 1.5 * 1.33 * 1.33, 0.01, 300.0, 1.9999] {
+            let back = unpack_eta_scale(pack_eta_scale(v));
+            assert!((back / v - 1.0).abs() <= 1.0 / 16.0, "{v} -> {back}");
+        }
+        assert_eq!(unpack_eta_scale(pack_eta_scale(1e9)), 32768.0 * 1.875);
+        assert_eq!(unpack_eta_scale(pack_eta_scale(0.0)), 1.0 / 32768.0);
+        for code in 0..=255u8 {
+            if code >> 3 != 16 {
+                assert_eq!(pack_eta_scale(unpack_eta_scale(code)), code, "code {code}");
+            }
+        }
     }
 
     #[test]

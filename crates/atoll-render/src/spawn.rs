@@ -21,7 +21,8 @@ const UNIT_ROUNDOFF: f32 = f32::EPSILON * 0.5;
 pub const SHADOW_EPSILON: f32 = 1e-4;
 
 /// Bound on the relative error of `n` chained float operations (pbrt's γₙ).
-pub fn gamma(n: u32) -> f32 {
+/// The kernels take the values they need as constants (`GAMMA_3`, ...).
+pub const fn gamma(n: u32) -> f32 {
     let e = n as f32 * UNIT_ROUNDOFF;
     e / (1.0 - e)
 }
@@ -126,7 +127,7 @@ pub fn spawn_ray_to(from: SurfacePoint, to: SurfacePoint) -> Option<SpawnedRay> 
     if !(length > 0.0 && length.is_finite()) {
         return None;
     }
-    Some(SpawnedRay { origin, direction: d / length, t_max: length * (1.0 - SHADOW_EPSILON) })
+    Some(SpawnedRay { origin, direction: d * (1.0 / length), t_max: length * (1.0 - SHADOW_EPSILON) })
 }
 
 #[cfg(test)]

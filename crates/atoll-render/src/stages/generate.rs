@@ -21,7 +21,6 @@ pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     r.pixel = pixel;
     r.sample = sample;
     r.throughput = [1.0; 3];
-    r.eta_scale = half::f16::ONE;
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = flags::SPECULAR;
     r

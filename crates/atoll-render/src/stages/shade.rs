@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
 use crate::material_coeffs::bsdf_from_record;
-use crate::record::{flags, RayRecord, NO_LIGHT};
+use crate::record::{flags, pack_eta_scale, RayRecord, NO_LIGHT};
 use crate::rng::{BounceDim, SampleStream};
 use crate::sampling::{power_heuristic, sample_cosine_hemisphere};
 use crate::spawn::{self, SurfacePoint};
@@ -195,9 +195,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     let wi = frame.from_local(bs.wi).normalize();
     let mut next = continuation(r, &at, wi);
     next.throughput = beta.to_array();
-    // Kept within f16's normal range: roulette stays unbiased with any value.
-    next.eta_scale =
-        half::f16::from_f32(eta_scale.clamp(half::f16::MIN_POSITIVE.to_f32(), half::f16::MAX.to_f32()));
+    next.eta_scale = pack_eta_scale(eta_scale);
     // A stochastic BSDF's sample density is only proportional to the real
     // one; MIS at the next vertex needs its `pdf` (pbrt's `pdfIsProportional`).
     // Specular samples skip MIS, so their probability is kept as it is.
