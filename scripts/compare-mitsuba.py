@@ -337,9 +337,14 @@ def cornell(args):
     out.mkdir(parents=True, exist_ok=True)
     scene = Path(args.cornell_scene)
     res = args.res
-    ref, ref_s = render_atoll(args, scene, args.ref_spp, 1_000_000, out / "cornell-ref.exr", res)
-    write_png(out / "cornell-ref.png", ref)
-    print(f"Cornell box {scene} at {res}x{res}; atoll reference {args.ref_spp} spp ({ref_s:.1f} s)")
+    if args.reference:
+        # A reference shared between runs (e.g. two builds compared on one image).
+        ref = read_exr(args.reference)
+        print(f"Cornell box {scene} at {res}x{res}; reference {args.reference}")
+    else:
+        ref, ref_s = render_atoll(args, scene, args.ref_spp, 1_000_000, out / "cornell-ref.exr", res)
+        write_png(out / "cornell-ref.png", ref)
+        print(f"Cornell box {scene} at {res}x{res}; atoll reference {args.ref_spp} spp ({ref_s:.1f} s)")
     print(f"{'spp':>6} {'RMSE whole':>11} {'seconds':>8} {'Msamples/s':>11}")
     rates = []
     for spp in args.spp:
@@ -378,6 +383,7 @@ def main():
     ap.add_argument("--pool-factor", type=float, default=2.0, help="light pool: reference luminance above this x the median (default %(default)s)")
     ap.add_argument("--cornell", action="store_true", help="atoll alone on the shared Cornell box, equal spp and equal time")
     ap.add_argument("--cornell-scene", default="../shared/scenes/cbox/diffuse/scene.pbrt")
+    ap.add_argument("--reference", help="--cornell: an EXR to use as the reference instead of rendering one")
     ap.add_argument("--seconds", type=float, default=1.0, help="--cornell: the equal-time budget (default %(default)s)")
     args = ap.parse_args()
     if not os.access(args.atoll, os.X_OK):

@@ -72,12 +72,23 @@ pub fn unpack_error(bits: u16) -> f32 {
     f32::from_bits((bits as u32) << 16)
 }
 
+/// `f32::next_up` for finite `v` by one integer step on the bits (the
+/// library version also handles NaN and infinities, which no ray origin
+/// is, at several times the cost; `kernels/spawn.cuh` does the same).
+fn next_float_up(v: f32) -> f32 {
+    let bits = v.to_bits();
+    if bits & 0x7fff_ffff == 0 {
+        return f32::from_bits(1);
+    }
+    f32::from_bits(if v > 0.0 { bits + 1 } else { bits - 1 })
+}
+
 /// The next float away from `v` in the direction of `offset`'s sign.
 fn round_away(v: f32, offset: f32) -> f32 {
     if offset > 0.0 {
-        v.next_up()
+        next_float_up(v)
     } else if offset < 0.0 {
-        v.next_down()
+        -next_float_up(-v)
     } else {
         v
     }
@@ -133,6 +144,14 @@ pub fn spawn_ray_to(from: SurfacePoint, to: SurfacePoint) -> Option<SpawnedRay> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn next_float_matches_the_library() {
+        for v in [0.0f32, -0.0, 1.0, -1.0, 1e-40, -1e-40, 3.5e5, -7.25e-3, f32::MAX / 2.0] {
+            assert_eq!(next_float_up(v).to_bits(), v.next_up().to_bits(), "{v}");
+            assert_eq!(round_away(v, -1.0).to_bits(), v.next_down().to_bits(), "{v}");
+        }
+    }
 
     #[test]
     fn packed_error_is_never_smaller() {
