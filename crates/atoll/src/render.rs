@@ -426,6 +426,14 @@ pub(crate) fn multi_args<'a>(args: &'a RenderArgs, specs: &'a [DeviceSpec]) -> M
     }
 }
 
+fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
+    match name {
+        "bvh" => Ok(LightSampler::Bvh),
+        "power" => Ok(LightSampler::Power),
+        other => Err(format!("unknown light sampler \"{other}\" (bvh, power)")),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -444,13 +452,5 @@ mod tests {
         assert_eq!(options.wave_size, atoll_cuda::DEFAULT_WAVE_SIZE);
         WaveArgs { wave_size: Some(4096), ..waves(false, None) }.apply(&mut options, true);
         assert_eq!(options.wave_size, 4096);
-    }
-}
-
-fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
-    match name {
-        "bvh" => Ok(LightSampler::Bvh),
-        "power" => Ok(LightSampler::Power),
-        other => Err(format!("unknown light sampler \"{other}\" (bvh, power)")),
     }
 }

@@ -133,4 +133,7 @@ fn bad_arguments_exit_2() {
     assert!(stderr(&out).contains("image.tga"));
     let out = atoll(&dir, &["render", "scene.xyz"]);
     assert_eq!(out.status.code(), Some(2));
+    let out = atoll(&dir, &["render", "--light-sampler", "uniform"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("unknown light sampler \"uniform\""), "{}", stderr(&out));
 }
