@@ -70,3 +70,22 @@ fn bvh_and_power_selection_agree_and_bvh_is_less_noisy_near_a_small_light() {
     let (noise_bvh, noise_power) = (spread(&bvh, &bvh2), spread(&power, &power2));
     assert!(noise_bvh < 0.6 * noise_power, "pool noise: bvh {noise_bvh}, power {noise_power}");
 }
+
+/// Thousands of emissive triangles (five emissive spheres): the tree is
+/// deep, and the BVH sampler's image still agrees with selection by power.
+#[test]
+fn thousands_of_emissive_triangles_agree_between_samplers() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/many-lights.pbrt");
+    let scene = Arc::new(atoll_scene::pbrt::load_file(&path).unwrap().scene);
+    let frame = atoll_render::FrameContext::new(&scene, RenderOptions::from_scene(&scene));
+    let bounded = frame.lights.emitters.len() - frame.lights.unbounded_lights().len();
+    assert!(bounded > 10_000, "{bounded} emissive triangles");
+    assert_eq!(frame.lights.bvh.nodes.len(), 2 * bounded - 1);
+    let bvh = render(&scene, LightSampler::Bvh, 5);
+    let power = render(&scene, LightSampler::Power, 6);
+    for c in 0..3 {
+        let diff = bvh.iter().zip(&power).map(|(a, b)| a[c] - b[c]);
+        let (mean_diff, err) = mean_and_stderr(diff);
+        assert!(mean_diff.abs() < 4.0 * err + 1e-4, "channel {c}: samplers differ by {mean_diff} ± {err}");
+    }
+}
