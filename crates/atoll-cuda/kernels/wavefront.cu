@@ -200,20 +200,18 @@ __device__ __forceinline__ void set_continuation(ShadeOutcome& o, const RayRecor
     o.next_eta_scale = r.eta_scale;
 }
 
-/// Mirrors shade.rs's `shadow_ray`: towards `target` when `to_target`,
-/// else along `w` up to `t_max`. (A flag and a value rather than a
-/// pointer: taking the light sample's address put it in local memory.)
-__device__ __forceinline__ void set_shadow(ShadeOutcome& o, const SurfacePoint& at, bool to_target,
-                                           SurfacePoint target, float3 w, float t_max, float3 radiance) {
-    if (to_target) {
-        if (!spawn_ray_to(at, target, &o.shadow_origin, &o.shadow_direction, &o.shadow_t_max)) return;
-    } else {
-        o.shadow_origin = offset_ray_origin(at.p, at.error, at.normal, w);
-        o.shadow_direction = w;
-        o.shadow_t_max = t_max;
-    }
-    o.has_shadow = true;
-    o.shadow_radiance = radiance;
+/// Mirrors shade.rs's `shadow_ray` without its radiance: the ray towards
+/// `target` when `to_target`, else along `w` up to `t_max`, into `o`'s
+/// shadow fields; false when the two ends coincide. (A flag and a value
+/// rather than a pointer: taking the light sample's address put it in
+/// local memory.)
+__device__ __forceinline__ bool spawn_shadow(ShadeOutcome& o, const SurfacePoint& at, bool to_target,
+                                             SurfacePoint target, float3 w, float t_max) {
+    if (to_target) return spawn_ray_to(at, target, &o.shadow_origin, &o.shadow_direction, &o.shadow_t_max);
+    o.shadow_origin = offset_ray_origin(at.p, at.error, at.normal, w);
+    o.shadow_direction = w;
+    o.shadow_t_max = t_max;
+    return true;
 }
 
 /// Mirrors `shade::shade_path`.
@@ -268,12 +266,16 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
                                            stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_POSITION, 1));
         LightSample ls;
         if (light_sample(params, p, stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
+            // The ray first: the sample's target point is then dead before
+            // the BSDF is evaluated (the plain shade kernel: 106 -> 99
+            // registers, tests/wavefront_compile.rs).
+            const bool spawned = spawn_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity());
             const float3 wi = frame_to_local(frame, ls.wi);
             const float3 f = bsdf_eval(bsdf, wo, wi) * fabsf(wi.z);
-            if (ls.pdf > 0.0f && !is_zero3(f) && !is_zero3(ls.radiance)) {
+            if (spawned && ls.pdf > 0.0f && !is_zero3(f) && !is_zero3(ls.radiance)) {
                 const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf(bsdf, wo, wi));
-                const float3 contribution = beta * f * ls.radiance * (w / ls.pdf);
-                set_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity(), contribution);
+                out.has_shadow = true;
+                out.shadow_radiance = beta * f * ls.radiance * (w / ls.pdf);
             }
         }
     }
@@ -325,7 +327,8 @@ __device__ __forceinline__ void shade_ambient_occlusion(const FrameParams& param
     const float2 u = make_float2(stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 0),
                                  stream_bounce(rng, 0, BOUNCE_DIM_BSDF_DIRECTION, 1));
     const float3 w = normalize3(frame_from_local(frame_from_z(ng), sample_cosine_hemisphere(u)));
-    set_shadow(out, at, false, at, w, params.ao_max_distance, make_float3(1.0f, 1.0f, 1.0f));
+    out.has_shadow = spawn_shadow(out, at, false, at, w, params.ao_max_distance);
+    out.shadow_radiance = make_float3(1.0f, 1.0f, 1.0f);
 }
 
 /// Shades `paths[0 .. *path_count]` with the frame's integrator: adds

@@ -45,16 +45,21 @@ fn render(scene: &Arc<Scene>, sampler: LightSampler, seed: u32) -> Vec<glam::Vec
     film.pixels()
 }
 
+/// Every channel's mean agrees between two renders within 4σ of their
+/// per-pixel differences.
+fn assert_same_means(a: &[glam::Vec3], b: &[glam::Vec3]) {
+    for c in 0..3 {
+        let (mean_diff, err) = mean_and_stderr(a.iter().zip(b).map(|(p, q)| p[c] - q[c]));
+        assert!(mean_diff.abs() < 4.0 * err + 1e-4, "channel {c}: samplers differ by {mean_diff} ± {err}");
+    }
+}
+
 #[test]
 fn bvh_and_power_selection_agree_and_bvh_is_less_noisy_near_a_small_light() {
     let scene = Arc::new(atoll_scene::pbrt::load_str(SCENE, "lights.pbrt", Path::new(".")).unwrap().scene);
     let bvh = render(&scene, LightSampler::Bvh, 1);
     let power = render(&scene, LightSampler::Power, 2);
-    for c in 0..3 {
-        let diff = bvh.iter().zip(&power).map(|(a, b)| a[c] - b[c]);
-        let (mean_diff, err) = mean_and_stderr(diff);
-        assert!(mean_diff.abs() < 4.0 * err + 1e-4, "channel {c}: samplers differ by {mean_diff} ± {err}");
-    }
+    assert_same_means(&bvh, &power);
     // Noise: two renders of each sampler with different seeds; the spread
     // of their differences over the pool of light under the small light.
     let bvh2 = render(&scene, LightSampler::Bvh, 3);
@@ -83,9 +88,5 @@ fn thousands_of_emissive_triangles_agree_between_samplers() {
     assert_eq!(frame.lights.bvh.nodes.len(), 2 * bounded - 1);
     let bvh = render(&scene, LightSampler::Bvh, 5);
     let power = render(&scene, LightSampler::Power, 6);
-    for c in 0..3 {
-        let diff = bvh.iter().zip(&power).map(|(a, b)| a[c] - b[c]);
-        let (mean_diff, err) = mean_and_stderr(diff);
-        assert!(mean_diff.abs() < 4.0 * err + 1e-4, "channel {c}: samplers differ by {mean_diff} ± {err}");
-    }
+    assert_same_means(&bvh, &power);
 }
