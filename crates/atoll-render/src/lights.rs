@@ -342,10 +342,13 @@ impl LightSet {
             .collect();
         if sampler == LightSampler::Bvh {
             let mut bounded = Vec::new();
+            // `is_unbounded` alone decides, as `selection_pmf` (and the
+            // kernels' emitter-kind test) will.
             for (i, (e, &phi)) in set.emitters.iter().zip(&power).enumerate() {
-                match light_bounds(e, phi) {
-                    Some(b) => bounded.push((i as u32, b)),
-                    None => set.unbounded.push(i as u32),
+                if is_unbounded(e) {
+                    set.unbounded.push(i as u32);
+                } else if let Some(b) = light_bounds(e, phi) {
+                    bounded.push((i as u32, b));
                 }
             }
             set.bvh = LightBvh::build(&bounded, set.emitters.len());
