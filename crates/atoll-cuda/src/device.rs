@@ -20,10 +20,12 @@
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
-use atoll_bvh::ScenePart;
+use atoll_bvh::{ByteModel, ScenePart};
 use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::record::MaterialKind;
-use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, Wave};
+use atoll_render::{
+    Device, DeviceError, DirectTransport, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave,
+};
 use atoll_scene::Scene;
 use cudarc::driver::{CudaFunction, CudaSlice, PushKernelArg};
 use glam::Vec3;
@@ -32,13 +34,36 @@ use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu, Timer};
 use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
-use crate::scene::GpuScene;
+use crate::scene::{GpuScene, HEADROOM};
 use crate::trace::{DeviceQueueLength, SurfaceTables, TraceFeatures};
 use crate::work::{WorkFeed, FEED_BYTES};
 use crate::{bvh, trace};
 
 /// Threads per block of the wavefront kernels.
 const BLOCK: u32 = 128;
+
+/// What [`Device::frame_bytes`] allows for the frame parameters (light
+/// and material tables) before they are built: a generous allowance.
+const PARAMS_ALLOWANCE: u64 = 16 << 20;
+
+/// Records per queue for a frame of `options`.
+fn queue_capacity(options: &RenderOptions) -> u32 {
+    options.wave_size.min(options.pixel_count()).max(1)
+}
+
+/// Bytes a GPU device allocates for a frame of `options` besides the
+/// scene ([`Device::frame_bytes`]): queues, wave feed, film, an allowance
+/// for the frame parameters (lights, materials: known only once the frame
+/// is built) and the headroom.
+pub fn frame_bytes(options: &RenderOptions) -> u64 {
+    queues_and_film_bytes(options) + PARAMS_ALLOWANCE + HEADROOM
+}
+
+/// A frame's queues, wave feed and film: what a device allocates for a
+/// frame besides the scene and the frame parameters.
+fn queues_and_film_bytes(options: &RenderOptions) -> u64 {
+    queue_bytes(queue_capacity(options)) + FEED_BYTES + options.pixel_count() as u64 * 12
+}
 /// The kernel file of the wavefront stages.
 const WAVEFRONT: &str = "wavefront.cu";
 
@@ -193,7 +218,7 @@ impl BusyTime {
 }
 
 /// Whether `ATOLL_SERIAL_STAGES=1` asks timed stages to run one at a time
-/// ([`CudaDevice::time_stages`]).
+/// ([`Device::time_stages`]).
 fn serial_stages() -> bool {
     static SERIAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *SERIAL.get_or_init(|| std::env::var("ATOLL_SERIAL_STAGES").is_ok_and(|v| v == "1"))
@@ -210,7 +235,7 @@ pub struct CudaDevice {
     /// Times the wave in flight, from `generate` to the `has_paths` that
     /// finds the path queue empty.
     wave_timer: Mutex<Option<Timer>>,
-    /// Time each stage rather than whole waves ([`CudaDevice::time_stages`]).
+    /// Time each stage rather than whole waves ([`Device::time_stages`]).
     stage_timing: bool,
 }
 
@@ -240,11 +265,6 @@ impl CudaDevice {
         self
     }
 
-    /// Replaces the memory budget (`None`: the GPU's free memory).
-    pub fn set_memory_budget(&mut self, bytes: Option<u64>) {
-        self.memory_budget = bytes;
-    }
-
     pub fn gpu(&self) -> &Arc<Gpu> {
         &self.gpu
     }
@@ -262,16 +282,6 @@ impl CudaDevice {
         if let Err(e) = f(self) {
             self.errors.set(format!("{} {name}: {e}", self.gpu.label()));
         }
-    }
-
-    /// Busy time from the stages themselves instead of whole waves. A ring
-    /// member's stream waits between its stages for its neighbours' queues,
-    /// and a wave's time would count those waits as work; each stage is
-    /// then timed by a pair of events (kept for reuse: a ring's bounces are
-    /// large enough that recording them costs nothing measurable, unlike
-    /// the small bounces of one device, which keeps timing waves).
-    pub fn time_stages(&mut self, on: bool) {
-        self.stage_timing = on;
     }
 
     /// [`CudaDevice::stage`] between a pair of timing events when stages are timed.
@@ -363,10 +373,9 @@ impl CudaDevice {
         self.release();
         let gpu = self.gpu.clone();
         let options = &frame.options;
-        let capacity = options.wave_size.min(options.pixel_count()).max(1);
-        let film_bytes = options.pixel_count() as u64 * 12;
+        let capacity = queue_capacity(options);
         let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
-        let frame_bytes = queue_bytes(capacity) + FEED_BYTES + film_bytes + params_bytes;
+        let frame_bytes = queues_and_film_bytes(options) + params_bytes;
 
         // Compile (or load from the cache) before the clock of the first wave starts.
         let kernels = Kernels::load(&gpu, frame)?;
@@ -401,7 +410,6 @@ impl CudaDevice {
     ) -> Result<PrepareStats, CudaError> {
         let gpu = self.gpu.clone();
         let options = &frame.options;
-        let film_bytes = options.pixel_count() as u64 * 12;
         let trace_features = TraceFeatures::of(frame);
         trace::load_default_kernels(&gpu, &shared.bvh, trace_features)?;
         let queues = Queues::new(&gpu, capacity)?;
@@ -418,7 +426,7 @@ impl CudaDevice {
         let work = WorkFeed::new(&gpu, WAVEFRONT)?;
         gpu.synchronize()?;
         let stats = PrepareStats {
-            frame_bytes: queue_bytes(capacity) + FEED_BYTES + film_bytes + shared.params.bytes(),
+            frame_bytes: queues_and_film_bytes(options) + shared.params.bytes(),
             ..Default::default()
         };
         self.resident = Some(Resident {
@@ -433,45 +441,6 @@ impl CudaDevice {
             work,
         });
         Ok(stats)
-    }
-
-    /// Prepares this device for `frame` over the scene `leader` (a device
-    /// on the same GPU, prepared for the same frame) already holds: one
-    /// copy of the tables and BVH serves both, each with its own queues
-    /// and film. Two devices on one GPU keep it busier than one (its
-    /// kernels fill each other's gaps; BENCHMARKS.md, issue 4), and this
-    /// way at no cost in scene memory.
-    pub fn prepare_sharing(
-        &mut self,
-        leader: &CudaDevice,
-        frame: &Arc<FrameContext>,
-    ) -> Result<PrepareStats, DeviceError> {
-        let label = self.gpu.label();
-        let shared = match &leader.resident {
-            Some(r) if leader.gpu.ordinal == self.gpu.ordinal && Arc::ptr_eq(&r.frame, frame) => {
-                r.scene.shared.clone()
-            }
-            _ => {
-                return Err(CudaError::Usage(format!(
-                    "{label}: can share only the scene of a device on the same GPU prepared for this frame"
-                ))
-                .into_device_error(&label))
-            }
-        };
-        let attempt = |d: &mut Self| -> Result<PrepareStats, CudaError> {
-            d.release();
-            let options = &frame.options;
-            let capacity = options.wave_size.min(options.pixel_count()).max(1);
-            let frame_bytes = queue_bytes(capacity) + FEED_BYTES + options.pixel_count() as u64 * 12;
-            let plan = crate::scene::MemoryPlan { queues: frame_bytes, ..Default::default() };
-            plan.check(&label, d.memory_budget, d.gpu.free_memory()?)?;
-            let kernels = Kernels::load(&d.gpu, frame)?;
-            d.make_resident(frame, shared, kernels, capacity)
-        };
-        attempt(self).map_err(|e| {
-            self.resident = None;
-            e.into_device_error(&label)
-        })
     }
 
     /// Zeroes the film and the kernels' counters (queued on the stream).
@@ -756,6 +725,96 @@ impl Device for CudaDevice {
 
     fn error(&self) -> Option<String> {
         self.errors.get()
+    }
+
+    fn frame_bytes(&self, options: &RenderOptions) -> u64 {
+        frame_bytes(options)
+    }
+
+    fn byte_model(&self) -> ByteModel {
+        crate::scene::byte_model()
+    }
+
+    fn scene_wide_bytes(&self, scene: &Scene) -> u64 {
+        crate::scene::scene_wide_rows(scene)
+    }
+
+    fn free_memory(&self) -> Option<u64> {
+        self.gpu.free_memory().ok()
+    }
+
+    fn set_memory_budget(&mut self, bytes: Option<u64>) {
+        self.memory_budget = bytes;
+    }
+
+    fn default_wave_size(&self) -> u32 {
+        crate::DEFAULT_WAVE_SIZE
+    }
+
+    fn shares_memory_with(&self, other: &dyn Device) -> bool {
+        other.as_any().downcast_ref::<CudaDevice>().is_some_and(|o| o.gpu.ordinal == self.gpu.ordinal)
+    }
+
+    /// One copy of the tables and BVH serves both devices, each with its
+    /// own queues and film: two devices on one GPU keep it busier than one
+    /// (their kernels fill each other's gaps), at no cost in scene memory.
+    fn prepare_sharing(
+        &mut self,
+        owner: &dyn Device,
+        frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError> {
+        let label = self.gpu.label();
+        let owner = owner.as_any().downcast_ref::<CudaDevice>();
+        let shared = match owner.and_then(|o| o.resident.as_ref().map(|r| (o, r))) {
+            Some((o, r)) if o.gpu.ordinal == self.gpu.ordinal && Arc::ptr_eq(&r.frame, frame) => {
+                r.scene.shared.clone()
+            }
+            _ => {
+                return Err(CudaError::Usage(format!(
+                    "{label}: can share only the scene of a device on the same GPU prepared for this frame"
+                ))
+                .into_device_error(&label))
+            }
+        };
+        let attempt = |d: &mut Self| -> Result<PrepareStats, CudaError> {
+            d.release();
+            let plan = crate::scene::MemoryPlan {
+                queues: queues_and_film_bytes(&frame.options),
+                ..Default::default()
+            };
+            plan.check(&label, d.memory_budget, d.gpu.free_memory()?)?;
+            let kernels = Kernels::load(&d.gpu, frame)?;
+            d.make_resident(frame, shared, kernels, queue_capacity(&frame.options))
+        };
+        attempt(self).map_err(|e| {
+            self.resident = None;
+            e.into_device_error(&label)
+        })
+    }
+
+    fn another_on_same_hardware(&self) -> Option<Result<Box<dyn Device>, DeviceError>> {
+        let more = self.gpu.another_stream().map(|gpu| {
+            let mut d = CudaDevice::on(gpu);
+            d.memory_budget = self.memory_budget;
+            Box::new(d) as Box<dyn Device>
+        });
+        Some(more.map_err(|e| e.into_device_error(&self.gpu.label())))
+    }
+
+    /// Each stage between a pair of events, kept for reuse: a ring's
+    /// bounces are large enough that recording them costs nothing
+    /// measurable, unlike the small bounces of one device, which keeps
+    /// timing waves.
+    fn time_stages(&mut self, per_stage: bool) {
+        self.stage_timing = per_stage;
+    }
+
+    fn direct_transport(&self) -> Option<Arc<dyn DirectTransport>> {
+        Some(Arc::new(crate::peer::PeerTransport))
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {

@@ -1,26 +1,27 @@
 //! Ray queues moved straight from GPU to GPU, for the ring strategy (ray
-//! queue cycling). The sender's `send_records` kernel (kernels/peer.cu)
-//! reads its queue length on the device and writes records and length
-//! into the receiver's idle incoming buffer over NVLink (peer access);
-//! the receiver then makes that buffer its queue. Nothing passes through
-//! the host and the host never waits: each step is queued on the two
-//! GPUs' streams and ordered with events.
+//! queue cycling): the CUDA [`DirectTransport`]. The sender's
+//! `send_records` kernel (kernels/peer.cu) reads its queue length on the
+//! device and writes records and length into the receiver's idle incoming
+//! buffer over NVLink (peer access); the receiver then makes that buffer
+//! its queue. Nothing passes through the host and the host never waits:
+//! each step is queued on the two GPUs' streams and ordered with events.
 //!
-//! The protocol, per ring step (the strategy orders the host side):
-//! 1. every member traces, records its `ready` event, and publishes its
-//!    [`CudaDevice::incoming_slot`] (a barrier follows);
-//! 2. every member calls [`CudaDevice::send_queue`] with its successor's
-//!    slot, after the successor's `ready` (so all the successor's earlier
-//!    work on that buffer is done), recording its `sent` event;
-//! 3. every member calls [`CudaDevice::accept_incoming`] after its
-//!    predecessor's `sent`.
+//! A step (`atoll_render::transport` orders the host side):
+//! 1. `open`: every member records its `ready` event and publishes its
+//!    [`IncomingSlot`] (a barrier follows);
+//! 2. `send`: every member copies into its successor's slot, after the
+//!    successor's `ready` (so all the successor's earlier work on that
+//!    buffer is done), recording its `sent` event;
+//! 3. `accept`: every member takes in the slot after its predecessor's `sent`.
 //!
 //! Slots change from step to step (buffers swap), so they are published
-//! anew each time.
+//! anew each time. Events alternate by step parity: a member re-records a
+//! step's events only after a barrier its neighbours pass after waiting
+//! on them.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
-use atoll_render::Queue;
+use atoll_render::{Device, DeviceError, DirectRing, DirectTransport, Queue};
 use cudarc::driver::sys;
 use cudarc::driver::{CudaEvent, CudaSlice, DevicePtr, PushKernelArg};
 
@@ -29,9 +30,9 @@ use crate::error::CudaError;
 use crate::gpu::Gpu;
 
 /// Where a neighbour may write a queue into this device (valid until the
-/// next [`CudaDevice::accept_incoming`]).
+/// device accepts what came in).
 #[derive(Clone, Copy, Debug)]
-pub struct IncomingSlot {
+struct IncomingSlot {
     records: sys::CUdeviceptr,
     count: sys::CUdeviceptr,
     capacity: u32,
@@ -102,7 +103,7 @@ fn grant_pool_access(owner: &Gpu, reader: &Gpu) -> Result<(), CudaError> {
 
 impl CudaDevice {
     /// This device's buffer and counter for an incoming `queue` (see the module docs).
-    pub fn incoming_slot(&mut self, queue: Queue) -> Result<IncomingSlot, CudaError> {
+    fn incoming_slot(&mut self, queue: Queue) -> Result<IncomingSlot, CudaError> {
         let gpu = self.gpu().clone();
         let queues = self.queues_mut()?;
         let capacity = queues.capacity;
@@ -114,13 +115,13 @@ impl CudaDevice {
 
     /// Loads (compiling on a cold cache) the send kernel now, so that the
     /// first ring step does not pay for it.
-    pub fn load_peer_kernels(&self) -> Result<(), CudaError> {
+    fn load_peer_kernels(&self) -> Result<(), CudaError> {
         self.gpu().function("peer.cu", "send_records").map(|_| ())
     }
 
     /// Bytes this device has sent to ring neighbours (read back: waits for
     /// the device).
-    pub fn bytes_sent(&mut self) -> Result<u64, CudaError> {
+    fn bytes_sent(&mut self) -> Result<u64, CudaError> {
         let gpu = self.gpu().clone();
         let queues = self.queues_mut()?;
         let n = gpu
@@ -131,7 +132,7 @@ impl CudaDevice {
     }
 
     /// Records `event` on this device's stream: everything queued so far.
-    pub fn record(&self, event: &CudaEvent) -> Result<(), CudaError> {
+    fn record(&self, event: &CudaEvent) -> Result<(), CudaError> {
         event
             .record(&self.gpu().stream)
             .map_err(CudaError::driver(format!("{}: recording an event", self.gpu().label())))
@@ -139,7 +140,7 @@ impl CudaDevice {
 
     /// Queues, after `after` (an event of the receiver), the copy of
     /// `queue` into a neighbour's incoming slot, then records `sent`.
-    pub fn send_queue(
+    fn send_queue(
         &mut self,
         queue: Queue,
         to: &IncomingSlot,
@@ -195,13 +196,149 @@ impl CudaDevice {
 
     /// Makes the incoming buffer, being filled by a neighbour's `send_queue`
     /// that records `sent`, this device's `queue`; later work waits for it.
-    pub fn accept_incoming(&mut self, queue: Queue, sent: &CudaEvent) -> Result<(), CudaError> {
+    fn accept_incoming(&mut self, queue: Queue, sent: &CudaEvent) -> Result<(), CudaError> {
         let gpu = self.gpu().clone();
         gpu.stream.wait(sent).map_err(CudaError::driver(format!(
             "{}: waiting for the incoming {queue:?} queue",
             gpu.label()
         )))?;
         self.queues_mut()?.accept_incoming(&gpu, queue)
+    }
+}
+
+/// Peer copies between the GPUs of a ring ([`CudaDevice::direct_transport`]).
+pub(crate) struct PeerTransport;
+
+/// Per ring member, its GPU's events by step parity.
+struct MemberEvents {
+    /// Recorded when the member opens a step: all its earlier work is queued before it.
+    ready: [CudaEvent; 2],
+    /// Recorded after the member's send: its records have landed.
+    sent: [CudaEvent; 2],
+}
+
+/// A connected ring of CUDA devices.
+struct PeerRing {
+    events: Vec<MemberEvents>,
+    /// The members' published incoming slots (`None` where opening failed).
+    slots: Vec<Mutex<Option<IncomingSlot>>>,
+}
+
+/// The CUDA device behind a ring member.
+fn cuda(device: &mut dyn Device) -> Result<&mut CudaDevice, DeviceError> {
+    let name = device.name();
+    device.as_any_mut().downcast_mut::<CudaDevice>().ok_or(DeviceError::Unsupported {
+        device: name,
+        what: "CUDA peer copies (every member of the ring must be a CUDA GPU)".into(),
+    })
+}
+
+impl DirectTransport for PeerTransport {
+    fn name(&self) -> &'static str {
+        "CUDA peer copies"
+    }
+
+    fn connect(&self, ring: &mut [Box<dyn Device>]) -> Result<Box<dyn DirectRing>, DeviceError> {
+        let mut gpus = Vec::new();
+        for device in ring.iter_mut() {
+            let d = cuda(device.as_mut())?;
+            let label = d.gpu().label();
+            d.load_peer_kernels().map_err(|e| e.into_device_error(&label))?;
+            gpus.push(d.gpu().clone());
+        }
+        let access = enable_peer_access(&gpus).map_err(|e| e.into_device_error("peer access"))?;
+        for (i, row) in access.iter().enumerate() {
+            for (j, &direct) in row.iter().enumerate() {
+                // Devices sharing a GPU copy within its memory.
+                if gpus[i].ordinal != gpus[j].ordinal && !direct {
+                    tracing::warn!(
+                        "{} cannot access {} directly: ring copies between them go through the host",
+                        gpus[i].label(),
+                        gpus[j].label()
+                    );
+                }
+            }
+        }
+        let events = gpus
+            .iter()
+            .map(|gpu| {
+                let event = || {
+                    gpu.ctx.new_event(None).map_err(|e| {
+                        CudaError::driver("creating an event")(e).into_device_error(&gpu.label())
+                    })
+                };
+                Ok(MemberEvents { ready: [event()?, event()?], sent: [event()?, event()?] })
+            })
+            .collect::<Result<Vec<_>, DeviceError>>()?;
+        let slots = gpus.iter().map(|_| Mutex::new(None)).collect();
+        Ok(Box::new(PeerRing { events, slots }))
+    }
+}
+
+impl PeerRing {
+    fn slot(&self, member: usize) -> std::sync::MutexGuard<'_, Option<IncomingSlot>> {
+        self.slots[member].lock().unwrap_or_else(|p| p.into_inner())
+    }
+}
+
+impl DirectRing for PeerRing {
+    fn open(
+        &self,
+        member: usize,
+        device: &mut dyn Device,
+        queue: Queue,
+        step: usize,
+    ) -> Result<(), DeviceError> {
+        let d = cuda(device)?;
+        // The slot first: its first use allocates and zero-fills it on this
+        // device's stream, which must come before `ready` (the sender waits
+        // only for that). Recorded the other way round, a sender on the same
+        // GPU could write into the slot before the fill wiped it (seen as
+        // lost shadow rays with two devices on one GPU; invisible across
+        // two GPUs, where the send always lands later).
+        let slot = d
+            .incoming_slot(queue)
+            .and_then(|slot| d.record(&self.events[member].ready[step % 2]).map(|()| slot));
+        *self.slot(member) = slot.as_ref().ok().copied();
+        slot.map(|_| ()).map_err(|e| e.into_device_error(&d.gpu().label()))
+    }
+
+    fn send(
+        &self,
+        member: usize,
+        device: &mut dyn Device,
+        queue: Queue,
+        step: usize,
+    ) -> Result<(), DeviceError> {
+        let d = cuda(device)?;
+        let label = d.gpu().label();
+        let next = (member + 1) % self.slots.len();
+        let Some(target) = *self.slot(next) else {
+            return Err(DeviceError::Other {
+                device: label,
+                message: "the next device has no incoming slot".into(),
+            });
+        };
+        d.send_queue(queue, &target, &self.events[next].ready[step % 2], &self.events[member].sent[step % 2])
+            .map_err(|e| e.into_device_error(&label))
+    }
+
+    fn accept(
+        &self,
+        member: usize,
+        device: &mut dyn Device,
+        queue: Queue,
+        step: usize,
+    ) -> Result<(), DeviceError> {
+        let d = cuda(device)?;
+        let prev = (member + self.slots.len() - 1) % self.slots.len();
+        d.accept_incoming(queue, &self.events[prev].sent[step % 2])
+            .map_err(|e| e.into_device_error(&d.gpu().label()))
+    }
+
+    fn bytes_sent(&self, device: &mut dyn Device) -> Result<u64, DeviceError> {
+        let d = cuda(device)?;
+        d.bytes_sent().map_err(|e| e.into_device_error(&d.gpu().label()))
     }
 }
 

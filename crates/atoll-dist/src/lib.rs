@@ -24,6 +24,7 @@
 pub mod handout;
 pub mod ownership;
 pub mod partition;
+pub mod placement;
 #[cfg(feature = "mpi")]
 pub mod ranks;
 pub mod render;

@@ -12,17 +12,16 @@
 
 use std::cell::Cell;
 use std::sync::mpsc;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use atoll_bvh::ScenePart;
-use atoll_cuda::peer::IncomingSlot;
-use atoll_cuda::CudaDevice;
 use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::integrator::{render_waves, warm_up_waves};
-use atoll_render::{Device, DeviceError, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave};
+use atoll_render::{
+    Device, DeviceError, DirectRing, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave,
+};
 use atoll_scene::Scene;
-use cudarc::driver::CudaEvent;
 
 use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
 use crate::vote::Vote;
@@ -170,9 +169,9 @@ fn check(device: &dyn Device) -> Result<(), DeviceError> {
 }
 
 /// Prepares every device with its part, all at once (uploads and BVH builds
-/// of different devices overlap). CUDA devices on one GPU holding the same
-/// part share one copy of it: the first of them prepares it, then the
-/// others borrow it ([`CudaDevice::prepare_sharing`]).
+/// of different devices overlap). Devices on one piece of hardware holding
+/// the same part share one copy of it: the first of them prepares it, then
+/// the others borrow it ([`Device::prepare_sharing`]).
 fn prepare_all(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
@@ -189,14 +188,11 @@ fn prepare_all(
         Layout::Ring { parts, .. } => &parts[d % parts.len()],
     };
     // Per device, the earlier device whose scene it borrows.
-    let ordinals: Vec<Option<usize>> = devices
-        .iter_mut()
-        .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().ordinal))
-        .collect();
     let leader: Vec<Option<usize>> = (0..devices.len())
         .map(|d| {
-            let ordinal = ordinals[d]?;
-            (0..d).find(|&e| ordinals[e] == Some(ordinal) && part_index(e) == part_index(d))
+            (0..d).find(|&e| {
+                part_index(e) == part_index(d) && devices[d].shares_memory_with(devices[e].as_ref())
+            })
         })
         .collect();
     let mut stats: Vec<Option<Result<PrepareStats, DeviceError>>> = std::thread::scope(|scope| {
@@ -214,9 +210,7 @@ fn prepare_all(
     for d in 0..devices.len() {
         let Some(l) = leader[d] else { continue };
         let (before, rest) = devices.split_at_mut(d);
-        let lead = before[l].as_any_mut().downcast_mut::<CudaDevice>().expect("a CUDA leader");
-        let this = rest[0].as_any_mut().downcast_mut::<CudaDevice>().expect("a CUDA follower");
-        stats[d] = Some(this.prepare_sharing(lead, frame));
+        stats[d] = Some(rest[0].prepare_sharing(before[l].as_ref(), frame));
     }
     stats.into_iter().map(|s| s.expect("every device prepared")).collect()
 }
@@ -288,12 +282,13 @@ pub fn render_multi_with(
         (Layout::Ring { islands, .. }, None) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
-    // The CPU beside GPUs takes waves of its own size, not theirs: one
-    // GPU-sized wave kept it busy longer than the GPUs took for the whole
-    // frame (`--devices cuda:0,cpu` on the H100 machine, BENCHMARKS.md).
-    let gpus = devices.iter_mut().filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>()).count();
-    let wave_size = match gpus > 0 && gpus < devices.len() {
-        true => frame.options.wave_size.min(atoll_render::frame::DEFAULT_WAVE_SIZE),
+    // Devices of different kinds (the CPU beside GPUs) take waves of the
+    // smallest kind's size: one GPU-sized wave kept a CPU busy longer than
+    // the GPUs took for the whole frame.
+    let smallest = devices.iter().map(|d| d.default_wave_size()).min().unwrap_or(u32::MAX);
+    let largest = devices.iter().map(|d| d.default_wave_size()).max().unwrap_or(u32::MAX);
+    let wave_size = match smallest < largest {
+        true => frame.options.wave_size.min(smallest),
         false => frame.options.wave_size,
     };
     let warmup = warmup.then_some(WarmUp { workers: islands, wave_size });
@@ -304,7 +299,7 @@ pub fn render_multi_with(
         wave_size,
         samples: frame.options.pixel_count() as u64 * frame.options.spp as u64,
     });
-    let Ready { prepared, prepare_seconds, shape, warmed } = ready?;
+    let Ready { prepared, prepare_seconds, shape, warmed, direct } = ready?;
     let joined = joined?;
     // Every process cuts the same waves (only their sizes may differ from
     // what this process's devices would take alone).
@@ -314,27 +309,23 @@ pub fn render_multi_with(
     let start = Instant::now();
     let reports = match remote {
         Some(link) => run_member(devices, &waves, shape, link, handout, progress),
-        None => run_waves(devices, &waves, shape, handout, progress),
+        None => run_waves(devices, &waves, shape, &direct, handout, progress),
     };
     let render_seconds = start.elapsed().as_secs_f64();
     handout.end();
     let mut reports = reports?;
 
     let mut film = Film::new(frame.options.resolution);
-    for ((device, report), prepare) in devices.iter_mut().zip(&mut reports).zip(prepared) {
+    for (d, ((device, report), prepare)) in devices.iter_mut().zip(&mut reports).zip(prepared).enumerate() {
         check(device.as_ref())?;
         if let Some(message) = &report.error {
             return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
         }
         film.merge(&device.film());
         report.stats = device.stats();
-        if shape.transport == Transport::Peer {
-            // Counted by the send kernel: the host never learns the lengths.
-            let cuda =
-                device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on CUDA devices");
-            report.bytes_sent = cuda
-                .bytes_sent()
-                .map_err(|e| DeviceError::Other { device: report.name.clone(), message: e.to_string() })?;
+        if let Some(ring) = direct.get(d / shape.ring) {
+            // Counted where the records are sent: the host never learns the lengths.
+            report.bytes_sent = ring.bytes_sent(device.as_mut())?;
         }
         report.prepare = prepare;
     }
@@ -350,6 +341,8 @@ struct Ready {
     /// Per worker, camera samples and seconds of the warm-up (empty
     /// without one).
     warmed: Vec<(u64, f64)>,
+    /// Per ring, its direct transport (empty when queues go through the host).
+    direct: Vec<Box<dyn DirectRing>>,
 }
 
 /// How this process's `workers` take `waves` ([`Pacing`]): devices
@@ -422,18 +415,16 @@ fn ready_frame(
         Layout::Replicate => (1, RingOrder::Spread),
         Layout::Ring { parts, order, .. } => (parts.len(), *order),
     };
-    let shape = RunShape {
-        ring,
-        order,
-        merge: frame.options.merge_waves,
-        transport: if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host },
+    let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
+    let shape = RunShape { ring, order, merge: frame.options.merge_waves };
+    let direct = match transport {
+        Transport::Peer => connect_rings(devices, ring)?,
+        Transport::Host => Vec::new(),
     };
     for device in devices.iter_mut() {
-        if let Some(cuda) = device.as_any_mut().downcast_mut::<CudaDevice>() {
-            // A ring member's stream waits for its neighbours between
-            // stages: time the stages, not the waves, for its busy time.
-            cuda.time_stages(ring > 1);
-        }
+        // A ring member waits for its neighbours between stages: time the
+        // stages, not the waves, for its busy time.
+        device.time_stages(ring > 1);
     }
     let mut warmed = Vec::new();
     if let Some(WarmUp { workers, wave_size }) = warmup {
@@ -452,7 +443,7 @@ fn ready_frame(
         handout.begin(mine.len(), Pacing::default());
         let reports = match remote {
             Some(link) => run_member(devices, mine, shape, link, &handout, &mut |_, _| {})?,
-            None => run_waves(devices, mine, shape, &handout, &mut |_, _| {})?,
+            None => run_waves(devices, mine, shape, &direct, &handout, &mut |_, _| {})?,
         };
         // Per worker (a device replicating, a ring), the samples it took
         // and the busy time of its busiest device: a GPU's warm-up is a few
@@ -478,7 +469,7 @@ fn ready_frame(
             device.reset_frame();
         }
     }
-    Ok(Ready { prepared, prepare_seconds, shape, warmed })
+    Ok(Ready { prepared, prepare_seconds, shape, warmed, direct })
 }
 
 /// How the devices of a frame work together.
@@ -489,7 +480,6 @@ struct RunShape {
     order: RingOrder,
     /// Wave-front merging.
     merge: bool,
-    transport: Transport,
 }
 
 /// Renders `waves` on this process's one device, a member of a ring of
@@ -525,17 +515,15 @@ fn run_waves(
     devices: &mut [Box<dyn Device>],
     waves: &[Wave],
     shape: RunShape,
+    direct: &[Box<dyn DirectRing>],
     handout: &dyn WaveHandout,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<DeviceReport>, DeviceError> {
-    let RunShape { ring, order, merge, transport } = shape;
+    let RunShape { ring, order, merge, .. } = shape;
     let islands = devices.len() / ring;
     // Workers are devices replicating, or rings: the island.
     let take = |worker: usize| handout.next(worker).and_then(|i| waves.get(i));
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
-    let slots: Vec<Vec<Mutex<Option<IncomingSlot>>>> =
-        (0..islands).map(|_| (0..ring).map(|_| Mutex::new(None)).collect()).collect();
-    let events = if transport == Transport::Peer { peer_events(devices)? } else { Vec::new() };
     // Device d sends to d + 1 of its ring and receives from d - 1.
     let (senders, receivers): (Vec<_>, Vec<_>) = (0..devices.len()).map(|_| mpsc::channel()).unzip();
     let mut inboxes: Vec<Option<mpsc::Receiver<Handover>>> = receivers.into_iter().map(Some).collect();
@@ -553,11 +541,9 @@ fn run_waves(
                 let link = RingLink {
                     size: ring,
                     member,
-                    transport,
+                    direct: direct.get(island).map(|r| r.as_ref()),
                     to_next: senders[next_device].clone(),
                     from_prev: inboxes[d].take().expect("one inbox per device"),
-                    slots: &slots[island],
-                    events: events.get(island * ring..(island + 1) * ring).unwrap_or(&[]),
                     steps: Cell::new(0),
                     spare: Cell::default(),
                     vote,
@@ -659,9 +645,8 @@ fn cycle(
 enum Handover {
     /// The records themselves, through the host (any device kind).
     Records(Vec<RayRecord>),
-    /// The records are on their way GPU to GPU into the receiver's
-    /// incoming slot ([`atoll_cuda::peer`]); the sender's `sent` event of
-    /// this step says when they have landed.
+    /// The records are on their way device to device ([`DirectRing`]):
+    /// the receiver accepts them.
     Copied,
 }
 
@@ -670,7 +655,8 @@ enum Handover {
 pub enum Transport {
     /// `read_queue` / `write_queue` through host memory: works for every device.
     Host,
-    /// CUDA peer copies (NVLink where available): every member a GPU.
+    /// Device to device ([`atoll_render::DirectTransport`]: CUDA peer
+    /// copies, NVLink where available): every member a device offering it.
     Peer,
 }
 
@@ -678,30 +664,17 @@ pub enum Transport {
 struct RingLink<'a> {
     size: usize,
     member: usize,
-    transport: Transport,
+    /// The ring's direct transport; `None`: through the host.
+    direct: Option<&'a dyn DirectRing>,
     to_next: mpsc::Sender<Handover>,
     from_prev: mpsc::Receiver<Handover>,
-    /// The ring's published incoming slots, by member (peer transport).
-    slots: &'a [Mutex<Option<IncomingSlot>>],
-    /// Per member, its `ready` and `sent` events for even and odd steps
-    /// (peer transport): a member re-records a step's events only after a
-    /// barrier its neighbours pass after waiting on them.
-    events: &'a [PeerEvents],
-    /// Steps taken (the parity picks the events).
+    /// Steps taken.
     steps: Cell<usize>,
     /// The last queue that came in through the host, its allocation kept
     /// for the next one going out.
     spare: Cell<Vec<RayRecord>>,
     vote: &'a Vote,
     order: RingOrder,
-}
-
-/// One ring member's events for the peer transport, by step parity.
-struct PeerEvents {
-    /// Recorded after the member's trace: all its earlier work is done.
-    ready: [CudaEvent; 2],
-    /// Recorded after the member's send: its records have landed.
-    sent: [CudaEvent; 2],
 }
 
 impl RingPeers for RingLink<'_> {
@@ -716,8 +689,8 @@ impl RingPeers for RingLink<'_> {
     fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
         let step = self.steps.get();
         self.steps.set(step + 1);
-        let handover = match self.transport {
-            Transport::Host => {
+        let handover = match self.direct {
+            None => {
                 let sending = Instant::now();
                 // Into the allocation of the queue that came in last.
                 let mut records = self.spare.take();
@@ -726,8 +699,8 @@ impl RingPeers for RingLink<'_> {
                 report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
                 Handover::Records(records)
             }
-            Transport::Peer => {
-                self.send_peer(device, queue, step, report);
+            Some(direct) => {
+                self.send_direct(direct, device, queue, step, report);
                 Handover::Copied
             }
         };
@@ -742,10 +715,14 @@ impl RingPeers for RingLink<'_> {
                 self.spare.replace(records);
             }
             Handover::Copied => {
-                let prev = (self.member + self.size - 1) % self.size;
-                let sent = &self.events[prev].sent[step % 2];
-                if let Err(e) = cuda_device(device).accept_incoming(queue, sent) {
-                    report.error.get_or_insert(e.to_string());
+                let accepted = match self.direct {
+                    Some(direct) => {
+                        direct.accept(self.member, device, queue, step).map_err(|e| e.to_string())
+                    }
+                    None => Err("records sent directly to a member linked through the host".to_string()),
+                };
+                if let Err(e) = accepted {
+                    report.error.get_or_insert(e);
                 }
             }
         }
@@ -754,104 +731,67 @@ impl RingPeers for RingLink<'_> {
 }
 
 impl RingLink<'_> {
-    /// Marks this member ready, publishes its incoming slot, waits until
-    /// every member has, and queues the copy of `queue` into the
-    /// successor's slot (after the successor is ready). Nothing here waits
-    /// for the GPUs. Errors are kept in the report; the ring keeps stepping.
-    fn send_peer(&self, device: &mut dyn Device, queue: Queue, step: usize, report: &mut DeviceReport) {
-        let cuda = cuda_device(device);
-        let mine = &self.events[self.member];
-        // The slot first: its first use allocates and zero-fills it on this
-        // device's stream, which must come before `ready` (the sender waits
-        // only for that). Recorded the other way round, a sender on the same
-        // GPU could write into the slot before the fill wiped it (seen as
-        // lost shadow rays with two devices on one GPU; invisible across
-        // two GPUs, where the send always lands later).
-        let slot =
-            cuda.incoming_slot(queue).and_then(|slot| cuda.record(&mine.ready[step % 2]).map(|()| slot));
-        *self.slots[self.member].lock().unwrap_or_else(|p| p.into_inner()) = slot.as_ref().ok().copied();
+    /// Opens this member's step, waits until every member has, and queues
+    /// the send of `queue` to the successor ([`atoll_render::transport`]).
+    /// Nothing here waits for the devices. Errors are kept in the report;
+    /// the ring keeps stepping.
+    fn send_direct(
+        &self,
+        direct: &dyn DirectRing,
+        device: &mut dyn Device,
+        queue: Queue,
+        step: usize,
+        report: &mut DeviceReport,
+    ) {
+        let opened = direct.open(self.member, device, queue, step);
         report.wait_seconds += self.vote.any(false).1.as_secs_f64();
-        let next = (self.member + 1) % self.size;
-        let target = *self.slots[next].lock().unwrap_or_else(|p| p.into_inner());
         let sending = Instant::now();
-        let sent = match (slot, target) {
-            (Err(e), _) => Err(e.to_string()),
-            (_, None) => Err("the next device has no incoming slot".to_string()),
-            (Ok(_), Some(target)) => cuda
-                .send_queue(queue, &target, &self.events[next].ready[step % 2], &mine.sent[step % 2])
-                .map_err(|e| e.to_string()),
-        };
+        let sent = opened.and_then(|()| direct.send(self.member, device, queue, step));
         report.send_seconds += sending.elapsed().as_secs_f64();
         if let Err(e) = sent {
-            report.error.get_or_insert(e);
+            report.error.get_or_insert(e.to_string());
         }
     }
-}
-
-/// Per device, the peer transport's events (created on each device's GPU).
-fn peer_events(devices: &mut [Box<dyn Device>]) -> Result<Vec<PeerEvents>, DeviceError> {
-    devices
-        .iter_mut()
-        .map(|d| {
-            let gpu = cuda_device(d.as_mut()).gpu().clone();
-            let event = || {
-                gpu.ctx.new_event(None).map_err(|e| DeviceError::Other {
-                    device: gpu.label(),
-                    message: format!("creating an event: {e}"),
-                })
-            };
-            Ok(PeerEvents { ready: [event()?, event()?], sent: [event()?, event()?] })
-        })
-        .collect()
-}
-
-/// The CUDA device behind a ring member of the peer transport (which is
-/// only chosen when every member is one).
-fn cuda_device(device: &mut dyn Device) -> &mut CudaDevice {
-    device.as_any_mut().downcast_mut::<CudaDevice>().expect("peer transport on a CUDA device")
 }
 
 /// The transport for `devices`: `wanted`, or when `None` the fastest that
-/// works (peer copies when all are CUDA GPUs, else the host). Peer access
-/// between the GPUs is enabled here.
+/// works (direct when every device offers the same direct transport, else
+/// the host).
 fn choose_transport(
-    devices: &mut [Box<dyn Device>],
+    devices: &[Box<dyn Device>],
     wanted: Option<Transport>,
 ) -> Result<Transport, DeviceError> {
-    let gpus: Option<Vec<_>> = devices
-        .iter_mut()
-        .map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
-        .collect();
-    match (gpus, wanted) {
+    let kinds: Vec<Option<&'static str>> =
+        devices.iter().map(|d| d.direct_transport().map(|t| t.name())).collect();
+    let direct = kinds.first().copied().flatten().is_some() && kinds.windows(2).all(|w| w[0] == w[1]);
+    match (direct, wanted) {
         (_, Some(Transport::Host)) => Ok(Transport::Host),
-        (Some(gpus), _) => {
-            for d in devices.iter_mut() {
-                cuda_device(d.as_mut())
-                    .load_peer_kernels()
-                    .map_err(|e| DeviceError::Other { device: d.name(), message: e.to_string() })?;
-            }
-            let access = atoll_cuda::peer::enable_peer_access(&gpus)
-                .map_err(|e| DeviceError::Other { device: "peer access".into(), message: e.to_string() })?;
-            for (i, row) in access.iter().enumerate() {
-                for (j, &direct) in row.iter().enumerate() {
-                    // Devices sharing a GPU copy within its memory.
-                    if gpus[i].ordinal != gpus[j].ordinal && !direct {
-                        tracing::warn!(
-                            "{} cannot access {} directly: ring copies between them go through the host",
-                            gpus[i].label(),
-                            gpus[j].label()
-                        );
-                    }
-                }
-            }
-            Ok(Transport::Peer)
-        }
-        (None, Some(Transport::Peer)) => Err(DeviceError::Other {
+        (true, _) => Ok(Transport::Peer),
+        (false, Some(Transport::Peer)) => Err(DeviceError::Other {
             device: "devices".into(),
-            message: "peer copies need every device of the ring to be a CUDA GPU".into(),
+            message: "direct copies need every device of the ring to offer the same direct transport (all CUDA GPUs)"
+                .into(),
         }),
-        (None, None) => Ok(Transport::Host),
+        (false, None) => Ok(Transport::Host),
     }
+}
+
+/// Connects each ring of `ring` consecutive devices through their direct
+/// transport (see [`choose_transport`]).
+fn connect_rings(
+    devices: &mut [Box<dyn Device>],
+    ring: usize,
+) -> Result<Vec<Box<dyn DirectRing>>, DeviceError> {
+    devices
+        .chunks_mut(ring)
+        .map(|members| {
+            let transport = members[0].direct_transport().ok_or_else(|| DeviceError::Unsupported {
+                device: members[0].name(),
+                what: "direct queue transport".into(),
+            })?;
+            transport.connect(members)
+        })
+        .collect()
 }
 
 /// One ring member's frame: queue waves as this member runs out of work

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
-use crate::frame::{FrameContext, Wave};
+use crate::frame::{FrameContext, RenderOptions, Wave};
 use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
@@ -224,14 +224,12 @@ impl Device for CpuDevice {
         self.shadows.clear();
         self.pending.clear();
         self.stats = DeviceStats::default();
-        let wave = frame.options.wave_size.min(frame.options.pixel_count()) as u64;
         Ok(PrepareStats {
             // Every device holds all texture images (see atoll_bvh::part_bytes).
             scene_bytes: part_geometry_bytes(scene, part)
                 + bvh_stats.bytes as u64
                 + scene.textures.memory_bytes(),
-            frame_bytes: 2 * wave * std::mem::size_of::<RayRecord>() as u64
-                + self.film.pixel_count() as u64 * 12,
+            frame_bytes: self.frame_bytes(&frame.options),
             bvh_build_seconds: build,
             bvh_sah_cost: bvh_stats.blas.sah_cost,
         })
@@ -387,6 +385,20 @@ impl Device for CpuDevice {
 
     fn stats(&self) -> DeviceStats {
         self.stats.clone()
+    }
+
+    /// Two queues of the wave's records and the film.
+    fn frame_bytes(&self, options: &RenderOptions) -> u64 {
+        let wave = options.wave_size.min(options.pixel_count()) as u64;
+        2 * wave * std::mem::size_of::<RayRecord>() as u64 + options.pixel_count() as u64 * 12
+    }
+
+    fn set_memory_budget(&mut self, bytes: Option<u64>) {
+        self.memory_budget = bytes;
+    }
+
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
     }
 
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {

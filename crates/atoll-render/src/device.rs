@@ -1,17 +1,21 @@
 //! The `Device` trait: what every device (CPU, CUDA GPU) does, shaped like
-//! the integrator's stages. A device knows nothing of other devices;
-//! distribution strategies move queues between devices through
-//! [`Device::read_queue`] / [`Device::write_queue`] (or faster paths of
-//! their own for devices that share memory).
+//! the integrator's stages, and the capabilities distribution strategies
+//! and placement build on (memory facts, scene sharing on one piece of
+//! hardware, direct queue transport). Strategies see devices only through
+//! this trait: queues move through [`Device::read_queue`] /
+//! [`Device::write_queue`], or through a [`DirectTransport`] a device kind
+//! offers.
 
+use std::any::Any;
 use std::sync::Arc;
 
-use atoll_bvh::ScenePart;
+use atoll_bvh::{ByteModel, ScenePart};
 use atoll_scene::Scene;
 
 use crate::film::Film;
-use crate::frame::{FrameContext, Wave};
+use crate::frame::{FrameContext, RenderOptions, Wave, DEFAULT_WAVE_SIZE};
 use crate::record::RayRecord;
+use crate::transport::DirectTransport;
 
 /// The two queues of ray records a device holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -27,6 +31,8 @@ pub enum Queue {
 pub enum DeviceError {
     #[error("{device}: scene needs {needed} bytes but the memory budget is {budget} bytes")]
     OutOfMemory { device: String, needed: u64, budget: u64 },
+    #[error("{device}: {what} is not something this device can do")]
+    Unsupported { device: String, what: String },
     #[error("{device}: {message}")]
     Other { device: String, message: String },
 }
@@ -138,8 +144,82 @@ pub trait Device: Send {
         None
     }
 
-    /// The concrete device, for strategies' fast paths between devices of
-    /// one kind (GPU peer copies of queues instead of `read_queue` /
-    /// `write_queue` through the host).
-    fn as_any_mut(&mut self) -> &mut dyn std::any::Any;
+    // --- Memory facts: what placement plans with ---
+
+    /// What scene parts cost this device ([`atoll_bvh::part_bytes`]).
+    fn byte_model(&self) -> ByteModel {
+        ByteModel::CPU
+    }
+
+    /// Bytes this device allocates for a frame of `options` besides the
+    /// scene: queues, film, frame parameters, headroom.
+    fn frame_bytes(&self, options: &RenderOptions) -> u64;
+
+    /// Bytes the device keeps for the whole scene whatever part it holds
+    /// (rows of per-instance tables), beyond the byte model's charge.
+    fn scene_wide_bytes(&self, _scene: &Scene) -> u64 {
+        0
+    }
+
+    /// Memory free on the device now; `None` where the device draws on
+    /// host memory (no figure worth planning with).
+    fn free_memory(&self) -> Option<u64> {
+        None
+    }
+
+    /// Replaces the memory budget (`None`: what the device has).
+    fn set_memory_budget(&mut self, bytes: Option<u64>);
+
+    /// The paths in flight this kind of device renders best with.
+    fn default_wave_size(&self) -> u32 {
+        DEFAULT_WAVE_SIZE
+    }
+
+    // --- Sharing one piece of hardware ---
+
+    /// Whether this device and `other` draw on the same memory (two
+    /// devices on one GPU): they share its capacity, and one may use a
+    /// scene the other prepared ([`Device::prepare_sharing`]).
+    fn shares_memory_with(&self, _other: &dyn Device) -> bool {
+        false
+    }
+
+    /// Prepares for `frame` over the scene `owner` (a device this one
+    /// shares memory with, prepared for the same frame) holds: one copy
+    /// of the scene serves both, each with its own queues and film.
+    fn prepare_sharing(
+        &mut self,
+        _owner: &dyn Device,
+        _frame: &Arc<FrameContext>,
+    ) -> Result<PrepareStats, DeviceError> {
+        Err(DeviceError::Unsupported { device: self.name(), what: "sharing another device's scene".into() })
+    }
+
+    /// Another device on the same hardware (on a GPU, another stream),
+    /// with the same memory budget, not prepared: it can share this one's
+    /// scene, and its work fills the gaps of this one's. `None` where that
+    /// gains nothing (the CPU's threads are already all busy).
+    fn another_on_same_hardware(&self) -> Option<Result<Box<dyn Device>, DeviceError>> {
+        None
+    }
+
+    /// Measures busy time stage by stage instead of wave by wave: a ring
+    /// member's stages are separated by waits for its neighbours, which a
+    /// wave's time would count as work.
+    fn time_stages(&mut self, _per_stage: bool) {}
+
+    // --- Moving queues ---
+
+    /// A way to move queues between devices of this kind without the host
+    /// (GPU peer copies), where there is one.
+    fn direct_transport(&self) -> Option<Arc<dyn DirectTransport>> {
+        None
+    }
+
+    /// The concrete device, for the device crate's own use (a transport or
+    /// a scene shared between devices of one kind). Strategies do not cast.
+    fn as_any(&self) -> &dyn Any;
+
+    /// See [`Device::as_any`].
+    fn as_any_mut(&mut self) -> &mut dyn Any;
 }

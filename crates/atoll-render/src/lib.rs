@@ -18,6 +18,7 @@ pub mod sampling;
 pub mod spawn;
 pub mod stages;
 pub mod texture;
+pub mod transport;
 
 pub use cpu::CpuDevice;
 pub use device::{Device, DeviceError, Queue};
@@ -25,3 +26,4 @@ pub use film::Film;
 pub use frame::{FrameContext, RenderOptions, Wave};
 pub use integrator::{render, RenderOutput};
 pub use record::RayRecord;
+pub use transport::{DirectRing, DirectTransport};

@@ -77,6 +77,15 @@ impl Device for Counting {
     fn stats(&self) -> DeviceStats {
         self.inner.stats()
     }
+    fn frame_bytes(&self, options: &atoll_render::RenderOptions) -> u64 {
+        self.inner.frame_bytes(options)
+    }
+    fn set_memory_budget(&mut self, bytes: Option<u64>) {
+        self.inner.set_memory_budget(bytes)
+    }
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
     fn as_any_mut(&mut self) -> &mut dyn std::any::Any {
         self
     }

@@ -70,10 +70,14 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     options.russian_roulette = false;
     args.waves.apply(&mut options, selected.gpu.is_some());
     // Wavefronts sharing the GPU (`--streams`), as `atoll render` uses them.
-    let more = match selected.gpu.clone() {
-        Some(gpu) => crate::streams::extra_streams(&gpu, args.waves.streams(), &scene, &options, None)?,
-        None => Vec::new(),
-    };
+    let more = atoll_dist::placement::more_wavefronts(
+        selected.device.as_ref(),
+        args.waves.streams(),
+        &scene,
+        &options,
+        None,
+    )
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
     let streams = more.len() + 1;
     let mut devices = vec![selected.device];
     devices.extend(more);

@@ -8,6 +8,7 @@ use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::partition::GPU_INSTANCE_COST;
+use atoll_dist::placement::{more_wavefronts, ring_copies, scene_budget, Sharing};
 use atoll_dist::spatial::partition_spatial;
 use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
@@ -17,7 +18,6 @@ use atoll_dist::{
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
 
-use crate::streams::{extra_streams, free_share, gpu_frame_bytes, ring_stream_copies};
 use crate::CliError;
 
 /// One entry of `--devices`.
@@ -130,10 +130,10 @@ pub fn open_devices(
                         atoll_cuda::Gpu::open_partition(ordinal, parts, index)
                     }
                     DeviceSpec::CudaPart { parts, index: None, .. } => {
-                        let index = devices
-                            .iter_mut()
-                            .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>())
-                            .filter(|d| d.gpu().ordinal == ordinal && d.gpu().part.is_some())
+                        // The next part of this GPU: one per earlier `cuda:I/P` of it.
+                        let index = specs[..devices.len()]
+                            .iter()
+                            .filter(|s| matches!(s, DeviceSpec::CudaPart { ordinal: o, .. } if *o == ordinal))
                             .count();
                         if index >= parts {
                             return Err(CliError::Input(format!(
@@ -281,8 +281,8 @@ pub fn setup(
     let model = byte_model(args.specs);
     // Replicas on one GPU share one copy of the scene; ring members on one
     // GPU hold different parts, so each has its share of the memory.
-    let replica_budget = scene_budget(&mut devices, scene, args.budget, options, Sharing::Scene);
-    let budget = scene_budget(&mut devices, scene, args.budget, options, Sharing::Memory);
+    let replica_budget = scene_budget(&devices, scene, args.budget, options, Sharing::Scene);
+    let budget = scene_budget(&devices, scene, args.budget, options, Sharing::Memory);
     let options_resolution = options.resolution;
     let n = args.specs.len();
     let plan = match (args.strategy, args.ring_size) {
@@ -304,9 +304,7 @@ pub fn setup(
             // prepares it, the others add only their queues and film, each
             // checked against what is then free): no halved budgets.
             for d in devices.iter_mut() {
-                if let Some(cuda) = d.as_any_mut().downcast_mut::<CudaDevice>() {
-                    cuda.set_memory_budget(args.budget);
-                }
+                d.set_memory_budget(args.budget);
             }
             (Layout::Replicate, None)
         }
@@ -341,16 +339,14 @@ pub fn setup(
         // More islands over the same GPUs, each member sharing the part of
         // the device it copies: while one ring waits on a hand-over, the
         // others' kernels keep the GPUs busy.
-        let copies = ring_stream_copies(&mut devices, args.streams, p, options, args.budget);
+        let copies = ring_copies(&devices, args.streams, p, options, args.budget);
         let ring = parts.len();
         for _ in 0..copies {
             for d in 0..ring * *islands {
-                let gpu = devices[d].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone());
-                let Some(gpu) = gpu else { continue };
-                let more = gpu.another_stream().map_err(|e| CliError::Runtime(e.to_string()))?;
-                let mut more = CudaDevice::on(more);
+                let Some(more) = devices[d].another_on_same_hardware() else { continue };
+                let mut more = more.map_err(|e| CliError::Runtime(e.to_string()))?;
                 more.set_memory_budget(args.budget);
-                devices.push(Box::new(more));
+                devices.push(more);
             }
         }
         if copies > 0 {
@@ -361,73 +357,23 @@ pub fn setup(
     if matches!(plan, Plan::Replicate) {
         // More wavefronts on each GPU listed once (and on each GPU part),
         // sharing its replica.
-        let listed: Vec<Arc<atoll_cuda::Gpu>> = devices
-            .iter_mut()
-            .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
-            .collect();
-        for gpu in listed {
-            let alone = gpu.part.is_some()
-                || args.specs.iter().filter(|s| **s == DeviceSpec::Cuda(gpu.ordinal)).count() == 1;
+        for (d, spec) in args.specs.iter().enumerate() {
+            let alone = match *spec {
+                DeviceSpec::Cpu => false,
+                DeviceSpec::CudaPart { .. } => true,
+                DeviceSpec::Cuda(_) => args.specs.iter().filter(|s| *s == spec).count() == 1,
+            };
             if alone {
-                let more = extra_streams(&gpu, args.streams, scene, options, args.budget)?;
+                let more = more_wavefronts(devices[d].as_ref(), args.streams, scene, options, args.budget)
+                    .map_err(|e| CliError::Runtime(e.to_string()))?;
                 if !more.is_empty() {
-                    eprintln!("{}: {} wavefronts sharing its replica", gpu.label(), more.len() + 1);
+                    eprintln!("{}: {} wavefronts sharing its replica", devices[d].name(), more.len() + 1);
                 }
                 devices.extend(more);
             }
         }
     }
     Ok((devices, layout))
-}
-
-/// What devices listed on one GPU share of it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Sharing {
-    /// One copy of the scene (replicas): each adds only its frame.
-    Scene,
-    /// The memory, evenly (ring members holding different parts).
-    Memory,
-}
-
-/// Bytes of scene (geometry, BVH) each device may hold: the budget (or,
-/// for GPUs without one, their free memory, shared as `sharing` says)
-/// less what every device allocates for the frame itself (queues, film,
-/// parameters, headroom).
-pub fn scene_budget(
-    devices: &mut [Box<dyn Device>],
-    scene: &Scene,
-    budget: Option<u64>,
-    options: &RenderOptions,
-    sharing: Sharing,
-) -> Option<u64> {
-    let gpus: Vec<_> = devices
-        .iter_mut()
-        .filter_map(|d| d.as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone()))
-        .collect();
-    let frame = gpu_frame_bytes(options);
-    let free = gpus
-        .iter()
-        .filter_map(|g| match sharing {
-            Sharing::Memory => free_share(&gpus, g),
-            Sharing::Scene => {
-                let others = gpus.iter().filter(|o| o.ordinal == g.ordinal).count().saturating_sub(1) as u64;
-                g.free_memory().ok().map(|f| f.saturating_sub(others * frame))
-            }
-        })
-        .min();
-    let total = match (budget, free) {
-        (Some(b), Some(f)) => Some(b.min(f)),
-        (Some(b), None) => Some(b),
-        // All GPUs and no budget: what they have free.
-        (None, Some(f)) if gpus.len() == devices.len() => Some(f),
-        (None, _) => None,
-    }?;
-    if gpus.is_empty() {
-        return Some(total);
-    }
-    // The rows every GPU's tables keep for the whole scene are not in the
-    // byte model's charge for a part.
-    Some(total.saturating_sub(frame + atoll_cuda::scene::scene_wide_rows(scene)))
 }
 
 /// One line saying what was chosen and why.

@@ -11,14 +11,14 @@
 use std::sync::Arc;
 
 use atoll_bvh::{part_bytes, ScenePart};
-use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
+use atoll_dist::placement::{scene_budget, Sharing};
 use atoll_dist::ranks::{RankRing, Ranks};
 use atoll_dist::{min_parts, render_multi_with, Layout, MultiOutput, Partition, RingPeers, Shared};
 use atoll_render::{Device, RenderOptions};
 use atoll_scene::Scene;
 
-use crate::multi::{self, DeviceList, DeviceSpec, Sharing};
+use crate::multi::{self, DeviceList, DeviceSpec};
 use crate::render::{
     gpu_wavefronts, load_frame, multi_args, open_device, print_summary, progress_bar, set_waves_for_devices,
     Frame, RenderArgs, Run,
@@ -173,10 +173,8 @@ fn add_wavefronts(
     options: &RenderOptions,
     devices: &mut Vec<Box<dyn Device>>,
 ) -> Result<(), CliError> {
-    let gpu = devices[0].as_any_mut().downcast_mut::<CudaDevice>().map(|c| c.gpu().clone());
-    if let Some(gpu) = gpu {
-        devices.extend(gpu_wavefronts(&gpu, args, scene, options)?);
-    }
+    let more = gpu_wavefronts(devices[0].as_ref(), args, scene, options)?;
+    devices.extend(more);
     Ok(())
 }
 
@@ -197,11 +195,10 @@ fn rank_ring(
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
     let alone = args.devices.as_ref().is_none_or(|d| d.0.len() == 1);
-    let gpu = devices.iter_mut().any(|d| d.as_any_mut().downcast_mut::<CudaDevice>().is_some());
+    // A device with memory of its own (a GPU) plans with the GPU byte model.
+    let gpu = devices.iter().any(|d| d.free_memory().is_some());
     let budget = match alone {
-        true => {
-            multi::scene_budget(&mut devices[..1], scene, args.device.device_memory, options, Sharing::Memory)
-        }
+        true => scene_budget(&devices[..1], scene, args.device.device_memory, options, Sharing::Memory),
         false => None,
     };
     let (smallest, _) = ranks.extremes(budget.unwrap_or(u64::MAX));

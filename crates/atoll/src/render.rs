@@ -182,10 +182,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
     let mut selected = open_device(&args, &scene, &mut options)?;
-    let more = match &selected.gpu {
-        Some(gpu) => gpu_wavefronts(gpu, &args, &scene, &options)?,
-        None => Vec::new(),
-    };
+    let more = gpu_wavefronts(selected.device.as_ref(), &args, &scene, &options)?;
     if !more.is_empty() {
         return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
     }
@@ -290,14 +287,22 @@ pub(crate) fn open_device(
     Ok(selected)
 }
 
-/// The further wavefronts `--streams` asks for on `gpu`, sharing its scene.
+/// The further wavefronts `--streams` asks for beside `device` (on a GPU:
+/// more streams), sharing its scene; none for a CPU.
 pub(crate) fn gpu_wavefronts(
-    gpu: &Arc<atoll_cuda::Gpu>,
+    device: &dyn atoll_render::Device,
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &RenderOptions,
 ) -> Result<Vec<Box<dyn atoll_render::Device>>, CliError> {
-    crate::streams::extra_streams(gpu, args.waves.streams(), scene, options, args.device.device_memory)
+    atoll_dist::placement::more_wavefronts(
+        device,
+        args.waves.streams(),
+        scene,
+        options,
+        args.device.device_memory,
+    )
+    .map_err(|e| CliError::Runtime(e.to_string()))
 }
 
 /// One GPU rendering with several wavefronts (`--streams`): the selected
