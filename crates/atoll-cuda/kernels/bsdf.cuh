@@ -22,6 +22,7 @@
 #endif
 
 #include "common.cuh"
+#include "materials.cuh"
 #include "record.cuh"
 #include "sampling.cuh"
 
@@ -288,41 +289,43 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     b.n_samples = 0u;
     b.p = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     if (r.material == MATERIAL_DIFFUSE) {
-        b.a = load_f16x3(&r.coeffs[0]);
+        b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_REFLECTANCE]);
     } else if (r.material == MATERIAL_CONDUCTOR) {
-        b.a = load_f16x3(&r.coeffs[0]);
-        b.b = load_f16x3(&r.coeffs[3]);
-        b.alpha_x = f16_to_f32(r.coeffs[6]);
-        b.alpha_y = f16_to_f32(r.coeffs[7]);
+        b.a = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_ETA]);
+        b.b = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_K]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_CONDUCTOR_ALPHA_X]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_CONDUCTOR_ALPHA_Y]);
     } else if (r.material == MATERIAL_DIELECTRIC) {
-        b.eta = f16_to_f32(r.coeffs[0]);
-        b.alpha_x = f16_to_f32(r.coeffs[1]);
-        b.alpha_y = f16_to_f32(r.coeffs[2]);
+        b.eta = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ETA]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_X]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_Y]);
     } else if (r.material == MATERIAL_DIFFUSE_TRANSMISSION) {
-        b.a = load_f16x3(&r.coeffs[0]);
-        b.b = load_f16x3(&r.coeffs[3]);
+        b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_REFLECTANCE]);
+        b.b = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_TRANSMITTANCE]);
     } else if (r.material == MATERIAL_THIN_DIELECTRIC) {
-        b.eta = f16_to_f32(r.coeffs[0]);
+        b.eta = f16_to_f32(r.coeffs[COEFF_THIN_DIELECTRIC_ETA]);
     } else if (ATOLL_WITH_COATED && r.material == MATERIAL_COATED_DIFFUSE) {
-        // Layout: `MaterialKind::CoatedDiffuse`.
-        b.a = load_f16x3(&r.coeffs[0]);
-        b.alpha_x = f16_to_f32(r.coeffs[3]);
-        b.alpha_y = f16_to_f32(r.coeffs[4]);
-        b.eta = f16_to_f32(r.coeffs[5]);
-        b.thickness = f16_to_f32(r.coeffs[6]);
-        b.b = load_f16x3(&r.coeffs[7]);
-        b.g = f16_to_f32(r.coeffs[10]);
-        b.max_depth = (unsigned int)f16_to_f32(r.coeffs[11]);
-        b.n_samples = (unsigned int)f16_to_f32(r.coeffs[12]);
+        b.a = load_f16x3(&r.coeffs[COEFF_COATED_DIFFUSE_REFLECTANCE]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_ALPHA_X]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_ALPHA_Y]);
+        b.eta = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_ETA]);
+        b.thickness = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_THICKNESS]);
+        b.b = load_f16x3(&r.coeffs[COEFF_COATED_DIFFUSE_ALBEDO]);
+        b.g = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_G]);
+        b.max_depth = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_MAX_DEPTH]);
+        b.n_samples = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_N_SAMPLES]);
     } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
-        // Layout: `MaterialKind::Principled`.
-        b.a = load_f16x3(&r.coeffs[0]);
-        b.b = make_float3(f16_to_f32(r.coeffs[3]), f16_to_f32(r.coeffs[4]), f16_to_f32(r.coeffs[11]));
-        b.alpha_x = f16_to_f32(r.coeffs[5]);
-        b.alpha_y = f16_to_f32(r.coeffs[6]);
-        b.p = make_float4(f16_to_f32(r.coeffs[7]), f16_to_f32(r.coeffs[8]), f16_to_f32(r.coeffs[9]),
-                          f16_to_f32(r.coeffs[10]));
-        b.eta = f16_to_f32(r.coeffs[12]);
+        b.a = load_f16x3(&r.coeffs[COEFF_PRINCIPLED_BASE_COLOR]);
+        b.b = make_float3(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_METALLIC]),
+                          f16_to_f32(r.coeffs[COEFF_PRINCIPLED_ROUGHNESS]),
+                          f16_to_f32(r.coeffs[COEFF_PRINCIPLED_TRANSMISSION]));
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_PRINCIPLED_SPECULAR]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_PRINCIPLED_SPECULAR_TINT]);
+        b.p = make_float4(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_SHEEN]),
+                          f16_to_f32(r.coeffs[COEFF_PRINCIPLED_SHEEN_TINT]),
+                          f16_to_f32(r.coeffs[COEFF_PRINCIPLED_CLEARCOAT]),
+                          f16_to_f32(r.coeffs[COEFF_PRINCIPLED_CLEARCOAT_GLOSS]));
+        b.eta = f16_to_f32(r.coeffs[COEFF_PRINCIPLED_ETA]);
     } else {
         b.kind = MATERIAL_NONE;
     }

@@ -6,6 +6,7 @@
 #include "common.cuh"
 #include "record.cuh"
 #include "layout.cuh"
+#include "materials.cuh"
 #include "params.cuh"
 #include "lights.cuh"
 #include "rng.cuh"
@@ -73,6 +74,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
             float amount = __uint_as_float(meta.w);
 #if ATOLL_WITH_TEXTURES
             // A textured amount: its program's range in the first two words.
+            static_assert(COEFF_MIX_AMOUNT_PROGRAM == 0, "c0.x, c0.y are the mix amount's program range");
             if (c0.y != 0u) {
                 ProgramRange range;
                 range.start = c0.x;

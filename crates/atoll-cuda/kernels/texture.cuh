@@ -5,6 +5,7 @@
 
 #include "common.cuh"
 #include "layout.cuh"
+#include "materials.cuh"
 #include "params.cuh"
 #include "rng.cuh"
 
@@ -203,9 +204,11 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
     } else if (how == STORE_CONDUCTOR_REFLECTANCE) {
         const unsigned short one = f32_to_f16(1.0f);
         coeffs[slot] = coeffs[slot + 1] = coeffs[slot + 2] = one;
-        coeffs[slot + 3] = f32_to_f16(conductor_k(v.x));
-        coeffs[slot + 4] = f32_to_f16(conductor_k(v.y));
-        coeffs[slot + 5] = f32_to_f16(conductor_k(v.z));
+        // `slot` is the conductor's eta; k lies where its layout puts it.
+        const unsigned int k_slot = slot + (COEFF_CONDUCTOR_K - COEFF_CONDUCTOR_ETA);
+        coeffs[k_slot] = f32_to_f16(conductor_k(v.x));
+        coeffs[k_slot + 1] = f32_to_f16(conductor_k(v.y));
+        coeffs[k_slot + 2] = f32_to_f16(conductor_k(v.z));
     }
 }
 

@@ -35,6 +35,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("lbvh.cuh", include_str!("../kernels/lbvh.cuh")),
     ("light_bvh.cuh", include_str!("../kernels/light_bvh.cuh")),
     ("lights.cuh", include_str!("../kernels/lights.cuh")),
+    ("materials.cuh", include_str!("../kernels/materials.cuh")),
     ("surface.cuh", include_str!("../kernels/surface.cuh")),
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("principled.cuh", include_str!("../kernels/principled.cuh")),

@@ -21,6 +21,7 @@ use crate::layout::field_layout;
 use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
 use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
+use atoll_render::material_layout;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
@@ -52,6 +53,7 @@ pub fn blocks() -> Vec<Block> {
     vec![
         Block { file: "common.cuh", name: "constants", generate: math_constants },
         Block { file: "record.cuh", name: "record", generate: record_asserts },
+        Block { file: "materials.cuh", name: "materials", generate: material_layout_constants },
         Block { file: "rng.cuh", name: "rng", generate: rng_constants },
         Block { file: "layout.cuh", name: "layout", generate: layout_asserts },
         Block { file: "params.cuh", name: "params", generate: params_asserts },
@@ -150,6 +152,19 @@ pub fn record_asserts() -> String {
         s += &const_uint("unsigned int", name, kind as u64);
     }
     s + &assert_struct::<RayRecord>("RayRecord", record::field_layout())
+}
+
+/// Each material kind's coefficient slots (`atoll_render::material_layout`)
+/// as `COEFF_<KIND>_<PARAMETER>`, e.g. `COEFF_CONDUCTOR_ALPHA_X`.
+pub fn material_layout_constants() -> String {
+    let mut s = String::new();
+    for layout in material_layout::LAYOUTS {
+        for (param, slots) in layout.params {
+            let name = format!("COEFF_{}_{param}", layout.name.to_uppercase());
+            s += &const_uint("unsigned int", &name, slots.start as u64);
+        }
+    }
+    s
 }
 
 /// The random-number dimension layout of `rng`.

@@ -17,6 +17,7 @@ use atoll_render::environment::EnvironmentSampler;
 use atoll_render::light_bvh::LightNode;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
+use atoll_render::material_layout;
 use atoll_render::record::MATERIAL_COEFFS;
 use atoll_render::texture::ProgramRange;
 use atoll_render::FrameContext;
@@ -198,8 +199,8 @@ pub struct GpuMaterial {
 
 impl GpuMaterial {
     /// For a `mix`, `pad` holds its two material ids and the probability of
-    /// the second (f32 bits), and the first two coefficient words the start
-    /// and length of its amount's texture program (`mix_amount`); otherwise
+    /// the second (f32 bits), and its coefficients at `mix::AMOUNT_PROGRAM`
+    /// the start and length of its amount's texture program (`mix_amount`); otherwise
     /// `pad` holds the start and length of its texture program (`textures`):
     /// see `write_surface`.
     pub fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
@@ -207,7 +208,8 @@ impl GpuMaterial {
         let pad = match m.mix {
             Some(([a, b], amount)) => {
                 let words = [mix_amount.start, mix_amount.len];
-                coeffs[..4].copy_from_slice(bytemuck::cast_slice(&words));
+                let slot = material_layout::mix::AMOUNT_PROGRAM;
+                coeffs[slot..slot + 4].copy_from_slice(bytemuck::cast_slice(&words));
                 [a, b, amount.to_bits()]
             }
             None => [textures.start, textures.len, 0],

@@ -173,6 +173,7 @@ impl Wave {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material_layout::diffuse;
     use atoll_scene::{Material, Rgb};
     use bytemuck::Zeroable;
 
@@ -192,9 +193,9 @@ mod tests {
         for i in 0..n {
             let mut r = RayRecord::zeroed();
             (r.pixel, r.sample, r.depth) = (i, i % 7, (i % 3) as u16);
-            let chosen = frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[0].to_f32();
+            let chosen = frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[diffuse::REFLECTANCE].to_f32();
             assert_eq!(
-                frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[0].to_f32(),
+                frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[diffuse::REFLECTANCE].to_f32(),
                 chosen,
                 "deterministic"
             );

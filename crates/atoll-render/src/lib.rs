@@ -12,6 +12,7 @@ pub mod integrator;
 pub mod light_bvh;
 pub mod lights;
 pub mod material_coeffs;
+pub mod material_layout;
 pub mod record;
 pub mod rng;
 pub mod sampling;

@@ -1,10 +1,13 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::{CoatedDiffuseParams, Material, PrincipledParams};
+use atoll_scene::{CoatedDiffuseParams, Material, PrincipledParams, Rgb};
 use half::f16;
 
 use crate::bsdf::{Bsdf, CoatedDiffuse, Principled};
+use crate::material_layout::{
+    coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, principled, thin_dielectric,
+};
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
 /// A material as it travels in a [`RayRecord`].
@@ -24,30 +27,30 @@ impl PackedMaterial {
         let mut mix = None;
         let kind = match *material {
             Material::Diffuse { reflectance } => {
-                c[..3].copy_from_slice(&reflectance.to_array());
+                put3(&mut c, diffuse::REFLECTANCE, reflectance);
                 MaterialKind::Diffuse
             }
             Material::Conductor { eta, k, alpha_x, alpha_y } => {
-                c[..3].copy_from_slice(&eta.to_array());
-                c[3..6].copy_from_slice(&k.to_array());
-                c[6] = alpha_x;
-                c[7] = alpha_y;
+                put3(&mut c, conductor::ETA, eta);
+                put3(&mut c, conductor::K, k);
+                c[conductor::ALPHA_X] = alpha_x;
+                c[conductor::ALPHA_Y] = alpha_y;
                 MaterialKind::Conductor
             }
             Material::Dielectric { eta, alpha_x, alpha_y } => {
-                c[0] = eta;
-                c[1] = alpha_x;
-                c[2] = alpha_y;
+                c[dielectric::ETA] = eta;
+                c[dielectric::ALPHA_X] = alpha_x;
+                c[dielectric::ALPHA_Y] = alpha_y;
                 MaterialKind::Dielectric
             }
             Material::Interface => MaterialKind::None,
             Material::DiffuseTransmission { reflectance, transmittance } => {
-                c[..3].copy_from_slice(&reflectance.to_array());
-                c[3..6].copy_from_slice(&transmittance.to_array());
+                put3(&mut c, diffuse_transmission::REFLECTANCE, reflectance);
+                put3(&mut c, diffuse_transmission::TRANSMITTANCE, transmittance);
                 MaterialKind::DiffuseTransmission
             }
             Material::ThinDielectric { eta } => {
-                c[0] = eta;
+                c[thin_dielectric::ETA] = eta;
                 MaterialKind::ThinDielectric
             }
             Material::Mix { materials, amount } => {
@@ -55,35 +58,29 @@ impl PackedMaterial {
                 MaterialKind::Mix
             }
             Material::CoatedDiffuse(p) => {
-                // Reflectance and roughness first, where per-hit textures
-                // overwrite them (`MaterialKind::CoatedDiffuse` has the layout).
-                c[..3].copy_from_slice(&p.reflectance.to_array());
-                c[3] = p.alpha_x;
-                c[4] = p.alpha_y;
-                c[5] = p.eta;
-                c[6] = p.thickness;
-                c[7..10].copy_from_slice(&p.albedo.to_array());
-                c[10] = p.g;
-                c[11] = p.max_depth.min(Material::COATED_MAX_COUNT) as f32;
-                c[12] = p.n_samples.min(Material::COATED_MAX_COUNT) as f32;
+                put3(&mut c, coated_diffuse::REFLECTANCE, p.reflectance);
+                c[coated_diffuse::ALPHA_X] = p.alpha_x;
+                c[coated_diffuse::ALPHA_Y] = p.alpha_y;
+                c[coated_diffuse::ETA] = p.eta;
+                c[coated_diffuse::THICKNESS] = p.thickness;
+                put3(&mut c, coated_diffuse::ALBEDO, p.albedo);
+                c[coated_diffuse::G] = p.g;
+                c[coated_diffuse::MAX_DEPTH] = p.max_depth.min(Material::COATED_MAX_COUNT) as f32;
+                c[coated_diffuse::N_SAMPLES] = p.n_samples.min(Material::COATED_MAX_COUNT) as f32;
                 MaterialKind::CoatedDiffuse
             }
             Material::Principled(p) => {
-                // Base colour, metallic and roughness first: per-hit textures
-                // overwrite them (`MaterialKind::Principled` has the layout).
-                c[..3].copy_from_slice(&p.base_color.to_array());
-                c[3..13].copy_from_slice(&[
-                    p.metallic,
-                    p.roughness,
-                    p.specular,
-                    p.specular_tint,
-                    p.sheen,
-                    p.sheen_tint,
-                    p.clearcoat,
-                    p.clearcoat_gloss,
-                    p.transmission,
-                    p.eta,
-                ]);
+                put3(&mut c, principled::BASE_COLOR, p.base_color);
+                c[principled::METALLIC] = p.metallic;
+                c[principled::ROUGHNESS] = p.roughness;
+                c[principled::SPECULAR] = p.specular;
+                c[principled::SPECULAR_TINT] = p.specular_tint;
+                c[principled::SHEEN] = p.sheen;
+                c[principled::SHEEN_TINT] = p.sheen_tint;
+                c[principled::CLEARCOAT] = p.clearcoat;
+                c[principled::CLEARCOAT_GLOSS] = p.clearcoat_gloss;
+                c[principled::TRANSMISSION] = p.transmission;
+                c[principled::ETA] = p.eta;
                 MaterialKind::Principled
             }
         };
@@ -101,45 +98,53 @@ impl PackedMaterial {
 pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
     match r.material_kind() {
         MaterialKind::None | MaterialKind::Mix => None,
-        MaterialKind::Diffuse => Some(Bsdf::Diffuse { reflectance: r.coeff3(0) }),
+        MaterialKind::Diffuse => Some(Bsdf::Diffuse { reflectance: r.coeff3(diffuse::REFLECTANCE) }),
         MaterialKind::Conductor => Some(Bsdf::Conductor {
-            eta: r.coeff3(0),
-            k: r.coeff3(3),
-            alpha_x: r.coeff(6),
-            alpha_y: r.coeff(7),
+            eta: r.coeff3(conductor::ETA),
+            k: r.coeff3(conductor::K),
+            alpha_x: r.coeff(conductor::ALPHA_X),
+            alpha_y: r.coeff(conductor::ALPHA_Y),
         }),
-        MaterialKind::Dielectric => {
-            Some(Bsdf::Dielectric { eta: r.coeff(0), alpha_x: r.coeff(1), alpha_y: r.coeff(2) })
-        }
-        MaterialKind::DiffuseTransmission => {
-            Some(Bsdf::DiffuseTransmission { reflectance: r.coeff3(0), transmittance: r.coeff3(3) })
-        }
-        MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(0) }),
+        MaterialKind::Dielectric => Some(Bsdf::Dielectric {
+            eta: r.coeff(dielectric::ETA),
+            alpha_x: r.coeff(dielectric::ALPHA_X),
+            alpha_y: r.coeff(dielectric::ALPHA_Y),
+        }),
+        MaterialKind::DiffuseTransmission => Some(Bsdf::DiffuseTransmission {
+            reflectance: r.coeff3(diffuse_transmission::REFLECTANCE),
+            transmittance: r.coeff3(diffuse_transmission::TRANSMITTANCE),
+        }),
+        MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(thin_dielectric::ETA) }),
         MaterialKind::CoatedDiffuse => Some(Bsdf::CoatedDiffuse(CoatedDiffuse(CoatedDiffuseParams {
-            reflectance: r.coeff3(0),
-            alpha_x: r.coeff(3),
-            alpha_y: r.coeff(4),
-            eta: r.coeff(5),
-            thickness: r.coeff(6),
-            albedo: r.coeff3(7),
-            g: r.coeff(10),
-            max_depth: r.coeff(11) as u32,
-            n_samples: r.coeff(12) as u32,
+            reflectance: r.coeff3(coated_diffuse::REFLECTANCE),
+            alpha_x: r.coeff(coated_diffuse::ALPHA_X),
+            alpha_y: r.coeff(coated_diffuse::ALPHA_Y),
+            eta: r.coeff(coated_diffuse::ETA),
+            thickness: r.coeff(coated_diffuse::THICKNESS),
+            albedo: r.coeff3(coated_diffuse::ALBEDO),
+            g: r.coeff(coated_diffuse::G),
+            max_depth: r.coeff(coated_diffuse::MAX_DEPTH) as u32,
+            n_samples: r.coeff(coated_diffuse::N_SAMPLES) as u32,
         }))),
         MaterialKind::Principled => Some(Bsdf::Principled(Principled(PrincipledParams {
-            base_color: r.coeff3(0),
-            metallic: r.coeff(3),
-            roughness: r.coeff(4),
-            specular: r.coeff(5),
-            specular_tint: r.coeff(6),
-            sheen: r.coeff(7),
-            sheen_tint: r.coeff(8),
-            clearcoat: r.coeff(9),
-            clearcoat_gloss: r.coeff(10),
-            transmission: r.coeff(11),
-            eta: r.coeff(12),
+            base_color: r.coeff3(principled::BASE_COLOR),
+            metallic: r.coeff(principled::METALLIC),
+            roughness: r.coeff(principled::ROUGHNESS),
+            specular: r.coeff(principled::SPECULAR),
+            specular_tint: r.coeff(principled::SPECULAR_TINT),
+            sheen: r.coeff(principled::SHEEN),
+            sheen_tint: r.coeff(principled::SHEEN_TINT),
+            clearcoat: r.coeff(principled::CLEARCOAT),
+            clearcoat_gloss: r.coeff(principled::CLEARCOAT_GLOSS),
+            transmission: r.coeff(principled::TRANSMISSION),
+            eta: r.coeff(principled::ETA),
         }))),
     }
+}
+
+/// Writes a colour into the three coefficients from `slot`.
+fn put3(c: &mut [f32; MATERIAL_COEFFS], slot: usize, v: Rgb) {
+    c[slot..slot + 3].copy_from_slice(&v.to_array());
 }
 
 #[cfg(test)]
@@ -148,10 +153,11 @@ mod tests {
     use atoll_scene::Rgb;
     use bytemuck::Zeroable;
 
-    /// Per-hit textures overwrite reflectance and roughness in place, so a
-    /// coated diffuse keeps them where `MaterialKind::CoatedDiffuse` says.
+    /// Counts beyond `COATED_MAX_COUNT` are clamped (f16 holds integers
+    /// exactly only up to 2048); every parameter lands in its named slot.
     #[test]
-    fn coated_diffuse_layout() {
+    fn coated_diffuse_packs_into_its_layout() {
+        use coated_diffuse as slot;
         let m = Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::new(0.25, 0.5, 0.75),
             eta: 1.25,
@@ -164,12 +170,14 @@ mod tests {
             n_samples: 4000,
         });
         let p = PackedMaterial::pack(&m);
-        let c: Vec<f32> = p.coeffs.iter().map(|h| h.to_f32()).collect();
-        let expected =
-            [0.25, 0.5, 0.75, 0.125, 0.375, 1.25, 2.0, 0.5, 0.625, 0.875, -0.25, 2048.0, 2048.0, 0.0];
-        assert_eq!(&c[..14], &expected, "counts beyond COATED_MAX_COUNT are clamped");
-        assert!(c[14..].iter().all(|&x| x == 0.0));
         assert_eq!(p.kind, MaterialKind::CoatedDiffuse);
+        let c = p.coeffs.map(f16::to_f32);
+        let rgb = |at: usize| [c[at], c[at + 1], c[at + 2]];
+        assert_eq!(rgb(slot::REFLECTANCE), [0.25, 0.5, 0.75]);
+        assert_eq!([c[slot::ALPHA_X], c[slot::ALPHA_Y], c[slot::ETA]], [0.125, 0.375, 1.25]);
+        assert_eq!([c[slot::THICKNESS], c[slot::G]], [2.0, -0.25]);
+        assert_eq!(rgb(slot::ALBEDO), [0.5, 0.625, 0.875]);
+        assert_eq!([c[slot::MAX_DEPTH], c[slot::N_SAMPLES]], [2048.0; 2], "counts are clamped");
     }
 
     #[test]

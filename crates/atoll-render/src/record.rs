@@ -31,34 +31,23 @@ pub mod flags {
     pub const SPECULAR: u8 = 1 << 3;
 }
 
-/// Which material model the coefficients describe ([`RayRecord::material`]).
+/// Which material model the coefficients describe ([`RayRecord::material`]);
+/// which coefficient holds which parameter is [`crate::material_layout`]'s
+/// module of the kind's name.
 #[repr(u16)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MaterialKind {
     /// No scattering surface (pass-through, or a miss).
     None = 0,
-    /// coeffs[0..3] reflectance.
     Diffuse = 1,
-    /// coeffs[0..3] eta, [3..6] k, [6] alpha_x, [7] alpha_y.
     Conductor = 2,
-    /// coeffs[0] eta, [1] alpha_x, [2] alpha_y.
     Dielectric = 3,
-    /// coeffs[0..3] reflectance, [3..6] transmittance.
     DiffuseTransmission = 4,
-    /// coeffs[0] eta.
     ThinDielectric = 5,
     /// Material tables only, never in a record: a `mix` resolved to one of
     /// its materials when the hit is written ([`crate::FrameContext::material_at`]).
     Mix = 6,
-    /// coeffs[0..3] reflectance, [3] alpha_x, [4] alpha_y, [5] eta,
-    /// [6] thickness, [7..10] albedo, [10] g, [11] max_depth, [12] n_samples
-    /// (the two counts as f16 integers, exact up to 2048).
     CoatedDiffuse = 7,
-    /// coeffs[0..3] base colour, [3] metallic, [4] roughness (perceptual,
-    /// not alpha), [5] specular, [6] specular tint, [7] sheen, [8] sheen
-    /// tint, [9] clearcoat, [10] clearcoat gloss, [11] transmission, [12]
-    /// eta. Per-hit textures overwrite base colour, metallic and roughness
-    /// in place.
     Principled = 8,
 }
 

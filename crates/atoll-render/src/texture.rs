@@ -27,6 +27,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3, Vec3A};
 use half::f16;
 
+use crate::material_layout::conductor;
 use crate::record::{MaterialKind, MATERIAL_COEFFS};
 use crate::rng::pcg_hash;
 
@@ -60,8 +61,9 @@ pub mod store {
     pub const FLOAT: u32 = 1;
     /// One coefficient: `sqrt(x)`, pbrt's `RoughnessToAlpha` (remapped roughness).
     pub const ROUGHNESS: u32 = 2;
-    /// Six coefficients: `eta = 1` and the `k` that gives reflectance `x`
-    /// at normal incidence (pbrt-v4's conductor `reflectance`).
+    /// A conductor's eta and k (the slot is eta's): `eta = 1` and the `k`
+    /// that gives reflectance `x` at normal incidence (pbrt-v4's conductor
+    /// `reflectance`).
     pub const CONDUCTOR_REFLECTANCE: u32 = 3;
 }
 
@@ -306,41 +308,46 @@ fn mapping_words(m: &UvMapping) -> [f32; 4] {
 }
 
 /// Where a textured parameter goes in the coefficients of a material kind
-/// (see [`MaterialKind`]'s layouts): `(first coefficient, store mode)` per store.
+/// ([`crate::material_layout`]): `(first coefficient, store mode)` per store.
 pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
+    use crate::material_layout::{
+        coated_diffuse as coated, conductor, dielectric, diffuse, diffuse_transmission, principled,
+    };
+    use MaterialKind as K;
     use TexturedParam as P;
     let roughness = if remap { store::ROUGHNESS } else { store::FLOAT };
+    let to = |slots: &[usize], how: u32| slots.iter().map(|&slot| (slot as u32, how)).collect();
     match (kind, param) {
-        (MaterialKind::Diffuse, P::Reflectance) => vec![(0, store::RGB)],
-        (MaterialKind::DiffuseTransmission, P::Reflectance) => vec![(0, store::RGB)],
-        (MaterialKind::DiffuseTransmission, P::Transmittance) => vec![(3, store::RGB)],
-        (MaterialKind::Conductor, P::Reflectance) => vec![(0, store::CONDUCTOR_REFLECTANCE)],
-        (MaterialKind::Conductor, P::Eta) => vec![(0, store::RGB)],
-        (MaterialKind::Conductor, P::K) => vec![(3, store::RGB)],
-        (MaterialKind::Conductor, P::Roughness) => vec![(6, roughness), (7, roughness)],
-        (MaterialKind::Conductor, P::URoughness) => vec![(6, roughness)],
-        (MaterialKind::Conductor, P::VRoughness) => vec![(7, roughness)],
-        (MaterialKind::Dielectric, P::Roughness) => vec![(1, roughness), (2, roughness)],
-        (MaterialKind::Dielectric, P::URoughness) => vec![(1, roughness)],
-        (MaterialKind::Dielectric, P::VRoughness) => vec![(2, roughness)],
-        (MaterialKind::CoatedDiffuse, P::Reflectance) => vec![(0, store::RGB)],
-        (MaterialKind::CoatedDiffuse, P::Roughness) => vec![(3, roughness), (4, roughness)],
-        (MaterialKind::CoatedDiffuse, P::URoughness) => vec![(3, roughness)],
-        (MaterialKind::CoatedDiffuse, P::VRoughness) => vec![(4, roughness)],
-        (MaterialKind::CoatedDiffuse, P::Thickness) => vec![(6, store::FLOAT)],
-        (MaterialKind::CoatedDiffuse, P::Albedo) => vec![(7, store::RGB)],
-        (MaterialKind::CoatedDiffuse, P::G) => vec![(10, store::FLOAT)],
+        (K::Diffuse, P::Reflectance) => to(&[diffuse::REFLECTANCE], store::RGB),
+        (K::DiffuseTransmission, P::Reflectance) => to(&[diffuse_transmission::REFLECTANCE], store::RGB),
+        (K::DiffuseTransmission, P::Transmittance) => to(&[diffuse_transmission::TRANSMITTANCE], store::RGB),
+        (K::Conductor, P::Reflectance) => to(&[conductor::ETA], store::CONDUCTOR_REFLECTANCE),
+        (K::Conductor, P::Eta) => to(&[conductor::ETA], store::RGB),
+        (K::Conductor, P::K) => to(&[conductor::K], store::RGB),
+        (K::Conductor, P::Roughness) => to(&[conductor::ALPHA_X, conductor::ALPHA_Y], roughness),
+        (K::Conductor, P::URoughness) => to(&[conductor::ALPHA_X], roughness),
+        (K::Conductor, P::VRoughness) => to(&[conductor::ALPHA_Y], roughness),
+        (K::Dielectric, P::Roughness) => to(&[dielectric::ALPHA_X, dielectric::ALPHA_Y], roughness),
+        (K::Dielectric, P::URoughness) => to(&[dielectric::ALPHA_X], roughness),
+        (K::Dielectric, P::VRoughness) => to(&[dielectric::ALPHA_Y], roughness),
+        (K::CoatedDiffuse, P::Reflectance) => to(&[coated::REFLECTANCE], store::RGB),
+        (K::CoatedDiffuse, P::Roughness) => to(&[coated::ALPHA_X, coated::ALPHA_Y], roughness),
+        (K::CoatedDiffuse, P::URoughness) => to(&[coated::ALPHA_X], roughness),
+        (K::CoatedDiffuse, P::VRoughness) => to(&[coated::ALPHA_Y], roughness),
+        (K::CoatedDiffuse, P::Thickness) => to(&[coated::THICKNESS], store::FLOAT),
+        (K::CoatedDiffuse, P::Albedo) => to(&[coated::ALBEDO], store::RGB),
+        (K::CoatedDiffuse, P::G) => to(&[coated::G], store::FLOAT),
         // Base colour, metallic, and perceptual roughness (never remapped:
         // the principled BSDF squares it itself).
-        (MaterialKind::Principled, P::Reflectance) => vec![(0, store::RGB)],
-        (MaterialKind::Principled, P::Metallic) => vec![(3, store::FLOAT)],
-        (MaterialKind::Principled, P::Roughness) => vec![(4, store::FLOAT)],
-        (MaterialKind::Principled, P::SpecularTint) => vec![(6, store::FLOAT)],
-        (MaterialKind::Principled, P::Sheen) => vec![(7, store::FLOAT)],
-        (MaterialKind::Principled, P::SheenTint) => vec![(8, store::FLOAT)],
-        (MaterialKind::Principled, P::Clearcoat) => vec![(9, store::FLOAT)],
-        (MaterialKind::Principled, P::ClearcoatGloss) => vec![(10, store::FLOAT)],
-        (MaterialKind::Principled, P::Transmission) => vec![(11, store::FLOAT)],
+        (K::Principled, P::Reflectance) => to(&[principled::BASE_COLOR], store::RGB),
+        (K::Principled, P::Metallic) => to(&[principled::METALLIC], store::FLOAT),
+        (K::Principled, P::Roughness) => to(&[principled::ROUGHNESS], store::FLOAT),
+        (K::Principled, P::SpecularTint) => to(&[principled::SPECULAR_TINT], store::FLOAT),
+        (K::Principled, P::Sheen) => to(&[principled::SHEEN], store::FLOAT),
+        (K::Principled, P::SheenTint) => to(&[principled::SHEEN_TINT], store::FLOAT),
+        (K::Principled, P::Clearcoat) => to(&[principled::CLEARCOAT], store::FLOAT),
+        (K::Principled, P::ClearcoatGloss) => to(&[principled::CLEARCOAT_GLOSS], store::FLOAT),
+        (K::Principled, P::Transmission) => to(&[principled::TRANSMISSION], store::FLOAT),
         _ => Vec::new(),
     }
 }
@@ -421,10 +428,12 @@ fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFF
         store::FLOAT => coeffs[slot] = f16::from_f32(v.x),
         store::ROUGHNESS => coeffs[slot] = f16::from_f32(v.x.sqrt()),
         store::CONDUCTOR_REFLECTANCE => {
+            // `slot` is the conductor's eta; k lies where its layout puts it.
+            let k_slot = slot + conductor::K - conductor::ETA;
             let k = Material::conductor_k_from_reflectance(v);
             for i in 0..3 {
                 coeffs[slot + i] = f16::ONE;
-                coeffs[slot + 3 + i] = f16::from_f32(k[i]);
+                coeffs[k_slot + i] = f16::from_f32(k[i]);
             }
         }
         _ => {}
@@ -572,6 +581,7 @@ impl HitFilter for SceneTextures<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::material_layout::diffuse;
     use atoll_scene::{MeshAlpha, TextureBinding};
 
     fn image(texels: Vec<[f32; 4]>, w: u32, h: u32) -> Arc<TextureImage> {
@@ -688,19 +698,21 @@ mod tests {
             st.apply(id, uv, &mut c);
             c.map(f16::to_f32)
         };
+        let reflectance = diffuse::REFLECTANCE..diffuse::REFLECTANCE + 3;
         // (0.1, 0.1) → st (0.2, 0.2): even square, 0.9.
-        assert_eq!(coeffs_at(m, Vec2::new(0.1, 0.1))[..3], [f16::from_f32(0.9).to_f32(); 3]);
+        let even = coeffs_at(m, Vec2::new(0.1, 0.1));
+        assert_eq!(even[reflectance.clone()], [f16::from_f32(0.9).to_f32(); 3]);
         // (0.6, 0.1) → odd: (0.75 * 0.2 + 0.25 * 0.6) * (1, 0.5, 2) = 0.3 * ...
         let odd = coeffs_at(m, Vec2::new(0.6, 0.1));
-        for (got, want) in odd[..3].iter().zip([0.3, 0.15, 0.6]) {
+        for (got, want) in odd[reflectance].iter().zip([0.3, 0.15, 0.6]) {
             assert!((got - want).abs() < 1e-3, "{odd:?}");
         }
-        let conductor = coeffs_at(c, Vec2::ZERO);
-        assert_eq!(conductor[6], 0.5, "sqrt of roughness 0.25");
-        assert_eq!(conductor[7], 0.5);
-        assert_eq!(conductor[..3], [1.0; 3], "eta 1 for a reflectance");
+        let metal = coeffs_at(c, Vec2::ZERO);
+        assert_eq!(metal[conductor::ALPHA_X], 0.5, "sqrt of roughness 0.25");
+        assert_eq!(metal[conductor::ALPHA_Y], 0.5);
+        assert_eq!(metal[conductor::ETA..conductor::ETA + 3], [1.0; 3], "eta 1 for a reflectance");
         let k = Material::conductor_k_from_reflectance(Rgb::splat(0.25)).x;
-        assert!((conductor[3] - k).abs() < 1e-2 * k, "{conductor:?}");
+        assert!((metal[conductor::K] - k).abs() < 1e-2 * k, "{metal:?}");
         assert!(!tables.has_alpha());
     }
 

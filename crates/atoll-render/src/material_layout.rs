@@ -1,0 +1,154 @@
+//! Which of a hit's f16 material coefficients ([`RayRecord::coeffs`], and
+//! the GPU material table's copy of them) holds which parameter, per
+//! [`MaterialKind`]: one module of slot constants per kind.
+//!
+//! This is the only place the slots are written down. Packing and
+//! unpacking ([`crate::material_coeffs`]) and texture stores
+//! ([`crate::texture`]) use these names, and atoll-cuda's header generator
+//! writes [`LAYOUTS`] into `kernels/materials.cuh` as
+//! `COEFF_<KIND>_<PARAMETER>` for the kernels, so the CPU and the GPU cannot
+//! disagree about where a parameter lives.
+//!
+//! [`RayRecord::coeffs`]: crate::RayRecord::coeffs
+
+use std::ops::Range;
+
+use crate::record::MaterialKind;
+
+/// One material kind's coefficient layout.
+#[derive(Debug)]
+pub struct Layout {
+    pub kind: MaterialKind,
+    /// The name of the kind's module here (`conductor`), which the CUDA
+    /// names repeat in capitals.
+    pub name: &'static str,
+    /// Each parameter's constant name and the slots it fills (three for a
+    /// colour), in slot order.
+    pub params: &'static [(&'static str, Range<usize>)],
+}
+
+/// Declares, for each kind, a module of `usize` slot constants (a
+/// parameter's first slot) and its [`LAYOUTS`] entry, from one list, so the
+/// table the CUDA names come from cannot miss a constant.
+macro_rules! layouts {
+    (@slots $start:literal) => { $start..$start + 1 };
+    (@slots $start:literal $end:literal) => { $start..$end };
+    ($(
+        $(#[$kind_doc:meta])*
+        $kind:ident => $module:ident {
+            $($(#[$doc:meta])* $param:ident: $start:literal $(.. $end:literal)?,)*
+        }
+    )*) => {
+        $(
+            $(#[$kind_doc])*
+            pub mod $module {
+                $($(#[$doc])* pub const $param: usize = $start;)*
+            }
+        )*
+
+        /// Every kind that has coefficients, for the generated CUDA names
+        /// and the layout checks.
+        pub const LAYOUTS: &[Layout] = &[$(
+            Layout {
+                kind: MaterialKind::$kind,
+                name: stringify!($module),
+                params: &[$((stringify!($param), layouts!(@slots $start $($end)?)),)*],
+            },
+        )*];
+    };
+}
+
+layouts! {
+    /// [`MaterialKind::Diffuse`].
+    Diffuse => diffuse {
+        REFLECTANCE: 0..3,
+    }
+    /// [`MaterialKind::Conductor`].
+    Conductor => conductor {
+        ETA: 0..3,
+        K: 3..6,
+        ALPHA_X: 6,
+        ALPHA_Y: 7,
+    }
+    /// [`MaterialKind::Dielectric`].
+    Dielectric => dielectric {
+        ETA: 0,
+        ALPHA_X: 1,
+        ALPHA_Y: 2,
+    }
+    /// [`MaterialKind::DiffuseTransmission`].
+    DiffuseTransmission => diffuse_transmission {
+        REFLECTANCE: 0..3,
+        TRANSMITTANCE: 3..6,
+    }
+    /// [`MaterialKind::ThinDielectric`].
+    ThinDielectric => thin_dielectric {
+        ETA: 0,
+    }
+    /// [`MaterialKind::Mix`], in GPU
+    /// material tables only (a record never holds a mix).
+    Mix => mix {
+        /// Start and length (two u32, four coefficients) of the texture
+        /// program of a textured `amount`.
+        AMOUNT_PROGRAM: 0..4,
+    }
+    /// [`MaterialKind::CoatedDiffuse`].
+    /// Reflectance and roughness come first, where per-hit textures
+    /// overwrite them.
+    CoatedDiffuse => coated_diffuse {
+        REFLECTANCE: 0..3,
+        ALPHA_X: 3,
+        ALPHA_Y: 4,
+        ETA: 5,
+        THICKNESS: 6,
+        ALBEDO: 7..10,
+        G: 10,
+        /// A count as an f16 integer, exact up to 2048
+        /// (`Material::COATED_MAX_COUNT`).
+        MAX_DEPTH: 11,
+        /// As [`MAX_DEPTH`].
+        N_SAMPLES: 12,
+    }
+    /// [`MaterialKind::Principled`].
+    /// Base colour, metallic and roughness come first: per-hit textures
+    /// overwrite them in place.
+    Principled => principled {
+        BASE_COLOR: 0..3,
+        METALLIC: 3,
+        /// Perceptual roughness, not alpha.
+        ROUGHNESS: 4,
+        SPECULAR: 5,
+        SPECULAR_TINT: 6,
+        SHEEN: 7,
+        SHEEN_TINT: 8,
+        CLEARCOAT: 9,
+        CLEARCOAT_GLOSS: 10,
+        TRANSMISSION: 11,
+        ETA: 12,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::MATERIAL_COEFFS;
+
+    /// Each kind's parameters fit the coefficients without overlapping, and
+    /// every kind but `None` has a layout.
+    #[test]
+    fn layouts_fit_and_do_not_overlap() {
+        for layout in LAYOUTS {
+            let mut end = 0;
+            for (param, slots) in layout.params {
+                assert!(slots.start >= end, "{}::{param} overlaps the parameter before it", layout.name);
+                assert!(slots.start < slots.end, "{}::{param} is empty", layout.name);
+                end = slots.end;
+            }
+            assert!(end <= MATERIAL_COEFFS, "{} needs {end} coefficients", layout.name);
+        }
+        let kinds = (1..).map(MaterialKind::from_u16).take_while(|&k| k != MaterialKind::None);
+        for kind in kinds {
+            assert_eq!(LAYOUTS.iter().filter(|l| l.kind == kind).count(), 1, "{kind:?}");
+        }
+    }
+}
