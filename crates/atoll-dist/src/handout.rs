@@ -109,9 +109,9 @@ const SIMILAR: f64 = 2.0;
 
 /// Who may take another wave as a frame runs out. A taker whose next wave
 /// would still be rendering when the others have finished all the rest
-/// only makes the frame wait for it, so it is refused and takes no more:
-/// on the H100 machine a CPU rank beside the GPU's took 4 of 280 waves and
-/// made the frame 1.7x as long as the GPU's alone (BENCHMARKS.md). Only
+/// only makes the frame wait for it, so it is refused and takes no more (a
+/// CPU rank beside a GPU's, taking a handful of waves, made the frame much
+/// longer than the GPU's alone: BENCHMARKS.md). Only
 /// takers still taking count as the others, and a taker is never refused
 /// when none of them is measured yet, nor when it is about as fast as the
 /// fastest of them: so the last takers left always get the remaining waves.

@@ -1,4 +1,4 @@
-//! Distribution strategies over many devices (issue 4).
+//! Distribution strategies over many devices.
 //!
 //! - [`partition()`]: the scene split into K memory-balanced parts for the
 //!   ring strategy (ray queue cycling), big objects split by meshes and
@@ -22,22 +22,28 @@
 #![warn(missing_docs)]
 
 pub mod handout;
+mod layout;
 pub mod ownership;
 pub mod partition;
 pub mod placement;
 #[cfg(feature = "mpi")]
 pub mod ranks;
 pub mod render;
+mod replicate;
+pub mod ring;
 pub mod spatial;
+mod transport;
 mod vote;
 pub mod work;
 
 pub use handout::{Joined, Joining, LocalHandout, Pace, Pacing, Speed, WaveHandout};
+pub use layout::{Layout, RingOrder};
 pub use partition::{
     min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
     Strategy,
 };
 pub use render::{
-    render_multi, render_multi_warmed, render_multi_with, DeviceReport, Layout, MultiOutput, RingOrder,
-    RingPeers, RingPlace, Shared, Transport,
+    render_multi, render_multi_warmed, render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared,
 };
+pub use ring::{RingError, RingPeers, RingPlace};
+pub use transport::Transport;

@@ -47,20 +47,16 @@ pub struct PartitionOptions {
 
 /// What a part's instances cost a GPU's rays, in bytes of part per
 /// instance: a part's ray work measured as its bytes plus this per
-/// instance. Fitted to the one-GPU measurement of memory-balanced rings
-/// (`scripts/gpu-multi SERIAL=1`, H100, BENCHMARKS.md issue 4): on the
-/// landscape the terrain's part (1 instance, 600 MB) took 0.075 s and the
-/// plants' (83929 instances, 452 MB) 0.157 s, a fit of 9.6 KB per
-/// instance; at growth 1000 (1 against 834136 instances, 6.0 and 4.5 GB)
-/// 0.046 and 0.091 s, 8.8 KB. Instances cost beyond their bytes because
+/// instance, fitted to each part's busy time in memory-balanced rings on
+/// the landscape at two sizes (`scripts/gpu-multi SERIAL=1`; the fit is in
+/// BENCHMARKS.md). Instances cost beyond their bytes because
 /// every ray walks the top-level BVH over them, dense and overlapping, and
 /// descends into each one it enters.
 ///
 /// Balancing by it spreads instanced objects over the parts, which costs
-/// every ray more walks in total (23% on a ring of 2) but stops one part
-/// holding all of them: measured on quarters of an H100, a ring of 4 went
-/// from 1.47-1.55x to 2.13-2.14x one quarter's speed, while a ring of 2
-/// did no better than bytes alone (BENCHMARKS.md, issue 6).
+/// every ray more walks in total but stops one part holding all of them:
+/// rings of 4 measured much faster for it, rings of 2 no better than bytes
+/// alone (BENCHMARKS.md).
 pub const GPU_INSTANCE_COST: u64 = 9 << 10;
 
 /// A scene split into parts, one per device of a ring.

@@ -25,7 +25,9 @@ use mpi::traits::*;
 use mpi::Threading;
 
 use crate::handout::{Joined, Joining, Pace, Pacing, Speed, WaveHandout};
-use crate::render::{DeviceReport, RingOrder, RingPeers, RingPlace};
+use crate::render::DeviceReport;
+use crate::ring::{RingError, RingPeers, RingPlace};
+use crate::RingOrder;
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
 const TAKE: i32 = 701;
@@ -38,6 +40,17 @@ const GIVE: i32 = 702;
 /// milliseconds, so 0.2 ms of latency costs nothing.
 const POLL: Duration = Duration::from_micros(200);
 
+/// Why MPI could not be set up for atoll.
+#[derive(Debug, thiserror::Error)]
+pub enum MpiInitError {
+    /// MPI was initialised already in this process.
+    #[error("MPI was initialised already in this process")]
+    AlreadyInitialised,
+    /// The library grants less than calls from any thread.
+    #[error("the MPI library allows calls from {0} threads; atoll's device threads need Multiple")]
+    Threading(String),
+}
+
 /// This process's place among the processes `mpirun` started. Dropping it
 /// finalises MPI.
 pub struct Ranks {
@@ -47,13 +60,11 @@ pub struct Ranks {
 
 impl Ranks {
     /// Initialises MPI (once per process), asking for calls from any thread.
-    pub fn init() -> Result<Ranks, String> {
-        let (universe, threading) = mpi::initialize_with_threading(Threading::Multiple)
-            .ok_or("MPI was initialised already in this process")?;
+    pub fn init() -> Result<Ranks, MpiInitError> {
+        let (universe, threading) =
+            mpi::initialize_with_threading(Threading::Multiple).ok_or(MpiInitError::AlreadyInitialised)?;
         if threading < Threading::Multiple {
-            return Err(format!(
-                "the MPI library allows calls from {threading:?} threads; atoll's device threads need Multiple"
-            ));
+            return Err(MpiInitError::Threading(format!("{threading:?}")));
         }
         Ok(Ranks { world: universe.world(), _universe: universe })
     }
@@ -222,7 +233,12 @@ impl RingPeers for RankRing {
         (any != 0, start.elapsed())
     }
 
-    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
+    fn pass(
+        &self,
+        device: &mut dyn Device,
+        queue: Queue,
+        report: &mut DeviceReport,
+    ) -> Result<(), RingError> {
         let step = self.steps.get();
         self.steps.set((step + 1) % RING_TAGS);
         let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());

@@ -1,79 +1,31 @@
-//! Rendering one frame on many devices: replicate (every device holds the
-//! whole scene and takes waves of pixels as it becomes free) and ring (ray
-//! queue cycling: each device of a ring holds one scene part; every queue
-//! visits every device of its ring to be traced, then returns home to be
-//! shaded), with islands of rings sharing the waves.
+//! Rendering one frame on many devices, whatever the strategy: checking
+//! the layout, preparing the devices (sharing scenes where they share
+//! hardware), choosing the ring transport, the warm-up, cutting the frame
+//! into waves, one thread per device running its strategy
+//! ([`crate::replicate`], [`crate::ring`]), and summing the films.
 //!
-//! One thread drives each device. Waves are handed out from one counter
-//! shared by all devices (replicate) or all rings (ring), so faster devices
-//! or islands take more of them: the dynamic load balancing of Jaroš et al.
-//! 2021. Devices accumulate only the pixels they shade; films are summed
-//! once at the end.
+//! Waves are handed out from one counter shared by all devices
+//! (replicate) or all rings (ring), so faster devices or islands take more
+//! of them. Devices accumulate only the pixels they shade; films are
+//! summed once at the end.
 
 use std::cell::Cell;
 use std::sync::mpsc;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use atoll_bvh::ScenePart;
 use atoll_render::device::{DeviceStats, PrepareStats};
-use atoll_render::integrator::{render_waves, warm_up_waves};
-use atoll_render::{
-    Device, DeviceError, DirectRing, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave,
-};
+use atoll_render::integrator::warm_up_waves;
+use atoll_render::{Device, DeviceError, DirectRing, Film, FrameContext, RenderOptions, Wave};
 use atoll_scene::Scene;
 
 use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
+use crate::layout::{Layout, RingOrder};
+use crate::replicate;
+use crate::ring::{ring_loop, run_member, RingLink, RingPeers};
+use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
-
-/// Where the scene goes: what each device holds and who it works with.
-#[derive(Clone, Debug)]
-pub enum Layout {
-    /// Every device holds the whole scene.
-    Replicate,
-    /// `parts.len()` devices per ring, `islands` rings: device `i * K + j`
-    /// (K = parts.len()) is member `j` of ring `i` and holds `parts[j]`.
-    Ring {
-        /// One part per member of a ring.
-        parts: Vec<ScenePart>,
-        /// Rings, each rendering its share of the waves.
-        islands: usize,
-        /// Where queues start and end their cycles.
-        order: RingOrder,
-    },
-}
-
-/// Where a ring's queues are made, first traced and shaded.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum RingOrder {
-    /// Every member makes queues from its share of the waves; a queue is
-    /// traced first where it was made and shaded where its cycle ends
-    /// (any member can shade any hit): K − 1 sends per trace, the least
-    /// traffic, and on one GPU the most throughput.
-    #[default]
-    Spread,
-    /// Member 0 makes and shades every queue (Wald et al.'s home device,
-    /// one for all): every ray is traced first on part 0, the partition's
-    /// heaviest piece (a landscape's ground), and reaches the others with
-    /// its closest hit so far, so they skip what lies behind it. K sends
-    /// per trace. The parts' work evens out: on the landscape, busy times
-    /// of the members alone went from 0.047 / 0.091 s to 0.072 / 0.079 s.
-    /// But each ring then has one queue in flight instead of K, and on two
-    /// halves of an H100 standing in for two GPUs it rendered at 0.72–0.92×
-    /// `Spread`'s speed (1 to 6 islands), its members idle most of the time
-    /// (BENCHMARKS.md, issue 4).
-    Home,
-}
-
-impl Layout {
-    /// Devices this layout needs (`None`: any number).
-    pub fn devices(&self) -> Option<usize> {
-        match self {
-            Layout::Replicate => None,
-            Layout::Ring { parts, islands, .. } => Some(parts.len() * islands),
-        }
-    }
-}
 
 /// What one device did over a frame.
 #[derive(Clone, Debug, Default)]
@@ -226,7 +178,8 @@ pub fn render_multi(
     transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
-    render_multi_with(devices, scene, options, layout, transport, false, None, progress)
+    let frame = MultiFrame { layout, transport, warmup: false, shared: None };
+    render_multi_with(devices, scene, options, &frame, progress)
 }
 
 /// [`render_multi`] after an untimed pass over the frame's first sample on
@@ -241,7 +194,8 @@ pub fn render_multi_warmed(
     transport: Option<Transport>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
-    render_multi_with(devices, scene, options, layout, transport, true, None, progress)
+    let frame = MultiFrame { layout, transport, warmup: true, shared: None };
+    render_multi_with(devices, scene, options, &frame, progress)
 }
 
 /// What other processes share of a frame (MPI ranks, `crate::ranks`).
@@ -255,22 +209,33 @@ pub struct Shared<'a> {
     pub ring: Option<&'a dyn RingPeers>,
 }
 
-/// [`render_multi`] (or with `warmup`, [`render_multi_warmed`]), with
-/// other processes sharing the frame when `shared` says so (`None`: this
-/// process renders it alone). Each process then returns its devices' part
-/// of the film. The handout is joined even when this process fails to
-/// prepare, so that the others learn of it instead of waiting.
-#[allow(clippy::too_many_arguments)]
+/// How one frame is spread: over this process's devices, and with
+/// `shared` over other processes'.
+#[derive(Clone, Copy)]
+pub struct MultiFrame<'a> {
+    /// Where the scene goes on this process's devices.
+    pub layout: &'a Layout,
+    /// How ring queues move (`None`: the fastest the devices allow).
+    pub transport: Option<Transport>,
+    /// Render the frame's first sample untimed first ([`render_multi_warmed`]).
+    pub warmup: bool,
+    /// What other processes share of the frame (`None`: this process
+    /// renders it alone).
+    pub shared: Option<Shared<'a>>,
+}
+
+/// [`render_multi`] as `frame` says (warm-up, other processes). Each
+/// process then returns its devices' part of the film. The handout is
+/// joined even when this process fails to prepare, so that the others
+/// learn of it instead of waiting.
 pub fn render_multi_with(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
     options: RenderOptions,
-    layout: &Layout,
-    transport: Option<Transport>,
-    warmup: bool,
-    shared: Option<Shared<'_>>,
+    frame: &MultiFrame<'_>,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, DeviceError> {
+    let MultiFrame { layout, transport, warmup, shared } = *frame;
     let alone = LocalHandout::default();
     let handout = shared.map_or(&alone as &dyn WaveHandout, |s| s.handout);
     let remote = shared.and_then(|s| s.ring);
@@ -474,38 +439,12 @@ fn ready_frame(
 
 /// How the devices of a frame work together.
 #[derive(Clone, Copy, Debug)]
-struct RunShape {
+pub(crate) struct RunShape {
     /// Devices per ring (1: replicate).
-    ring: usize,
-    order: RingOrder,
+    pub(crate) ring: usize,
+    pub(crate) order: RingOrder,
     /// Wave-front merging.
-    merge: bool,
-}
-
-/// Renders `waves` on this process's one device, a member of a ring of
-/// processes linked by `link` (on this thread: the others are elsewhere).
-fn run_member(
-    devices: &mut [Box<dyn Device>],
-    waves: &[Wave],
-    shape: RunShape,
-    link: &dyn RingPeers,
-    handout: &dyn WaveHandout,
-    progress: &mut dyn FnMut(usize, usize),
-) -> Result<Vec<DeviceReport>, DeviceError> {
-    let start = Instant::now();
-    let device = devices[0].as_mut();
-    let mut report = DeviceReport {
-        name: device.name(),
-        island: link.place().island,
-        member: link.place().member,
-        ..Default::default()
-    };
-    let take = || handout.next(0).and_then(|i| waves.get(i));
-    let progress = std::cell::RefCell::new(progress);
-    let taken = || (progress.borrow_mut())(handout.taken(), waves.len());
-    ring_loop(device, link, shape.merge, &take, &taken, &mut report);
-    report.wall_seconds = start.elapsed().as_secs_f64();
-    Ok(vec![report])
+    pub(crate) merge: bool,
 }
 
 /// Renders `waves` on the prepared `devices`, one thread each, waves taken
@@ -555,20 +494,12 @@ fn run_waves(
                     let mut report =
                         DeviceReport { name: device.name(), island, member, ..Default::default() };
                     let device = device.as_mut();
-                    if ring == 1 {
-                        render_waves(device, merge, &mut || {
-                            let wave = take(island).copied();
-                            if wave.is_some() {
-                                report.waves += 1;
-                                let _ = done.send(());
-                            }
-                            wave
-                        });
-                    } else {
-                        let taken = || {
-                            let _ = done.send(());
-                        };
-                        ring_loop(device, &link, merge, &|| take(island), &taken, &mut report);
+                    let taken = || {
+                        let _ = done.send(());
+                    };
+                    match ring {
+                        1 => replicate::run_device(device, merge, &|| take(island), &taken, &mut report),
+                        _ => ring_loop(device, &link, merge, &|| take(island), &taken, &mut report),
                     }
                     report.wall_seconds = start.elapsed().as_secs_f64();
                     report
@@ -582,259 +513,6 @@ fn run_waves(
         handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
     });
     Ok(reports)
-}
-
-/// A ring member's neighbours: where its queues go, where the next ones
-/// come from, and with whom it decides when the frame is done. Devices of
-/// one process link through channels ([`RingLink`]); a ring whose members
-/// are processes links through MPI (`crate::ranks::RankRing`).
-pub trait RingPeers {
-    /// The ring, and this member's place in it.
-    fn place(&self) -> RingPlace;
-    /// Blocks until every member has voted; true when any voted true. Also
-    /// how long this member waited.
-    fn any(&self, mine: bool) -> (bool, Duration);
-    /// Sends `device`'s `queue` to the next member and puts the previous
-    /// member's in its place. An error means a neighbour is gone: the frame
-    /// cannot finish.
-    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String>;
-}
-
-/// A ring member's place: its ring, and where in it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct RingPlace {
-    /// Members of the ring.
-    pub size: usize,
-    /// This member's place in the ring (the scene part it holds).
-    pub member: usize,
-    /// Which of several rings this is (islands).
-    pub island: usize,
-    /// Where the ring's queues are made and shaded.
-    pub order: RingOrder,
-}
-
-/// Traces `queue` with `trace` on this device, passing it on between
-/// traces: after `size` traces every queue of the ring has visited every
-/// member once. With [`RingOrder::Spread`] it is then shaded (or resolved)
-/// where it is, not sent home: any member can shade any hit (the record
-/// carries it, materials and lights are on every device, films are summed
-/// at the end), and a ring of K sends K - 1 times per trace instead of K
-/// (for K = 2, half the traffic, measured in BENCHMARKS.md); with
-/// [`RingOrder::Home`] it goes on to where it was made. A closest hit
-/// found earlier shortens `t_max`, so later members only report nearer
-/// hits; shadow rays found occluded are skipped by the later members.
-fn cycle(
-    link: &dyn RingPeers,
-    device: &mut dyn Device,
-    queue: Queue,
-    trace: fn(&mut dyn Device),
-    report: &mut DeviceReport,
-) -> Result<(), String> {
-    let RingPlace { size, order, .. } = link.place();
-    for i in 0..size {
-        trace(device);
-        if i + 1 == size && order != RingOrder::Home {
-            break;
-        }
-        link.pass(device, queue, report)?;
-    }
-    Ok(())
-}
-
-/// What passes from a ring member to the next at each step.
-enum Handover {
-    /// The records themselves, through the host (any device kind).
-    Records(Vec<RayRecord>),
-    /// The records are on their way device to device ([`DirectRing`]):
-    /// the receiver accepts them.
-    Copied,
-}
-
-/// How queues move around a ring.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Transport {
-    /// `read_queue` / `write_queue` through host memory: works for every device.
-    Host,
-    /// Device to device ([`atoll_render::DirectTransport`]: CUDA peer
-    /// copies, NVLink where available): every member a device offering it.
-    Peer,
-}
-
-/// A device's connections to its ring neighbours.
-struct RingLink<'a> {
-    size: usize,
-    member: usize,
-    /// The ring's direct transport; `None`: through the host.
-    direct: Option<&'a dyn DirectRing>,
-    to_next: mpsc::Sender<Handover>,
-    from_prev: mpsc::Receiver<Handover>,
-    /// Steps taken.
-    steps: Cell<usize>,
-    /// The last queue that came in through the host, its allocation kept
-    /// for the next one going out.
-    spare: Cell<Vec<RayRecord>>,
-    vote: &'a Vote,
-    order: RingOrder,
-}
-
-impl RingPeers for RingLink<'_> {
-    fn place(&self) -> RingPlace {
-        RingPlace { size: self.size, member: self.member, island: 0, order: self.order }
-    }
-
-    fn any(&self, mine: bool) -> (bool, Duration) {
-        self.vote.any(mine)
-    }
-
-    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport) -> Result<(), String> {
-        let step = self.steps.get();
-        self.steps.set(step + 1);
-        let handover = match self.direct {
-            None => {
-                let sending = Instant::now();
-                // Into the allocation of the queue that came in last.
-                let mut records = self.spare.take();
-                device.read_queue_into(queue, &mut records);
-                report.send_seconds += sending.elapsed().as_secs_f64();
-                report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
-                Handover::Records(records)
-            }
-            Some(direct) => {
-                self.send_direct(direct, device, queue, step, report);
-                Handover::Copied
-            }
-        };
-        let waited = Instant::now();
-        self.to_next.send(handover).map_err(|_| "the next device of the ring stopped".to_string())?;
-        let incoming =
-            self.from_prev.recv().map_err(|_| "the previous device of the ring stopped".to_string())?;
-        report.wait_seconds += waited.elapsed().as_secs_f64();
-        match incoming {
-            Handover::Records(records) => {
-                device.write_queue(queue, &records);
-                self.spare.replace(records);
-            }
-            Handover::Copied => {
-                let accepted = match self.direct {
-                    Some(direct) => {
-                        direct.accept(self.member, device, queue, step).map_err(|e| e.to_string())
-                    }
-                    None => Err("records sent directly to a member linked through the host".to_string()),
-                };
-                if let Err(e) = accepted {
-                    report.error.get_or_insert(e);
-                }
-            }
-        }
-        Ok(())
-    }
-}
-
-impl RingLink<'_> {
-    /// Opens this member's step, waits until every member has, and queues
-    /// the send of `queue` to the successor ([`atoll_render::transport`]).
-    /// Nothing here waits for the devices. Errors are kept in the report;
-    /// the ring keeps stepping.
-    fn send_direct(
-        &self,
-        direct: &dyn DirectRing,
-        device: &mut dyn Device,
-        queue: Queue,
-        step: usize,
-        report: &mut DeviceReport,
-    ) {
-        let opened = direct.open(self.member, device, queue, step);
-        report.wait_seconds += self.vote.any(false).1.as_secs_f64();
-        let sending = Instant::now();
-        let sent = opened.and_then(|()| direct.send(self.member, device, queue, step));
-        report.send_seconds += sending.elapsed().as_secs_f64();
-        if let Err(e) = sent {
-            report.error.get_or_insert(e.to_string());
-        }
-    }
-}
-
-/// The transport for `devices`: `wanted`, or when `None` the fastest that
-/// works (direct when every device offers the same direct transport, else
-/// the host).
-fn choose_transport(
-    devices: &[Box<dyn Device>],
-    wanted: Option<Transport>,
-) -> Result<Transport, DeviceError> {
-    let kinds: Vec<Option<&'static str>> =
-        devices.iter().map(|d| d.direct_transport().map(|t| t.name())).collect();
-    let direct = kinds.first().copied().flatten().is_some() && kinds.windows(2).all(|w| w[0] == w[1]);
-    match (direct, wanted) {
-        (_, Some(Transport::Host)) => Ok(Transport::Host),
-        (true, _) => Ok(Transport::Peer),
-        (false, Some(Transport::Peer)) => Err(DeviceError::Other {
-            device: "devices".into(),
-            message: "direct copies need every device of the ring to offer the same direct transport (all CUDA GPUs)"
-                .into(),
-        }),
-        (false, None) => Ok(Transport::Host),
-    }
-}
-
-/// Connects each ring of `ring` consecutive devices through their direct
-/// transport (see [`choose_transport`]).
-fn connect_rings(
-    devices: &mut [Box<dyn Device>],
-    ring: usize,
-) -> Result<Vec<Box<dyn DirectRing>>, DeviceError> {
-    devices
-        .chunks_mut(ring)
-        .map(|members| {
-            let transport = members[0].direct_transport().ok_or_else(|| DeviceError::Unsupported {
-                device: members[0].name(),
-                what: "direct queue transport".into(),
-            })?;
-            transport.connect(members)
-        })
-        .collect()
-}
-
-/// One ring member's frame: queue waves as this member runs out of work
-/// (or, merging, as its pending work runs low) and bounce in step with the
-/// others until no member of the ring has paths or work left.
-fn ring_loop<'w>(
-    device: &mut dyn Device,
-    link: &dyn RingPeers,
-    merge: bool,
-    take: &dyn Fn() -> Option<&'w Wave>,
-    taken: &dyn Fn(),
-    report: &mut DeviceReport,
-) {
-    loop {
-        // A device that failed takes no more work but keeps stepping (with
-        // empty queues) so that the others are not left waiting for it.
-        let makes_queues = link.place().order == RingOrder::Spread || link.place().member == 0;
-        if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
-        {
-            if let Some(wave) = take() {
-                device.queue_work(wave);
-                report.waves += 1;
-                taken();
-            }
-        }
-        let (any, waited): (bool, Duration) = link.any(device.has_paths());
-        report.wait_seconds += waited.as_secs_f64();
-        if !any {
-            return;
-        }
-        device.refill();
-        let traced = cycle(link, device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
-            device.shade();
-            cycle(link, device, Queue::Shadows, |d| d.trace_shadows(), report)
-        });
-        if let Err(message) = traced {
-            // Only when a neighbour's thread is gone (it panicked): the
-            // frame cannot finish; its panic is reported by the caller.
-            tracing::error!("{}: {message}", device.name());
-            return;
-        }
-        device.resolve_shadows();
-    }
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@
 //! - **interleaved chunks** (many chunks per part, dealt out in turn): every
 //!   view sees all parts about equally, so the work is balanced, while each
 //!   chunk is compact enough that a ray's hit in one chunk still ends its
-//!   walk through the others. Measured in BENCHMARKS.md (issue 4).
+//!   walk through the others. Measured in BENCHMARKS.md.
 //!
 //! The memory-greedy [`crate::partition()`] spreads every object over the
 //! whole scene instead and balances bytes, not work: on the landscape it puts

@@ -6,7 +6,7 @@
 //! where the ray ends: the walk down to the leaves and the triangle tests
 //! around its hit (and the bounce and shadow rays leaving from there).
 //! Balancing bytes alone leaves one device with what the camera looks at
-//! (BENCHMARKS.md, issue 4). The estimate: a low-resolution image of camera
+//! (BENCHMARKS.md). The estimate: a low-resolution image of camera
 //! rays traced against a proxy of the scene, the boxes of its pieces, and
 //! the point where each ray enters its first box. The proxy needs no BLAS
 //! (a scene too large for any device is too large to trace whole on the

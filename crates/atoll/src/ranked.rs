@@ -14,7 +14,9 @@ use atoll_bvh::{part_bytes, ScenePart};
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::placement::{scene_budget, Sharing};
 use atoll_dist::ranks::{RankRing, Ranks};
-use atoll_dist::{min_parts, render_multi_with, Layout, MultiOutput, Partition, RingPeers, Shared};
+use atoll_dist::{
+    min_parts, render_multi_with, Layout, MultiFrame, MultiOutput, Partition, RingPeers, Shared,
+};
 use atoll_render::{Device, RenderOptions};
 use atoll_scene::Scene;
 
@@ -81,19 +83,16 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
 
     let handout = ranks.waves();
     let bar = progress_bar(args.quiet || !ranks.is_root());
-    let rendered = render_multi_with(
-        &mut devices,
-        &scene,
-        options.clone(),
-        &layout,
-        args.ring_transport,
-        args.warmup,
-        Some(Shared { handout: &handout, ring: ring.as_ref().map(|(r, _)| r as &dyn RingPeers) }),
-        &mut |done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        },
-    )
+    let frame = MultiFrame {
+        layout: &layout,
+        transport: args.ring_transport,
+        warmup: args.warmup,
+        shared: Some(Shared { handout: &handout, ring: ring.as_ref().map(|(r, _)| r as &dyn RingPeers) }),
+    };
+    let rendered = render_multi_with(&mut devices, &scene, options.clone(), &frame, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })
     .map_err(|e| CliError::Runtime(e.to_string()));
     bar.finish_and_clear();
     let mut out = together(ranks, rendered, "render their share")?;

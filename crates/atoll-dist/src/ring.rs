@@ -1,0 +1,252 @@
+//! The ring strategy (ray queue cycling, Wald et al. 2023): each device
+//! of a ring holds one scene part; every queue visits every member to be
+//! traced, then is shaded where its cycle ends. Several rings (islands)
+//! share a frame's waves. Members of one process link through channels
+//! ([`RingLink`]); members that are processes link through MPI
+//! (`crate::ranks::RankRing`), both behind [`RingPeers`].
+
+use std::cell::Cell;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use atoll_render::{Device, DeviceError, DirectRing, Queue, RayRecord, Wave};
+
+use crate::handout::WaveHandout;
+use crate::layout::RingOrder;
+use crate::render::{DeviceReport, RunShape};
+use crate::transport::Handover;
+use crate::vote::Vote;
+
+/// Why a ring cannot go on.
+#[derive(Debug, thiserror::Error)]
+pub enum RingError {
+    /// A neighbour's thread or process is gone (it panicked or failed):
+    /// the frame cannot finish.
+    #[error("the {0} member of the ring stopped")]
+    NeighbourGone(&'static str),
+}
+
+/// A ring member's neighbours: where its queues go, where the next ones
+/// come from, and with whom it decides when the frame is done. Devices of
+/// one process link through channels ([`RingLink`]); a ring whose members
+/// are processes links through MPI (`crate::ranks::RankRing`).
+pub trait RingPeers {
+    /// The ring, and this member's place in it.
+    fn place(&self) -> RingPlace;
+    /// Blocks until every member has voted; true when any voted true. Also
+    /// how long this member waited.
+    fn any(&self, mine: bool) -> (bool, Duration);
+    /// Sends `device`'s `queue` to the next member and puts the previous
+    /// member's in its place. An error means a neighbour is gone: the frame
+    /// cannot finish.
+    fn pass(&self, device: &mut dyn Device, queue: Queue, report: &mut DeviceReport)
+        -> Result<(), RingError>;
+}
+
+/// A ring member's place: its ring, and where in it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RingPlace {
+    /// Members of the ring.
+    pub size: usize,
+    /// This member's place in the ring (the scene part it holds).
+    pub member: usize,
+    /// Which of several rings this is (islands).
+    pub island: usize,
+    /// Where the ring's queues are made and shaded.
+    pub order: RingOrder,
+}
+
+/// Traces `queue` with `trace` on this device, passing it on between
+/// traces: after `size` traces every queue of the ring has visited every
+/// member once. With [`RingOrder::Spread`] it is then shaded (or resolved)
+/// where it is, not sent home: any member can shade any hit (the record
+/// carries it, materials and lights are on every device, films are summed
+/// at the end), and a ring of K sends K - 1 times per trace instead of K
+/// (for K = 2, half the traffic); with
+/// [`RingOrder::Home`] it goes on to where it was made. A closest hit
+/// found earlier shortens `t_max`, so later members only report nearer
+/// hits; shadow rays found occluded are skipped by the later members.
+fn cycle(
+    link: &dyn RingPeers,
+    device: &mut dyn Device,
+    queue: Queue,
+    trace: fn(&mut dyn Device),
+    report: &mut DeviceReport,
+) -> Result<(), RingError> {
+    let RingPlace { size, order, .. } = link.place();
+    for i in 0..size {
+        trace(device);
+        if i + 1 == size && order != RingOrder::Home {
+            break;
+        }
+        link.pass(device, queue, report)?;
+    }
+    Ok(())
+}
+
+/// A device's connections to its ring neighbours.
+pub(crate) struct RingLink<'a> {
+    pub(crate) size: usize,
+    pub(crate) member: usize,
+    /// The ring's direct transport; `None`: through the host.
+    pub(crate) direct: Option<&'a dyn DirectRing>,
+    pub(crate) to_next: mpsc::Sender<Handover>,
+    pub(crate) from_prev: mpsc::Receiver<Handover>,
+    /// Steps taken.
+    pub(crate) steps: Cell<usize>,
+    /// The last queue that came in through the host, its allocation kept
+    /// for the next one going out.
+    pub(crate) spare: Cell<Vec<RayRecord>>,
+    pub(crate) vote: &'a Vote,
+    pub(crate) order: RingOrder,
+}
+
+impl RingPeers for RingLink<'_> {
+    fn place(&self) -> RingPlace {
+        RingPlace { size: self.size, member: self.member, island: 0, order: self.order }
+    }
+
+    fn any(&self, mine: bool) -> (bool, Duration) {
+        self.vote.any(mine)
+    }
+
+    fn pass(
+        &self,
+        device: &mut dyn Device,
+        queue: Queue,
+        report: &mut DeviceReport,
+    ) -> Result<(), RingError> {
+        let step = self.steps.get();
+        self.steps.set(step + 1);
+        let handover = match self.direct {
+            None => {
+                let sending = Instant::now();
+                // Into the allocation of the queue that came in last.
+                let mut records = self.spare.take();
+                device.read_queue_into(queue, &mut records);
+                report.send_seconds += sending.elapsed().as_secs_f64();
+                report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+                Handover::Records(records)
+            }
+            Some(direct) => {
+                self.send_direct(direct, device, queue, step, report);
+                Handover::Copied
+            }
+        };
+        let waited = Instant::now();
+        self.to_next.send(handover).map_err(|_| RingError::NeighbourGone("next"))?;
+        let incoming = self.from_prev.recv().map_err(|_| RingError::NeighbourGone("previous"))?;
+        report.wait_seconds += waited.elapsed().as_secs_f64();
+        match incoming {
+            Handover::Records(records) => {
+                device.write_queue(queue, &records);
+                self.spare.replace(records);
+            }
+            Handover::Copied => {
+                let accepted = match self.direct {
+                    Some(direct) => {
+                        direct.accept(self.member, device, queue, step).map_err(|e| e.to_string())
+                    }
+                    None => Err("records sent directly to a member linked through the host".to_string()),
+                };
+                if let Err(e) = accepted {
+                    report.error.get_or_insert(e);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+impl RingLink<'_> {
+    /// Opens this member's step, waits until every member has, and queues
+    /// the send of `queue` to the successor ([`atoll_render::transport`]).
+    /// Nothing here waits for the devices. Errors are kept in the report;
+    /// the ring keeps stepping.
+    fn send_direct(
+        &self,
+        direct: &dyn DirectRing,
+        device: &mut dyn Device,
+        queue: Queue,
+        step: usize,
+        report: &mut DeviceReport,
+    ) {
+        let opened = direct.open(self.member, device, queue, step);
+        report.wait_seconds += self.vote.any(false).1.as_secs_f64();
+        let sending = Instant::now();
+        let sent = opened.and_then(|()| direct.send(self.member, device, queue, step));
+        report.send_seconds += sending.elapsed().as_secs_f64();
+        if let Err(e) = sent {
+            report.error.get_or_insert(e.to_string());
+        }
+    }
+}
+
+/// Renders `waves` on this process's one device, a member of a ring of
+/// processes linked by `link` (on this thread: the others are elsewhere).
+pub(crate) fn run_member(
+    devices: &mut [Box<dyn Device>],
+    waves: &[Wave],
+    shape: RunShape,
+    link: &dyn RingPeers,
+    handout: &dyn WaveHandout,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Vec<DeviceReport>, DeviceError> {
+    let start = Instant::now();
+    let device = devices[0].as_mut();
+    let mut report = DeviceReport {
+        name: device.name(),
+        island: link.place().island,
+        member: link.place().member,
+        ..Default::default()
+    };
+    let take = || handout.next(0).and_then(|i| waves.get(i));
+    let progress = std::cell::RefCell::new(progress);
+    let taken = || (progress.borrow_mut())(handout.taken(), waves.len());
+    ring_loop(device, link, shape.merge, &take, &taken, &mut report);
+    report.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(vec![report])
+}
+
+/// One ring member's frame: queue waves as this member runs out of work
+/// (or, merging, as its pending work runs low) and bounce in step with the
+/// others until no member of the ring has paths or work left.
+pub(crate) fn ring_loop<'w>(
+    device: &mut dyn Device,
+    link: &dyn RingPeers,
+    merge: bool,
+    take: &dyn Fn() -> Option<&'w Wave>,
+    taken: &dyn Fn(),
+    report: &mut DeviceReport,
+) {
+    loop {
+        // A device that failed takes no more work but keeps stepping (with
+        // empty queues) so that the others are not left waiting for it.
+        let makes_queues = link.place().order == RingOrder::Spread || link.place().member == 0;
+        if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
+        {
+            if let Some(wave) = take() {
+                device.queue_work(wave);
+                report.waves += 1;
+                taken();
+            }
+        }
+        let (any, waited): (bool, Duration) = link.any(device.has_paths());
+        report.wait_seconds += waited.as_secs_f64();
+        if !any {
+            return;
+        }
+        device.refill();
+        let traced = cycle(link, device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
+            device.shade();
+            cycle(link, device, Queue::Shadows, |d| d.trace_shadows(), report)
+        });
+        if let Err(message) = traced {
+            // Only when a neighbour's thread is gone (it panicked): the
+            // frame cannot finish; its panic is reported by the caller.
+            tracing::error!("{}: {message}", device.name());
+            return;
+        }
+        device.resolve_shadows();
+    }
+}
