@@ -85,10 +85,6 @@ impl ErrorSlot {
             *slot = Some(message);
         }
     }
-
-    fn is_set(&self) -> bool {
-        self.0.lock().unwrap_or_else(|p| p.into_inner()).is_some()
-    }
 }
 
 /// The wavefront kernels, loaded once per prepare.
@@ -274,18 +270,45 @@ impl CudaDevice {
         self.errors.clone()
     }
 
-    /// Runs a fallible stage, keeping its error; a no-op after an error.
-    fn stage(&mut self, name: &str, f: impl FnOnce(&mut Self) -> Result<(), CudaError>) {
-        if self.errors.is_set() {
-            return;
-        }
-        if let Err(e) = f(self) {
-            self.errors.set(format!("{} {name}: {e}", self.gpu.label()));
+    /// [`DeviceError::Stopped`] once a call has failed.
+    fn stopped(&self) -> Result<(), DeviceError> {
+        match self.errors.get() {
+            Some(first) => Err(DeviceError::Stopped { device: self.gpu.label(), first }),
+            None => Ok(()),
         }
     }
 
+    /// Keeps `e`, met doing `name` (later calls stop), and returns it with
+    /// `name` as its context.
+    fn failed(&self, name: &str, e: CudaError) -> DeviceError {
+        let device = self.gpu.label();
+        self.errors.set(format!("{device} {name}: {e}"));
+        DeviceError::Backend { what: format!("{name}: {e}"), device, source: Box::new(e) }
+    }
+
+    /// Runs `f`, what `name` does on this device: after an earlier
+    /// failure not at all; a failure is kept and returned.
+    fn checked<R>(&self, name: &str, f: impl FnOnce() -> Result<R, CudaError>) -> Result<R, DeviceError> {
+        self.stopped()?;
+        f().map_err(|e| self.failed(name, e))
+    }
+
+    /// [`CudaDevice::checked`] for a stage that needs the device mutably.
+    fn stage(
+        &mut self,
+        name: &str,
+        f: impl FnOnce(&mut Self) -> Result<(), CudaError>,
+    ) -> Result<(), DeviceError> {
+        self.stopped()?;
+        f(self).map_err(|e| self.failed(name, e))
+    }
+
     /// [`CudaDevice::stage`] between a pair of timing events when stages are timed.
-    fn timed_stage(&mut self, name: &str, f: impl FnOnce(&mut Self) -> Result<(), CudaError>) {
+    fn timed_stage(
+        &mut self,
+        name: &str,
+        f: impl FnOnce(&mut Self) -> Result<(), CudaError>,
+    ) -> Result<(), DeviceError> {
         if !self.stage_timing {
             return self.stage(name, f);
         }
@@ -297,7 +320,7 @@ impl CudaDevice {
         static SERIAL: Mutex<()> = Mutex::new(());
         let serial = serial_stages().then(|| SERIAL.lock().unwrap_or_else(|p| p.into_inner()));
         if serial.is_some() {
-            self.stage("synchronize", |d| d.gpu.synchronize());
+            self.stage("synchronize", |d| d.gpu.synchronize())?;
         }
         self.stage(name, |d| {
             let mut busy = d.busy.lock().unwrap_or_else(|p| p.into_inner());
@@ -311,10 +334,11 @@ impl CudaDevice {
             timer.stop(&d.gpu)?;
             d.busy.lock().unwrap_or_else(|p| p.into_inner()).pending.push(timer);
             done
-        });
+        })?;
         if serial.is_some() {
-            self.stage("synchronize", |d| d.gpu.synchronize());
+            self.stage("synchronize", |d| d.gpu.synchronize())?;
         }
+        Ok(())
     }
 
     fn resident(&mut self) -> Result<&mut Resident, CudaError> {
@@ -623,108 +647,74 @@ impl Device for CudaDevice {
         })
     }
 
-    fn reset_frame(&mut self) {
-        self.stage("reset_frame", |d| d.try_reset_frame());
+    fn reset_frame(&mut self) -> Result<(), DeviceError> {
+        self.stage("reset_frame", |d| d.try_reset_frame())
     }
 
-    fn queue_work(&mut self, wave: &Wave) {
-        self.stage("queue_work", |d| d.try_queue_work(wave));
+    fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {
+        self.stage("queue_work", |d| d.try_queue_work(wave))
     }
 
-    fn wants_work(&self) -> bool {
-        let Some(r) = &self.resident else { return false };
-        if self.errors.is_set() {
-            return false;
-        }
-        r.work.wants_work(r.queues.capacity).unwrap_or_else(|e| {
-            self.errors.set(format!("{} wants_work: {e}", self.gpu.label()));
-            false
-        })
+    fn wants_work(&self) -> Result<bool, DeviceError> {
+        let Some(r) = &self.resident else { return Ok(false) };
+        self.checked("wants_work", || r.work.wants_work(r.queues.capacity))
     }
 
-    fn refill(&mut self) {
-        self.timed_stage("refill", |d| d.try_refill());
+    fn refill(&mut self) -> Result<(), DeviceError> {
+        self.timed_stage("refill", |d| d.try_refill())
     }
 
-    fn trace_paths(&mut self) {
-        self.timed_stage("trace_paths", |d| d.try_trace_paths());
+    fn trace_paths(&mut self) -> Result<(), DeviceError> {
+        self.timed_stage("trace_paths", |d| d.try_trace_paths())
     }
 
-    fn shade(&mut self) {
-        self.timed_stage("shade", |d| d.try_shade());
+    fn shade(&mut self) -> Result<(), DeviceError> {
+        self.timed_stage("shade", |d| d.try_shade())
     }
 
-    fn trace_shadows(&mut self) {
-        self.timed_stage("trace_shadows", |d| d.try_trace_shadows());
+    fn trace_shadows(&mut self) -> Result<(), DeviceError> {
+        self.timed_stage("trace_shadows", |d| d.try_trace_shadows())
     }
 
-    fn resolve_shadows(&mut self) {
-        self.timed_stage("resolve_shadows", |d| d.try_resolve_shadows());
+    fn resolve_shadows(&mut self) -> Result<(), DeviceError> {
+        self.timed_stage("resolve_shadows", |d| d.try_resolve_shadows())
     }
 
     /// From the status of the last refill (see [`crate::work`]): waits for
     /// that refill, not for the stages queued after it, so the GPU keeps a
     /// bounce of work while the host decides. The answer is a bounce late:
     /// after the last paths finish, one more (empty) bounce runs.
-    fn has_paths(&self) -> bool {
-        let Some(r) = &self.resident else { return false };
-        let more = !self.errors.is_set()
-            && r.work.busy().unwrap_or_else(|e| {
-                self.errors.set(format!("{} has_paths: {e}", self.gpu.label()));
-                false
-            });
+    fn has_paths(&self) -> Result<bool, DeviceError> {
+        let Some(r) = &self.resident else { return Ok(false) };
+        let more = self.checked("has_paths", || r.work.busy())?;
         if !more {
-            if let Err(e) = self.stop_wave_timer() {
-                self.errors.set(format!("{} timing: {e}", self.gpu.label()));
-            }
+            self.checked("timing", || self.stop_wave_timer())?;
         }
-        more
+        Ok(more)
     }
 
-    fn queue_len(&self, queue: Queue) -> usize {
-        if self.errors.is_set() {
-            return 0;
-        }
-        let Some(r) = &self.resident else { return 0 };
-        let len = r.queues.len(&self.gpu, queue);
+    fn queue_len(&self, queue: Queue) -> Result<usize, DeviceError> {
+        let Some(r) = &self.resident else { return Ok(0) };
+        let len = self.checked("queue_len", || r.queues.len(&self.gpu, queue))?;
         // Sum the timers that are done (all of them after a read-back),
         // so the pending list stays short; this never waits.
-        if let Err(e) = self.busy.lock().unwrap_or_else(|p| p.into_inner()).collect(false) {
-            self.errors.set(format!("{} timing: {e}", self.gpu.label()));
-        }
-        len.unwrap_or_else(|e| {
-            self.errors.set(format!("{} queue_len: {e}", self.gpu.label()));
-            0
-        }) as usize
+        self.checked("timing", || self.busy.lock().unwrap_or_else(|p| p.into_inner()).collect(false))?;
+        Ok(len as usize)
     }
 
-    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) -> Result<(), DeviceError> {
         into.clear();
-        if self.errors.is_set() {
-            return;
-        }
-        let Some(r) = &self.resident else { return };
-        if let Err(e) = r.queues.read(&self.gpu, queue, into) {
-            self.errors.set(format!("{} read_queue: {e}", self.gpu.label()));
-            into.clear();
-        }
+        let Some(r) = &self.resident else { return Ok(()) };
+        self.checked("read_queue", || r.queues.read(&self.gpu, queue, into)).inspect_err(|_| into.clear())
     }
 
-    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) -> Result<(), DeviceError> {
         let gpu = self.gpu.clone();
-        self.stage("write_queue", |d| d.resident()?.queues.write(&gpu, queue, records));
+        self.stage("write_queue", |d| d.resident()?.queues.write(&gpu, queue, records))
     }
 
-    fn film(&self) -> Film {
-        self.try_film().unwrap_or_else(|e| {
-            self.errors.set(format!("{} film: {e}", self.gpu.label()));
-            let resolution = self.resident.as_ref().map_or(glam::UVec2::ZERO, |r| r.frame.options.resolution);
-            Film::new(resolution)
-        })
-    }
-
-    fn error(&self) -> Option<String> {
-        self.errors.get()
+    fn film(&self) -> Result<Film, DeviceError> {
+        self.checked("film", || self.try_film())
     }
 
     fn frame_bytes(&self, options: &RenderOptions) -> u64 {
@@ -821,16 +811,10 @@ impl Device for CudaDevice {
         self
     }
 
-    fn stats(&self) -> DeviceStats {
+    fn stats(&self) -> Result<DeviceStats, DeviceError> {
         let mut stats = self.stats.clone();
-        match self.try_traced() {
-            Ok((paths, shadows)) => (stats.rays_traced, stats.shadow_rays_traced) = (paths, shadows),
-            Err(e) => self.errors.set(format!("{} stats: {e}", self.gpu.label())),
-        }
-        match self.try_busy_seconds() {
-            Ok(seconds) => stats.busy_seconds = seconds,
-            Err(e) => self.errors.set(format!("{} stats: {e}", self.gpu.label())),
-        }
-        stats
+        (stats.rays_traced, stats.shadow_rays_traced) = self.checked("stats", || self.try_traced())?;
+        stats.busy_seconds = self.checked("stats", || self.try_busy_seconds())?;
+        Ok(stats)
     }
 }

@@ -112,9 +112,11 @@ impl CudaError {
                 needed,
                 budget: budget.min(free),
             },
-            other => {
-                atoll_render::DeviceError::Other { device: device.to_string(), message: other.to_string() }
-            }
+            other => atoll_render::DeviceError::Backend {
+                device: device.to_string(),
+                what: other.to_string(),
+                source: Box::new(other),
+            },
         }
     }
 }

@@ -43,20 +43,20 @@ fn camera_rays_and_hits_match_the_cpu_device() {
     cuda.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
     let wave = Wave { sample: 0, first_pixel: 0, pixel_count: 32 * 32 };
     for device in [&mut cpu as &mut dyn Device, &mut cuda] {
-        device.queue_work(&wave);
-        device.refill();
+        device.queue_work(&wave).unwrap();
+        device.refill().unwrap();
     }
-    let (c, g) = (cpu.read_queue(Queue::Paths), cuda.read_queue(Queue::Paths));
+    let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
     assert_eq!(c.len(), g.len());
     for (a, b) in c.iter().zip(&g) {
         assert_eq!((a.pixel, a.sample, a.flags, a.depth), (b.pixel, b.sample, b.flags, b.depth));
         assert!(a.origin().abs_diff_eq(b.origin(), 1e-4) && a.direction().abs_diff_eq(b.direction(), 1e-4));
     }
     // Trace the CPU's rays on both, so that only traversal and hit attributes differ.
-    cuda.write_queue(Queue::Paths, &c);
-    cpu.trace_paths();
-    cuda.trace_paths();
-    let (c, g) = (cpu.read_queue(Queue::Paths), cuda.read_queue(Queue::Paths));
+    cuda.write_queue(Queue::Paths, &c).unwrap();
+    cpu.trace_paths().unwrap();
+    cuda.trace_paths().unwrap();
+    let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
     let mut mismatched = 0;
     for (a, b) in c.iter().zip(&g) {
         if a.has(flags::HIT) != b.has(flags::HIT) || a.instance != b.instance {
@@ -146,9 +146,14 @@ fn memory_budget_is_refused_before_allocating() {
 fn stages_before_prepare_are_errors_not_panics() {
     let Some(gpu) = gpu_or_skip("usage") else { return };
     let mut cuda = CudaDevice::on(gpu);
-    cuda.queue_work(&Wave { sample: 0, first_pixel: 0, pixel_count: 4 });
-    cuda.trace_paths();
-    assert_eq!(cuda.queue_len(Queue::Paths), 0);
+    let first = cuda.queue_work(&Wave { sample: 0, first_pixel: 0, pixel_count: 4 }).unwrap_err();
+    assert!(first.to_string().contains("before prepare"), "{first}");
+    // Once failed, every later stage says so, and queues read as empty.
+    match cuda.trace_paths() {
+        Err(DeviceError::Stopped { first, .. }) => assert!(first.contains("before prepare"), "{first}"),
+        other => panic!("expected Stopped, got {other:?}"),
+    }
+    assert_eq!(cuda.queue_len(Queue::Paths).unwrap_or(0), 0);
     assert!(cuda.errors().get().unwrap().contains("before prepare"));
 }
 

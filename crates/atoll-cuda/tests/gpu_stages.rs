@@ -596,9 +596,9 @@ fn surface_matches_write_hit() {
     // The CPU device's hits (write_hit) ...
     let mut cpu = CpuDevice::new();
     cpu.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
-    cpu.write_queue(Queue::Paths, &rays);
-    cpu.trace_paths();
-    let cpu_hits = cpu.read_queue(Queue::Paths);
+    cpu.write_queue(Queue::Paths, &rays).unwrap();
+    cpu.trace_paths().unwrap();
+    let cpu_hits = cpu.read_queue(Queue::Paths).unwrap();
     // ... and the same BVH's raw hits as GPU traversal would report them.
     let bvh = atoll_bvh::SceneBvh::build(&scene);
     let tables = SceneTables::build(&scene);

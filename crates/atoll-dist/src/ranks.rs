@@ -243,7 +243,11 @@ impl RingPeers for RankRing {
         self.steps.set((step + 1) % RING_TAGS);
         let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());
         let sending = Instant::now();
-        device.read_queue_into(queue, &mut outgoing);
+        if let Err(e) = device.read_queue_into(queue, &mut outgoing) {
+            // Nothing goes out, so that the ring still steps.
+            outgoing.clear();
+            report.fail(e);
+        }
         report.send_seconds += sending.elapsed().as_secs_f64();
         let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };
         report.bytes_sent += std::mem::size_of_val(outgoing.as_slice()) as u64;
@@ -272,7 +276,8 @@ impl RingPeers for RankRing {
             sleep_until_done(sent);
         });
         report.wait_seconds += waited.elapsed().as_secs_f64();
-        device.write_queue(queue, &incoming);
+        let written = device.write_queue(queue, &incoming);
+        report.keep(written, ());
         Ok(())
     }
 }

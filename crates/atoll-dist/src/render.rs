@@ -52,8 +52,33 @@ pub struct DeviceReport {
     /// Seconds spent sending queues: waiting for the trace before the send
     /// to finish, then the copy (peer) or the read-back (host).
     pub send_seconds: f64,
-    /// A failure while moving queues (the frame is then wrong and refused).
-    pub error: Option<String>,
+    /// The device's first failure (a stage, or moving queues): the frame
+    /// is then wrong and refused. Shared so that reports stay cloneable.
+    pub error: Option<Arc<DeviceError>>,
+}
+
+impl DeviceReport {
+    /// Keeps `e` unless an earlier failure is kept.
+    pub fn fail(&mut self, e: DeviceError) {
+        self.error.get_or_insert_with(|| Arc::new(e));
+    }
+
+    /// `result`'s value, or after keeping its error, `fallback`.
+    pub fn keep<T>(&mut self, result: Result<T, DeviceError>, fallback: T) -> T {
+        result.unwrap_or_else(|e| {
+            self.fail(e);
+            fallback
+        })
+    }
+
+    /// The first failure, owned, for returning it.
+    fn take_error(&mut self) -> Option<DeviceError> {
+        let shared = self.error.take()?;
+        let device = self.name.clone();
+        Some(
+            Arc::try_unwrap(shared).unwrap_or_else(|e| DeviceError::Other { device, message: e.to_string() }),
+        )
+    }
 }
 
 /// A frame rendered on many devices.
@@ -110,14 +135,6 @@ pub fn work_units(options: &RenderOptions, workers: usize) -> Vec<Wave> {
     waves.truncate(tail);
     waves.extend(split);
     waves
-}
-
-/// The device's first stage error, as a `DeviceError`.
-fn check(device: &dyn Device) -> Result<(), DeviceError> {
-    match device.error() {
-        Some(message) => Err(DeviceError::Other { device: device.name(), message }),
-        None => Ok(()),
-    }
 }
 
 /// Prepares every device with its part, all at once (uploads and BVH builds
@@ -282,12 +299,11 @@ pub fn render_multi_with(
 
     let mut film = Film::new(frame.options.resolution);
     for (d, ((device, report), prepare)) in devices.iter_mut().zip(&mut reports).zip(prepared).enumerate() {
-        check(device.as_ref())?;
-        if let Some(message) = &report.error {
-            return Err(DeviceError::Other { device: report.name.clone(), message: message.clone() });
+        if let Some(e) = report.take_error() {
+            return Err(e);
         }
-        film.merge(&device.film());
-        report.stats = device.stats();
+        film.merge(&device.film()?);
+        report.stats = device.stats()?;
         if let Some(ring) = direct.get(d / shape.ring) {
             // Counted where the records are sent: the host never learns the lengths.
             report.bytes_sent = ring.bytes_sent(device.as_mut())?;
@@ -406,10 +422,13 @@ fn ready_frame(
             _ => &first[..],
         };
         handout.begin(mine.len(), Pacing::default());
-        let reports = match remote {
+        let mut reports = match remote {
             Some(link) => run_member(devices, mine, shape, link, &handout, &mut |_, _| {})?,
             None => run_waves(devices, mine, shape, &direct, &handout, &mut |_, _| {})?,
         };
+        if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
+            return Err(e);
+        }
         // Per worker (a device replicating, a ring), the samples it took
         // and the busy time of its busiest device: a GPU's warm-up is a few
         // milliseconds of kernels in several times as long of start-up, and
@@ -420,18 +439,11 @@ fn ready_frame(
             let worker = if remote.is_some() { 0 } else { report.island };
             if let Some((samples, seconds)) = warmed.get_mut(worker) {
                 *samples += report.waves as u64 * per_wave;
-                *seconds = seconds.max(device.stats().busy_seconds);
+                *seconds = seconds.max(device.stats()?.busy_seconds);
             }
         }
-        if let Some(failed) = reports.iter().find(|r| r.error.is_some()) {
-            return Err(DeviceError::Other {
-                device: failed.name.clone(),
-                message: failed.error.clone().unwrap_or_default(),
-            });
-        }
         for device in devices.iter_mut() {
-            check(device.as_ref())?;
-            device.reset_frame();
+            device.reset_frame()?;
         }
     }
     Ok(Ready { prepared, prepare_seconds, shape, warmed, direct })

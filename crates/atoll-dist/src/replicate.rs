@@ -9,7 +9,8 @@ use atoll_render::{Device, Wave};
 use crate::render::DeviceReport;
 
 /// One device's frame: waves from `take` until there are none, merged into
-/// the path queue as it has room when `merge`; `taken` is told of each.
+/// the path queue as it has room when `merge`; `taken` is told of each. A
+/// failure ends it, kept in `report`.
 pub(crate) fn run_device<'w>(
     device: &mut dyn Device,
     merge: bool,
@@ -17,12 +18,17 @@ pub(crate) fn run_device<'w>(
     taken: &dyn Fn(),
     report: &mut DeviceReport,
 ) {
-    render_waves(device, merge, &mut || {
+    let mut waves = 0;
+    let rendered = render_waves(device, merge, &mut || {
         let wave = take().copied();
         if wave.is_some() {
-            report.waves += 1;
+            waves += 1;
             taken();
         }
         wave
     });
+    report.waves += waves;
+    if let Err(e) = rendered {
+        report.fail(e);
+    }
 }

@@ -70,12 +70,12 @@ fn cycle(
     link: &dyn RingPeers,
     device: &mut dyn Device,
     queue: Queue,
-    trace: fn(&mut dyn Device),
+    trace: fn(&mut dyn Device) -> Result<(), DeviceError>,
     report: &mut DeviceReport,
 ) -> Result<(), RingError> {
     let RingPlace { size, order, .. } = link.place();
     for i in 0..size {
-        trace(device);
+        stage(device, report, trace);
         if i + 1 == size && order != RingOrder::Home {
             break;
         }
@@ -123,7 +123,11 @@ impl RingPeers for RingLink<'_> {
                 let sending = Instant::now();
                 // Into the allocation of the queue that came in last.
                 let mut records = self.spare.take();
-                device.read_queue_into(queue, &mut records);
+                if let Err(e) = device.read_queue_into(queue, &mut records) {
+                    // Nothing goes out, so that the ring still steps.
+                    records.clear();
+                    report.fail(e);
+                }
                 report.send_seconds += sending.elapsed().as_secs_f64();
                 report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
                 Handover::Records(records)
@@ -139,19 +143,19 @@ impl RingPeers for RingLink<'_> {
         report.wait_seconds += waited.elapsed().as_secs_f64();
         match incoming {
             Handover::Records(records) => {
-                device.write_queue(queue, &records);
+                let written = device.write_queue(queue, &records);
+                report.keep(written, ());
                 self.spare.replace(records);
             }
             Handover::Copied => {
                 let accepted = match self.direct {
-                    Some(direct) => {
-                        direct.accept(self.member, device, queue, step).map_err(|e| e.to_string())
-                    }
-                    None => Err("records sent directly to a member linked through the host".to_string()),
+                    Some(direct) => direct.accept(self.member, device, queue, step),
+                    None => Err(DeviceError::Unsupported {
+                        device: device.name(),
+                        what: "records sent directly to a member linked through the host".into(),
+                    }),
                 };
-                if let Err(e) = accepted {
-                    report.error.get_or_insert(e);
-                }
+                report.keep(accepted, ());
             }
         }
         Ok(())
@@ -176,9 +180,7 @@ impl RingLink<'_> {
         let sending = Instant::now();
         let sent = opened.and_then(|()| direct.send(self.member, device, queue, step));
         report.send_seconds += sending.elapsed().as_secs_f64();
-        if let Err(e) = sent {
-            report.error.get_or_insert(e.to_string());
-        }
+        report.keep(sent, ());
     }
 }
 
@@ -223,22 +225,24 @@ pub(crate) fn ring_loop<'w>(
         // A device that failed takes no more work but keeps stepping (with
         // empty queues) so that the others are not left waiting for it.
         let makes_queues = link.place().order == RingOrder::Spread || link.place().member == 0;
-        if device.error().is_none() && makes_queues && (!device.has_paths() || (merge && device.wants_work()))
-        {
-            if let Some(wave) = take() {
-                device.queue_work(wave);
-                report.waves += 1;
-                taken();
+        if makes_queues && report.error.is_none() {
+            let busy = has_paths(device, report);
+            if !busy || (merge && report.keep(device.wants_work(), false)) {
+                if let Some(wave) = take() {
+                    stage(device, report, |d| d.queue_work(wave));
+                    report.waves += 1;
+                    taken();
+                }
             }
         }
-        let (any, waited): (bool, Duration) = link.any(device.has_paths());
+        let (any, waited): (bool, Duration) = link.any(has_paths(device, report));
         report.wait_seconds += waited.as_secs_f64();
         if !any {
             return;
         }
-        device.refill();
+        stage(device, report, |d| d.refill());
         let traced = cycle(link, device, Queue::Paths, |d| d.trace_paths(), report).and_then(|()| {
-            device.shade();
+            stage(device, report, |d| d.shade());
             cycle(link, device, Queue::Shadows, |d| d.trace_shadows(), report)
         });
         if let Err(message) = traced {
@@ -247,6 +251,24 @@ pub(crate) fn ring_loop<'w>(
             tracing::error!("{}: {message}", device.name());
             return;
         }
-        device.resolve_shadows();
+        stage(device, report, |d| d.resolve_shadows());
     }
+}
+
+/// Runs `f` on a member's device unless it failed before; a failure is
+/// kept in `report`.
+fn stage(
+    device: &mut dyn Device,
+    report: &mut DeviceReport,
+    f: impl FnOnce(&mut dyn Device) -> Result<(), DeviceError>,
+) {
+    if report.error.is_none() {
+        let result = f(device);
+        report.keep(result, ());
+    }
+}
+
+/// Whether a member still has paths: never once it failed.
+fn has_paths(device: &dyn Device, report: &mut DeviceReport) -> bool {
+    report.error.is_none() && report.keep(device.has_paths(), false)
 }

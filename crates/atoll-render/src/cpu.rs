@@ -106,14 +106,19 @@ impl CpuDevice {
         }
     }
 
-    fn frame(&self) -> &FrameContext {
-        self.frame.as_ref().expect("CpuDevice used before prepare()")
+    /// The error of a stage called before [`Device::prepare`].
+    fn unprepared(&self) -> DeviceError {
+        DeviceError::Other { device: self.name.clone(), message: "used before prepare()".into() }
+    }
+
+    fn frame(&self) -> Result<&Arc<FrameContext>, DeviceError> {
+        self.frame.as_ref().ok_or_else(|| self.unprepared())
     }
 
     /// Most paths in flight: the frame's wave size.
-    fn capacity(&self) -> usize {
-        let options = &self.frame().options;
-        options.wave_size.min(options.pixel_count()).max(1) as usize
+    fn capacity(&self) -> Result<usize, DeviceError> {
+        let options = &self.frame()?.options;
+        Ok(options.wave_size.min(options.pixel_count()).max(1) as usize)
     }
 
     /// Camera paths not yet started.
@@ -121,8 +126,8 @@ impl CpuDevice {
         self.pending.iter().map(|w| w.pixel_count as u64).sum()
     }
 
-    fn resident(&self) -> &Resident {
-        self.resident.as_ref().expect("CpuDevice used before prepare()")
+    fn resident(&self) -> Result<&Resident, DeviceError> {
+        self.resident.as_ref().ok_or_else(|| self.unprepared())
     }
 }
 
@@ -235,20 +240,21 @@ impl Device for CpuDevice {
         })
     }
 
-    fn queue_work(&mut self, wave: &Wave) {
+    fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {
         if wave.pixel_count > 0 {
             self.pending.push_back(*wave);
         }
+        Ok(())
     }
 
-    fn wants_work(&self) -> bool {
-        self.pending_paths() <= self.capacity() as u64
+    fn wants_work(&self) -> Result<bool, DeviceError> {
+        Ok(self.pending_paths() <= self.capacity()? as u64)
     }
 
-    fn refill(&mut self) {
+    fn refill(&mut self) -> Result<(), DeviceError> {
         let start = Instant::now();
-        let frame = self.frame().clone();
-        let mut free = self.capacity().saturating_sub(self.paths.len());
+        let frame = self.frame()?.clone();
+        let mut free = self.capacity()?.saturating_sub(self.paths.len());
         let mut paths = std::mem::take(&mut self.paths);
         while free > 0 {
             let Some(&wave) = self.pending.front() else { break };
@@ -271,12 +277,14 @@ impl Device for CpuDevice {
         }
         self.paths = paths;
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
+        Ok(())
     }
 
-    fn trace_paths(&mut self) {
+    fn trace_paths(&mut self) -> Result<(), DeviceError> {
         let start = Instant::now();
+        self.resident()?;
         let mut paths = std::mem::take(&mut self.paths);
-        let (res, frame) = (self.resident(), self.frame());
+        let (res, frame) = (self.resident()?, self.frame()?);
         self.run(|| {
             paths.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
                 if let Some(hit) = res.bvh.intersect_filtered(&ray_of(r), &res.textures(frame)) {
@@ -287,11 +295,12 @@ impl Device for CpuDevice {
         self.stats.rays_traced += paths.len() as u64;
         self.paths = paths;
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
+        Ok(())
     }
 
-    fn shade(&mut self) {
+    fn shade(&mut self) -> Result<(), DeviceError> {
         let start = Instant::now();
-        let frame = self.frame().clone();
+        let frame = self.frame()?.clone();
         let mut outcomes = std::mem::take(&mut self.outcomes);
         self.run(|| {
             self.paths
@@ -319,12 +328,14 @@ impl Device for CpuDevice {
         self.outcomes = outcomes;
         self.spare_paths = std::mem::replace(&mut self.paths, next);
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
+        Ok(())
     }
 
-    fn trace_shadows(&mut self) {
+    fn trace_shadows(&mut self) -> Result<(), DeviceError> {
         let start = Instant::now();
+        self.resident()?;
         let mut shadows = std::mem::take(&mut self.shadows);
-        let (res, frame) = (self.resident(), self.frame());
+        let (res, frame) = (self.resident()?, self.frame()?);
         let textures = res.textures(frame);
         self.run(|| {
             shadows.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
@@ -336,55 +347,60 @@ impl Device for CpuDevice {
         self.stats.shadow_rays_traced += shadows.len() as u64;
         self.shadows = shadows;
         self.stats.busy_seconds += start.elapsed().as_secs_f64();
+        Ok(())
     }
 
-    fn resolve_shadows(&mut self) {
+    fn resolve_shadows(&mut self) -> Result<(), DeviceError> {
         for r in self.shadows.drain(..) {
             if !r.has(flags::OCCLUDED) {
                 self.film.add(r.pixel, r.throughput());
             }
         }
+        Ok(())
     }
 
-    fn has_paths(&self) -> bool {
-        !self.paths.is_empty() || !self.pending.is_empty()
+    fn has_paths(&self) -> Result<bool, DeviceError> {
+        Ok(!self.paths.is_empty() || !self.pending.is_empty())
     }
 
-    fn queue_len(&self, queue: Queue) -> usize {
-        match queue {
+    fn queue_len(&self, queue: Queue) -> Result<usize, DeviceError> {
+        Ok(match queue {
             Queue::Paths => self.paths.len(),
             Queue::Shadows => self.shadows.len(),
-        }
+        })
     }
 
-    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) -> Result<(), DeviceError> {
         into.clear();
         into.extend_from_slice(match queue {
             Queue::Paths => &self.paths,
             Queue::Shadows => &self.shadows,
         });
+        Ok(())
     }
 
-    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) -> Result<(), DeviceError> {
         let q = match queue {
             Queue::Paths => &mut self.paths,
             Queue::Shadows => &mut self.shadows,
         };
         q.clear();
         q.extend_from_slice(records);
+        Ok(())
     }
 
-    fn reset_frame(&mut self) {
+    fn reset_frame(&mut self) -> Result<(), DeviceError> {
         self.film = Film::new(self.film.resolution);
         self.stats = DeviceStats::default();
+        Ok(())
     }
 
-    fn film(&self) -> Film {
-        self.film.clone()
+    fn film(&self) -> Result<Film, DeviceError> {
+        Ok(self.film.clone())
     }
 
-    fn stats(&self) -> DeviceStats {
-        self.stats.clone()
+    fn stats(&self) -> Result<DeviceStats, DeviceError> {
+        Ok(self.stats.clone())
     }
 
     /// Two queues of the wave's records and the film.

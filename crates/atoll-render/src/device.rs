@@ -26,13 +26,27 @@ pub enum Queue {
     Shadows,
 }
 
-/// Errors a device reports.
+/// Errors a device reports. A device's own error type (a GPU driver's)
+/// stays the [`DeviceError::Backend`] source, so callers can walk the chain.
 #[derive(Debug, thiserror::Error)]
 pub enum DeviceError {
     #[error("{device}: scene needs {needed} bytes but the memory budget is {budget} bytes")]
     OutOfMemory { device: String, needed: u64, budget: u64 },
     #[error("{device}: {what} is not something this device can do")]
     Unsupported { device: String, what: String },
+    /// A stage called after an earlier one failed: the device does no
+    /// more work this frame (its queues read as empty), so that loops and
+    /// ring neighbours finish.
+    #[error("{device}: stopped after an earlier failure: {first}")]
+    Stopped { device: String, first: String },
+    /// What the device's back-end reported, as its own error.
+    #[error("{device}: {what}")]
+    Backend {
+        device: String,
+        what: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     #[error("{device}: {message}")]
     Other { device: String, message: String },
 }
@@ -57,7 +71,10 @@ pub struct DeviceStats {
     pub busy_seconds: f64,
 }
 
-/// One renderer back-end.
+/// One renderer back-end. Stages return errors: after one, a device may
+/// answer every later call with [`DeviceError::Stopped`] (a GPU whose
+/// stream failed), its queues reading as empty, so that the loops driving
+/// it, and a ring's other members, still finish.
 pub trait Device: Send {
     /// A short name such as `cpu` or `cuda:0`.
     fn name(&self) -> String;
@@ -78,71 +95,64 @@ pub trait Device: Send {
     /// frame over what `prepare` made resident: the scene stays, and so do
     /// the queues, which a finished frame leaves empty. Warm-up passes use
     /// it, so that the timed frame needs no second upload and BVH build.
-    fn reset_frame(&mut self);
+    fn reset_frame(&mut self) -> Result<(), DeviceError>;
 
     /// Adds the camera paths of `wave` to this device's pending work, after
     /// what is already pending; [`Device::refill`] starts them as the path
     /// queue has room. Waves pass through in order, so a device that is
     /// given waves one at a time and refilled until empty renders exactly
     /// what a wave-at-a-time loop renders.
-    fn queue_work(&mut self, wave: &Wave);
+    fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError>;
 
     /// Whether pending work may run out at the next refill (at most one
     /// queue's worth of paths not yet started, as far as the device knows):
     /// a caller merging waves queues the next one now, so the path queue
     /// stays full while long paths finish.
-    fn wants_work(&self) -> bool;
+    fn wants_work(&self) -> Result<bool, DeviceError>;
 
     /// Appends pending camera paths to the path queue, up to its capacity
     /// (the frame's wave size). A no-op when nothing is pending or the
     /// queue is full.
-    fn refill(&mut self);
+    fn refill(&mut self) -> Result<(), DeviceError>;
 
     /// Closest-hit tracing of the path queue. Hits farther than a record's
     /// `t_max` (e.g. found earlier on another device) are left alone.
-    fn trace_paths(&mut self);
+    fn trace_paths(&mut self) -> Result<(), DeviceError>;
 
     /// Shades the path queue: emission goes to the film, next-event rays to
     /// the shadow queue, and continuing paths replace the path queue.
-    fn shade(&mut self);
+    fn shade(&mut self) -> Result<(), DeviceError>;
 
     /// Any-hit tracing of the shadow queue (records already occluded are skipped).
-    fn trace_shadows(&mut self);
+    fn trace_shadows(&mut self) -> Result<(), DeviceError>;
 
     /// Adds unoccluded shadow contributions to the film; empties the shadow queue.
-    fn resolve_shadows(&mut self);
+    fn resolve_shadows(&mut self) -> Result<(), DeviceError>;
 
     /// Whether the path queue may still hold paths or work is pending. A
     /// device for which reading the length back is expensive may answer
     /// `true` for an empty queue (one bounce late): every stage on an empty
     /// queue does nothing.
-    fn has_paths(&self) -> bool;
+    fn has_paths(&self) -> Result<bool, DeviceError>;
 
-    fn queue_len(&self, queue: Queue) -> usize;
+    fn queue_len(&self, queue: Queue) -> Result<usize, DeviceError>;
     /// `queue`'s records, copied into `into` (its contents replaced, its
     /// allocation reused: a ring through the host moves a queue at every
     /// step, and a fresh allocation of a wave's records costs more in page
     /// faults than the copy itself).
-    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>);
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) -> Result<(), DeviceError>;
     /// `queue`'s records, in a new vector.
-    fn read_queue(&self, queue: Queue) -> Vec<RayRecord> {
+    fn read_queue(&self, queue: Queue) -> Result<Vec<RayRecord>, DeviceError> {
         let mut records = Vec::new();
-        self.read_queue_into(queue, &mut records);
-        records
+        self.read_queue_into(queue, &mut records)?;
+        Ok(records)
     }
-    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]);
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) -> Result<(), DeviceError>;
 
     /// The radiance sums this device accumulated.
-    fn film(&self) -> Film;
+    fn film(&self) -> Result<Film, DeviceError>;
 
-    fn stats(&self) -> DeviceStats;
-
-    /// The first error a stage met, for devices whose stages can fail
-    /// (a GPU's kernel launch); after one, stages do nothing and queues
-    /// read as empty, so render loops end and callers check this.
-    fn error(&self) -> Option<String> {
-        None
-    }
+    fn stats(&self) -> Result<DeviceStats, DeviceError>;
 
     // --- Memory facts: what placement plans with ---
 

@@ -37,32 +37,36 @@ impl RenderOutput {
 
 /// One bounce of the wavefront loop: top the path queue up with pending
 /// camera paths, trace, shade, trace and resolve shadow rays.
-pub fn bounce(device: &mut dyn Device) {
-    device.refill();
-    device.trace_paths();
-    device.shade();
-    device.trace_shadows();
-    device.resolve_shadows();
+pub fn bounce(device: &mut dyn Device) -> Result<(), DeviceError> {
+    device.refill()?;
+    device.trace_paths()?;
+    device.shade()?;
+    device.trace_shadows()?;
+    device.resolve_shadows()
 }
 
 /// Renders waves from `take` on `device` until `take` has none left and
 /// every path has finished. With `merge` the next wave is queued while the
 /// current one's paths still run (wave-front merging), else only once the
-/// device is idle.
-pub fn render_waves(device: &mut dyn Device, merge: bool, take: &mut dyn FnMut() -> Option<Wave>) {
+/// device is idle. Stops at the first error.
+pub fn render_waves(
+    device: &mut dyn Device,
+    merge: bool,
+    take: &mut dyn FnMut() -> Option<Wave>,
+) -> Result<(), DeviceError> {
     loop {
         // No queue lengths are asked for here beyond `has_paths` and
         // `wants_work`: on a GPU these read a status the device copies back
         // a bounce ahead, so the GPU never waits for the host.
-        let busy = device.has_paths();
-        if !busy || (merge && device.wants_work()) {
+        let busy = device.has_paths()?;
+        if !busy || (merge && device.wants_work()?) {
             match take() {
-                Some(wave) => device.queue_work(&wave),
-                None if !busy => return,
+                Some(wave) => device.queue_work(&wave)?,
+                None if !busy => return Ok(()),
                 None => {}
             }
         }
-        bounce(device);
+        bounce(device)?;
     }
 }
 
@@ -96,11 +100,11 @@ pub fn warm_up_waves(waves: &[Wave]) -> impl Iterator<Item = Wave> + '_ {
 
 /// Renders the first sample of `frame` on a prepared `device`, then clears
 /// its film and counters ([`Device::reset_frame`]).
-pub fn warm_up(device: &mut dyn Device, frame: &FrameContext) {
+pub fn warm_up(device: &mut dyn Device, frame: &FrameContext) -> Result<(), DeviceError> {
     let waves = Wave::all(&frame.options);
     let mut first = warm_up_waves(&waves);
-    render_waves(device, frame.options.merge_waves, &mut || first.next());
-    device.reset_frame();
+    render_waves(device, frame.options.merge_waves, &mut || first.next())?;
+    device.reset_frame()
 }
 
 fn render_frame(
@@ -115,7 +119,7 @@ fn render_frame(
     let prepare = device.prepare(scene, &ScenePart::whole(scene), &frame)?;
     let prepare_seconds = start.elapsed().as_secs_f64();
     if warmup {
-        warm_up(device, &frame);
+        warm_up(device, &frame)?;
     }
     let waves = Wave::all(&frame.options);
     let start = Instant::now();
@@ -127,9 +131,9 @@ fn render_frame(
             progress(taken, waves.len());
         }
         wave
-    });
+    })?;
     let render_seconds = start.elapsed().as_secs_f64();
-    let mut film = device.film();
+    let mut film = device.film()?;
     film.spp = frame.options.spp;
-    Ok(RenderOutput { film, prepare, device: device.stats(), render_seconds, prepare_seconds })
+    Ok(RenderOutput { film, prepare, device: device.stats()?, render_seconds, prepare_seconds })
 }

@@ -33,48 +33,48 @@ impl Device for Counting {
     ) -> Result<PrepareStats, DeviceError> {
         self.inner.prepare(scene, part, frame)
     }
-    fn reset_frame(&mut self) {
+    fn reset_frame(&mut self) -> Result<(), DeviceError> {
         self.inner.reset_frame()
     }
-    fn queue_work(&mut self, wave: &Wave) {
+    fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {
         self.inner.queue_work(wave)
     }
-    fn wants_work(&self) -> bool {
+    fn wants_work(&self) -> Result<bool, DeviceError> {
         self.inner.wants_work()
     }
-    fn refill(&mut self) {
+    fn refill(&mut self) -> Result<(), DeviceError> {
         self.inner.refill()
     }
-    fn trace_paths(&mut self) {
+    fn trace_paths(&mut self) -> Result<(), DeviceError> {
         self.bounces += 1;
-        self.queue_lengths.push(self.inner.queue_len(Queue::Paths));
+        self.queue_lengths.push(self.inner.queue_len(Queue::Paths)?);
         self.inner.trace_paths()
     }
-    fn shade(&mut self) {
+    fn shade(&mut self) -> Result<(), DeviceError> {
         self.inner.shade()
     }
-    fn trace_shadows(&mut self) {
+    fn trace_shadows(&mut self) -> Result<(), DeviceError> {
         self.inner.trace_shadows()
     }
-    fn resolve_shadows(&mut self) {
+    fn resolve_shadows(&mut self) -> Result<(), DeviceError> {
         self.inner.resolve_shadows()
     }
-    fn has_paths(&self) -> bool {
+    fn has_paths(&self) -> Result<bool, DeviceError> {
         self.inner.has_paths()
     }
-    fn queue_len(&self, queue: Queue) -> usize {
+    fn queue_len(&self, queue: Queue) -> Result<usize, DeviceError> {
         self.inner.queue_len(queue)
     }
-    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) {
+    fn read_queue_into(&self, queue: Queue, into: &mut Vec<RayRecord>) -> Result<(), DeviceError> {
         self.inner.read_queue_into(queue, into)
     }
-    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) {
+    fn write_queue(&mut self, queue: Queue, records: &[RayRecord]) -> Result<(), DeviceError> {
         self.inner.write_queue(queue, records)
     }
-    fn film(&self) -> Film {
+    fn film(&self) -> Result<Film, DeviceError> {
         self.inner.film()
     }
-    fn stats(&self) -> DeviceStats {
+    fn stats(&self) -> Result<DeviceStats, DeviceError> {
         self.inner.stats()
     }
     fn frame_bytes(&self, options: &atoll_render::RenderOptions) -> u64 {

@@ -97,9 +97,6 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     // Warm-up: kernel compilation, caches, clocks.
     run_once(1)?;
     let mut runs = (0..args.runs.max(1)).map(|_| run_once(args.spp)).collect::<Result<Vec<_>, _>>()?;
-    if let Some(message) = devices.iter().find_map(|d| d.error()) {
-        return Err(CliError::Runtime(format!("rendering failed: {message}")));
-    }
     runs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (seconds, samples, rays) = runs[runs.len() / 2];
     println!(
@@ -166,20 +163,20 @@ fn queue_copies(args: &BenchArgs, mut selected: crate::device::Selected) -> Resu
     for records in [65_536usize, 262_144, 1_048_576].into_iter().filter(|&n| n <= options.wave_size as usize)
     {
         let wave = vec![<atoll_render::RayRecord as bytemuck::Zeroable>::zeroed(); records];
-        device.write_queue(queue, &wave);
-        let _ = device.read_queue(queue);
-        let timed = |copy: &mut dyn FnMut()| {
+        let failed = |e: atoll_render::DeviceError| CliError::Runtime(e.to_string());
+        device.write_queue(queue, &wave).map_err(failed)?;
+        device.read_queue(queue).map_err(failed)?;
+        let timed = |copy: &mut dyn FnMut() -> Result<(), atoll_render::DeviceError>| {
             let start = std::time::Instant::now();
-            (0..10).for_each(|_| copy());
-            (10 * std::mem::size_of_val(wave.as_slice())) as f64 / start.elapsed().as_secs_f64() / 1e9
+            (0..10).try_for_each(|_| copy()).map_err(failed)?;
+            Ok::<_, CliError>(
+                (10 * std::mem::size_of_val(wave.as_slice())) as f64 / start.elapsed().as_secs_f64() / 1e9,
+            )
         };
         // Into one vector, as a ring's hand-overs do.
         let mut back = Vec::new();
-        let down = timed(&mut || device.read_queue_into(queue, &mut back));
-        let up = timed(&mut || device.write_queue(queue, &wave));
-        if let Some(message) = device.error() {
-            return Err(CliError::Runtime(message));
-        }
+        let down = timed(&mut || device.read_queue_into(queue, &mut back))?;
+        let up = timed(&mut || device.write_queue(queue, &wave))?;
         println!(
             "queue through the host  {records:>8} records ({:>4} MiB): to the host {down:.1} GB/s, to the device {up:.1} GB/s ({})",
             std::mem::size_of_val(wave.as_slice()) >> 20,

@@ -192,9 +192,8 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
     })
-    .map_err(|e| CliError::Runtime(e.to_string()))?;
+    .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
     bar.finish_and_clear();
-    selected.check()?;
     out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
     let run = Run {
         load_seconds,

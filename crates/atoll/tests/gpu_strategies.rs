@@ -91,7 +91,6 @@ fn replicate_and_ring_on_two_gpus_are_one_gpu() {
         let single = render(&mut one, &scene, opts.clone(), &mut |_, _| {}).unwrap();
         let mut reference = single.film;
         reference.spp = opts.spp;
-        assert!(one.error().is_none());
 
         let out =
             render_multi(&mut gpus(ordinals), &scene, opts.clone(), &Layout::Replicate, None, &mut |_, _| {})
