@@ -1,14 +1,234 @@
-//! Placement policy: how much scene each device may hold, and how many
-//! more devices (wavefronts: on a GPU, streams) each piece of hardware
-//! takes beside the listed ones, within its memory. Decided from the
-//! devices' own memory facts ([`Device::free_memory`],
+//! Placement policy: which strategy a frame's devices use ([`place`]),
+//! how the scene is cut for a ring, how much scene each device may hold,
+//! and how many more devices (wavefronts: on a GPU, streams) each piece of
+//! hardware takes beside the listed ones, within its memory. Decided from
+//! the devices' own memory facts ([`Device::free_memory`],
 //! [`Device::frame_bytes`], [`Device::byte_model`]), for any device kind.
 
-use atoll_bvh::{part_bytes, ScenePart};
+use atoll_bvh::{part_bytes, ByteModel, ScenePart};
 use atoll_render::{Device, DeviceError, RenderOptions};
 use atoll_scene::Scene;
 
-use crate::Partition;
+use crate::partition::{
+    partition, plan, PartitionError, PartitionOptions, Plan, Strategy, GPU_INSTANCE_COST,
+};
+use crate::spatial::partition_spatial;
+use crate::work::partition_work_balanced;
+use crate::{Layout, Partition, RingOrder};
+
+/// How a ring's parts are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Partitioning {
+    /// `Memory` for rings of 2, `Cost` for longer rings (what measured
+    /// fastest; see [`partition_ring`]).
+    #[default]
+    Auto,
+    /// Compact chunks balanced by bytes and by the frame's estimated ray
+    /// work ([`partition_work_balanced`]).
+    Work,
+    /// Spatial slabs, one region per part ([`partition_spatial`]).
+    Spatial,
+    /// Objects greedily onto the least-loaded part ([`partition()`]).
+    Memory,
+    /// As `Memory`, a part's load being its bytes plus this many per
+    /// instance it holds: the GPU's ray work ([`GPU_INSTANCE_COST`]).
+    Cost(u64),
+}
+
+/// Parts for rings of `k` as `partitioning` says, and what they are.
+pub fn partition_ring(
+    scene: &Scene,
+    k: usize,
+    model: &ByteModel,
+    budget: Option<u64>,
+    resolution: glam::UVec2,
+    partitioning: Partitioning,
+) -> Result<(Partition, &'static str), PartitionError> {
+    let options = PartitionOptions { budget, ..Default::default() };
+    let memory = || partition(scene, k, model, &options).map(|p| (p, "memory-balanced"));
+    let spatial = || partition_spatial(scene, k, model, &options).map(|p| (p, "spatial slabs"));
+    let work = || {
+        partition_work_balanced(scene, k, resolution, model, &options).map(|p| (p, "work-balanced chunks"))
+    };
+    let cost = |per_instance: u64| {
+        let options = PartitionOptions { instance_cost: per_instance, ..options };
+        partition(scene, k, model, &options).map(|p| (p, "balanced by bytes and instances"))
+    };
+    match partitioning {
+        Partitioning::Memory => memory(),
+        Partitioning::Cost(per_instance) => cost(per_instance),
+        Partitioning::Spatial => spatial(),
+        Partitioning::Work => work(),
+        // Rings of 2: memory-balanced parts, the least total work, and the
+        // fastest measured. Longer rings: bytes and instances, or one part
+        // gets every instanced object; bytes alone where that does not fit
+        // the budget (BENCHMARKS.md).
+        Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
+        Partitioning::Auto => memory(),
+    }
+}
+
+/// The widest of `models`, element by element: what partitioning charges
+/// so that every device kind present can hold any part.
+pub fn widest_model(models: impl IntoIterator<Item = ByteModel>) -> ByteModel {
+    models
+        .into_iter()
+        .reduce(|a, b| ByteModel {
+            per_triangle: a.per_triangle.max(b.per_triangle),
+            per_vertex: a.per_vertex.max(b.per_vertex),
+            per_instance: a.per_instance.max(b.per_instance),
+            per_object: a.per_object.max(b.per_object),
+            scratch_per_triangle: a.scratch_per_triangle.max(b.scratch_per_triangle),
+        })
+        .unwrap_or(ByteModel::CPU)
+}
+
+/// What the caller asks of [`place`].
+#[derive(Clone, Debug)]
+pub struct PlacementRequest {
+    /// Replicate, ring or let the scene's size decide.
+    pub strategy: Strategy,
+    /// Devices per ring; `None`: the fewest the budget allows.
+    pub ring_size: Option<usize>,
+    /// Memory budget per device (`None`: what each has).
+    pub budget: Option<u64>,
+    /// How a ring's parts are made.
+    pub partitioning: Partitioning,
+    /// Where a ring's queues start and end their cycles.
+    pub ring_order: RingOrder,
+    /// Wavefronts per piece of hardware wanted: more devices beside the
+    /// listed ones (on a GPU, streams) sharing their scene or parts.
+    pub streams: usize,
+    /// Per listed device, whether it may take more wavefronts beside it
+    /// when replicating (not when the same GPU is listed twice: those
+    /// devices already share it).
+    pub may_add_wavefronts: Vec<bool>,
+}
+
+/// What [`place`] decided.
+#[derive(Clone, Debug)]
+pub struct Placement {
+    /// The strategy and, for rings, their size and number.
+    pub plan: Plan,
+    /// Where the scene goes on the devices (those `place` kept and added).
+    pub layout: Layout,
+    /// The ring's partition, and what kind it is.
+    pub partition: Option<(Partition, &'static str)>,
+    /// Lines worth telling the user (devices left idle, wavefronts added).
+    pub notes: Vec<String>,
+}
+
+/// Why [`place`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum PlacementError {
+    /// The request itself is inconsistent (a ring size out of range).
+    #[error("{0}")]
+    Request(String),
+    /// The scene does not fit the devices as asked, or cannot be cut.
+    #[error(transparent)]
+    Partition(#[from] PartitionError),
+    /// A device could not be added beside another.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+}
+
+/// Chooses the strategy for `devices` rendering `scene` (replicate when the
+/// scene fits each device, else rings of the fewest devices that hold it),
+/// partitions the scene for rings, and adds the further devices
+/// `request.streams` asks for (more islands over the same hardware, or
+/// more replicas sharing a scene). Devices a ring plan cannot use (N not a
+/// multiple of K) are dropped.
+pub fn place(
+    devices: &mut Vec<Box<dyn Device>>,
+    scene: &Scene,
+    options: &RenderOptions,
+    request: &PlacementRequest,
+) -> Result<Placement, PlacementError> {
+    let n = devices.len();
+    let model = widest_model(devices.iter().map(|d| d.byte_model()));
+    // Replicas on one GPU share one copy of the scene; ring members on one
+    // GPU hold different parts, so each has its share of the memory.
+    let replica_budget = scene_budget(devices, scene, request.budget, options, Sharing::Scene);
+    let budget = scene_budget(devices, scene, request.budget, options, Sharing::Memory);
+    let plan = match (request.strategy, request.ring_size) {
+        (Strategy::Ring, Some(k)) if (2..=n).contains(&k) => Plan::Ring { k, islands: n / k },
+        (_, Some(k)) => {
+            return Err(PlacementError::Request(format!(
+                "--ring-size {k}: needs --strategy ring and between 2 and {n} (the devices listed)"
+            )))
+        }
+        (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring))?,
+        (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))?,
+        (Strategy::Auto, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
+            .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto)))?,
+    };
+    let mut notes = Vec::new();
+    let (layout, partition) = match plan {
+        Plan::Replicate => {
+            // Replicas on one GPU share one copy of the scene (the first
+            // prepares it, the others add only their queues and film, each
+            // checked against what is then free): no shared-out budgets.
+            for d in devices.iter_mut() {
+                d.set_memory_budget(request.budget);
+            }
+            (Layout::Replicate, None)
+        }
+        Plan::Ring { k, islands } => {
+            let (p, kind) =
+                partition_ring(scene, k, &model, budget, options.resolution, request.partitioning)?;
+            (Layout::Ring { parts: p.parts.clone(), islands, order: request.ring_order }, Some((p, kind)))
+        }
+    };
+    let used = match plan {
+        Plan::Ring { k, islands } => k * islands,
+        Plan::Replicate => n,
+    };
+    if used < n {
+        notes.push(format!("{} of {n} devices idle (rings of {used} devices in all)", n - used));
+    }
+    devices.truncate(used);
+    let mut layout = layout;
+    match (&mut layout, &partition) {
+        (Layout::Ring { parts, islands, .. }, Some((p, _))) => {
+            // More islands over the same hardware, each member sharing the
+            // part of the device it copies: while one ring waits on a
+            // hand-over, the others' kernels keep the GPUs busy.
+            let copies = ring_copies(devices, request.streams, p, options, request.budget);
+            let ring = parts.len();
+            for _ in 0..copies {
+                for d in 0..ring * *islands {
+                    let Some(more) = devices[d].another_on_same_hardware() else { continue };
+                    let mut more = more?;
+                    more.set_memory_budget(request.budget);
+                    devices.push(more);
+                }
+            }
+            if copies > 0 {
+                notes
+                    .push(format!("{} islands of {ring} sharing their GPUs' parts", *islands * (copies + 1)));
+                *islands *= copies + 1;
+            }
+        }
+        _ => {
+            for d in 0..n {
+                if !request.may_add_wavefronts.get(d).copied().unwrap_or(false) {
+                    continue;
+                }
+                let more =
+                    more_wavefronts(devices[d].as_ref(), request.streams, scene, options, request.budget)?;
+                if !more.is_empty() {
+                    notes.push(format!(
+                        "{}: {} wavefronts sharing its replica",
+                        devices[d].name(),
+                        more.len() + 1
+                    ));
+                }
+                devices.extend(more);
+            }
+        }
+    }
+    Ok(Placement { plan, layout, partition, notes })
+}
 
 /// What devices listed on one piece of hardware share of it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -8,12 +8,10 @@ use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::partition::GPU_INSTANCE_COST;
-use atoll_dist::placement::{more_wavefronts, ring_copies, scene_budget, Sharing};
-use atoll_dist::spatial::partition_spatial;
-use atoll_dist::work::partition_work_balanced;
+pub use atoll_dist::placement::Partitioning;
+use atoll_dist::placement::{place, widest_model, PlacementError, PlacementRequest};
 use atoll_dist::{
-    partition, plan, render_multi, render_multi_warmed, Layout, MultiOutput, Partition, PartitionOptions,
-    Plan, RingOrder, Strategy, Transport,
+    render_multi, render_multi_warmed, Layout, MultiOutput, Partition, Plan, RingOrder, Strategy, Transport,
 };
 use atoll_render::{CpuDevice, Device, RenderOptions};
 use atoll_scene::Scene;
@@ -160,65 +158,13 @@ pub fn open_devices(
     Ok(devices)
 }
 
-/// Parts for rings of `k` as `partitioning` says, and what they are.
-pub fn partition_for_ring(
-    scene: &Scene,
-    k: usize,
-    model: &ByteModel,
-    budget: Option<u64>,
-    resolution: glam::UVec2,
-    partitioning: Partitioning,
-) -> Result<(Partition, &'static str), CliError> {
-    let options = PartitionOptions { budget, ..Default::default() };
-    let memory = || partition(scene, k, model, &options).map(|p| (p, "memory-balanced"));
-    let spatial = || partition_spatial(scene, k, model, &options).map(|p| (p, "spatial slabs"));
-    let work = || {
-        partition_work_balanced(scene, k, resolution, model, &options).map(|p| (p, "work-balanced chunks"))
-    };
-    let cost = |per_instance: u64| {
-        let options = PartitionOptions { instance_cost: per_instance, ..options };
-        partition(scene, k, model, &options).map(|p| (p, "balanced by bytes and instances"))
-    };
-    let (p, kind) = match partitioning {
-        Partitioning::Memory => memory(),
-        Partitioning::Cost(per_instance) => cost(per_instance),
-        Partitioning::Spatial => spatial(),
-        Partitioning::Work => work(),
-        // Rings of 2: memory-balanced parts, the least total work (a ring
-        // of two on one H100: 1.00-1.02x replicate's work, work chunks
-        // 0.80-0.83x, slabs 0.80-0.81x) and on two halves of an H100
-        // 0.80-0.87x replicate's speed (BENCHMARKS.md, issue 4). Longer
-        // rings: bytes and instances, or one part gets every instanced
-        // object (a ring of 4 on H100 quarters: 2.13x one quarter against
-        // 1.47-1.55x; issue 6); bytes alone where that does not fit the
-        // budget.
-        Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
-        Partitioning::Auto => memory(),
-    }
-    .map_err(|e| CliError::Runtime(e.to_string()))?;
-    Ok((p, kind))
-}
-
-/// The byte model partitioning uses: the largest need per element of the
-/// device kinds present, so that every device can hold any part.
+/// The byte model partitioning uses: the widest of the device kinds
+/// present, so that every device can hold any part (for ranks, which plan
+/// from the kinds every rank has before opening devices).
 pub fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
-    let mut models = Vec::new();
-    if specs.contains(&DeviceSpec::Cpu) {
-        models.push(ByteModel::CPU);
-    }
-    if specs.iter().any(|s| s.ordinal().is_some()) {
-        models.push(atoll_cuda::scene::byte_model());
-    }
-    models
-        .into_iter()
-        .reduce(|a, b| ByteModel {
-            per_triangle: a.per_triangle.max(b.per_triangle),
-            per_vertex: a.per_vertex.max(b.per_vertex),
-            per_instance: a.per_instance.max(b.per_instance),
-            per_object: a.per_object.max(b.per_object),
-            scratch_per_triangle: a.scratch_per_triangle.max(b.scratch_per_triangle),
-        })
-        .unwrap_or(ByteModel::CPU)
+    let cpu = specs.contains(&DeviceSpec::Cpu).then_some(ByteModel::CPU);
+    let gpu = specs.iter().any(|s| s.ordinal().is_some()).then(atoll_cuda::scene::byte_model);
+    widest_model(cpu.into_iter().chain(gpu))
 }
 
 /// What `atoll render` hands to the multi-device path.
@@ -258,8 +204,8 @@ pub fn render(
         .map_err(|e| CliError::Runtime(e.to_string()))
 }
 
-/// Opens the listed devices (and the further wavefronts `--streams` adds),
-/// plans and partitions `scene` over them, and prints the choice.
+/// Opens the listed devices, places `scene` on them (atoll-dist decides
+/// the strategy, partition and further wavefronts), and prints the choice.
 pub fn setup(
     scene: &Arc<Scene>,
     options: &RenderOptions,
@@ -278,102 +224,44 @@ pub fn setup(
             break;
         }
     }
-    let model = byte_model(args.specs);
-    // Replicas on one GPU share one copy of the scene; ring members on one
-    // GPU hold different parts, so each has its share of the memory.
-    let replica_budget = scene_budget(&devices, scene, args.budget, options, Sharing::Scene);
-    let budget = scene_budget(&devices, scene, args.budget, options, Sharing::Memory);
-    let options_resolution = options.resolution;
-    let n = args.specs.len();
-    let plan = match (args.strategy, args.ring_size) {
-        (Strategy::Ring, Some(k)) if (2..=n).contains(&k) => Ok(Plan::Ring { k, islands: n / k }),
-        (_, Some(k)) => {
-            return Err(CliError::Input(format!(
-                "--ring-size {k}: needs --strategy ring and between 2 and {n} (the devices listed)"
-            )))
-        }
-        (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring)),
-        (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)),
-        (Strategy::Auto, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
-            .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto))),
-    }
-    .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let (mut layout, partition) = match plan {
-        Plan::Replicate => {
-            // Replicas on one GPU share one copy of the scene (the first
-            // prepares it, the others add only their queues and film, each
-            // checked against what is then free): no halved budgets.
-            for d in devices.iter_mut() {
-                d.set_memory_budget(args.budget);
-            }
-            (Layout::Replicate, None)
-        }
-        Plan::Ring { k, islands } => {
-            let (p, kind) =
-                partition_for_ring(scene, k, &model, budget, options_resolution, args.partitioning)?;
-            eprintln!("partition: {kind}");
-            (Layout::Ring { parts: p.parts.clone(), islands, order: args.ring_order }, Some(p))
-        }
+    // More wavefronts beside each GPU listed once, and each GPU part.
+    let may_add_wavefronts = args
+        .specs
+        .iter()
+        .map(|spec| match *spec {
+            DeviceSpec::Cpu => false,
+            DeviceSpec::CudaPart { .. } => true,
+            DeviceSpec::Cuda(_) => args.specs.iter().filter(|s| *s == spec).count() == 1,
+        })
+        .collect();
+    let request = PlacementRequest {
+        strategy: args.strategy,
+        ring_size: args.ring_size,
+        budget: args.budget,
+        partitioning: args.partitioning,
+        ring_order: args.ring_order,
+        streams: args.streams,
+        may_add_wavefronts,
     };
-    eprintln!("{}", describe(&plan, partition.as_ref(), args.specs.len()));
-    if matches!(layout, Layout::Ring { order: RingOrder::Home, .. }) {
+    let placement = place(&mut devices, scene, options, &request).map_err(|e| match e {
+        PlacementError::Request(message) => CliError::Input(message),
+        other => CliError::Runtime(other.to_string()),
+    })?;
+    if let Some((_, kind)) = &placement.partition {
+        eprintln!("partition: {kind}");
+    }
+    let partition = placement.partition.as_ref().map(|(p, _)| p);
+    eprintln!("{}", describe(&placement.plan, partition, args.specs.len()));
+    if matches!(placement.layout, Layout::Ring { order: RingOrder::Home, .. }) {
         eprintln!("ring order: member 0 makes and shades every queue");
     }
     if let Some(path) = args.ownership {
-        write_ownership(scene, options, partition.as_ref(), path)?;
+        write_ownership(scene, options, partition, path)?;
     }
-    // A ring plan may leave devices over (N not a multiple of K): they idle.
-    let used = match plan {
-        Plan::Ring { k, islands } => k * islands,
-        Plan::Replicate => args.specs.len(),
-    };
-    if used < args.specs.len() {
-        eprintln!(
-            "note: {} of {} devices idle (rings of {used} devices in all)",
-            args.specs.len() - used,
-            args.specs.len()
-        );
+    for note in &placement.notes {
+        eprintln!("note: {note}");
     }
-    devices.truncate(used);
-    if let (Layout::Ring { parts, islands, .. }, Some(p)) = (&mut layout, &partition) {
-        // More islands over the same GPUs, each member sharing the part of
-        // the device it copies: while one ring waits on a hand-over, the
-        // others' kernels keep the GPUs busy.
-        let copies = ring_copies(&devices, args.streams, p, options, args.budget);
-        let ring = parts.len();
-        for _ in 0..copies {
-            for d in 0..ring * *islands {
-                let Some(more) = devices[d].another_on_same_hardware() else { continue };
-                let mut more = more.map_err(|e| CliError::Runtime(e.to_string()))?;
-                more.set_memory_budget(args.budget);
-                devices.push(more);
-            }
-        }
-        if copies > 0 {
-            eprintln!("{} islands of {ring} sharing their GPUs' parts", *islands * (copies + 1));
-            *islands *= copies + 1;
-        }
-    }
-    if matches!(plan, Plan::Replicate) {
-        // More wavefronts on each GPU listed once (and on each GPU part),
-        // sharing its replica.
-        for (d, spec) in args.specs.iter().enumerate() {
-            let alone = match *spec {
-                DeviceSpec::Cpu => false,
-                DeviceSpec::CudaPart { .. } => true,
-                DeviceSpec::Cuda(_) => args.specs.iter().filter(|s| *s == spec).count() == 1,
-            };
-            if alone {
-                let more = more_wavefronts(devices[d].as_ref(), args.streams, scene, options, args.budget)
-                    .map_err(|e| CliError::Runtime(e.to_string()))?;
-                if !more.is_empty() {
-                    eprintln!("{}: {} wavefronts sharing its replica", devices[d].name(), more.len() + 1);
-                }
-                devices.extend(more);
-            }
-        }
-    }
-    Ok((devices, layout))
+    Ok((devices, placement.layout))
 }
 
 /// One line saying what was chosen and why.
@@ -444,25 +332,6 @@ pub fn device_rows(out: &MultiOutput) -> String {
         );
     }
     s
-}
-
-/// How `--partition` makes a ring's parts.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Partitioning {
-    /// `Memory` for rings of 2, `Cost` for longer rings (what measured
-    /// fastest; see `render`).
-    #[default]
-    Auto,
-    /// Compact chunks balanced by bytes and by the frame's estimated ray
-    /// work ([`partition_work_balanced`]).
-    Work,
-    /// Spatial slabs, one region per part ([`partition_spatial`]).
-    Spatial,
-    /// Objects greedily onto the least-loaded part ([`partition`]).
-    Memory,
-    /// As `Memory`, a part's load being its bytes plus this many per
-    /// instance it holds: the GPU's ray work ([`GPU_INSTANCE_COST`]).
-    Cost(u64),
 }
 
 /// Parses `--partition`.

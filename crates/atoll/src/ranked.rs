@@ -250,8 +250,15 @@ fn rank_ring(
     if k == 1 {
         return Ok(None);
     }
-    let (partition, kind) =
-        multi::partition_for_ring(scene, k, &model, budget, options.resolution, args.partitioning)?;
+    let (partition, kind) = atoll_dist::placement::partition_ring(
+        scene,
+        k,
+        &model,
+        budget,
+        options.resolution,
+        args.partitioning,
+    )
+    .map_err(|e| CliError::Runtime(e.to_string()))?;
     let ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
     if ranks.is_root() {
         let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
