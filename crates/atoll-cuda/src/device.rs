@@ -46,11 +46,6 @@ const BLOCK: u32 = 128;
 /// and material tables) before they are built: a generous allowance.
 const PARAMS_ALLOWANCE: u64 = 16 << 20;
 
-/// Records per queue for a frame of `options`.
-fn queue_capacity(options: &RenderOptions) -> u32 {
-    options.wave_size.min(options.pixel_count()).max(1)
-}
-
 /// Bytes a GPU device allocates for a frame of `options` besides the
 /// scene ([`Device::frame_bytes`]): queues, wave feed, film, an allowance
 /// for the frame parameters (lights, materials: known only once the frame
@@ -62,7 +57,7 @@ pub fn frame_bytes(options: &RenderOptions) -> u64 {
 /// A frame's queues, wave feed and film: what a device allocates for a
 /// frame besides the scene and the frame parameters.
 fn queues_and_film_bytes(options: &RenderOptions) -> u64 {
-    queue_bytes(queue_capacity(options)) + FEED_BYTES + options.pixel_count() as u64 * 12
+    queue_bytes(options.queue_capacity()) + FEED_BYTES + options.pixel_count() as u64 * 12
 }
 /// The kernel file of the wavefront stages.
 const WAVEFRONT: &str = "wavefront.cu";
@@ -397,7 +392,7 @@ impl CudaDevice {
         self.release();
         let gpu = self.gpu.clone();
         let options = &frame.options;
-        let capacity = queue_capacity(options);
+        let capacity = options.queue_capacity();
         let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
         let frame_bytes = queues_and_film_bytes(options) + params_bytes;
 
@@ -774,7 +769,7 @@ impl Device for CudaDevice {
             };
             plan.check(&label, d.memory_budget, d.gpu.free_memory()?)?;
             let kernels = Kernels::load(&d.gpu, frame)?;
-            d.make_resident(frame, shared, kernels, queue_capacity(&frame.options))
+            d.make_resident(frame, shared, kernels, frame.options.queue_capacity())
         };
         attempt(self).map_err(|e| {
             self.resident = None;

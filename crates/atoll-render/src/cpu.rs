@@ -117,8 +117,7 @@ impl CpuDevice {
 
     /// Most paths in flight: the frame's wave size.
     fn capacity(&self) -> Result<usize, DeviceError> {
-        let options = &self.frame()?.options;
-        Ok(options.wave_size.min(options.pixel_count()).max(1) as usize)
+        Ok(self.frame()?.options.queue_capacity() as usize)
     }
 
     /// Camera paths not yet started.
@@ -405,8 +404,8 @@ impl Device for CpuDevice {
 
     /// Two queues of the wave's records and the film.
     fn frame_bytes(&self, options: &RenderOptions) -> u64 {
-        let wave = options.wave_size.min(options.pixel_count()) as u64;
-        2 * wave * std::mem::size_of::<RayRecord>() as u64 + options.pixel_count() as u64 * 12
+        2 * options.queue_capacity() as u64 * std::mem::size_of::<RayRecord>() as u64
+            + options.pixel_count() as u64 * 12
     }
 
     fn set_memory_budget(&mut self, bytes: Option<u64>) {

@@ -63,6 +63,12 @@ impl RenderOptions {
     pub fn pixel_count(&self) -> u32 {
         self.resolution.x * self.resolution.y
     }
+
+    /// Records a device's path queue holds for this frame: the wave size,
+    /// or the whole image when that is smaller (at least one).
+    pub fn queue_capacity(&self) -> u32 {
+        self.wave_size.min(self.pixel_count()).max(1)
+    }
 }
 
 /// Everything shading needs, identical on every device.

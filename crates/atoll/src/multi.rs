@@ -4,12 +4,11 @@
 use std::path::Path;
 use std::sync::Arc;
 
-use atoll_bvh::ByteModel;
 use atoll_cuda::device::CudaDevice;
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::partition::GPU_INSTANCE_COST;
 pub use atoll_dist::placement::Partitioning;
-use atoll_dist::placement::{place, widest_model, PlacementError, PlacementRequest};
+use atoll_dist::placement::{place, PlacementError, PlacementRequest};
 use atoll_dist::{
     render_multi, render_multi_warmed, Layout, MultiOutput, Partition, Plan, RingOrder, Strategy, Transport,
 };
@@ -156,15 +155,6 @@ pub fn open_devices(
         }
     }
     Ok(devices)
-}
-
-/// The byte model partitioning uses: the widest of the device kinds
-/// present, so that every device can hold any part (for ranks, which plan
-/// from the kinds every rank has before opening devices).
-pub fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
-    let cpu = specs.contains(&DeviceSpec::Cpu).then_some(ByteModel::CPU);
-    let gpu = specs.iter().any(|s| s.ordinal().is_some()).then(atoll_cuda::scene::byte_model);
-    widest_model(cpu.into_iter().chain(gpu))
 }
 
 /// What `atoll render` hands to the multi-device path.

@@ -10,8 +10,9 @@
 
 use std::sync::Arc;
 
-use atoll_bvh::{part_bytes, ScenePart};
+use atoll_bvh::{part_bytes, ByteModel, ScenePart};
 use atoll_cuda::error::fmt_bytes;
+use atoll_dist::placement::widest_model;
 use atoll_dist::placement::{scene_budget, Sharing};
 use atoll_dist::ranks::{RankRing, Ranks};
 use atoll_dist::{
@@ -207,7 +208,7 @@ fn rank_ring(
         .into_iter()
         .filter_map(|(present, kind)| present.then_some(kind))
         .collect();
-    let model = multi::byte_model(&kinds);
+    let model = byte_model(&kinds);
     let whole = part_bytes(scene, &ScenePart::whole(scene), &model);
     let scenes = ranks.extremes(whole);
     let asked = ranks.extremes(args.ring_ranks.map_or(0, u64::from));
@@ -311,4 +312,13 @@ fn together<T>(ranks: &Ranks, result: Result<T, CliError>, what: &str) -> Result
         String::new()
     };
     Err(if inputs > 0 { CliError::Input(message) } else { CliError::Runtime(message) })
+}
+
+/// The byte model partitioning uses: the widest of the device kinds
+/// present, so that every device can hold any part (for ranks, which plan
+/// from the kinds every rank has before opening devices).
+fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
+    let cpu = specs.contains(&DeviceSpec::Cpu).then_some(ByteModel::CPU);
+    let gpu = specs.iter().any(|s| s.ordinal().is_some()).then(atoll_cuda::scene::byte_model);
+    widest_model(cpu.into_iter().chain(gpu))
 }
