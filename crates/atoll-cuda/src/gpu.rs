@@ -239,7 +239,7 @@ impl Gpu {
 
     /// Another handle on this GPU (or GPU part) with a stream of its own:
     /// a further wavefront sharing its context, modules and memory.
-    pub fn another_stream(&self) -> Result<Arc<Gpu>, CudaError> {
+    pub(crate) fn another_stream(&self) -> Result<Arc<Gpu>, CudaError> {
         let label = self.label();
         let stream = match self.green {
             // SAFETY: `green` is the live green context `ctx` was made from.
@@ -325,7 +325,7 @@ impl Gpu {
 
     /// [`Gpu::module`] compiled with extra NVRTC options (`-DNAME=VALUE`
     /// specialisations); one module per file and option list.
-    pub fn module_with(&self, file: &str, extra: &[String]) -> Result<Arc<CudaModule>, CudaError> {
+    pub(crate) fn module_with(&self, file: &str, extra: &[String]) -> Result<Arc<CudaModule>, CudaError> {
         let key =
             std::iter::once(file.to_string()).chain(extra.iter().cloned()).collect::<Vec<_>>().join(" ");
         let mut modules = self.modules.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
@@ -353,14 +353,19 @@ impl Gpu {
     }
 
     /// [`Gpu::function`] of the module compiled with `extra` options.
-    pub fn function_with(&self, file: &str, name: &str, extra: &[String]) -> Result<CudaFunction, CudaError> {
+    pub(crate) fn function_with(
+        &self,
+        file: &str,
+        name: &str,
+        extra: &[String],
+    ) -> Result<CudaFunction, CudaError> {
         self.module_with(file, extra)?
             .load_function(name)
             .map_err(CudaError::driver(format!("{}: kernel {name} in {file}", self.label())))
     }
 
     /// Waits for all work queued on the stream.
-    pub fn synchronize(&self) -> Result<(), CudaError> {
+    pub(crate) fn synchronize(&self) -> Result<(), CudaError> {
         self.stream.synchronize().map_err(CudaError::driver(format!("{}: synchronizing", self.label())))
     }
 
@@ -394,7 +399,7 @@ impl Timer {
 
     /// Starts timing again from now on the stream, reusing the events
     /// (creating a pair costs more host time than recording one).
-    pub fn restart(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
+    pub(crate) fn restart(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
         self.start
             .record(&gpu.stream)
             .map_err(CudaError::driver(format!("{}: timing event", gpu.label())))?;
@@ -403,7 +408,7 @@ impl Timer {
     }
 
     /// Whether the timed work has finished (never blocks).
-    pub fn is_done(&self) -> bool {
+    pub(crate) fn is_done(&self) -> bool {
         self.stopped && self.end.is_complete()
     }
 
@@ -428,7 +433,7 @@ pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
 
 /// Copies `data` to a new device buffer; an empty table becomes one zeroed
 /// element (zero-length allocations fail), never read since its count is 0.
-pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
+pub(crate) fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
     gpu: &Gpu,
     data: &[T],
     what: &str,

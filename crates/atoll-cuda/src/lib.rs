@@ -40,7 +40,10 @@ pub mod compile;
 pub mod device;
 pub mod error;
 pub mod gpu;
-pub mod header;
+// Generates and checks the kernel headers' generated blocks: a test, not
+// part of the library.
+#[cfg(test)]
+mod header;
 pub mod kernel_cache;
 pub mod layout;
 pub mod params;

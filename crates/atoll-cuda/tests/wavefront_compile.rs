@@ -21,7 +21,7 @@ fn compile(file: &str, extra: &[&str]) -> (String, String) {
     ptx_options.extra = extra
         .iter()
         .map(|s| s.to_string())
-        .chain([atoll_cuda::header::LAYOUT_CHECK_OPTION.to_string()])
+        .chain([atoll_cuda::compile::LAYOUT_CHECK_OPTION.to_string()])
         .collect();
     let ptx = compile_with_cache(file, &ptx_options, None).unwrap_or_else(|e| panic!("{e}"));
     let mut cubin_options = CompileOptions::cubin((9, 0));
