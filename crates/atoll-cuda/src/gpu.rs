@@ -30,9 +30,10 @@ type CompiledSlot = Arc<Mutex<Option<Arc<Vec<u8>>>>>;
 /// opened [`Gpu`] (several per GPU with `--streams`, one per device of a
 /// ring) loads its own modules, but they all ask for the same images at
 /// once while preparing. Without this each compiled its own copy on a cold
-/// disk cache (a ring of 6 devices spent 17 s preparing, issue 4); now the
-/// first compiles and the others wait for its image. Failures are not kept:
-/// a later caller tries again and gets its own error.
+/// disk cache (a ring's devices compiled the same kernels side by side,
+/// which made preparing slow); now the first compiles and the others wait
+/// for its image. Failures are not kept: a later caller tries again and
+/// gets its own error.
 fn compile_once(file: &str, options: &CompileOptions) -> Result<Arc<Vec<u8>>, CudaError> {
     static COMPILED: std::sync::OnceLock<Mutex<HashMap<String, CompiledSlot>>> = std::sync::OnceLock::new();
     let key = format!("{file} {:?} {}", options.nvrtc_options(), options.extension());
@@ -149,8 +150,9 @@ impl Gpu {
         let ctx = CudaContext::new(ordinal).map_err(CudaError::driver(what("creating the context")))?;
         // SAFETY: atoll queues all of its work on `stream`, in order, so no
         // buffer is ever used on two streams and cudarc's per-buffer events
-        // (a record and a wait per kernel argument: ~10% of a small bounce)
-        // are not needed. Code that adds streams must order them itself.
+        // (a record and a wait per kernel argument: a measurable share of a
+        // small bounce) are not needed. Code that adds streams must order
+        // them itself.
         unsafe { ctx.disable_event_tracking() };
         let stream = ctx.new_stream().map_err(CudaError::driver(what("creating a stream")))?;
         Self::with_context(ordinal, ctx, stream, None)
@@ -161,7 +163,7 @@ impl Gpu {
     /// Devices on the parts of one GPU stand in for separate GPUs: their
     /// kernels run apart, while memory, its bandwidth and the L2 cache stay
     /// shared. A ring's lock-step and hand-overs can so be measured against
-    /// replication without a second GPU (issue 4).
+    /// replication without a second GPU.
     pub fn open_partition(ordinal: usize, parts: usize, index: usize) -> Result<Arc<Gpu>, CudaError> {
         use cudarc::driver::sys;
         let count = device_count()?;

@@ -317,7 +317,8 @@ fn with_tracer<R>(
 
 /// Compiles (or loads from the kernel cache) the default variant's
 /// closest- and any-hit kernels for `bvh`, so that a render's clock does not
-/// include it (the first trace would otherwise compile `trace.cu`: ~2 s cold).
+/// include it (the first trace would otherwise compile `trace.cu` when the
+/// kernel cache is cold).
 /// `features`: what the frame needs (see [`TraceFeatures`]).
 pub(crate) fn load_default_kernels(
     gpu: &Gpu,

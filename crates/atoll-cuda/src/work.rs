@@ -124,8 +124,8 @@ struct StatusCopy {
     host: PinnedHostSlice<WorkStatus>,
     /// Recorded after the copy. Waited on by polling: the pinned buffer's
     /// own event blocks the thread in the driver, and waking it took longer
-    /// than the GPU's queued work (measured: 56 M samples/s instead of 206
-    /// on the Cornell bench).
+    /// than the GPU's queued work (measured several times slower on the
+    /// Cornell bench).
     copied: CudaEvent,
 }
 

@@ -84,7 +84,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
 
 /// The shade kernel a scene without coated-diffuse or principled
 /// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
-/// it had before those materials existed (93 on sm_90): their code would
+/// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,
 /// it still compiles cleanly.
 #[test]

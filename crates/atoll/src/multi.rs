@@ -184,14 +184,12 @@ pub fn partition_for_ring(
         Partitioning::Cost(per_instance) => cost(per_instance),
         Partitioning::Spatial => spatial(),
         Partitioning::Work => work(),
-        // Rings of 2: memory-balanced parts, the least total work (a ring
-        // of two on one H100: 1.00-1.02x replicate's work, work chunks
-        // 0.80-0.83x, slabs 0.80-0.81x) and on two halves of an H100
-        // 0.80-0.87x replicate's speed (BENCHMARKS.md, issue 4). Longer
+        // Rings of 2: memory-balanced parts, which measured the least total
+        // work of the partitionings (a ring of two on one GPU) and most of
+        // replicate's speed on two halves of a GPU (BENCHMARKS.md). Longer
         // rings: bytes and instances, or one part gets every instanced
-        // object (a ring of 4 on H100 quarters: 2.13x one quarter against
-        // 1.47-1.55x; issue 6); bytes alone where that does not fit the
-        // budget.
+        // object (measured clearly slower on GPU quarters, BENCHMARKS.md);
+        // bytes alone where that does not fit the budget.
         Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
         Partitioning::Auto => memory(),
     }
