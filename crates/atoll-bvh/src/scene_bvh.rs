@@ -179,9 +179,9 @@ struct TlasInstance {
 }
 
 /// Two-level BVH over a scene or a part of one. `L` is the node layout of
-/// both levels. The default, [`Bvh4Cpu`], measured 1.3x (primary), 2.3x
-/// (shadow) and 1.4x (diffuse) faster than [`Bvh2`] on the 2M-triangle
-/// benchmark landscape (see [`crate::bench`]).
+/// both levels. The default, [`Bvh4Cpu`], measured faster than [`Bvh2`] for
+/// primary, shadow and diffuse rays on the benchmark landscape (see
+/// [`crate::bench`] and BENCHMARKS.md).
 pub struct SceneBvh<L: BvhLayout = Bvh4Cpu> {
     tlas: L,
     /// In TLAS leaf order.

@@ -11,8 +11,8 @@
 // narrow is keeping the walks themselves narrow: the coating's sampling,
 // evaluation and density, the phase-function and base sampling are out of
 // line too, so a walk's loop holds little more than its own state (measured
-// on sm_90 when written: the shade kernel needed 164 registers so, 201 with
-// everything inlined into the walks, 127 with the walks stubbed out).
+// on sm_90 when written: inlining everything into the walks cost the shade
+// kernel many more registers).
 #pragma once
 
 #include "common.cuh"

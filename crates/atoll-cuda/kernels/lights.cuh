@@ -16,7 +16,7 @@
 // Whether emitters may have emission textures: always, unless the device
 // compiles its shade kernel for a frame without any (`-DATOLL_WITH_EMISSION_TEXTURES=0`,
 // src/device.rs `shade_features`): the texture call in light sampling costs
-// the shade kernel about 25 registers.
+// the shade kernel registers.
 #ifndef ATOLL_WITH_EMISSION_TEXTURES
 #define ATOLL_WITH_EMISSION_TEXTURES 1
 #endif

@@ -16,7 +16,7 @@
 // Textured material parameters and emission textures at hits: compiled in
 // unless the trace module is specialised for a frame without textures
 // (`-DATOLL_WITH_TEXTURES=0`, src/trace.rs `TraceFeatures`): the texture
-// calls cost the closest-hit kernels 26 registers (70 → 96).
+// calls cost the closest-hit kernels many registers.
 #ifndef ATOLL_WITH_TEXTURES
 #define ATOLL_WITH_TEXTURES 1
 #endif
@@ -64,7 +64,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     // The material's three 16-byte words (coefficients; kind and mix fields)
     // are loaded together before the mix test: loading the kind first and
     // the coefficients after the branch serialised two memory round trips
-    // per hit (4% of the Cornell-box benchmark).
+    // per hit (measurably slower on the Cornell-box benchmark).
     const uint4* mw = reinterpret_cast<const uint4*>(p.materials + mesh.material);
     uint4 c0 = mw[0], c1 = mw[1], meta = mw[2];  // coeffs[0..8], coeffs[8..16], (kind, pad[0..3])
     if (meta.x == MATERIAL_MIX) {

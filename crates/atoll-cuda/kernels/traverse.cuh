@@ -19,7 +19,7 @@
 // Alpha masks tested during traversal: only in the trace module compiled
 // for scenes with alpha (`-DATOLL_TRACE_ALPHA=1`, src/trace.rs
 // `TraceFeatures`): the call inside the triangle loop costs the kernels
-// registers and stack even where it is never taken (trace_any: 61 → 96).
+// registers and stack even where it is never taken.
 #ifndef ATOLL_TRACE_ALPHA
 #define ATOLL_TRACE_ALPHA 0
 #endif

@@ -1,9 +1,9 @@
-//! The GPU BVH benchmark (issue 3's numbers in one run): LBVH build speed
-//! per phase and quality against the CPU's binned-SAH builder, then rays/s
-//! for primary, shadow (AO) and diffuse batches per traversal variant and
-//! triangle test. Rays are `atoll_bvh::bench`'s (same views, same hashes),
-//! hit counts are checked against the CPU; times are CUDA events around
-//! each launch, after a warm-up, median of `runs`.
+//! The GPU BVH benchmark (BENCHMARKS.md's GPU BVH figures in one run): LBVH
+//! build speed per phase and quality against the CPU's binned-SAH builder,
+//! then rays/s for primary, shadow (AO) and diffuse batches per traversal
+//! variant and triangle test. Rays are `atoll_bvh::bench`'s (same views,
+//! same hashes), hit counts are checked against the CPU; times are CUDA
+//! events around each launch, after a warm-up, median of `runs`.
 //!
 //! `cargo run --release -p atoll-cuda --example gpu_bench` runs it; the
 //! [`std::fmt::Display`] of [`GpuBenchReport`] is the table to record in BENCHMARKS.md.

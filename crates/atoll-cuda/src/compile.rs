@@ -1,11 +1,11 @@
 //! Kernel sources and their compilation by NVRTC at run time.
 //!
-//! Every `kernels/*.cu` / `*.cuh` file is compiled into the binary
-//! ([`KERNEL_FILES`]), so the binary needs no source tree and no CUDA
-//! toolkit at build time. NVRTC (cudarc 0.19) takes no in-memory headers,
-//! so `#include "x.cuh"` is resolved here by splicing the header's text in
-//! ([`splice`]), once per file, with `#line` markers so NVRTC's messages
-//! still name the original file and line.
+//! Every `kernels/*.cu` / `*.cuh` file but the test kernels is compiled
+//! into the binary ([`KERNEL_FILES`]), so the binary needs no source tree
+//! and no CUDA toolkit at build time. NVRTC (cudarc 0.19) takes no
+//! in-memory headers, so `#include "x.cuh"` is resolved here by splicing the
+//! header's text in ([`splice`]), once per file, with `#line` markers so
+//! NVRTC's messages still name the original file and line.
 //!
 //! Setting `ATOLL_KERNEL_DIR` to a kernels directory makes the sources be
 //! read from there instead: kernels can be edited and rerun on a GPU
@@ -20,9 +20,10 @@ use cudarc::nvrtc::{result as nvrtc, sys as nvrtc_sys};
 use crate::error::{require_nvrtc, CudaError};
 use crate::kernel_cache::{Fnv1a64, KernelCache};
 
-/// Every kernel source file, by file name. A file is added here when it is
-/// added to `kernels/` (a line per file; `include_str!` fails the build
-/// while the file does not exist, so lines are added with their files).
+/// Every kernel source file but the test kernels (`TEST_KERNEL_FILES`), by
+/// file name. A file is added here when it is added to `kernels/` (a line
+/// per file; `include_str!` fails the build while the file does not exist,
+/// so lines are added with their files).
 pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("bsdf.cuh", include_str!("../kernels/bsdf.cuh")),
     ("bvh.cuh", include_str!("../kernels/bvh.cuh")),
@@ -46,7 +47,6 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("spawn.cuh", include_str!("../kernels/spawn.cuh")),
     ("selftest.cu", include_str!("../kernels/selftest.cu")),
     ("sort.cu", include_str!("../kernels/sort.cu")),
-    ("test_bsdf.cu", include_str!("../kernels/test_bsdf.cu")),
     ("texture.cuh", include_str!("../kernels/texture.cuh")),
     ("trace.cu", include_str!("../kernels/trace.cu")),
     ("traverse.cuh", include_str!("../kernels/traverse.cuh")),
@@ -55,20 +55,36 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("wavefront.cu", include_str!("../kernels/wavefront.cu")),
 ];
 
+/// Kernel files only tests launch (device functions wrapped one by one for
+/// comparison with the CPU). They are part of the registry with the
+/// `testing` feature, which atoll-cuda's own tests turn on (so the NVRTC
+/// compile tests still check them), and left out of the library otherwise:
+/// a feature rather than `tests/`, because they include `kernels/` headers
+/// and are compiled and loaded exactly like the production kernels.
+#[cfg(any(test, feature = "testing"))]
+const TEST_KERNEL_FILES: &[(&str, &str)] = &[("test_bsdf.cu", include_str!("../kernels/test_bsdf.cu"))];
+#[cfg(not(any(test, feature = "testing")))]
+const TEST_KERNEL_FILES: &[(&str, &str)] = &[];
+
+/// Every registered kernel file: [`KERNEL_FILES`], then the test kernels.
+fn registry() -> impl Iterator<Item = &'static (&'static str, &'static str)> {
+    KERNEL_FILES.iter().chain(TEST_KERNEL_FILES)
+}
+
 /// The text of kernel file `name`: from `$ATOLL_KERNEL_DIR` when set (and
 /// the file exists there), else the copy built into the binary.
-pub fn kernel_source(name: &str) -> Option<Cow<'static, str>> {
+pub(crate) fn kernel_source(name: &str) -> Option<Cow<'static, str>> {
     if let Some(dir) = std::env::var_os("ATOLL_KERNEL_DIR").filter(|d| !d.is_empty()) {
         if let Ok(text) = std::fs::read_to_string(std::path::Path::new(&dir).join(name)) {
             return Some(Cow::Owned(text));
         }
     }
-    KERNEL_FILES.iter().find(|(n, _)| *n == name).map(|(_, text)| Cow::Borrowed(*text))
+    registry().find(|(n, _)| *n == name).map(|(_, text)| Cow::Borrowed(*text))
 }
 
 /// The `.cu` files of the registry (the compilable units).
 pub fn compilation_units() -> impl Iterator<Item = &'static str> {
-    KERNEL_FILES.iter().map(|(name, _)| *name).filter(|name| name.ends_with(".cu"))
+    registry().map(|(name, _)| *name).filter(|name| name.ends_with(".cu"))
 }
 
 /// `file` with every `#include "x"` replaced by x's text (recursively), each
@@ -76,7 +92,7 @@ pub fn compilation_units() -> impl Iterator<Item = &'static str> {
 /// makes include cycles harmless). `lookup` maps a file name to its text.
 /// `#include <...>` is left alone: kernels must not use system headers
 /// (NVRTC on CI has none), and NVRTC reports it if they do.
-pub fn splice_with(
+pub(crate) fn splice_with(
     file: &str,
     lookup: &dyn Fn(&str) -> Option<Cow<'static, str>>,
 ) -> Result<String, CudaError> {
@@ -137,6 +153,15 @@ fn quoted_include(line: &str) -> Option<&str> {
     Some(&rest[..end])
 }
 
+/// The NVRTC option that turns on the per-field offset asserts of the
+/// generated header blocks (`src/header.rs`).
+///
+/// `__builtin_offsetof` is accepted by the NVRTC of CUDA 13.5 (the PyPI
+/// wheel CI compiles with) but not by CUDA 13.0's (seen on the H200
+/// machines), so field offsets are checked where CI compiles every kernel
+/// and skipped in run-time compiles; struct sizes are always checked.
+pub const LAYOUT_CHECK_OPTION: &str = "-DATOLL_CHECK_LAYOUT";
+
 /// What NVRTC produces.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Output {
@@ -174,7 +199,7 @@ impl CompileOptions {
     }
 
     /// The option strings handed to NVRTC.
-    pub fn nvrtc_options(&self) -> Vec<String> {
+    pub(crate) fn nvrtc_options(&self) -> Vec<String> {
         let (major, minor) = self.arch;
         let prefix = match self.output {
             Output::Ptx => "compute",
@@ -193,7 +218,7 @@ impl CompileOptions {
     }
 
     /// The file extension of the output: `ptx` or `cubin`.
-    pub fn extension(&self) -> &'static str {
+    pub(crate) fn extension(&self) -> &'static str {
         match self.output {
             Output::Ptx => "ptx",
             Output::Cubin => "cubin",
@@ -213,7 +238,7 @@ pub struct Compiled {
 }
 
 /// NVRTC's version as (major, minor).
-pub fn nvrtc_version() -> Result<(i32, i32), CudaError> {
+pub(crate) fn nvrtc_version() -> Result<(i32, i32), CudaError> {
     require_nvrtc()?;
     let (mut major, mut minor) = (0, 0);
     // SAFETY: NVRTC is loadable (checked above); the pointers are valid for the call.
@@ -227,7 +252,7 @@ pub fn nvrtc_version() -> Result<(i32, i32), CudaError> {
 }
 
 /// The cache key of `source` compiled with `options` by NVRTC `version`.
-pub fn cache_key(source: &str, options: &CompileOptions, version: (i32, i32)) -> u64 {
+pub(crate) fn cache_key(source: &str, options: &CompileOptions, version: (i32, i32)) -> u64 {
     let mut h = Fnv1a64::new();
     h.field(b"atoll kernel v1");
     h.field(source.as_bytes());
@@ -241,7 +266,7 @@ pub fn cache_key(source: &str, options: &CompileOptions, version: (i32, i32)) ->
 
 /// Compiles kernel file `file` (spliced), through the disk cache of the
 /// environment ([`crate::kernel_cache::default_dir`]).
-pub fn compile(file: &str, options: &CompileOptions) -> Result<Compiled, CudaError> {
+pub(crate) fn compile(file: &str, options: &CompileOptions) -> Result<Compiled, CudaError> {
     compile_with_cache(file, options, KernelCache::from_env().as_ref())
 }
 
@@ -275,14 +300,6 @@ pub fn compile_source(
         cache.put(key, options.extension(), &image);
     }
     Ok(Compiled { image, log, cached: false })
-}
-
-/// PTX text of kernel file `file` (cached).
-pub fn compile_ptx(file: &str, options: &CompileOptions) -> Result<String, CudaError> {
-    let options = CompileOptions { output: Output::Ptx, ..options.clone() };
-    let compiled = compile(file, &options)?;
-    String::from_utf8(compiled.image)
-        .map_err(|_| CudaError::Usage(format!("{file}: NVRTC returned non-UTF-8 PTX")))
 }
 
 /// Destroys an NVRTC program however compilation ends.
@@ -403,10 +420,11 @@ mod tests {
 
     #[test]
     fn registry_files_splice() {
-        for (name, _) in KERNEL_FILES {
+        for (name, _) in registry() {
             splice(name).unwrap_or_else(|e| panic!("{name}: {e}"));
         }
         assert!(compilation_units().any(|n| n == "selftest.cu"));
+        assert!(compilation_units().any(|n| n == "test_bsdf.cu"));
     }
 
     #[test]

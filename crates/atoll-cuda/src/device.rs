@@ -100,8 +100,8 @@ impl Kernels {
 /// The `shade` kernel is specialised to the frame: material kinds no
 /// material has and emission textures when no emitter has one are compiled
 /// out (kernels/bsdf.cuh, lights.cuh `ATOLL_WITH_*`), so their registers do
-/// not lower every scene's occupancy (the Cornell box's shade kernel: 93
-/// registers instead of 164).
+/// not lower every scene's occupancy (the Cornell box's shade kernel needs
+/// far fewer registers without them).
 fn shade_features(frame: &FrameContext) -> Vec<String> {
     let has = |kind| frame.materials.iter().any(|m| m.kind == kind);
     let emission_textures = frame.lights.emission_ops.is_empty().then_some("ATOLL_WITH_EMISSION_TEXTURES");
@@ -311,7 +311,7 @@ impl CudaDevice {
         // alone in the process, finished before the next starts, so each
         // device's busy time is what its stages take without the others
         // sharing its GPU: with a ring's members on one GPU, what each
-        // would take on a GPU of its own (issue 4; BENCHMARKS.md).
+        // would take on a GPU of its own (BENCHMARKS.md).
         static SERIAL: Mutex<()> = Mutex::new(());
         let serial = serial_stages().then(|| SERIAL.lock().unwrap_or_else(|p| p.into_inner()));
         if serial.is_some() {

@@ -50,7 +50,7 @@ pub enum CudaError {
 
 impl CudaError {
     /// Wraps a driver error with what was being done.
-    pub fn driver(context: impl Into<String>) -> impl FnOnce(DriverError) -> CudaError {
+    pub(crate) fn driver(context: impl Into<String>) -> impl FnOnce(DriverError) -> CudaError {
         let context = context.into();
         move |source| CudaError::Driver { context, source }
     }
@@ -86,7 +86,7 @@ pub fn nvrtc_present() -> bool {
 }
 
 /// `Err(NoDriver)` unless the driver library loads.
-pub fn require_driver() -> Result<(), CudaError> {
+pub(crate) fn require_driver() -> Result<(), CudaError> {
     if driver_present() {
         Ok(())
     } else {
@@ -95,7 +95,7 @@ pub fn require_driver() -> Result<(), CudaError> {
 }
 
 /// `Err(NoNvrtc)` unless NVRTC loads.
-pub fn require_nvrtc() -> Result<(), CudaError> {
+pub(crate) fn require_nvrtc() -> Result<(), CudaError> {
     if nvrtc_present() {
         Ok(())
     } else {
@@ -105,7 +105,7 @@ pub fn require_nvrtc() -> Result<(), CudaError> {
 
 impl CudaError {
     /// The render crate's error for device `device` (memory errors keep their numbers).
-    pub fn into_device_error(self, device: &str) -> atoll_render::DeviceError {
+    pub(crate) fn into_device_error(self, device: &str) -> atoll_render::DeviceError {
         match self {
             CudaError::OutOfMemory { needed, budget, free, .. } => atoll_render::DeviceError::OutOfMemory {
                 device: device.to_string(),

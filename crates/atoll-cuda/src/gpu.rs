@@ -30,9 +30,10 @@ type CompiledSlot = Arc<Mutex<Option<Arc<Vec<u8>>>>>;
 /// opened [`Gpu`] (several per GPU with `--streams`, one per device of a
 /// ring) loads its own modules, but they all ask for the same images at
 /// once while preparing. Without this each compiled its own copy on a cold
-/// disk cache (a ring of 6 devices spent 17 s preparing, issue 4); now the
-/// first compiles and the others wait for its image. Failures are not kept:
-/// a later caller tries again and gets its own error.
+/// disk cache (a ring's devices compiled the same kernels side by side,
+/// which made preparing slow); now the first compiles and the others wait
+/// for its image. Failures are not kept: a later caller tries again and
+/// gets its own error.
 fn compile_once(file: &str, options: &CompileOptions) -> Result<Arc<Vec<u8>>, CudaError> {
     static COMPILED: std::sync::OnceLock<Mutex<HashMap<String, CompiledSlot>>> = std::sync::OnceLock::new();
     let key = format!("{file} {:?} {}", options.nvrtc_options(), options.extension());
@@ -149,8 +150,9 @@ impl Gpu {
         let ctx = CudaContext::new(ordinal).map_err(CudaError::driver(what("creating the context")))?;
         // SAFETY: atoll queues all of its work on `stream`, in order, so no
         // buffer is ever used on two streams and cudarc's per-buffer events
-        // (a record and a wait per kernel argument: ~10% of a small bounce)
-        // are not needed. Code that adds streams must order them itself.
+        // (a record and a wait per kernel argument: a measurable share of a
+        // small bounce) are not needed. Code that adds streams must order
+        // them itself.
         unsafe { ctx.disable_event_tracking() };
         let stream = ctx.new_stream().map_err(CudaError::driver(what("creating a stream")))?;
         Self::with_context(ordinal, ctx, stream, None)
@@ -161,7 +163,7 @@ impl Gpu {
     /// Devices on the parts of one GPU stand in for separate GPUs: their
     /// kernels run apart, while memory, its bandwidth and the L2 cache stay
     /// shared. A ring's lock-step and hand-overs can so be measured against
-    /// replication without a second GPU (issue 4).
+    /// replication without a second GPU.
     pub fn open_partition(ordinal: usize, parts: usize, index: usize) -> Result<Arc<Gpu>, CudaError> {
         use cudarc::driver::sys;
         let count = device_count()?;
@@ -239,7 +241,7 @@ impl Gpu {
 
     /// Another handle on this GPU (or GPU part) with a stream of its own:
     /// a further wavefront sharing its context, modules and memory.
-    pub fn another_stream(&self) -> Result<Arc<Gpu>, CudaError> {
+    pub(crate) fn another_stream(&self) -> Result<Arc<Gpu>, CudaError> {
         let label = self.label();
         let stream = match self.green {
             // SAFETY: `green` is the live green context `ctx` was made from.
@@ -325,7 +327,7 @@ impl Gpu {
 
     /// [`Gpu::module`] compiled with extra NVRTC options (`-DNAME=VALUE`
     /// specialisations); one module per file and option list.
-    pub fn module_with(&self, file: &str, extra: &[String]) -> Result<Arc<CudaModule>, CudaError> {
+    pub(crate) fn module_with(&self, file: &str, extra: &[String]) -> Result<Arc<CudaModule>, CudaError> {
         let key =
             std::iter::once(file.to_string()).chain(extra.iter().cloned()).collect::<Vec<_>>().join(" ");
         let mut modules = self.modules.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
@@ -353,14 +355,19 @@ impl Gpu {
     }
 
     /// [`Gpu::function`] of the module compiled with `extra` options.
-    pub fn function_with(&self, file: &str, name: &str, extra: &[String]) -> Result<CudaFunction, CudaError> {
+    pub(crate) fn function_with(
+        &self,
+        file: &str,
+        name: &str,
+        extra: &[String],
+    ) -> Result<CudaFunction, CudaError> {
         self.module_with(file, extra)?
             .load_function(name)
             .map_err(CudaError::driver(format!("{}: kernel {name} in {file}", self.label())))
     }
 
     /// Waits for all work queued on the stream.
-    pub fn synchronize(&self) -> Result<(), CudaError> {
+    pub(crate) fn synchronize(&self) -> Result<(), CudaError> {
         self.stream.synchronize().map_err(CudaError::driver(format!("{}: synchronizing", self.label())))
     }
 
@@ -394,7 +401,7 @@ impl Timer {
 
     /// Starts timing again from now on the stream, reusing the events
     /// (creating a pair costs more host time than recording one).
-    pub fn restart(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
+    pub(crate) fn restart(&mut self, gpu: &Gpu) -> Result<(), CudaError> {
         self.start
             .record(&gpu.stream)
             .map_err(CudaError::driver(format!("{}: timing event", gpu.label())))?;
@@ -403,7 +410,7 @@ impl Timer {
     }
 
     /// Whether the timed work has finished (never blocks).
-    pub fn is_done(&self) -> bool {
+    pub(crate) fn is_done(&self) -> bool {
         self.stopped && self.end.is_complete()
     }
 
@@ -428,7 +435,7 @@ pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
 
 /// Copies `data` to a new device buffer; an empty table becomes one zeroed
 /// element (zero-length allocations fail), never read since its count is 0.
-pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
+pub(crate) fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
     gpu: &Gpu,
     data: &[T],
     what: &str,

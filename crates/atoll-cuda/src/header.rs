@@ -37,19 +37,20 @@ use crate::params::{
 use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
 /// How to regenerate, repeated in every marker line.
-pub const REGENERATE: &str = "src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header";
+pub(crate) const REGENERATE: &str =
+    "src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header";
 
 /// One generated block: `file` (in `kernels/`) holds the text of
 /// `generate()` between the markers named `name`.
 #[derive(Clone, Copy, Debug)]
-pub struct Block {
+pub(crate) struct Block {
     pub file: &'static str,
     pub name: &'static str,
     pub generate: fn() -> String,
 }
 
 /// Every generated block of the kernel headers.
-pub fn blocks() -> Vec<Block> {
+pub(crate) fn blocks() -> Vec<Block> {
     vec![
         Block { file: "common.cuh", name: "constants", generate: math_constants },
         Block { file: "record.cuh", name: "record", generate: record_asserts },
@@ -64,16 +65,8 @@ pub fn blocks() -> Vec<Block> {
     ]
 }
 
-/// The NVRTC option that turns on the per-field offset asserts.
-///
-/// `__builtin_offsetof` is accepted by the NVRTC of CUDA 13.5 (the PyPI
-/// wheel CI compiles with) but not by CUDA 13.0's (seen on the H200
-/// machines), so field offsets are checked where CI compiles every kernel
-/// and skipped in run-time compiles; struct sizes are always checked.
-pub const LAYOUT_CHECK_OPTION: &str = "-DATOLL_CHECK_LAYOUT";
-
 /// `static_assert`s of `name`'s size and of every field's offset and size.
-pub fn struct_asserts(name: &str, size: usize, fields: &[(&str, usize, usize)]) -> String {
+pub(crate) fn struct_asserts(name: &str, size: usize, fields: &[(&str, usize, usize)]) -> String {
     let mut s = format!("static_assert(sizeof({name}) == {size}, \"{name}: size differs from Rust\");\n");
     s.push_str("#ifdef ATOLL_CHECK_LAYOUT\n");
     for (field, offset, field_size) in fields {
@@ -105,7 +98,7 @@ fn const_float(name: &str, value: f32) -> String {
 }
 
 /// Float constants of `sampling`, `bsdf` and `std::f32::consts`.
-pub fn math_constants() -> String {
+pub(crate) fn math_constants() -> String {
     use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
     [
         const_float("PI", PI),
@@ -125,7 +118,7 @@ pub fn math_constants() -> String {
 
 /// `record` constants (flags, material kinds, `NO_LIGHT`) and the
 /// `RayRecord` asserts.
-pub fn record_asserts() -> String {
+pub(crate) fn record_asserts() -> String {
     let mut s = String::new();
     s += &const_uint("unsigned int", "NO_LIGHT", NO_LIGHT as u64);
     s += &const_uint("unsigned int", "MATERIAL_COEFFS", MATERIAL_COEFFS as u64);
@@ -156,7 +149,7 @@ pub fn record_asserts() -> String {
 
 /// Each material kind's coefficient slots (`atoll_render::material_layout`)
 /// as `COEFF_<KIND>_<PARAMETER>`, e.g. `COEFF_CONDUCTOR_ALPHA_X`.
-pub fn material_layout_constants() -> String {
+pub(crate) fn material_layout_constants() -> String {
     let mut s = String::new();
     for layout in material_layout::LAYOUTS {
         for (param, slots) in layout.params {
@@ -168,7 +161,7 @@ pub fn material_layout_constants() -> String {
 }
 
 /// The random-number dimension layout of `rng`.
-pub fn rng_constants() -> String {
+pub(crate) fn rng_constants() -> String {
     let mut s = const_uint("unsigned int", "CAMERA_DIMENSIONS", CAMERA_DIMENSIONS as u64);
     s += &const_uint("unsigned int", "DIMENSIONS_PER_BOUNCE", DIMENSIONS_PER_BOUNCE as u64);
     for (name, dim) in [
@@ -185,7 +178,7 @@ pub fn rng_constants() -> String {
 }
 
 /// Mesh flags, `HIT_NONE` and the asserts of the scene-table structs.
-pub fn layout_asserts() -> String {
+pub(crate) fn layout_asserts() -> String {
     let mut s = const_uint("unsigned int", "HIT_NONE", HIT_NONE as u64);
     for (name, value) in [
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
@@ -212,7 +205,7 @@ pub fn layout_asserts() -> String {
 
 /// Texture program op codes, store modes, alpha modes and the asserts of
 /// the program structs (`atoll_render::texture`).
-pub fn texture_constants() -> String {
+pub(crate) fn texture_constants() -> String {
     use atoll_render::texture::{alpha_mode, op, store, AlphaProgram, ProgramRange, TexOp, TEXTURE_STACK};
     let mut s = String::new();
     for (name, value) in [
@@ -250,7 +243,7 @@ pub fn texture_constants() -> String {
 
 /// The layered BSDF's random-stream tags, seed rounding and smallest layer
 /// thickness (`atoll_render::bsdf::layered`).
-pub fn layered_constants() -> String {
+pub(crate) fn layered_constants() -> String {
     use atoll_render::bsdf::layered::{DIRECTION_SEED_DROP_BITS, TAG_EVAL, TAG_PDF, TAG_SAMPLE};
     let mut s = const_float("FLT_MIN_POSITIVE", f32::MIN_POSITIVE);
     s += &const_uint("unsigned int", "DIRECTION_SEED_DROP_BITS", DIRECTION_SEED_DROP_BITS as u64);
@@ -263,7 +256,7 @@ pub fn layered_constants() -> String {
 }
 
 /// Emitter and integrator kinds and the asserts of the kernel parameters.
-pub fn params_asserts() -> String {
+pub(crate) fn params_asserts() -> String {
     let mut s = String::new();
     for (name, value) in [
         ("EMITTER_POINT", emitter_kind::POINT),
@@ -293,7 +286,7 @@ pub fn params_asserts() -> String {
 
 /// `source` with the block `name` replaced by `text` (markers rewritten
 /// too); `None` when the markers are missing or out of order.
-pub fn splice_block(source: &str, name: &str, text: &str) -> Option<String> {
+pub(crate) fn splice_block(source: &str, name: &str, text: &str) -> Option<String> {
     let begin = format!("// BEGIN GENERATED {name} ");
     let end = format!("// END GENERATED {name}");
     let lines: Vec<&str> = source.lines().collect();

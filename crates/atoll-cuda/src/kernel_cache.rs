@@ -9,24 +9,24 @@
 //! is treated as a miss and rewritten. The cache is an optimisation only:
 //! every failure to read or write it is logged and ignored.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// FNV-1a, 64 bit. Written here rather than taken from `std::hash`: std's
 /// `DefaultHasher` (SipHash) is explicitly not stable across Rust releases,
 /// and a cache key must mean the same thing to every build that reads it.
 #[derive(Clone, Copy, Debug)]
-pub struct Fnv1a64(u64);
+pub(crate) struct Fnv1a64(u64);
 
 impl Fnv1a64 {
     const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
     const PRIME: u64 = 0x0000_0100_0000_01b3;
 
-    pub fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Fnv1a64(Self::OFFSET)
     }
 
-    pub fn write(&mut self, bytes: &[u8]) -> &mut Self {
+    pub(crate) fn write(&mut self, bytes: &[u8]) -> &mut Self {
         for &b in bytes {
             self.0 ^= b as u64;
             self.0 = self.0.wrapping_mul(Self::PRIME);
@@ -36,11 +36,11 @@ impl Fnv1a64 {
 
     /// Writes `bytes` followed by a separator, so that ("ab","c") and
     /// ("a","bc") hash differently.
-    pub fn field(&mut self, bytes: &[u8]) -> &mut Self {
+    pub(crate) fn field(&mut self, bytes: &[u8]) -> &mut Self {
         self.write(&(bytes.len() as u64).to_le_bytes()).write(bytes)
     }
 
-    pub fn finish(&self) -> u64 {
+    pub(crate) fn finish(&self) -> u64 {
         self.0
     }
 }
@@ -52,7 +52,7 @@ impl Default for Fnv1a64 {
 }
 
 /// FNV-1a 64 of one byte string.
-pub fn fnv1a64(bytes: &[u8]) -> u64 {
+pub(crate) fn fnv1a64(bytes: &[u8]) -> u64 {
     Fnv1a64::new().write(bytes).finish()
 }
 
@@ -63,7 +63,7 @@ const HEADER: usize = MAGIC.len() + 16;
 /// The cache directory from the environment: `$ATOLL_KERNEL_CACHE` (`off`
 /// disables the cache), else `$XDG_CACHE_HOME/atoll/kernels`, else
 /// `~/.cache/atoll/kernels`; `None` when none can be formed.
-pub fn default_dir() -> Option<PathBuf> {
+pub(crate) fn default_dir() -> Option<PathBuf> {
     let env = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty());
     if let Some(dir) = env("ATOLL_KERNEL_CACHE") {
         return (dir != "off").then(|| PathBuf::from(dir));
@@ -86,22 +86,18 @@ impl KernelCache {
     }
 
     /// The cache of [`default_dir`], if any.
-    pub fn from_env() -> Option<Self> {
+    pub(crate) fn from_env() -> Option<Self> {
         default_dir().map(Self::new)
     }
 
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
     /// Where entry `key` lives; `ext` (`ptx`, `cubin`) only helps humans.
-    pub fn path(&self, key: u64, ext: &str) -> PathBuf {
+    pub(crate) fn path(&self, key: u64, ext: &str) -> PathBuf {
         self.dir.join(format!("{key:016x}.{ext}"))
     }
 
     /// The entry for `key`, or `None` on a miss, an unreadable file or a
     /// corrupt one (bad magic, length or checksum).
-    pub fn get(&self, key: u64, ext: &str) -> Option<Vec<u8>> {
+    pub(crate) fn get(&self, key: u64, ext: &str) -> Option<Vec<u8>> {
         let path = self.path(key, ext);
         let bytes = std::fs::read(&path).ok()?;
         match decode(&bytes) {
@@ -115,7 +111,7 @@ impl KernelCache {
 
     /// Stores `payload` under `key`. Failures are logged, never returned:
     /// a read-only cache directory must not stop a render.
-    pub fn put(&self, key: u64, ext: &str, payload: &[u8]) {
+    pub(crate) fn put(&self, key: u64, ext: &str, payload: &[u8]) {
         if let Err(e) = self.try_put(key, ext, payload) {
             tracing::warn!("kernel cache: cannot write to {}: {e}", self.dir.display());
         }

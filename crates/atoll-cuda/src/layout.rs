@@ -5,10 +5,12 @@
 use bytemuck::{Pod, Zeroable};
 
 /// `(name, offset, size)` of every field of a struct, in declaration order:
-/// what [`crate::header`] turns into the kernels' `static_assert`s.
-pub type FieldLayout = Vec<(&'static str, usize, usize)>;
+/// what `crate::header` turns into the kernels' `static_assert`s.
+#[cfg(test)]
+pub(crate) type FieldLayout = Vec<(&'static str, usize, usize)>;
 
 /// The [`FieldLayout`] of `$t` (a `Zeroable` struct) from the listed fields.
+#[cfg(test)]
 macro_rules! field_layout {
     ($t:ty { $($field:ident),* $(,)? }) => {{
         let value = <$t as bytemuck::Zeroable>::zeroed();
@@ -19,31 +21,32 @@ macro_rules! field_layout {
         )),*]
     }};
 }
+#[cfg(test)]
 pub(crate) use field_layout;
 
 /// `HitRef::instance` of a ray for which traversal found no hit.
 pub const HIT_NONE: u32 = u32::MAX;
 
 /// Per-mesh flags in [`GpuMesh::flags`].
-pub mod mesh_flags {
+pub(crate) mod mesh_flags {
     /// The mesh has per-vertex normals in the `normals` table.
-    pub const HAS_NORMALS: u32 = 1 << 0;
+    pub(crate) const HAS_NORMALS: u32 = 1 << 0;
     /// Negate the geometric normal (pbrt's orientation rule).
-    pub const FLIP_NORMALS: u32 = 1 << 1;
+    pub(crate) const FLIP_NORMALS: u32 = 1 << 1;
     /// The mesh emits (its triangles are lights).
-    pub const EMISSIVE: u32 = 1 << 2;
+    pub(crate) const EMISSIVE: u32 = 1 << 2;
     /// The mesh has per-vertex texture coordinates in the `uvs` table.
-    pub const HAS_UVS: u32 = 1 << 3;
+    pub(crate) const HAS_UVS: u32 = 1 << 3;
 }
 
 /// `GpuImage::format` values.
-pub mod image_format {
+pub(crate) mod image_format {
     /// One u32 of RGBA bytes per texel, linear.
-    pub const RGBA8: u32 = 0;
+    pub(crate) const RGBA8: u32 = 0;
     /// One u32 of RGBA bytes per texel, colour channels sRGB-encoded.
-    pub const RGBA8_SRGB: u32 = 1;
+    pub(crate) const RGBA8_SRGB: u32 = 1;
     /// Four f32 words (linear RGBA) per texel.
-    pub const RGBA_F32: u32 = 2;
+    pub(crate) const RGBA_F32: u32 = 2;
 }
 
 /// One texture image in the `texels` table (32 bytes).
@@ -60,7 +63,8 @@ pub struct GpuImage {
 }
 
 impl GpuImage {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuImage { texel_offset, width, height, format, pad })
     }
 }
@@ -128,7 +132,8 @@ pub struct HitRef {
 }
 
 impl GpuMesh {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuMesh {
             first_triangle,
             triangle_count,
@@ -143,13 +148,15 @@ impl GpuMesh {
 }
 
 impl GpuObject {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuObject { first_triangle, triangle_count, first_mesh, mesh_count })
     }
 }
 
 impl GpuInstance {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuInstance {
             object_to_world,
             world_to_object,
@@ -162,7 +169,8 @@ impl GpuInstance {
 }
 
 impl HitRef {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(HitRef { u, v, instance, triangle })
     }
 }

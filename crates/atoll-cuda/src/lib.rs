@@ -1,5 +1,5 @@
-//! The CUDA device (issue 3): kernels compiled at run time by NVRTC, a GPU
-//! BVH builder, GPU traversal and the wavefront path tracer's stages.
+//! The CUDA device: kernels compiled at run time by NVRTC, a GPU BVH
+//! builder, GPU traversal and the wavefront path tracer's stages.
 //!
 //! Layout of the crate (one purpose per file):
 //! - `kernels/*.cu`, `kernels/*.cuh`: CUDA C++ sources. They include no system
@@ -40,7 +40,10 @@ pub mod compile;
 pub mod device;
 pub mod error;
 pub mod gpu;
-pub mod header;
+// Generates and checks the kernel headers' generated blocks: a test, not
+// part of the library.
+#[cfg(test)]
+mod header;
 pub mod kernel_cache;
 pub mod layout;
 pub mod params;
@@ -57,17 +60,15 @@ pub use scene::GpuScene;
 
 /// Paths in flight per GPU device unless asked otherwise (CPU devices keep
 /// [`atoll_render::RenderOptions`]'s default). A GPU needs more than a CPU:
-/// on the landscape most paths end after a bounce or two, and with 262144
-/// the later bounces' kernels leave an H100 partly idle. `atoll render
-/// landscape:100 --res 1280x720 --spp 64` on one H100 (BENCHMARKS.md, issue
-/// 4): 174 M samples/s with 262144, 219 with 524288, 244 with 1048576 and
-/// 2097152. Queues cost 4 × 128 B per path: 512 MiB.
+/// on the landscape most paths end after a bounce or two, and with smaller
+/// waves the later bounces' kernels leave the GPU partly idle. 2^20 is
+/// where the landscape's speed on one H100 stopped growing with the wave
+/// size (BENCHMARKS.md). Queues cost 4 × 128 B per path: 512 MiB.
 pub const DEFAULT_WAVE_SIZE: u32 = 1 << 20;
 
 /// Devices (wavefronts, each with its own stream, queues and film) per GPU
 /// unless asked otherwise, sharing one copy of the scene: one device's
-/// kernels leave the GPU partly idle, two or three fill each other's gaps.
-/// One H100, waves of 2^20 (BENCHMARKS.md, issue 4), M samples/s for 1, 2
-/// and 3 devices: Cornell 512² 243.5, 285.0, 312.6; `landscape:100` 243.9,
-/// 276.7, 280.0; `landscape:1000` 203.2, 233.8, 240.7.
+/// kernels leave the GPU partly idle, two or three fill each other's gaps:
+/// on one H100 with waves of 2^20, a second and a third device each made
+/// the Cornell box and the landscapes faster (BENCHMARKS.md, `--streams`).
 pub const DEFAULT_STREAMS: usize = 3;

@@ -3,8 +3,8 @@
 //! `#[repr(C)]` struct of values and device pointers (camera, options, the
 //! light tables, the packed materials), and [`SceneView`], the device
 //! pointers of a [`GpuScene`]'s tables. `kernels/params.cuh` mirrors every
-//! struct here; its `static_assert`s are generated from [`FieldLayout`]s by
-//! [`crate::header`].
+//! struct here; its `static_assert`s are generated from `FieldLayout`s by
+//! `src/header.rs`.
 //!
 //! [`FrameTables`] is the host side of the light and material tables (a pure
 //! function of the frame, tested without a GPU); [`FrameParamsHost`] uploads
@@ -14,6 +14,7 @@
 use std::sync::Arc;
 
 use atoll_render::environment::EnvironmentSampler;
+#[cfg(test)]
 use atoll_render::light_bvh::LightNode;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
@@ -27,46 +28,49 @@ use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
 
 use crate::error::CudaError;
 use crate::gpu::{upload, Gpu};
+#[cfg(test)]
 use crate::layout::{field_layout, FieldLayout};
 use crate::scene::GpuScene;
 
 /// [`GpuEmitter::kind`] values, one per [`Emitter`] variant.
-pub mod emitter_kind {
-    pub const POINT: u32 = 0;
-    pub const DISTANT: u32 = 1;
-    pub const INFINITE: u32 = 2;
-    pub const TRIANGLE: u32 = 3;
-    pub const SPOT: u32 = 4;
-    pub const ENVIRONMENT: u32 = 5;
+pub(crate) mod emitter_kind {
+    pub(crate) const POINT: u32 = 0;
+    pub(crate) const DISTANT: u32 = 1;
+    pub(crate) const INFINITE: u32 = 2;
+    pub(crate) const TRIANGLE: u32 = 3;
+    pub(crate) const SPOT: u32 = 4;
+    pub(crate) const ENVIRONMENT: u32 = 5;
 }
 
 /// [`GpuEmitter::table`] of a triangle emitter without an emission texture.
-pub const NO_EMISSION_TEXTURE: u32 = u32::MAX;
+pub(crate) const NO_EMISSION_TEXTURE: u32 = u32::MAX;
 
 /// A textured triangle emitter's corner uvs and its program in
 /// [`FrameParams::texture_ops`] (32 bytes; `lights::EmissionTexture`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuEmissionTexture {
+pub(crate) struct GpuEmissionTexture {
     pub uv: [f32; 6],
     pub start: u32,
     pub len: u32,
 }
 
 impl GpuEmissionTexture {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuEmissionTexture { uv, start, len })
     }
 }
 
 /// [`FrameParams::light_sampler`] values, one per [`LightSampler`] variant.
-pub mod light_sampler_kind {
-    pub const POWER: u32 = 0;
-    pub const BVH: u32 = 1;
+pub(crate) mod light_sampler_kind {
+    pub(crate) const POWER: u32 = 0;
+    pub(crate) const BVH: u32 = 1;
 }
 
 /// The layout of the BVH light sampler's nodes, which the kernels mirror.
-pub fn light_node_layout() -> FieldLayout {
+#[cfg(test)]
+pub(crate) fn light_node_layout() -> FieldLayout {
     field_layout!(LightNode {
         min,
         phi,
@@ -84,9 +88,9 @@ pub fn light_node_layout() -> FieldLayout {
 }
 
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
-pub mod integrator_kind {
-    pub const PATH: u32 = 0;
-    pub const AMBIENT_OCCLUSION: u32 = 1;
+pub(crate) mod integrator_kind {
+    pub(crate) const PATH: u32 = 0;
+    pub(crate) const AMBIENT_OCCLUSION: u32 = 1;
 }
 
 /// One [`Emitter`] on the device (80 bytes). By `kind`: point: `p[0..3]`
@@ -102,7 +106,7 @@ pub mod integrator_kind {
 /// ([`NO_EMISSION_TEXTURE`]: untextured).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuEmitter {
+pub(crate) struct GpuEmitter {
     /// [`emitter_kind`].
     pub kind: u32,
     /// 1 when a triangle emits on both sides.
@@ -119,7 +123,7 @@ pub struct GpuEmitter {
 
 impl GpuEmitter {
     /// The device form of `e`.
-    pub fn new(e: &Emitter) -> Self {
+    pub(crate) fn new(e: &Emitter) -> Self {
         let mut g = GpuEmitter::zeroed();
         match *e {
             Emitter::Point { position, intensity } => {
@@ -166,7 +170,7 @@ impl GpuEmitter {
 
     /// The device form of an environment emitter whose tables start at
     /// `table` in [`FrameParams::environment_tables`].
-    pub fn environment(env: &EnvironmentSampler, table: u32) -> Self {
+    pub(crate) fn environment(env: &EnvironmentSampler, table: u32) -> Self {
         let mut g = GpuEmitter::zeroed();
         g.kind = emitter_kind::ENVIRONMENT;
         g.p = env.light_to_world.to_cols_array();
@@ -180,7 +184,8 @@ impl GpuEmitter {
         g
     }
 
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, error })
     }
 }
@@ -189,7 +194,7 @@ impl GpuEmitter {
 /// so the kernels copy the coefficients as two 16-byte words).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuMaterial {
+pub(crate) struct GpuMaterial {
     /// f16 bit patterns, as in [`atoll_render::RayRecord::coeffs`].
     pub coeffs: [u16; MATERIAL_COEFFS],
     /// [`atoll_render::record::MaterialKind`] as u32.
@@ -203,7 +208,7 @@ impl GpuMaterial {
     /// the start and length of its amount's texture program (`mix_amount`); otherwise
     /// `pad` holds the start and length of its texture program (`textures`):
     /// see `write_surface`.
-    pub fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
+    pub(crate) fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
         let mut coeffs = m.coeffs.map(|c| c.to_bits());
         let pad = match m.mix {
             Some(([a, b], amount)) => {
@@ -217,7 +222,8 @@ impl GpuMaterial {
         GpuMaterial { coeffs, kind: m.kind as u32, pad }
     }
 
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuMaterial { coeffs, kind, pad })
     }
 }
@@ -293,7 +299,7 @@ pub struct FrameParams {
 
 impl FrameParams {
     /// The values of `frame` (table pointers left 0; table counts set).
-    pub fn from_frame(frame: &FrameContext) -> Self {
+    pub(crate) fn from_frame(frame: &FrameContext) -> Self {
         let camera = &frame.camera;
         let m = camera.camera_to_world();
         let mut camera_to_world = [0.0; 12];
@@ -336,7 +342,8 @@ impl FrameParams {
         }
     }
 
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(FrameParams {
             camera_to_world,
             window_min,
@@ -422,7 +429,8 @@ impl SceneView {
         }
     }
 
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(SceneView {
             vertices,
             normals,
@@ -464,7 +472,7 @@ const _: () = {
 /// The frame's light and material tables in host memory, exactly as they
 /// go to the device.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct FrameTables {
+pub(crate) struct FrameTables {
     pub emitters: Vec<GpuEmitter>,
     pub light_pmf: Vec<f32>,
     pub light_cdf: Vec<f32>,
@@ -487,7 +495,7 @@ pub struct FrameTables {
 }
 
 impl FrameTables {
-    pub fn build(frame: &FrameContext) -> Self {
+    pub(crate) fn build(frame: &FrameContext) -> Self {
         let lights = &frame.lights;
         let mut environment_tables = Vec::new();
         // Emission programs follow the material and alpha programs in one table.
@@ -544,7 +552,7 @@ impl FrameTables {
 
     /// Device bytes of the tables plus the parameter block (empty tables
     /// still take one element).
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         fn b<T>(v: &[T]) -> u64 {
             (v.len().max(1) * std::mem::size_of::<T>()) as u64
         }
@@ -600,7 +608,7 @@ impl FrameParamsHost {
     }
 
     /// [`FrameParamsHost::new`] whose textures read `scene`'s images.
-    pub fn for_scene(
+    pub(crate) fn for_scene(
         gpu: &Arc<Gpu>,
         frame: &FrameContext,
         scene: Option<&GpuScene>,
@@ -666,7 +674,7 @@ impl FrameParamsHost {
     }
 
     /// Device bytes held (tables and parameter block).
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         (self.device.num_bytes()
             + self.emitters.num_bytes()
             + self.light_pmf.num_bytes()

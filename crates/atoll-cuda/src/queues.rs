@@ -17,7 +17,7 @@ use crate::gpu::Gpu;
 use crate::layout::{GpuRecord, HitRef};
 
 /// Bytes the queues of `capacity` records take on the device.
-pub fn queue_bytes(capacity: u32) -> u64 {
+pub(crate) fn queue_bytes(capacity: u32) -> u64 {
     let record = std::mem::size_of::<GpuRecord>() as u64;
     // paths + next (the path queue's ping-pong partner) + shadows + the
     // spare shadow queue a ring needs (counted always: the plan is checked
@@ -105,7 +105,7 @@ impl Queues {
     }
 
     /// Makes room for `records` per queue, keeping both queues' contents.
-    pub fn ensure_capacity(&mut self, gpu: &Gpu, records: u32) -> Result<(), CudaError> {
+    pub(crate) fn ensure_capacity(&mut self, gpu: &Gpu, records: u32) -> Result<(), CudaError> {
         if records <= self.capacity {
             return Ok(());
         }
@@ -152,7 +152,7 @@ impl Queues {
     }
 
     /// The host's copy of a length, if it has one.
-    pub fn known_len(&self, queue: Queue) -> Option<u32> {
+    pub(crate) fn known_len(&self, queue: Queue) -> Option<u32> {
         self.cache(queue).get()
     }
 
@@ -184,7 +184,7 @@ impl Queues {
 
     /// Threads to launch for a kernel over `queue`: its length when known,
     /// else its capacity (the kernel reads the length on the device).
-    pub fn launch_len(&self, queue: Queue) -> u32 {
+    pub(crate) fn launch_len(&self, queue: Queue) -> u32 {
         self.known_len(queue).unwrap_or(self.capacity)
     }
 
@@ -202,7 +202,7 @@ impl Queues {
     }
 
     /// After `shade` appended to `next`: it becomes the path queue.
-    pub fn swap_paths(&mut self) {
+    pub(crate) fn swap_paths(&mut self) {
         std::mem::swap(&mut self.paths, &mut self.next);
         std::mem::swap(&mut self.path_count, &mut self.next_count);
         self.path_len.set(None);
@@ -269,7 +269,7 @@ impl Queues {
     /// The buffer a ring neighbour copies `queue` into, with its counter:
     /// the path queue's ping-pong partner (idle outside `shade`), or the
     /// spare shadow buffer (allocated on first use: only rings need it).
-    pub fn incoming(
+    pub(crate) fn incoming(
         &mut self,
         gpu: &Gpu,
         queue: Queue,
@@ -298,7 +298,7 @@ impl Queues {
     /// Makes the incoming buffer and counter (filled by a neighbour) the
     /// queue, and the queue's old ones the next incoming. The length is
     /// known only on the device until read.
-    pub fn accept_incoming(&mut self, gpu: &Gpu, queue: Queue) -> Result<(), CudaError> {
+    pub(crate) fn accept_incoming(&mut self, gpu: &Gpu, queue: Queue) -> Result<(), CudaError> {
         match queue {
             Queue::Paths => {
                 std::mem::swap(&mut self.paths, &mut self.next);

@@ -65,12 +65,13 @@ pub struct TableCounts {
 
 impl TableCounts {
     /// Counts for `scene` (as [`SceneTables::build`] would produce).
-    pub fn of(scene: &Scene) -> Self {
+    #[cfg(test)]
+    pub(crate) fn of(scene: &Scene) -> Self {
         Self::of_part(scene, &ScenePart::whole(scene))
     }
 
     /// Counts for `part` of `scene` (as [`SceneTables::build_part`] would produce).
-    pub fn of_part(scene: &Scene, part: &ScenePart) -> Self {
+    pub(crate) fn of_part(scene: &Scene, part: &ScenePart) -> Self {
         let mut c = TableCounts {
             objects: scene.objects.len() as u64,
             instances: scene.instances.len() as u64,
@@ -138,7 +139,7 @@ fn rows_3x4(a: &Affine3A) -> [f32; 12] {
 }
 
 /// The device form of one instance.
-pub fn gpu_instance(instance: &atoll_scene::Instance) -> GpuInstance {
+pub(crate) fn gpu_instance(instance: &atoll_scene::Instance) -> GpuInstance {
     let to_world = instance.object_to_world;
     // Same normal matrix as the CPU device: inverse transpose of the linear part.
     let normal = Mat3::from(to_world.matrix3).inverse().transpose();
@@ -179,7 +180,7 @@ impl SceneTables {
     /// index them), once however many ranges of it the part holds (a
     /// terrain cut into interleaved chunks has thousands), but only its
     /// ranges of triangles.
-    pub fn build_part(scene: &Scene, part: &ScenePart) -> Self {
+    pub(crate) fn build_part(scene: &Scene, part: &ScenePart) -> Self {
         let counts = TableCounts::of_part(scene, part);
         let mut instances: Vec<GpuInstance> = scene.instances.iter().map(gpu_instance).collect();
         let mut in_part = vec![false; instances.len()];
@@ -313,12 +314,6 @@ impl SceneTables {
     }
 }
 
-/// BVH bytes for a scene of `triangles` (as uploaded) and `instances`,
-/// build scratch included ([`crate::bvh::estimate_bytes`]).
-pub fn bvh_estimate_bytes(triangles: u64, instances: u64) -> u64 {
-    crate::bvh::estimate_bytes(triangles, instances)
-}
-
 /// Bytes of the rows every device's tables keep for the whole scene,
 /// whatever part it holds (every instance and object, so that hits and
 /// lights use scene-wide indices): what [`byte_model`], which charges
@@ -388,7 +383,7 @@ impl MemoryPlan {
     }
 
     /// `Err(OutOfMemory)` when the plan exceeds `min(free, budget)`.
-    pub fn check(&self, device: &str, budget: Option<u64>, free: u64) -> Result<(), CudaError> {
+    pub(crate) fn check(&self, device: &str, budget: Option<u64>, free: u64) -> Result<(), CudaError> {
         let budget = budget.unwrap_or(u64::MAX);
         let needed = self.total();
         if needed <= budget.min(free) {
@@ -450,7 +445,7 @@ impl GpuScene {
     }
 
     /// [`GpuScene::upload`] of `part` of the scene.
-    pub fn upload_part(
+    pub(crate) fn upload_part(
         gpu: &Arc<Gpu>,
         scene: &Scene,
         part: &ScenePart,

@@ -1,15 +1,15 @@
 //! Host side of `kernels/trace.cu`: closest-hit and any-hit traversal of
 //! a [`GpuSceneBvh`] for rays in a `RayRecord` array.
 //!
-//! - [`trace_closest`]: for each of the first `count` records, the closest
-//!   hit with `0 < t < t_max`: `t_max` becomes its `t` and `hits[i]` gets
-//!   (u, v, instance, global triangle); no hit leaves the record alone and
-//!   sets `hits[i].instance = HIT_NONE`.
-//! - [`trace_any`]: records without `flags::OCCLUDED` get it when anything
-//!   lies in `(0, t_max)`.
+//! - [`trace_closest_with`]: for each of the first `count` records, the
+//!   closest hit with `0 < t < t_max`: `t_max` becomes its `t` and `hits[i]`
+//!   gets (u, v, instance, global triangle); no hit leaves the record alone
+//!   and sets `hits[i].instance = HIT_NONE`.
+//! - [`trace_any_with`]: records without `flags::OCCLUDED` get it when
+//!   anything lies in `(0, t_max)`.
 //!
 //! The loop structure is a [`TraversalVariant`] (Aila & Laine 2009), chosen
-//! per call for measurements; the plain functions use the default.
+//! per call for measurements; the device's queued launches use the default.
 
 use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
 
@@ -27,7 +27,7 @@ const FILE: &str = "trace.cu";
 /// specialised (kernels/traverse.cuh, surface.cuh). The default (none) is
 /// what benchmarks and tests without frames trace with.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct TraceFeatures {
+pub(crate) struct TraceFeatures {
     /// Alpha masks are tested during traversal (`ATOLL_TRACE_ALPHA`).
     pub alpha: bool,
     /// Closest-hit kernels that write surfaces apply texture programs and
@@ -37,7 +37,7 @@ pub struct TraceFeatures {
 
 impl TraceFeatures {
     /// The features `frame` needs.
-    pub fn of(frame: &atoll_render::FrameContext) -> Self {
+    pub(crate) fn of(frame: &atoll_render::FrameContext) -> Self {
         TraceFeatures {
             alpha: frame.textures.has_alpha(),
             textures: frame
@@ -51,7 +51,7 @@ impl TraceFeatures {
     }
 
     /// The NVRTC defines of the module.
-    pub fn defines(self) -> Vec<String> {
+    pub(crate) fn defines(self) -> Vec<String> {
         vec![
             format!("-DATOLL_TRACE_ALPHA={}", self.alpha as u32),
             format!("-DATOLL_WITH_TEXTURES={}", self.textures as u32),
@@ -105,7 +105,7 @@ impl TraversalVariant {
         }
     }
 
-    pub fn persistent(self) -> bool {
+    pub(crate) fn persistent(self) -> bool {
         matches!(
             self,
             TraversalVariant::Persistent
@@ -115,7 +115,7 @@ impl TraversalVariant {
     }
 
     /// Whether the variant traverses the compressed wide BVH.
-    pub fn wide(self) -> bool {
+    pub(crate) fn wide(self) -> bool {
         matches!(self, TraversalVariant::Wide | TraversalVariant::PersistentWide)
     }
 }
@@ -123,7 +123,7 @@ impl TraversalVariant {
 /// A queue whose length is known only on the device: trace kernels read
 /// `length` themselves and add the number of rays traced to `traced`, so
 /// the host never waits for a read-back between stages.
-pub struct DeviceQueueLength<'a> {
+pub(crate) struct DeviceQueueLength<'a> {
     pub length: &'a CudaSlice<u32>,
     pub traced: &'a mut CudaSlice<u64>,
 }
@@ -131,14 +131,14 @@ pub struct DeviceQueueLength<'a> {
 /// Frame parameters and scene view for closest-hit kernels that write hit
 /// attributes themselves (`write_surface` in kernels/surface.cuh) instead
 /// of `HitRef`s for a separate `surface` pass.
-pub struct SurfaceTables<'a> {
+pub(crate) struct SurfaceTables<'a> {
     pub params: &'a CudaSlice<crate::params::FrameParams>,
     pub scene: &'a CudaSlice<crate::params::SceneView>,
 }
 
 /// Loaded trace kernels and the persistent threads' work counter. One per
 /// BVH (kept inside it), made on first use.
-pub struct Tracer {
+pub(crate) struct Tracer {
     /// By kernel name (query, variant and triangle test: one tracer may
     /// serve BVHs built for different tests).
     kernels: Vec<(String, CudaFunction)>,
@@ -148,7 +148,7 @@ pub struct Tracer {
 }
 
 impl Tracer {
-    pub fn new(gpu: &Gpu) -> Result<Self, CudaError> {
+    pub(crate) fn new(gpu: &Gpu) -> Result<Self, CudaError> {
         let work = gpu
             .stream
             .alloc_zeros(1)
@@ -189,7 +189,7 @@ impl Tracer {
     /// Queues one trace of `rays[..count]` (`hits` for closest hits, `None`
     /// for any-hit queries); with `queue`, of `rays[..min(count, *queue.length)]`.
     #[allow(clippy::too_many_arguments)]
-    pub fn launch(
+    pub(crate) fn launch(
         &mut self,
         gpu: &Gpu,
         bvh: &GpuSceneBvh,
@@ -317,9 +317,14 @@ fn with_tracer<R>(
 
 /// Compiles (or loads from the kernel cache) the default variant's
 /// closest- and any-hit kernels for `bvh`, so that a render's clock does not
-/// include it (the first trace would otherwise compile `trace.cu`: ~2 s cold).
+/// include it (the first trace would otherwise compile `trace.cu` when the
+/// kernel cache is cold).
 /// `features`: what the frame needs (see [`TraceFeatures`]).
-pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh, features: TraceFeatures) -> Result<(), CudaError> {
+pub(crate) fn load_default_kernels(
+    gpu: &Gpu,
+    bvh: &GpuSceneBvh,
+    features: TraceFeatures,
+) -> Result<(), CudaError> {
     let variant = TraversalVariant::default();
     with_tracer(gpu, bvh, |t| {
         for query in ["closest", "any"] {
@@ -334,19 +339,8 @@ pub fn load_default_kernels(gpu: &Gpu, bvh: &GpuSceneBvh, features: TraceFeature
     })
 }
 
-/// Closest hits of `rays[..count]` with the default variant (see the module docs).
-pub fn trace_closest(
-    gpu: &Gpu,
-    scene: &GpuScene,
-    bvh: &GpuSceneBvh,
-    rays: &mut CudaSlice<GpuRecord>,
-    count: u32,
-    hits: &mut CudaSlice<HitRef>,
-) -> Result<(), CudaError> {
-    trace_closest_with(gpu, scene, bvh, rays, count, hits, TraversalVariant::default())
-}
-
-/// [`trace_closest`] with a chosen traversal variant.
+/// Closest hits of `rays[..count]` with traversal variant `variant` (see
+/// the module docs).
 pub fn trace_closest_with(
     gpu: &Gpu,
     scene: &GpuScene,
@@ -363,18 +357,7 @@ pub fn trace_closest_with(
 }
 
 /// Sets `flags::OCCLUDED` on the records of `rays[..count]` that hit
-/// anything, with the default variant.
-pub fn trace_any(
-    gpu: &Gpu,
-    scene: &GpuScene,
-    bvh: &GpuSceneBvh,
-    rays: &mut CudaSlice<GpuRecord>,
-    count: u32,
-) -> Result<(), CudaError> {
-    trace_any_with(gpu, scene, bvh, rays, count, TraversalVariant::default())
-}
-
-/// [`trace_any`] with a chosen traversal variant.
+/// anything, with traversal variant `variant`.
 pub fn trace_any_with(
     gpu: &Gpu,
     scene: &GpuScene,
@@ -393,7 +376,7 @@ pub fn trace_any_with(
 /// with the default variant, without reading the length back; each hit's
 /// attributes are written into its record (the `surface` stage folded in).
 #[allow(clippy::too_many_arguments)]
-pub fn trace_closest_queued(
+pub(crate) fn trace_closest_queued(
     gpu: &Gpu,
     scene: &GpuScene,
     bvh: &GpuSceneBvh,
@@ -417,7 +400,7 @@ pub fn trace_closest_queued(
 /// the frame and scene alpha masks are evaluated with (used when
 /// `features.alpha`).
 #[allow(clippy::too_many_arguments)]
-pub fn trace_any_queued(
+pub(crate) fn trace_any_queued(
     gpu: &Gpu,
     scene: &GpuScene,
     bvh: &GpuSceneBvh,

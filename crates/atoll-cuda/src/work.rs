@@ -19,14 +19,15 @@ use cudarc::driver::{CudaEvent, CudaSlice, PinnedHostSlice, PushKernelArg};
 
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu};
+#[cfg(test)]
 use crate::layout::{field_layout, FieldLayout};
 use crate::queues::Queues;
 use atoll_render::Queue;
 
 /// Waves the device FIFO holds (pushed and not yet fully started).
-pub const WORK_SLOTS: u32 = 64;
+pub(crate) const WORK_SLOTS: u32 = 64;
 /// Most FIFO waves one refill starts paths from.
-pub const WORK_CLAIMS: u32 = 8;
+pub(crate) const WORK_CLAIMS: u32 = 8;
 
 /// A run of camera paths: one sample over `pixel_count` pixels from
 /// `first_pixel`. In a claim, `queue_offset` is where its records go.
@@ -68,19 +69,22 @@ pub struct WorkFifo {
 }
 
 impl GpuWave {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuWave { sample, first_pixel, pixel_count, queue_offset })
     }
 }
 
 impl WorkStatus {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(WorkStatus { paths_started, queue_len, waves_started })
     }
 }
 
 impl WorkFifo {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(WorkFifo { waves, claims, pushed, taken, claim_count, pad })
     }
 }
@@ -113,20 +117,20 @@ impl WorkKernels {
 /// status of the refill before the last one, so the GPU holds more than a
 /// bounce of queued work while the host waits and decides. The price: a
 /// device runs `STATUS_LAG` empty bounces after its last paths finish.
-pub const STATUS_LAG: usize = 2;
+pub(crate) const STATUS_LAG: usize = 2;
 
 /// One refill's status, copied to pinned host memory.
 struct StatusCopy {
     host: PinnedHostSlice<WorkStatus>,
     /// Recorded after the copy. Waited on by polling: the pinned buffer's
     /// own event blocks the thread in the driver, and waking it took longer
-    /// than the GPU's queued work (measured: 56 M samples/s instead of 206
-    /// on the Cornell bench).
+    /// than the GPU's queued work (measured several times slower on the
+    /// Cornell bench).
     copied: CudaEvent,
 }
 
 /// One device's work feed: the FIFO, its status, and what the host pushed.
-pub struct WorkFeed {
+pub(crate) struct WorkFeed {
     kernels: WorkKernels,
     fifo: CudaSlice<WorkFifo>,
     status: CudaSlice<WorkStatus>,
@@ -138,11 +142,12 @@ pub struct WorkFeed {
 }
 
 /// Bytes a feed takes on the device.
-pub const FEED_BYTES: u64 = (std::mem::size_of::<WorkFifo>() + std::mem::size_of::<WorkStatus>()) as u64;
+pub(crate) const FEED_BYTES: u64 =
+    (std::mem::size_of::<WorkFifo>() + std::mem::size_of::<WorkStatus>()) as u64;
 
 impl WorkFeed {
     /// A feed whose kernels come from `file` (the wavefront kernels).
-    pub fn new(gpu: &Gpu, file: &str) -> Result<Self, CudaError> {
+    pub(crate) fn new(gpu: &Gpu, file: &str) -> Result<Self, CudaError> {
         let kernels = WorkKernels::load(gpu, file)?;
         let what = |w: &str| format!("{}: allocating the work {w}", gpu.label());
         let fifo = gpu.stream.alloc_zeros(1).map_err(CudaError::driver(what("FIFO")))?;
@@ -185,21 +190,21 @@ impl WorkFeed {
     /// a refill seen with an empty queue and nothing pending, every later
     /// bounce found nothing either (only pushes add paths, and the host
     /// counts those).
-    pub fn busy(&self) -> Result<bool, CudaError> {
+    pub(crate) fn busy(&self) -> Result<bool, CudaError> {
         let seen = self.seen()?;
         Ok(self.pushed_paths > seen.paths_started || seen.queue_len > 0)
     }
 
     /// Whether pending work may run out before the host sees the status
     /// again (and the FIFO has room).
-    pub fn wants_work(&self, capacity: u32) -> Result<bool, CudaError> {
+    pub(crate) fn wants_work(&self, capacity: u32) -> Result<bool, CudaError> {
         let seen = self.seen()?;
         let fifo_room = self.pushed_waves - seen.waves_started < WORK_SLOTS / 2;
         Ok(fifo_room && self.pending()? <= STATUS_LAG as u64 * capacity as u64)
     }
 
     /// Appends a wave to the FIFO (in stream order; never waits).
-    pub fn push(&mut self, gpu: &Gpu, sample: u32, first: u32, count: u32) -> Result<(), CudaError> {
+    pub(crate) fn push(&mut self, gpu: &Gpu, sample: u32, first: u32, count: u32) -> Result<(), CudaError> {
         if count == 0 {
             return Ok(());
         }
@@ -223,7 +228,7 @@ impl WorkFeed {
 
     /// Fills the free slots of the path queue from the FIFO (camera rays in
     /// blocks of `block` threads) and queues the status copy.
-    pub fn refill(
+    pub(crate) fn refill(
         &mut self,
         gpu: &Gpu,
         params: &CudaSlice<crate::params::FrameParams>,

@@ -35,7 +35,7 @@ fn every_kernel_file_compiles_to_ptx_for_compute_90() {
     let mut failures = Vec::new();
     for file in compilation_units() {
         let mut options = CompileOptions::ptx(ARCH);
-        options.extra.push(atoll_cuda::header::LAYOUT_CHECK_OPTION.into());
+        options.extra.push(atoll_cuda::compile::LAYOUT_CHECK_OPTION.into());
         match compile_with_cache(file, &options, None) {
             Ok(compiled) => {
                 let ptx = String::from_utf8(compiled.image).expect("PTX is text");
@@ -62,7 +62,7 @@ fn every_kernel_file_compiles_to_sm_90_cubin_with_register_report() {
     for file in compilation_units() {
         let mut options = CompileOptions::cubin(ARCH);
         options.extra.push("-Xptxas=-v".into());
-        options.extra.push(atoll_cuda::header::LAYOUT_CHECK_OPTION.into());
+        options.extra.push(atoll_cuda::compile::LAYOUT_CHECK_OPTION.into());
         match compile_with_cache(file, &options, None) {
             Ok(compiled) => {
                 // ELF magic: machine code, not PTX.

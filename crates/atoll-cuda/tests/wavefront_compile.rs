@@ -21,7 +21,7 @@ fn compile(file: &str, extra: &[&str]) -> (String, String) {
     ptx_options.extra = extra
         .iter()
         .map(|s| s.to_string())
-        .chain([atoll_cuda::header::LAYOUT_CHECK_OPTION.to_string()])
+        .chain([atoll_cuda::compile::LAYOUT_CHECK_OPTION.to_string()])
         .collect();
     let ptx = compile_with_cache(file, &ptx_options, None).unwrap_or_else(|e| panic!("{e}"));
     let mut cubin_options = CompileOptions::cubin((9, 0));
@@ -84,7 +84,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
 
 /// The shade kernel a scene without coated-diffuse or principled
 /// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
-/// it had before those materials existed (93 on sm_90): their code would
+/// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,
 /// it still compiles cleanly.
 #[test]

@@ -15,8 +15,8 @@
 //! (as the ring does: each ray starts where it was shaded), `prev-hit` (on
 //! the part holding the surface it leaves), `oracle` (on the part holding
 //! its hit). `CHUNKS=1,2,4` picks the chunk counts, `WORK_STRIDE=N` thins
-//! the reference's points, `NO_PLAIN=1` skips `chunksC`. BENCHMARKS.md
-//! (issue 4) has the results; GPU measurements disagreed with them.
+//! the reference's points, `NO_PLAIN=1` skips `chunksC`. BENCHMARKS.md has
+//! the results; GPU measurements disagreed with them.
 
 use std::time::Instant;
 

@@ -307,8 +307,8 @@ fn the_heaviest_piece_goes_to_part_zero() {
 
 /// Balanced by bytes plus a cost per instance, a ground and light objects
 /// with many instances no longer put every instance on the part without
-/// the ground (what bytes alone do: the landscape's plants, BENCHMARKS.md
-/// issue 6); every triangle is still placed exactly once.
+/// the ground (what bytes alone do: the landscape's plants, BENCHMARKS.md);
+/// every triangle is still placed exactly once.
 #[test]
 fn instance_costs_spread_instanced_objects_over_the_parts() {
     let mut scene = Scene::default();

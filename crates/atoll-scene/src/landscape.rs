@@ -20,8 +20,9 @@
 //! | 100 | 83,929 | 3,286,354 | 99,981,704 | 81.7 MiB |
 //! | 1000 | 834,136 | 32,782,248 | 999,785,158 | 814.2 MiB |
 //!
-//! Building takes about 5 ms at growth 1, 0.3 s at 100 and 3–4 s at 1000
-//! (release, one core); the estimate takes milliseconds at any growth.
+//! Building takes time in proportion to the growth (seconds at the largest
+//! growths, release, one core); the estimate takes milliseconds at any
+//! growth.
 //!
 //! Everything is a function of `(growth, seed, detail)`: no global state,
 //! no time, no thread count, so the same fields give the same scene.

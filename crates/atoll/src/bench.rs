@@ -61,7 +61,7 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         }
     }
     // Path tracing: the diffuse Cornell box at 512², 15 bounces, no Russian
-    // roulette (the settings issue 3's GPU target is stated in).
+    // roulette (the settings of the GPU speed target in BENCHMARKS.md).
     let scene = Arc::new(atoll_scene::cornell::builtin_cornell_box());
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = UVec2::new(512, 512);

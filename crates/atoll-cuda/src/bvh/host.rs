@@ -1,12 +1,16 @@
 //! The GPU BVH's tables on the host: what [`super::GpuSceneBvh::download`]
-//! returns and what [`super::reference::build`] produces, so both can be
-//! compared, checked, costed (SAH) and traversed here.
+//! returns and what `super::reference::build` produces, so both can be
+//! compared, checked, costed (SAH) and, in tests, traversed here.
 //!
 //! Also the build plan both builders share: which objects get a BLAS (one
 //! segment each) and which instances go into the TLAS.
 
-use atoll_bvh::{Aabb, Ray, TraversalRay, TriAccel};
-use glam::{Vec3, Vec3A};
+use atoll_bvh::Aabb;
+#[cfg(test)]
+use atoll_bvh::{Ray, TraversalRay, TriAccel};
+#[cfg(test)]
+use glam::Vec3;
+use glam::Vec3A;
 
 use super::layout::{GpuBvhNode, GpuTlasInstance, GpuTriRecord, Link, TriangleTest, BUILD_NONE, LINK_DONE};
 use crate::layout::{GpuInstance, GpuObject};
@@ -53,12 +57,12 @@ impl ScenePlan {
         plan
     }
 
-    pub fn segments(&self) -> u32 {
+    pub(crate) fn segments(&self) -> u32 {
         self.seg_object.len() as u32
     }
 
     /// BLAS primitives (triangles) over all segments.
-    pub fn primitives(&self) -> u32 {
+    pub(crate) fn primitives(&self) -> u32 {
         *self.seg_start.last().unwrap_or(&0)
     }
 }
@@ -93,6 +97,7 @@ pub struct HostSceneBvh {
 
 /// Woop's test on the host, as `intersect_woop` in bvh.cuh (with FMA
 /// contraction on the GPU the floats may differ in the last bits).
+#[cfg(test)]
 fn intersect_woop(r: &GpuTriRecord, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, f32, f32)> {
     let row =
         |m: &[f32; 4]| (m[3] + o.x * m[0] + o.y * m[1] + o.z * m[2], d.x * m[0] + d.y * m[1] + d.z * m[2]);
@@ -110,15 +115,18 @@ fn intersect_woop(r: &GpuTriRecord, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f
 
 impl HostSceneBvh {
     /// The closest hit with `0 < t < ray.t_max`, traversing like the kernels.
-    pub fn intersect(&self, ray: &Ray) -> Option<HostHit> {
+    #[cfg(test)]
+    pub(crate) fn intersect(&self, ray: &Ray) -> Option<HostHit> {
         self.trace(ray, false)
     }
 
     /// Whether anything is hit with `0 < t < ray.t_max`.
-    pub fn occluded(&self, ray: &Ray) -> bool {
+    #[cfg(test)]
+    pub(crate) fn occluded(&self, ray: &Ray) -> bool {
         self.trace(ray, true).is_some()
     }
 
+    #[cfg(test)]
     fn trace(&self, ray: &Ray, any: bool) -> Option<HostHit> {
         let world = TraversalRay::new(ray.origin.into(), ray.direction.into());
         let mut t_max = ray.t_max;
@@ -176,6 +184,7 @@ impl HostSceneBvh {
     }
 
     /// The ray in instance record `slot`'s object space (the CPU's transform).
+    #[cfg(test)]
     fn object_ray(&self, slot: u32, ray: &Ray) -> TraversalRay {
         let inst = &self.instances[slot as usize];
         let (o, d) = (Vec3A::from(ray.origin), Vec3A::from(ray.direction));
@@ -211,7 +220,7 @@ impl HostSceneBvh {
     /// SAH cost of one tree (`atoll_bvh::Bvh2::sah_cost`'s formula) given
     /// its root box: traversal cost `ct` per inner node and `ci` per
     /// primitive, each weighted by its box's area, over the root's area.
-    pub fn tree_sah(
+    pub(crate) fn tree_sah(
         nodes: &[GpuBvhNode],
         root: i32,
         root_box: ([f32; 3], [f32; 3]),
@@ -258,17 +267,6 @@ impl HostSceneBvh {
         }
         let tlas = Self::tree_sah(&self.tlas_nodes, self.tlas_root, self.tlas_bounds, ci, ct);
         ((weighted / triangles.max(1) as f64) as f32, tlas)
-    }
-
-    /// Deepest leaf of the TLAS and of any BLAS, in nodes.
-    pub fn max_depths(&self) -> (u32, u32) {
-        let depth = |nodes: &[GpuBvhNode], root: i32| {
-            let mut deepest = 0;
-            Self::visit(nodes, root, &mut |_, d| deepest = deepest.max(d));
-            deepest
-        };
-        let blas = self.blas_roots.iter().map(|&r| depth(&self.blas_nodes, r)).max().unwrap_or(0);
-        (depth(&self.tlas_nodes, self.tlas_root), blas)
     }
 
     /// Structural checks: every node reached exactly once from the roots,

@@ -1,6 +1,6 @@
 //! The GPU BVH's traversal layout (mirrors `kernels/bvh.cuh`) and the build
 //! tree's constants (mirrors `kernels/lbvh.cuh`). Both headers hold a block
-//! generated from this file ([`crate::header`]), so sizes, offsets and
+//! generated from this file (`src/header.rs`), so sizes, offsets and
 //! constants are defined once.
 //!
 //! After Aila & Laine 2009: a binary node stores the boxes of its two
@@ -11,25 +11,31 @@
 
 use bytemuck::{Pod, Zeroable};
 
+#[cfg(test)]
 use crate::header::struct_asserts;
+#[cfg(test)]
 use crate::layout::{field_layout, FieldLayout};
 
 /// Stack bottom of every traversal; also the root link of an empty tree.
-pub const LINK_DONE: i32 = 0x7654_3210;
+pub(crate) const LINK_DONE: i32 = 0x7654_3210;
 /// Pushed when traversal enters an instance; popping it returns to the TLAS.
-pub const LINK_INSTANCE_END: i32 = 0x7654_3211;
+#[cfg(test)]
+pub(crate) const LINK_INSTANCE_END: i32 = 0x7654_3211;
 /// Most primitives in one leaf (two bits of a leaf link).
-pub const MAX_LEAF_PRIMS: u32 = 4;
+pub(crate) const MAX_LEAF_PRIMS: u32 = 4;
 /// Entries of a traversal stack (TLAS and BLAS depth together).
-pub const TRAVERSAL_STACK: u32 = 96;
+#[cfg(test)]
+pub(crate) const TRAVERSAL_STACK: u32 = 96;
 /// Leaf links index records below `1 << LEAF_FIRST_BITS`.
-pub const LEAF_FIRST_BITS: u32 = 29;
+pub(crate) const LEAF_FIRST_BITS: u32 = 29;
 
 /// "No node" in the build tree (parent of a root, children of a spare slot).
-pub const BUILD_NONE: u32 = u32::MAX;
+pub(crate) const BUILD_NONE: u32 = u32::MAX;
 /// In a build node's packed count: the SAH prefers this subtree as one leaf.
-pub const BUILD_LEAF_BIT: u32 = 1 << 31;
-pub const BUILD_COUNT_MASK: u32 = !BUILD_LEAF_BIT;
+#[cfg(any(test, feature = "testing"))]
+pub(crate) const BUILD_LEAF_BIT: u32 = 1 << 31;
+#[cfg(any(test, feature = "testing"))]
+pub(crate) const BUILD_COUNT_MASK: u32 = !BUILD_LEAF_BIT;
 
 /// Which ray/triangle test the triangle records are prepared for.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -45,7 +51,7 @@ pub enum TriangleTest {
 
 impl TriangleTest {
     /// The `test` argument of `lbvh_emit_triangles` (TRI_EXACT / TRI_WOOP).
-    pub fn kernel_value(self) -> i32 {
+    pub(crate) fn kernel_value(self) -> i32 {
         match self {
             TriangleTest::Exact => 0,
             TriangleTest::Woop => 1,
@@ -53,7 +59,7 @@ impl TriangleTest {
     }
 
     /// Kernel name suffix (`trace_closest_ww_exact`).
-    pub fn suffix(self) -> &'static str {
+    pub(crate) fn suffix(self) -> &'static str {
         match self {
             TriangleTest::Exact => "exact",
             TriangleTest::Woop => "woop",
@@ -115,19 +121,21 @@ unsafe impl cudarc::driver::DeviceRepr for GpuTlasInstance {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuTlasInstance {}
 
 impl GpuBvhNode {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuBvhNode { left_xy, right_xy, z, links })
     }
 
     /// The box of child 0 (left) or 1 (right) as (min, max).
-    pub fn child_box(&self, child: usize) -> ([f32; 3], [f32; 3]) {
+    pub(crate) fn child_box(&self, child: usize) -> ([f32; 3], [f32; 3]) {
         let xy = if child == 0 { &self.left_xy } else { &self.right_xy };
         let (zlo, zhi) = (self.z[2 * child], self.z[2 * child + 1]);
         ([xy[0], xy[2], zlo], [xy[1], xy[3], zhi])
     }
 
     /// Builds a node from its children's boxes and links.
-    pub fn new(boxes: [([f32; 3], [f32; 3]); 2], links: [i32; 2]) -> Self {
+    #[cfg(any(test, feature = "testing"))]
+    pub(crate) fn new(boxes: [([f32; 3], [f32; 3]); 2], links: [i32; 2]) -> Self {
         let [(l0, l1), (r0, r1)] = boxes;
         GpuBvhNode {
             left_xy: [l0[0], l1[0], l0[1], l1[1]],
@@ -139,26 +147,29 @@ impl GpuBvhNode {
 }
 
 impl GpuTriRecord {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuTriRecord { a, b, c })
     }
 }
 
 impl GpuTlasInstance {
-    pub fn field_layout() -> FieldLayout {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
         field_layout!(GpuTlasInstance { world_to_object, blas_root, instance, identity, pad })
     }
 }
 
 /// A link to a leaf of `count` (1..=4) records from `first`.
-pub fn leaf_link(first: u32, count: u32) -> i32 {
+#[cfg(any(test, feature = "testing"))]
+pub(crate) fn leaf_link(first: u32, count: u32) -> i32 {
     debug_assert!((1..=MAX_LEAF_PRIMS).contains(&count) && first < 1 << LEAF_FIRST_BITS);
     !(((first << 2) | (count - 1)) as i32)
 }
 
 /// What a link points at.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Link {
+pub(crate) enum Link {
     Node(u32),
     Leaf {
         first: u32,
@@ -169,7 +180,7 @@ pub enum Link {
 }
 
 impl Link {
-    pub fn decode(link: i32) -> Link {
+    pub(crate) fn decode(link: i32) -> Link {
         if link < 0 {
             let bits = !link as u32;
             Link::Leaf { first: bits >> 2, count: (bits & 3) + 1 }
@@ -181,13 +192,15 @@ impl Link {
     }
 }
 
+#[cfg(test)]
 fn const_int(ty: &str, name: &str, value: impl std::fmt::Display) -> String {
     format!("constexpr {ty} {name} = {value};\n")
 }
 
 /// The generated block of `kernels/bvh.cuh`: traversal constants and the
 /// layout structs' asserts.
-pub fn header_block() -> String {
+#[cfg(test)]
+pub(crate) fn header_block() -> String {
     let mut s = String::new();
     s += &const_int("int", "LINK_DONE", LINK_DONE);
     s += &const_int("int", "LINK_INSTANCE_END", LINK_INSTANCE_END);
@@ -203,7 +216,8 @@ pub fn header_block() -> String {
 }
 
 /// The generated block of `kernels/lbvh.cuh`: the build tree's constants.
-pub fn build_header_block() -> String {
+#[cfg(test)]
+pub(crate) fn build_header_block() -> String {
     let hex = |v: u32| format!("0x{v:08x}u");
     [
         const_int("unsigned int", "BUILD_NONE", hex(BUILD_NONE)),

@@ -1,7 +1,7 @@
 //! Host side of the LBVH build kernels (`kernels/lbvh.cu`, `treelet.cu`):
 //! the device arrays of one build (all BLASes at once, or the TLAS) and
 //! the launch sequence that turns primitive boxes into the traversal layout.
-//! [`super::reference`] computes the same thing on the host.
+//! `super::reference` computes the same thing on the host.
 
 use cudarc::driver::sys::CUevent_flags;
 use cudarc::driver::{CudaEvent, CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};

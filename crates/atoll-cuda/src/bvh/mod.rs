@@ -5,21 +5,27 @@
 //! Two levels, like `atoll_bvh::SceneBvh`: one BLAS per object with
 //! triangles (all built together, one segment each, in one launch sequence)
 //! and a TLAS over the instances' world boxes. The pieces:
-//! - [`layout`]: the traversal layout shared with `kernels/bvh.cuh`;
+//! - `layout`: the traversal layout shared with `kernels/bvh.cuh`;
 //! - `lbvh`, [`sort`]: host side of the build kernels (`lbvh.cu`,
 //!   `treelet.cu`, `sort.cu`);
-//! - [`reference`]: the same build on the host, bit for bit, for tests and
-//!   for SAH comparisons without a GPU; [`host`]: the tables on the host
-//!   (download, checks, SAH, a host traversal).
+//! - `reference` (tests and the `testing` feature only): the same build on
+//!   the host, bit for bit, for tests and for SAH comparisons without a GPU;
+//!   `host`: the tables on the host (download, checks, SAH; a host traversal
+//!   in tests).
 
-pub mod host;
-pub mod layout;
+mod host;
+pub(crate) mod layout;
 mod lbvh;
+// The host reference build and the test scenes only serve tests (this
+// crate's, and its integration tests through the `testing` feature).
+#[cfg(any(test, feature = "testing"))]
 pub mod reference;
 pub mod sort;
+#[cfg(any(test, feature = "testing"))]
 pub mod testing;
+#[cfg(any(test, feature = "testing"))]
 mod treelet_reference;
-pub mod wide;
+pub(crate) mod wide;
 
 use std::sync::Mutex;
 use std::time::Instant;
@@ -35,7 +41,6 @@ use crate::scene::GpuScene;
 use crate::trace::Tracer;
 use layout::{LEAF_FIRST_BITS, LINK_DONE, MAX_LEAF_PRIMS};
 use lbvh::{launch_err, BuildArrays, LbvhKernels, Phases, THREADS};
-use reference::Bounds;
 
 /// How the GPU BVH is built.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -74,7 +79,7 @@ impl BuildOptions {
     }
 
     /// The primitive threshold of treelet round `round`.
-    pub fn gamma(&self, round: u32) -> u32 {
+    pub(crate) fn gamma(&self, round: u32) -> u32 {
         self.treelet_gamma.saturating_mul(1u32.checked_shl(round).unwrap_or(u32::MAX))
     }
 
@@ -186,7 +191,17 @@ fn download_roots(gpu: &Gpu, a: &BuildArrays) -> Result<Vec<(i32, Bounds, f32)>,
 }
 
 fn area(b: &Bounds) -> f32 {
-    reference::box_area(b.0, b.1)
+    box_area(b.0, b.1)
+}
+
+/// A box as (min, max).
+pub(crate) type Bounds = ([f32; 3], [f32; 3]);
+
+/// Surface area, as `box_area` in lbvh.cuh (and `atoll_bvh::Aabb::area`).
+pub(crate) fn box_area(lo: [f32; 3], hi: [f32; 3]) -> f32 {
+    let e = |k: usize| (hi[k] - lo[k]).max(0.0);
+    let (ex, ey, ez) = (e(0), e(1), e(2));
+    2.0 * ((ex * ey + ey * ez) + ez * ex)
 }
 
 /// Device bytes a build over `triangles` triangles in `segments` BLASes and
@@ -204,7 +219,8 @@ pub fn build_bytes(triangles: u64, segments: u64, instances: u64) -> u64 {
 /// reserve; about 270 bytes per triangle, of which the resident BVH keeps
 /// about 80). Assumes no
 /// more BLASes than instances.
-pub fn estimate_bytes(triangles: u64, instances: u64) -> u64 {
+#[cfg(test)]
+pub(crate) fn estimate_bytes(triangles: u64, instances: u64) -> u64 {
     build_bytes(triangles, instances.min(triangles).max(1), instances)
 }
 
@@ -418,12 +434,12 @@ impl GpuSceneBvh {
     }
 
     /// SAH cost of the BLASes (what `PrepareStats::bvh_sah_cost` reports).
-    pub fn sah_cost(&self) -> f32 {
+    pub(crate) fn sah_cost(&self) -> f32 {
         self.stats.blas_sah
     }
 
     /// Resident device bytes.
-    pub fn bytes(&self) -> u64 {
+    pub(crate) fn bytes(&self) -> u64 {
         (self.blas_nodes.num_bytes()
             + self.tlas_nodes.num_bytes()
             + self.tris.num_bytes()

@@ -16,13 +16,11 @@ use super::layout::{
     BUILD_NONE, LINK_DONE,
 };
 use super::BuildOptions;
+use super::{box_area, Bounds};
 use crate::scene::SceneTables;
 
-/// A box as (min, max).
-pub type Bounds = ([f32; 3], [f32; 3]);
-
 /// Float to unsigned with the same order (the kernels' atomicMin/Max key).
-pub fn float_to_ordered(f: f32) -> u32 {
+pub(crate) fn float_to_ordered(f: f32) -> u32 {
     let u = f.to_bits();
     if u & 0x8000_0000 != 0 {
         !u
@@ -31,15 +29,8 @@ pub fn float_to_ordered(f: f32) -> u32 {
     }
 }
 
-pub fn ordered_to_float(u: u32) -> f32 {
+pub(crate) fn ordered_to_float(u: u32) -> f32 {
     f32::from_bits(if u & 0x8000_0000 != 0 { u & 0x7fff_ffff } else { !u })
-}
-
-/// Surface area, as `box_area` in lbvh.cuh (and `atoll_bvh::Aabb::area`).
-pub fn box_area(lo: [f32; 3], hi: [f32; 3]) -> f32 {
-    let e = |k: usize| (hi[k] - lo[k]).max(0.0);
-    let (ex, ey, ez) = (e(0), e(1), e(2));
-    2.0 * ((ex * ey + ey * ez) + ez * ex)
 }
 
 fn union(a: Bounds, b: Bounds) -> Bounds {
@@ -49,7 +40,14 @@ fn union(a: Bounds, b: Bounds) -> Bounds {
 }
 
 /// `sah_node_cost` of lbvh.cuh: (cost, packed count).
-pub fn sah_node_cost(area: f32, count: u32, children: f32, max_leaf: u32, ci: f32, ct: f32) -> (f32, u32) {
+pub(crate) fn sah_node_cost(
+    area: f32,
+    count: u32,
+    children: f32,
+    max_leaf: u32,
+    ci: f32,
+    ct: f32,
+) -> (f32, u32) {
     let split = ct * area + children;
     let leaf = (ci * area) * count as f32;
     if count <= max_leaf && leaf <= split {
@@ -60,7 +58,7 @@ pub fn sah_node_cost(area: f32, count: u32, children: f32, max_leaf: u32, ci: f3
 }
 
 /// Spreads the low 10 bits of `v` to every third bit (Karras 2012).
-pub fn expand_bits(mut v: u32) -> u32 {
+pub(crate) fn expand_bits(mut v: u32) -> u32 {
     v = v.wrapping_mul(0x0001_0001) & 0xFF00_00FF;
     v = v.wrapping_mul(0x0000_0101) & 0x0F00_F00F;
     v = v.wrapping_mul(0x0000_0011) & 0xC30C_30C3;
@@ -69,7 +67,7 @@ pub fn expand_bits(mut v: u32) -> u32 {
 }
 
 /// 30-bit Morton code of a point normalised to [0, 1]^3 (clamped), as `morton3` in lbvh.cuh.
-pub fn morton3(x: f32, y: f32, z: f32) -> u32 {
+pub(crate) fn morton3(x: f32, y: f32, z: f32) -> u32 {
     // NaN clamps to NaN and converts to 0, as fminf/fmaxf make it 0 on the GPU.
     let q = |v: f32| (v * 1024.0).clamp(0.0, 1023.0) as u32;
     expand_bits(q(x)) * 4 + expand_bits(q(y)) * 2 + expand_bits(q(z))
@@ -92,7 +90,7 @@ pub fn segment_of(p: u32, seg_start: &[u32]) -> usize {
 
 /// The build tree (the device arrays of `lbvh.rs`, on the host).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct BuildTree {
+pub(crate) struct BuildTree {
     /// Segment starts in primitive (and sorted) order, `segments + 1` entries.
     pub seg_start: Vec<u32>,
     /// Morton codes in sorted order.
@@ -110,12 +108,12 @@ pub struct BuildTree {
 }
 
 impl BuildTree {
-    pub fn prims(&self) -> u32 {
+    pub(crate) fn prims(&self) -> u32 {
         self.values.len() as u32
     }
 
     /// The root slot of segment `s`.
-    pub fn root(&self, s: usize) -> u32 {
+    pub(crate) fn root(&self, s: usize) -> u32 {
         let lo = self.seg_start[s];
         if self.seg_start[s + 1] - lo >= 2 {
             lo
@@ -124,16 +122,16 @@ impl BuildTree {
         }
     }
 
-    pub fn count(&self, n: u32) -> u32 {
+    pub(crate) fn count(&self, n: u32) -> u32 {
         self.packed[n as usize] & BUILD_COUNT_MASK
     }
 
-    pub fn is_leaf_choice(&self, n: u32) -> bool {
+    pub(crate) fn is_leaf_choice(&self, n: u32) -> bool {
         self.packed[n as usize] & BUILD_LEAF_BIT != 0
     }
 
     /// Internal slots in an order with every node after its children.
-    pub fn post_order(&self) -> Vec<u32> {
+    pub(crate) fn post_order(&self) -> Vec<u32> {
         let p = self.prims();
         let mut order = Vec::with_capacity(p as usize);
         let mut todo: Vec<(u32, bool)> =
@@ -156,7 +154,7 @@ impl BuildTree {
 
 /// Steps 1–2: per-segment bounds of the doubled centroids, Morton codes,
 /// and the sort by (segment, code), stable (values are primitive indices).
-pub fn sorted_codes(boxes: &[Bounds], seg_start: &[u32]) -> (Vec<u32>, Vec<u32>) {
+pub(crate) fn sorted_codes(boxes: &[Bounds], seg_start: &[u32]) -> (Vec<u32>, Vec<u32>) {
     let segments = seg_start.len() - 1;
     let mut bounds = vec![[u32::MAX, u32::MAX, u32::MAX, 0, 0, 0]; segments];
     let centroid = |b: &Bounds| [b.0[0] + b.1[0], b.0[1] + b.1[1], b.0[2] + b.1[2]];
@@ -200,7 +198,7 @@ fn delta(keys: &[u32], a: i64, b: i64) -> i32 {
 }
 
 /// Step 4: the binary radix tree of every segment (`lbvh_karras`).
-pub fn karras(keys: &[u32], seg_start: &[u32]) -> (Vec<[u32; 2]>, Vec<u32>) {
+pub(crate) fn karras(keys: &[u32], seg_start: &[u32]) -> (Vec<[u32; 2]>, Vec<u32>) {
     let p = keys.len() as u32;
     let mut child = vec![[BUILD_NONE; 2]; p as usize];
     let mut parent = vec![BUILD_NONE; 2 * p as usize];
@@ -250,7 +248,7 @@ pub fn karras(keys: &[u32], seg_start: &[u32]) -> (Vec<[u32; 2]>, Vec<u32>) {
 
 /// Steps 1–5 over primitive boxes: the sorted codes, the radix tree and
 /// bottom-up bounds, costs and leaf preferences (`lbvh_bounds`).
-pub fn build_tree(boxes: &[Bounds], seg_start: &[u32], max_leaf: u32, ci: f32, ct: f32) -> BuildTree {
+pub(crate) fn build_tree(boxes: &[Bounds], seg_start: &[u32], max_leaf: u32, ci: f32, ct: f32) -> BuildTree {
     let (keys, values) = sorted_codes(boxes, seg_start);
     let (child, parent) = karras(&keys, seg_start);
     let p = keys.len();
@@ -285,7 +283,7 @@ pub fn build_tree(boxes: &[Bounds], seg_start: &[u32], max_leaf: u32, ci: f32, c
 
 /// The collapsed tree in the traversal layout (steps 7–8).
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Collapsed {
+pub(crate) struct Collapsed {
     pub nodes: Vec<GpuBvhNode>,
     /// Sorted primitive position `j` of each output record, in leaf order.
     pub order: Vec<u32>,
@@ -297,7 +295,7 @@ pub struct Collapsed {
 /// Steps 7–8 (`lbvh_mark`, the two scans, `lbvh_emit_*`): the topmost
 /// nodes preferring to be leaves become leaves, kept inner nodes and leaf
 /// records are numbered in slot order.
-pub fn collapse(tree: &BuildTree, max_leaf: u32) -> Collapsed {
+pub(crate) fn collapse(tree: &BuildTree, max_leaf: u32) -> Collapsed {
     let p = tree.prims();
     let slot = |n: u32| if n < p { 2 * n as usize } else { 2 * (n - p) as usize + 1 };
     let mut kept = vec![false; p as usize];
@@ -371,7 +369,7 @@ pub fn collapse(tree: &BuildTree, max_leaf: u32) -> Collapsed {
 }
 
 /// A whole build over primitive boxes with `options`' treelet rounds.
-pub fn build(
+pub(crate) fn build(
     boxes: &[Bounds],
     seg_start: &[u32],
     max_leaf: u32,
@@ -393,7 +391,7 @@ pub fn build(
 
 /// The record of triangle (p0, p1, p2) (`make_tri_record` in lbvh.cu; the
 /// Woop rows are computed in f64 there too, but may differ in the last bit).
-pub fn tri_record([p0, p1, p2]: [[f32; 3]; 3], test: TriangleTest) -> GpuTriRecord {
+pub(crate) fn tri_record([p0, p1, p2]: [[f32; 3]; 3], test: TriangleTest) -> GpuTriRecord {
     let w = |v: [f32; 3], w: f32| [v[0], v[1], v[2], w];
     match test {
         TriangleTest::Exact => {
@@ -424,7 +422,7 @@ pub fn tri_record([p0, p1, p2]: [[f32; 3]; 3], test: TriangleTest) -> GpuTriReco
 
 /// World box of an instance whose object has box `b` (`lbvh_tlas_boxes`:
 /// Arvo's method, padded by a relative 1e-6).
-pub fn instance_bounds(object_to_world: &[f32; 12], b: Bounds) -> Bounds {
+pub(crate) fn instance_bounds(object_to_world: &[f32; 12], b: Bounds) -> Bounds {
     let m = object_to_world;
     let (mut lo, mut hi) = ([0.0f32; 3], [0.0f32; 3]);
     for r in 0..3 {

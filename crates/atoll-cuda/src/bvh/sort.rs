@@ -6,7 +6,7 @@
 //! (`radix_histogram`, digit-major: `hist[digit * tiles + tile]`), one
 //! exclusive scan over that table gives every (digit, tile) its output
 //! offset, and `radix_scatter` writes each tile's pairs there in input
-//! order within a digit (stable). [`reference_pass`] is the same algorithm
+//! order within a digit (stable). `reference_pass` is the same algorithm
 //! on the host, tested against a stable sort.
 
 use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
@@ -17,9 +17,9 @@ use crate::gpu::Gpu;
 /// Threads per block of the sort and scan kernels.
 const THREADS: u32 = 256;
 /// Pairs per radix tile (SORT_TILE in sort.cu).
-pub const SORT_TILE: u32 = 4096;
+pub(crate) const SORT_TILE: u32 = 4096;
 /// Elements per scan tile (SCAN_TILE in sort.cu).
-pub const SCAN_TILE: u32 = 2048;
+pub(crate) const SCAN_TILE: u32 = 2048;
 const FILE: &str = "sort.cu";
 
 /// One radix pass: the 8 bits at `shift` of the key, or of the segment of
@@ -74,7 +74,7 @@ impl SortScratch {
     }
 
     /// Device bytes [`SortScratch::new`] allocates.
-    pub fn bytes(n: u32, scan_n: u32) -> u64 {
+    pub(crate) fn bytes(n: u32, scan_n: u32) -> u64 {
         let hist_len = 256 * radix_tiles(n) as u64;
         let scan_len = hist_len.max(scan_n as u64);
         4 * (hist_len.max(1) + scan_len.div_ceil(SCAN_TILE as u64).max(1) + 1)
@@ -233,7 +233,12 @@ impl SortKernels {
 
 /// One radix pass on the host, tile for tile as the kernels do it: tile
 /// histograms digit-major, an exclusive scan, a stable scatter.
-pub fn reference_pass(keys: &[u32], values: &[u32], digit: impl Fn(u32, u32) -> u32) -> (Vec<u32>, Vec<u32>) {
+#[cfg(test)]
+pub(crate) fn reference_pass(
+    keys: &[u32],
+    values: &[u32],
+    digit: impl Fn(u32, u32) -> u32,
+) -> (Vec<u32>, Vec<u32>) {
     let n = keys.len();
     let tiles = (n as u32).div_ceil(SORT_TILE).max(1) as usize;
     let mut hist = vec![0u32; 256 * tiles];

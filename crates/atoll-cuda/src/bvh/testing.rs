@@ -12,12 +12,12 @@ use crate::scene::SceneTables;
 pub struct Rng(pub u64);
 
 impl Rng {
-    pub fn uniform(&mut self) -> f32 {
+    pub(crate) fn uniform(&mut self) -> f32 {
         self.0 = self.0.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((self.0 >> 40) as f32) / (1u64 << 24) as f32
     }
 
-    pub fn vec3(&mut self) -> Vec3 {
+    pub(crate) fn vec3(&mut self) -> Vec3 {
         Vec3::new(self.uniform(), self.uniform(), self.uniform())
     }
 

@@ -7,14 +7,15 @@
 //! sequential post-order pass over the same roots gives the same tree.
 
 use super::layout::{BUILD_COUNT_MASK, BUILD_LEAF_BIT};
-use super::reference::{box_area, sah_node_cost, Bounds, BuildTree};
+use super::reference::{sah_node_cost, BuildTree};
+use super::{box_area, Bounds};
 
 /// Leaves of a treelet.
-pub const TREELET_LEAVES: usize = 7;
+pub(crate) const TREELET_LEAVES: usize = 7;
 const SUBSETS: usize = 1 << TREELET_LEAVES;
 
 /// Restructures every node with at least `gamma` primitives, bottom-up.
-pub fn round(tree: &mut BuildTree, gamma: u32, max_leaf: u32, ci: f32, ct: f32) {
+pub(crate) fn round(tree: &mut BuildTree, gamma: u32, max_leaf: u32, ci: f32, ct: f32) {
     for n in tree.post_order() {
         if tree.count(n) >= gamma {
             restructure(tree, n, max_leaf, ci, ct);

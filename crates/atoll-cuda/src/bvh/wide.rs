@@ -23,15 +23,14 @@ use cudarc::driver::CudaSlice;
 use glam::Vec3A;
 
 use super::layout::{GpuBvhNode, GpuTlasInstance, GpuTriRecord, LINK_DONE};
-use super::reference::Bounds;
-use super::GpuSceneBvh;
+use super::{Bounds, GpuSceneBvh};
 use crate::error::CudaError;
 use crate::gpu::{upload, Gpu};
 
 /// A [`CwbvhNode`] as the kernels load it: five aligned 16-byte words.
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuWideNode(pub CwbvhNode);
+pub(crate) struct GpuWideNode(pub CwbvhNode);
 
 const _: () = assert!(std::mem::size_of::<GpuWideNode>() == 80);
 
@@ -41,16 +40,13 @@ unsafe impl cudarc::driver::DeviceRepr for GpuWideNode {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuWideNode {}
 
 /// The wide tree and the records in its order, resident on the GPU.
-pub struct WideBvh {
+pub(crate) struct WideBvh {
     pub nodes: CudaSlice<GpuWideNode>,
     pub tris: CudaSlice<GpuTriRecord>,
     pub tri_ids: CudaSlice<u32>,
     pub instances: CudaSlice<GpuTlasInstance>,
     /// The TLAS's root node, or `LINK_DONE` for an empty scene.
     pub root: i32,
-    pub node_count: usize,
-    /// Host time of download, collapse and upload.
-    pub build_seconds: f64,
 }
 
 /// The binary subtree at `root` (a link of `nodes`) as a [`Bvh2`] whose
@@ -104,7 +100,7 @@ fn append(nodes: &mut Vec<GpuWideNode>, wide: &Cwbvh, prim_offset: u32) -> i32 {
 
 impl WideBvh {
     /// Collapses `bvh` (download, host collapse, upload).
-    pub fn build(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<Self, CudaError> {
+    pub(crate) fn build(gpu: &Gpu, bvh: &GpuSceneBvh) -> Result<Self, CudaError> {
         let start = Instant::now();
         let download = |what: &str| format!("{}: downloading the {what} for the wide BVH", gpu.label());
         let blas_nodes =
@@ -157,13 +153,11 @@ impl WideBvh {
             build_seconds
         );
         Ok(WideBvh {
-            node_count: nodes.len(),
             nodes: upload(gpu, &nodes, "wide BVH nodes")?,
             tris: upload(gpu, &wide_tris, "wide BVH triangles")?,
             tri_ids: upload(gpu, &wide_ids, "wide BVH triangle ids")?,
             instances: upload(gpu, &wide_instances, "wide BVH instances")?,
             root,
-            build_seconds,
         })
     }
 }

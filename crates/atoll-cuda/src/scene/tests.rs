@@ -212,7 +212,7 @@ fn memory_plan_refuses_before_allocating() {
     let counts = TableCounts::of(&scene);
     let plan = MemoryPlan {
         scene_tables: counts.bytes(),
-        bvh: bvh_estimate_bytes(counts.triangles, counts.instances),
+        bvh: crate::bvh::estimate_bytes(counts.triangles, counts.instances),
         queues: 3 * (1 << 18) * 128,
         film: 1024 * 1024 * 12,
         params: 0,
