@@ -15,13 +15,39 @@ pub struct Film {
     pub spp: u32,
 }
 
-/// Errors writing an image.
+/// Errors writing an image. `path` is the file asked for (not the
+/// temporary one written first); the message repeats the wrapped error's.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
     #[error("{path}: unsupported image extension (use .exr or .png)")]
     UnknownFormat { path: String },
-    #[error("{path}: {message}")]
-    Write { path: String, message: String },
+    /// The `exr` crate could not write the image.
+    #[error("{path}: {source}")]
+    Exr {
+        path: String,
+        #[source]
+        source: exr::error::Error,
+    },
+    /// The `image` crate could not write the PNG.
+    #[error("{path}: {source}")]
+    Png {
+        path: String,
+        #[source]
+        source: image::ImageError,
+    },
+    /// The finished image could not replace the target.
+    #[error("{path}: {source}")]
+    Rename {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Why a format writer failed, before the path is known to the message.
+enum WriteFailure {
+    Exr(exr::error::Error),
+    Png(image::ImageError),
 }
 
 impl Film {
@@ -72,23 +98,30 @@ impl Film {
             Some("png") => self.write_png(&tmp),
             _ => return Err(ImageError::UnknownFormat { path: display }),
         };
-        result.and_then(|_| std::fs::rename(&tmp, path).map_err(|e| e.to_string())).map_err(|message| {
+        let result = match result {
+            Ok(()) => {
+                std::fs::rename(&tmp, path).map_err(|source| ImageError::Rename { path: display, source })
+            }
+            Err(WriteFailure::Exr(source)) => Err(ImageError::Exr { path: display, source }),
+            Err(WriteFailure::Png(source)) => Err(ImageError::Png { path: display, source }),
+        };
+        if result.is_err() {
             let _ = std::fs::remove_file(&tmp);
-            ImageError::Write { path: display, message }
-        })
+        }
+        result
     }
 
-    fn write_exr(&self, path: &Path) -> Result<(), String> {
+    fn write_exr(&self, path: &Path) -> Result<(), WriteFailure> {
         let pixels = self.pixels();
         let width = self.resolution.x as usize;
         exr::prelude::write_rgb_file(path, width, self.resolution.y as usize, |x, y| {
             let p = pixels[y * width + x];
             (p.x, p.y, p.z)
         })
-        .map_err(|e| e.to_string())
+        .map_err(WriteFailure::Exr)
     }
 
-    fn write_png(&self, path: &Path) -> Result<(), String> {
+    fn write_png(&self, path: &Path) -> Result<(), WriteFailure> {
         let bytes: Vec<u8> = self
             .pixels()
             .iter()
@@ -103,7 +136,7 @@ impl Film {
             image::ColorType::Rgb8,
             image::ImageFormat::Png,
         )
-        .map_err(|e| e.to_string())
+        .map_err(WriteFailure::Png)
     }
 }
 
@@ -149,6 +182,13 @@ mod tests {
         assert_eq!(img.layer_data.channel_data.pixels[4], [1.5, 2.0, 0.25]);
         let bad = dir.join("b.tga");
         assert!(matches!(film.write(&bad), Err(ImageError::UnknownFormat { .. })));
+        // A directory that does not exist: the writer's error is kept as the source.
+        let nowhere = dir.join("no-such-dir").join("c.png");
+        let err = film.write(&nowhere).unwrap_err();
+        assert!(matches!(err, ImageError::Png { .. }), "{err:?}");
+        assert!(err.to_string().starts_with(&nowhere.display().to_string()), "{err}");
+        assert!(std::error::Error::source(&err).is_some_and(|s| s.is::<image::ImageError>()));
+        assert!(!nowhere.with_extension("partial.png").exists());
         std::fs::remove_dir_all(&dir).ok();
     }
 }

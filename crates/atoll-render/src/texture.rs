@@ -20,7 +20,7 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, Material, Scene, TexInput, Texture, TextureId, TextureImage, TexturedParam,
+    AlphaMode, Channel, ImageId, Material, Scene, TexInput, Texture, TextureId, TextureImage, TexturedParam,
     UvMapping, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
@@ -231,9 +231,26 @@ impl TextureTables {
     }
 }
 
+/// Why a texture tree has no program.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum TextureCompileError {
+    #[error("texture tree needs more than {} stack values", TEXTURE_STACK)]
+    StackTooDeep,
+    #[error("textures nested more than {} deep (a cycle?)", MAX_TEXTURE_NESTING)]
+    NestedTooDeep,
+    #[error("texture {0} does not exist")]
+    NoTexture(TextureId),
+    #[error("image {0} does not exist")]
+    NoImage(ImageId),
+}
+
 /// Appends the program of texture `id` (leaving its value on the stack)
 /// to `out`; errors name what is wrong with the texture tree.
-pub fn compile_texture(scene: &Scene, id: TextureId, out: &mut Vec<TexOp>) -> Result<(), String> {
+pub fn compile_texture(
+    scene: &Scene,
+    id: TextureId,
+    out: &mut Vec<TexOp>,
+) -> Result<(), TextureCompileError> {
     compile(scene, id, out, 0, 0)
 }
 
@@ -249,15 +266,15 @@ fn compile(
     out: &mut Vec<TexOp>,
     depth: usize,
     nesting: usize,
-) -> Result<(), String> {
+) -> Result<(), TextureCompileError> {
     if depth >= TEXTURE_STACK {
-        return Err(format!("texture tree needs more than {TEXTURE_STACK} stack values"));
+        return Err(TextureCompileError::StackTooDeep);
     }
     if nesting > MAX_TEXTURE_NESTING {
-        return Err(format!("textures nested more than {MAX_TEXTURE_NESTING} deep (a cycle?)"));
+        return Err(TextureCompileError::NestedTooDeep);
     }
     let textures = &scene.textures;
-    let texture = textures.textures.get(id as usize).ok_or_else(|| format!("texture {id} does not exist"))?;
+    let texture = textures.textures.get(id as usize).ok_or(TextureCompileError::NoTexture(id))?;
     let input = |out: &mut Vec<TexOp>, input: &TexInput, depth: usize| match *input {
         TexInput::Value(v) => {
             out.push(constant(v));
@@ -269,7 +286,7 @@ fn compile(
         Texture::Constant(v) => out.push(constant(*v)),
         Texture::Image { image, mapping, wrap, channel, scale, invert } => {
             if *image as usize >= textures.images.len() {
-                return Err(format!("image {image} does not exist"));
+                return Err(TextureCompileError::NoImage(*image));
             }
             out.push(TexOp {
                 code: op::IMAGE,

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use glam::{Vec2, Vec3};
 
-use crate::Rgb;
+use crate::{ImageLoadError, Rgb};
 
 /// How an environment image covers the sphere of directions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -113,7 +113,7 @@ impl EnvironmentImage {
 
     /// Loads an OpenEXR (RGB(A), linear) or PNG (sRGB, decoded to linear)
     /// image; square images are equal-area maps, others lat-long ones.
-    pub fn load(path: &Path) -> Result<Self, String> {
+    pub fn load(path: &Path) -> Result<Self, ImageLoadError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         let (width, height, pixels) = match ext.as_deref() {
             Some("exr") => {
@@ -124,28 +124,24 @@ impl EnvironmentImage {
                         px[pos.y() * *w + pos.x()] = Rgb::new(r, g, b)
                     },
                 )
-                .map_err(|e| format!("{}: {e}", path.display()))?;
+                .map_err(ImageLoadError::exr(path))?;
                 let size = img.layer_data.size;
                 (size.width() as u32, size.height() as u32, img.layer_data.channel_data.pixels.1)
             }
             Some("png") => {
-                let img = image::open(path).map_err(|e| format!("{}: {e}", path.display()))?.to_rgb32f();
+                let img = image::open(path).map_err(ImageLoadError::decode(path))?.to_rgb32f();
                 let (w, h) = img.dimensions();
                 let srgb = |c: f32| if c <= 0.04045 { c / 12.92 } else { ((c + 0.055) / 1.055).powf(2.4) };
                 (w, h, img.pixels().map(|p| Rgb::new(srgb(p[0]), srgb(p[1]), srgb(p[2]))).collect())
             }
-            _ => return Err(format!("{}: environment images must be .exr or .png", path.display())),
+            _ => return Err(ImageLoadError::EnvironmentFormat { path: path.to_path_buf() }),
         };
         if width == 0 || height == 0 {
-            return Err(format!("{}: the image is empty", path.display()));
+            return Err(ImageLoadError::Empty { path: path.to_path_buf() });
         }
         if let Some(bad) = pixels.iter().position(|p| !p.is_finite() || p.min_element() < 0.0) {
-            return Err(format!(
-                "{}: pixel ({}, {}) is negative or not finite",
-                path.display(),
-                bad as u32 % width,
-                bad as u32 / width
-            ));
+            let (x, y) = (bad as u32 % width, bad as u32 / width);
+            return Err(ImageLoadError::BadEnvironmentPixel { path: path.to_path_buf(), x, y });
         }
         let layout = if width == height { EnvLayout::EqualArea } else { EnvLayout::LatLong };
         Ok(EnvironmentImage { width, height, pixels, layout })
@@ -251,7 +247,10 @@ mod tests {
         assert!(EnvironmentImage::load(&dir.join("missing.exr")).is_err());
         std::fs::write(dir.join("bad.exr"), b"not an exr").unwrap();
         assert!(EnvironmentImage::load(&dir.join("bad.exr")).is_err());
-        assert!(EnvironmentImage::load(&dir.join("sky.tga")).unwrap_err().contains(".exr or .png"));
+        assert!(EnvironmentImage::load(&dir.join("sky.tga"))
+            .unwrap_err()
+            .to_string()
+            .contains(".exr or .png"));
         std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -55,6 +55,7 @@
 
 use std::collections::{BTreeSet, HashMap};
 use std::path::Path;
+use std::sync::Arc;
 
 use ::gltf::accessor::{DataType, Dimensions};
 use ::gltf::json::validation::Checked;
@@ -65,9 +66,9 @@ use glam::{Affine3A, Mat4, UVec2, Vec2, Vec3, Vec4};
 use crate::error::{FileLoc, SceneError};
 use crate::pbrt::WarningSink;
 use crate::{
-    luminance, AlphaMode, AreaEmission, Camera, Channel, ImageId, Instance, Light, LoadedScene, Material,
-    MaterialId, MeshAlpha, Object, ObjectId, PrincipledParams, Rgb, TexInput, Texels, Texture,
-    TextureBinding, TextureImage, TexturedParam, TriangleMesh, UvMapping, Wrap,
+    luminance, AlphaMode, AreaEmission, Camera, Channel, ImageId, ImageLoadError, Instance, Light,
+    LoadedScene, Material, MaterialId, MeshAlpha, Object, ObjectId, PrincipledParams, Rgb, TexInput, Texels,
+    Texture, TextureBinding, TextureImage, TexturedParam, TriangleMesh, UvMapping, Wrap,
 };
 
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
@@ -250,32 +251,35 @@ impl<'a> Loader<'a> {
         }
         let loc = self.loc.clone();
         let err = |m: String| SceneError::at(&loc, format!("{what}: {m}"));
+        let accessor = |e: AccessorError| SceneError::caused_by(&loc, format!("{what}: {e}"), e);
         let buffers = &self.buffers;
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| d.0.as_slice()));
         let Some(pos) = prim.get(&::gltf::Semantic::Positions) else {
             return Err(err("no POSITION attribute".into()));
         };
-        check_accessor(self.doc, &pos, "POSITION", &[Dimensions::Vec3], &[DataType::F32]).map_err(err)?;
+        check_accessor(self.doc, &pos, "POSITION", &[Dimensions::Vec3], &[DataType::F32])
+            .map_err(accessor)?;
         let positions: Vec<Vec3> =
             reader.read_positions().ok_or_else(|| err(out_of_range("POSITION")))?.map(Vec3::from).collect();
         let n = positions.len();
         let mut normals = Vec::new();
         if let Some(acc) = prim.get(&::gltf::Semantic::Normals) {
-            check_accessor(self.doc, &acc, "NORMAL", &[Dimensions::Vec3], &[DataType::F32]).map_err(err)?;
+            check_accessor(self.doc, &acc, "NORMAL", &[Dimensions::Vec3], &[DataType::F32])
+                .map_err(accessor)?;
             normals =
                 reader.read_normals().ok_or_else(|| err(out_of_range("NORMAL")))?.map(Vec3::from).collect();
         }
         let mut uvs = Vec::new();
         if let Some(acc) = prim.get(&::gltf::Semantic::TexCoords(0)) {
             let types = [DataType::F32, DataType::U8, DataType::U16];
-            check_accessor(self.doc, &acc, "TEXCOORD_0", &[Dimensions::Vec2], &types).map_err(err)?;
+            check_accessor(self.doc, &acc, "TEXCOORD_0", &[Dimensions::Vec2], &types).map_err(accessor)?;
             let read = reader.read_tex_coords(0).ok_or_else(|| err(out_of_range("TEXCOORD_0")))?;
             uvs = read.into_f32().map(Vec2::from).collect();
         }
         let flat: Vec<u32> = match prim.indices() {
             Some(acc) => {
                 let types = [DataType::U8, DataType::U16, DataType::U32];
-                check_accessor(self.doc, &acc, "indices", &[Dimensions::Scalar], &types).map_err(err)?;
+                check_accessor(self.doc, &acc, "indices", &[Dimensions::Scalar], &types).map_err(accessor)?;
                 reader.read_indices().ok_or_else(|| err(out_of_range("indices")))?.into_u32().collect()
             }
             None => (0..n as u32).collect(),
@@ -302,7 +306,7 @@ impl<'a> Loader<'a> {
             flip_normals: false,
             alpha,
         };
-        mesh.validate().map_err(err)?;
+        mesh.validate().map_err(|m| SceneError::caused_by(&loc, format!("{what}: {m}"), m))?;
         Ok(Some(mesh))
     }
 
@@ -412,7 +416,7 @@ impl<'a> Loader<'a> {
             _ => image.name().map(String::from).unwrap_or_else(|| format!("image {}", image.index())),
         };
         let decoded = ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
-            .map_err(|e| e.to_string())
+            .map_err(|e| ImageLoadError::Gltf(Arc::new(e)))
             .and_then(|data| texture_image(&name, data, srgb));
         let id = match decoded {
             Ok(t) => Some(self.out.scene.textures.add_image(t)),
@@ -650,7 +654,11 @@ fn rgba<T: Copy>(v: &[T], one: T) -> [T; 4] {
 /// (sRGB when `srgb`); grey ones are spread over RGB (with grey-alpha's
 /// alpha); 16-bit ones become linear floats, or 8-bit when sRGB; float ones
 /// stay linear floats.
-pub fn texture_image(name: &str, data: ::gltf::image::Data, srgb: bool) -> Result<TextureImage, String> {
+pub fn texture_image(
+    name: &str,
+    data: ::gltf::image::Data,
+    srgb: bool,
+) -> Result<TextureImage, ImageLoadError> {
     use ::gltf::image::Format as F;
     let (width, height) = (data.width, data.height);
     let px = &data.pixels;
@@ -686,7 +694,7 @@ pub fn texture_image(name: &str, data: ::gltf::image::Data, srgb: bool) -> Resul
         Texels::RgbaF32(data) => data.len(),
     };
     if width == 0 || height == 0 || count != (width * height) as usize {
-        return Err(format!("{width}x{height} pixels but {count} texels decoded"));
+        return Err(ImageLoadError::TexelCount { width, height, texels: count });
     }
     Ok(TextureImage { name: name.to_string(), width, height, texels })
 }
@@ -721,33 +729,47 @@ fn out_of_range(attr: &str) -> String {
     format!("the {attr} accessor has no data or reaches past its buffer")
 }
 
+/// An accessor that [`check_accessor`] refuses: `attr` is the attribute
+/// it feeds (`POSITION`, `indices`, ...), `index` the accessor's index.
+#[derive(Debug, thiserror::Error)]
+enum AccessorError {
+    #[error("{attr} accessor {index}: unexpected type {dims:?} of {ty:?}")]
+    Type { attr: &'static str, index: usize, dims: Dimensions, ty: DataType },
+    #[error("{attr} accessor {index}: count is 0")]
+    Empty { attr: &'static str, index: usize },
+    #[error("{attr} accessor {index}: byte stride {stride} is smaller than an element ({size} bytes)")]
+    Stride { attr: &'static str, index: usize, stride: usize, size: usize },
+    #[error("{attr} accessor {index}: sparse storage with no entries or non-integer indices")]
+    Sparse { attr: &'static str, index: usize },
+}
+
 /// Checks what the gltf crate's reader assumes without checking (it panics
 /// otherwise): the element type, a non-zero count, a stride no smaller than
 /// an element, and integer sparse indices.
 fn check_accessor(
     doc: &::gltf::Document,
     acc: &::gltf::Accessor,
-    what: &str,
+    attr: &'static str,
     dims: &[Dimensions],
     types: &[DataType],
-) -> Result<(), String> {
-    let bad = |m: String| Err(format!("{what} accessor {}: {m}", acc.index()));
+) -> Result<(), AccessorError> {
+    let index = acc.index();
     if !dims.contains(&acc.dimensions()) || !types.contains(&acc.data_type()) {
-        return bad(format!("unexpected type {:?} of {:?}", acc.dimensions(), acc.data_type()));
+        return Err(AccessorError::Type { attr, index, dims: acc.dimensions(), ty: acc.data_type() });
     }
     if acc.count() == 0 {
-        return bad("count is 0".into());
+        return Err(AccessorError::Empty { attr, index });
     }
     if let Some(stride) = acc.view().and_then(|v| v.stride()) {
         if stride < acc.size() {
-            return bad(format!("byte stride {stride} is smaller than an element ({} bytes)", acc.size()));
+            return Err(AccessorError::Stride { attr, index, stride, size: acc.size() });
         }
     }
     if let Some(sparse) = doc.as_json().accessors.get(acc.index()).and_then(|a| a.sparse.as_ref()) {
         use ::gltf::json::accessor::ComponentType as C;
         let int_indices = matches!(sparse.indices.component_type, Checked::Valid(t) if matches!(t.0, C::U8 | C::U16 | C::U32));
         if sparse.count.0 == 0 || !int_indices {
-            return bad("sparse storage with no entries or non-integer indices".into());
+            return Err(AccessorError::Sparse { attr, index });
         }
     }
     Ok(())

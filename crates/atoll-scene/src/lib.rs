@@ -34,11 +34,11 @@ pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
 pub use load::{load_any, LoadedScene};
 pub use material::{CoatedDiffuseParams, Material, MaterialId, PrincipledParams};
-pub use mesh::{MeshId, TriangleMesh};
+pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
 pub use texture::{
-    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, MeshAlpha, TexInput, Texels, Texture,
-    TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping, Wrap,
+    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, TexInput, Texels,
+    Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping, Wrap,
 };
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).

@@ -114,7 +114,7 @@ fn single_mesh_scene(
             format!("no triangles to render ({n} vertices and no faces: a point cloud?)"),
         ));
     }
-    mesh.validate().map_err(|m| SceneError::at(loc, m))?;
+    mesh.validate().map_err(|m| SceneError::caused_by(loc, m.to_string(), m))?;
     let mut scene = Scene::default();
     mesh.material = scene.add_material(Material::default_diffuse());
     let id = scene.add_mesh(mesh);

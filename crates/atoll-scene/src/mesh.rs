@@ -7,6 +7,20 @@ use crate::{AreaEmission, MaterialId};
 /// Index of a mesh in [`crate::Scene::meshes`].
 pub type MeshId = u32;
 
+/// What [`TriangleMesh::validate`] found wrong. Loaders put the mesh's
+/// name and the file's location in front.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    #[error("{normals} normals for {positions} positions")]
+    NormalCount { normals: usize, positions: usize },
+    #[error("{uvs} uvs for {positions} positions")]
+    UvCount { uvs: usize, positions: usize },
+    #[error("triangle {triangle} uses vertex {vertex} but the mesh has {vertices} vertices")]
+    VertexOutOfRange { triangle: usize, vertex: u32, vertices: usize },
+    #[error("non-finite vertex position {position}")]
+    NonFinitePosition { position: Vec3 },
+}
+
 /// An indexed triangle mesh in the space of the object that owns it.
 #[derive(Clone, Debug, Default)]
 pub struct TriangleMesh {
@@ -62,22 +76,22 @@ impl TriangleMesh {
             as u64
     }
 
-    /// Checks indices and attribute lengths; returns a message on the first problem.
-    pub fn validate(&self) -> Result<(), String> {
-        let n = self.positions.len();
-        if !self.normals.is_empty() && self.normals.len() != n {
-            return Err(format!("{} normals for {} positions", self.normals.len(), n));
+    /// Checks indices and attribute lengths; returns the first problem.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let positions = self.positions.len();
+        if !self.normals.is_empty() && self.normals.len() != positions {
+            return Err(MeshError::NormalCount { normals: self.normals.len(), positions });
         }
-        if !self.uvs.is_empty() && self.uvs.len() != n {
-            return Err(format!("{} uvs for {} positions", self.uvs.len(), n));
+        if !self.uvs.is_empty() && self.uvs.len() != positions {
+            return Err(MeshError::UvCount { uvs: self.uvs.len(), positions });
         }
-        for (t, tri) in self.indices.iter().enumerate() {
-            if let Some(&bad) = tri.iter().find(|&&i| i as usize >= n) {
-                return Err(format!("triangle {t} uses vertex {bad} but the mesh has {n} vertices"));
+        for (triangle, tri) in self.indices.iter().enumerate() {
+            if let Some(&vertex) = tri.iter().find(|&&i| i as usize >= positions) {
+                return Err(MeshError::VertexOutOfRange { triangle, vertex, vertices: positions });
             }
         }
-        if let Some(p) = self.positions.iter().find(|p| !p.is_finite()) {
-            return Err(format!("non-finite vertex position {p}"));
+        if let Some(&position) = self.positions.iter().find(|p| !p.is_finite()) {
+            return Err(MeshError::NonFinitePosition { position });
         }
         Ok(())
     }

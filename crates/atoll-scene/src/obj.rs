@@ -140,7 +140,8 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
         if mesh.uvs.len() != mesh.positions.len() {
             mesh.uvs.clear();
         }
-        mesh.validate().map_err(|msg| SceneError::at(&whole, format!("object '{}': {msg}", model.name)))?;
+        mesh.validate()
+            .map_err(|m| SceneError::caused_by(&whole, format!("object '{}': {m}", model.name), m))?;
         meshes.push(loaded.scene.add_mesh(mesh));
     }
     if meshes.is_empty() {

@@ -177,9 +177,20 @@ fn parse_header(bytes: &[u8]) -> Result<Header, PlyError> {
     Ok(Header { format, elements, body_start: pos })
 }
 
+/// Why the next value of a body could not be read.
+#[derive(Debug, thiserror::Error)]
+enum ValueError {
+    #[error("unexpected end of file at byte {0}")]
+    EndAt(usize),
+    #[error("unexpected end of file")]
+    End,
+    #[error("bad number '{0}'")]
+    BadNumber(String),
+}
+
 /// Reads scalar values from the body in file order.
 trait Values {
-    fn next(&mut self, ty: Scalar) -> Result<f64, String>;
+    fn next(&mut self, ty: Scalar) -> Result<f64, ValueError>;
 }
 
 struct Binary<'a> {
@@ -189,10 +200,10 @@ struct Binary<'a> {
 }
 
 impl Values for Binary<'_> {
-    fn next(&mut self, ty: Scalar) -> Result<f64, String> {
+    fn next(&mut self, ty: Scalar) -> Result<f64, ValueError> {
         let n = ty.size();
         let Some(src) = self.bytes.get(self.pos..self.pos + n) else {
-            return Err(format!("unexpected end of file at byte {}", self.bytes.len()));
+            return Err(ValueError::EndAt(self.bytes.len()));
         };
         self.pos += n;
         let mut b = [0u8; 8];
@@ -218,9 +229,9 @@ struct Ascii<'a> {
 }
 
 impl Values for Ascii<'_> {
-    fn next(&mut self, _ty: Scalar) -> Result<f64, String> {
-        let w = self.words.next().ok_or("unexpected end of file")?;
-        w.parse::<f64>().map_err(|_| format!("bad number '{w}'"))
+    fn next(&mut self, _ty: Scalar) -> Result<f64, ValueError> {
+        let w = self.words.next().ok_or(ValueError::End)?;
+        w.parse::<f64>().map_err(|_| ValueError::BadNumber(w.to_string()))
     }
 }
 
@@ -298,20 +309,22 @@ fn read_body(header: &Header, src: &mut dyn Values, body_len: usize) -> Result<P
             return invalid("element 'face' has no list property 'vertex_indices'");
         }
         for i in 0..e.count {
-            let at = |m: String| PlyError::Invalid(format!("element '{}' {i} of {}: {m}", e.name, e.count));
+            let at = |m: &dyn std::fmt::Display| {
+                PlyError::Invalid(format!("element '{}' {i} of {}: {m}", e.name, e.count))
+            };
             row.clear();
             for (pi, p) in e.props.iter().enumerate() {
                 match p.kind {
-                    PropKind::Scalar(ty) => row.push(src.next(ty).map_err(at)?),
+                    PropKind::Scalar(ty) => row.push(src.next(ty).map_err(|err| at(&err))?),
                     PropKind::List { count, item } => {
-                        let n = src.next(count).map_err(at)?;
+                        let n = src.next(count).map_err(|err| at(&err))?;
                         if n < 0.0 || n.fract() != 0.0 {
-                            return Err(at(format!("bad list length {n}")));
+                            return Err(at(&format_args!("bad list length {n}")));
                         }
                         let keep = is_face && Some(pi) == index_prop;
                         let start = face_items.len();
                         for _ in 0..n as usize {
-                            let v = src.next(item).map_err(at)?;
+                            let v = src.next(item).map_err(|err| at(&err))?;
                             if keep {
                                 face_items.push(v as i64);
                             }

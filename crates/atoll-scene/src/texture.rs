@@ -9,7 +9,8 @@
 //! (`atoll_render::texture`) flattens these trees into one program that the
 //! CPU and the GPU both run.
 
-use std::path::Path;
+use std::fmt;
+use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
 use crate::{MaterialId, MeshId, Rgb};
@@ -41,6 +42,89 @@ pub struct TextureImage {
     pub texels: Texels,
 }
 
+/// Why an image (a texture or an environment map) could not be had.
+///
+/// Cheap to clone (wrapped errors are shared), so that [`ImageCache`] can
+/// hand the same failure to every texture naming the file. Each message
+/// names the file and already says what the wrapped error says; the wrapped
+/// error is also the [`std::error::Error::source`].
+#[derive(Clone, Debug)]
+pub enum ImageLoadError {
+    /// The file could not be opened or read.
+    Io { path: PathBuf, source: Arc<std::io::Error> },
+    /// The `image` crate could not decode the file.
+    Decode { path: PathBuf, source: Arc<image::ImageError> },
+    /// The `exr` crate could not read the file.
+    Exr { path: PathBuf, source: Arc<exr::error::Error> },
+    /// glTF could not produce an image's pixels (a bad URI or buffer view,
+    /// an embedded image that does not decode).
+    Gltf(Arc<::gltf::Error>),
+    /// Environment maps are read from EXR and PNG files only.
+    EnvironmentFormat { path: PathBuf },
+    /// The image has no pixels.
+    Empty { path: PathBuf },
+    /// A float texel is infinite or NaN.
+    NonFiniteTexel { path: PathBuf, x: u32, y: u32 },
+    /// An environment pixel is negative, infinite or NaN.
+    BadEnvironmentPixel { path: PathBuf, x: u32, y: u32 },
+    /// Decoded pixel data that does not fill the image's size.
+    TexelCount { width: u32, height: u32, texels: usize },
+}
+
+impl ImageLoadError {
+    pub(crate) fn io(path: &Path) -> impl FnOnce(std::io::Error) -> Self + '_ {
+        |e| ImageLoadError::Io { path: path.to_path_buf(), source: Arc::new(e) }
+    }
+
+    pub(crate) fn decode(path: &Path) -> impl FnOnce(image::ImageError) -> Self + '_ {
+        |e| ImageLoadError::Decode { path: path.to_path_buf(), source: Arc::new(e) }
+    }
+
+    pub(crate) fn exr(path: &Path) -> impl FnOnce(exr::error::Error) -> Self + '_ {
+        |e| ImageLoadError::Exr { path: path.to_path_buf(), source: Arc::new(e) }
+    }
+}
+
+impl fmt::Display for ImageLoadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use ImageLoadError as E;
+        match self {
+            E::Io { path, source } => write!(f, "{}: {source}", path.display()),
+            E::Decode { path, source } => write!(f, "{}: {source}", path.display()),
+            E::Exr { path, source } => write!(f, "{}: {source}", path.display()),
+            E::Gltf(source) => write!(f, "{source}"),
+            E::EnvironmentFormat { path } => {
+                write!(f, "{}: environment images must be .exr or .png", path.display())
+            }
+            E::Empty { path } => write!(f, "{}: the image is empty", path.display()),
+            E::NonFiniteTexel { path, x, y } => {
+                write!(f, "{}: texel ({x}, {y}) is not finite", path.display())
+            }
+            E::BadEnvironmentPixel { path, x, y } => {
+                write!(f, "{}: pixel ({x}, {y}) is negative or not finite", path.display())
+            }
+            E::TexelCount { width, height, texels } => {
+                write!(f, "{width}x{height} pixels but {texels} texels decoded")
+            }
+        }
+    }
+}
+
+// By hand rather than derived: the source must be the wrapped error itself
+// (so callers can downcast it), not the `Arc` that makes this type cloneable.
+impl std::error::Error for ImageLoadError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        use ImageLoadError as E;
+        match self {
+            E::Io { source, .. } => Some(&**source),
+            E::Decode { source, .. } => Some(&**source),
+            E::Exr { source, .. } => Some(&**source),
+            E::Gltf(source) => Some(&**source),
+            _ => None,
+        }
+    }
+}
+
 /// The 256 linear values of the sRGB-encoded bytes. One table for CPU and
 /// GPU (it is uploaded), so both decode a texel to the same float.
 pub fn srgb8_to_linear() -> &'static [f32; 256] {
@@ -63,7 +147,7 @@ impl TextureImage {
     /// Decodes an image file: EXR (floats), Radiance HDR (floats), PNG,
     /// JPEG, TGA and BMP (8-bit, sRGB unless `srgb` is false: pbrt's
     /// `encoding "linear"`). 16-bit PNGs are kept as floats.
-    pub fn decode(path: &Path, srgb: bool) -> Result<Self, String> {
+    pub fn decode(path: &Path, srgb: bool) -> Result<Self, ImageLoadError> {
         let name = path.display().to_string();
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         let (width, height, texels) = if ext.as_deref() == Some("exr") {
@@ -74,16 +158,16 @@ impl TextureImage {
                     px[pos.y() * *w + pos.x()] = [r, g, b, a]
                 },
             )
-            .map_err(|e| format!("{name}: {e}"))?;
+            .map_err(ImageLoadError::exr(path))?;
             let size = img.layer_data.size;
             (size.width() as u32, size.height() as u32, Texels::RgbaF32(img.layer_data.channel_data.pixels.1))
         } else {
             let img = image::ImageReader::open(path)
-                .map_err(|e| format!("{name}: {e}"))?
+                .map_err(ImageLoadError::io(path))?
                 .with_guessed_format()
-                .map_err(|e| format!("{name}: {e}"))?
+                .map_err(ImageLoadError::io(path))?
                 .decode()
-                .map_err(|e| format!("{name}: {e}"))?;
+                .map_err(ImageLoadError::decode(path))?;
             let (w, h) = (img.width(), img.height());
             use image::ColorType as C;
             let float = !matches!(img.color(), C::L8 | C::La8 | C::Rgb8 | C::Rgba8);
@@ -101,15 +185,12 @@ impl TextureImage {
             }
         };
         if width == 0 || height == 0 {
-            return Err(format!("{name}: the image is empty"));
+            return Err(ImageLoadError::Empty { path: path.to_path_buf() });
         }
         if let Texels::RgbaF32(px) = &texels {
             if let Some(bad) = px.iter().position(|p| p.iter().any(|c| !c.is_finite())) {
-                return Err(format!(
-                    "{name}: texel ({}, {}) is not finite",
-                    bad as u32 % width,
-                    bad as u32 / width
-                ));
+                let (x, y) = (bad as u32 % width, bad as u32 / width);
+                return Err(ImageLoadError::NonFiniteTexel { path: path.to_path_buf(), x, y });
             }
         }
         Ok(TextureImage { name, width, height, texels })
@@ -179,7 +260,7 @@ impl ColorEncoding {
 impl TextureImage {
     /// [`TextureImage::decode`] with any [`ColorEncoding`]. A gamma curve
     /// has no 8-bit table, so such images are kept as floats.
-    pub fn decode_encoded(path: &Path, encoding: ColorEncoding) -> Result<Self, String> {
+    pub fn decode_encoded(path: &Path, encoding: ColorEncoding) -> Result<Self, ImageLoadError> {
         let gamma = match encoding {
             ColorEncoding::Srgb => return Self::decode(path, true),
             ColorEncoding::Linear => return Self::decode(path, false),
@@ -222,7 +303,7 @@ impl TextureImage {
 /// Failures are remembered too, so a missing file is looked for once.
 #[derive(Debug, Default)]
 pub struct ImageCache {
-    loaded: std::collections::HashMap<(std::path::PathBuf, (u8, u32)), Result<ImageId, String>>,
+    loaded: std::collections::HashMap<(std::path::PathBuf, (u8, u32)), Result<ImageId, ImageLoadError>>,
 }
 
 impl ImageCache {
@@ -232,7 +313,7 @@ impl ImageCache {
         textures: &mut Textures,
         path: &Path,
         encoding: ColorEncoding,
-    ) -> Result<ImageId, String> {
+    ) -> Result<ImageId, ImageLoadError> {
         // A path that does not resolve is its own key; decoding then reports why.
         let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         self.loaded
@@ -533,8 +614,14 @@ mod tests {
         assert_eq!(linear.texel(0, 0)[1], 128.0 / 255.0);
         std::fs::write(dir.join("bad.png"), b"not a png").unwrap();
         let err = TextureImage::decode(&dir.join("bad.png"), true).unwrap_err();
-        assert!(err.contains("bad.png"), "{err}");
-        assert!(TextureImage::decode(&dir.join("missing.png"), true).is_err());
+        assert!(err.to_string().contains("bad.png"), "{err}");
+        // The decoder's own error stays reachable underneath.
+        let source = std::error::Error::source(&err).expect("a source");
+        assert!(source.downcast_ref::<image::ImageError>().is_some(), "{err:?}");
+        let missing = TextureImage::decode(&dir.join("missing.png"), true).unwrap_err();
+        assert!(
+            matches!(&missing, ImageLoadError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound)
+        );
         std::fs::remove_dir_all(&dir).ok();
     }
 
@@ -559,7 +646,11 @@ mod tests {
         let b = cache.load(&mut textures, &dir.join(".").join("g.png"), ColorEncoding::Srgb).unwrap();
         let c = cache.load(&mut textures, &path, ColorEncoding::Linear).unwrap();
         assert_eq!((a, b, c, textures.images.len()), (0, 0, 1, 2));
-        assert!(cache.load(&mut textures, &dir.join("none.png"), ColorEncoding::Srgb).is_err());
+        let missing = cache.load(&mut textures, &dir.join("none.png"), ColorEncoding::Srgb).unwrap_err();
+        // Remembered: the second request gets the same failure without looking again.
+        let again = cache.load(&mut textures, &dir.join("none.png"), ColorEncoding::Srgb).unwrap_err();
+        assert_eq!(missing.to_string(), again.to_string());
+        assert!(missing.to_string().contains("none.png"), "{missing}");
         assert_eq!(textures.images.len(), 2);
         std::fs::remove_dir_all(&dir).ok();
     }

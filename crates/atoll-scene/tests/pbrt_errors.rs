@@ -155,6 +155,16 @@ fn includes_that_work() {
 fn missing_main_file() {
     let e = load_file(Path::new("/nonexistent/scene.pbrt")).unwrap_err();
     assert!(e.to_string().starts_with("/nonexistent/scene.pbrt: cannot read scene file"), "{e}");
+    // The I/O error is kept underneath the message.
+    let mut cause = std::error::Error::source(&e);
+    while let Some(c) = cause {
+        if let Some(io) = c.downcast_ref::<std::io::Error>() {
+            assert_eq!(io.kind(), std::io::ErrorKind::NotFound);
+            return;
+        }
+        cause = c.source();
+    }
+    panic!("no io::Error in the source chain of {e:?}");
 }
 
 /// Every prefix of a valid scene either loads or fails with a located error.

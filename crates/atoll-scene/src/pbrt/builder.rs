@@ -387,7 +387,7 @@ impl Builder {
     fn include(&mut self, file: &str, loc: &FileLoc) -> Result<(), SceneError> {
         let path = self.base_dir.join(file);
         let canonical = path.canonicalize().map_err(|e| {
-            SceneError::at(loc, format!("cannot read included file '{}': {e}", path.display()))
+            SceneError::caused_by(loc, format!("cannot read included file '{}': {e}", path.display()), e)
         })?;
         if let Some(i) = self.parsers.iter().position(|(_, c)| c.as_ref() == Some(&canonical)) {
             let chain: Vec<&str> = self.parsers[i..].iter().map(|(p, _)| p.file()).collect();
@@ -397,7 +397,7 @@ impl Builder {
             ));
         }
         let bytes = super::read_scene_file(&path)
-            .map_err(|e| SceneError::at(loc, format!("Include '{}': {e}", path.display())))?;
+            .map_err(|e| SceneError::caused_by(loc, format!("Include '{}': {e}", path.display()), e))?;
         let name = path.display().to_string();
         self.parsers.push((Parser::new(Tokenizer::new(name, bytes)?), Some(canonical)));
         Ok(())
@@ -827,7 +827,8 @@ impl Builder {
             flip_normals: reverse ^ transform::swaps_handedness(&ctm),
             alpha,
         };
-        mesh.validate().map_err(|m| SceneError::at(loc, format!("shape \"{}\": {m}", mesh.name)))?;
+        mesh.validate()
+            .map_err(|m| SceneError::caused_by(loc, format!("shape \"{}\": {m}", mesh.name), m))?;
         let emits = mesh.emission.is_some();
         let id = self.scene.add_mesh(mesh);
         if let (true, Some(texture)) = (emits, self.gs.area_light_texture) {

@@ -40,7 +40,8 @@ pub use crate::load::LoadedScene;
 /// `plymesh` file names) resolve against the file's directory, as pbrt-v4 does.
 pub fn load_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
-    let bytes = read_scene_file(path).map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), e))?;
+    let bytes = read_scene_file(path)
+        .map_err(|e| SceneError::caused_by(&FileLoc::whole_file(name.as_str()), e.to_string(), e))?;
     let base_dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -55,15 +56,24 @@ pub fn load_str(text: &str, name: &str, base_dir: &Path) -> Result<LoadedScene, 
     builder::Builder::new(base_dir).load(text.as_bytes().to_vec(), name, None)
 }
 
+/// Why a scene file's bytes could not be had; the caller says which file.
+#[derive(Debug, thiserror::Error)]
+enum ReadSceneError {
+    #[error("cannot read scene file: {0}")]
+    Read(#[source] std::io::Error),
+    #[error("bad gzip data: {0}")]
+    Gzip(#[source] std::io::Error),
+}
+
 /// Reads a scene file, decompressing `.gz` files.
-fn read_scene_file(path: &Path) -> Result<Vec<u8>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("cannot read scene file: {e}"))?;
+fn read_scene_file(path: &Path) -> Result<Vec<u8>, ReadSceneError> {
+    let bytes = std::fs::read(path).map_err(ReadSceneError::Read)?;
     if path.extension().is_some_and(|e| e == "gz") {
         use std::io::Read;
         let mut out = Vec::new();
         flate2::read::MultiGzDecoder::new(bytes.as_slice())
             .read_to_end(&mut out)
-            .map_err(|e| format!("bad gzip data: {e}"))?;
+            .map_err(ReadSceneError::Gzip)?;
         return Ok(out);
     }
     Ok(bytes)

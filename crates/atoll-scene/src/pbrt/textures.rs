@@ -28,7 +28,8 @@ use std::path::Path;
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    ColorEncoding, ImageCache, Rgb, TexInput, Texture, TextureId, TexturedParam, Textures, UvMapping, Wrap,
+    ColorEncoding, ImageCache, ImageLoadError, Rgb, TexInput, Texture, TextureId, TexturedParam, Textures,
+    UvMapping, Wrap,
 };
 
 use super::entities::reflectance_rgb;
@@ -235,7 +236,7 @@ impl NamedTextures {
         };
         let image = match self.images.load(store, &base_dir.join(&file), encoding) {
             Ok(id) => id,
-            Err(e) => return Ok(Err(e)),
+            Err(e) => return Ok(Err(e.to_string())),
         };
         let channel = match kind {
             TexKind::Float => crate::Channel::Average,
@@ -252,7 +253,7 @@ impl NamedTextures {
         file: &str,
         base_dir: &Path,
         store: &mut Textures,
-    ) -> Result<TextureId, String> {
+    ) -> Result<TextureId, ImageLoadError> {
         let image = self.images.load(store, &base_dir.join(file), ColorEncoding::Srgb)?;
         Ok(store.add(Texture::Image {
             image,

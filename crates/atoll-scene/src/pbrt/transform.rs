@@ -11,16 +11,24 @@ pub fn rotate(degrees: f64, axis: DVec3) -> Option<DMat4> {
     Some(DMat4::from_axis_angle(a, degrees.to_radians()))
 }
 
+/// Why a `LookAt` gives no camera orientation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LookAtError {
+    #[error("LookAt: eye and look-at point are the same")]
+    SamePoint,
+    #[error("LookAt: the up vector is zero")]
+    ZeroUp,
+    #[error("LookAt: the up vector and the viewing direction are parallel")]
+    UpParallel,
+}
+
 /// `LookAt`: the camera-from-world matrix of a camera at `eye` looking at
 /// `look`, with pbrt's left-handed camera space (+x right, +y up, +z forward).
 /// Errors when `up` is parallel to the viewing direction.
-pub fn look_at(eye: DVec3, look: DVec3, up: DVec3) -> Result<DMat4, String> {
-    let dir = (look - eye).try_normalize().ok_or("LookAt: eye and look-at point are the same")?;
-    let up = up.try_normalize().ok_or("LookAt: the up vector is zero")?;
-    let right = up
-        .cross(dir)
-        .try_normalize()
-        .ok_or("LookAt: the up vector and the viewing direction are parallel")?;
+pub fn look_at(eye: DVec3, look: DVec3, up: DVec3) -> Result<DMat4, LookAtError> {
+    let dir = (look - eye).try_normalize().ok_or(LookAtError::SamePoint)?;
+    let up = up.try_normalize().ok_or(LookAtError::ZeroUp)?;
+    let right = up.cross(dir).try_normalize().ok_or(LookAtError::UpParallel)?;
     let new_up = dir.cross(right);
     let world_from_camera =
         DMat4::from_cols(right.extend(0.0), new_up.extend(0.0), dir.extend(0.0), eye.extend(1.0));
@@ -72,7 +80,8 @@ mod tests {
         assert!((point(&world_from_cam, DVec3::ZERO) - DVec3::new(0.0, 1.0, -3.9)).length() < 1e-12);
         assert!((world_from_cam.transform_vector3(DVec3::Z) - DVec3::Z).length() < 1e-12);
         assert!((world_from_cam.transform_vector3(DVec3::X) - DVec3::X).length() < 1e-12);
-        assert!(look_at(DVec3::ZERO, DVec3::Y, DVec3::Y).is_err());
+        assert_eq!(look_at(DVec3::ZERO, DVec3::Y, DVec3::Y), Err(LookAtError::UpParallel));
+        assert_eq!(look_at(DVec3::Y, DVec3::Y, DVec3::X), Err(LookAtError::SamePoint));
     }
 
     #[test]
