@@ -99,3 +99,12 @@ fn replicate_and_ring_on_two_gpu_parts_are_one_gpu() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+/// The split-ground body's budget search finds a partition under the CUDA
+/// byte model too (no GPU needed: the model is arithmetic), so the GPU
+/// run of that body is not the first to learn that it cannot.
+#[test]
+fn the_split_ground_partition_fits_the_cuda_byte_model() {
+    let scene = strategy_bodies::ground_scene();
+    strategy_bodies::split_ground_partition(&scene, &atoll_cuda::scene::byte_model());
+}
