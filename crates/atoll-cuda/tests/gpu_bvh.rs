@@ -1,7 +1,8 @@
 //! The GPU BVH on a real GPU: the radix sort and scan, the LBVH build
 //! (compared bit for bit with the host reference, and checked), traversal
 //! (every variant and triangle test against brute force) and its SAH
-//! against the CPU's binned-SAH builder. Skips without a GPU (see tests/common).
+//! against the CPU's binned-SAH builder. Ignored unless asked for
+//! (`--include-ignored`); see tests/common.
 
 mod common;
 
@@ -23,6 +24,7 @@ fn upload(gpu: &Gpu, v: &[u32]) -> CudaSlice<u32> {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn scan_matches_the_host() {
     let Some(gpu) = gpu_or_skip("scan") else { return };
     let k = SortKernels::load(&gpu).unwrap();
@@ -62,6 +64,7 @@ fn check_sort(gpu: &Gpu, k: &SortKernels, keys: &[u32], seg_start: &[u32], passe
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn radix_sort_is_stable_with_duplicates_and_segments() {
     let Some(gpu) = gpu_or_skip("radix sort") else { return };
     let k = SortKernels::load(&gpu).unwrap();
@@ -120,6 +123,7 @@ fn scenes() -> Vec<(&'static str, atoll_scene::Scene)> {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn gpu_build_equals_the_host_reference_and_is_valid() {
     let Some(gpu) = gpu_or_skip("build") else { return };
     for (name, scene) in scenes() {
@@ -148,6 +152,7 @@ fn gpu_build_equals_the_host_reference_and_is_valid() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn empty_and_tiny_scenes_build_and_trace() {
     let Some(gpu) = gpu_or_skip("tiny") else { return };
     // Objects: one triangle (0) and none (1).
@@ -216,6 +221,7 @@ fn trace_on_gpu(
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn gpu_traversal_matches_brute_force() {
     let Some(gpu) = gpu_or_skip("traversal") else { return };
     let scene = random_scene(31, 10, 3000, 80);
@@ -268,6 +274,7 @@ fn gpu_traversal_matches_brute_force() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn sah_against_the_cpu_binned_builder() {
     let Some(gpu) = gpu_or_skip("sah") else { return };
     let scene = atoll_scene::procedural::bench_scene(1_000_000);

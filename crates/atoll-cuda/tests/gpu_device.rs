@@ -1,6 +1,6 @@
 //! `CudaDevice` against `CpuDevice`: the same stages on the same scene must
-//! give the same queues and (up to float rounding) the same image. Skips
-//! without a GPU (see tests/common).
+//! give the same queues and (up to float rounding) the same image. Ignored
+//! unless asked for (`--include-ignored`); see tests/common.
 
 mod common;
 
@@ -33,6 +33,7 @@ fn mean_diff(a: Vec3, b: Vec3) -> f32 {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn camera_rays_and_hits_match_the_cpu_device() {
     let Some(gpu) = gpu_or_skip("stages") else { return };
     let scene = cornell();
@@ -75,6 +76,7 @@ fn camera_rays_and_hits_match_the_cpu_device() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn cornell_box_matches_the_cpu_device_and_is_deterministic() {
     let Some(gpu) = gpu_or_skip("cornell") else { return };
     let scene = cornell();
@@ -117,6 +119,7 @@ fn cornell_box_matches_the_cpu_device_and_is_deterministic() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn ambient_occlusion_on_an_instanced_scene_matches_the_cpu_device() {
     let Some(gpu) = gpu_or_skip("ao instanced") else { return };
     let scene = Arc::new(atoll_scene::procedural::bench_scene(100_000));
@@ -131,6 +134,7 @@ fn ambient_occlusion_on_an_instanced_scene_matches_the_cpu_device() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn memory_budget_is_refused_before_allocating() {
     let Some(gpu) = gpu_or_skip("budget") else { return };
     let scene = cornell();
@@ -143,6 +147,7 @@ fn memory_budget_is_refused_before_allocating() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn stages_before_prepare_are_errors_not_panics() {
     let Some(gpu) = gpu_or_skip("usage") else { return };
     let mut cuda = CudaDevice::on(gpu);
@@ -183,6 +188,7 @@ fn assert_renders_match(cuda: &mut CudaDevice, scene: &Arc<Scene>, what: &str) {
 /// above and casting their shadow below) render alike on CPU and GPU: same
 /// texture programs, same alpha decisions.
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn textures_and_alpha_cut_outs_match_the_cpu_device() {
     use atoll_scene::texture_scenes::{cutout_scene, Screen};
     let Some(gpu) = gpu_or_skip("textures") else { return };
@@ -199,6 +205,7 @@ fn textures_and_alpha_cut_outs_match_the_cpu_device() {
 /// light exactly as on the CPU (checkerboard emission, seen directly and
 /// lighting a floor).
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn emission_textures_match_the_cpu_device() {
     use atoll_scene::texture_scenes::textured_light_scene;
     use atoll_scene::{Rgb, TexInput, Texture, UvMapping};

@@ -9,8 +9,9 @@
 //! difference; [`shade_with_production_options_mostly_agrees`] checks the
 //! default options too, allowing a few flipped decisions.
 //!
-//! Without a GPU (no driver, no NVRTC, no device) every test skips;
-//! `ATOLL_REQUIRE_GPU=1` turns a skip into a failure.
+//! Ignored unless asked for (`--include-ignored`, as scripts/gpu-check
+//! does); then, without a GPU (no driver, no NVRTC, no device) every test
+//! skips, and `ATOLL_REQUIRE_GPU=1` turns a skip into a failure.
 
 use std::sync::Arc;
 
@@ -366,6 +367,7 @@ fn assert_no_mismatches(what: &str, bad: &[String]) {
 /// The work FIFO's refill appends camera records after the paths already
 /// queued, across wave boundaries, exactly as `CpuDevice::refill` does.
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn refill_matches_camera_record() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", false);
@@ -422,6 +424,7 @@ fn refill_matches_camera_record() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_matches_the_cpu_stage() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", false);
@@ -452,6 +455,7 @@ fn shade_matches_the_cpu_stage() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_production_options_mostly_agrees() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", true);
@@ -466,6 +470,7 @@ fn shade_with_production_options_mostly_agrees() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn resolve_shadows_adds_unoccluded_rays() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", false);
@@ -577,6 +582,7 @@ fn surface_scene() -> Scene {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn surface_matches_write_hit() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "wavefront.cu", false);
@@ -656,6 +662,7 @@ fn surface_matches_write_hit() {
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn rng_is_bit_identical() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "test_bsdf.cu", false);
@@ -742,6 +749,7 @@ fn bsdf_mismatches(gpu: &Gpu, materials: &[PackedMaterial], cases: u32) -> Vec<S
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn bsdfs_match_value_by_value() {
     let Some(gpu) = gpu() else { return };
     let bad = bsdf_mismatches(&gpu, &test_materials(), 12_000);
@@ -788,6 +796,7 @@ fn coated_materials() -> Vec<PackedMaterial> {
 /// value by value. A walk can turn differently where an ulp of `expf`,
 /// `logf`, `sinf` or `cosf` decides a comparison: rare, but a walk has many.
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn coated_diffuse_walks_match_value_by_value() {
     let Some(gpu) = gpu() else { return };
     let cases = 10_000;
@@ -804,6 +813,7 @@ fn coated_diffuse_walks_match_value_by_value() {
 /// `eval`/`pdf`, and the next segment's MIS density taken from `pdf`
 /// (`bsdf_sampled_pdf_is_proportional`).
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_coated_diffuse_matches_the_cpu_stage() {
     shade_materials_matches_the_cpu_stage(&coated_materials());
 }
@@ -868,6 +878,7 @@ fn principled_materials() -> Vec<PackedMaterial> {
 /// The principled BSDF's `eval`, `pdf`, `sample` and `is_delta` on the GPU
 /// (`principled.cuh`) agree with the CPU's value by value.
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn principled_bsdfs_match_value_by_value() {
     let Some(gpu) = gpu() else { return };
     let cases = 12_000;
@@ -885,11 +896,13 @@ fn principled_bsdfs_match_value_by_value() {
 /// `shade` with principled hits: light sampling through the mixture's
 /// `eval`/`pdf`, and delta and non-delta samples of its lobes.
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_principled_matches_the_cpu_stage() {
     shade_materials_matches_the_cpu_stage(&principled_materials());
 }
 
 #[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn light_sampling_and_lookup_match() {
     let Some(gpu) = gpu() else { return };
     let m = module(&gpu, "test_bsdf.cu", false);
