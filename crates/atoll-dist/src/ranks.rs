@@ -27,6 +27,7 @@ use mpi::Threading;
 use crate::handout::{Joined, Joining, Pace, Pacing, Speed, WaveHandout};
 use crate::render::DeviceReport;
 use crate::ring::{RingError, RingPeers, RingPlace};
+use crate::transport::read_for_sending;
 use crate::RingOrder;
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
@@ -242,15 +243,8 @@ impl RingPeers for RankRing {
         let step = self.steps.get();
         self.steps.set((step + 1) % RING_TAGS);
         let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());
-        let sending = Instant::now();
-        if let Err(e) = device.read_queue_into(queue, &mut outgoing) {
-            // Nothing goes out, so that the ring still steps.
-            outgoing.clear();
-            report.fail(e);
-        }
-        report.send_seconds += sending.elapsed().as_secs_f64();
+        read_for_sending(device, queue, &mut outgoing, report);
         let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };
-        report.bytes_sent += std::mem::size_of_val(outgoing.as_slice()) as u64;
         let RingPlace { size, member, .. } = self.place;
         let next = self.comm.process_at_rank(((member + 1) % size) as i32);
         let prev = self.comm.process_at_rank(((member + size - 1) % size) as i32);

@@ -14,7 +14,7 @@ use atoll_render::{Device, DeviceError, DirectRing, Queue, RayRecord, Wave};
 use crate::handout::WaveHandout;
 use crate::layout::RingOrder;
 use crate::render::{DeviceReport, RunShape};
-use crate::transport::Handover;
+use crate::transport::{read_for_sending, Handover};
 use crate::vote::Vote;
 
 /// Why a ring cannot go on.
@@ -120,16 +120,9 @@ impl RingPeers for RingLink<'_> {
         self.steps.set(step + 1);
         let handover = match self.direct {
             None => {
-                let sending = Instant::now();
                 // Into the allocation of the queue that came in last.
                 let mut records = self.spare.take();
-                if let Err(e) = device.read_queue_into(queue, &mut records) {
-                    // Nothing goes out, so that the ring still steps.
-                    records.clear();
-                    report.fail(e);
-                }
-                report.send_seconds += sending.elapsed().as_secs_f64();
-                report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
+                read_for_sending(device, queue, &mut records, report);
                 Handover::Records(records)
             }
             Some(direct) => {

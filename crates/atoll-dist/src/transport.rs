@@ -3,7 +3,11 @@
 //! that offer a [`DirectTransport`](atoll_render::DirectTransport) (GPU
 //! peer copies).
 
-use atoll_render::{Device, DeviceError, DirectRing, RayRecord};
+use std::time::Instant;
+
+use atoll_render::{Device, DeviceError, DirectRing, Queue, RayRecord};
+
+use crate::render::DeviceReport;
 
 /// How queues move around a ring.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,4 +66,22 @@ pub(crate) fn connect_rings(
             transport.connect(members)
         })
         .collect()
+}
+
+/// The host transport's send side: `device`'s `queue` read into `records`
+/// (their allocation reused), timed and counted in `report`. A failed
+/// read sends nothing, so that the ring still steps; the failure is kept.
+pub(crate) fn read_for_sending(
+    device: &dyn Device,
+    queue: Queue,
+    records: &mut Vec<RayRecord>,
+    report: &mut DeviceReport,
+) {
+    let sending = Instant::now();
+    if let Err(e) = device.read_queue_into(queue, records) {
+        records.clear();
+        report.fail(e);
+    }
+    report.send_seconds += sending.elapsed().as_secs_f64();
+    report.bytes_sent += std::mem::size_of_val(records.as_slice()) as u64;
 }
