@@ -12,6 +12,7 @@ use std::sync::Arc;
 use atoll_bvh::{ByteModel, ScenePart};
 use atoll_scene::Scene;
 
+use crate::chunks::{Residency, SceneSharing};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave, DEFAULT_WAVE_SIZE};
 use crate::record::RayRecord;
@@ -60,6 +61,10 @@ pub struct PrepareStats {
     pub frame_bytes: u64,
     pub bvh_build_seconds: f64,
     pub bvh_sah_cost: f32,
+    /// Under the shared strategy, what of the chunked scene the device
+    /// holds and what it reads elsewhere (`scene_bytes` is then the bytes
+    /// it holds).
+    pub shared: Option<Residency>,
 }
 
 /// Counters a device keeps over a frame.
@@ -217,6 +222,26 @@ pub trait Device: Send {
     /// member's stages are separated by waits for its neighbours, which a
     /// wave's time would count as work.
     fn time_stages(&mut self, _per_stage: bool) {}
+
+    // --- Scene memory shared between devices ---
+
+    /// The way devices of this kind share one chunked copy of the scene,
+    /// where they can ([`crate::chunks`]).
+    fn scene_sharing(&self) -> Option<Arc<dyn SceneSharing>> {
+        None
+    }
+
+    /// From the next stage on, counts reads of each chunk of a shared
+    /// scene (`false`: stops counting, keeping the counts).
+    fn count_accesses(&mut self, _on: bool) -> Result<(), DeviceError> {
+        Err(DeviceError::Unsupported { device: self.name(), what: "counting scene accesses".into() })
+    }
+
+    /// Reads per chunk of a shared scene counted since it was prepared or
+    /// placed anew: the prepass's statistics.
+    fn access_counts(&self) -> Result<Vec<u64>, DeviceError> {
+        Err(DeviceError::Unsupported { device: self.name(), what: "counting scene accesses".into() })
+    }
 
     // --- Moving queues ---
 

@@ -3,6 +3,7 @@
 
 pub mod bsdf;
 pub mod camera;
+pub mod chunks;
 pub mod cpu;
 pub mod device;
 pub mod environment;
@@ -21,6 +22,7 @@ pub mod stages;
 pub mod texture;
 pub mod transport;
 
+pub use chunks::{ChunkHome, ChunkLayout, ChunkPlacement, Residency, SceneSharing};
 pub use cpu::CpuDevice;
 pub use device::{Device, DeviceError, Queue};
 pub use film::Film;
