@@ -111,14 +111,18 @@ impl BvhLayout for Bvh2 {
         }
     }
 
+    const NODE_BYTES: usize = std::mem::size_of::<Bvh2Node>();
+
     #[inline]
-    fn traverse<const ANY: bool>(
+    fn traverse_visiting<const ANY: bool>(
         &self,
         ray: &TraversalRay,
         t_max: &mut f32,
+        mut visit: impl FnMut(u32),
         mut leaf: impl FnMut(u32, u32, &mut f32) -> bool,
     ) -> bool {
         let Some(root) = self.nodes.first() else { return false };
+        visit(0);
         if ray.box_entry(root.aabb().min, root.aabb().max, *t_max) == f32::INFINITY {
             return false;
         }
@@ -137,6 +141,8 @@ impl BvhLayout for Bvh2 {
                 // Ordered: continue with the nearer child, push the farther.
                 let left = node.left_or_first as usize;
                 let (a, b) = (&self.nodes[left], &self.nodes[left + 1]);
+                visit(left as u32);
+                visit(left as u32 + 1);
                 let mut near = (left as u32, ray.box_entry(a.aabb().min, a.aabb().max, *t_max));
                 let mut far = (left as u32 + 1, ray.box_entry(b.aabb().min, b.aabb().max, *t_max));
                 if far.1 < near.1 {

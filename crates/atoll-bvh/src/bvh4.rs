@@ -163,11 +163,14 @@ impl BvhLayout for Bvh4Cpu {
         s
     }
 
+    const NODE_BYTES: usize = std::mem::size_of::<Bvh4CpuNode>();
+
     #[inline]
-    fn traverse<const ANY: bool>(
+    fn traverse_visiting<const ANY: bool>(
         &self,
         ray: &TraversalRay,
         t_max: &mut f32,
+        mut visit: impl FnMut(u32),
         mut leaf: impl FnMut(u32, u32, &mut f32) -> bool,
     ) -> bool {
         if self.nodes.is_empty() || ray.box_entry(self.bounds.min, self.bounds.max, *t_max) == f32::INFINITY {
@@ -193,6 +196,7 @@ impl BvhLayout for Bvh4Cpu {
                 }
             } else {
                 let node = &self.nodes[cur.0 as usize];
+                visit(cur.0);
                 let b = &node.bounds;
                 let slab = |row: usize, axis: usize| b[row] * inv[axis] - org[axis];
                 let t_near = slab(near[0], 0).max(slab(near[1], 1)).max(slab(near[2], 2).max(Vec4::ZERO));

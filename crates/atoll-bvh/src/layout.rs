@@ -32,7 +32,23 @@ pub trait BvhLayout: Send + Sync + Sized + 'static {
         ray: &TraversalRay,
         t_max: &mut f32,
         leaf: impl FnMut(u32, u32, &mut f32) -> bool,
+    ) -> bool {
+        self.traverse_visiting::<ANY>(ray, t_max, |_| {}, leaf)
+    }
+
+    /// [`BvhLayout::traverse`], telling `node` the index of every node it
+    /// reads (a shared scene's access counters; a no-op closure costs nothing).
+    fn traverse_visiting<const ANY: bool>(
+        &self,
+        ray: &TraversalRay,
+        t_max: &mut f32,
+        node: impl FnMut(u32),
+        leaf: impl FnMut(u32, u32, &mut f32) -> bool,
     ) -> bool;
+
+    /// Bytes of one node as the layout stores them (node `i` starts at
+    /// `i * NODE_BYTES` of its node array).
+    const NODE_BYTES: usize;
 
     /// The box of everything in the tree (`Aabb::EMPTY` when empty).
     fn bounds(&self) -> Aabb;

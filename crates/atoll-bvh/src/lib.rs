@@ -40,7 +40,9 @@ pub use bvh4::{Bvh4Cpu, Bvh4CpuNode};
 pub use cwbvh::{Cwbvh, CwbvhNode};
 pub use layout::{BvhLayout, BvhStats, TraversalRay, MAX_DEPTH};
 pub use memory::{part_bytes, part_geometry_bytes, ByteModel};
-pub use scene_bvh::{HitFilter, MeshRange, NoFilter, SceneBvh, SceneBvhStats, ScenePart};
+pub use scene_bvh::{
+    HitFilter, MemoryTable, MeshRange, NoFilter, NoVisits, SceneBvh, SceneBvhStats, ScenePart, Visits,
+};
 pub use triangle::{Ray4, Tri4, TriAccel};
 
 /// A ray in world space. Hits count for `0 < t < t_max`: callers offset

@@ -100,6 +100,49 @@ impl HitFilter for NoFilter {
     }
 }
 
+/// What a traversal reads, told as it reads it: a shared scene's access
+/// counters map each read to the chunk holding it. Indices are those of
+/// [`SceneBvh::memory_tables`]' arrays.
+pub trait Visits: Sync {
+    /// Node `node` of the instance level.
+    fn tlas_node(&self, node: u32);
+    /// The instance record of TLAS leaf `leaf`.
+    fn instance(&self, leaf: u32);
+    /// Node `node` of BLAS `blas`.
+    fn blas_node(&self, blas: u32, node: u32);
+    /// Triangle block `block` of BLAS `blas` (one [`Tri4`] test).
+    fn triangles(&self, blas: u32, block: u32);
+    /// The triangle id in slot `prim` of BLAS `blas` (read for a hit).
+    fn prim(&self, blas: u32, prim: u32);
+}
+
+/// Reads go untold: plain traversal.
+pub struct NoVisits;
+
+impl Visits for NoVisits {
+    #[inline(always)]
+    fn tlas_node(&self, _: u32) {}
+    #[inline(always)]
+    fn instance(&self, _: u32) {}
+    #[inline(always)]
+    fn blas_node(&self, _: u32, _: u32) {}
+    #[inline(always)]
+    fn triangles(&self, _: u32, _: u32) {}
+    #[inline(always)]
+    fn prim(&self, _: u32, _: u32) {}
+}
+
+/// One array traversal reads ([`SceneBvh::memory_tables`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MemoryTable {
+    /// What it holds (`tlas nodes`, `blas 3 triangles`, …).
+    pub name: String,
+    /// Bytes of the whole array.
+    pub bytes: u64,
+    /// Bytes per element: element `i` starts at `i * element_bytes`.
+    pub element_bytes: u64,
+}
+
 /// Which triangle a leaf position holds (8 bytes); padding slots hold `u32::MAX`s.
 #[derive(Clone, Copy, Debug)]
 struct PrimId {
@@ -289,15 +332,56 @@ impl<L: BvhLayout> SceneBvh<L> {
 
     /// The closest hit with `0 < t < ray.t_max` that `filter` keeps.
     pub fn intersect_filtered(&self, ray: &Ray, filter: &impl HitFilter) -> Option<Hit> {
-        let (t, leaf, prim, u, v) = self.trace::<false>(ray, filter)?;
-        let inst = &self.instances[leaf as usize];
-        let id = self.blases[inst.blas as usize].prims[prim as usize];
-        Some(Hit { t, u, v, instance: inst.instance, mesh: id.mesh, triangle: id.triangle })
+        self.intersect_visiting(ray, filter, &NoVisits)
     }
 
     /// Whether anything `filter` keeps is hit with `0 < t < ray.t_max`.
     pub fn occluded_filtered(&self, ray: &Ray, filter: &impl HitFilter) -> bool {
-        self.trace::<true>(ray, filter).is_some()
+        self.occluded_visiting(ray, filter, &NoVisits)
+    }
+
+    /// [`SceneBvh::intersect_filtered`], telling `visits` what it reads.
+    pub fn intersect_visiting(
+        &self,
+        ray: &Ray,
+        filter: &impl HitFilter,
+        visits: &impl Visits,
+    ) -> Option<Hit> {
+        let (t, leaf, prim, u, v) = self.trace::<false>(ray, filter, visits)?;
+        let inst = &self.instances[leaf as usize];
+        visits.prim(inst.blas, prim);
+        let id = self.blases[inst.blas as usize].prims[prim as usize];
+        Some(Hit { t, u, v, instance: inst.instance, mesh: id.mesh, triangle: id.triangle })
+    }
+
+    /// [`SceneBvh::occluded_filtered`], telling `visits` what it reads.
+    pub fn occluded_visiting(&self, ray: &Ray, filter: &impl HitFilter, visits: &impl Visits) -> bool {
+        self.trace::<true>(ray, filter, visits).is_some()
+    }
+
+    /// The arrays traversal reads, in this order: `tlas nodes`, `tlas
+    /// instances`, then per BLAS `b` (in [`Visits`]' numbering) `blas b
+    /// nodes`, `blas b triangles`, `blas b prims`: table `2 + 3b + k`.
+    pub fn memory_tables(&self) -> Vec<MemoryTable> {
+        let table = |name: String, count: usize, element: usize| MemoryTable {
+            name,
+            bytes: (count * element) as u64,
+            element_bytes: element as u64,
+        };
+        let mut tables = vec![
+            table("tlas nodes".into(), self.tlas.stats(&BuildOptions::METRIC).nodes, L::NODE_BYTES),
+            table("tlas instances".into(), self.instances.len(), std::mem::size_of::<TlasInstance>()),
+        ];
+        for (b, blas) in self.blases.iter().enumerate() {
+            tables.push(table(
+                format!("blas {b} nodes"),
+                blas.bvh.stats(&BuildOptions::METRIC).nodes,
+                L::NODE_BYTES,
+            ));
+            tables.push(table(format!("blas {b} triangles"), blas.tris.len(), std::mem::size_of::<Tri4>()));
+            tables.push(table(format!("blas {b} prims"), blas.prims.len(), std::mem::size_of::<PrimId>()));
+        }
+        tables
     }
 
     /// Sizes, quality and build times.
@@ -307,13 +391,21 @@ impl<L: BvhLayout> SceneBvh<L> {
 
     /// Both queries in one: with `ANY`, the first hit found ends the search.
     #[inline]
-    fn trace<const ANY: bool>(&self, ray: &Ray, filter: &impl HitFilter) -> Option<RawHit> {
+    fn trace<const ANY: bool>(
+        &self,
+        ray: &Ray,
+        filter: &impl HitFilter,
+        visits: &impl Visits,
+    ) -> Option<RawHit> {
         let world = TraversalRay::new(ray.origin.into(), ray.direction.into());
         let mut t_max = ray.t_max;
         let mut best: Option<RawHit> = None;
         let mut visit = |leaf: u32, t_max: &mut f32| {
             let inst = &self.instances[leaf as usize];
-            let blas = &self.blases[inst.blas as usize];
+            visits.instance(leaf);
+            let b = inst.blas;
+            let blas = &self.blases[b as usize];
+            let node = |n: u32| visits.blas_node(b, n);
             // Not normalised: t stays the same in both spaces.
             let m = &inst.world_to_object;
             let ray = if inst.identity {
@@ -327,14 +419,16 @@ impl<L: BvhLayout> SceneBvh<L> {
                 // Alpha-masked meshes: every candidate lane goes through the
                 // filter, the nearest kept one wins. A traversal of its own,
                 // so the unfiltered leaf loop below stays as lean as before.
-                return blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+                return blas.bvh.traverse_visiting::<ANY>(&ray, t_max, node, |first, count, t_max| {
                     let mut hit = false;
                     for block in first / lanes..(first + count).div_ceil(lanes) {
+                        visits.triangles(b, block);
                         let (mut mask, t, u, v) = blas.tris[block as usize].test(&ray4, *t_max);
                         while mask != 0 {
                             let lane = mask.trailing_zeros() as usize;
                             mask &= mask - 1;
                             let prim = block * lanes + lane as u32;
+                            visits.prim(b, prim);
                             let id = blas.prims[prim as usize];
                             let cut = filter.filters(id.mesh)
                                 && !filter.keeps(
@@ -360,9 +454,10 @@ impl<L: BvhLayout> SceneBvh<L> {
                     hit
                 });
             }
-            blas.bvh.traverse::<ANY>(&ray, t_max, |first, count, t_max| {
+            blas.bvh.traverse_visiting::<ANY>(&ray, t_max, node, |first, count, t_max| {
                 let mut hit = false;
                 for block in first / lanes..(first + count).div_ceil(lanes) {
+                    visits.triangles(b, block);
                     let tris = &blas.tris[block as usize];
                     if ANY {
                         let mask = tris.test(&ray4, *t_max).0;
@@ -384,7 +479,8 @@ impl<L: BvhLayout> SceneBvh<L> {
             // culls as well as the TLAS would.
             visit(0, &mut t_max);
         } else {
-            self.tlas.traverse::<ANY>(&world, &mut t_max, |first, count, t_max| {
+            let node = |n: u32| visits.tlas_node(n);
+            self.tlas.traverse_visiting::<ANY>(&world, &mut t_max, node, |first, count, t_max| {
                 let mut hit = false;
                 for leaf in first..first + count {
                     hit |= visit(leaf, t_max);

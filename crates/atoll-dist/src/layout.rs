@@ -4,6 +4,8 @@
 
 use atoll_bvh::ScenePart;
 
+use crate::shared::SharedSpec;
+
 /// Where the scene goes: what each device holds and who it works with.
 #[derive(Clone, Debug)]
 pub enum Layout {
@@ -19,6 +21,9 @@ pub enum Layout {
         /// Where queues start and end their cycles.
         order: RingOrder,
     },
+    /// The scene in chunks over every device's memory, placed by a
+    /// counting prepass ([`crate::shared`]).
+    Shared(SharedSpec),
 }
 
 /// Where a ring's queues are made, first traced and shaded.
@@ -44,7 +49,7 @@ impl Layout {
     /// Devices this layout needs (`None`: any number).
     pub fn devices(&self) -> Option<usize> {
         match self {
-            Layout::Replicate => None,
+            Layout::Replicate | Layout::Shared(_) => None,
             Layout::Ring { parts, islands, .. } => Some(parts.len() * islands),
         }
     }

@@ -8,6 +8,9 @@
 //! - [`render_multi`]: one frame on many devices placed by a [`Layout`]
 //!   (replicate with dynamic waves; ring with queues cycling, GPU to GPU by
 //!   peer copies where every member is a GPU).
+//! - [`shared`]: the scene in chunks over the devices' memories, placed
+//!   by a counting prepass ([`chunk_placement`]: Jaroš et al. 2021's
+//!   Algorithm 1 with a host tier).
 //! - [`spatial`]: parts made of compact chunks along a Morton curve: one
 //!   per part (slabs: rays rarely enter more than one part's bounds) or
 //!   several dealt out in turn ([`spatial::partition_interleaved`]).
@@ -21,6 +24,7 @@
 
 #![warn(missing_docs)]
 
+pub mod chunk_placement;
 pub mod handout;
 mod layout;
 pub mod ownership;
@@ -31,6 +35,7 @@ pub mod ranks;
 pub mod render;
 mod replicate;
 pub mod ring;
+pub mod shared;
 pub mod spatial;
 mod transport;
 mod vote;
@@ -46,4 +51,5 @@ pub use render::{
     render_multi, render_multi_warmed, render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared,
 };
 pub use ring::{RingError, RingPeers, RingPlace};
+pub use shared::{SharedReport, SharedSpec};
 pub use transport::Transport;

@@ -603,11 +603,14 @@ pub enum Strategy {
     Replicate,
     /// The scene in K parts, rays cycling around rings of K devices.
     Ring,
+    /// The scene in chunks spread over the devices' memories (hot ones
+    /// replicated), read where they lie; rays stay where they started.
+    Shared,
 }
 
 impl Strategy {
     /// The names [`FromStr`] accepts.
-    pub const NAMES: [&'static str; 3] = ["auto", "replicate", "ring"];
+    pub const NAMES: [&'static str; 4] = ["auto", "replicate", "ring", "shared"];
 }
 
 impl fmt::Display for Strategy {
@@ -616,24 +619,26 @@ impl fmt::Display for Strategy {
             Strategy::Auto => "auto",
             Strategy::Replicate => "replicate",
             Strategy::Ring => "ring",
+            Strategy::Shared => "shared",
         })
     }
 }
 
 /// An unknown strategy name.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("unknown distribution strategy '{0}': expected auto, replicate or ring")]
+#[error("unknown distribution strategy '{0}': expected auto, replicate, ring or shared")]
 pub struct ParseStrategyError(pub String);
 
 impl FromStr for Strategy {
     type Err = ParseStrategyError;
 
-    /// `auto`, `replicate` or `ring`, in any case.
+    /// `auto`, `replicate`, `ring` or `shared`, in any case.
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s.trim().to_ascii_lowercase().as_str() {
             "auto" => Ok(Strategy::Auto),
             "replicate" => Ok(Strategy::Replicate),
             "ring" => Ok(Strategy::Ring),
+            "shared" => Ok(Strategy::Shared),
             _ => Err(ParseStrategyError(s.to_string())),
         }
     }
@@ -652,6 +657,9 @@ pub enum Plan {
         /// Rings, each with the whole scene.
         islands: usize,
     },
+    /// The scene in chunks over every device's memory (placed after the
+    /// prepass; whether they fit is the chunk placement's to say).
+    Shared,
 }
 
 /// Chooses how `devices` devices of `budget` bytes each (`None`: no limit)
@@ -687,6 +695,7 @@ pub fn plan(
             _ => Ok(Plan::Replicate),
         },
         Strategy::Ring => ring(devices.min(2)),
+        Strategy::Shared => Ok(Plan::Shared),
         Strategy::Auto => match budget {
             Some(budget) if whole() > budget => ring(2.min(devices)),
             _ => Ok(Plan::Replicate),

@@ -12,6 +12,7 @@ use atoll_scene::Scene;
 use crate::partition::{
     partition, plan, PartitionError, PartitionOptions, Plan, Strategy, GPU_INSTANCE_COST,
 };
+use crate::shared::SharedSpec;
 use crate::spatial::partition_spatial;
 use crate::work::partition_work_balanced;
 use crate::{Layout, Partition, RingOrder};
@@ -99,6 +100,8 @@ pub struct PlacementRequest {
     /// Wavefronts per piece of hardware wanted: more devices beside the
     /// listed ones (on a GPU, streams) sharing their scene or parts.
     pub streams: usize,
+    /// How a shared scene is cut and placed (its budget is `budget`).
+    pub shared: SharedSpec,
     /// Per listed device, whether it may take more wavefronts beside it
     /// when replicating (not when the same GPU is listed twice: those
     /// devices already share it).
@@ -159,6 +162,7 @@ pub fn place(
         }
         (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring))?,
         (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))?,
+        (Strategy::Shared, None) => Plan::Shared,
         (Strategy::Auto, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
             .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto)))?,
     };
@@ -178,10 +182,16 @@ pub fn place(
                 partition_ring(scene, k, &model, budget, options.resolution, request.partitioning)?;
             (Layout::Ring { parts: p.parts.clone(), islands, order: request.ring_order }, Some((p, kind)))
         }
+        Plan::Shared => {
+            for d in devices.iter_mut() {
+                d.set_memory_budget(request.budget);
+            }
+            (Layout::Shared(SharedSpec { budget: request.budget, ..request.shared }), None)
+        }
     };
     let used = match plan {
         Plan::Ring { k, islands } => k * islands,
-        Plan::Replicate => n,
+        Plan::Replicate | Plan::Shared => n,
     };
     if used < n {
         notes.push(format!("{} of {n} devices idle (rings of {used} devices in all)", n - used));
@@ -209,6 +219,7 @@ pub fn place(
                 *islands *= copies + 1;
             }
         }
+        (Layout::Shared(_), _) => {}
         _ => {
             for d in 0..n {
                 if !request.may_add_wavefronts.get(d).copied().unwrap_or(false) {

@@ -24,6 +24,7 @@ use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
 use crate::layout::{Layout, RingOrder};
 use crate::replicate;
 use crate::ring::{ring_loop, run_member, RingLink, RingPeers};
+use crate::shared::{prepare_shared, SharedReport};
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
 
@@ -72,7 +73,7 @@ impl DeviceReport {
     }
 
     /// The first failure, owned, for returning it.
-    fn take_error(&mut self) -> Option<DeviceError> {
+    pub(crate) fn take_error(&mut self) -> Option<DeviceError> {
         let shared = self.error.take()?;
         let device = self.name.clone();
         Some(
@@ -92,6 +93,8 @@ pub struct MultiOutput {
     pub prepare_seconds: f64,
     /// Seconds from the first wave to the last.
     pub render_seconds: f64,
+    /// Under the shared strategy: the prepass and where the chunks went.
+    pub shared: Option<SharedReport>,
 }
 
 impl MultiOutput {
@@ -149,11 +152,11 @@ fn prepare_all(
 ) -> Result<Vec<PrepareStats>, DeviceError> {
     let whole = ScenePart::whole(scene);
     let part_index = |d: usize| match layout {
-        Layout::Replicate => 0,
+        Layout::Replicate | Layout::Shared(_) => 0,
         Layout::Ring { parts, .. } => d % parts.len(),
     };
     let part_of = |d: usize| match layout {
-        Layout::Replicate => &whole,
+        Layout::Replicate | Layout::Shared(_) => &whole,
         Layout::Ring { parts, .. } => &parts[d % parts.len()],
     };
     // Per device, the earlier device whose scene it borrows.
@@ -260,7 +263,7 @@ pub fn render_multi_with(
     // counts once, at its member 0.
     let islands = match (layout, remote) {
         (_, Some(link)) => (link.place().member == 0) as usize,
-        (Layout::Replicate, None) => devices.len(),
+        (Layout::Replicate | Layout::Shared(_), None) => devices.len(),
         (Layout::Ring { islands, .. }, None) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
@@ -281,7 +284,7 @@ pub fn render_multi_with(
         wave_size,
         samples: frame.options.pixel_count() as u64 * frame.options.spp as u64,
     });
-    let Ready { prepared, prepare_seconds, shape, warmed, direct } = ready?;
+    let Ready { prepared, prepare_seconds, shape, warmed, direct, shared: shared_scene } = ready?;
     let joined = joined?;
     // Every process cuts the same waves (only their sizes may differ from
     // what this process's devices would take alone).
@@ -311,7 +314,7 @@ pub fn render_multi_with(
         report.prepare = prepare;
     }
     film.spp = frame.options.spp;
-    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds })
+    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds, shared: shared_scene })
 }
 
 /// A frame's devices, prepared (and warmed up) and ready for its waves.
@@ -324,6 +327,8 @@ struct Ready {
     warmed: Vec<(u64, f64)>,
     /// Per ring, its direct transport (empty when queues go through the host).
     direct: Vec<Box<dyn DirectRing>>,
+    /// The shared strategy's prepass and placement.
+    shared: Option<SharedReport>,
 }
 
 /// How this process's `workers` take `waves` ([`Pacing`]): devices
@@ -389,11 +394,17 @@ fn ready_frame(
         }
     }
     let start = Instant::now();
-    let prepared = prepare_all(devices, scene, frame, layout)?;
+    let (prepared, shared) = match layout {
+        Layout::Shared(spec) => {
+            let (prepared, report) = prepare_shared(devices, scene, frame, spec)?;
+            (prepared, Some(report))
+        }
+        _ => (prepare_all(devices, scene, frame, layout)?, None),
+    };
     let prepare_seconds = start.elapsed().as_secs_f64();
 
     let (ring, order) = match layout {
-        Layout::Replicate => (1, RingOrder::Spread),
+        Layout::Replicate | Layout::Shared(_) => (1, RingOrder::Spread),
         Layout::Ring { parts, order, .. } => (parts.len(), *order),
     };
     let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
@@ -446,7 +457,7 @@ fn ready_frame(
             device.reset_frame()?;
         }
     }
-    Ok(Ready { prepared, prepare_seconds, shape, warmed, direct })
+    Ok(Ready { prepared, prepare_seconds, shape, warmed, direct, shared })
 }
 
 /// How the devices of a frame work together.
@@ -462,7 +473,7 @@ pub(crate) struct RunShape {
 /// Renders `waves` on the prepared `devices`, one thread each, waves taken
 /// dynamically by the devices (replicate) or rings (ring); every device's
 /// report, in device order (counters and film are read by the caller).
-fn run_waves(
+pub(crate) fn run_waves(
     devices: &mut [Box<dyn Device>],
     waves: &[Wave],
     shape: RunShape,

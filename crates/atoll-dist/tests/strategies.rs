@@ -20,6 +20,8 @@ const CPU: Kind = Kind {
     resolution: UVec2::new(40, 40),
     tolerance: Tolerance { relative: 1e-4, absolute: 1e-6, one_in: 500 },
     part_budgets: true,
+    shared_chunk: 512,
 };
 
 strategy_bodies::strategy_tests!(CPU);
+strategy_bodies::shared_strategy_tests!(CPU);

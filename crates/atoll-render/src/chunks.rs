@@ -175,7 +175,7 @@ pub trait SceneSharing: Send + Sync {
     /// allocating) and prepares each for `frame`.
     fn prepare(
         &self,
-        devices: &mut [&mut dyn Device],
+        devices: &mut [Box<dyn Device>],
         scene: &Arc<Scene>,
         frame: &Arc<FrameContext>,
         layout: &ChunkLayout,
@@ -184,7 +184,8 @@ pub trait SceneSharing: Send + Sync {
 
     /// Moves the chunks of prepared `devices` to `placement` (after the
     /// prepass), checking budgets before moving anything.
-    fn replace(&self, devices: &mut [&mut dyn Device], placement: &ChunkPlacement) -> Result<(), DeviceError>;
+    fn replace(&self, devices: &mut [Box<dyn Device>], placement: &ChunkPlacement)
+        -> Result<(), DeviceError>;
 }
 
 #[cfg(test)]

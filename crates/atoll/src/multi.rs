@@ -178,6 +178,8 @@ pub struct MultiArgs<'a> {
     /// Devices per ring (`--ring-size`), the rest of the devices forming
     /// more islands; `None`: the fewest the budget allows.
     pub ring_size: Option<usize>,
+    /// How `--strategy shared` cuts and places the scene.
+    pub shared: atoll_dist::SharedSpec,
 }
 
 /// Plans, partitions and renders `scene` on the listed devices; prints the
@@ -232,6 +234,7 @@ pub fn setup(
         ring_order: args.ring_order,
         streams: args.streams,
         may_add_wavefronts,
+        shared: args.shared,
     };
     let placement = place(&mut devices, scene, options, &request).map_err(|e| match e {
         PlacementError::Request(message) => CliError::Input(message),
@@ -265,6 +268,7 @@ fn describe(plan: &Plan, partition: Option<&Partition>, devices: usize) -> Strin
                 sizes.join(", ")
             )
         }
+        (Plan::Shared, _) => format!("strategy: shared scene memory on {devices} devices"),
         _ => format!("strategy: replicate on {devices} devices"),
     }
 }
@@ -319,6 +323,36 @@ pub fn device_rows(out: &MultiOutput) -> String {
             d.wait_seconds,
             d.send_seconds,
             fmt_bytes(d.bytes_sent),
+        );
+    }
+    s
+}
+
+/// Where `--strategy shared` put the chunks: the prepass, then per device
+/// what it holds (replicated, owned), reads elsewhere (remote, host) and
+/// the share of its prepass reads its own memory serves.
+pub fn shared_table(out: &MultiOutput) -> String {
+    let Some(report) = &out.shared else { return String::new() };
+    let layout = &report.layout;
+    let chunks = layout.chunk_count();
+    let replicated = report.replicated_chunks();
+    let mut s = format!(
+        "shared: {} in {chunks} chunks of {}; {replicated} replicated ({:.1}%); prepass {:.3} s\n",
+        fmt_bytes(layout.bytes()),
+        fmt_bytes(layout.chunk_bytes),
+        100.0 * replicated as f64 / chunks.max(1) as f64,
+        report.prepass_seconds
+    );
+    s += "device       replicated      owned     remote       host  local reads\n";
+    for ((r, local), device) in report.residency.iter().zip(&report.local_reads).zip(&out.devices) {
+        s += &format!(
+            "{:<12} {:>10} {:>10} {:>10} {:>10}  {:>10.1}%\n",
+            device.name,
+            fmt_bytes(r.replicated),
+            fmt_bytes(r.owned),
+            fmt_bytes(r.remote),
+            fmt_bytes(r.host),
+            100.0 * local
         );
     }
     s

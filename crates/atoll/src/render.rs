@@ -94,9 +94,19 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
     pub devices: Option<DeviceList>,
     /// How several devices share the work: auto (replicate when the scene
-    /// fits every device, else rings of as few devices as fit), replicate or ring.
+    /// fits every device, else rings of as few devices as fit), replicate,
+    /// ring, or shared (the scene in chunks over the devices' memories, hot
+    /// chunks replicated, placed by a counting 1-spp prepass).
     #[arg(long, default_value = "auto", value_parser = parse_strategy, requires = "devices")]
     pub strategy: Strategy,
+    /// Chunk size of `--strategy shared`, e.g. 2M or 64M.
+    #[arg(long, value_parser = crate::device::parse_size, value_name = "SIZE", requires = "devices")]
+    pub chunk_size: Option<u64>,
+    /// Share of the chunks `--strategy shared` replicates on every device
+    /// (0 to 1; at most what the budgets allow). Default: as many as leave
+    /// room for an even share of the rest (Jaroš et al.'s N_dup).
+    #[arg(long, value_parser = parse_fraction, requires = "devices")]
+    pub replicate_fraction: Option<f64>,
     /// How ring queues move between devices: peer (GPU to GPU copies, the
     /// default for GPUs) or host (through host memory, any device).
     #[arg(long, value_parser = parse_transport, requires = "devices")]
@@ -378,6 +388,13 @@ pub(crate) fn print_summary(output: &Path, options: &RenderOptions, on: &str, ru
     );
 }
 
+fn parse_fraction(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(f) if (0.0..=1.0).contains(&f) => Ok(f),
+        _ => Err(format!("{s:?}: expected a fraction from 0 to 1")),
+    }
+}
+
 fn parse_strategy(s: &str) -> Result<Strategy, String> {
     s.parse().map_err(|e: atoll_dist::ParseStrategyError| e.to_string())
 }
@@ -408,6 +425,7 @@ fn render_on_devices(
     bar.finish_and_clear();
     out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
     print!("{}", multi::device_table(&out));
+    print!("{}", multi::shared_table(&out));
     let on = format!("{} devices", out.devices.len());
     print_summary(output, &options, &on, Run::of(&out, load_seconds));
     Ok(())
@@ -427,6 +445,19 @@ pub(crate) fn multi_args<'a>(args: &'a RenderArgs, specs: &'a [DeviceSpec]) -> M
         warmup: args.warmup,
         ring_order: args.ring_order,
         ring_size: args.ring_size,
+        shared: shared_spec(args),
+    }
+}
+
+/// `--strategy shared`'s cut and placement, from the command line.
+fn shared_spec(args: &RenderArgs) -> atoll_dist::SharedSpec {
+    use atoll_dist::chunk_placement::Replication;
+    let default = atoll_dist::SharedSpec::default();
+    atoll_dist::SharedSpec {
+        chunk_bytes: args.chunk_size.unwrap_or(default.chunk_bytes),
+        replication: args.replicate_fraction.map_or(Replication::Auto, Replication::Fraction),
+        budget: args.device.device_memory,
+        ..default
     }
 }
 

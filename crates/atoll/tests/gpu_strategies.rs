@@ -47,6 +47,7 @@ const CUDA: Kind = Kind {
     resolution: UVec2::new(128, 128),
     tolerance: Tolerance { relative: 1e-3, absolute: 1e-5, one_in: 200 },
     part_budgets: false,
+    shared_chunk: 2 << 20,
 };
 
 strategy_bodies::strategy_tests!(

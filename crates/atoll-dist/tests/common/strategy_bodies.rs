@@ -16,9 +16,11 @@
 use std::sync::Arc;
 
 use atoll_bvh::{ByteModel, ScenePart};
+use atoll_dist::chunk_placement::Replication;
 use atoll_dist::work::partition_work_balanced;
 use atoll_dist::{
-    partition, render_multi, render_multi_warmed, Layout, MultiOutput, PartitionOptions, RingOrder, Transport,
+    partition, render_multi, render_multi_warmed, Layout, MultiOutput, PartitionOptions, RingOrder,
+    SharedSpec, Transport,
 };
 use atoll_render::device::DeviceStats;
 use atoll_render::{render, Device, Film, RenderOptions};
@@ -47,6 +49,9 @@ pub struct Kind {
     /// counts scene bytes alone, a GPU's its queues, film and headroom too,
     /// so only the CPU's can be checked against a partition's bytes.
     pub part_budgets: bool,
+    /// Chunk size of shared scenes: several chunks per test scene, at
+    /// least what the device kind maps at once.
+    pub shared_chunk: u64,
 }
 
 /// Runs each body once, for `$kind` (an expression making a [`Kind`]),
@@ -83,6 +88,19 @@ macro_rules! strategy_tests {
     };
 }
 pub(crate) use strategy_tests;
+
+/// As [`strategy_tests!`], for the shared strategy's bodies: device kinds
+/// that can share a scene's memory ([`Device::scene_sharing`]) run them.
+macro_rules! shared_strategy_tests {
+    ($kind:expr $(, #[$attr:meta])* $(,)?) => {
+        $crate::strategy_bodies::strategy_tests!(@each [$(#[$attr])*] $kind;
+            shared_memory_is_one_device
+            shared_memory_with_a_host_tier_is_one_device
+            replicated_fractions_are_one_device
+        );
+    };
+}
+pub(crate) use shared_strategy_tests;
 
 impl Kind {
     /// What scene parts cost this kind's devices.
@@ -474,4 +492,115 @@ pub fn ring_over_instance_cost_parts_is_one_device(kind: &Kind) {
     let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
     let out = kind.render(3, &scene, &opts, &layout, None);
     kind.assert_same_image(&reference, &out.film, "ring over instance-cost parts");
+}
+
+/// Bytes of `scene`'s chunks on this kind's devices, and the budget that
+/// leaves a device room for `fraction` of them beside its frame.
+fn shared_budget(kind: &Kind, scene: &Arc<Scene>, options: &RenderOptions, fraction: f64) -> (u64, u64) {
+    let devices = (kind.devices)(1);
+    let sharing = devices[0].scene_sharing().expect("a device kind that shares scene memory");
+    let frame = Arc::new(atoll_render::FrameContext::new(scene, options.clone()));
+    let bytes = sharing.layout(scene, &frame, kind.shared_chunk).unwrap().bytes();
+    let own_memory = devices[0].free_memory().is_some();
+    let frame_bytes = if own_memory { devices[0].frame_bytes(options) } else { 0 };
+    (bytes, (fraction * bytes as f64) as u64 + frame_bytes)
+}
+
+/// Renders `scene` on `n` devices sharing its memory as `spec` says.
+fn render_shared(
+    kind: &Kind,
+    n: usize,
+    scene: &Arc<Scene>,
+    options: &RenderOptions,
+    spec: SharedSpec,
+) -> MultiOutput {
+    let layout = Layout::Shared(spec);
+    render_multi(&mut (kind.devices)(n), scene, options.clone(), &layout, None, &mut |_, _| {})
+        .unwrap_or_else(|e| panic!("shared on {n} devices: {e}"))
+}
+
+/// Two and three devices, each with room for only part of the scene,
+/// render the one-device image: the prepass counted reads on every device,
+/// every chunk is placed once, no device holds more than its budget, and
+/// each reads some chunks from the others.
+pub fn shared_memory_is_one_device(kind: &Kind) {
+    for (name, scene) in scenes() {
+        let opts = kind.options(&scene, 4);
+        let (reference, _) = kind.single(&scene, &opts);
+        for (n, fraction) in [(2, 0.7), (3, 0.5)] {
+            let (bytes, budget) = shared_budget(kind, &scene, &opts, fraction);
+            let spec = SharedSpec {
+                chunk_bytes: kind.shared_chunk,
+                budget: Some(budget),
+                host_tier: false,
+                ..Default::default()
+            };
+            let out = render_shared(kind, n, &scene, &opts, spec);
+            kind.assert_same_image(&reference, &out.film, &format!("{name} shared on {n}"));
+            let report = out.shared.as_ref().expect("a shared report");
+            assert_eq!(report.layout.bytes(), bytes);
+            assert_eq!(report.counts.len(), n);
+            // A small frame's first sample may be one wave, on one device.
+            let reads: u64 = report.counts.iter().flatten().sum();
+            assert!(reads > 0, "{name}: the prepass counted no reads");
+            let owned: u64 = report.residency.iter().map(|r| r.owned).sum();
+            for (d, r) in report.residency.iter().enumerate() {
+                assert_eq!(r.replicated + owned + r.host, bytes, "{name}: every byte placed once");
+                assert_eq!(r.local() + r.remote + r.host, bytes, "{name}: device {d} sees every byte");
+                assert!(r.local() < bytes && r.remote > 0, "{name}: device {d} holds {r:?} of {bytes}");
+                assert!(r.local() <= budget, "{name}: device {d} holds {r:?}, budget {budget}");
+                assert_eq!(r.host, 0, "{name}: the devices hold it all");
+                assert_eq!(out.devices[d].prepare.shared, Some(*r));
+            }
+            assert!(report.replicated_chunks() > 0, "{name}: room to replicate the hottest chunks");
+            assert!(report.local_reads.iter().all(|&l| l > 0.0 && l <= 1.0), "{:?}", report.local_reads);
+        }
+    }
+}
+
+/// Devices that together cannot hold the scene leave its coldest chunks
+/// in host memory and still render the one-device image; without the
+/// host tier the same budgets are refused before rendering.
+pub fn shared_memory_with_a_host_tier_is_one_device(kind: &Kind) {
+    let (name, scene) = scenes().pop().unwrap();
+    let opts = kind.options(&scene, 2);
+    let (reference, _) = kind.single(&scene, &opts);
+    let (bytes, budget) = shared_budget(kind, &scene, &opts, 0.3);
+    let spec = SharedSpec {
+        chunk_bytes: kind.shared_chunk,
+        budget: Some(budget),
+        host_tier: true,
+        ..Default::default()
+    };
+    let out = render_shared(kind, 2, &scene, &opts, spec);
+    kind.assert_same_image(&reference, &out.film, &format!("{name} shared with a host tier"));
+    let report = out.shared.unwrap();
+    let host = report.residency[0].host;
+    assert!(host > 0 && host < bytes, "{name}: {host} of {bytes} bytes in host memory");
+    let layout = Layout::Shared(SharedSpec { host_tier: false, ..spec });
+    let refused = render_multi(&mut (kind.devices)(2), &scene, opts, &layout, None, &mut |_, _| {});
+    let message = refused.err().expect("refused without a host tier").to_string();
+    assert!(message.contains("do not fit"), "{message}");
+}
+
+/// The paper's sweep: 0%, half and all of the chunks replicated (no
+/// budget) render the same image, replicating as many as asked.
+pub fn replicated_fractions_are_one_device(kind: &Kind) {
+    let scene = cornell();
+    let opts = kind.options(&scene, 2);
+    let (reference, _) = kind.single(&scene, &opts);
+    for fraction in [0.0, 0.5, 1.0] {
+        let spec = SharedSpec {
+            chunk_bytes: kind.shared_chunk,
+            replication: Replication::Fraction(fraction),
+            ..Default::default()
+        };
+        let out = render_shared(kind, 2, &scene, &opts, spec);
+        kind.assert_same_image(&reference, &out.film, &format!("cornell, {fraction} replicated"));
+        let report = out.shared.unwrap();
+        let chunks = report.layout.chunk_count();
+        let read = (0..chunks).filter(|&c| report.counts.iter().any(|d| d[c] > 0)).count();
+        let wanted = ((fraction * chunks as f64).round() as usize).min(read);
+        assert_eq!(report.replicated_chunks(), wanted, "{fraction} of {chunks} chunks, {read} read");
+    }
 }

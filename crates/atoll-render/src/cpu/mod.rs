@@ -1,5 +1,7 @@
 //! The CPU device: queues in host memory, stages mapped over them with rayon.
 
+mod sharing;
+
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Instant;
@@ -9,6 +11,7 @@ use atoll_scene::Scene;
 use glam::{Affine3A, Mat3A, Vec3};
 use rayon::prelude::*;
 
+use crate::chunks::SceneSharing;
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
@@ -20,15 +23,31 @@ use crate::texture::SceneTextures;
 /// Records per rayon task: big enough to amortise scheduling.
 const CHUNK: usize = 256;
 
+pub use sharing::CpuSharing;
+use sharing::{ChunkCounter, MeshTable, Share};
+
 /// Scene data resident on a CPU device.
 struct Resident {
     scene: Arc<Scene>,
-    bvh: SceneBvh,
+    /// Shared by the devices of a shared scene.
+    bvh: Arc<SceneBvh>,
     /// Per instance: the matrix taking object-space normals to world space.
     normal_to_world: Vec<Mat3A>,
+    /// Under the shared strategy: this device's chunk table and counters.
+    share: Option<Share>,
 }
 
 impl Resident {
+    fn new(scene: &Arc<Scene>, bvh: Arc<SceneBvh>, share: Option<Share>) -> Self {
+        let normal_to_world = scene.instances.iter().map(|i| i.normal_to_world()).collect();
+        Resident { scene: scene.clone(), bvh, normal_to_world, share }
+    }
+
+    /// The access counter, while counting.
+    fn counter(&self) -> Option<ChunkCounter<'_>> {
+        self.share.as_ref().and_then(Share::counter)
+    }
+
     /// The frame's texture programs over this scene (alpha masks filter hits).
     fn textures<'a>(&'a self, frame: &'a FrameContext) -> SceneTextures<'a> {
         SceneTextures { scene: &self.scene, tables: &frame.textures }
@@ -128,6 +147,31 @@ impl CpuDevice {
     fn resident(&self) -> Result<&Resident, DeviceError> {
         self.resident.as_ref().ok_or_else(|| self.unprepared())
     }
+
+    /// The device's part of a shared scene.
+    fn share(&self) -> Result<&Share, DeviceError> {
+        self.resident()?.share.as_ref().ok_or_else(|| self.not_shared())
+    }
+
+    fn share_mut(&mut self) -> Result<&mut Share, DeviceError> {
+        let error = self.not_shared();
+        self.resident.as_mut().and_then(|r| r.share.as_mut()).ok_or(error)
+    }
+
+    fn not_shared(&self) -> DeviceError {
+        DeviceError::Other { device: self.name.clone(), message: "not prepared over a shared scene".into() }
+    }
+
+    /// Makes `resident` the device's scene and readies queues and film for `frame`.
+    fn install(&mut self, resident: Resident, frame: &Arc<FrameContext>) {
+        self.resident = Some(resident);
+        self.film = Film::new(frame.options.resolution);
+        self.frame = Some(frame.clone());
+        self.paths.clear();
+        self.shadows.clear();
+        self.pending.clear();
+        self.stats = DeviceStats::default();
+    }
 }
 
 impl Default for CpuDevice {
@@ -137,10 +181,19 @@ impl Default for CpuDevice {
 }
 
 /// Fills the hit fields of `r` from a BVH hit.
-fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext) {
+fn write_hit(
+    r: &mut RayRecord,
+    hit: &Hit,
+    res: &Resident,
+    frame: &FrameContext,
+    counter: Option<&ChunkCounter>,
+) {
     let scene = &res.scene;
     let instance = &scene.instances[hit.instance as usize];
     let mesh = &scene.meshes[hit.mesh as usize];
+    if let Some(counter) = counter {
+        count_hit_reads(counter, hit, mesh);
+    }
     let to_world: &Affine3A = &instance.object_to_world;
     let normal_to_world = res.normal_to_world[hit.instance as usize];
     let [i0, i1, i2] = mesh.indices[hit.triangle as usize].map(|i| i as usize);
@@ -194,6 +247,21 @@ fn write_hit(r: &mut RayRecord, hit: &Hit, res: &Resident, frame: &FrameContext)
     }
 }
 
+/// The mesh data a hit's shading reads: its indices, and per corner its
+/// position, normal and uv where the mesh has them.
+fn count_hit_reads(counter: &ChunkCounter, hit: &Hit, mesh: &atoll_scene::TriangleMesh) {
+    counter.mesh(hit.mesh, MeshTable::Indices, hit.triangle);
+    for corner in mesh.indices[hit.triangle as usize] {
+        counter.mesh(hit.mesh, MeshTable::Positions, corner);
+        if !mesh.normals.is_empty() {
+            counter.mesh(hit.mesh, MeshTable::Normals, corner);
+        }
+        if !mesh.uvs.is_empty() {
+            counter.mesh(hit.mesh, MeshTable::Uvs, corner);
+        }
+    }
+}
+
 fn ray_of(r: &RayRecord) -> Ray {
     Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max }
 }
@@ -220,14 +288,7 @@ impl Device for CpuDevice {
         let bvh = self.run(|| SceneBvh::build_part(scene, part));
         let build = start.elapsed().as_secs_f64();
         let bvh_stats = bvh.stats();
-        let normal_to_world = scene.instances.iter().map(|i| i.normal_to_world()).collect();
-        self.resident = Some(Resident { scene: scene.clone(), bvh, normal_to_world });
-        self.film = Film::new(frame.options.resolution);
-        self.frame = Some(frame.clone());
-        self.paths.clear();
-        self.shadows.clear();
-        self.pending.clear();
-        self.stats = DeviceStats::default();
+        self.install(Resident::new(scene, Arc::new(bvh), None), frame);
         Ok(PrepareStats {
             // Every device holds all texture images (see atoll_bvh::part_bytes).
             scene_bytes: part_geometry_bytes(scene, part)
@@ -285,10 +346,16 @@ impl Device for CpuDevice {
         self.resident()?;
         let mut paths = std::mem::take(&mut self.paths);
         let (res, frame) = (self.resident()?, self.frame()?);
+        let counter = res.counter();
         self.run(|| {
             paths.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
-                if let Some(hit) = res.bvh.intersect_filtered(&ray_of(r), &res.textures(frame)) {
-                    write_hit(r, &hit, res, frame);
+                let textures = res.textures(frame);
+                let hit = match &counter {
+                    Some(counter) => res.bvh.intersect_visiting(&ray_of(r), &textures, counter),
+                    None => res.bvh.intersect_filtered(&ray_of(r), &textures),
+                };
+                if let Some(hit) = hit {
+                    write_hit(r, &hit, res, frame, counter.as_ref());
                 }
             })
         });
@@ -337,9 +404,17 @@ impl Device for CpuDevice {
         let mut shadows = std::mem::take(&mut self.shadows);
         let (res, frame) = (self.resident()?, self.frame()?);
         let textures = res.textures(frame);
+        let counter = res.counter();
         self.run(|| {
             shadows.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
-                if !r.has(flags::OCCLUDED) && res.bvh.occluded_filtered(&ray_of(r), &textures) {
+                if r.has(flags::OCCLUDED) {
+                    return;
+                }
+                let occluded = match &counter {
+                    Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &textures, counter),
+                    None => res.bvh.occluded_filtered(&ray_of(r), &textures),
+                };
+                if occluded {
                     r.flags |= flags::OCCLUDED;
                 }
             })
@@ -411,6 +486,19 @@ impl Device for CpuDevice {
 
     fn set_memory_budget(&mut self, bytes: Option<u64>) {
         self.memory_budget = bytes;
+    }
+
+    fn scene_sharing(&self) -> Option<Arc<dyn SceneSharing>> {
+        Some(Arc::new(CpuSharing::default()))
+    }
+
+    fn count_accesses(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.share_mut()?.counting = on;
+        Ok(())
+    }
+
+    fn access_counts(&self) -> Result<Vec<u64>, DeviceError> {
+        Ok(self.share()?.counts.iter().map(|c| c.load(std::sync::atomic::Ordering::Relaxed)).collect())
     }
 
     fn as_any(&self) -> &dyn std::any::Any {

@@ -1,0 +1,168 @@
+//! The shared strategy (Jaroš et al. 2021): the scene in fixed-size
+//! chunks over the devices' memories, each device rendering its share of
+//! the waves as in replicate, reading every chunk where it lies.
+//!
+//! Preparing is the paper's steps 1–4: the chunks start dealt round robin
+//! ([`initial_placement`]); every device renders its share of the frame's
+//! first sample counting reads per chunk (the prepass); the counts place
+//! the chunks ([`place_chunks`]: hot ones replicated, the rest on their
+//! main reader, the coldest in host memory when the devices are full);
+//! the devices move their chunks there. Rendering is then replicate's.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use atoll_render::device::PrepareStats;
+use atoll_render::integrator::warm_up_waves;
+use atoll_render::{
+    ChunkLayout, ChunkPlacement, Device, DeviceError, FrameContext, RenderOptions, Residency,
+};
+use atoll_scene::Scene;
+
+use crate::chunk_placement::{
+    access_concentration, initial_placement, local_read_share, place_chunks, ChunkBudget, Replication,
+};
+use crate::handout::{LocalHandout, Pacing, WaveHandout};
+use crate::layout::RingOrder;
+use crate::render::{run_waves, work_units, RunShape};
+
+/// Default chunk size: the paper's optimum for scenes under 30 GB.
+pub const DEFAULT_CHUNK_BYTES: u64 = 2 << 20;
+
+/// How a shared scene is cut and placed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SharedSpec {
+    /// Bytes per chunk.
+    pub chunk_bytes: u64,
+    /// How many chunks to replicate.
+    pub replication: Replication,
+    /// Memory budget per device (`None`: what each has).
+    pub budget: Option<u64>,
+    /// Whether chunks may stay in host memory when the devices are full.
+    pub host_tier: bool,
+}
+
+impl Default for SharedSpec {
+    fn default() -> Self {
+        SharedSpec {
+            chunk_bytes: DEFAULT_CHUNK_BYTES,
+            replication: Replication::Auto,
+            budget: None,
+            host_tier: true,
+        }
+    }
+}
+
+/// What the prepass found and where it put the chunks.
+#[derive(Clone, Debug)]
+pub struct SharedReport {
+    /// The scene's tables and chunks.
+    pub layout: ChunkLayout,
+    /// Reads per device and chunk during the prepass.
+    pub counts: Vec<Vec<u64>>,
+    /// Where the chunks went.
+    pub placement: ChunkPlacement,
+    /// Per device, what it holds and reads elsewhere under `placement`.
+    pub residency: Vec<Residency>,
+    /// Per device, the share of its prepass reads its own memory serves
+    /// under `placement`.
+    pub local_reads: Vec<f64>,
+    /// Seconds of the counting render.
+    pub prepass_seconds: f64,
+}
+
+impl SharedReport {
+    /// Chunks replicated on every device.
+    pub fn replicated_chunks(&self) -> usize {
+        self.placement.homes.iter().filter(|h| **h == atoll_render::ChunkHome::Replicated).count()
+    }
+
+    /// Share of reads the hottest `fractions` of the scene's bytes take.
+    pub fn concentration(&self, fractions: &[f64]) -> Vec<f64> {
+        access_concentration(&self.layout, &self.counts, fractions)
+    }
+}
+
+/// Per device, the bytes of chunks it may hold: for a device with memory
+/// of its own, the budget or its free memory, whichever is less, less
+/// what it allocates for the frame itself; for a device on host memory
+/// the budget (which counts scene bytes alone).
+fn chunk_budgets(devices: &[Box<dyn Device>], spec: &SharedSpec, options: &RenderOptions) -> ChunkBudget {
+    let devices = devices
+        .iter()
+        .map(|d| match d.free_memory() {
+            // Memory of its own: the frame comes out of the budget too.
+            Some(free) => {
+                Some(spec.budget.map_or(free, |b| b.min(free)).saturating_sub(d.frame_bytes(options)))
+            }
+            // Host memory: a budget counts scene bytes alone.
+            None => spec.budget,
+        })
+        .collect();
+    ChunkBudget { devices, host: spec.host_tier }
+}
+
+/// A device-neutral error about the shared scene as a whole.
+fn error(message: impl Into<String>) -> DeviceError {
+    DeviceError::Other { device: "shared scene".into(), message: message.into() }
+}
+
+/// Prepares `devices` over one shared scene: lays it out, deals the
+/// chunks, runs the counting prepass and places the chunks by it.
+pub(crate) fn prepare_shared(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    frame: &Arc<FrameContext>,
+    spec: &SharedSpec,
+) -> Result<(Vec<PrepareStats>, SharedReport), DeviceError> {
+    let sharing = devices
+        .first()
+        .and_then(|d| d.scene_sharing())
+        .ok_or_else(|| error("the devices cannot share a scene's memory"))?;
+    let budget = chunk_budgets(devices, spec, &frame.options);
+    let layout = sharing.layout(scene, frame, spec.chunk_bytes)?;
+    let start = initial_placement(&layout, &budget).map_err(|e| error(e.to_string()))?;
+    let mut prepared = sharing.prepare(devices, scene, frame, &layout, &start)?;
+
+    let begin = Instant::now();
+    let counts = count_first_sample(devices, frame)?;
+    let prepass_seconds = begin.elapsed().as_secs_f64();
+
+    let placement =
+        place_chunks(&layout, &counts, &budget, spec.replication).map_err(|e| error(e.to_string()))?;
+    sharing.replace(devices, &placement)?;
+    let residency: Vec<Residency> = (0..devices.len()).map(|d| placement.residency(&layout, d)).collect();
+    for (stats, residency) in prepared.iter_mut().zip(&residency) {
+        stats.scene_bytes = residency.local();
+        stats.shared = Some(*residency);
+    }
+    let local_reads = local_read_share(&placement, &counts);
+    let report = SharedReport { layout, counts, placement, residency, local_reads, prepass_seconds };
+    Ok((prepared, report))
+}
+
+/// The prepass: every device renders its share of the frame's first
+/// sample counting chunk reads, then is cleared for the frame.
+fn count_first_sample(
+    devices: &mut [Box<dyn Device>],
+    frame: &Arc<FrameContext>,
+) -> Result<Vec<Vec<u64>>, DeviceError> {
+    for device in devices.iter_mut() {
+        device.count_accesses(true)?;
+    }
+    let waves: Vec<_> = warm_up_waves(&work_units(&frame.options, devices.len())).collect();
+    let handout = LocalHandout::default();
+    handout.begin(waves.len(), Pacing::default());
+    let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: frame.options.merge_waves };
+    let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
+    if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
+        return Err(e);
+    }
+    let mut counts = Vec::with_capacity(devices.len());
+    for device in devices.iter_mut() {
+        device.count_accesses(false)?;
+        counts.push(device.access_counts()?);
+        device.reset_frame()?;
+    }
+    Ok(counts)
+}
