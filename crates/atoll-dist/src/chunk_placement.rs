@@ -192,7 +192,9 @@ fn replicated_chunks(
 }
 
 /// Share of all reads that the hottest `fraction` of the scene's bytes
-/// take, per fraction asked (the paper's Figure 4); 0 where nothing was read.
+/// take, per fraction asked (the paper's Figure 4), counting the reads of
+/// a chunk only partly in that fraction in proportion; 0 where nothing
+/// was read.
 pub fn access_concentration(layout: &ChunkLayout, counts: &[Vec<u64>], fractions: &[f64]) -> Vec<f64> {
     let chunks = layout.chunk_count();
     let total: Vec<u64> =
@@ -204,18 +206,20 @@ pub fn access_concentration(layout: &ChunkLayout, counts: &[Vec<u64>], fractions
     fractions
         .iter()
         .map(|&f| {
-            let (mut covered, mut reads) = (0u64, 0u64);
+            // Reads spread evenly within a chunk: the last one counts in part.
+            let (mut left, mut reads) = (f * bytes, 0.0);
             for &c in &order {
-                if covered as f64 >= f * bytes {
+                if left <= 0.0 {
                     break;
                 }
-                covered += layout.chunk_len(c);
-                reads += total[c];
+                let len = layout.chunk_len(c) as f64;
+                reads += total[c] as f64 * (left / len).min(1.0);
+                left -= len;
             }
             if all == 0 {
                 0.0
             } else {
-                reads as f64 / all as f64
+                reads / all as f64
             }
         })
         .collect()
@@ -382,7 +386,7 @@ mod tests {
     fn concentration_curve_accumulates_hottest_bytes_first() {
         let l = layout(10, 100);
         let counts = vec![vec![70, 10, 10, 5, 5, 0, 0, 0, 0, 0]];
-        let curve = access_concentration(&l, &counts, &[0.0, 0.1, 0.2, 0.5, 1.0]);
-        assert_eq!(curve, vec![0.0, 0.7, 0.8, 1.0, 1.0]);
+        let curve = access_concentration(&l, &counts, &[0.0, 0.05, 0.1, 0.2, 0.5, 1.0]);
+        assert_eq!(curve, vec![0.0, 0.35, 0.7, 0.8, 1.0, 1.0]);
     }
 }

@@ -107,6 +107,19 @@ fn error(message: impl Into<String>) -> DeviceError {
     DeviceError::Other { device: "shared scene".into(), message: message.into() }
 }
 
+/// The prepass alone, for reports (`atoll info --prepass`): prepares
+/// `devices` over `scene` shared as `spec` says, counts the reads of the
+/// first sample of a frame of `options` and places the chunks.
+pub fn prepass(
+    devices: &mut [Box<dyn Device>],
+    scene: &Arc<Scene>,
+    options: RenderOptions,
+    spec: &SharedSpec,
+) -> Result<SharedReport, DeviceError> {
+    let frame = Arc::new(FrameContext::new(scene, options));
+    Ok(prepare_shared(devices, scene, &frame, spec)?.1)
+}
+
 /// Prepares `devices` over one shared scene: lays it out, deals the
 /// chunks, runs the counting prepass and places the chunks by it.
 pub(crate) fn prepare_shared(

@@ -3,10 +3,17 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use std::sync::Arc;
+
 use atoll_bvh::SceneBvh;
+use atoll_cuda::error::fmt_bytes;
+use atoll_dist::SharedSpec;
+use atoll_render::RenderOptions;
+use atoll_scene::Scene;
 use clap::Args;
 
 use crate::load::load_scene;
+use crate::multi::DeviceSpec;
 use crate::CliError;
 
 #[derive(Args)]
@@ -14,6 +21,17 @@ pub struct InfoArgs {
     /// Scene file (.pbrt, .obj, .gltf/.glb, .ply, .off) or a generated `landscape:GROWTH[:SEED]`;
     /// the built-in Cornell box when omitted.
     pub scene: Option<PathBuf>,
+    /// Also run the shared strategy's prepass (one sample per pixel of the
+    /// scene's frame, reads counted per chunk) and print how concentrated
+    /// the reads are: the share the hottest 1%, 5%, 10%… of the data take.
+    #[arg(long)]
+    pub prepass: bool,
+    /// Devices of the prepass (as `atoll render --devices`; default: the CPU).
+    #[arg(long, value_parser = crate::multi::parse_devices, requires = "prepass")]
+    pub devices: Option<crate::multi::DeviceList>,
+    /// Chunk size of the prepass, e.g. 2M.
+    #[arg(long, value_parser = crate::device::parse_size, value_name = "SIZE", requires = "prepass")]
+    pub chunk_size: Option<u64>,
 }
 
 fn mib(bytes: u64) -> String {
@@ -55,7 +73,8 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
         "BVH build          {:.1} ms ({} BLAS over {} triangles, TLAS over {} instances)",
         b.build_ms, b.blas_count, b.triangles, b.instances
     );
-    for (level, l) in [("BLAS (all)", &b.blas), ("TLAS", &b.tlas)] {
+    let levels = [("BLAS (all)", &b.blas), ("TLAS", &b.tlas)];
+    for (level, l) in levels {
         println!(
             "{level:<18} {} nodes, {} leaves, max depth {}, SAH cost {:.2}, {}",
             l.nodes,
@@ -65,5 +84,46 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
             mib(l.bytes as u64)
         );
     }
+    if args.prepass {
+        print_prepass(&scene, &args)?;
+    }
+    Ok(())
+}
+
+/// The hottest shares of the data the access-concentration curve reports.
+const HOTTEST: [f64; 7] = [0.01, 0.02, 0.05, 0.10, 0.25, 0.50, 1.0];
+
+/// Runs the prepass and prints the access-concentration curve (Jaroš et
+/// al. 2021, Figure 4) and the placement it leads to.
+fn print_prepass(scene: &Scene, args: &InfoArgs) -> Result<(), CliError> {
+    let specs = args.devices.as_ref().map_or_else(|| vec![DeviceSpec::Cpu], |l| l.0.clone());
+    let mut devices = crate::multi::open_devices(&specs, None, None)?;
+    let scene = Arc::new(scene.clone());
+    let options = RenderOptions::from_scene(&scene);
+    let default = SharedSpec::default();
+    let spec = SharedSpec { chunk_bytes: args.chunk_size.unwrap_or(default.chunk_bytes), ..default };
+    let report = atoll_dist::shared::prepass(&mut devices, &scene, options.clone(), &spec)
+        .map_err(|e| CliError::Runtime(e.to_string()))?;
+    let chunks = report.layout.chunk_count();
+    let reads: u64 = report.counts.iter().flatten().sum();
+    let unread = (0..chunks).filter(|&c| report.counts.iter().all(|d| d[c] == 0));
+    let unread_bytes: u64 = unread.map(|c| report.layout.chunk_len(c)).sum();
+    println!(
+        "prepass            {}x{}, 1 spp on {} device(s) in {:.3} s: {reads} reads of {} in {chunks} chunks of {}",
+        options.resolution.x,
+        options.resolution.y,
+        devices.len(),
+        report.prepass_seconds,
+        fmt_bytes(report.layout.bytes()),
+        fmt_bytes(report.layout.chunk_bytes),
+    );
+    let curve = report.concentration(&HOTTEST);
+    let points: Vec<String> =
+        HOTTEST.iter().zip(&curve).map(|(f, share)| format!("{:.0}%: {:.1}%", f * 100.0, share * 100.0)).collect();
+    println!("hottest data       {} of reads", points.join(", "));
+    println!(
+        "never read         {:.1}% of the data",
+        100.0 * unread_bytes as f64 / report.layout.bytes().max(1) as f64
+    );
     Ok(())
 }

@@ -94,6 +94,40 @@ fn a_budget_that_splits_the_scene_gives_rings_and_the_same_image() {
 }
 
 #[test]
+fn shared_scene_memory_renders_the_single_image_and_reports_its_placement() {
+    let dir = scratch("shared");
+    let single = render(&dir, &["--device", "cpu"], "single.exr");
+    assert!(single.status.success(), "{}", text(&single.stderr));
+    // Nothing replicated: every device owns half the chunks and reads the others'.
+    let args = ["--devices", "cpu:2", "--strategy", "shared", "--chunk-size", "512", "--replicate-fraction", "0"];
+    let out = render(&dir, &args, "shared.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("strategy: shared scene memory on 2 devices"), "{stderr}");
+    assert!(stdout.contains("0 replicated (0.0%)"), "{stdout}");
+    let rows: Vec<&str> =
+        stdout.lines().skip_while(|l| !l.starts_with("shared:")).filter(|l| l.starts_with("cpu:")).collect();
+    assert_eq!(rows.len(), 2, "{stdout}");
+    for row in rows {
+        // Device, then replicated, owned, remote and host as number and
+        // unit, then the share of local reads.
+        let cols: Vec<&str> = row.split_whitespace().collect();
+        assert_eq!(cols.len(), 10, "{row}");
+        assert_eq!(cols[1], "0", "nothing replicated: {row}");
+        assert!(cols[3] != "0" && cols[5] != "0", "every device owns and reads remote chunks: {row}");
+        assert_eq!(cols[7], "0", "nothing in host memory: {row}");
+    }
+    assert_same_as_single(&dir, "shared.exr");
+
+    let out = atoll(&dir, &["info", "--prepass", "--devices", "cpu:2", "--chunk-size", "1K"]);
+    let stdout = text(&out.stdout);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    assert!(stdout.contains("prepass") && stdout.contains("hottest data       1%:"), "{stdout}");
+    let bad = atoll(&dir, &["render", "--devices", "cpu:2", "--strategy", "shared", "--replicate-fraction", "2"]);
+    assert_eq!(bad.status.code(), Some(2), "{}", text(&bad.stderr));
+}
+
+#[test]
 fn scenes_that_cannot_fit_and_bad_flags_are_clear_errors() {
     let dir = scratch("errors");
     // Too small for any partition over 2 devices: exit 1 before rendering, nothing written.
