@@ -274,10 +274,65 @@ fn moved(c: usize, percent: usize) -> bool {
     (c + 1) * percent / 100 > c * percent / 100
 }
 
+/// Blocks × threads × dependent reads of the random-read measurements, as
+/// GPU.md's measurement of peer reads through plain allocations (2112 blocks
+/// × 256 threads × 64 steps on 132 multiprocessors).
+const STEPS: u32 = 64;
+const THREADS_PER_BLOCK: u32 = 256;
+
+fn read_blocks(gpu: &Gpu) -> u32 {
+    gpu.multiprocessors * 16
+}
+
+/// Fills `bytes` at device address `base` on `gpu` with a pattern, then
+/// times dependent random 32-byte reads of it: the median of five runs
+/// after a warm-up, in G reads/s. `bytes` is a power of two.
+fn random_read_rate(gpu: &Arc<Gpu>, base: u64, bytes: u64) -> f64 {
+    assert!(bytes.is_power_of_two());
+    let fill = gpu.function("test_window.cu", "window_fill").unwrap();
+    let random_reads = gpu.function("test_window.cu", "window_random_reads").unwrap();
+    let blocks = read_blocks(gpu);
+    let threads = blocks * THREADS_PER_BLOCK;
+    let mut out = gpu.stream.alloc_zeros::<u32>(threads as usize).unwrap();
+    let (words, seed) = (bytes / 4, 1u32);
+    let mut launch = gpu.stream.launch_builder(&fill);
+    launch.arg(&base).arg(&words).arg(&seed);
+    let config = LaunchConfig {
+        grid_dim: (gpu.multiprocessors * 8, 1, 1),
+        block_dim: (256, 1, 1),
+        shared_mem_bytes: 0,
+    };
+    // SAFETY: matches window_fill(unsigned*, unsigned long long n, unsigned); `base` holds
+    // `words` words, writable by this GPU (the callers' contract).
+    unsafe { launch.launch(config) }.unwrap();
+    let mask = (bytes / 32 - 1) as u32;
+    let mut times = Vec::new();
+    for run in 0..6 {
+        let mut timer = gpu.start_timer().unwrap();
+        let mut launch = gpu.stream.launch_builder(&random_reads);
+        launch.arg(&base).arg(&mask).arg(&STEPS).arg(&mut out);
+        let config = LaunchConfig {
+            grid_dim: (blocks, 1, 1),
+            block_dim: (THREADS_PER_BLOCK, 1, 1),
+            shared_mem_bytes: 0,
+        };
+        // SAFETY: matches window_random_reads(const uint4*, unsigned mask, unsigned steps,
+        // unsigned*); `base` holds mask + 1 blocks of 32 bytes, `out` one word per thread.
+        unsafe { launch.launch(config) }.unwrap();
+        timer.stop(gpu).unwrap();
+        let ms = timer.elapsed_ms().unwrap() as f64;
+        // The first run warms up.
+        if run > 0 {
+            times.push(ms);
+        }
+    }
+    times.sort_by(f64::total_cmp);
+    threads as f64 * STEPS as f64 / (times[times.len() / 2] * 1e-3) / 1e9
+}
+
 /// Dependent random 32-byte reads on GPU 0 through windows of 4 GiB with
 /// 0, 10, 50 and 100 % of the chunks on GPU 1 (with two GPUs) or in host
-/// memory: G reads/s, as GPU.md's measurement of peer reads through plain
-/// allocations (2112 blocks × 256 threads × 64 steps there).
+/// memory: G reads/s.
 #[test]
 #[ignore = "a measurement on a CUDA GPU: run it by name with --include-ignored --nocapture"]
 fn window_read_speed() {
@@ -287,15 +342,7 @@ fn window_read_speed() {
     let gpu = gpus[0].clone();
     const TABLE: u64 = 4 << 30;
     const CHUNK: u64 = 32 << 20;
-    const STEPS: u32 = 64;
     let chunks = (TABLE / CHUNK) as usize;
-    let blocks = gpu.multiprocessors * 16;
-    let threads = blocks * 256;
-    let reads = threads as f64 * STEPS as f64;
-    let fill = gpu.function("test_window.cu", "window_fill").unwrap();
-    let random_reads = gpu.function("test_window.cu", "window_random_reads").unwrap();
-    let mut out = gpu.stream.alloc_zeros::<u32>(threads as usize).unwrap();
-
     let mut configs = vec![("local".to_string(), vec![Device(0); chunks])];
     for percent in [10, 50, 100] {
         let homes = |elsewhere: ChunkHome| {
@@ -309,54 +356,80 @@ fn window_read_speed() {
     if gpus.len() < 2 {
         println!("one GPU: no peer configurations");
     }
-    println!("{} ({}), {} GiB window in chunks of {} MiB, {blocks} blocks × 256 threads × {STEPS} dependent reads of 32 B", gpu.name, gpu.label(), TABLE >> 30, CHUNK >> 20);
+    println!(
+        "{} ({}), {} GiB window in chunks of {} MiB, {} blocks × {THREADS_PER_BLOCK} threads × {STEPS} dependent reads of 32 B",
+        gpu.name,
+        gpu.label(),
+        TABLE >> 30,
+        CHUNK >> 20,
+        read_blocks(&gpu)
+    );
     println!("{:<22} {:>10} {:>10} {:>8} {:>10}", "chunks", "G reads/s", "GB/s", "× local", "setup ms");
     let mut local = None;
     for (name, homes) in configs {
         let setup = std::time::Instant::now();
         let window = ChunkWindow::new(&gpus, CHUNK, &ChunkPlacement { homes }, &[]).unwrap();
-        let (base, words) = (window.base(0), window.bytes() / 4);
-        let seed = 1u32;
-        let mut launch = gpu.stream.launch_builder(&fill);
-        launch.arg(&base).arg(&words).arg(&seed);
-        let config = LaunchConfig {
-            grid_dim: (gpu.multiprocessors * 8, 1, 1),
-            block_dim: (256, 1, 1),
-            shared_mem_bytes: 0,
-        };
-        // SAFETY: matches window_fill(unsigned*, unsigned long long n, unsigned); GPU 0's
-        // range of the window holds `words` words, mapped read/write for it.
-        unsafe { launch.launch(config) }.unwrap();
-        gpu.stream.synchronize().unwrap();
         let setup_ms = setup.elapsed().as_secs_f64() * 1e3;
-
-        let mask = (window.bytes() / 32 - 1) as u32;
-        let mut times = Vec::new();
-        for run in 0..6 {
-            let mut timer = gpu.start_timer().unwrap();
-            let mut launch = gpu.stream.launch_builder(&random_reads);
-            launch.arg(&base).arg(&mask).arg(&STEPS).arg(&mut out);
-            let config =
-                LaunchConfig { grid_dim: (blocks, 1, 1), block_dim: (256, 1, 1), shared_mem_bytes: 0 };
-            // SAFETY: matches window_random_reads(const uint4*, unsigned mask, unsigned steps,
-            // unsigned*); the window is mask + 1 blocks of 32 bytes (a power of two: 4 GiB),
-            // `out` holds one word per thread.
-            unsafe { launch.launch(config) }.unwrap();
-            timer.stop(&gpu).unwrap();
-            let ms = timer.elapsed_ms().unwrap() as f64;
-            // The first run warms up.
-            if run > 0 {
-                times.push(ms);
-            }
-        }
-        times.sort_by(f64::total_cmp);
-        let ms = times[times.len() / 2];
-        let greads = reads / (ms * 1e-3) / 1e9;
+        let greads = random_read_rate(&gpu, window.base(0), window.bytes());
         let local_rate = *local.get_or_insert(greads);
         println!(
             "{name:<22} {greads:>10.2} {:>10.1} {:>8.2} {setup_ms:>10.0}",
             greads * 32.0,
             greads / local_rate
         );
+    }
+}
+
+/// Pinned host memory from `cuMemHostAlloc`, mapped into the device's
+/// address space: the plain alternative to a window's host chunks.
+struct MappedHost {
+    host: *mut std::ffi::c_void,
+    device: u64,
+}
+
+impl MappedHost {
+    fn new(gpu: &Gpu, bytes: u64) -> MappedHost {
+        use cudarc::driver::sys;
+        gpu.ctx.bind_to_thread().unwrap();
+        let mut host = std::ptr::null_mut();
+        let mut device = 0;
+        // SAFETY: out-parameters of the allocation and its device address; freed in `Drop`.
+        unsafe {
+            sys::cuMemHostAlloc(&mut host, bytes as usize, sys::CU_MEMHOSTALLOC_DEVICEMAP).result().unwrap();
+            sys::cuMemHostGetDevicePointer_v2(&mut device, host, 0).result().unwrap();
+        }
+        MappedHost { host, device }
+    }
+}
+
+impl Drop for MappedHost {
+    fn drop(&mut self) {
+        // SAFETY: allocated by cuMemHostAlloc; every kernel using it was waited for.
+        unsafe { cudarc::driver::sys::cuMemFreeHost(self.host) };
+    }
+}
+
+/// Random reads of host memory by size, through a window of host chunks
+/// and through plain mapped pinned memory: where host reads fall off a
+/// cliff as the memory read grows (address translation on the way to the
+/// host), and whether windows change it.
+#[test]
+#[ignore = "a measurement on a CUDA GPU: run it by name with --include-ignored --nocapture"]
+fn host_read_speed_by_size() {
+    let Some(gpu) = gpu_or_skip("host read speed") else { return };
+    let gpus = vec![gpu.clone()];
+    println!("{} ({}): dependent random 32-byte reads of host memory", gpu.name, gpu.label());
+    println!("{:>10} {:>16} {:>16}", "MiB", "window G reads/s", "mapped G reads/s");
+    for bytes in [64u64 << 20, 256 << 20, 512 << 20, 1 << 30, 2 << 30] {
+        const CHUNK: u64 = 32 << 20;
+        let homes = vec![Host; (bytes / CHUNK) as usize];
+        let window = ChunkWindow::new(&gpus, CHUNK, &ChunkPlacement { homes }, &[]).unwrap();
+        let through_window = random_read_rate(&gpu, window.base(0), bytes);
+        drop(window);
+        let mapped = MappedHost::new(&gpu, bytes);
+        let plain = random_read_rate(&gpu, mapped.device, bytes);
+        gpu.stream.synchronize().unwrap();
+        drop(mapped);
+        println!("{:>10} {through_window:>16.3} {plain:>16.3}", bytes >> 20);
     }
 }
