@@ -537,6 +537,7 @@ impl ChunkWindow {
     }
 
     /// What GPU `gpu` holds and reads from elsewhere, in whole chunks.
+    /// Panics if `gpu` is not an index into the window's GPUs.
     pub fn residency(&self, gpu: usize) -> Residency {
         self.memory().gpus[gpu]
     }
