@@ -56,13 +56,16 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
 ];
 
 /// Kernel files only tests launch (device functions wrapped one by one for
-/// comparison with the CPU). They are part of the registry with the
+/// comparison with the CPU; reads through a chunk window). They are part of the registry with the
 /// `testing` feature, which atoll-cuda's own tests turn on (so the NVRTC
 /// compile tests still check them), and left out of the library otherwise:
 /// a feature rather than `tests/`, because they include `kernels/` headers
 /// and are compiled and loaded exactly like the production kernels.
 #[cfg(any(test, feature = "testing"))]
-const TEST_KERNEL_FILES: &[(&str, &str)] = &[("test_bsdf.cu", include_str!("../kernels/test_bsdf.cu"))];
+const TEST_KERNEL_FILES: &[(&str, &str)] = &[
+    ("test_bsdf.cu", include_str!("../kernels/test_bsdf.cu")),
+    ("test_window.cu", include_str!("../kernels/test_window.cu")),
+];
 #[cfg(not(any(test, feature = "testing")))]
 const TEST_KERNEL_FILES: &[(&str, &str)] = &[];
 

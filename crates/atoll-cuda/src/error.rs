@@ -43,6 +43,11 @@ pub enum CudaError {
         fmt_bytes(*needed), fmt_bytes(*budget.min(free)), fmt_bytes(*budget), fmt_bytes(*free)
     )]
     OutOfMemory { device: String, what: String, needed: u64, budget: u64, free: u64 },
+    /// A GPU would map another's memory (a chunk window) but the hardware
+    /// gives it no direct (peer) access: the caller falls back to a
+    /// strategy that needs none.
+    #[error("{reader} has no peer access to {owner}: it cannot read chunks that {owner} holds")]
+    NoPeerAccess { reader: String, owner: String },
     /// A device used in a way its API does not allow (e.g. a stage before `prepare`).
     #[error("{0}")]
     Usage(String),

@@ -16,7 +16,9 @@
 //!   memory plan; `bvh`: GPU BVH build and layouts; `trace`: traversal
 //!   kernels' host side; `params`: the frame's parameters and tables;
 //!   [`queues`]: ray queues with device-side lengths; [`device`]:
-//!   [`atoll_render::Device`] for CUDA GPUs.
+//!   [`atoll_render::Device`] for CUDA GPUs; [`window`]: chunked scene
+//!   memory that several GPUs read through one address range each (CUDA
+//!   virtual memory).
 //!
 //! Run time (not build time) needs the NVIDIA driver and NVRTC 13:
 //! `Gpu::open` reports what is missing. `ATOLL_KERNEL_DIR` reads kernels
@@ -51,12 +53,14 @@ pub mod peer;
 pub mod queues;
 pub mod scene;
 pub mod trace;
+pub mod window;
 pub mod work;
 
 pub use device::CudaDevice;
 pub use error::CudaError;
 pub use gpu::{device_count, Gpu};
 pub use scene::GpuScene;
+pub use window::{ChunkWindow, WindowMemory};
 
 /// Paths in flight per GPU device unless asked otherwise (CPU devices keep
 /// [`atoll_render::RenderOptions`]'s default). A GPU needs more than a CPU:
