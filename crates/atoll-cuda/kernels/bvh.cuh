@@ -204,6 +204,7 @@ __device__ __forceinline__ void intersect_children(const BvhNode& n, const Trave
 
 __device__ __forceinline__ BvhNode load_node(const BvhNode* nodes, int index) {
     const float4* p = reinterpret_cast<const float4*>(nodes + index);
+    count_access(p);
     BvhNode n;
     n.left_xy = __ldg(p);
     n.right_xy = __ldg(p + 1);
@@ -214,6 +215,7 @@ __device__ __forceinline__ BvhNode load_node(const BvhNode* nodes, int index) {
 
 __device__ __forceinline__ TriRecord load_tri(const TriRecord* tris, unsigned int index) {
     const float4* p = reinterpret_cast<const float4*>(tris + index);
+    count_access(p);
     TriRecord t;
     t.a = __ldg(p);
     t.b = __ldg(p + 1);

@@ -31,6 +31,13 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const unsigned int i0 = s.triangles[3ull * hit.triangle + 0];
     const unsigned int i1 = s.triangles[3ull * hit.triangle + 1];
     const unsigned int i2 = s.triangles[3ull * hit.triangle + 2];
+    count_access(s.instances + hit.instance);
+    count_access(s.triangle_mesh + hit.triangle);
+    count_access(s.meshes + s.triangle_mesh[hit.triangle]);
+    count_access(s.triangles + 3ull * hit.triangle);
+    count_access(s.vertices + 3ull * i0);
+    count_access(s.vertices + 3ull * i1);
+    count_access(s.vertices + 3ull * i2);
     const float b1 = hit.u, b2 = hit.v;
     const float b0 = 1.0f - b1 - b2;
     // Interpolating the vertices is more precise than origin + t * direction.
@@ -48,6 +55,9 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     float3 ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
     float3 ns = ng;
     if (mesh.flags & MESH_HAS_NORMALS) {
+        count_access(s.normals + 3ull * i0);
+        count_access(s.normals + 3ull * i1);
+        count_access(s.normals + 3ull * i2);
         const float3 n = load3(s.normals + 3ull * i0) * b0 + load3(s.normals + 3ull * i1) * b1 +
                          load3(s.normals + 3ull * i2) * b2;
         const float3 shading = normalize_or_zero3(mat3_mul(instance.normal_to_world, n));

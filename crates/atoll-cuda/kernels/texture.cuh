@@ -3,6 +3,7 @@
 // textured hit gets the same coefficients on every device.
 #pragma once
 
+#include "access_count.cuh"
 #include "common.cuh"
 #include "layout.cuh"
 #include "materials.cuh"
@@ -78,6 +79,9 @@ __device__ __forceinline__ float2 hit_uv(const SceneView& s, const GpuMesh& mesh
                                          unsigned int i2, float b1, float b2) {
     const float b0 = 1.0f - b1 - b2;
     if (mesh.flags & MESH_HAS_UVS) {
+        count_access(s.uvs + 2ull * i0);
+        count_access(s.uvs + 2ull * i1);
+        count_access(s.uvs + 2ull * i2);
         const float2 a = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
         const float2 b = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
         const float2 c = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
@@ -93,9 +97,11 @@ __device__ __forceinline__ float4 image_texel(const FrameParams& p, const GpuIma
     const unsigned long long i = (unsigned long long)y * img.width + x;
     if (img.format == IMAGE_RGBA_F32) {
         const unsigned int* w = p.texels + img.texel_offset + 4ull * i;
+        count_access(w);
         return make_float4(__uint_as_float(w[0]), __uint_as_float(w[1]), __uint_as_float(w[2]),
                            __uint_as_float(w[3]));
     }
+    count_access(p.texels + img.texel_offset + i);
     const unsigned int w = p.texels[img.texel_offset + i];
     const unsigned int r = w & 0xffu, g = (w >> 8) & 0xffu, b = (w >> 16) & 0xffu, a = w >> 24;
     const float inv = 1.0f / 255.0f;
@@ -146,6 +152,7 @@ __device__ __forceinline__ float3 max0(float3 v) {
 
 /// `texture::image_lookup`: bilinear, pbrt-v4 texel addressing.
 __device__ float3 image_lookup(const FrameParams& p, const TexOp& o, float2 uv) {
+    count_access(p.images + o.a);
     const GpuImage img = p.images[o.a];
     const unsigned int wrap = o.b & 0xffu, channel = (o.b >> 8) & 0xffu;
     const bool invert = ((o.b >> 16) & 1u) != 0u;

@@ -67,6 +67,8 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
         rec->t_max = h.t;
         out.u = h.u;
         out.v = h.v;
+        count_access(v.instances + h.slot);
+        count_access(v.tri_ids + h.tri);
         out.instance = __ldg(&v.instances[h.slot].instance);
         out.triangle = __ldg(v.tri_ids + h.tri);
         if (surface.params) {

@@ -29,6 +29,7 @@
 __device__ __forceinline__ int instance_ray(const SceneBvhView& v, unsigned int s, const TraversalRay& world,
                                             TraversalRay& ray) {
     const float4* p = reinterpret_cast<const float4*>(v.instances + s);
+    count_access(p);
     const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
     if (meta.z == 0) {
         const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
@@ -125,6 +126,7 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
 #if ATOLL_TRACE_ALPHA
         // Alpha masks (texture.cuh): a cut-out candidate is no hit.
         if (hit && v.alpha_params)
+            count_access(v.tri_ids + first + k);
             hit = alpha_keeps(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, t, ray.o, ray.d);
 #endif
         if (hit) {

@@ -25,6 +25,7 @@ use crate::kernel_cache::{Fnv1a64, KernelCache};
 /// per file; `include_str!` fails the build while the file does not exist,
 /// so lines are added with their files).
 pub const KERNEL_FILES: &[(&str, &str)] = &[
+    ("access_count.cuh", include_str!("../kernels/access_count.cuh")),
     ("bsdf.cuh", include_str!("../kernels/bsdf.cuh")),
     ("bvh.cuh", include_str!("../kernels/bvh.cuh")),
     ("camera.cuh", include_str!("../kernels/camera.cuh")),

@@ -17,6 +17,7 @@
 //! the integrator's loop ends; callers check the slot after rendering (the
 //! CLI does) instead of getting a silently wrong image.
 
+use std::mem::ManuallyDrop;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -27,7 +28,7 @@ use atoll_render::{
     Device, DeviceError, DirectTransport, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave,
 };
 use atoll_scene::Scene;
-use cudarc::driver::{CudaFunction, CudaSlice, PushKernelArg};
+use cudarc::driver::{CudaFunction, CudaSlice, DevicePtr, PushKernelArg};
 use glam::Vec3;
 
 use crate::error::CudaError;
@@ -36,6 +37,7 @@ use crate::params::{FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::{GpuScene, HEADROOM};
 use crate::trace::{DeviceQueueLength, SurfaceTables, TraceFeatures};
+use crate::window::ChunkWindow;
 use crate::work::{WorkFeed, FEED_BYTES};
 use crate::{bvh, trace};
 
@@ -118,11 +120,52 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
 /// once prepared, so devices on the same GPU holding the same part share
 /// one ([`CudaDevice::prepare_sharing`]).
 struct SceneOnGpu {
-    scene: GpuScene,
-    bvh: bvh::GpuSceneBvh,
+    /// Its own arrays, or views into `window` (never freed: leaked on drop).
+    scene: ManuallyDrop<GpuScene>,
+    bvh: ManuallyDrop<bvh::GpuSceneBvh>,
     params: FrameParamsHost,
     /// One [`SceneView`] on the device (what `write_surface` reads).
     scene_view: CudaSlice<SceneView>,
+    /// The shared scene's window the arrays are views into (kept alive
+    /// until they are let go), and this device's index among its GPUs.
+    window: Option<(Arc<Mutex<ChunkWindow>>, usize)>,
+}
+
+impl SceneOnGpu {
+    fn own(
+        scene: GpuScene,
+        bvh: bvh::GpuSceneBvh,
+        params: FrameParamsHost,
+        scene_view: CudaSlice<SceneView>,
+    ) -> Self {
+        SceneOnGpu {
+            scene: ManuallyDrop::new(scene),
+            bvh: ManuallyDrop::new(bvh),
+            params,
+            scene_view,
+            window: None,
+        }
+    }
+}
+
+impl Drop for SceneOnGpu {
+    fn drop(&mut self) {
+        // SAFETY: the fields are taken once, here, and not used after.
+        let (scene, bvh) =
+            unsafe { (ManuallyDrop::take(&mut self.scene), ManuallyDrop::take(&mut self.bvh)) };
+        match self.window {
+            // The window owns the memory (and is dropped after this, with the field).
+            Some(_) => crate::sharing::leak_views(scene, bvh),
+            None => drop((scene, bvh)),
+        }
+    }
+}
+
+/// Per-chunk read counters of a shared scene on this GPU (the prepass).
+struct AccessCounters {
+    counts: CudaSlice<u64>,
+    /// Whether the trace kernels count now.
+    on: bool,
 }
 
 /// A device's hold on a [`SceneOnGpu`]. Its buffers are freed on the
@@ -164,6 +207,8 @@ struct Resident {
     traced_shadows: CudaSlice<u64>,
     /// Waves queued on the device and what the host knows of them.
     work: WorkFeed,
+    /// Under the shared strategy: the per-chunk read counters.
+    access: Option<AccessCounters>,
 }
 
 /// Device time of the stages: timers are collected as stages are queued
@@ -407,7 +452,7 @@ impl CudaDevice {
         let view = [SceneView::of(&gpu_scene)];
         let scene_view =
             gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"))?;
-        let shared = Arc::new(SceneOnGpu { scene: gpu_scene, bvh, params, scene_view });
+        let shared = Arc::new(SceneOnGpu::own(gpu_scene, bvh, params, scene_view));
         let mut stats = self.make_resident(frame, shared, kernels, capacity)?;
         stats.scene_bytes = {
             let s = &self.resident()?.scene;
@@ -458,8 +503,116 @@ impl CudaDevice {
             traced_paths,
             traced_shadows,
             work,
+            access: None,
         });
         Ok(stats)
+    }
+
+    /// Prepares for `frame` over a shared scene: `scene` and `bvh` are
+    /// views into `window` (this GPU's range, tables as `layout` puts
+    /// them), the frame's light and material tables this GPU's own.
+    pub(crate) fn prepare_on_window(
+        &mut self,
+        frame: &Arc<FrameContext>,
+        scene: GpuScene,
+        bvh: bvh::GpuSceneBvh,
+        window: (Arc<Mutex<ChunkWindow>>, usize),
+        layout: &atoll_render::ChunkLayout,
+    ) -> Result<PrepareStats, DeviceError> {
+        let label = self.gpu.label();
+        let attempt = |d: &mut Self| -> Result<PrepareStats, CudaError> {
+            d.release();
+            let gpu = d.gpu.clone();
+            let params = FrameParamsHost::for_scene(&gpu, frame, Some(&scene));
+            let view = [SceneView::of(&scene)];
+            let scene_view =
+                gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"));
+            let (params, scene_view) = match (params, scene_view) {
+                (Ok(p), Ok(v)) => (p, v),
+                (Err(e), _) | (_, Err(e)) => {
+                    // The views are the window's memory: let go, never free.
+                    crate::sharing::leak_views(scene, bvh);
+                    return Err(e);
+                }
+            };
+            let shared = Arc::new(SceneOnGpu {
+                scene: ManuallyDrop::new(scene),
+                bvh: ManuallyDrop::new(bvh),
+                params,
+                scene_view,
+                window: Some(window),
+            });
+            let kernels = Kernels::load(&gpu, frame)?;
+            let mut stats = d.make_resident(frame, shared, kernels, frame.options.queue_capacity())?;
+            let counts = gpu
+                .stream
+                .alloc_zeros::<u64>(layout.chunk_count().max(1))
+                .map_err(CudaError::driver(format!("{label}: allocating access counters")))?;
+            d.resident()?.access = Some(AccessCounters { counts, on: false });
+            stats.bvh_sah_cost = d.resident()?.scene.bvh.sah_cost();
+            Ok(stats)
+        };
+        attempt(self).map_err(|e| {
+            self.resident = None;
+            e.into_device_error(&label)
+        })
+    }
+
+    /// Bytes of shared-scene chunks this device may hold for a frame of
+    /// `options`: its budget less the frame's own allocations (`None`
+    /// without a budget: the window checks free memory itself).
+    pub(crate) fn chunk_budget(&self, options: &RenderOptions) -> Option<u64> {
+        self.memory_budget.map(|b| b.saturating_sub(frame_bytes(options)))
+    }
+
+    /// The options of the frame prepared.
+    pub(crate) fn frame_options(&mut self) -> Result<RenderOptions, CudaError> {
+        Ok(self.resident()?.frame.options.clone())
+    }
+
+    /// Zeroes the shared scene's read counters.
+    pub(crate) fn clear_access_counts(&mut self) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        if let Some(a) = self.resident()?.access.as_mut() {
+            gpu.stream.memset_zeros(&mut a.counts).map_err(CudaError::driver("clearing access counters"))?;
+        }
+        Ok(())
+    }
+
+    /// Switches the trace kernels to (or from) the counting variant, and
+    /// points the counting module's globals at this GPU's counters and window.
+    fn try_count_accesses(&mut self, on: bool) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        let r = self.resident()?;
+        let Some(access) = r.access.as_mut() else {
+            return Err(CudaError::Usage("counting accesses needs a shared scene".into()));
+        };
+        access.on = on;
+        r.trace_features.count_accesses = on;
+        if !on {
+            return Ok(());
+        }
+        let (window, d) = r.scene.window.as_ref().expect("a shared scene has a window");
+        let (base, bytes, chunk) = {
+            let w = window.lock().unwrap_or_else(|p| p.into_inner());
+            (w.base(*d), w.bytes(), w.chunk_bytes())
+        };
+        let counts = access.counts.device_ptr(&gpu.stream).0;
+        let module = gpu.module_with("trace.cu", &r.trace_features.defines())?;
+        for (name, value) in [
+            ("atoll_access_counts", counts),
+            ("atoll_window_base", base),
+            ("atoll_window_bytes", bytes),
+            ("atoll_chunk_bytes", chunk),
+        ] {
+            let mut global = module
+                .get_global(name, &gpu.stream)
+                .map_err(CudaError::driver(format!("{}: finding {name}", gpu.label())))?;
+            gpu.stream
+                .memcpy_htod(&value.to_ne_bytes(), &mut global)
+                .map_err(CudaError::driver(format!("{}: setting {name}", gpu.label())))?;
+        }
+        trace::load_default_kernels(&gpu, &r.scene.bvh, r.trace_features)
     }
 
     /// Zeroes the film and the kernels' counters (queued on the stream).
@@ -730,6 +883,30 @@ impl Device for CudaDevice {
 
     fn set_memory_budget(&mut self, bytes: Option<u64>) {
         self.memory_budget = bytes;
+    }
+
+    fn scene_sharing(&self) -> Option<Arc<dyn atoll_render::SceneSharing>> {
+        Some(Arc::new(crate::sharing::CudaSharing::new(self.gpu.clone())))
+    }
+
+    fn count_accesses(&mut self, on: bool) -> Result<(), DeviceError> {
+        self.stage("count_accesses", |d| d.try_count_accesses(on))
+    }
+
+    fn access_counts(&self) -> Result<Vec<u64>, DeviceError> {
+        let Some(r) = &self.resident else {
+            return Err(self.failed("access_counts", CudaError::Usage("before prepare()".into())));
+        };
+        let Some(a) = &r.access else {
+            return Err(DeviceError::Unsupported {
+                device: self.gpu.label(),
+                what: "counting without a shared scene".into(),
+            });
+        };
+        self.checked("access_counts", || {
+            self.gpu.synchronize()?;
+            self.gpu.stream.clone_dtoh(&a.counts).map_err(CudaError::driver("reading access counters"))
+        })
     }
 
     fn default_wave_size(&self) -> u32 {

@@ -52,6 +52,7 @@ pub mod params;
 pub mod peer;
 pub mod queues;
 pub mod scene;
+pub mod sharing;
 pub mod trace;
 pub mod window;
 pub mod work;

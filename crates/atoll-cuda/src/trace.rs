@@ -33,6 +33,9 @@ pub(crate) struct TraceFeatures {
     /// Closest-hit kernels that write surfaces apply texture programs and
     /// emission textures (`ATOLL_WITH_TEXTURES`).
     pub textures: bool,
+    /// Reads of a shared scene are counted per chunk
+    /// (`ATOLL_COUNT_ACCESSES`, kernels/access_count.cuh): the prepass.
+    pub count_accesses: bool,
 }
 
 impl TraceFeatures {
@@ -47,15 +50,21 @@ impl TraceFeatures {
                 .chain(&frame.textures.mix_amount)
                 .any(|r| !r.is_empty())
                 || !frame.lights.emission_ops.is_empty(),
+            count_accesses: false,
         }
     }
 
     /// The NVRTC defines of the module.
     pub(crate) fn defines(self) -> Vec<String> {
-        vec![
+        let mut defines = vec![
             format!("-DATOLL_TRACE_ALPHA={}", self.alpha as u32),
             format!("-DATOLL_WITH_TEXTURES={}", self.textures as u32),
-        ]
+        ];
+        // Only when counting: the other modules keep their cache keys.
+        if self.count_accesses {
+            defines.push("-DATOLL_COUNT_ACCESSES=1".into());
+        }
+        defines
     }
 }
 /// Threads per block (TRACE_THREADS in trace.cu).

@@ -134,4 +134,11 @@ fn trace_specialisations_compile_and_plain_ones_stay_lean() {
         }
     }
     assert!(plain.0 <= 72 && plain.1 <= 64, "plain trace kernels: {plain:?} registers");
+    // The shared scene's counting prepass variant, and its globals the host sets.
+    let (ptx, log) = compile("trace.cu", &["-DATOLL_COUNT_ACCESSES=1", "-DATOLL_WITH_TEXTURES=1"]);
+    assert!(!log.contains("warning"), "counting: NVRTC warnings:\n{log}");
+    for global in ["atoll_access_counts", "atoll_window_base", "atoll_window_bytes", "atoll_chunk_bytes"] {
+        assert!(ptx.contains(global), "counting module without {global}");
+    }
+    assert!(ptx.contains("atom.global.add.u64"), "counting kernels add to the counters");
 }

@@ -21,6 +21,7 @@ const CPU: Kind = Kind {
     tolerance: Tolerance { relative: 1e-4, absolute: 1e-6, one_in: 500 },
     part_budgets: true,
     shared_chunk: 512,
+    shared_growth: 1,
 };
 
 strategy_bodies::strategy_tests!(CPU);

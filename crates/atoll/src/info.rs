@@ -118,8 +118,11 @@ fn print_prepass(scene: &Scene, args: &InfoArgs) -> Result<(), CliError> {
         fmt_bytes(report.layout.chunk_bytes),
     );
     let curve = report.concentration(&HOTTEST);
-    let points: Vec<String> =
-        HOTTEST.iter().zip(&curve).map(|(f, share)| format!("{:.0}%: {:.1}%", f * 100.0, share * 100.0)).collect();
+    let points: Vec<String> = HOTTEST
+        .iter()
+        .zip(&curve)
+        .map(|(f, share)| format!("{:.0}%: {:.1}%", f * 100.0, share * 100.0))
+        .collect();
     println!("hottest data       {} of reads", points.join(", "));
     println!(
         "never read         {:.1}% of the data",

@@ -48,9 +48,14 @@ const CUDA: Kind = Kind {
     tolerance: Tolerance { relative: 1e-3, absolute: 1e-5, one_in: 200 },
     part_budgets: false,
     shared_chunk: 2 << 20,
+    shared_growth: 16,
 };
 
 strategy_bodies::strategy_tests!(
+    CUDA,
+    #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+);
+strategy_bodies::shared_strategy_tests!(
     CUDA,
     #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 );

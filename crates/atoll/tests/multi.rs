@@ -99,7 +99,8 @@ fn shared_scene_memory_renders_the_single_image_and_reports_its_placement() {
     let single = render(&dir, &["--device", "cpu"], "single.exr");
     assert!(single.status.success(), "{}", text(&single.stderr));
     // Nothing replicated: every device owns half the chunks and reads the others'.
-    let args = ["--devices", "cpu:2", "--strategy", "shared", "--chunk-size", "512", "--replicate-fraction", "0"];
+    let args =
+        ["--devices", "cpu:2", "--strategy", "shared", "--chunk-size", "512", "--replicate-fraction", "0"];
     let out = render(&dir, &args, "shared.exr");
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stderr}");
@@ -123,7 +124,8 @@ fn shared_scene_memory_renders_the_single_image_and_reports_its_placement() {
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(stdout.contains("prepass") && stdout.contains("hottest data       1%:"), "{stdout}");
-    let bad = atoll(&dir, &["render", "--devices", "cpu:2", "--strategy", "shared", "--replicate-fraction", "2"]);
+    let bad =
+        atoll(&dir, &["render", "--devices", "cpu:2", "--strategy", "shared", "--replicate-fraction", "2"]);
     assert_eq!(bad.status.code(), Some(2), "{}", text(&bad.stderr));
 }
 

@@ -145,7 +145,7 @@ pub struct GpuSceneBvh {
     pub tlas_bounds: Bounds,
     pub plan: ScenePlan,
     pub options: BuildOptions,
-    stats: GpuBvhStats,
+    pub(crate) stats: GpuBvhStats,
     /// Triangles of the scene it was built for (checked by the trace functions).
     pub(crate) scene_triangles: u64,
     /// Per [`crate::Gpu`] (by its `id`: one stream each) that traces this

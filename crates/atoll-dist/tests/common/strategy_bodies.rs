@@ -49,9 +49,11 @@ pub struct Kind {
     /// counts scene bytes alone, a GPU's its queues, film and headroom too,
     /// so only the CPU's can be checked against a partition's bytes.
     pub part_budgets: bool,
-    /// Chunk size of shared scenes: several chunks per test scene, at
-    /// least what the device kind maps at once.
+    /// Chunk size of shared scenes: at least what the device kind maps at once.
     pub shared_chunk: u64,
+    /// Growth of the landscape the shared-scene tests render: enough
+    /// chunks of `shared_chunk` to spread.
+    pub shared_growth: u32,
 }
 
 /// Runs each body once, for `$kind` (an expression making a [`Kind`]),
@@ -494,6 +496,14 @@ pub fn ring_over_instance_cost_parts_is_one_device(kind: &Kind) {
     kind.assert_same_image(&reference, &out.film, "ring over instance-cost parts");
 }
 
+/// The Cornell box and a landscape of `kind.shared_growth`.
+fn shared_scenes(kind: &Kind) -> Vec<(String, Arc<Scene>)> {
+    let mut landscape = atoll_scene::landscape::Landscape::new(kind.shared_growth).build();
+    landscape.settings.film.resolution = UVec2::new(128, 72);
+    let name = format!("landscape:{}", kind.shared_growth);
+    vec![("cornell".to_string(), cornell()), (name, Arc::new(landscape))]
+}
+
 /// Bytes of `scene`'s chunks on this kind's devices, and the budget that
 /// leaves a device room for `fraction` of them beside its frame.
 fn shared_budget(kind: &Kind, scene: &Arc<Scene>, options: &RenderOptions, fraction: f64) -> (u64, u64) {
@@ -524,8 +534,15 @@ fn render_shared(
 /// every chunk is placed once, no device holds more than its budget, and
 /// each reads some chunks from the others.
 pub fn shared_memory_is_one_device(kind: &Kind) {
-    for (name, scene) in scenes() {
+    let mut spread = 0;
+    for (name, scene) in shared_scenes(kind) {
         let opts = kind.options(&scene, 4);
+        if shared_budget(kind, &scene, &opts, 1.0).0 < 8 * kind.shared_chunk {
+            // Budgets of a fraction of a few chunks cannot hold whole chunks.
+            eprintln!("{name}: too few chunks of {} to spread", kind.shared_chunk);
+            continue;
+        }
+        spread += 1;
         let (reference, _) = kind.single(&scene, &opts);
         for (n, fraction) in [(2, 0.7), (3, 0.5)] {
             let (bytes, budget) = shared_budget(kind, &scene, &opts, fraction);
@@ -556,13 +573,14 @@ pub fn shared_memory_is_one_device(kind: &Kind) {
             assert!(report.local_reads.iter().all(|&l| l > 0.0 && l <= 1.0), "{:?}", report.local_reads);
         }
     }
+    assert!(spread > 0, "no test scene spans enough chunks");
 }
 
 /// Devices that together cannot hold the scene leave its coldest chunks
 /// in host memory and still render the one-device image; without the
 /// host tier the same budgets are refused before rendering.
 pub fn shared_memory_with_a_host_tier_is_one_device(kind: &Kind) {
-    let (name, scene) = scenes().pop().unwrap();
+    let (name, scene) = shared_scenes(kind).pop().unwrap();
     let opts = kind.options(&scene, 2);
     let (reference, _) = kind.single(&scene, &opts);
     let (bytes, budget) = shared_budget(kind, &scene, &opts, 0.3);

@@ -1,0 +1,370 @@
+//! GPUs sharing one chunked scene ([`SceneSharing`]): the scene's tables
+//! and BVH live in a [`ChunkWindow`], each GPU reading every chunk through
+//! its own plain address range (its replica, its owner's memory over
+//! NVLink, or host memory), so the kernels keep their pointers.
+//!
+//! The scene is built once, the usual way, on the first GPU (tables
+//! uploaded, BVH built there), its arrays copied to the host and freed;
+//! the window is then filled from the host copies, and each GPU gets a
+//! [`GpuScene`] and [`GpuSceneBvh`] whose arrays are views into its range.
+//! So the scene must fit one GPU to be built (placing scenes larger than
+//! any GPU needs a build that writes into the window: not done yet).
+//! Light and material tables (the paper's small structures) stay on
+//! every GPU, outside the window, as for any frame.
+
+use std::sync::{Arc, Mutex};
+
+use atoll_bvh::ScenePart;
+use atoll_render::device::PrepareStats;
+use atoll_render::{ChunkLayout, ChunkPlacement, Device, DeviceError, FrameContext, SceneSharing};
+use atoll_scene::Scene;
+use cudarc::driver::{CudaSlice, DevicePtr};
+
+use crate::bvh::{GpuBvhStats, GpuSceneBvh};
+use crate::device::CudaDevice;
+use crate::error::CudaError;
+use crate::gpu::Gpu;
+use crate::scene::{GpuScene, TableCounts};
+use crate::window::ChunkWindow;
+
+/// Tables start at multiples of this in the window (what the kernels'
+/// widest loads need, and a cache line's worth more).
+const TABLE_ALIGN: u64 = 256;
+
+/// The window's tables, in order: [`GpuScene`]'s, then [`GpuSceneBvh`]'s.
+const TABLES: [&str; 15] = [
+    "vertices",
+    "normals",
+    "triangles",
+    "triangle meshes",
+    "meshes",
+    "objects",
+    "instances",
+    "uvs",
+    "images",
+    "texels",
+    "tlas nodes",
+    "tlas instances",
+    "blas nodes",
+    "triangle records",
+    "triangle ids",
+];
+
+/// Device pointer and bytes of each table of `scene` and `bvh`, in [`TABLES`] order.
+fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 15] {
+    fn span<T>(gpu: &Gpu, s: &CudaSlice<T>) -> (u64, u64) {
+        (s.device_ptr(&gpu.stream).0, s.num_bytes() as u64)
+    }
+    let g = &scene.gpu;
+    [
+        span(g, &scene.vertices),
+        span(g, &scene.normals),
+        span(g, &scene.triangles),
+        span(g, &scene.triangle_mesh),
+        span(g, &scene.meshes),
+        span(g, &scene.objects),
+        span(g, &scene.instances),
+        span(g, &scene.uvs),
+        span(g, &scene.images),
+        span(g, &scene.texels),
+        span(g, &bvh.tlas_nodes),
+        span(g, &bvh.instances),
+        span(g, &bvh.blas_nodes),
+        span(g, &bvh.tris),
+        span(g, &bvh.tri_ids),
+    ]
+}
+
+/// What a [`GpuScene`] and [`GpuSceneBvh`] hold besides their arrays:
+/// copied into every GPU's views.
+#[derive(Clone)]
+struct SceneMeta {
+    counts: TableCounts,
+    host_meshes: Vec<crate::layout::GpuMesh>,
+    host_objects: Vec<crate::layout::GpuObject>,
+    host_instances: Vec<crate::layout::GpuInstance>,
+    tlas_root: i32,
+    triangle_test: crate::bvh::TriangleTest,
+    blas_roots: Vec<i32>,
+    blas_bounds: Vec<crate::bvh::Bounds>,
+    tlas_bounds: crate::bvh::Bounds,
+    plan: crate::bvh::ScenePlan,
+    options: crate::bvh::BuildOptions,
+    stats: GpuBvhStats,
+    scene_triangles: u64,
+}
+
+/// A view of `len` elements at `ptr` on `gpu`, owned by the window: it
+/// must be leaked ([`leak_scene`]), never freed.
+///
+/// # Safety
+/// `ptr` must be mapped on `gpu` for `len` elements of `T` for as long as
+/// the view is used.
+unsafe fn view<T>(gpu: &Gpu, ptr: u64, bytes: u64) -> CudaSlice<T> {
+    let len = (bytes / std::mem::size_of::<T>().max(1) as u64) as usize;
+    gpu.stream.upgrade_device_ptr(ptr, len)
+}
+
+/// `gpu`'s [`GpuScene`] and [`GpuSceneBvh`] over the window range at
+/// `base`, tables where `layout` puts them.
+///
+/// # Safety
+/// `base` must be the base of `gpu`'s range of a window holding `layout`,
+/// alive as long as the returned values (which must be leaked, not dropped).
+unsafe fn views(
+    gpu: &Arc<Gpu>,
+    base: u64,
+    layout: &ChunkLayout,
+    meta: &SceneMeta,
+) -> (GpuScene, GpuSceneBvh) {
+    let at = |i: usize| (base + layout.tables[i].offset, layout.tables[i].bytes);
+    macro_rules! table {
+        ($i:expr) => {{
+            let (ptr, bytes) = at($i);
+            view(gpu, ptr, bytes)
+        }};
+    }
+    let scene = GpuScene {
+        gpu: gpu.clone(),
+        vertices: table!(0),
+        normals: table!(1),
+        triangles: table!(2),
+        triangle_mesh: table!(3),
+        meshes: table!(4),
+        objects: table!(5),
+        instances: table!(6),
+        uvs: table!(7),
+        images: table!(8),
+        texels: table!(9),
+        counts: meta.counts,
+        host_meshes: meta.host_meshes.clone(),
+        host_objects: meta.host_objects.clone(),
+        host_instances: meta.host_instances.clone(),
+    };
+    let bvh = GpuSceneBvh {
+        tlas_nodes: table!(10),
+        instances: table!(11),
+        blas_nodes: table!(12),
+        tris: table!(13),
+        tri_ids: table!(14),
+        tlas_root: meta.tlas_root,
+        triangle_test: meta.triangle_test,
+        blas_roots: meta.blas_roots.clone(),
+        blas_bounds: meta.blas_bounds.clone(),
+        tlas_bounds: meta.tlas_bounds,
+        plan: meta.plan.clone(),
+        options: meta.options,
+        stats: meta.stats.clone(),
+        scene_triangles: meta.scene_triangles,
+        tracers: Mutex::new(Vec::new()),
+        wide: Mutex::new(None),
+    };
+    (scene, bvh)
+}
+
+/// Lets go of views made by [`views`] without freeing the window's memory
+/// (the wide BVH, if one was collapsed, is the GPU's own and is freed).
+pub(crate) fn leak_views(scene: GpuScene, bvh: GpuSceneBvh) {
+    let GpuScene {
+        vertices,
+        normals,
+        triangles,
+        triangle_mesh,
+        meshes,
+        objects,
+        instances,
+        uvs,
+        images,
+        texels,
+        ..
+    } = scene;
+    vertices.leak();
+    normals.leak();
+    triangles.leak();
+    triangle_mesh.leak();
+    meshes.leak();
+    objects.leak();
+    instances.leak();
+    uvs.leak();
+    images.leak();
+    texels.leak();
+    let GpuSceneBvh { tlas_nodes, instances, blas_nodes, tris, tri_ids, .. } = bvh;
+    tlas_nodes.leak();
+    instances.leak();
+    blas_nodes.leak();
+    tris.leak();
+    tri_ids.leak();
+}
+
+/// The scene as laid out, kept from [`CudaSharing::layout`] to
+/// [`CudaSharing::prepare`]: every table's bytes on the host.
+struct Laid {
+    scene: Arc<Scene>,
+    chunk_bytes: u64,
+    tables: Vec<Vec<u8>>,
+    meta: SceneMeta,
+}
+
+/// Scene sharing between CUDA GPUs through a [`ChunkWindow`].
+pub struct CudaSharing {
+    /// The GPU that builds the scene.
+    leader: Arc<Gpu>,
+    laid: Mutex<Option<Laid>>,
+    window: Mutex<Option<Arc<Mutex<ChunkWindow>>>>,
+}
+
+impl CudaSharing {
+    pub(crate) fn new(leader: Arc<Gpu>) -> Self {
+        CudaSharing { leader, laid: Mutex::new(None), window: Mutex::new(None) }
+    }
+}
+
+/// `device` as a CUDA device, or why it cannot share a GPU scene.
+fn cuda(device: &mut dyn Device) -> Result<&mut CudaDevice, DeviceError> {
+    let name = device.name();
+    device.as_any_mut().downcast_mut::<CudaDevice>().ok_or_else(|| DeviceError::Unsupported {
+        device: name,
+        what: "sharing a scene with CUDA devices".into(),
+    })
+}
+
+/// The shared scene's error as every device's.
+fn shared_error(e: CudaError) -> DeviceError {
+    e.into_device_error("shared scene")
+}
+
+/// `bytes` bytes at device pointer `ptr` of `gpu`, copied to the host.
+fn download(gpu: &Gpu, ptr: u64, bytes: u64) -> Result<Vec<u8>, CudaError> {
+    let mut out = vec![0u8; bytes as usize];
+    gpu.ctx.bind_to_thread().map_err(CudaError::driver("binding the context"))?;
+    // SAFETY: `ptr` is a live allocation of at least `bytes` bytes on `gpu`
+    // (a table of a scene built there), and the stream was synchronised.
+    unsafe { cudarc::driver::result::memcpy_dtoh_sync(&mut out, ptr) }
+        .map_err(CudaError::driver(format!("{}: downloading a scene table", gpu.label())))?;
+    Ok(out)
+}
+
+impl SceneSharing for CudaSharing {
+    fn name(&self) -> &'static str {
+        "CUDA virtual memory"
+    }
+
+    fn layout(
+        &self,
+        scene: &Arc<Scene>,
+        _frame: &Arc<FrameContext>,
+        chunk_bytes: u64,
+    ) -> Result<ChunkLayout, DeviceError> {
+        let gpu = &self.leader;
+        let build = || -> Result<Laid, CudaError> {
+            let chunk_bytes = ChunkWindow::chunk_bytes_for(std::slice::from_ref(gpu), chunk_bytes)?;
+            let whole = ScenePart::whole(scene);
+            let gpu_scene = GpuScene::upload_part(gpu, scene, &whole, None, 0)?;
+            let bvh = GpuSceneBvh::build(gpu, &gpu_scene)?;
+            gpu.synchronize()?;
+            let tables = table_spans(&gpu_scene, &bvh)
+                .iter()
+                .map(|&(ptr, bytes)| download(gpu, ptr, bytes))
+                .collect::<Result<Vec<_>, _>>()?;
+            let meta = SceneMeta {
+                counts: gpu_scene.counts,
+                host_meshes: gpu_scene.host_meshes.clone(),
+                host_objects: gpu_scene.host_objects.clone(),
+                host_instances: gpu_scene.host_instances.clone(),
+                tlas_root: bvh.tlas_root,
+                triangle_test: bvh.triangle_test,
+                blas_roots: bvh.blas_roots.clone(),
+                blas_bounds: bvh.blas_bounds.clone(),
+                tlas_bounds: bvh.tlas_bounds,
+                plan: bvh.plan.clone(),
+                options: bvh.options,
+                stats: bvh.stats().clone(),
+                scene_triangles: bvh.scene_triangles,
+            };
+            Ok(Laid { scene: scene.clone(), chunk_bytes, tables, meta })
+        };
+        let laid = build().map_err(|e| e.into_device_error(&gpu.label()))?;
+        let sizes = TABLES.iter().zip(&laid.tables).map(|(name, t)| (name.to_string(), t.len() as u64));
+        let layout = ChunkLayout::new(laid.chunk_bytes, TABLE_ALIGN, sizes);
+        *self.laid.lock().unwrap_or_else(|p| p.into_inner()) = Some(laid);
+        Ok(layout)
+    }
+
+    fn prepare(
+        &self,
+        devices: &mut [Box<dyn Device>],
+        scene: &Arc<Scene>,
+        frame: &Arc<FrameContext>,
+        layout: &ChunkLayout,
+        placement: &ChunkPlacement,
+    ) -> Result<Vec<PrepareStats>, DeviceError> {
+        let laid = self.laid.lock().unwrap_or_else(|p| p.into_inner()).take();
+        let laid = laid
+            .filter(|l| Arc::ptr_eq(&l.scene, scene) && l.chunk_bytes == layout.chunk_bytes)
+            .ok_or_else(|| {
+                shared_error(CudaError::Usage(
+                    "prepare() needs the layout() of the same scene and chunk size first".into(),
+                ))
+            })?;
+        let mut gpus = Vec::with_capacity(devices.len());
+        let mut budgets = Vec::with_capacity(devices.len());
+        for device in devices.iter_mut() {
+            let device = cuda(device.as_mut())?;
+            let gpu = device.gpu().clone();
+            budgets.push(device.chunk_budget(&frame.options));
+            gpus.push(gpu);
+        }
+        let window =
+            ChunkWindow::new(&gpus, layout.chunk_bytes, placement, &budgets).map_err(shared_error)?;
+        for (table, bytes) in layout.tables.iter().zip(&laid.tables) {
+            window.write(table.offset, bytes).map_err(shared_error)?;
+        }
+        drop(laid.tables);
+        let window = Arc::new(Mutex::new(window));
+        *self.window.lock().unwrap_or_else(|p| p.into_inner()) = Some(window.clone());
+        let mut stats = Vec::with_capacity(devices.len());
+        for (d, device) in devices.iter_mut().enumerate() {
+            let device = cuda(device.as_mut())?;
+            let gpu = device.gpu().clone();
+            let (base, residency) = {
+                let w = window.lock().unwrap_or_else(|p| p.into_inner());
+                (w.base(d), w.residency(d))
+            };
+            // SAFETY: `base` is GPU d's range of the window holding `layout`;
+            // the device keeps the window alive and leaks the views.
+            let (scene_views, bvh_views) = unsafe { views(&gpu, base, layout, &laid.meta) };
+            let mut s =
+                device.prepare_on_window(frame, scene_views, bvh_views, (window.clone(), d), layout)?;
+            s.scene_bytes = residency.local();
+            s.shared = Some(residency);
+            stats.push(s);
+        }
+        Ok(stats)
+    }
+
+    fn replace(
+        &self,
+        devices: &mut [Box<dyn Device>],
+        placement: &ChunkPlacement,
+    ) -> Result<(), DeviceError> {
+        let window = self.window.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        let window =
+            window.ok_or_else(|| shared_error(CudaError::Usage("replace() before prepare()".into())))?;
+        let mut budgets = Vec::with_capacity(devices.len());
+        for device in devices.iter_mut() {
+            let device = cuda(device.as_mut())?;
+            device.gpu().synchronize().map_err(shared_error)?;
+            let options = device.frame_options().map_err(shared_error)?;
+            budgets.push(device.chunk_budget(&options));
+        }
+        window
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .replace(placement, &budgets)
+            .map_err(shared_error)?;
+        for device in devices.iter_mut() {
+            cuda(device.as_mut())?.clear_access_counts().map_err(shared_error)?;
+        }
+        Ok(())
+    }
+}
