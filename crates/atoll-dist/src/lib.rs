@@ -37,6 +37,7 @@ mod replicate;
 pub mod ring;
 pub mod shared;
 pub mod spatial;
+pub mod stripes;
 mod transport;
 mod vote;
 pub mod work;

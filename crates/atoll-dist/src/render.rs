@@ -25,6 +25,7 @@ use crate::layout::{Layout, RingOrder};
 use crate::replicate;
 use crate::ring::{ring_loop, run_member, RingLink, RingPeers};
 use crate::shared::{prepare_shared, SharedReport};
+use crate::stripes::StripeHandout;
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
 
@@ -290,6 +291,15 @@ pub fn render_multi_with(
     // what this process's devices would take alone).
     let cut = RenderOptions { wave_size: joined.wave_size, ..frame.options.clone() };
     let waves = work_units(&cut, joined.workers);
+    // Devices sharing a scene's memory keep to their own region of the image.
+    let stripes;
+    let handout: &dyn WaveHandout = match (layout, shared) {
+        (Layout::Shared(_), None) => {
+            stripes = StripeHandout::new(&waves, frame.options.pixel_count(), islands);
+            &stripes
+        }
+        _ => handout,
+    };
     handout.begin(waves.len(), pacing(&frame.options, &waves, islands, &warmed));
     let start = Instant::now();
     let reports = match remote {

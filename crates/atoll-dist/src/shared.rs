@@ -13,18 +13,17 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use atoll_render::device::PrepareStats;
-use atoll_render::integrator::warm_up_waves;
 use atoll_render::{
-    ChunkLayout, ChunkPlacement, Device, DeviceError, FrameContext, RenderOptions, Residency,
+    ChunkLayout, ChunkPlacement, Device, DeviceError, FrameContext, RenderOptions, Residency, Wave,
 };
 use atoll_scene::Scene;
 
 use crate::chunk_placement::{
     access_concentration, initial_placement, local_read_share, place_chunks, ChunkBudget, Replication,
 };
-use crate::handout::{LocalHandout, Pacing, WaveHandout};
 use crate::layout::RingOrder;
-use crate::render::{run_waves, work_units, RunShape};
+use crate::render::{run_waves, RunShape};
+use crate::stripes::StripeHandout;
 
 /// Default chunk size: the paper's optimum for scenes under 30 GB.
 pub const DEFAULT_CHUNK_BYTES: u64 = 2 << 20;
@@ -154,8 +153,10 @@ pub(crate) fn prepare_shared(
     Ok((prepared, report))
 }
 
-/// The prepass: every device renders its share of the frame's first
-/// sample counting chunk reads, then is cleared for the frame.
+/// The prepass: every device renders its stripe of the frame's first
+/// sample (as it will the frame's), counting chunk reads, then is cleared
+/// for the frame. One wave at a time: a device merging waves would take
+/// its neighbours' stripes too before they start.
 fn count_first_sample(
     devices: &mut [Box<dyn Device>],
     frame: &Arc<FrameContext>,
@@ -163,10 +164,12 @@ fn count_first_sample(
     for device in devices.iter_mut() {
         device.count_accesses(true)?;
     }
-    let waves: Vec<_> = warm_up_waves(&work_units(&frame.options, devices.len())).collect();
-    let handout = LocalHandout::default();
-    handout.begin(waves.len(), Pacing::default());
-    let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: frame.options.merge_waves };
+    // Four waves per device at least, however small the image.
+    let pixels = frame.options.pixel_count();
+    let per_wave = pixels.div_ceil(4 * devices.len().max(1) as u32).clamp(1, frame.options.wave_size.max(1));
+    let waves = Wave::all(&RenderOptions { spp: 1, wave_size: per_wave, ..frame.options.clone() });
+    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), devices.len());
+    let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: false };
     let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
         return Err(e);

@@ -343,15 +343,17 @@ pub fn shared_table(out: &MultiOutput) -> String {
         100.0 * replicated as f64 / chunks.max(1) as f64,
         report.prepass_seconds
     );
-    s += "device       replicated      owned     remote       host  local reads\n";
-    for ((r, local), device) in report.residency.iter().zip(&report.local_reads).zip(&out.devices) {
+    s += "device       replicated      owned     remote       host  prepass reads (M)  local reads\n";
+    let rows = report.residency.iter().zip(&report.local_reads).zip(&report.counts).zip(&out.devices);
+    for (((r, local), counts), device) in rows {
         s += &format!(
-            "{:<12} {:>10} {:>10} {:>10} {:>10}  {:>10.1}%\n",
+            "{:<12} {:>10} {:>10} {:>10} {:>10}  {:>17.2}  {:>10.1}%\n",
             device.name,
             fmt_bytes(r.replicated),
             fmt_bytes(r.owned),
             fmt_bytes(r.remote),
             fmt_bytes(r.host),
+            counts.iter().sum::<u64>() as f64 / 1e6,
             100.0 * local
         );
     }

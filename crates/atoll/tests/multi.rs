@@ -111,9 +111,10 @@ fn shared_scene_memory_renders_the_single_image_and_reports_its_placement() {
     assert_eq!(rows.len(), 2, "{stdout}");
     for row in rows {
         // Device, then replicated, owned, remote and host as number and
-        // unit, then the share of local reads.
+        // unit, then prepass reads and the share of local reads.
         let cols: Vec<&str> = row.split_whitespace().collect();
-        assert_eq!(cols.len(), 10, "{row}");
+        assert_eq!(cols.len(), 11, "{row}");
+        assert!(cols[9].parse::<f64>().unwrap() > 0.0, "every device counted reads: {row}");
         assert_eq!(cols[1], "0", "nothing replicated: {row}");
         assert!(cols[3] != "0" && cols[5] != "0", "every device owns and reads remote chunks: {row}");
         assert_eq!(cols[7], "0", "nothing in host memory: {row}");

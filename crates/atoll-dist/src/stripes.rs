@@ -1,0 +1,106 @@
+//! Waves handed out by image region, for the shared strategy: worker `w`
+//! takes first the waves whose first pixel lies in the `w`-th of N equal
+//! stripes of the image, in order, so each device keeps rendering the same
+//! part of the image (as the stripes of Jaroš et al. 2021) and reads the
+//! same part of the scene: the prepass's counts then say which device
+//! reads a chunk most, and the chunks it owns serve most of its reads. A
+//! worker whose stripe is done takes the last wave of the stripe with the
+//! most waves left (work stealing), so uneven stripes still finish
+//! together.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+use atoll_render::{DeviceError, Wave};
+
+use crate::handout::{Joined, Joining, Pacing, WaveHandout};
+
+/// Hands out a frame's waves by stripe ([`crate::stripes`]).
+#[derive(Debug)]
+pub struct StripeHandout {
+    /// Per worker, the indices of its stripe's waves not yet taken.
+    stripes: Mutex<Vec<VecDeque<usize>>>,
+    taken: AtomicUsize,
+}
+
+impl StripeHandout {
+    /// `waves` of an image of `pixels` pixels dealt to `workers` stripes.
+    pub fn new(waves: &[Wave], pixels: u32, workers: usize) -> Self {
+        let workers = workers.max(1);
+        let mut stripes = vec![VecDeque::new(); workers];
+        for (i, wave) in waves.iter().enumerate() {
+            let stripe = (wave.first_pixel as u64 * workers as u64 / pixels.max(1) as u64) as usize;
+            stripes[stripe.min(workers - 1)].push_back(i);
+        }
+        StripeHandout { stripes: Mutex::new(stripes), taken: AtomicUsize::new(0) }
+    }
+}
+
+impl WaveHandout for StripeHandout {
+    fn join(&self, me: Joining) -> Result<Joined, DeviceError> {
+        Ok(Joined { workers: me.workers, wave_size: me.wave_size })
+    }
+
+    fn begin(&self, _waves: usize, _pacing: Pacing) {}
+
+    fn next(&self, taker: usize) -> Option<usize> {
+        let mut stripes = self.stripes.lock().unwrap_or_else(|p| p.into_inner());
+        let own = stripes.get_mut(taker).and_then(VecDeque::pop_front);
+        let wave = own.or_else(|| {
+            let fullest = stripes.iter_mut().max_by_key(|s| s.len())?;
+            fullest.pop_back()
+        })?;
+        self.taken.fetch_add(1, Ordering::Relaxed);
+        Some(wave)
+    }
+
+    fn taken(&self) -> usize {
+        self.taken.load(Ordering::Relaxed)
+    }
+
+    fn end(&self) {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn waves(n: u32, per: u32, samples: u32) -> Vec<Wave> {
+        (0..samples)
+            .flat_map(|sample| (0..n).map(move |i| Wave { sample, first_pixel: i * per, pixel_count: per }))
+            .collect()
+    }
+
+    #[test]
+    fn workers_take_their_stripes_in_order_then_steal_from_the_fullest() {
+        // 8 waves per sample over 2 samples, 2 workers: worker 0's stripe is
+        // waves 0..4 of each sample, worker 1's 4..8.
+        let w = waves(8, 100, 2);
+        let h = StripeHandout::new(&w, 800, 2);
+        assert_eq!(h.next(0), Some(0));
+        assert_eq!(h.next(1), Some(4));
+        assert_eq!(h.next(1), Some(5));
+        // Worker 0 alone takes the rest of its stripe, then steals worker 1's last.
+        let mine: Vec<usize> = (0..5).filter_map(|_| h.next(0)).collect();
+        assert_eq!(mine, vec![1, 2, 3, 8, 9]);
+        let mut rest: Vec<usize> = std::iter::from_fn(|| h.next(0)).collect();
+        rest.sort_unstable();
+        assert_eq!(rest, vec![6, 7, 10, 11, 12, 13, 14, 15]);
+        assert_eq!(h.next(1), None);
+        assert_eq!(h.taken(), 16);
+    }
+
+    #[test]
+    fn every_wave_is_handed_out_once() {
+        let w = waves(10, 37, 3);
+        let h = StripeHandout::new(&w, 370, 3);
+        let mut seen = vec![0; w.len()];
+        let mut worker = 0;
+        while let Some(i) = h.next(worker % 3) {
+            seen[i] += 1;
+            worker += 1;
+        }
+        assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
+    }
+}
