@@ -285,7 +285,12 @@ impl SceneSharing for CudaSharing {
         };
         let laid = build().map_err(|e| e.into_device_error(&gpu.label()))?;
         let sizes = TABLES.iter().zip(&laid.tables).map(|(name, t)| (name.to_string(), t.len() as u64));
-        let layout = ChunkLayout::new(laid.chunk_bytes, TABLE_ALIGN, sizes);
+        let mut layout = ChunkLayout::new(laid.chunk_bytes, TABLE_ALIGN, sizes);
+        // The window maps whole chunks: the last one's unused end counts
+        // against the budgets as well.
+        let end = layout.bytes();
+        let padding = end.next_multiple_of(laid.chunk_bytes) - end;
+        layout.tables.push(atoll_render::chunks::ChunkTable { name: "unused".into(), offset: end, bytes: padding });
         *self.laid.lock().unwrap_or_else(|p| p.into_inner()) = Some(laid);
         Ok(layout)
     }
