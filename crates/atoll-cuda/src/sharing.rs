@@ -249,6 +249,33 @@ impl SceneSharing for CudaSharing {
         "CUDA virtual memory"
     }
 
+    fn supports(&self, devices: &[Box<dyn Device>], scene: &Scene) -> Result<(), String> {
+        let mut gpus = Vec::with_capacity(devices.len());
+        for device in devices {
+            match device.as_any().downcast_ref::<CudaDevice>() {
+                Some(d) => gpus.push(d.gpu().clone()),
+                None => return Err(format!("{} is not a CUDA device", device.name())),
+            }
+        }
+        for (i, a) in gpus.iter().enumerate() {
+            for b in &gpus[i + 1..] {
+                if a.ordinal != b.ordinal && !crate::window::can_access_peer(a, b) {
+                    return Err(format!("{} cannot read {}'s memory directly", a.label(), b.label()));
+                }
+            }
+        }
+        // The scene is built whole on the leader before it is spread.
+        let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
+        let free = self.leader.free_memory().map_err(|e| e.to_string())?;
+        if needed > free {
+            return Err(format!(
+                "building the whole scene on {} needs {needed} bytes, {free} free",
+                self.leader.label()
+            ));
+        }
+        Ok(())
+    }
+
     fn layout(
         &self,
         scene: &Arc<Scene>,
@@ -290,7 +317,11 @@ impl SceneSharing for CudaSharing {
         // against the budgets as well.
         let end = layout.bytes();
         let padding = end.next_multiple_of(laid.chunk_bytes) - end;
-        layout.tables.push(atoll_render::chunks::ChunkTable { name: "unused".into(), offset: end, bytes: padding });
+        layout.tables.push(atoll_render::chunks::ChunkTable {
+            name: "unused".into(),
+            offset: end,
+            bytes: padding,
+        });
         *self.laid.lock().unwrap_or_else(|p| p.into_inner()) = Some(laid);
         Ok(layout)
     }

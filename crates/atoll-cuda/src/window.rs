@@ -270,19 +270,27 @@ fn bind(gpu: &Gpu) -> Result<(), CudaError> {
 fn check_peers(gpus: &[Arc<Gpu>], plan: &Plan) -> Result<(), CudaError> {
     for (reader, owner) in plan.peer_pairs() {
         let (r, o) = (&gpus[reader], &gpus[owner]);
-        if r.ordinal == o.ordinal {
-            continue;
-        }
-        let mut can = 0;
-        // SAFETY: a query of two device handles into a local out-parameter.
-        unsafe { sys::cuDeviceCanAccessPeer(&mut can, r.ctx.cu_device(), o.ctx.cu_device()) }
-            .result()
-            .map_err(CudaError::driver(format!("{}: asking for peer access to {}", r.label(), o.label())))?;
-        if can == 0 {
+        if r.ordinal != o.ordinal && !peer_access(r, o)? {
             return Err(CudaError::NoPeerAccess { reader: r.label(), owner: o.label() });
         }
     }
     Ok(())
+}
+
+/// Whether `reader` can map `owner`'s memory.
+fn peer_access(reader: &Gpu, owner: &Gpu) -> Result<bool, CudaError> {
+    let mut can = 0;
+    // SAFETY: a query of two device handles into a local out-parameter.
+    unsafe { sys::cuDeviceCanAccessPeer(&mut can, reader.ctx.cu_device(), owner.ctx.cu_device()) }
+        .result()
+        .map_err(CudaError::driver(format!("{}: asking for peer access to {}", reader.label(), owner.label())))?;
+    Ok(can != 0)
+}
+
+/// Whether `a` and `b` can each map the other's memory (false where the
+/// driver cannot say).
+pub fn can_access_peer(a: &Gpu, b: &Gpu) -> bool {
+    matches!((peer_access(a, b), peer_access(b, a)), (Ok(true), Ok(true)))
 }
 
 /// One physical allocation (`cuMemCreate`), shared by the ranges that map

@@ -18,8 +18,9 @@ use atoll_render::{ChunkHome, ChunkLayout, ChunkPlacement};
 pub struct ChunkBudget {
     /// Per device, bytes of chunks it may hold (`None`: no limit).
     pub devices: Vec<Option<u64>>,
-    /// Whether chunks may stay in host memory when the devices are full.
-    pub host: bool,
+    /// Bytes of chunks host memory may hold when the devices are full
+    /// (`None`: no host tier; `Some(u64::MAX)`: no limit).
+    pub host: Option<u64>,
 }
 
 /// How many chunks to replicate.
@@ -37,11 +38,11 @@ pub enum Replication {
 #[derive(Debug, PartialEq, Eq, thiserror::Error)]
 #[allow(missing_docs)]
 pub enum ChunkPlacementError {
-    /// More chunk bytes than the devices' budgets, and no host tier.
+    /// More chunk bytes than the devices' budgets and the host tier hold.
     #[error(
-        "the scene's {scene} bytes in chunks of {chunk_bytes} do not fit the devices' {devices} bytes, and host memory may not be used"
+        "the scene's {scene} bytes in chunks of {chunk_bytes} do not fit the devices' {devices} bytes and {host} bytes of host memory"
     )]
-    DoesNotFit { scene: u64, chunk_bytes: u64, devices: u64 },
+    DoesNotFit { scene: u64, chunk_bytes: u64, devices: u64, host: u64 },
     /// Counts of another shape than the layout and devices.
     #[error("access counts for {got} devices and {chunks_got} chunks, expected {devices} and {chunks}")]
     Counts { got: usize, devices: usize, chunks_got: usize, chunks: usize },
@@ -77,14 +78,16 @@ pub fn place_chunks(
     }
     let scene = layout.bytes();
     let room_total = budget.devices.iter().try_fold(0u64, |sum, b| b.map(|b| sum.saturating_add(b)));
-    if let Some(room) = room_total {
-        if scene > room && !budget.host {
-            return Err(ChunkPlacementError::DoesNotFit {
-                scene,
-                chunk_bytes: layout.chunk_bytes,
-                devices: room,
-            });
-        }
+    let host_room = budget.host.unwrap_or(0);
+    let does_not_fit = || ChunkPlacementError::DoesNotFit {
+        scene,
+        chunk_bytes: layout.chunk_bytes,
+        devices: room_total.unwrap_or(u64::MAX),
+        host: host_room,
+    };
+    // Refused before any placing when the bytes alone cannot fit.
+    if room_total.is_some_and(|room| scene > room.saturating_add(host_room)) {
+        return Err(does_not_fit());
     }
     let total: Vec<u64> = (0..chunks).map(|c| counts.iter().map(|d| d[c]).sum()).collect();
     let mut order: Vec<usize> = (0..chunks).collect();
@@ -129,9 +132,10 @@ pub fn place_chunks(
             next = d + 1;
         }
     }
-    if !budget.host && homes.contains(&ChunkHome::Host) {
-        let devices = room_total.unwrap_or(u64::MAX);
-        return Err(ChunkPlacementError::DoesNotFit { scene, chunk_bytes: layout.chunk_bytes, devices });
+    let on_host: u64 =
+        (0..chunks).filter(|&c| homes[c] == ChunkHome::Host).map(|c| layout.chunk_len(c)).sum();
+    if on_host > host_room {
+        return Err(does_not_fit());
     }
     Ok(ChunkPlacement { homes })
 }
@@ -254,7 +258,7 @@ mod tests {
     }
 
     fn budget(devices: &[Option<u64>], host: bool) -> ChunkBudget {
-        ChunkBudget { devices: devices.to_vec(), host }
+        ChunkBudget { devices: devices.to_vec(), host: host.then_some(u64::MAX) }
     }
 
     /// Per device, bytes held; host bytes; every chunk placed once.
@@ -276,17 +280,8 @@ mod tests {
     fn hottest_are_replicated_and_the_rest_goes_to_its_main_reader() {
         let l = layout(10, 100);
         // Chunk 9 hottest, then 8; chunk 0..4 read mostly by device 1, 5..7 by device 0.
-        let mut counts = vec![vec![0u64; 10]; 2];
-        counts[0][9] = 500;
-        counts[1][9] = 500;
-        counts[0][8] = 300;
-        for c in 0..5 {
-            counts[1][c] = 10 + c as u64;
-            counts[0][c] = 1;
-        }
-        for c in 5..8 {
-            counts[0][c] = 20;
-        }
+        let counts =
+            vec![vec![1, 1, 1, 1, 1, 20, 20, 20, 300, 500], vec![10, 11, 12, 13, 14, 0, 0, 0, 0, 500]];
         let b = budget(&[Some(700), Some(700)], false);
         // N_dup = (700 − 1000 / 2) / 100 = 2.
         let p = place_chunks(&l, &counts, &b, Replication::Auto).unwrap();
@@ -317,12 +312,20 @@ mod tests {
         // The coldest stay in host memory.
         assert_eq!(&p.homes[4..], &[ChunkHome::Host, ChunkHome::Host]);
         assert_eq!((held, host), (vec![200, 200], 140));
-        // Without the host tier it is refused, not over-committed.
+        // Without the host tier, or with too little host memory, it is
+        // refused, not over-committed.
         let no_host = budget(&[Some(200), Some(200)], false);
         assert!(matches!(
             place_chunks(&l, &counts, &no_host, Replication::Auto),
-            Err(ChunkPlacementError::DoesNotFit { scene: 540, chunk_bytes: 100, devices: 400 })
+            Err(ChunkPlacementError::DoesNotFit { scene: 540, chunk_bytes: 100, devices: 400, host: 0 })
         ));
+        let small_host = ChunkBudget { host: Some(100), ..no_host.clone() };
+        assert!(matches!(
+            place_chunks(&l, &counts, &small_host, Replication::Auto),
+            Err(ChunkPlacementError::DoesNotFit { host: 100, .. })
+        ));
+        let enough = ChunkBudget { host: Some(140), ..no_host };
+        assert_eq!(place_chunks(&l, &counts, &enough, Replication::Fraction(0.0)).unwrap(), p);
     }
 
     #[test]

@@ -596,7 +596,9 @@ fn smallest_fitting(
 /// Which distribution strategy to use, as the command line names it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Strategy {
-    /// Replicate when the scene fits every device, else ring.
+    /// Replicate when the scene fits every device, else share its memory
+    /// where the devices can (GPUs with direct access to each other),
+    /// else ring ([`crate::placement::place`]).
     #[default]
     Auto,
     /// The whole scene on every device.

@@ -136,7 +136,9 @@ pub enum PlacementError {
 }
 
 /// Chooses the strategy for `devices` rendering `scene` (replicate when the
-/// scene fits each device, else rings of the fewest devices that hold it),
+/// scene fits each device, else shared scene memory where the devices can
+/// share it and have memory of their own, else rings of the fewest
+/// devices that hold it),
 /// partitions the scene for rings, and adds the further devices
 /// `request.streams` asks for (more islands over the same hardware, or
 /// more replicas sharing a scene). Devices a ring plan cannot use (N not a
@@ -163,8 +165,11 @@ pub fn place(
         (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring))?,
         (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))?,
         (Strategy::Shared, None) => Plan::Shared,
-        (Strategy::Auto, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))
-            .or_else(|_| plan(scene, &model, n, budget, Some(Strategy::Auto)))?,
+        (Strategy::Auto, None) => match plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)) {
+            Ok(p) => p,
+            Err(_) if sharing_is_faster(devices, scene) => Plan::Shared,
+            Err(_) => plan(scene, &model, n, budget, Some(Strategy::Auto))?,
+        },
     };
     let mut notes = Vec::new();
     let (layout, partition) = match plan {
@@ -239,6 +244,25 @@ pub fn place(
         }
     }
     Ok(Placement { plan, layout, partition, notes })
+}
+
+/// Whether `auto` shares the scene's memory rather than cutting it for
+/// rings: on devices with memory of their own (GPUs) that can share it
+/// ([`Device::scene_sharing`], direct access between every pair), which
+/// measured faster than the ring on the landscape (BENCHMARKS.md, shared
+/// scene memory). CPU devices draw on one memory: their rings stay.
+fn sharing_is_faster(devices: &[Box<dyn Device>], scene: &Scene) -> bool {
+    let own_memory = devices.len() > 1 && devices.iter().all(|d| d.free_memory().is_some());
+    let Some(sharing) = devices.first().and_then(|d| d.scene_sharing()).filter(|_| own_memory) else {
+        return false;
+    };
+    match sharing.supports(devices, scene) {
+        Ok(()) => true,
+        Err(why) => {
+            tracing::info!("not sharing the scene's memory: {why}");
+            false
+        }
+    }
 }
 
 /// What devices listed on one piece of hardware share of it.

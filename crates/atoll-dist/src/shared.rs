@@ -98,7 +98,17 @@ fn chunk_budgets(devices: &[Box<dyn Device>], spec: &SharedSpec, options: &Rende
             None => spec.budget,
         })
         .collect();
-    ChunkBudget { devices, host: spec.host_tier }
+    ChunkBudget { devices, host: spec.host_tier.then(host_memory_available).map(|a| a.unwrap_or(u64::MAX)) }
+}
+
+/// Host memory free for a host tier: what the OS says is available,
+/// less a quarter kept for the scene itself, the renderer and others
+/// (`None` where the OS does not say: no limit).
+fn host_memory_available() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024 / 4 * 3)
 }
 
 /// A device-neutral error about the shared scene as a whole.

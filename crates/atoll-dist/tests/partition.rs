@@ -287,8 +287,12 @@ fn strategies_parse_from_their_names() {
     for name in Strategy::NAMES {
         assert_eq!(name.parse::<Strategy>().unwrap().to_string(), name);
     }
-    let err = "shared".parse::<Strategy>().unwrap_err();
-    assert_eq!(err.to_string(), "unknown distribution strategy 'shared': expected auto, replicate or ring");
+    assert_eq!(" Shared".parse(), Ok(Strategy::Shared));
+    let err = "cycle".parse::<Strategy>().unwrap_err();
+    assert_eq!(
+        err.to_string(),
+        "unknown distribution strategy 'cycle': expected auto, replicate, ring or shared"
+    );
 }
 
 /// The heaviest piece goes to part 0 (`RingOrder::Home` traces every ray

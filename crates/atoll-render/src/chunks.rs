@@ -160,6 +160,11 @@ pub trait SceneSharing: Send + Sync {
     /// What it is, for messages.
     fn name(&self) -> &'static str;
 
+    /// Whether `devices` can share `scene` this way (every one of this
+    /// kind, direct access between every pair, room to lay the scene
+    /// out); `Err` says why not. Placement asks before choosing it.
+    fn supports(&self, devices: &[Box<dyn Device>], scene: &Scene) -> Result<(), String>;
+
     /// The chunked layout of `scene`'s data as this device kind stores it
     /// for `frame` (building what sizes depend on, such as the BVH, and
     /// keeping it for [`SceneSharing::prepare`]).

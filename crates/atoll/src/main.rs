@@ -27,7 +27,7 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene (the built-in Cornell box when none is given).
-    Render(render::RenderArgs),
+    Render(Box<render::RenderArgs>),
     /// Print counts, bounds, memory estimate and BVH statistics of a scene.
     Info(info::InfoArgs),
     /// Measure BVH build, traversal and path-tracing speed.
@@ -60,7 +60,7 @@ fn main() -> ExitCode {
         .init();
     let cli = Cli::parse();
     let result = match cli.command {
-        Some(Command::Render(args)) => render::run(args),
+        Some(Command::Render(args)) => render::run(*args),
         Some(Command::Info(args)) => info::run(args),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Compare(args)) => compare::run(args),

@@ -94,8 +94,8 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_devices, conflicts_with = "device")]
     pub devices: Option<DeviceList>,
     /// How several devices share the work: auto (replicate when the scene
-    /// fits every device, else rings of as few devices as fit), replicate,
-    /// ring, or shared (the scene in chunks over the devices' memories, hot
+    /// fits every device, else shared on GPUs that can read each other's
+    /// memory, else rings of as few devices as fit), replicate, ring, or shared (the scene in chunks over the devices' memories, hot
     /// chunks replicated, placed by a counting 1-spp prepass).
     #[arg(long, default_value = "auto", value_parser = parse_strategy, requires = "devices")]
     pub strategy: Strategy,

@@ -598,7 +598,7 @@ pub fn shared_memory_with_a_host_tier_is_one_device(kind: &Kind) {
     assert!(host > 0 && host < bytes, "{name}: {host} of {bytes} bytes in host memory");
     let layout = Layout::Shared(SharedSpec { host_tier: false, ..spec });
     let refused = render_multi(&mut (kind.devices)(2), &scene, opts, &layout, None, &mut |_, _| {});
-    let message = refused.err().expect("refused without a host tier").to_string();
+    let message = refused.expect_err("refused without a host tier").to_string();
     assert!(message.contains("do not fit"), "{message}");
 }
 

@@ -170,6 +170,13 @@ impl SceneSharing for CpuSharing {
         "host memory"
     }
 
+    fn supports(&self, devices: &[Box<dyn Device>], _scene: &Scene) -> Result<(), String> {
+        match devices.iter().find(|d| d.as_any().downcast_ref::<CpuDevice>().is_none()) {
+            Some(other) => Err(format!("{} is not a CPU device", other.name())),
+            None => Ok(()),
+        }
+    }
+
     fn layout(
         &self,
         scene: &Arc<Scene>,
