@@ -125,9 +125,10 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
                                     : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
 #if ATOLL_TRACE_ALPHA
         // Alpha masks (texture.cuh): a cut-out candidate is no hit.
-        if (hit && v.alpha_params)
+        if (hit && v.alpha_params) {
             count_access(v.tri_ids + first + k);
             hit = alpha_keeps(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, t, ray.o, ray.d);
+        }
 #endif
         if (hit) {
             h.t = t;
