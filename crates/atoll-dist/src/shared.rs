@@ -28,6 +28,11 @@ use crate::stripes::StripeHandout;
 /// Default chunk size: the paper's optimum for scenes under 30 GB.
 pub const DEFAULT_CHUNK_BYTES: u64 = 2 << 20;
 
+/// Most chunks a shared scene is cut into: every device keeps a counter
+/// per chunk, and a chunk size far below the scene's would make those
+/// counters outgrow the scene.
+pub const MAX_CHUNKS: usize = 1 << 24;
+
 /// How a shared scene is cut and placed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SharedSpec {
@@ -143,6 +148,15 @@ pub(crate) fn prepare_shared(
         .ok_or_else(|| error("the devices cannot share a scene's memory"))?;
     let budget = chunk_budgets(devices, spec, &frame.options);
     let layout = sharing.layout(scene, frame, spec.chunk_bytes)?;
+    if layout.chunk_count() > MAX_CHUNKS {
+        let smallest = layout.bytes().div_ceil(MAX_CHUNKS as u64);
+        return Err(error(format!(
+            "chunks of {} bytes cut the scene's {} bytes into {} chunks, more than {MAX_CHUNKS}: use a chunk size of at least {smallest} bytes",
+            layout.chunk_bytes,
+            layout.bytes(),
+            layout.chunk_count()
+        )));
+    }
     let start = initial_placement(&layout, &budget).map_err(|e| error(e.to_string()))?;
     let mut prepared = sharing.prepare(devices, scene, frame, &layout, &start)?;
 

@@ -125,6 +125,13 @@ fn shared_scene_memory_renders_the_single_image_and_reports_its_placement() {
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{}", text(&out.stderr));
     assert!(stdout.contains("prepass") && stdout.contains("hottest data       1%:"), "{stdout}");
+    // Chunks so small that their counters would outgrow the scene: refused, nothing written.
+    let args =
+        ["render", "landscape:8", "--res", "8x8", "--spp", "1", "--devices", "cpu:2", "--strategy", "shared"];
+    let tiny = atoll(&dir, &[&args[..], &["--chunk-size", "1", "-o", "tiny.png"]].concat());
+    assert_eq!(tiny.status.code(), Some(1), "{}", text(&tiny.stderr));
+    assert!(text(&tiny.stderr).contains("use a chunk size of at least"), "{}", text(&tiny.stderr));
+    assert!(!dir.join("tiny.png").exists());
     let bad =
         atoll(&dir, &["render", "--devices", "cpu:2", "--strategy", "shared", "--replicate-fraction", "2"]);
     assert_eq!(bad.status.code(), Some(2), "{}", text(&bad.stderr));
