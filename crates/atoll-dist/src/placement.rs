@@ -224,17 +224,29 @@ pub fn place(
                 *islands *= copies + 1;
             }
         }
-        (Layout::Shared(_), _) => {}
         _ => {
+            // A replica holds the whole scene, a device sharing its memory
+            // about an even share of it.
+            let whole = ScenePart::whole(scene);
+            let (sharing, what) = match plan {
+                Plan::Shared => (n.max(1) as u64, "its share of the scene"),
+                _ => (1, "its replica"),
+            };
             for d in 0..n {
                 if !request.may_add_wavefronts.get(d).copied().unwrap_or(false) {
                     continue;
                 }
-                let more =
-                    more_wavefronts(devices[d].as_ref(), request.streams, scene, options, request.budget)?;
+                let held = part_bytes(scene, &whole, &devices[d].byte_model()).div_ceil(sharing);
+                let more = more_wavefronts_beside(
+                    devices[d].as_ref(),
+                    request.streams,
+                    held,
+                    options,
+                    request.budget,
+                )?;
                 if !more.is_empty() {
                     notes.push(format!(
-                        "{}: {} wavefronts sharing its replica",
+                        "{}: {} wavefronts sharing {what}",
                         devices[d].name(),
                         more.len() + 1
                     ));
@@ -362,9 +374,20 @@ pub fn more_wavefronts(
     options: &RenderOptions,
     budget: Option<u64>,
 ) -> Result<Vec<Box<dyn Device>>, DeviceError> {
+    let scene_bytes = part_bytes(scene, &ScenePart::whole(scene), &device.byte_model());
+    more_wavefronts_beside(device, wanted, scene_bytes, options, budget)
+}
+
+/// [`more_wavefronts`] beside a device holding `scene_bytes` of scene.
+pub fn more_wavefronts_beside(
+    device: &dyn Device,
+    wanted: usize,
+    scene_bytes: u64,
+    options: &RenderOptions,
+    budget: Option<u64>,
+) -> Result<Vec<Box<dyn Device>>, DeviceError> {
     let Some(free) = device.free_memory().filter(|_| wanted > 1) else { return Ok(Vec::new()) };
     let available = budget.map_or(free, |b| b.min(free));
-    let scene_bytes = part_bytes(scene, &ScenePart::whole(scene), &device.byte_model());
     let fit = (available.saturating_sub(scene_bytes) / device.frame_bytes(options).max(1)) as usize;
     let n = wanted.min(fit).max(1);
     if n < wanted {

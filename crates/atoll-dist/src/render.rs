@@ -24,7 +24,7 @@ use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
 use crate::layout::{Layout, RingOrder};
 use crate::replicate;
 use crate::ring::{ring_loop, run_member, RingLink, RingPeers};
-use crate::shared::{prepare_shared, SharedReport};
+use crate::shared::{hardware_of, prepare_shared, SharedReport};
 use crate::stripes::StripeHandout;
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
@@ -295,7 +295,7 @@ pub fn render_multi_with(
     let stripes;
     let handout: &dyn WaveHandout = match (layout, shared) {
         (Layout::Shared(_), None) => {
-            stripes = StripeHandout::new(&waves, frame.options.pixel_count(), islands);
+            stripes = StripeHandout::new(&waves, frame.options.pixel_count(), &hardware_of(devices)?);
             &stripes
         }
         _ => handout,

@@ -91,13 +91,22 @@ impl SharedReport {
 /// of its own, the budget or its free memory, whichever is less, less
 /// what it allocates for the frame itself; for a device on host memory
 /// the budget (which counts scene bytes alone).
-fn chunk_budgets(devices: &[Box<dyn Device>], spec: &SharedSpec, options: &RenderOptions) -> ChunkBudget {
-    let devices = devices
+fn chunk_budgets(
+    devices: &[Box<dyn Device>],
+    hardware: &[usize],
+    spec: &SharedSpec,
+    options: &RenderOptions,
+) -> ChunkBudget {
+    let leaders = hardware.iter().max().map_or(0, |&h| h + 1);
+    let devices = devices[..leaders]
         .iter()
-        .map(|d| match d.free_memory() {
-            // Memory of its own: the frame comes out of the budget too.
+        .enumerate()
+        .map(|(l, d)| match d.free_memory() {
+            // Memory of its own: the frames of every device on it come
+            // out of the budget too.
             Some(free) => {
-                Some(spec.budget.map_or(free, |b| b.min(free)).saturating_sub(d.frame_bytes(options)))
+                let frames = hardware.iter().filter(|&&h| h == l).count() as u64 * d.frame_bytes(options);
+                Some(spec.budget.map_or(free, |b| b.min(free)).saturating_sub(frames))
             }
             // Host memory: a budget counts scene bytes alone.
             None => spec.budget,
@@ -114,6 +123,27 @@ fn host_memory_available() -> Option<u64> {
     let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kib * 1024 / 4 * 3)
+}
+
+/// Per device, the index of the first device on its hardware: the
+/// leaders, each on hardware of its own, come first (more wavefronts on a
+/// GPU are added after the devices listed), the others share a leader's
+/// chunks. `Err` when a device listed later shares an earlier one's
+/// hardware before every leader is listed.
+pub(crate) fn hardware_of(devices: &[Box<dyn Device>]) -> Result<Vec<usize>, DeviceError> {
+    let shares = |d: usize, e: usize| devices[d].shares_memory_with(devices[e].as_ref());
+    let leaders = (0..devices.len()).take_while(|&d| !(0..d).any(|e| shares(d, e))).count();
+    (0..devices.len())
+        .map(|d| match d < leaders {
+            true => Ok(d),
+            false => (0..leaders).find(|&l| shares(d, l)).ok_or_else(|| {
+                error(format!(
+                    "{} follows a device on shared hardware: list each piece of hardware once (--streams adds wavefronts)",
+                    devices[d].name()
+                ))
+            }),
+        })
+        .collect()
 }
 
 /// A device-neutral error about the shared scene as a whole.
@@ -146,7 +176,9 @@ pub(crate) fn prepare_shared(
         .first()
         .and_then(|d| d.scene_sharing())
         .ok_or_else(|| error("the devices cannot share a scene's memory"))?;
-    let budget = chunk_budgets(devices, spec, &frame.options);
+    let hardware = hardware_of(devices)?;
+    let leaders = hardware.iter().max().map_or(0, |&h| h + 1);
+    let budget = chunk_budgets(devices, &hardware, spec, &frame.options);
     let layout = sharing.layout(scene, frame, spec.chunk_bytes)?;
     if layout.chunk_count() > MAX_CHUNKS {
         let smallest = layout.bytes().div_ceil(MAX_CHUNKS as u64);
@@ -158,19 +190,25 @@ pub(crate) fn prepare_shared(
         )));
     }
     let start = initial_placement(&layout, &budget).map_err(|e| error(e.to_string()))?;
-    let mut prepared = sharing.prepare(devices, scene, frame, &layout, &start)?;
+    let (lead, follow) = devices.split_at_mut(leaders);
+    let mut prepared = sharing.prepare(lead, scene, frame, &layout, &start)?;
 
     let begin = Instant::now();
-    let counts = count_first_sample(devices, frame)?;
+    let counts = count_first_sample(lead, frame)?;
     let prepass_seconds = begin.elapsed().as_secs_f64();
 
     let placement =
         place_chunks(&layout, &counts, &budget, spec.replication).map_err(|e| error(e.to_string()))?;
-    sharing.replace(devices, &placement)?;
-    let residency: Vec<Residency> = (0..devices.len()).map(|d| placement.residency(&layout, d)).collect();
+    sharing.replace(lead, &placement)?;
+    let residency: Vec<Residency> = (0..leaders).map(|d| placement.residency(&layout, d)).collect();
     for (stats, residency) in prepared.iter_mut().zip(&residency) {
         stats.scene_bytes = residency.local();
         stats.shared = Some(*residency);
+    }
+    // More wavefronts on a leader's hardware read its chunks.
+    for (f, device) in follow.iter_mut().enumerate() {
+        let leader = lead[hardware[leaders + f]].as_ref();
+        prepared.push(device.prepare_sharing(leader, frame)?);
     }
     let local_reads = local_read_share(&placement, &counts);
     let report = SharedReport { layout, counts, placement, residency, local_reads, prepass_seconds };
@@ -192,7 +230,8 @@ fn count_first_sample(
     let pixels = frame.options.pixel_count();
     let per_wave = pixels.div_ceil(4 * devices.len().max(1) as u32).clamp(1, frame.options.wave_size.max(1));
     let waves = Wave::all(&RenderOptions { spp: 1, wave_size: per_wave, ..frame.options.clone() });
-    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), devices.len());
+    let stripes: Vec<usize> = (0..devices.len()).collect();
+    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), &stripes);
     let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: false };
     let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {

@@ -1,6 +1,7 @@
 //! Waves handed out by image region, for the shared strategy: worker `w`
-//! takes first the waves whose first pixel lies in the `w`-th of N equal
-//! stripes of the image, in order, so each device keeps rendering the same
+//! takes first the waves whose first pixel lies in its stripe (the
+//! `stripe_of[w]`-th of N equal stripes of the image: workers on one GPU
+//! share its stripe), in order, so each device keeps rendering the same
 //! part of the image (as the stripes of Jaroš et al. 2021) and reads the
 //! same part of the scene: the prepass's counts then say which device
 //! reads a chunk most, and the chunks it owns serve most of its reads. A
@@ -19,21 +20,29 @@ use crate::handout::{Joined, Joining, Pacing, WaveHandout};
 /// Hands out a frame's waves by stripe ([`crate::stripes`]).
 #[derive(Debug)]
 pub struct StripeHandout {
-    /// Per worker, the indices of its stripe's waves not yet taken.
+    /// Per stripe, the indices of its waves not yet taken.
     stripes: Mutex<Vec<VecDeque<usize>>>,
+    /// Per worker, its stripe.
+    stripe_of: Vec<usize>,
     taken: AtomicUsize,
 }
 
 impl StripeHandout {
-    /// `waves` of an image of `pixels` pixels dealt to `workers` stripes.
-    pub fn new(waves: &[Wave], pixels: u32, workers: usize) -> Self {
-        let workers = workers.max(1);
-        let mut stripes = vec![VecDeque::new(); workers];
+    /// `waves` of an image of `pixels` pixels dealt to stripes, worker
+    /// `w` taking from stripe `stripe_of[w]` first (one stripe per
+    /// distinct value, numbered from 0).
+    pub fn new(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Self {
+        let count = stripe_of.iter().max().map_or(1, |&s| s + 1);
+        let mut stripes = vec![VecDeque::new(); count];
         for (i, wave) in waves.iter().enumerate() {
-            let stripe = (wave.first_pixel as u64 * workers as u64 / pixels.max(1) as u64) as usize;
-            stripes[stripe.min(workers - 1)].push_back(i);
+            let stripe = (wave.first_pixel as u64 * count as u64 / pixels.max(1) as u64) as usize;
+            stripes[stripe.min(count - 1)].push_back(i);
         }
-        StripeHandout { stripes: Mutex::new(stripes), taken: AtomicUsize::new(0) }
+        StripeHandout {
+            stripes: Mutex::new(stripes),
+            stripe_of: stripe_of.to_vec(),
+            taken: AtomicUsize::new(0),
+        }
     }
 }
 
@@ -46,7 +55,7 @@ impl WaveHandout for StripeHandout {
 
     fn next(&self, taker: usize) -> Option<usize> {
         let mut stripes = self.stripes.lock().unwrap_or_else(|p| p.into_inner());
-        let own = stripes.get_mut(taker).and_then(VecDeque::pop_front);
+        let own = self.stripe_of.get(taker).and_then(|&s| stripes.get_mut(s)).and_then(VecDeque::pop_front);
         let wave = own.or_else(|| {
             let fullest = stripes.iter_mut().max_by_key(|s| s.len())?;
             fullest.pop_back()
@@ -77,7 +86,7 @@ mod tests {
         // 8 waves per sample over 2 samples, 2 workers: worker 0's stripe is
         // waves 0..4 of each sample, worker 1's 4..8.
         let w = waves(8, 100, 2);
-        let h = StripeHandout::new(&w, 800, 2);
+        let h = StripeHandout::new(&w, 800, &[0, 1]);
         assert_eq!(h.next(0), Some(0));
         assert_eq!(h.next(1), Some(4));
         assert_eq!(h.next(1), Some(5));
@@ -94,7 +103,7 @@ mod tests {
     #[test]
     fn every_wave_is_handed_out_once() {
         let w = waves(10, 37, 3);
-        let h = StripeHandout::new(&w, 370, 3);
+        let h = StripeHandout::new(&w, 370, &[0, 1, 2]);
         let mut seen = vec![0; w.len()];
         let mut worker = 0;
         while let Some(i) = h.next(worker % 3) {
@@ -102,5 +111,14 @@ mod tests {
             worker += 1;
         }
         assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
+    }
+
+    #[test]
+    fn workers_on_one_gpu_share_its_stripe() {
+        // Workers 0 and 2 on GPU 0, 1 on GPU 1: two stripes.
+        let w = waves(4, 100, 1);
+        let h = StripeHandout::new(&w, 400, &[0, 1, 0]);
+        assert_eq!((h.next(2), h.next(0), h.next(1), h.next(2)), (Some(0), Some(1), Some(2), Some(3)));
+        assert_eq!(h.next(0), None);
     }
 }

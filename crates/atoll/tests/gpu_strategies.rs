@@ -106,6 +106,35 @@ fn replicate_and_ring_on_two_gpu_parts_are_one_gpu() {
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
+/// More wavefronts on each GPU of a shared scene (another stream each,
+/// as `--streams` adds) read their GPU's chunks: the prepass and the
+/// placement are the two GPUs', the image the one-GPU image.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn more_wavefronts_share_their_gpus_chunks() {
+    let mut devices = gpus(2);
+    let more: Vec<Box<dyn Device>> = devices
+        .iter()
+        .map(|d| d.another_on_same_hardware().expect("a GPU takes more streams").unwrap())
+        .collect();
+    devices.extend(more);
+    let scene = std::sync::Arc::new(atoll_scene::landscape::Landscape::new(16).build());
+    let opts = CUDA.options(&scene, 4);
+    let (reference, _) = CUDA.single(&scene, &opts);
+    let spec = atoll_dist::SharedSpec {
+        replication: atoll_dist::chunk_placement::Replication::Fraction(0.1),
+        ..Default::default()
+    };
+    let out = render_multi(&mut devices, &scene, opts, &Layout::Shared(spec), None, &mut |_, _| {}).unwrap();
+    CUDA.assert_same_image(&reference, &out.film, "landscape:16 shared, two wavefronts per GPU");
+    let report = out.shared.unwrap();
+    assert_eq!(report.residency.len(), 2, "the chunks are placed over the GPUs, not the wavefronts");
+    assert!(
+        out.devices[2..].iter().all(|d| d.prepare.scene_bytes == 0),
+        "the extra wavefronts hold no chunks"
+    );
+}
+
 /// The split-ground body's budget search finds a partition under the CUDA
 /// byte model too (no GPU needed: the model is arithmetic), so the GPU
 /// run of that body is not the first to learn that it cannot.
