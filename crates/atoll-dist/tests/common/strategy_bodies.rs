@@ -516,6 +516,13 @@ fn shared_budget(kind: &Kind, scene: &Arc<Scene>, options: &RenderOptions, fract
     (bytes, (fraction * bytes as f64) as u64 + frame_bytes)
 }
 
+/// Whether `n` fresh devices of `kind` each have hardware of their own
+/// (three GPU devices on a two-GPU machine do not).
+fn on_hardware_of_their_own(kind: &Kind, n: usize) -> bool {
+    let devices = (kind.devices)(n);
+    (0..n).all(|d| (0..d).all(|e| !devices[d].shares_memory_with(devices[e].as_ref())))
+}
+
 /// Renders `scene` on `n` devices sharing its memory as `spec` says.
 fn render_shared(
     kind: &Kind,
@@ -545,6 +552,11 @@ pub fn shared_memory_is_one_device(kind: &Kind) {
         spread += 1;
         let (reference, _) = kind.single(&scene, &opts);
         for (n, fraction) in [(2, 0.7), (3, 0.5)] {
+            if !on_hardware_of_their_own(kind, n) {
+                // A device sharing another's hardware reads that one's chunks.
+                eprintln!("{name}: {n} devices are not on {n} pieces of hardware");
+                continue;
+            }
             let (bytes, budget) = shared_budget(kind, &scene, &opts, fraction);
             let spec = SharedSpec {
                 chunk_bytes: kind.shared_chunk,
