@@ -98,6 +98,9 @@ pub enum PartitionError {
     /// Zero parts or zero devices.
     #[error("cannot partition over {0} parts or devices")]
     NoParts(usize),
+    /// Measuring the frame's work (a low-resolution render) failed.
+    #[error("measuring the frame's ray work: {0}")]
+    Measure(String),
     /// A piece that cannot be split further needs more than a device holds.
     #[error("{what} needs {}, more than the budget of {} per device", Bytes(*.needed), Bytes(*.budget))]
     PieceTooBig {

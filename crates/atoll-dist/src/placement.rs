@@ -5,6 +5,8 @@
 //! the devices' own memory facts ([`Device::free_memory`],
 //! [`Device::frame_bytes`], [`Device::byte_model`]), for any device kind.
 
+use std::sync::Arc;
+
 use atoll_bvh::{part_bytes, ByteModel, ScenePart};
 use atoll_render::{Device, DeviceError, RenderOptions};
 use atoll_scene::Scene;
@@ -14,7 +16,7 @@ use crate::partition::{
 };
 use crate::shared::SharedSpec;
 use crate::spatial::partition_spatial;
-use crate::work::partition_work_balanced;
+use crate::work::{partition_work_balanced, partition_work_measured};
 use crate::{Layout, Partition, RingOrder};
 
 /// How a ring's parts are made.
@@ -27,6 +29,9 @@ pub enum Partitioning {
     /// Compact chunks balanced by bytes and by the frame's estimated ray
     /// work ([`partition_work_balanced`]).
     Work,
+    /// As `Work`, the ray work measured: where a low-resolution sample of
+    /// the frame's paths hits ([`crate::work::partition_work_measured`]).
+    Measured,
     /// Spatial slabs, one region per part ([`partition_spatial`]).
     Spatial,
     /// Objects greedily onto the least-loaded part ([`partition()`]).
@@ -38,7 +43,7 @@ pub enum Partitioning {
 
 /// Parts for rings of `k` as `partitioning` says, and what they are.
 pub fn partition_ring(
-    scene: &Scene,
+    scene: &Arc<Scene>,
     k: usize,
     model: &ByteModel,
     budget: Option<u64>,
@@ -51,6 +56,10 @@ pub fn partition_ring(
     let work = || {
         partition_work_balanced(scene, k, resolution, model, &options).map(|p| (p, "work-balanced chunks"))
     };
+    let measured = || {
+        partition_work_measured(scene, k, resolution, model, &options)
+            .map(|(p, _)| (p, "measured-work chunks"))
+    };
     let cost = |per_instance: u64| {
         let options = PartitionOptions { instance_cost: per_instance, ..options };
         partition(scene, k, model, &options).map(|p| (p, "balanced by bytes and instances"))
@@ -60,6 +69,7 @@ pub fn partition_ring(
         Partitioning::Cost(per_instance) => cost(per_instance),
         Partitioning::Spatial => spatial(),
         Partitioning::Work => work(),
+        Partitioning::Measured => measured(),
         // Rings of 2: memory-balanced parts, the least total work, and the
         // fastest measured. Longer rings: bytes and instances, or one part
         // gets every instanced object; bytes alone where that does not fit
@@ -145,7 +155,7 @@ pub enum PlacementError {
 /// multiple of K) are dropped.
 pub fn place(
     devices: &mut Vec<Box<dyn Device>>,
-    scene: &Scene,
+    scene: &Arc<Scene>,
     options: &RenderOptions,
     request: &PlacementRequest,
 ) -> Result<Placement, PlacementError> {

@@ -22,8 +22,13 @@
 //! landscape (`examples/ring_work.rs`): counting every instance box a ray
 //! passes through before the surface, and adding bounce and shadow rays.
 
-use atoll_bvh::{Aabb, BuildOptions, Bvh2, BvhLayout, ByteModel, TraversalRay};
+use std::sync::Arc;
+
+use atoll_bvh::{Aabb, BuildOptions, Bvh2, BvhLayout, ByteModel, ScenePart, TraversalRay};
 use atoll_render::camera::CameraRays;
+use atoll_render::integrator::render_waves_observed;
+use atoll_render::record::flags;
+use atoll_render::{CpuDevice, Device, DeviceError, FrameContext, Queue, RenderOptions, Wave};
 use atoll_scene::{ObjectId, Scene};
 use glam::{UVec2, Vec2, Vec3};
 
@@ -134,6 +139,45 @@ fn surface_boxes(scene: &Scene, object: ObjectId, to_world: &glam::Affine3A) -> 
         .collect()
 }
 
+/// The ring partition whose chunks share out the work a frame of `scene`
+/// at `resolution` measurably does ([`measure_work`]) as well as the bytes.
+pub fn partition_work_measured(
+    scene: &Arc<Scene>,
+    parts: usize,
+    resolution: UVec2,
+    model: &ByteModel,
+    options: &PartitionOptions,
+) -> Result<(Partition, usize), PartitionError> {
+    let work = match parts > 1 {
+        true => measure_work(scene, resolution).map_err(|e| PartitionError::Measure(e.to_string()))?,
+        false => Vec::new(),
+    };
+    Ok((partition_interleaved(scene, parts, CHUNKS_PER_PART, &work, model, options)?, work.len()))
+}
+
+/// Points where a frame of `scene` seen at `resolution` does its work,
+/// measured: every hit of every path segment of one sample per pixel of
+/// an [`ESTIMATE_WIDTH`]-wide image, rendered on a CPU device (host memory
+/// holds what no single device of the ring can). Unlike [`estimate_work`]
+/// it follows the bounces; it costs a BVH build over the whole scene.
+pub fn measure_work(scene: &Arc<Scene>, resolution: UVec2) -> Result<Vec<Vec3>, DeviceError> {
+    let longer = resolution.x.max(resolution.y).max(1) as f32;
+    let small = (resolution.as_vec2() * (ESTIMATE_WIDTH as f32 / longer)).ceil().as_uvec2().max(UVec2::ONE);
+    let options = RenderOptions { resolution: small, spp: 1, ..RenderOptions::from_scene(scene) };
+    let frame = Arc::new(FrameContext::new(scene, options));
+    let mut device = CpuDevice::new();
+    device.prepare(scene, &ScenePart::whole(scene), &frame)?;
+    let mut waves = Wave::all(&frame.options).into_iter();
+    let mut points = Vec::new();
+    let mut records = Vec::new();
+    render_waves_observed(&mut device, false, &mut || waves.next(), &mut |d| {
+        d.read_queue_into(Queue::Paths, &mut records)?;
+        points.extend(records.iter().filter(|r| r.has(flags::HIT)).map(|r| Vec3::from(r.position)));
+        Ok(())
+    })?;
+    Ok(points)
+}
+
 /// Points where a frame of `scene` seen at `resolution` will do its work:
 /// the first proxy box each ray of a [`ESTIMATE_WIDTH`]-wide grid of camera
 /// rays enters. Empty when no ray enters a box.
@@ -170,5 +214,21 @@ mod tests {
             assert!(p.cmpge(lo - 1e-3).all() && p.cmple(hi + 1e-3).all(), "{p} outside {lo}..{hi}");
             assert!(p.y < eye.y, "{p} above the eye {eye}");
         }
+    }
+
+    /// The measured work is the frame's hits: more points than camera rays
+    /// (bounces add theirs), all on the scene, and a partition from them.
+    #[test]
+    fn measured_work_is_where_paths_hit() {
+        let scene = Arc::new(atoll_scene::landscape::Landscape::new(1).build());
+        let resolution = UVec2::new(320, 180);
+        let points = measure_work(&scene, resolution).unwrap();
+        let (lo, hi) = scene.world_bounds().unwrap();
+        assert!(points.len() > 128 * 72, "{} hits for {} camera rays", points.len(), 128 * 72);
+        assert!(points.iter().all(|p| p.cmpge(lo - 1e-2).all() && p.cmple(hi + 1e-2).all()));
+        let (p, used) =
+            partition_work_measured(&scene, 2, resolution, &ByteModel::CPU, &PartitionOptions::default())
+                .unwrap();
+        assert_eq!((p.parts.len(), used), (2, points.len()));
     }
 }

@@ -38,8 +38,15 @@ impl RenderOutput {
 /// One bounce of the wavefront loop: top the path queue up with pending
 /// camera paths, trace, shade, trace and resolve shadow rays.
 pub fn bounce(device: &mut dyn Device) -> Result<(), DeviceError> {
+    bounce_observed(device, &mut |_| Ok(()))
+}
+
+/// [`bounce`], showing the traced path queue (closest hits written) to
+/// `traced` before it is shaded.
+pub fn bounce_observed(device: &mut dyn Device, traced: &mut Observer<'_>) -> Result<(), DeviceError> {
     device.refill()?;
     device.trace_paths()?;
+    traced(device)?;
     device.shade()?;
     device.trace_shadows()?;
     device.resolve_shadows()
@@ -54,6 +61,20 @@ pub fn render_waves(
     merge: bool,
     take: &mut dyn FnMut() -> Option<Wave>,
 ) -> Result<(), DeviceError> {
+    render_waves_observed(device, merge, take, &mut |_| Ok(()))
+}
+
+/// What sees a device's traced path queue each bounce ([`bounce_observed`]).
+pub type Observer<'a> = dyn FnMut(&dyn Device) -> Result<(), DeviceError> + 'a;
+
+/// [`render_waves`], showing every bounce's traced path queue to `traced`
+/// (where a frame's rays hit: the ring's measured work).
+pub fn render_waves_observed(
+    device: &mut dyn Device,
+    merge: bool,
+    take: &mut dyn FnMut() -> Option<Wave>,
+    traced: &mut Observer<'_>,
+) -> Result<(), DeviceError> {
     loop {
         // No queue lengths are asked for here beyond `has_paths` and
         // `wants_work`: on a GPU these read a status the device copies back
@@ -66,7 +87,7 @@ pub fn render_waves(
                 None => {}
             }
         }
-        bounce(device)?;
+        bounce_observed(device, traced)?;
     }
 }
 

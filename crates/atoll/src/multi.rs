@@ -365,14 +365,15 @@ pub fn parse_partitioning(s: &str) -> Result<Partitioning, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "auto" => Ok(Partitioning::Auto),
         "work" => Ok(Partitioning::Work),
+        "measured" => Ok(Partitioning::Measured),
         "spatial" => Ok(Partitioning::Spatial),
         "memory" => Ok(Partitioning::Memory),
         "cost" => Ok(Partitioning::Cost(GPU_INSTANCE_COST)),
         other => match other.strip_prefix("cost=").map(str::parse::<u64>) {
             Some(Ok(bytes)) => Ok(Partitioning::Cost(bytes)),
-            _ => {
-                Err(format!("{s:?}: expected auto, cost, cost=BYTES (per instance), work, spatial or memory"))
-            }
+            _ => Err(format!(
+                "{s:?}: expected auto, cost, cost=BYTES (per instance), work, measured, spatial or memory"
+            )),
         },
     }
 }

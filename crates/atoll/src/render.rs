@@ -127,8 +127,10 @@ pub struct RenderArgs {
     /// for longer rings: what measured fastest), memory (objects balanced
     /// by bytes), cost or cost=BYTES (by bytes plus 9 KiB, or BYTES, per
     /// instance: instanced objects spread over the parts), work (compact
-    /// chunks balanced by bytes and by the frame's estimated ray work), or
-    /// spatial (one compact region per part).
+    /// chunks balanced by bytes and by the frame's estimated ray work),
+    /// measured (the same, the work measured: where a 128-pixel-wide sample
+    /// of the frame's paths hits, rendered on the CPU), or spatial (one
+    /// compact region per part).
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "placement")]
     pub partitioning: Partitioning,
     /// Also write a false-colour image of which device holds which surface.

@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 use atoll_bvh::{ByteModel, ScenePart};
 use atoll_dist::chunk_placement::Replication;
-use atoll_dist::work::partition_work_balanced;
+use atoll_dist::work::{partition_work_balanced, partition_work_measured};
 use atoll_dist::{
     partition, render_multi, render_multi_warmed, Layout, MultiOutput, PartitionOptions, RingOrder,
     SharedSpec, Transport,
@@ -388,14 +388,24 @@ pub fn a_ring_over_work_balanced_chunks_is_one_device(kind: &Kind) {
     let opts = kind.options(&scene, 2);
     let (reference, _) = kind.single(&scene, &opts);
     let model = kind.byte_model();
-    let p =
+    let estimated =
         partition_work_balanced(&scene, 3, opts.resolution, &model, &PartitionOptions::default()).unwrap();
-    let ground_runs: usize =
-        p.parts.iter().flat_map(|part| &part.object_subsets).filter(|s| s.0 == 0).map(|s| s.1.len()).sum();
-    assert!(ground_runs > 3, "the ground is cut into {ground_runs} runs");
-    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
-    let out = kind.render(3, &scene, &opts, &layout, None);
-    kind.assert_same_image(&reference, &out.film, "ring over work-balanced chunks");
+    let (measured, hits) =
+        partition_work_measured(&scene, 3, opts.resolution, &model, &PartitionOptions::default()).unwrap();
+    assert!(hits > 0, "the measuring render hit nothing");
+    for (what, p) in [("estimated", estimated), ("measured", measured)] {
+        let ground_runs: usize = p
+            .parts
+            .iter()
+            .flat_map(|part| &part.object_subsets)
+            .filter(|s| s.0 == 0)
+            .map(|s| s.1.len())
+            .sum();
+        assert!(ground_runs > 3, "{what}: the ground is cut into {ground_runs} runs");
+        let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
+        let out = kind.render(3, &scene, &opts, &layout, None);
+        kind.assert_same_image(&reference, &out.film, &format!("ring over {what}-work chunks"));
+    }
 }
 
 /// Textures and alpha masks on a ring: the striped screen (alpha cut-outs,
