@@ -22,7 +22,8 @@ use crate::{Layout, Partition, RingOrder};
 /// How a ring's parts are made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Partitioning {
-    /// `Memory` for rings of 2, `Cost` for longer rings (what measured
+    /// `Measured` for rings of 2 (`Memory` for scenes too large to
+    /// measure on the host), `Cost` for longer rings (what measured
     /// fastest; see [`partition_ring`]).
     #[default]
     Auto,
@@ -70,13 +71,25 @@ pub fn partition_ring(
         Partitioning::Spatial => spatial(),
         Partitioning::Work => work(),
         Partitioning::Measured => measured(),
-        // Rings of 2: memory-balanced parts, the least total work, and the
-        // fastest measured. Longer rings: bytes and instances, or one part
-        // gets every instanced object; bytes alone where that does not fit
-        // the budget (BENCHMARKS.md).
+        // Longer rings: bytes and instances, or one part gets every
+        // instanced object; bytes alone where that does not fit the budget.
+        // Rings of 2: chunks balanced by measured work where measuring is
+        // cheap (it builds a BVH over the whole scene on the host), else
+        // memory-balanced parts, the least total work; both measured the
+        // fastest of their kind (BENCHMARKS.md).
         Partitioning::Auto if k >= 3 => cost(GPU_INSTANCE_COST).or_else(|_| memory()),
+        Partitioning::Auto if measuring_is_cheap(scene) => measured().or_else(|_| memory()),
         Partitioning::Auto => memory(),
     }
+}
+
+/// Most unique triangles a scene may have for `auto` to measure its
+/// rings' work: the measuring render builds a BVH over all of them on the
+/// host first.
+pub const MEASURE_MAX_TRIANGLES: u64 = 50_000_000;
+
+fn measuring_is_cheap(scene: &Scene) -> bool {
+    scene.meshes.iter().map(|m| m.indices.len() as u64).sum::<u64>() <= MEASURE_MAX_TRIANGLES
 }
 
 /// The widest of `models`, element by element: what partitioning charges

@@ -123,8 +123,9 @@ pub struct RenderArgs {
     /// fewest that fit `--device-memory`, or all devices without one.
     #[arg(long, requires = "devices")]
     pub ring_size: Option<usize>,
-    /// How a ring's scene parts are made: auto (memory for rings of 2, cost
-    /// for longer rings: what measured fastest), memory (objects balanced
+    /// How a ring's scene parts are made: auto (measured for rings of 2,
+    /// memory for scenes of more than 50M unique triangles; cost for longer
+    /// rings: what measured fastest), memory (objects balanced
     /// by bytes), cost or cost=BYTES (by bytes plus 9 KiB, or BYTES, per
     /// instance: instanced objects spread over the parts), work (compact
     /// chunks balanced by bytes and by the frame's estimated ray work),
