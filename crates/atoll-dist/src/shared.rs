@@ -22,6 +22,7 @@ use crate::chunk_placement::{
     access_concentration, initial_placement, local_read_share, place_chunks, ChunkBudget, Replication,
 };
 use crate::layout::RingOrder;
+use crate::placement::host_memory_available;
 use crate::render::{run_waves, RunShape};
 use crate::stripes::StripeHandout;
 
@@ -112,17 +113,10 @@ fn chunk_budgets(
             None => spec.budget,
         })
         .collect();
-    ChunkBudget { devices, host: spec.host_tier.then(host_memory_available).map(|a| a.unwrap_or(u64::MAX)) }
-}
-
-/// Host memory free for a host tier: what the OS says is available,
-/// less a quarter kept for the scene itself, the renderer and others
-/// (`None` where the OS does not say: no limit).
-fn host_memory_available() -> Option<u64> {
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024 / 4 * 3)
+    // Three quarters of what the OS has available: the rest is kept for
+    // the scene itself, the renderer and others.
+    let host = spec.host_tier.then(|| host_memory_available().map_or(u64::MAX, |a| a / 4 * 3));
+    ChunkBudget { devices, host }
 }
 
 /// Per device, the index of the first device on its hardware: the

@@ -35,6 +35,14 @@ pub enum ImageError {
         #[source]
         source: image::ImageError,
     },
+    /// No temporary file could be made beside the target (a folder that
+    /// does not exist or cannot be written).
+    #[error("{path}: cannot write beside it: {source}")]
+    Temporary {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
     /// The finished image could not replace the target.
     #[error("{path}: {source}")]
     Rename {
@@ -86,29 +94,38 @@ impl Film {
     }
 
     /// Writes the image; the format follows the extension (`.exr` linear
-    /// float, `.png` sRGB 8-bit). The file is written to a temporary name
-    /// next to the target and renamed, so an existing image is never left
-    /// truncated by a failed write.
+    /// float, `.png` sRGB 8-bit). The file is written to a temporary file
+    /// of a unique name next to the target and renamed over it, so an
+    /// existing image is never left truncated by a failed write, and no
+    /// other file is touched: the temporary file is removed on every
+    /// failure, a panic's unwinding included.
     pub fn write(&self, path: &Path) -> Result<(), ImageError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         let display = path.display().to_string();
-        let tmp = path.with_extension(format!("partial.{}", ext.as_deref().unwrap_or("")));
-        let result = match ext.as_deref() {
-            Some("exr") => self.write_exr(&tmp),
-            Some("png") => self.write_png(&tmp),
+        let ext = match ext.as_deref() {
+            Some(e @ ("exr" | "png")) => e.to_string(),
             _ => return Err(ImageError::UnknownFormat { path: display }),
         };
-        let result = match result {
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let tmp = tempfile::Builder::new()
+            .prefix(".atoll-")
+            .suffix(&format!(".{ext}"))
+            .tempfile_in(dir)
+            .map_err(|source| ImageError::Temporary { path: display.clone(), source })?;
+        let written = match ext.as_str() {
+            "exr" => self.write_exr(tmp.path()),
+            _ => self.write_png(tmp.path()),
+        };
+        match written {
             Ok(()) => {
-                std::fs::rename(&tmp, path).map_err(|source| ImageError::Rename { path: display, source })
+                tmp.persist(path).map(drop).map_err(|e| ImageError::Rename { path: display, source: e.error })
             }
             Err(WriteFailure::Exr(source)) => Err(ImageError::Exr { path: display, source }),
             Err(WriteFailure::Png(source)) => Err(ImageError::Png { path: display, source }),
-        };
-        if result.is_err() {
-            let _ = std::fs::remove_file(&tmp);
         }
-        result
     }
 
     fn write_exr(&self, path: &Path) -> Result<(), WriteFailure> {
@@ -182,13 +199,34 @@ mod tests {
         assert_eq!(img.layer_data.channel_data.pixels[4], [1.5, 2.0, 0.25]);
         let bad = dir.join("b.tga");
         assert!(matches!(film.write(&bad), Err(ImageError::UnknownFormat { .. })));
-        // A directory that does not exist: the writer's error is kept as the source.
+        // A directory that does not exist: the I/O error is kept as the source.
         let nowhere = dir.join("no-such-dir").join("c.png");
         let err = film.write(&nowhere).unwrap_err();
-        assert!(matches!(err, ImageError::Png { .. }), "{err:?}");
+        assert!(matches!(err, ImageError::Temporary { .. }), "{err:?}");
         assert!(err.to_string().starts_with(&nowhere.display().to_string()), "{err}");
-        assert!(std::error::Error::source(&err).is_some_and(|s| s.is::<image::ImageError>()));
-        assert!(!nowhere.with_extension("partial.png").exists());
+        assert!(std::error::Error::source(&err).is_some_and(|s| s.is::<std::io::Error>()));
+        // A user's files beside the target, whatever their names, are left
+        // alone; the target is replaced whole; nothing temporary remains.
+        let theirs = dir.join("a.partial.exr");
+        std::fs::write(&theirs, b"mine").unwrap();
+        film.write(&path).unwrap();
+        assert_eq!(std::fs::read(&theirs).unwrap(), b"mine");
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.iter().all(|n| !n.starts_with(".atoll-")), "{names:?}");
+        // A failing write (a target that is a folder) leaves the folder and
+        // no temporary file.
+        let folder = dir.join("d.png");
+        std::fs::create_dir(&folder).unwrap();
+        assert!(film.write(&folder).is_err());
+        assert!(folder.is_dir());
+        let names: Vec<String> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(names.iter().all(|n| !n.starts_with(".atoll-")), "{names:?}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

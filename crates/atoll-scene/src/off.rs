@@ -85,6 +85,19 @@ pub fn parse_off(bytes: &[u8]) -> Result<OffMesh, OffError> {
         })
     };
     let (nv, nf) = (count(0)?, count(1)?);
+    // Counts come from the header: a vertex takes at least 6 bytes ("0 0 0\n"),
+    // a face at least 8 ("3 0 1 2\n"). Claims the file cannot hold are
+    // refused before anything is allocated for them.
+    let (most_vertices, most_faces) = (bytes.len() / 6, bytes.len() / 8);
+    if nv > most_vertices || nf > most_faces {
+        return err(
+            counts_line,
+            format!(
+                "the header claims {nv} vertices and {nf} faces, more than the file's {} bytes can hold",
+                bytes.len()
+            ),
+        );
+    }
     let mut m = OffMesh { positions: Vec::with_capacity(nv), ..Default::default() };
     let expected = if has_normals { 6 } else { 3 };
     for _ in 0..nv {
@@ -109,7 +122,8 @@ pub fn parse_off(bytes: &[u8]) -> Result<OffMesh, OffError> {
             .next()
             .and_then(|s| s.parse().ok())
             .ok_or_else(|| OffError { line: n, message: format!("expected a vertex count, found '{l}'") })?;
-        let mut face = Vec::with_capacity(k);
+        // At most one index per two characters of the line, whatever `k` claims.
+        let mut face = Vec::with_capacity(k.min(l.len() / 2 + 1));
         for w in words.take(k) {
             match w.parse::<u32>() {
                 Ok(i) if (i as usize) < nv => face.push(i),
@@ -154,5 +168,13 @@ mod tests {
         let e = parse_off(b"OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").unwrap_err();
         assert!(e.message.contains("truncated"), "{e:?}");
         assert!(parse_off(b"PLY\n").unwrap_err().message.contains("not an OFF file"));
+        // Counts no file this size could hold, and a face claiming trillions
+        // of corners: refused, nothing allocated for them.
+        for header in ["OFF\n4000000000 1 0\n", "OFF\n3 1000000000000000000 0\n"] {
+            let e = parse_off(format!("{header}0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n").as_bytes()).unwrap_err();
+            assert!(e.message.contains("more than the file"), "{header}: {}", e.message);
+        }
+        let e = parse_off(b"OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4000000000000 0 1 2\n").unwrap_err();
+        assert!(e.message.contains("lists 3"), "{}", e.message);
     }
 }

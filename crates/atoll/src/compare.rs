@@ -18,8 +18,17 @@ pub struct CompareArgs {
     /// Image to compare with it (.exr, same size).
     pub b: PathBuf,
     /// Exit 1 when a channel's mean differs by more than this fraction (e.g. 0.02).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_fraction_limit)]
     pub max_mean_diff: Option<f64>,
+}
+
+/// A limit a gate can fail: finite and not negative (`nan` or `inf` would
+/// pass any two images).
+fn parse_fraction_limit(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(f) if f.is_finite() && f >= 0.0 => Ok(f),
+        _ => Err(format!("{s:?}: expected a finite fraction of 0 or more")),
+    }
 }
 
 /// Linear RGB pixels of an EXR and its size.

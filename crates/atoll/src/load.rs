@@ -19,9 +19,23 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
         return Ok(atoll_scene::cornell::builtin_cornell_box());
     };
     if let Some(landscape) = path.to_str().and_then(parse_landscape) {
-        return landscape.map(|l| l.build());
+        let landscape = landscape?;
+        check_fits_host(path, landscape.estimate().bytes)?;
+        return Ok(landscape.build());
     }
     atoll_scene::load_any(path).map(|l| l.scene).map_err(|e| CliError::Input(e.to_string()))
+}
+
+/// Refuses, before building, a generated scene whose meshes alone would
+/// take more host memory than the OS has available.
+fn check_fits_host(source: &Path, bytes: u64) -> Result<(), CliError> {
+    match atoll_dist::placement::host_memory_available() {
+        Some(available) if bytes > available => Err(CliError::Runtime(format!(
+            "{}: its meshes need {bytes} bytes of host memory, {available} are available",
+            source.display()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// `landscape:GROWTH[:SEED]` as a [`Landscape`] (detail 1); `None` when

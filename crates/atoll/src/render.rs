@@ -71,7 +71,7 @@ pub struct RenderArgs {
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Samples per pixel (overrides the scene).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: Option<u32>,
     /// Resolution WxH (overrides the scene).
     #[arg(long, value_parser = parse_resolution)]
@@ -79,8 +79,9 @@ pub struct RenderArgs {
     /// Maximum number of bounces (overrides the scene's path integrator).
     #[arg(long)]
     pub max_depth: Option<u32>,
-    /// Worker threads of the CPU device (default: all cores).
-    #[arg(long)]
+    /// Worker threads of the CPU device (default: all cores; at most 16
+    /// per core).
+    #[arg(long, value_parser = parse_threads)]
     pub threads: Option<usize>,
     #[command(flatten)]
     pub device: DeviceArgs,
@@ -149,7 +150,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_light_sampler)]
     pub light_sampler: Option<LightSampler>,
     /// Render ambient occlusion instead of the scene's integrator, with this max distance.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_distance)]
     pub ao: Option<f32>,
     /// Render the frame's first sample untimed on the prepared devices,
     /// then clear it (benchmarks: kernel loading, clocks and first-touch
@@ -179,10 +180,73 @@ fn parse_resolution(s: &str) -> Result<UVec2, String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 512x512")?;
     let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
     let res = UVec2::new(parse(w)?, parse(h)?);
+    check_resolution(res)?;
+    Ok(res)
+}
+
+/// Most pixels a frame may have: its film alone is 12 bytes a pixel, and
+/// every device keeps one (16384 × 16384 is 3 GiB).
+pub const MAX_PIXELS: u64 = 1 << 28;
+
+/// A resolution of at least one pixel and at most [`MAX_PIXELS`].
+fn check_resolution(res: UVec2) -> Result<(), String> {
     if res.x == 0 || res.y == 0 {
         return Err("resolution must be at least 1x1".into());
     }
-    Ok(res)
+    let pixels = res.x as u64 * res.y as u64;
+    if pixels > MAX_PIXELS {
+        return Err(format!(
+            "{}x{} is {pixels} pixels, more than the {MAX_PIXELS} a frame may have",
+            res.x, res.y
+        ));
+    }
+    Ok(())
+}
+
+/// `--threads`: at least 1, at most 16 per core (more only costs memory
+/// and scheduling; hundreds of thousands hang the pool's start).
+fn parse_threads(s: &str) -> Result<usize, String> {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=16 * cores).contains(&n) => Ok(n),
+        _ => Err(format!("{s:?}: expected a thread count from 1 to {} (16 per core)", 16 * cores)),
+    }
+}
+
+/// A distance: finite and above 0.
+fn parse_distance(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(d) if d.is_finite() && d > 0.0 => Ok(d),
+        _ => Err(format!("{s:?}: expected a distance above 0")),
+    }
+}
+
+/// Refuses an output that cannot be written, before anything is loaded or
+/// rendered: an extension other than .exr or .png, a folder that does not
+/// exist, or one this user cannot write in (tried with a temporary file,
+/// removed at once).
+pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
+    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("exr") | Some("png") => {}
+        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
+    }
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(CliError::Input(format!(
+            "{}: the folder {} does not exist",
+            output.display(),
+            dir.display()
+        )));
+    }
+    if output.is_dir() {
+        return Err(CliError::Input(format!("{}: is a folder", output.display())));
+    }
+    tempfile::tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| CliError::Input(format!("{}: cannot write in {}: {e}", output.display(), dir.display())))
 }
 
 pub fn run(args: RenderArgs) -> Result<(), CliError> {
@@ -243,16 +307,21 @@ pub(crate) struct Frame {
 /// Loads the scene and applies the command line's overrides; refuses a bad
 /// output name before any render time is spent.
 pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
+    if let Some(output) = &args.output {
+        check_output(output)?;
+    }
     let loading = std::time::Instant::now();
     let scene = load_scene(args.scene.as_deref())?;
     let load_seconds = loading.elapsed().as_secs_f64();
     let mut options = RenderOptions::from_scene(&scene);
     if let Some(spp) = args.spp {
-        options.spp = spp.max(1);
+        options.spp = spp;
     }
     if let Some(res) = args.res {
         options.resolution = res;
     }
+    // A scene's own resolution gets the same limits as --res.
+    check_resolution(options.resolution).map_err(|e| CliError::Input(format!("resolution: {e}")))?;
     if let Some(depth) = args.max_depth {
         options.integrator = IntegratorSettings::Path { max_depth: depth };
     }
@@ -267,9 +336,8 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     let output = args.output.clone().unwrap_or_else(|| {
         PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
     });
-    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("exr") | Some("png") => {}
-        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
+    if args.output.is_none() {
+        check_output(&output)?;
     }
     Ok(Frame { scene: Arc::new(scene), options, output, load_seconds })
 }

@@ -108,6 +108,17 @@ fn malformed_scenes_exit_2_with_location() {
             "missingply.pbrt:3:",
         ),
         ("unknownmat.pbrt", "WorldBegin\nNamedMaterial \"gold\"\nShape \"sphere\"\n", "unknownmat.pbrt:2:"),
+        // Numbers past f32's range would be infinities in the camera, lights and BVH.
+        (
+            "hugefov.pbrt",
+            "Camera \"perspective\"\n  \"float fov\" [ 1e400 ]\nWorldBegin\n",
+            "hugefov.pbrt:2:",
+        ),
+        (
+            "hugelight.pbrt",
+            "WorldBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 1e39 1 1 ]\nShape \"sphere\"\n",
+            "hugelight.pbrt:2:",
+        ),
         ("cycle_a.pbrt", "WorldBegin\nInclude \"cycle_b.pbrt\"\n", "cycle_b.pbrt:1:"),
     ];
     std::fs::write(dir.join("cycle_b.pbrt"), "Include \"cycle_a.pbrt\"\n").unwrap();
@@ -135,5 +146,57 @@ fn bad_arguments_exit_2() {
     assert_eq!(out.status.code(), Some(2));
     let out = atoll(&dir, &["render", "--light-sampler", "uniform"]);
     assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("unknown light sampler \"uniform\""), "{}", stderr(&out));
+    assert!(stderr(&out).contains("unknown light sampler \"uniform\""), "{}", stderr(&out)); // Numbers that make no sense, and sizes past what a frame may hold.
+    for args in [
+        &["render", "--spp", "0"][..],
+        &["render", "--res", "65536x65536"],
+        &["render", "--res", "92682x46341"],
+        &["render", "--threads", "100000"],
+        &["render", "--threads", "0"],
+        &["render", "--ao", "nan"],
+        &["render", "--ao", "0"],
+        &["render", "--ao", "-1"],
+    ] {
+        let out = atoll(&dir, args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+        assert!(!stderr(&out).contains("panicked"), "{args:?}: {}", stderr(&out));
+    }
+    // A generated scene larger than the machine: refused before building (exit 1).
+    let out = atoll(&dir, &["info", "landscape:4294967295"]);
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("bytes of host memory"), "{}", stderr(&out));
+    // A gate that cannot fail is refused.
+    for limit in ["nan", "inf", "-0.1"] {
+        let out = atoll(&dir, &["compare", "a.exr", "b.exr", "--max-mean-diff", limit]);
+        assert_eq!(out.status.code(), Some(2), "{limit}: {}", stderr(&out));
+    }
+    // An output that cannot be written is refused before loading, naming it.
+    let out = atoll(&dir, &["render", "-o", "no-such-folder/x.png"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("no-such-folder") && stderr(&out).contains("does not exist"),
+        "{}",
+        stderr(&out)
+    );
+    std::fs::create_dir_all(dir.join("folder.png")).unwrap();
+    let out = atoll(&dir, &["render", "-o", "folder.png"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("is a folder"), "{}", stderr(&out));
+}
+
+/// Rendering touches no file but its output: a user's file named like a
+/// temporary one is left as it was.
+#[test]
+fn a_render_touches_only_its_output() {
+    let dir = scratch("only-output");
+    std::fs::write(dir.join("out.partial.png"), b"mine").unwrap();
+    let out = atoll(&dir, &["render", "--spp", "1", "--res", "16x16", "-q", "-o", "out.png"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(std::fs::read(dir.join("out.partial.png")).unwrap(), b"mine");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["out.partial.png", "out.png"]);
 }

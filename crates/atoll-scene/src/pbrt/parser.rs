@@ -200,8 +200,16 @@ impl Parser {
     fn number(&mut self, t: &Token) -> Result<f64, SceneError> {
         let text = self.tok.text(t);
         match t.kind {
-            TokenKind::Word => parse_number(text)
-                .ok_or_else(|| SceneError::at(&self.tok.loc(t), format!("bad number '{text}'"))),
+            TokenKind::Word => match parse_number(text) {
+                // Scene values end up as f32: beyond its range they would
+                // be infinite (a camera, a light, a BVH of infinities).
+                Some(v) if v.abs() > f32::MAX as f64 => Err(SceneError::at(
+                    &self.tok.loc(t),
+                    format!("number '{text}' is out of range (at most {:e} in size)", f32::MAX),
+                )),
+                Some(v) => Ok(v),
+                None => Err(SceneError::at(&self.tok.loc(t), format!("bad number '{text}'"))),
+            },
             TokenKind::Str { .. } => {
                 Err(SceneError::at(&self.tok.loc(t), format!("expected a number, found string \"{text}\"")))
             }
