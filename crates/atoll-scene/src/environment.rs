@@ -115,6 +115,9 @@ impl EnvironmentImage {
     /// image; square images are equal-area maps, others lat-long ones.
     pub fn load(path: &Path) -> Result<Self, ImageLoadError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
+        if matches!(ext.as_deref(), Some("exr" | "png")) {
+            crate::input::check_regular(path).map_err(ImageLoadError::io(path))?;
+        }
         let (width, height, pixels) = match ext.as_deref() {
             Some("exr") => {
                 let img = exr::prelude::read_first_rgba_layer_from_file(

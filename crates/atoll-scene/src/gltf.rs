@@ -74,7 +74,7 @@ use crate::{
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path)
+    let bytes = crate::input::read(path)
         .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     load_gltf_bytes(&bytes, &name, &base)

@@ -14,6 +14,7 @@ pub mod environment;
 pub mod error;
 pub mod framing;
 pub mod gltf;
+pub mod input;
 pub mod landscape;
 pub mod light;
 pub mod load;

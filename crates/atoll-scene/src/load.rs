@@ -80,7 +80,7 @@ pub fn load_ply(path: &Path) -> Result<LoadedScene, SceneError> {
 /// data sets): one mesh with the default diffuse material, framed.
 pub fn load_off(path: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(path.display().to_string());
-    let bytes = std::fs::read(path).map_err(|e| SceneError::at(&loc, format!("cannot read: {e}")))?;
+    let bytes = crate::input::read(path).map_err(|e| SceneError::at(&loc, format!("cannot read: {e}")))?;
     let m = crate::off::parse_off(&bytes).map_err(|e| SceneError::at(&e.loc(&loc.file), e.message))?;
     let mut w = WarningSink::default();
     if m.degenerate_faces > 0 {

@@ -54,7 +54,7 @@ use crate::{
 pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
     let whole = FileLoc::whole_file(name.as_str());
-    let bytes = std::fs::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
+    let bytes = crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
     let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
     load_obj_bytes(&bytes, &name, &dir)
 }
@@ -74,7 +74,7 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
     // same 8-bit encoding still match.
     let libs: RefCell<Vec<(String, Option<tobj::LoadError>)>> = RefCell::new(Vec::new());
     let loader = |mtl: &Path| {
-        let result = match std::fs::read(dir.join(mtl)) {
+        let result = match crate::input::read(&dir.join(mtl)) {
             Ok(b) => tobj::load_mtl_buf(&mut decode_text(&b).0.as_bytes()),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
         };

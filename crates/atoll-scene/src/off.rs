@@ -93,7 +93,7 @@ pub fn parse_off(bytes: &[u8]) -> Result<OffMesh, OffError> {
         return err(
             counts_line,
             format!(
-                "the header claims {nv} vertices and {nf} faces, more than the file's {} bytes can hold",
+                "the header claims {nv} vertices and {nf} faces, more than the file's {} bytes can hold (truncated?)",
                 bytes.len()
             ),
         );

@@ -8,7 +8,6 @@
 //! skipped. Faces with other vertex counts are skipped and counted (pbrt-v4
 //! ignores them too).
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
@@ -42,17 +41,16 @@ fn invalid<T>(msg: impl Into<String>) -> Result<T, PlyError> {
 
 /// Reads a PLY (or gzip-compressed PLY) file.
 pub fn read_ply(path: &Path) -> Result<PlyMesh, PlyError> {
-    let bytes = std::fs::read(path).map_err(|source| PlyError::Io { path: path.to_path_buf(), source })?;
+    let bytes =
+        crate::input::read(path).map_err(|source| PlyError::Io { path: path.to_path_buf(), source })?;
     parse_ply(&bytes)
 }
 
 /// Parses the bytes of a PLY file (gzip-compressed or not).
 pub fn parse_ply(bytes: &[u8]) -> Result<PlyMesh, PlyError> {
     if bytes.starts_with(&[0x1f, 0x8b]) {
-        let mut out = Vec::new();
-        flate2::read::MultiGzDecoder::new(bytes)
-            .read_to_end(&mut out)
-            .map_err(|e| PlyError::Invalid(format!("bad gzip data: {e}")))?;
+        let out =
+            crate::input::gunzip(bytes).map_err(|e| PlyError::Invalid(format!("bad gzip data: {e}")))?;
         return parse_uncompressed(&out);
     }
     parse_uncompressed(bytes)

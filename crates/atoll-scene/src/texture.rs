@@ -148,6 +148,7 @@ impl TextureImage {
     /// JPEG, TGA and BMP (8-bit, sRGB unless `srgb` is false: pbrt's
     /// `encoding "linear"`). 16-bit PNGs are kept as floats.
     pub fn decode(path: &Path, srgb: bool) -> Result<Self, ImageLoadError> {
+        crate::input::check_regular(path).map_err(ImageLoadError::io(path))?;
         let name = path.display().to_string();
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         let (width, height, texels) = if ext.as_deref() == Some("exr") {

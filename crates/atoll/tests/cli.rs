@@ -108,6 +108,13 @@ fn malformed_scenes_exit_2_with_location() {
             "missingply.pbrt:3:",
         ),
         ("unknownmat.pbrt", "WorldBegin\nNamedMaterial \"gold\"\nShape \"sphere\"\n", "unknownmat.pbrt:2:"),
+        // Devices are refused by their type, never read (they would not end).
+        ("devzero.pbrt", "WorldBegin\nInclude \"/dev/zero\"\n", "devzero.pbrt:2:"),
+        (
+            "devzeroply.pbrt",
+            "WorldBegin\nShape \"plymesh\" \"string filename\" \"/dev/zero\"\n",
+            "devzeroply.pbrt:2:",
+        ),
         // Numbers past f32's range would be infinities in the camera, lights and BVH.
         (
             "hugefov.pbrt",

@@ -67,14 +67,9 @@ enum ReadSceneError {
 
 /// Reads a scene file, decompressing `.gz` files.
 fn read_scene_file(path: &Path) -> Result<Vec<u8>, ReadSceneError> {
-    let bytes = std::fs::read(path).map_err(ReadSceneError::Read)?;
+    let bytes = crate::input::read(path).map_err(ReadSceneError::Read)?;
     if path.extension().is_some_and(|e| e == "gz") {
-        use std::io::Read;
-        let mut out = Vec::new();
-        flate2::read::MultiGzDecoder::new(bytes.as_slice())
-            .read_to_end(&mut out)
-            .map_err(ReadSceneError::Gzip)?;
-        return Ok(out);
+        return crate::input::gunzip(&bytes).map_err(ReadSceneError::Gzip);
     }
     Ok(bytes)
 }

@@ -1,0 +1,82 @@
+//! Reading the files a scene names, as untrusted input: only regular files
+//! (a device such as `/dev/zero`, a pipe or a folder is refused by its type,
+//! never read), at most [`MAX_FILE_BYTES`] each, and gzip data inflated to
+//! at most [`MAX_INFLATION`] times its size. Loaders read through here.
+
+use std::io::{self, Read};
+use std::path::Path;
+
+/// Most bytes one scene file may have (a Moana island mesh file is well
+/// under this).
+pub const MAX_FILE_BYTES: u64 = 64 << 30;
+
+/// Most a gzip file may inflate to, as a multiple of its size: text and
+/// meshes inflate some 3–10×; gzip bombs by a thousand and more.
+pub const MAX_INFLATION: u64 = 100;
+
+/// Refuses what is not a regular file of at most [`MAX_FILE_BYTES`]
+/// (symbolic links are followed to what they name); returns its length.
+pub fn check_regular(path: &Path) -> io::Result<u64> {
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        let kind = if meta.is_dir() { "a folder" } else { "not a regular file (a device or a pipe)" };
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("is {kind}")));
+    }
+    if meta.len() > MAX_FILE_BYTES {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("has {} bytes, more than the {MAX_FILE_BYTES} a scene file may have", meta.len()),
+        ));
+    }
+    Ok(meta.len())
+}
+
+/// The bytes of the regular file `path` ([`check_regular`]), read no
+/// further than the size it had when checked (a file growing while read
+/// is cut there).
+pub fn read(path: &Path) -> io::Result<Vec<u8>> {
+    let len = check_regular(path)?;
+    let mut bytes = Vec::with_capacity(len as usize);
+    std::fs::File::open(path)?.take(len).read_to_end(&mut bytes)?;
+    Ok(bytes)
+}
+
+/// `compressed` gzip data inflated, at most [`MAX_INFLATION`] times its size.
+pub fn gunzip(compressed: &[u8]) -> io::Result<Vec<u8>> {
+    let limit = (compressed.len() as u64).saturating_mul(MAX_INFLATION).max(1 << 20);
+    let mut out = Vec::new();
+    flate2::read::MultiGzDecoder::new(compressed).take(limit + 1).read_to_end(&mut out)?;
+    if out.len() as u64 > limit {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("inflates past {limit} bytes, {MAX_INFLATION} times its size (a gzip bomb?)"),
+        ));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn devices_folders_and_bombs_are_refused_without_reading_them() {
+        for path in ["/dev/zero", "/dev/null", "/"] {
+            if Path::new(path).exists() {
+                let e = read(Path::new(path)).unwrap_err();
+                assert_eq!(e.kind(), io::ErrorKind::InvalidInput, "{path}: {e}");
+            }
+        }
+        // 64 MiB of zeros compress to some 64 KiB: over a hundred times.
+        use std::io::Write;
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        gz.write_all(&vec![0u8; 64 << 20]).unwrap();
+        let bomb = gz.finish().unwrap();
+        let e = gunzip(&bomb).unwrap_err();
+        assert!(e.to_string().contains("gzip bomb"), "{e}");
+        // Ordinary data inflates fine.
+        let mut gz = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+        gz.write_all(b"Shape \"sphere\"\n").unwrap();
+        assert_eq!(gunzip(&gz.finish().unwrap()).unwrap(), b"Shape \"sphere\"\n");
+    }
+}
