@@ -415,9 +415,25 @@ impl<'a> Loader<'a> {
             ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => uri.to_string(),
             _ => image.name().map(String::from).unwrap_or_else(|| format!("image {}", image.index())),
         };
-        let decoded = ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
-            .map_err(|e| ImageLoadError::Gltf(Arc::new(e)))
-            .and_then(|data| texture_image(&name, data, srgb));
+        let external = match image.source() {
+            ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
+                match percent_decode(uri) {
+                    Some(decoded) => external_file(self.base, &decoded)
+                        .map(drop)
+                        .map_err(ImageLoadError::io(Path::new(uri))),
+                    None => Err(ImageLoadError::io(Path::new(uri))(std::io::Error::new(
+                        std::io::ErrorKind::InvalidInput,
+                        "bad URI (percent escapes that are not UTF-8)",
+                    ))),
+                }
+            }
+            _ => Ok(()),
+        };
+        let decoded = external.and_then(|()| {
+            ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
+                .map_err(|e| ImageLoadError::Gltf(Arc::new(e)))
+                .and_then(|data| texture_image(&name, data, srgb))
+        });
         let id = match decoded {
             Ok(t) => Some(self.out.scene.textures.add_image(t)),
             Err(e) => {
@@ -791,9 +807,12 @@ fn read_buffers(
             }
             ::gltf::buffer::Source::Uri(uri) => {
                 // The gltf crate unwraps its percent-decoding: refuse what it cannot decode.
-                if percent_decode(uri).is_none() {
+                let Some(decoded) = percent_decode(uri) else {
                     return Err(SceneError::at(loc, format!("buffer {}: bad URI '{uri}'", buffer.index())));
-                }
+                };
+                // The crate reads the file itself: only a regular file in the model's folder.
+                external_file(base, &decoded)
+                    .map_err(|e| SceneError::at(loc, format!("cannot read buffer '{uri}': {e}")))?;
                 format!("buffer '{uri}'")
             }
         };
@@ -808,6 +827,14 @@ fn read_buffers(
         out.push(data);
     }
     Ok(out)
+}
+
+/// The external file a URI names, refused unless it is a regular file in
+/// the model's folder ([`crate::input::beside`], [`crate::input::check_regular`]).
+fn external_file(base: &Path, decoded_uri: &str) -> std::io::Result<std::path::PathBuf> {
+    let path = crate::input::beside(base, decoded_uri)?;
+    crate::input::check_regular(&path)?;
+    Ok(path)
 }
 
 /// Decodes `%XX` escapes of a relative URI; `None` when they are malformed or not UTF-8.

@@ -1,10 +1,52 @@
 //! Reading the files a scene names, as untrusted input: only regular files
 //! (a device such as `/dev/zero`, a pipe or a folder is refused by its type,
 //! never read), at most [`MAX_FILE_BYTES`] each, and gzip data inflated to
-//! at most [`MAX_INFLATION`] times its size. Loaders read through here.
+//! at most [`MAX_INFLATION`] times its size; the files a scene file names
+//! are confined to its folder ([`beside`]) unless the user allows more
+//! ([`allow_outside_paths`]). Loaders read through here.
 
 use std::io::{self, Read};
-use std::path::Path;
+use std::path::{Component, Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Whether files a scene names may lie outside its folder.
+static OUTSIDE_PATHS: AtomicBool = AtomicBool::new(false);
+
+/// Lets scenes name files outside their folder, absolute paths included
+/// (`--allow-outside-paths`): for scenes from trusted sources only.
+pub fn allow_outside_paths(allow: bool) {
+    OUTSIDE_PATHS.store(allow, Ordering::Relaxed);
+}
+
+/// The file `name` that a scene file in folder `base` names: `base/name`,
+/// refused (unless [`allow_outside_paths`]) when `name` is absolute, a
+/// `file:` URI, or climbs out of `base` with `..` (checked on the names,
+/// not by following links).
+pub fn beside(base: &Path, name: &str) -> io::Result<PathBuf> {
+    if OUTSIDE_PATHS.load(Ordering::Relaxed) {
+        return Ok(base.join(name.strip_prefix("file://").unwrap_or(name)));
+    }
+    let refuse = |why: &str| {
+        io::Error::new(
+            io::ErrorKind::PermissionDenied,
+            format!("'{name}' {why}: refused outside the scene's folder (--allow-outside-paths allows it)"),
+        )
+    };
+    if name.starts_with("file:") {
+        return Err(refuse("is a file: URI"));
+    }
+    let mut depth = 0usize;
+    for component in Path::new(name).components() {
+        match component {
+            Component::Prefix(_) | Component::RootDir => return Err(refuse("is an absolute path")),
+            Component::ParentDir if depth == 0 => return Err(refuse("climbs out of the scene's folder")),
+            Component::ParentDir => depth -= 1,
+            Component::CurDir => {}
+            Component::Normal(_) => depth += 1,
+        }
+    }
+    Ok(base.join(name))
+}
 
 /// Most bytes one scene file may have (a Moana island mesh file is well
 /// under this).
@@ -58,6 +100,18 @@ pub fn gunzip(compressed: &[u8]) -> io::Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn named_files_stay_in_the_scene_folder() {
+        let base = Path::new("/scenes/island");
+        assert_eq!(beside(base, "geometry/tree.ply").unwrap(), base.join("geometry/tree.ply"));
+        assert_eq!(beside(base, "a/../b.ply").unwrap(), base.join("a/../b.ply"));
+        for bad in ["../../../etc/passwd", "/etc/passwd", "file:///etc/passwd", "a/../../b", "./../x"] {
+            let e = beside(base, bad).unwrap_err();
+            assert_eq!(e.kind(), io::ErrorKind::PermissionDenied, "{bad}");
+            assert!(e.to_string().contains("--allow-outside-paths"), "{e}");
+        }
+    }
 
     #[test]
     fn devices_folders_and_bombs_are_refused_without_reading_them() {

@@ -74,7 +74,9 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
     // same 8-bit encoding still match.
     let libs: RefCell<Vec<(String, Option<tobj::LoadError>)>> = RefCell::new(Vec::new());
     let loader = |mtl: &Path| {
-        let result = match crate::input::read(&dir.join(mtl)) {
+        let read =
+            crate::input::beside(&dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
+        let result = match read {
             Ok(b) => tobj::load_mtl_buf(&mut decode_text(&b).0.as_bytes()),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
         };
@@ -309,8 +311,9 @@ fn mtl_textures(
     let spec = |m: &Option<String>| m.as_deref().map(str::trim).filter(|t| !t.is_empty()).map(parse_map);
     // The map's image, or `None` after a warning when it cannot be read.
     let mut load = |map: &MapSpec, keyword: &str, encoding, textures: &mut crate::Textures| {
-        images
-            .load(textures, &dir.join(&map.file), encoding)
+        crate::input::beside(dir, &map.file)
+            .map_err(crate::ImageLoadError::io(Path::new(&map.file)))
+            .and_then(|path| images.load(textures, &path, encoding))
             .map_err(|e| w.warn(loc, format!("{what}: {keyword}: {e}; ignored")))
             .ok()
     };

@@ -81,9 +81,14 @@ fn gzip_and_plymesh_shapes() {
     let path = write(&dir, "mesh.ply.gz", gz.finish().unwrap());
     check(&read_ply(&path).unwrap());
 
-    // Through the loader: positions and normals transformed, uvs kept.
-    let world = format!("Translate 0 0 2\nShape \"plymesh\" \"string filename\" \"{}\"", path.display());
-    let s = load_world("", &world).unwrap().scene;
+    // Through the loader (the file named relative to the scene's folder):
+    // positions and normals transformed, uvs kept.
+    let world = "WorldBegin\nTranslate 0 0 2\nShape \"plymesh\" \"string filename\" \"mesh.ply.gz\"\n";
+    let s = atoll_scene::pbrt::load_str(world, "test.pbrt", &dir).unwrap().scene;
+    // Named by an absolute path, it is refused, saying how to allow it.
+    let absolute = format!("Shape \"plymesh\" \"string filename\" \"{}\"", path.display());
+    let e = load_world("", &absolute).unwrap_err();
+    assert!(e.message.contains("--allow-outside-paths"), "{e}");
     let m = &s.meshes[0];
     assert_eq!(m.positions[4], Vec3::new(0.5, 0.5, 3.0));
     assert_eq!(m.normals[0], Vec3::Z);

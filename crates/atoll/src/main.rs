@@ -22,6 +22,10 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
+    /// Let scene files name files outside their own folder (absolute
+    /// paths, `..`, `file://` URIs): for scenes from trusted sources only.
+    #[arg(long, global = true)]
+    allow_outside_paths: bool,
 }
 
 #[derive(Subcommand)]
@@ -59,6 +63,7 @@ fn main() -> ExitCode {
         .without_time()
         .init();
     let cli = Cli::parse();
+    atoll_scene::input::allow_outside_paths(cli.allow_outside_paths);
     let result = match cli.command {
         Some(Command::Render(args)) => render::run(*args),
         Some(Command::Info(args)) => info::run(args),

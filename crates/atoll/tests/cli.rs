@@ -108,6 +108,8 @@ fn malformed_scenes_exit_2_with_location() {
             "missingply.pbrt:3:",
         ),
         ("unknownmat.pbrt", "WorldBegin\nNamedMaterial \"gold\"\nShape \"sphere\"\n", "unknownmat.pbrt:2:"),
+        // Files outside the scene's folder are refused (without --allow-outside-paths).
+        ("outside.pbrt", "WorldBegin\nInclude \"/etc/hostname\"\n", "outside.pbrt:2:"),
         // Devices are refused by their type, never read (they would not end).
         ("devzero.pbrt", "WorldBegin\nInclude \"/dev/zero\"\n", "devzero.pbrt:2:"),
         (
@@ -189,6 +191,28 @@ fn bad_arguments_exit_2() {
     let out = atoll(&dir, &["render", "-o", "folder.png"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("is a folder"), "{}", stderr(&out));
+}
+
+/// glTF buffers outside the model's folder are refused, naming the URI,
+/// unless the user allows it.
+#[test]
+fn gltf_buffers_outside_the_model_folder_are_refused() {
+    let dir = scratch("gltf-outside");
+    for uri in ["../../../etc/hostname", "/etc/hostname", "file:///etc/hostname"] {
+        let gltf = format!(
+            r#"{{"asset":{{"version":"2.0"}},"buffers":[{{"uri":"{uri}","byteLength":4}}],"scenes":[{{"nodes":[]}}]}}"#
+        );
+        std::fs::write(dir.join("m.gltf"), gltf).unwrap();
+        let out = atoll(&dir, &["info", "m.gltf"]);
+        assert_eq!(out.status.code(), Some(2), "{uri}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains(uri) && stderr(&out).contains("--allow-outside-paths"),
+            "{}",
+            stderr(&out)
+        );
+        let allowed = atoll(&dir, &["info", "m.gltf", "--allow-outside-paths"]);
+        assert!(!stderr(&allowed).contains("--allow-outside-paths"), "{uri}: {}", stderr(&allowed));
+    }
 }
 
 /// Rendering touches no file but its output: a user's file named like a

@@ -385,7 +385,8 @@ impl Builder {
     }
 
     fn include(&mut self, file: &str, loc: &FileLoc) -> Result<(), SceneError> {
-        let path = self.base_dir.join(file);
+        let path = crate::input::beside(&self.base_dir, file)
+            .map_err(|e| SceneError::caused_by(loc, format!("Include: {e}"), e))?;
         let canonical = path.canonicalize().map_err(|e| {
             SceneError::caused_by(loc, format!("cannot read included file '{}': {e}", path.display()), e)
         })?;

@@ -443,7 +443,10 @@ pub fn light(
             }
             if let Some(f) = filename {
                 // The image's radiance times `scale`.
-                match crate::EnvironmentImage::load(&base_dir.join(&f)) {
+                let image = crate::input::beside(base_dir, &f)
+                    .map_err(crate::ImageLoadError::io(std::path::Path::new(&f)))
+                    .and_then(|path| crate::EnvironmentImage::load(&path));
+                match image {
                     Ok(image) => {
                         let scale = scale * normalise(image.upper_hemisphere_illuminance());
                         let m = glam::DMat3::from_mat4(*ctm).as_mat3();

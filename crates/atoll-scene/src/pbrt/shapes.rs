@@ -173,7 +173,8 @@ fn ply_mesh(
     let Some(filename) = p.string("filename")? else {
         return Err(SceneError::at(loc, "plymesh: \"string filename\" must be given"));
     };
-    let path = base_dir.join(&filename);
+    let path = crate::input::beside(base_dir, &filename)
+        .map_err(|e| SceneError::at(loc, format!("plymesh: {e}")))?;
     let m = ply::read_ply(&path).map_err(|e| match e {
         ply::PlyError::Io { source, .. } => {
             SceneError::at(loc, format!("plymesh: cannot read PLY file '{}': {source}", path.display()))

@@ -234,7 +234,11 @@ impl NamedTextures {
         let Some(file) = p.string("filename")? else {
             return Ok(Err("no \"string filename\" given".into()));
         };
-        let image = match self.images.load(store, &base_dir.join(&file), encoding) {
+        let path = match crate::input::beside(base_dir, &file) {
+            Ok(path) => path,
+            Err(e) => return Ok(Err(e.to_string())),
+        };
+        let image = match self.images.load(store, &path, encoding) {
             Ok(id) => id,
             Err(e) => return Ok(Err(e.to_string())),
         };
@@ -254,7 +258,8 @@ impl NamedTextures {
         base_dir: &Path,
         store: &mut Textures,
     ) -> Result<TextureId, ImageLoadError> {
-        let image = self.images.load(store, &base_dir.join(file), ColorEncoding::Srgb)?;
+        let path = crate::input::beside(base_dir, file).map_err(ImageLoadError::io(Path::new(file)))?;
+        let image = self.images.load(store, &path, ColorEncoding::Srgb)?;
         Ok(store.add(Texture::Image {
             image,
             mapping: UvMapping::default(),
