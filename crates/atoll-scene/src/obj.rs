@@ -75,7 +75,7 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
     let libs: RefCell<Vec<(String, Option<tobj::LoadError>)>> = RefCell::new(Vec::new());
     let loader = |mtl: &Path| {
         let read =
-            crate::input::beside(&dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
+            crate::input::beside(dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
         let result = match read {
             Ok(b) => tobj::load_mtl_buf(&mut decode_text(&b).0.as_bytes()),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
