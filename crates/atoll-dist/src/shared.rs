@@ -210,9 +210,8 @@ pub(crate) fn prepare_shared(
 }
 
 /// The prepass: every device renders its stripe of the frame's first
-/// sample (as it will the frame's), counting chunk reads, then is cleared
-/// for the frame. One wave at a time: a device merging waves would take
-/// its neighbours' stripes too before they start.
+/// sample (as it will the frame's) and no other, one wave at a time,
+/// counting chunk reads; then it is cleared for the frame.
 fn count_first_sample(
     devices: &mut [Box<dyn Device>],
     frame: &Arc<FrameContext>,
@@ -225,7 +224,7 @@ fn count_first_sample(
     let per_wave = pixels.div_ceil(4 * devices.len().max(1) as u32).clamp(1, frame.options.wave_size.max(1));
     let waves = Wave::all(&RenderOptions { spp: 1, wave_size: per_wave, ..frame.options.clone() });
     let stripes: Vec<usize> = (0..devices.len()).collect();
-    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), &stripes);
+    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), &stripes).without_stealing();
     let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: false };
     let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {

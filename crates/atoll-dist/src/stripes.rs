@@ -24,6 +24,8 @@ pub struct StripeHandout {
     stripes: Mutex<Vec<VecDeque<usize>>>,
     /// Per worker, its stripe.
     stripe_of: Vec<usize>,
+    /// Whether a worker whose stripe is done takes others' waves.
+    steal: bool,
     taken: AtomicUsize,
 }
 
@@ -41,8 +43,16 @@ impl StripeHandout {
         StripeHandout {
             stripes: Mutex::new(stripes),
             stripe_of: stripe_of.to_vec(),
+            steal: true,
             taken: AtomicUsize::new(0),
         }
+    }
+
+    /// Every worker renders its own stripe and no other (the prepass:
+    /// each device's counts are then its stripe's, whatever the timing).
+    pub fn without_stealing(mut self) -> Self {
+        self.steal = false;
+        self
     }
 }
 
@@ -57,7 +67,7 @@ impl WaveHandout for StripeHandout {
         let mut stripes = self.stripes.lock().unwrap_or_else(|p| p.into_inner());
         let own = self.stripe_of.get(taker).and_then(|&s| stripes.get_mut(s)).and_then(VecDeque::pop_front);
         let wave = own.or_else(|| {
-            let fullest = stripes.iter_mut().max_by_key(|s| s.len())?;
+            let fullest = stripes.iter_mut().filter(|_| self.steal).max_by_key(|s| s.len())?;
             fullest.pop_back()
         })?;
         self.taken.fetch_add(1, Ordering::Relaxed);
@@ -111,6 +121,14 @@ mod tests {
             worker += 1;
         }
         assert!(seen.iter().all(|&n| n == 1), "{seen:?}");
+    }
+
+    #[test]
+    fn without_stealing_each_worker_takes_its_stripe_only() {
+        let w = waves(4, 100, 1);
+        let h = StripeHandout::new(&w, 400, &[0, 1]).without_stealing();
+        assert_eq!((h.next(0), h.next(0), h.next(0)), (Some(0), Some(1), None));
+        assert_eq!((h.next(1), h.next(1), h.next(1)), (Some(2), Some(3), None));
     }
 
     #[test]
