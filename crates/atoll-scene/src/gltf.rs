@@ -183,7 +183,14 @@ impl<'a> Loader<'a> {
         if let Some(cam) = node.camera() {
             match cam.projection() {
                 ::gltf::camera::Projection::Perspective(p) if self.camera.is_none() => {
-                    self.camera = Some((world, p.yfov(), p.aspect_ratio()))
+                    let yfov = p.yfov();
+                    if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                        return Err(SceneError::at(
+                            &self.loc,
+                            format!("camera {}: yfov {yfov} is not between 0 and pi radians", cam.index()),
+                        ));
+                    }
+                    self.camera = Some((world, yfov, p.aspect_ratio()))
                 }
                 ::gltf::camera::Projection::Perspective(_) => {}
                 ::gltf::camera::Projection::Orthographic(_) => self.w.warn(

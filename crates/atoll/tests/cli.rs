@@ -117,6 +117,15 @@ fn malformed_scenes_exit_2_with_location() {
             "WorldBegin\nShape \"plymesh\" \"string filename\" \"/dev/zero\"\n",
             "devzeroply.pbrt:2:",
         ),
+        // Physically meaningless parameters.
+        ("fov0.pbrt", "Camera \"perspective\" \"float fov\" 0\nWorldBegin\n", "fov0.pbrt:1:"),
+        ("fov180.pbrt", "Camera \"perspective\" \"float fov\" 180\nWorldBegin\n", "fov180.pbrt:1:"),
+        ("darklight.pbrt", "WorldBegin\nLightSource \"point\" \"rgb I\" [ -1 1 1 ]\n", "darklight.pbrt:2:"),
+        (
+            "coldlight.pbrt",
+            "WorldBegin\nLightSource \"point\" \"blackbody I\" [ -100 ]\n",
+            "coldlight.pbrt:2:",
+        ),
         // Numbers past f32's range would be infinities in the camera, lights and BVH.
         (
             "hugefov.pbrt",

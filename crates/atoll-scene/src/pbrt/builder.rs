@@ -720,7 +720,14 @@ impl Builder {
             self.warn(loc, format!("camera \"{name}\" is not supported; using a perspective camera"));
             return Ok(());
         }
-        cam.fov_degrees = p.float_or("fov", 90.0)?;
+        let fov = p.float_or("fov", 90.0)?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(SceneError::at(
+                loc,
+                format!("Camera: \"fov\" {fov} is not between 0 and 180 degrees"),
+            ));
+        }
+        cam.fov_degrees = fov;
         for (param, ty) in [("frameaspectratio", ParamType::Float), ("screenwindow", ParamType::Float)] {
             if p.find(param, &[ty]).is_some() {
                 let msg = format!(

@@ -298,7 +298,17 @@ pub(super) fn dielectric_eta(
 /// A light spectrum as RGB. pbrt-v4 divides every light spectrum by its
 /// luminance (so `scale` alone sets brightness); for RGB values that
 /// normalisation is by the colour space's white, which leaves them unchanged.
-fn light_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Rgb {
+fn light_rgb(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result<Rgb, SceneError> {
+    let rgb = light_rgb_unchecked(sp, what, loc, w);
+    // Negative light is no light: refused rather than subtracted from the image.
+    if rgb.min_element() < 0.0 {
+        return Err(SceneError::at(loc, format!("{what}: negative radiance {rgb:?}")));
+    }
+    Ok(rgb)
+}
+
+/// [`light_rgb`] before the check.
+fn light_rgb_unchecked(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Rgb {
     let luminance_one = |c: Rgb| {
         let y = crate::luminance(c);
         if y > 0.0 {
@@ -337,7 +347,7 @@ pub fn area_light(
     }
     let what = "area light \"diffuse\"";
     p.find("nsamples", &[ParamType::Integer]);
-    let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).unwrap_or(Rgb::ONE);
+    let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
     let scale = p.float_or("scale", 1.0)?;
     let two_sided = p.bool_or("twosided", false)?;
     // An image (`filename`, read by the builder) replaces "L": the radiance
@@ -371,13 +381,15 @@ pub fn light(
         |name: &str, d: Vec3| -> Result<DVec3, SceneError> { Ok(p.point3(name)?.unwrap_or(d).as_dvec3()) };
     Ok(Some(match ty {
         "point" => {
-            let i = p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let i =
+                p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
             let scale = p.float_or("scale", 1.0)?;
             let position = transform::point(ctm, p3("from", Vec3::ZERO)?).as_vec3();
             Light::Point { position, intensity: i * scale }
         }
         "spot" => {
-            let i = p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let i =
+                p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
             let scale = p.float_or("scale", 1.0)?;
             let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
             let cone_angle = p.float_or("coneangle", 30.0)?;
@@ -406,7 +418,8 @@ pub fn light(
             light
         }
         "distant" => {
-            let l = p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let l =
+                p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
             let scale = p.float_or("scale", 1.0)?;
             let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
             // pbrt stores the direction towards the light (from - to); ours is the way light travels.
@@ -465,7 +478,7 @@ pub fn light(
                     Err(e) => w.warn(loc, format!("{what}: {e}; using constant white instead")),
                 }
             }
-            let l = l.map(|s| light_rgb(s, &what, loc, w)).unwrap_or(Rgb::ONE);
+            let l = l.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
             let k_e = std::f64::consts::PI * crate::luminance(l) as f64;
             Light::Infinite { radiance: l * scale * normalise(k_e) }
         }

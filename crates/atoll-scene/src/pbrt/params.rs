@@ -365,10 +365,22 @@ impl ParamList {
             (T::Rgb, _) if v.len() > 3 => return Err(many()),
             (T::Rgb, _) => SpectrumParam::Rgb(vec3(v)),
             // pbrt-v3 wrote a blackbody as (temperature, scale).
+            (T::Blackbody, _) if v.len() == 2 && v[0] <= 0.0 => {
+                return Err(SceneError::at(
+                    &p.loc,
+                    format!("parameter \"{}\": a temperature must be above 0 K", p.decl),
+                ))
+            }
             (T::Blackbody, _) if v.len() == 2 => {
                 SpectrumParam::Rgb(super::spectrum::blackbody_rgb(v[0] as f32) * v[1] as f32)
             }
             (T::Blackbody | T::Float, _) if v.len() > 1 => return Err(many()),
+            (T::Blackbody, _) if v[0] <= 0.0 => {
+                return Err(SceneError::at(
+                    &p.loc,
+                    format!("parameter \"{}\": a temperature must be above 0 K", p.decl),
+                ))
+            }
             (T::Blackbody, _) => SpectrumParam::Blackbody(v[0] as f32),
             (T::Float, _) => SpectrumParam::Constant(v[0] as f32),
             (T::Texture, ParamValues::Strings(s)) if s.len() == 1 => SpectrumParam::Texture(s[0].clone()),
