@@ -53,6 +53,18 @@ impl Default for IntegratorSettings {
     }
 }
 
+impl std::fmt::Display for IntegratorSettings {
+    /// As reports print it: `path, max depth 5`, `ambient occlusion, max distance 2`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            IntegratorSettings::Path { max_depth } => write!(f, "path, max depth {max_depth}"),
+            IntegratorSettings::AmbientOcclusion { max_distance } => {
+                write!(f, "ambient occlusion, max distance {max_distance}")
+            }
+        }
+    }
+}
+
 /// How next-event estimation picks a light (pbrt-v4's `lightsampler`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LightSampler {

@@ -56,7 +56,7 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("bounds             {:?} .. {:?}", s.bounds_min.to_array(), s.bounds_max.to_array());
     let r = &scene.settings;
     println!(
-        "render settings    {}x{}, {} spp, {:?}",
+        "render settings    {}x{}, {} spp, {}",
         r.film.resolution.x, r.film.resolution.y, r.spp, r.integrator
     );
     let bvh: SceneBvh = SceneBvh::build(&scene);

@@ -84,6 +84,10 @@ fn info_reports_textures_and_warns_about_unreadable_images() {
     let err = stderr(&out);
     assert!(err.contains("t.pbrt:3:1: texture \"gone\": ") && err.contains("gone.png"), "{err}");
     assert!(err.contains("; using a constant"), "{err}");
+    // Not a terminal: no colour codes in the warnings.
+    assert!(!err.contains('\u{1b}'), "{err:?}");
+    // The integrator as words, not a Rust value.
+    assert!(stdout.contains("spp, path, max depth"), "{stdout}");
 }
 
 /// Each malformed scene: exit code 2, a `file:line:` message, no panic, and
