@@ -98,8 +98,7 @@ fn chunk_budgets(
     spec: &SharedSpec,
     options: &RenderOptions,
 ) -> ChunkBudget {
-    let leaders = hardware.iter().max().map_or(0, |&h| h + 1);
-    let devices = devices[..leaders]
+    let devices = devices[..leader_count(hardware)]
         .iter()
         .enumerate()
         .map(|(l, d)| match d.free_memory() {
@@ -140,6 +139,11 @@ pub(crate) fn hardware_of(devices: &[Box<dyn Device>]) -> Result<Vec<usize>, Dev
         .collect()
 }
 
+/// Devices holding chunks of their own: the leaders of [`hardware_of`].
+fn leader_count(hardware: &[usize]) -> usize {
+    hardware.iter().max().map_or(0, |&h| h + 1)
+}
+
 /// A device-neutral error about the shared scene as a whole.
 fn error(message: impl Into<String>) -> DeviceError {
     DeviceError::Other { device: "shared scene".into(), message: message.into() }
@@ -171,7 +175,7 @@ pub(crate) fn prepare_shared(
         .and_then(|d| d.scene_sharing())
         .ok_or_else(|| error("the devices cannot share a scene's memory"))?;
     let hardware = hardware_of(devices)?;
-    let leaders = hardware.iter().max().map_or(0, |&h| h + 1);
+    let leaders = leader_count(&hardware);
     let budget = chunk_budgets(devices, &hardware, spec, &frame.options);
     let layout = sharing.layout(scene, frame, spec.chunk_bytes)?;
     if layout.chunk_count() > MAX_CHUNKS {
