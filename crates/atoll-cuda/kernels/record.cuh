@@ -30,6 +30,23 @@ struct __align__(16) RayRecord {
     unsigned short coeffs[16];
 };
 
+/// Writes the ray half of `*dst` (its first 64 bytes: the ray and the path
+/// state, up to and including `instance`) as four 16-byte stores and leaves
+/// the hit half alone: a record's hit fields mean something only once
+/// closest-hit tracing sets FLAG_HIT, so stages that make new segments or
+/// shadow rays need not spend memory bandwidth copying them.
+__device__ __forceinline__ void store_ray_half(RayRecord* dst, float3 origin, float t_max, float3 direction,
+                                               unsigned int pixel, float3 throughput, unsigned int sample,
+                                               float bsdf_pdf, unsigned short depth, unsigned char flags,
+                                               unsigned char eta_scale, unsigned int light, unsigned int instance) {
+    const unsigned int state = (unsigned int)depth | ((unsigned int)flags << 16) | ((unsigned int)eta_scale << 24);
+    float4* out = reinterpret_cast<float4*>(dst);
+    out[0] = make_float4(origin.x, origin.y, origin.z, t_max);
+    out[1] = make_float4(direction.x, direction.y, direction.z, __uint_as_float(pixel));
+    out[2] = make_float4(throughput.x, throughput.y, throughput.z, __uint_as_float(sample));
+    out[3] = make_float4(bsdf_pdf, __uint_as_float(state), __uint_as_float(light), __uint_as_float(instance));
+}
+
 /// Mirrors `record::pack_eta_scale`: a positive scale as an 8-bit float
 /// (5-bit two's-complement exponent, 3 mantissa bits), integer rounding.
 __device__ __forceinline__ unsigned char pack_eta_scale(float v) {

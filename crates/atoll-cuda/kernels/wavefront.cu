@@ -62,8 +62,10 @@ __device__ __forceinline__ void film_add(float* film, unsigned int pixel, float3
 // generate (stages/generate.rs)
 // ---------------------------------------------------------------------------
 
-/// Mirrors `generate::camera_record`.
-__device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigned int pixel, unsigned int sample) {
+/// Mirrors `generate::camera_record`, writing the record's ray half into
+/// `*dst` (a camera ray has no hit yet: `store_ray_half`).
+__device__ __forceinline__ void write_camera_record(const FrameParams& p, unsigned int pixel, unsigned int sample,
+                                                    RayRecord* dst) {
     const unsigned int res_x = p.resolution[0];
     const SampleStream rng = sample_stream(p.seed, pixel, sample);
     // Box filter one pixel wide: a uniform jitter inside the pixel.
@@ -71,18 +73,9 @@ __device__ __forceinline__ RayRecord camera_record(const FrameParams& p, unsigne
         make_float2((float)(pixel % res_x) + stream_get(rng, 0), (float)(pixel / res_x) + stream_get(rng, 1));
     float3 origin, direction;
     camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
-    RayRecord r = {};
-    store3(r.origin, origin);
-    store3(r.direction, direction);
-    r.t_max = f32_infinity();
-    r.pixel = pixel;
-    r.sample = sample;
-    r.throughput[0] = 1.0f;
-    r.throughput[1] = 1.0f;
-    r.throughput[2] = 1.0f;
     // Emitters seen directly count in full, like after a specular bounce.
-    r.flags = FLAG_SPECULAR;
-    return r;
+    store_ray_half(dst, origin, f32_infinity(), direction, pixel, make_float3(1.0f, 1.0f, 1.0f), sample, 0.0f, 0,
+                   FLAG_SPECULAR, 0, 0u, 0u);
 }
 
 /// Appends a wave to the work FIFO (one thread; src/work.rs `WorkFeed::push`).
@@ -133,7 +126,7 @@ extern "C" __global__ void refill_generate(const FrameParams* __restrict__ param
     for (unsigned int k = 0; k < claims; ++k) {
         const GpuWave c = fifo->claims[k];
         if (i < c.pixel_count) {
-            paths[c.queue_offset + i] = camera_record(*params, c.first_pixel + i, c.sample);
+            write_camera_record(*params, c.first_pixel + i, c.sample, paths + c.queue_offset + i);
             return;
         }
         i -= c.pixel_count;
@@ -357,28 +350,15 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
 
     const unsigned int next_slot = warp_append(next_count, out.has_next);
     if (out.has_next) {
-        RayRecord n = r;
-        store3(n.origin, out.next_origin);
-        store3(n.direction, out.next_direction);
-        n.t_max = f32_infinity();
-        store3(n.throughput, out.next_throughput);
-        n.bsdf_pdf = out.next_pdf;
-        n.depth = out.next_depth;
-        n.flags = out.next_flags;
-        n.eta_scale = out.next_eta_scale;
-        n.light = NO_LIGHT;
-        next[next_slot] = n;
+        store_ray_half(next + next_slot, out.next_origin, f32_infinity(), out.next_direction, r.pixel,
+                       out.next_throughput, r.sample, out.next_pdf, out.next_depth, out.next_flags,
+                       out.next_eta_scale, NO_LIGHT, r.instance);
     }
     const unsigned int shadow_slot = warp_append(shadow_count, out.has_shadow);
     if (out.has_shadow) {
-        RayRecord s = r;
-        store3(s.origin, out.shadow_origin);
-        store3(s.direction, out.shadow_direction);
-        s.t_max = out.shadow_t_max;
-        store3(s.throughput, out.shadow_radiance);
-        s.flags = FLAG_SHADOW;
-        s.light = NO_LIGHT;
-        shadows[shadow_slot] = s;
+        store_ray_half(shadows + shadow_slot, out.shadow_origin, out.shadow_t_max, out.shadow_direction, r.pixel,
+                       out.shadow_radiance, r.sample, r.bsdf_pdf, r.depth, FLAG_SHADOW, r.eta_scale, NO_LIGHT,
+                       r.instance);
     }
 }
 

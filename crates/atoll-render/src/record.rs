@@ -8,6 +8,13 @@
 //!
 //! The layout is fixed (`#[repr(C)]`, 128 bytes, checked below) because the
 //! CUDA kernels mirror it in a header generated from these offsets.
+//!
+//! The record has two 64-byte halves: the ray and path state (up to and
+//! including `instance`), and the hit (from `position` on). The hit half
+//! means something only while [`flags::HIT`] is set: stages that make a new
+//! segment or a shadow ray may leave it as it was (the GPU writes only the
+//! ray half, which saves a third of shading's memory traffic), so nothing
+//! may read it from a record that closest-hit tracing has not hit.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
