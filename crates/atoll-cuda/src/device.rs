@@ -886,7 +886,7 @@ impl Device for CudaDevice {
     }
 
     fn scene_sharing(&self) -> Option<Arc<dyn atoll_render::SceneSharing>> {
-        Some(Arc::new(crate::sharing::CudaSharing::new(self.gpu.clone())))
+        Some(Arc::new(crate::sharing::CudaSharing::new(self.gpu.clone(), self.memory_budget)))
     }
 
     fn count_accesses(&mut self, on: bool) -> Result<(), DeviceError> {

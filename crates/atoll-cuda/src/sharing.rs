@@ -3,12 +3,13 @@
 //! its own plain address range (its replica, its owner's memory over
 //! NVLink, or host memory), so the kernels keep their pointers.
 //!
-//! The scene is built once, the usual way, on the first GPU (tables
-//! uploaded, BVH built there), its arrays copied to the host and freed;
-//! the window is then filled from the host copies, and each GPU gets a
-//! [`GpuScene`] and [`GpuSceneBvh`] whose arrays are views into its range.
-//! So the scene must fit one GPU to be built (placing scenes larger than
-//! any GPU needs a build that writes into the window: not done yet).
+//! The scene is built once: on the first GPU the usual way (tables
+//! uploaded, BVH built there, its arrays copied to the host and freed)
+//! where that build fits it, else on the host by the reference build,
+//! which makes the same BVH bit for bit, only slower, so a scene larger
+//! than any one GPU still renders. The window is then filled from the host
+//! copies, and each GPU gets a [`GpuScene`] and [`GpuSceneBvh`] whose
+//! arrays are views into its range.
 //! Light and material tables (the paper's small structures) stay on
 //! every GPU, outside the window, as for any frame.
 
@@ -20,11 +21,11 @@ use atoll_render::{ChunkLayout, ChunkPlacement, Device, DeviceError, FrameContex
 use atoll_scene::Scene;
 use cudarc::driver::{CudaSlice, DevicePtr};
 
-use crate::bvh::{GpuBvhStats, GpuSceneBvh};
+use crate::bvh::{reference, BuildOptions, GpuBvhStats, GpuSceneBvh, ScenePlan};
 use crate::device::CudaDevice;
 use crate::error::CudaError;
 use crate::gpu::Gpu;
-use crate::scene::{GpuScene, TableCounts};
+use crate::scene::{GpuScene, SceneTables, TableCounts};
 use crate::window::ChunkWindow;
 
 /// Tables start at multiples of this in the window (what the kernels'
@@ -205,17 +206,110 @@ struct Laid {
     meta: SceneMeta,
 }
 
+/// `v`'s bytes as a device table holds them: an empty table is one zeroed
+/// element on the device (`gpu::upload`), so it is here too.
+fn table_bytes<T: bytemuck::Pod>(v: Vec<T>) -> Vec<u8> {
+    if v.is_empty() {
+        vec![0; std::mem::size_of::<T>()]
+    } else {
+        bytemuck::cast_slice(&v).to_vec()
+    }
+}
+
+/// The scene laid out by the host: its tables and the reference build of
+/// its BVH (the GPU's build bit for bit), in [`TABLES`] order. For scenes
+/// whose build does not fit the leader; refused when it would not fit host
+/// memory either.
+fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError> {
+    let whole = ScenePart::whole(scene);
+    let counts = TableCounts::of_part(scene, &whole);
+    let options = BuildOptions::default();
+    let plan = crate::scene::part_plan(scene, &whole);
+    // The build's arrays are the GPU build's; the tables are held twice
+    // while each becomes bytes.
+    let needed = plan.scene_tables + plan.bvh + plan.scene_tables.max(plan.bvh);
+    if let Some(available) = atoll_render::device::host_memory_available() {
+        if needed > available {
+            return Err(CudaError::Usage(format!(
+                "the scene's build fits no GPU, and on the host it needs {} with {} available",
+                crate::error::fmt_bytes(needed),
+                crate::error::fmt_bytes(available)
+            )));
+        }
+    }
+    tracing::info!(
+        "building the scene's BVH on the host: its GPU build ({}) fits no GPU",
+        crate::error::fmt_bytes(plan.total())
+    );
+    let start = std::time::Instant::now();
+    let t = SceneTables::build(scene);
+    let bvh = reference::build_scene(&t, &options);
+    let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let scene_plan = ScenePlan::new(&t.objects, &t.instances);
+    let stats = GpuBvhStats {
+        wall_ms,
+        triangles: scene_plan.primitives(),
+        blases: scene_plan.segments(),
+        instances: scene_plan.valid_instances.len() as u32,
+        blas_nodes: bvh.blas_nodes.len() as u32,
+        tlas_nodes: bvh.tlas_nodes.len() as u32,
+        bytes: (std::mem::size_of_val(bvh.blas_nodes.as_slice())
+            + std::mem::size_of_val(bvh.tlas_nodes.as_slice())
+            + std::mem::size_of_val(bvh.tris.as_slice())
+            + std::mem::size_of_val(bvh.tri_ids.as_slice())
+            + std::mem::size_of_val(bvh.instances.as_slice())) as u64,
+        ..Default::default()
+    };
+    let meta = SceneMeta {
+        counts,
+        host_meshes: t.meshes.clone(),
+        host_objects: t.objects.clone(),
+        host_instances: t.instances.clone(),
+        tlas_root: bvh.tlas_root,
+        triangle_test: bvh.triangle_test,
+        blas_roots: bvh.blas_roots.clone(),
+        blas_bounds: bvh.blas_bounds.clone(),
+        tlas_bounds: bvh.tlas_bounds,
+        plan: scene_plan,
+        options,
+        stats,
+        scene_triangles: counts.triangles,
+    };
+    let SceneTables { vertices, normals, triangles, triangle_mesh, meshes, objects, instances, uvs, images, texels } =
+        t;
+    let tables = vec![
+        table_bytes(vertices),
+        table_bytes(normals),
+        table_bytes(triangles),
+        table_bytes(triangle_mesh),
+        table_bytes(meshes),
+        table_bytes(objects),
+        table_bytes(instances),
+        table_bytes(uvs),
+        table_bytes(images),
+        table_bytes(texels),
+        table_bytes(bvh.tlas_nodes),
+        table_bytes(bvh.instances),
+        table_bytes(bvh.blas_nodes),
+        table_bytes(bvh.tris),
+        table_bytes(bvh.tri_ids),
+    ];
+    Ok(Laid { scene: scene.clone(), chunk_bytes, tables, meta })
+}
+
 /// Scene sharing between CUDA GPUs through a [`ChunkWindow`].
 pub struct CudaSharing {
     /// The GPU that builds the scene.
     leader: Arc<Gpu>,
+    /// The most of the leader's memory the scene may use (`--device-memory`).
+    leader_budget: Option<u64>,
     laid: Mutex<Option<Laid>>,
     window: Mutex<Option<Arc<Mutex<ChunkWindow>>>>,
 }
 
 impl CudaSharing {
-    pub(crate) fn new(leader: Arc<Gpu>) -> Self {
-        CudaSharing { leader, laid: Mutex::new(None), window: Mutex::new(None) }
+    pub(crate) fn new(leader: Arc<Gpu>, leader_budget: Option<u64>) -> Self {
+        Self { leader, leader_budget, laid: Mutex::new(None), window: Mutex::new(None) }
     }
 }
 
@@ -249,7 +343,7 @@ impl SceneSharing for CudaSharing {
         "CUDA virtual memory"
     }
 
-    fn supports(&self, devices: &[Box<dyn Device>], scene: &Scene) -> Result<(), String> {
+    fn supports(&self, devices: &[Box<dyn Device>], _scene: &Scene) -> Result<(), String> {
         let mut gpus = Vec::with_capacity(devices.len());
         for device in devices {
             match device.as_any().downcast_ref::<CudaDevice>() {
@@ -264,15 +358,6 @@ impl SceneSharing for CudaSharing {
                 }
             }
         }
-        // The scene is built whole on the leader before it is spread.
-        let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
-        let free = self.leader.free_memory().map_err(|e| e.to_string())?;
-        if needed > free {
-            return Err(format!(
-                "building the whole scene on {} needs {needed} bytes, {free} free",
-                self.leader.label()
-            ));
-        }
         Ok(())
     }
 
@@ -285,6 +370,11 @@ impl SceneSharing for CudaSharing {
         let gpu = &self.leader;
         let build = || -> Result<Laid, CudaError> {
             let chunk_bytes = ChunkWindow::chunk_bytes_for(std::slice::from_ref(gpu), chunk_bytes)?;
+            let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
+            let room = gpu.free_memory()?.min(self.leader_budget.unwrap_or(u64::MAX));
+            if needed > room {
+                return laid_on_host(scene, chunk_bytes);
+            }
             let whole = ScenePart::whole(scene);
             let gpu_scene = GpuScene::upload_part(gpu, scene, &whole, None, 0)?;
             let bvh = GpuSceneBvh::build(gpu, &gpu_scene)?;
@@ -402,5 +492,34 @@ impl SceneSharing for CudaSharing {
             cuda(device.as_mut())?.clear_access_counts().map_err(shared_error)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::testing::random_scene;
+
+    #[test]
+    fn the_host_lays_out_the_tables_the_gpu_would_hold() {
+        // Objects without instances and empty optional tables (no normals,
+        // uvs or images) exercise the one-element placeholders.
+        let scene = Arc::new(random_scene(7, 5, 300, 40));
+        let laid = laid_on_host(&scene, 2 << 20).unwrap();
+        assert_eq!(laid.tables.len(), TABLES.len());
+        let whole = ScenePart::whole(&scene);
+        let plan = crate::scene::part_plan(&scene, &whole);
+        let scene_table_bytes: u64 = laid.tables[..10].iter().map(|t| t.len() as u64).sum();
+        assert_eq!(scene_table_bytes, plan.scene_tables, "the device byte model's table sizes");
+        let bvh_bytes: u64 = laid.tables[10..].iter().map(|t| t.len() as u64).sum();
+        assert!(bvh_bytes > 0 && bvh_bytes <= plan.bvh, "{bvh_bytes} BVH bytes against {}", plan.bvh);
+        assert_eq!(bvh_bytes, laid.meta.stats.bytes);
+        let triangles: u64 = scene.meshes.iter().map(|m| m.triangle_count() as u64).sum();
+        assert_eq!(laid.meta.stats.triangles as u64, triangles);
+        assert_eq!(laid.meta.scene_triangles, triangles);
+        // Every BLAS leaf's records and every TLAS instance are laid out.
+        assert_eq!(laid.tables[13].len(), triangles as usize * std::mem::size_of::<crate::bvh::GpuTriRecord>());
+        assert_eq!(laid.tables[14].len(), triangles as usize * 4);
+        assert_eq!(laid.meta.stats.instances as usize, laid.meta.plan.valid_instances.len());
     }
 }

@@ -300,13 +300,7 @@ fn sharing_is_faster(devices: &[Box<dyn Device>], scene: &Scene) -> bool {
     }
 }
 
-/// Host memory the OS says is available now (`None` where it does not say).
-pub fn host_memory_available() -> Option<u64> {
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
-}
+pub use atoll_render::device::host_memory_available;
 
 /// What devices listed on one piece of hardware share of it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -258,3 +258,11 @@ pub trait Device: Send {
     /// See [`Device::as_any`].
     fn as_any_mut(&mut self) -> &mut dyn Any;
 }
+
+/// Host memory the OS says is available now (`None` where it does not say).
+pub fn host_memory_available() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}

@@ -32,9 +32,7 @@ pub(crate) const LEAF_FIRST_BITS: u32 = 29;
 /// "No node" in the build tree (parent of a root, children of a spare slot).
 pub(crate) const BUILD_NONE: u32 = u32::MAX;
 /// In a build node's packed count: the SAH prefers this subtree as one leaf.
-#[cfg(any(test, feature = "testing"))]
 pub(crate) const BUILD_LEAF_BIT: u32 = 1 << 31;
-#[cfg(any(test, feature = "testing"))]
 pub(crate) const BUILD_COUNT_MASK: u32 = !BUILD_LEAF_BIT;
 
 /// Which ray/triangle test the triangle records are prepared for.
@@ -134,7 +132,6 @@ impl GpuBvhNode {
     }
 
     /// Builds a node from its children's boxes and links.
-    #[cfg(any(test, feature = "testing"))]
     pub(crate) fn new(boxes: [([f32; 3], [f32; 3]); 2], links: [i32; 2]) -> Self {
         let [(l0, l1), (r0, r1)] = boxes;
         GpuBvhNode {
@@ -161,7 +158,6 @@ impl GpuTlasInstance {
 }
 
 /// A link to a leaf of `count` (1..=4) records from `first`.
-#[cfg(any(test, feature = "testing"))]
 pub(crate) fn leaf_link(first: u32, count: u32) -> i32 {
     debug_assert!((1..=MAX_LEAF_PRIMS).contains(&count) && first < 1 << LEAF_FIRST_BITS);
     !(((first << 2) | (count - 1)) as i32)

@@ -8,22 +8,22 @@
 //! - `layout`: the traversal layout shared with `kernels/bvh.cuh`;
 //! - `lbvh`, [`sort`]: host side of the build kernels (`lbvh.cu`,
 //!   `treelet.cu`, `sort.cu`);
-//! - `reference` (tests and the `testing` feature only): the same build on
-//!   the host, bit for bit, for tests and for SAH comparisons without a GPU;
+//! - `reference`: the same build on the host, bit for bit: what tests
+//!   compare the GPU's with, what SAH comparisons without a GPU use, and
+//!   the build of a scene too large for any one GPU to build (shared scene
+//!   memory, `crate::sharing`);
 //!   `host`: the tables on the host (download, checks, SAH; a host traversal
 //!   in tests).
 
 mod host;
 pub(crate) mod layout;
 mod lbvh;
-// The host reference build and the test scenes only serve tests (this
-// crate's, and its integration tests through the `testing` feature).
-#[cfg(any(test, feature = "testing"))]
 pub mod reference;
 pub mod sort;
+// The test scenes only serve tests (this crate's, and its integration
+// tests through the `testing` feature).
 #[cfg(any(test, feature = "testing"))]
 pub mod testing;
-#[cfg(any(test, feature = "testing"))]
 mod treelet_reference;
 pub(crate) mod wide;
 
