@@ -275,8 +275,18 @@ fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError>
         stats,
         scene_triangles: counts.triangles,
     };
-    let SceneTables { vertices, normals, triangles, triangle_mesh, meshes, objects, instances, uvs, images, texels } =
-        t;
+    let SceneTables {
+        vertices,
+        normals,
+        triangles,
+        triangle_mesh,
+        meshes,
+        objects,
+        instances,
+        uvs,
+        images,
+        texels,
+    } = t;
     let tables = vec![
         table_bytes(vertices),
         table_bytes(normals),
@@ -310,6 +320,14 @@ pub struct CudaSharing {
 impl CudaSharing {
     pub(crate) fn new(leader: Arc<Gpu>, leader_budget: Option<u64>) -> Self {
         Self { leader, leader_budget, laid: Mutex::new(None), window: Mutex::new(None) }
+    }
+
+    /// Whether the whole scene's GPU build fits the leader (its free memory
+    /// and budget); if not, the host builds it.
+    fn leader_builds(&self, scene: &Scene) -> Result<bool, CudaError> {
+        let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
+        let room = self.leader.free_memory()?.min(self.leader_budget.unwrap_or(u64::MAX));
+        Ok(needed <= room)
     }
 }
 
@@ -361,6 +379,10 @@ impl SceneSharing for CudaSharing {
         Ok(())
     }
 
+    fn lays_out_slowly(&self, scene: &Scene) -> bool {
+        !self.leader_builds(scene).unwrap_or(false)
+    }
+
     fn layout(
         &self,
         scene: &Arc<Scene>,
@@ -370,9 +392,7 @@ impl SceneSharing for CudaSharing {
         let gpu = &self.leader;
         let build = || -> Result<Laid, CudaError> {
             let chunk_bytes = ChunkWindow::chunk_bytes_for(std::slice::from_ref(gpu), chunk_bytes)?;
-            let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
-            let room = gpu.free_memory()?.min(self.leader_budget.unwrap_or(u64::MAX));
-            if needed > room {
+            if !self.leader_builds(scene)? {
                 return laid_on_host(scene, chunk_bytes);
             }
             let whole = ScenePart::whole(scene);
@@ -518,7 +538,10 @@ mod tests {
         assert_eq!(laid.meta.stats.triangles as u64, triangles);
         assert_eq!(laid.meta.scene_triangles, triangles);
         // Every BLAS leaf's records and every TLAS instance are laid out.
-        assert_eq!(laid.tables[13].len(), triangles as usize * std::mem::size_of::<crate::bvh::GpuTriRecord>());
+        assert_eq!(
+            laid.tables[13].len(),
+            triangles as usize * std::mem::size_of::<crate::bvh::GpuTriRecord>()
+        );
         assert_eq!(laid.tables[14].len(), triangles as usize * 4);
         assert_eq!(laid.meta.stats.instances as usize, laid.meta.plan.valid_instances.len());
     }

@@ -292,6 +292,12 @@ fn sharing_is_faster(devices: &[Box<dyn Device>], scene: &Scene) -> bool {
         return false;
     };
     match sharing.supports(devices, scene) {
+        Ok(()) if sharing.lays_out_slowly(scene) => {
+            tracing::info!(
+                "not sharing the scene's memory: no device has room to build it, and the host builds slowly"
+            );
+            false
+        }
         Ok(()) => true,
         Err(why) => {
             tracing::info!("not sharing the scene's memory: {why}");

@@ -165,6 +165,13 @@ pub trait SceneSharing: Send + Sync {
     /// out); `Err` says why not. Placement asks before choosing it.
     fn supports(&self, devices: &[Box<dyn Device>], scene: &Scene) -> Result<(), String>;
 
+    /// Whether laying `scene` out takes the slow way (built on the host,
+    /// where no device has room to build it): `auto` then prefers a
+    /// strategy that starts sooner.
+    fn lays_out_slowly(&self, _scene: &Scene) -> bool {
+        false
+    }
+
     /// The chunked layout of `scene`'s data as this device kind stores it
     /// for `frame` (building what sizes depend on, such as the BVH, and
     /// keeping it for [`SceneSharing::prepare`]).
