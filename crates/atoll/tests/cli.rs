@@ -183,10 +183,15 @@ fn bad_arguments_exit_2() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
         assert!(!stderr(&out).contains("panicked"), "{args:?}: {}", stderr(&out));
     }
-    // A generated scene larger than the machine: refused before building (exit 1).
+    // A generated scene past what 32-bit vertex indices address: refused
+    // before anything is estimated or built.
     let out = atoll(&dir, &["info", "landscape:4294967295"]);
-    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
-    assert!(stderr(&out).contains("bytes of host memory"), "{}", stderr(&out));
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("landscape:4294967295: growth 4294967295"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("32-bit indices"), "{}", stderr(&out));
+    let out = atoll(&dir, &["gen", "landscape", "--detail", "150"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("tessellates objects"), "{}", stderr(&out));
     // A gate that cannot fail is refused.
     for limit in ["nan", "inf", "-0.1"] {
         let out = atoll(&dir, &["compare", "a.exr", "b.exr", "--max-mean-diff", limit]);
