@@ -73,11 +73,13 @@ use crate::{
 
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
-    let name = path.display().to_string();
-    let bytes = crate::input::read(path)
-        .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
-    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    load_gltf_bytes(&bytes, &name, &base)
+    crate::input::scene_load(|| {
+        let name = path.display().to_string();
+        let bytes = crate::input::read(path)
+            .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        load_gltf_bytes(&bytes, &name, &base)
+    })
 }
 
 /// Loads glTF from memory (`name` for messages; external files resolve against `base`).
@@ -86,7 +88,8 @@ pub fn load_gltf_bytes(bytes: &[u8], name: &str, base: &Path) -> Result<LoadedSc
     // We check every accessor before the gltf crate reads it (it panics on
     // some malformed files); this catch is the last line of defence so that
     // a bad file is an error, never a crash.
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| convert(bytes, name, base))) {
+    let load = || crate::input::scene_load(|| convert(bytes, name, base));
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(load)) {
         Ok(result) => result,
         Err(_) => Err(SceneError::at(&whole, "malformed glTF: the glTF reader failed on this file")),
     }

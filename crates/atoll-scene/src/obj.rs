@@ -52,15 +52,22 @@ use crate::{
 
 /// Loads an OBJ file and the MTL files it names (relative to its directory).
 pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
-    let name = path.display().to_string();
-    let whole = FileLoc::whole_file(name.as_str());
-    let bytes = crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    load_obj_bytes(&bytes, &name, &dir)
+    crate::input::scene_load(|| {
+        let name = path.display().to_string();
+        let whole = FileLoc::whole_file(name.as_str());
+        let bytes =
+            crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        load_obj_bytes(&bytes, &name, &dir)
+    })
 }
 
 /// Loads OBJ text (`name` for messages; MTL files resolve against `dir`).
 pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| obj_scene(bytes, name, dir))
+}
+
+fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneError> {
     let whole = FileLoc::whole_file(name);
     let mut w = WarningSink::default();
     let (text, lossy) = decode_text(bytes);

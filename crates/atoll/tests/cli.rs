@@ -211,6 +211,28 @@ fn bad_arguments_exit_2() {
     assert!(stderr(&out).contains("is a folder"), "{}", stderr(&out));
 }
 
+/// The scene limits are set on the command line, sizes with units.
+#[test]
+fn scene_limits_from_the_command_line() {
+    let dir = scratch("limits");
+    std::fs::write(dir.join("ball.pbrt"), "WorldBegin\nShape \"sphere\"\n").unwrap();
+    let out = atoll(&dir, &["info", "ball.pbrt", "--max-scene-bytes", "10"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("more than the 10 one scene may read"), "{}", stderr(&out));
+    let out = atoll(&dir, &["info", "ball.pbrt", "--max-generated-triangles", "100"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).starts_with("error: ball.pbrt:2:1: sphere: 3968 triangles"), "{}", stderr(&out));
+    let out =
+        atoll(&dir, &["--max-scene-bytes", "1K", "--max-generated-triangles", "4000", "info", "ball.pbrt"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    for bad in
+        [&["--max-scene-bytes", "0"][..], &["--max-scene-bytes", "12X"], &["--max-generated-triangles", "0"]]
+    {
+        let out = atoll(&dir, &[&["info", "ball.pbrt"][..], bad].concat());
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", stderr(&out));
+    }
+}
+
 /// glTF buffers outside the model's folder are refused, naming the URI,
 /// unless the user allows it.
 #[test]
