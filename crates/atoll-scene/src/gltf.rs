@@ -73,11 +73,13 @@ use crate::{
 
 /// Loads a `.gltf` or `.glb` file; external buffers resolve against its directory.
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
-    let name = path.display().to_string();
-    let bytes = crate::input::read(path)
-        .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
-    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    load_gltf_bytes(&bytes, &name, &base)
+    crate::input::scene_load(|| {
+        let name = path.display().to_string();
+        let bytes = crate::input::read(path)
+            .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        load_gltf_bytes(&bytes, &name, &base)
+    })
 }
 
 /// Loads glTF from memory (`name` for messages; external files resolve against `base`).
@@ -86,7 +88,8 @@ pub fn load_gltf_bytes(bytes: &[u8], name: &str, base: &Path) -> Result<LoadedSc
     // We check every accessor before the gltf crate reads it (it panics on
     // some malformed files); this catch is the last line of defence so that
     // a bad file is an error, never a crash.
-    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| convert(bytes, name, base))) {
+    let load = || crate::input::scene_load(|| convert(bytes, name, base));
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(load)) {
         Ok(result) => result,
         Err(_) => Err(SceneError::at(&whole, "malformed glTF: the glTF reader failed on this file")),
     }
@@ -118,7 +121,14 @@ struct Loader<'a> {
 /// Parses, reads the buffers, converts.
 fn convert(bytes: &[u8], name: &str, base: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(name);
-    let gltf = ::gltf::Gltf::from_slice(bytes).map_err(|e| parse_error(e, bytes, name))?;
+    // The gltf crate trusts a few things it does not check (and panics on
+    // them): those are checked here, before and after parsing.
+    check_glb_length(bytes).map_err(|m| SceneError::at(&loc, m))?;
+    let raw = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| parse_error(e, bytes, name))?;
+    let json = raw.document.into_json();
+    check_unvalidated(&json).map_err(|m| SceneError::at(&loc, m))?;
+    let document = ::gltf::Document::from_json(json).map_err(|e| parse_error(e, bytes, name))?;
+    let gltf = ::gltf::Gltf { document, blob: raw.blob };
     let buffers = read_buffers(&gltf.document, gltf.blob.clone(), base, &loc)?;
     let mut loader = Loader {
         doc: &gltf.document,
@@ -799,6 +809,44 @@ fn check_accessor(
 }
 
 /// Reads every buffer: the GLB's binary chunk, data URIs, external files.
+/// Refuses a GLB whose header gives a total length shorter than the header
+/// itself (the gltf crate subtracts without checking).
+fn check_glb_length(bytes: &[u8]) -> Result<(), String> {
+    let Some(length) = bytes.strip_prefix(b"glTF").and_then(|h| h.get(4..8)) else { return Ok(()) };
+    let length = u32::from_le_bytes(length.try_into().expect("four bytes"));
+    if length < 12 {
+        return Err(format!("bad GLB header: a total length of {length} bytes is shorter than the header"));
+    }
+    Ok(())
+}
+
+/// What the gltf crate's validation and accessors index or unwrap without
+/// checking, checked on the parsed JSON before validation: every POSITION
+/// accessor exists, and every image has a `uri` or a `bufferView` with a
+/// `mimeType` (as the glTF spec requires).
+fn check_unvalidated(json: &::gltf::json::Root) -> Result<(), String> {
+    let n = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position = prim.attributes.get(&Checked::Valid(::gltf::json::mesh::Semantic::Positions));
+            if let Some(i) = position.map(|i| i.value()).filter(|&i| i >= n) {
+                return Err(format!(
+                    "invalid glTF: meshes[{m}].primitives[{p}]: POSITION accessor {i} does not exist ({n} accessors)"
+                ));
+            }
+        }
+    }
+    for (i, image) in json.images.iter().enumerate() {
+        let why = match (&image.uri, &image.buffer_view, &image.mime_type) {
+            (None, None, _) => "has neither a uri nor a bufferView",
+            (_, Some(_), None) => "has a bufferView but no mimeType",
+            _ => continue,
+        };
+        return Err(format!("invalid glTF: images[{i}] {why}"));
+    }
+    Ok(())
+}
+
 fn read_buffers(
     doc: &::gltf::Document,
     mut blob: Option<Vec<u8>>,

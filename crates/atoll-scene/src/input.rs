@@ -1,13 +1,22 @@
 //! Reading the files a scene names, as untrusted input: only regular files
 //! (a device such as `/dev/zero`, a pipe or a folder is refused by its type,
-//! never read), at most [`MAX_FILE_BYTES`] each, and gzip data inflated to
-//! at most [`MAX_INFLATION`] times its size; the files a scene file names
-//! are confined to its folder ([`beside`]) unless the user allows more
-//! ([`allow_outside_paths`]). Loaders read through here.
+//! never read), at most [`MAX_FILE_BYTES`] each and [`max_scene_bytes`] for
+//! all the files of one scene together, and gzip data inflated to at most
+//! [`MAX_INFLATION`] times its size; the files a scene file names are
+//! confined to its folder ([`beside`]), symbolic links included, unless the
+//! user allows more ([`allow_outside_paths`]). Shapes that loaders generate
+//! (subdivision surfaces, tessellated patches) draw on a budget of
+//! [`max_generated_triangles`] for one scene. Loaders read through here.
+//!
+//! Both budgets belong to one scene load ([`LoadBudget`]): the loaders'
+//! entry points run in [`scene_load`], and everything read or generated on
+//! that thread until it returns counts against the same budget.
 
+use std::cell::RefCell;
 use std::io::{self, Read};
 use std::path::{Component, Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 
 /// Whether files a scene names may lie outside its folder.
 static OUTSIDE_PATHS: AtomicBool = AtomicBool::new(false);
@@ -20,8 +29,8 @@ pub fn allow_outside_paths(allow: bool) {
 
 /// The file `name` that a scene file in folder `base` names: `base/name`,
 /// refused (unless [`allow_outside_paths`]) when `name` is absolute, a
-/// `file:` URI, or climbs out of `base` with `..` (checked on the names,
-/// not by following links).
+/// `file:` URI, climbs out of `base` with `..`, or leads out of it through
+/// a symbolic link (a file or a folder inside `base` that links outside).
 pub fn beside(base: &Path, name: &str) -> io::Result<PathBuf> {
     if OUTSIDE_PATHS.load(Ordering::Relaxed) {
         return Ok(base.join(name.strip_prefix("file://").unwrap_or(name)));
@@ -45,7 +54,15 @@ pub fn beside(base: &Path, name: &str) -> io::Result<PathBuf> {
             Component::Normal(_) => depth += 1,
         }
     }
-    Ok(base.join(name))
+    let path = base.join(name);
+    // Where links lead is only known on the disk: a name that does not
+    // resolve (a missing file) reads nothing, and fails when it is read.
+    if let (Ok(real), Ok(real_base)) = (path.canonicalize(), base.canonicalize()) {
+        if !real.starts_with(&real_base) {
+            return Err(refuse(&format!("leads to '{}' through a symbolic link", real.display())));
+        }
+    }
+    Ok(path)
 }
 
 /// Most bytes one scene file may have (a Moana island mesh file is well
@@ -56,8 +73,160 @@ pub const MAX_FILE_BYTES: u64 = 64 << 30;
 /// meshes inflate some 3–10×; gzip bombs by a thousand and more.
 pub const MAX_INFLATION: u64 = 100;
 
+/// Default of [`max_scene_bytes`]: 256 GiB. The budget is there to stop a
+/// scene that reads without end (an `Include` or mesh file named again and
+/// again), not to judge memory (a mesh file's bytes are dropped once
+/// parsed), so it sits far above real scenes: the largest public
+/// production scene, Disney's Moana island, is some 50 GiB of pbrt files;
+/// four times the per-file cap.
+pub const DEFAULT_MAX_SCENE_BYTES: u64 = 256 << 30;
+
+/// Default of [`max_generated_triangles`]: 2^28 (268 million). Generating
+/// takes far more memory per triangle than storing one (subdivision keeps
+/// every edge's neighbours), some 160 bytes, so this is about 40 GiB at the
+/// peak; `loopsubdiv` level 6 of a 20,000-triangle control mesh (82 million
+/// triangles) fits, level 7 (328 million) does not.
+pub const DEFAULT_MAX_GENERATED_TRIANGLES: u64 = 1 << 28;
+
+static MAX_SCENE_BYTES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_SCENE_BYTES);
+static MAX_GENERATED_TRIANGLES: AtomicU64 = AtomicU64::new(DEFAULT_MAX_GENERATED_TRIANGLES);
+
+/// Sets how many bytes all the files of one scene may have together
+/// (`--max-scene-bytes`); loads that start later use it.
+pub fn set_max_scene_bytes(bytes: u64) {
+    MAX_SCENE_BYTES.store(bytes, Ordering::Relaxed);
+}
+
+/// How many bytes all the files of one scene may have together.
+pub fn max_scene_bytes() -> u64 {
+    MAX_SCENE_BYTES.load(Ordering::Relaxed)
+}
+
+/// Sets how many triangles the shapes of one scene may generate
+/// (`--max-generated-triangles`); loads that start later use it.
+pub fn set_max_generated_triangles(triangles: u64) {
+    MAX_GENERATED_TRIANGLES.store(triangles, Ordering::Relaxed);
+}
+
+/// How many triangles the shapes of one scene may generate (subdivision,
+/// tessellation); triangles read from files are bounded by the bytes.
+pub fn max_generated_triangles() -> u64 {
+    MAX_GENERATED_TRIANGLES.load(Ordering::Relaxed)
+}
+
+/// What one scene load may still read and generate. Shared (an `Arc` of
+/// atomics) so that threads loading parts of one scene draw on one budget:
+/// give a worker the loader's [`current_budget`] through [`with_budget`].
+#[derive(Debug)]
+pub struct LoadBudget {
+    max_bytes: u64,
+    bytes: AtomicU64,
+    max_triangles: u64,
+    triangles: AtomicU64,
+}
+
+impl LoadBudget {
+    /// A budget of `max_bytes` bytes read and `max_triangles` generated.
+    pub fn new(max_bytes: u64, max_triangles: u64) -> Self {
+        LoadBudget { max_bytes, bytes: AtomicU64::new(0), max_triangles, triangles: AtomicU64::new(0) }
+    }
+
+    /// A budget with the limits set now ([`max_scene_bytes`],
+    /// [`max_generated_triangles`]).
+    pub fn from_settings() -> Self {
+        LoadBudget::new(max_scene_bytes(), max_generated_triangles())
+    }
+
+    /// Bytes read so far.
+    pub fn bytes(&self) -> u64 {
+        self.bytes.load(Ordering::Relaxed)
+    }
+
+    /// Triangles generated so far.
+    pub fn triangles(&self) -> u64 {
+        self.triangles.load(Ordering::Relaxed)
+    }
+
+    /// Adds `n` to `used`, refusing (and leaving it as it was) when the
+    /// sum would pass `max`; returns the sum it refused.
+    fn draw(used: &AtomicU64, n: u64, max: u64) -> Result<(), u64> {
+        used.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |u| u.checked_add(n).filter(|&t| t <= max))
+            .map(drop)
+            .map_err(|u| u.saturating_add(n))
+    }
+
+    /// Counts a file of `n` bytes; refused past the scene's byte budget.
+    pub fn read_bytes(&self, n: u64) -> io::Result<()> {
+        Self::draw(&self.bytes, n, self.max_bytes).map_err(|total| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "its {n} bytes would bring the scene's files to {total} bytes, more than the {} one scene may read (--max-scene-bytes)",
+                    self.max_bytes
+                ),
+            )
+        })
+    }
+
+    /// Counts `n` generated triangles; refused past the scene's budget,
+    /// with a message saying so (the caller says where and what).
+    pub fn generate_triangles(&self, n: u64) -> Result<(), String> {
+        Self::draw(&self.triangles, n, self.max_triangles).map_err(|total| {
+            format!(
+                "{n} triangles would bring the triangles generated for the scene to {total}, more than the {} allowed (--max-generated-triangles)",
+                self.max_triangles
+            )
+        })
+    }
+}
+
+thread_local! {
+    /// The budget of the scene load under way on this thread.
+    static CURRENT: RefCell<Option<Arc<LoadBudget>>> = const { RefCell::new(None) };
+}
+
+/// The budget of the scene load under way on this thread, if any.
+pub fn current_budget() -> Option<Arc<LoadBudget>> {
+    CURRENT.with(|c| c.borrow().clone())
+}
+
+/// Runs `f` with `budget` as this thread's scene budget (restored after,
+/// even if `f` panics).
+pub fn with_budget<T>(budget: Arc<LoadBudget>, f: impl FnOnce() -> T) -> T {
+    struct Restore(Option<Arc<LoadBudget>>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            CURRENT.with(|c| *c.borrow_mut() = self.0.take());
+        }
+    }
+    let _restore = Restore(CURRENT.with(|c| c.borrow_mut().replace(budget)));
+    f()
+}
+
+/// Runs the scene load `load` with a budget: the one already under way on
+/// this thread (a loader calling another), else a fresh one from the
+/// settings. Every loader's entry point runs in it.
+pub fn scene_load<T>(load: impl FnOnce() -> T) -> T {
+    match current_budget() {
+        Some(_) => load(),
+        None => with_budget(Arc::new(LoadBudget::from_settings()), load),
+    }
+}
+
+/// Runs `f` on the current scene's budget, or outside any load (a file
+/// read on its own) on a fresh one with the settings' limits.
+pub fn on_budget<T>(f: impl FnOnce(&LoadBudget) -> T) -> T {
+    match current_budget() {
+        Some(b) => f(&b),
+        None => f(&LoadBudget::from_settings()),
+    }
+}
+
 /// Refuses what is not a regular file of at most [`MAX_FILE_BYTES`]
-/// (symbolic links are followed to what they name); returns its length.
+/// (symbolic links are followed to what they name), or one that would take
+/// the scene past its byte budget, and counts it there; returns its length.
+/// Call it once per file read (other readers, such as image decoders, read
+/// the file after it).
 pub fn check_regular(path: &Path) -> io::Result<u64> {
     let meta = std::fs::metadata(path)?;
     if !meta.is_file() {
@@ -70,6 +239,7 @@ pub fn check_regular(path: &Path) -> io::Result<u64> {
             format!("has {} bytes, more than the {MAX_FILE_BYTES} a scene file may have", meta.len()),
         ));
     }
+    on_budget(|b| b.read_bytes(meta.len()))?;
     Ok(meta.len())
 }
 

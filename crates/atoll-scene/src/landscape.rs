@@ -45,6 +45,12 @@ const TERRAIN_QUADS: f32 = 128.0;
 /// about 920 triangles, that makes growth 1 one million instanced triangles.
 const INSTANCES_PER_GROWTH: f64 = 1055.0;
 
+/// Most terrain quads along a side: the terrain's `(quads + 1)²` vertices
+/// are addressed with 32 bits.
+const MAX_TERRAIN_QUADS: u32 = 65_534;
+/// Most object tessellation factor (objects of some 100,000 triangles).
+const MAX_TESSELLATION: f32 = 100.0;
+
 /// What one object kind is made of and how it is placed.
 struct Kind {
     name: &'static str,
@@ -145,6 +151,38 @@ impl Landscape {
 
     fn growth(&self) -> u32 {
         self.growth.max(1)
+    }
+
+    /// Refuses a landscape whose sizes would not fit the scene model:
+    /// detail that is not positive, a terrain whose vertices 32-bit indices
+    /// cannot address, objects tessellated past [`MAX_TESSELLATION`].
+    /// [`Landscape::estimate`] and [`Landscape::build`] expect a landscape
+    /// that passes.
+    pub fn check(&self) -> Result<(), String> {
+        let (growth, detail) = (self.growth(), self.detail);
+        if !(detail > 0.0 && detail.is_finite()) {
+            return Err(format!("detail {detail} must be a positive number"));
+        }
+        let quads = self.terrain_quads();
+        if quads > MAX_TERRAIN_QUADS as f32 {
+            return Err(format!(
+                "growth {growth} at detail {detail} makes a terrain of {quads}² quads, more than the \
+                 {MAX_TERRAIN_QUADS}² whose vertices 32-bit indices can address"
+            ));
+        }
+        let t = self.tessellation(growth);
+        if t > MAX_TESSELLATION {
+            return Err(format!(
+                "growth {growth} at detail {detail} tessellates objects {t} times finer than growth 1, \
+                 more than the {MAX_TESSELLATION} allowed"
+            ));
+        }
+        Ok(())
+    }
+
+    /// Terrain quads along a side (before the minimum of 2).
+    fn terrain_quads(&self) -> f32 {
+        (TERRAIN_QUADS * (self.growth() as f32 * self.detail).sqrt()).round()
     }
 
     /// Object tessellation factor at this growth (triangles per object ∝ it).
@@ -394,7 +432,7 @@ struct Terrain {
 
 impl Terrain {
     fn new(l: &Landscape) -> Self {
-        let quads = ((TERRAIN_QUADS * (l.growth() as f32 * l.detail).sqrt()).round() as u32).max(2);
+        let quads = (l.terrain_quads() as u32).max(2);
         let half = l.half_size();
         Terrain { half, quads, step: 2.0 * half / quads as f32, seed: hash(l.seed ^ 0x7e44a1) }
     }

@@ -32,6 +32,10 @@ pub const SUPPORTED_EXTENSIONS: &str = ".pbrt, .pbrt.gz, .obj, .gltf, .glb, .ply
 /// Loads a scene file of any supported format (see the module docs), chosen
 /// by its extension (case-insensitive).
 pub fn load_any(path: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| load_by_extension(path))
+}
+
+fn load_by_extension(path: &Path) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
     let lower = path.file_name().map(|f| f.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let has = |ext: &str| lower.ends_with(ext);
@@ -56,6 +60,10 @@ pub fn load_any(path: &Path) -> Result<LoadedScene, SceneError> {
 /// Loads a standalone PLY mesh (`atoll render model.ply`): one mesh with the
 /// default diffuse material, framed by [`crate::framing`].
 pub fn load_ply(path: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| load_ply_file(path))
+}
+
+fn load_ply_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(path.display().to_string());
     let m = crate::ply::read_ply(path).map_err(|e| match e {
         crate::ply::PlyError::Io { source, .. } => SceneError::at(&loc, format!("cannot read: {source}")),
@@ -79,6 +87,10 @@ pub fn load_ply(path: &Path) -> Result<LoadedScene, SceneError> {
 /// Loads a standalone OFF mesh (Geomview's Object File Format, used by CGAL's
 /// data sets): one mesh with the default diffuse material, framed.
 pub fn load_off(path: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| load_off_file(path))
+}
+
+fn load_off_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(path.display().to_string());
     let bytes = crate::input::read(path).map_err(|e| SceneError::at(&loc, format!("cannot read: {e}")))?;
     let m = crate::off::parse_off(&bytes).map_err(|e| SceneError::at(&e.loc(&loc.file), e.message))?;

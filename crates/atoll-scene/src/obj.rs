@@ -52,15 +52,22 @@ use crate::{
 
 /// Loads an OBJ file and the MTL files it names (relative to its directory).
 pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
-    let name = path.display().to_string();
-    let whole = FileLoc::whole_file(name.as_str());
-    let bytes = crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
-    let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    load_obj_bytes(&bytes, &name, &dir)
+    crate::input::scene_load(|| {
+        let name = path.display().to_string();
+        let whole = FileLoc::whole_file(name.as_str());
+        let bytes =
+            crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        load_obj_bytes(&bytes, &name, &dir)
+    })
 }
 
 /// Loads OBJ text (`name` for messages; MTL files resolve against `dir`).
 pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| obj_scene(bytes, name, dir))
+}
+
+fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneError> {
     let whole = FileLoc::whole_file(name);
     let mut w = WarningSink::default();
     let (text, lossy) = decode_text(bytes);
@@ -77,7 +84,7 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
         let read =
             crate::input::beside(dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
         let result = match read {
-            Ok(b) => tobj::load_mtl_buf(&mut decode_text(&b).0.as_bytes()),
+            Ok(b) => mtl_for_tobj(&decode_text(&b).0).and_then(|t| tobj::load_mtl_buf(&mut t.as_bytes())),
             Err(_) => Err(tobj::LoadError::OpenFileFailed),
         };
         libs.borrow_mut().push((mtl.display().to_string(), result.as_ref().err().copied()));
@@ -85,6 +92,11 @@ pub fn load_obj_bytes(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScen
     };
     let options =
         tobj::LoadOptions { single_index: true, triangulate: true, ignore_points: true, ignore_lines: true };
+    // tobj's index arithmetic overflows on far out-of-range `vt` and `vn`
+    // indices (a panic, or wrapped into the wrong vertex): refused first.
+    if let Some((line, msg)) = find_bad_index(text.as_bytes()) {
+        return Err(SceneError::at(&FileLoc::new(name, line, 1), msg));
+    }
     let mut reader = LineCounter { data: text.as_bytes(), pos: 0, newlines: 0 };
     let (models, materials) = match tobj::load_obj_buf(&mut reader, &options, loader) {
         Ok(r) => r,
@@ -181,6 +193,34 @@ fn decode_text(bytes: &[u8]) -> (std::borrow::Cow<'_, str>, bool) {
             (text, lossy)
         }
     }
+}
+
+/// MTL text as tobj reads it. The MTL spec lets a colour statement (`Ka`,
+/// `Kd`, `Ks`, `Ke`) give one value for all three channels; tobj takes
+/// exactly three and panics on fewer, so one value is written out three
+/// times, and none or two (a malformed line) is a parse error.
+fn mtl_for_tobj(text: &str) -> Result<std::borrow::Cow<'_, str>, tobj::LoadError> {
+    fn colour(line: &str) -> Option<(&str, Vec<&str>)> {
+        let mut words = line.split_whitespace();
+        let keyword = words.next().filter(|k| matches!(*k, "Ka" | "Kd" | "Ks" | "Ke"))?;
+        Some((keyword, words.collect()))
+    }
+    let mut lines = text.lines().map(colour);
+    if lines.all(|c| c.is_none_or(|(_, values)| values.len() >= 3)) {
+        return Ok(std::borrow::Cow::Borrowed(text));
+    }
+    let mut out = String::with_capacity(text.len() + 64);
+    for line in text.lines() {
+        match colour(line) {
+            Some((keyword, values)) if values.len() < 3 => {
+                let [v] = values[..] else { return Err(tobj::LoadError::MaterialParseError) };
+                out.push_str(&format!("{keyword} {v} {v} {v}"));
+            }
+            _ => out.push_str(line),
+        }
+        out.push('\n');
+    }
+    Ok(std::borrow::Cow::Owned(out))
 }
 
 /// Adds the atoll material for an MTL material with its textures; returns

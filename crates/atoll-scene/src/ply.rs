@@ -306,7 +306,10 @@ fn read_body(header: &Header, src: &mut dyn Values, body_len: usize) -> Result<P
         if is_face && index_prop.is_none() {
             return invalid("element 'face' has no list property 'vertex_indices'");
         }
-        for i in 0..e.count {
+        // Rows of an element without properties hold nothing: a count of
+        // billions would only spin here.
+        let rows = if e.props.is_empty() { 0 } else { e.count };
+        for i in 0..rows {
             let at = |m: &dyn std::fmt::Display| {
                 PlyError::Invalid(format!("element '{}' {i} of {}: {m}", e.name, e.count))
             };
@@ -324,6 +327,10 @@ fn read_body(header: &Header, src: &mut dyn Values, body_len: usize) -> Result<P
                         for _ in 0..n as usize {
                             let v = src.next(item).map_err(|err| at(&err))?;
                             if keep {
+                                // A fraction (or NaN) would be cut to some other vertex.
+                                if v.fract() != 0.0 {
+                                    return Err(at(&format_args!("vertex index {v} is not an integer")));
+                                }
                                 face_items.push(v as i64);
                             }
                         }
@@ -444,6 +451,20 @@ mod tests {
             .contains("end_header"));
         let e = read_ply(Path::new("/nonexistent/x.ply")).unwrap_err();
         assert!(matches!(e, PlyError::Io { .. }));
+    }
+
+    #[test]
+    fn elements_without_properties_and_fractional_indices() {
+        // Nothing to read per row: an enormous count must not spin.
+        let header = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n\
+                      property float z\nelement nothing 18446744073709551615\nelement face 1\n\
+                      property list uchar float vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n";
+        let m = parse_ply(format!("{header}3 0 1 2\n").as_bytes()).unwrap();
+        assert_eq!(m.indices, vec![[0, 1, 2]]);
+        for bad in ["3 0 1 1.5\n", "3 0 nan 2\n"] {
+            let e = parse_ply(format!("{header}{bad}").as_bytes()).unwrap_err().to_string();
+            assert!(e.contains("is not an integer") && e.contains("'face' 0"), "{e}");
+        }
     }
 
     #[test]

@@ -232,3 +232,22 @@ fn the_camera_looks_across_the_land_under_sun_and_sky() {
         other => panic!("expected sun and sky, got {other:?}"),
     }
 }
+
+/// Sizes that would wrap the terrain's 32-bit vertex indices or tessellate
+/// objects without end are refused before anything is made or estimated.
+#[test]
+fn sizes_past_the_scene_model_are_refused() {
+    assert_eq!(Landscape::new(1000).check(), Ok(()));
+    assert_eq!(landscape(262_000, 0, 1.0).check(), Ok(()));
+    for (l, why) in [
+        (Landscape::new(u32::MAX), "32-bit indices"),
+        (landscape(262_200, 0, 1.0), "32-bit indices"),
+        (landscape(1, 0, 150.0), "tessellates objects"),
+        (landscape(1, 0, f32::NAN), "positive number"),
+        (landscape(1, 0, 0.0), "positive number"),
+        (landscape(1, 0, f32::INFINITY), "positive number"),
+    ] {
+        let e = l.check().unwrap_err();
+        assert!(e.contains(why), "{l:?}: {e}");
+    }
+}

@@ -95,6 +95,27 @@ fn obj_without_its_mtl_warns_and_uses_the_default() {
     assert_eq!(loaded.scene.lights, atoll_scene::framing::default_lights());
 }
 
+/// The MTL spec lets colours give one value for all channels; tobj panicked
+/// on fewer than three (found by the property tests).
+#[test]
+fn mtl_colours_with_one_value_or_none() {
+    let dir = temp_dir("mtl-short");
+    write(&dir, "scene.mtl", "newmtl red\nKd 0.25\n");
+    let loaded = load_any(&write(
+        &dir,
+        "scene.obj",
+        "mtllib scene.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl red\nf 1 2 3\n",
+    ))
+    .unwrap();
+    assert_eq!(loaded.scene.materials, [Material::Diffuse { reflectance: Rgb::splat(0.25) }]);
+    for bad in ["Kd", "Kd 0.25 0.5"] {
+        write(&dir, "scene.mtl", format!("newmtl red\n{bad}\n"));
+        let loaded = load_any(&dir.join("scene.obj")).unwrap();
+        let w = loaded.warnings.iter().map(ToString::to_string).collect::<Vec<_>>().join("\n");
+        assert!(w.contains("material library 'scene.mtl'"), "{bad}: {w}");
+    }
+}
+
 #[test]
 fn bad_obj_files_are_errors_with_lines() {
     let dir = temp_dir("obj-bad");
@@ -386,6 +407,41 @@ fn broken_gltf_files_are_errors() {
     j["nodes"][1]["children"] = json!([0]);
     let e = load_any(&write(&dir, "cycle.gltf", j.to_string())).unwrap_err();
     assert!(e.message.contains("cycle"), "{e}");
+}
+
+/// Files the gltf crate panicked on (found by the property tests): refused
+/// with what is wrong, not with "the glTF reader failed".
+#[test]
+fn gltf_files_the_gltf_crate_trusts_are_checked() {
+    let dir = temp_dir("gltf-trusted");
+    write(&dir, "scene.bin", gltf_bin());
+    let mut short = glb(&gltf_json(None), &gltf_bin());
+    short[8..12].copy_from_slice(&0u32.to_le_bytes());
+    let e = load_any(&write(&dir, "short.glb", &short)).unwrap_err();
+    assert!(e.message.contains("bad GLB header: a total length of 0 bytes"), "{e}");
+    let cases = [
+        ("/meshes/0/primitives/0/attributes/POSITION", json!(99), "POSITION accessor 99 does not exist"),
+        ("/images/0", json!({"name": "no source"}), "images[0] has neither a uri nor a bufferView"),
+        ("/images/0", json!({"bufferView": 0}), "images[0] has a bufferView but no mimeType"),
+    ];
+    for (pointer, value, expected) in cases {
+        let mut j = gltf_json(Some("scene.bin".into()));
+        *j.pointer_mut(pointer).unwrap() = value;
+        let e = load_any(&write(&dir, "bad.gltf", j.to_string())).unwrap_err();
+        assert!(e.message.contains(expected), "{pointer}: {e}");
+    }
+}
+
+/// tobj's index arithmetic overflowed on far out-of-range uv and normal
+/// indices (found by the property tests).
+#[test]
+fn obj_indices_far_out_of_range_are_errors() {
+    let dir = temp_dir("obj-far");
+    for (face, kind) in [("1/-2147483648/1", "texture coordinate"), ("1/1/9223372036854775807", "normal")] {
+        let obj = format!("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nf {face} 2/1/1 3/1/1\n");
+        let e = load_any(&write(&dir, "far.obj", obj)).unwrap_err();
+        assert_eq!((e.line, e.message.contains(kind)), (6, true), "{e}");
+    }
 }
 
 #[test]

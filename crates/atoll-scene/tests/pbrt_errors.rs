@@ -177,3 +177,30 @@ fn truncation_never_panics() {
         }
     }
 }
+
+/// Negative colours, spectra and light scales are refused where they are
+/// written (pbrt-v4 refuses negative RGB values; a negative scale would
+/// make a light subtract from the image).
+#[test]
+fn negative_colours_and_light_scales() {
+    let cases = [
+        ("Material \"diffuse\" \"rgb reflectance\" [ -1 0 0 ]", "\"rgb reflectance\": negative value -1"),
+        ("Material \"diffuse\" \"float reflectance\" -0.5", "\"float reflectance\": negative value -0.5"),
+        ("Material \"coateddiffuse\" \"rgb albedo\" [ 0.5 -0.1 0.5 ]", "\"rgb albedo\": negative value -0.1"),
+        ("Material \"conductor\" \"spectrum k\" [ 400 1 700 -2 ]", "\"spectrum k\": negative value -2"),
+        ("Material \"dielectric\" \"float eta\" -1.5", "\"float eta\": negative value -1.5"),
+        ("MakeNamedMaterial \"m\" \"string type\" \"matte\" \"color Kd\" [ 0 0 -1 ]", "negative value -1"),
+        ("LightSource \"point\" \"float scale\" -1", "light \"point\": negative \"scale\" -1"),
+        ("LightSource \"distant\" \"float scale\" -2", "light \"distant\": negative \"scale\" -2"),
+        ("LightSource \"infinite\" \"rgb L\" [ 1 1 1 ] \"float scale\" -1", "negative \"scale\""),
+        ("LightSource \"spot\" \"blackbody I\" [ 5500 -1 ]", "\"blackbody I\": negative value -1"),
+        ("AreaLightSource \"diffuse\" \"float scale\" -3", "area light \"diffuse\": negative \"scale\" -3"),
+    ];
+    for (i, (statement, expected)) in cases.into_iter().enumerate() {
+        let e = error_at(&format!("negative{i}"), &format!("{OPTIONS}\n{statement}\n"), 4);
+        assert!(e.contains(expected), "{statement}: {e}");
+    }
+    // Zero is no light and black, not an error.
+    let ok = "LightSource \"point\" \"float scale\" 0\nMaterial \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]";
+    load_str(&format!("{OPTIONS}{ok}\n"), "zero", Path::new(".")).unwrap();
+}

@@ -61,6 +61,7 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
         return Err(CliError::Input(format!("--detail must be positive, not {}", args.detail)));
     }
     let landscape = Landscape { growth: args.growth, seed: args.seed, detail: args.detail };
+    landscape.check().map_err(CliError::Input)?;
     let e: LandscapeEstimate = landscape.estimate();
     println!("landscape          growth {}, seed {}, detail {}", args.growth, args.seed, args.detail);
     println!("objects            {} ({} meshes)", e.objects, e.meshes);

@@ -20,6 +20,7 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
     };
     if let Some(landscape) = path.to_str().and_then(parse_landscape) {
         let landscape = landscape?;
+        landscape.check().map_err(|m| CliError::Input(format!("{}: {m}", path.display())))?;
         check_fits_host(path, landscape.estimate().bytes)?;
         return Ok(landscape.build());
     }

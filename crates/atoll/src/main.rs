@@ -26,6 +26,14 @@ struct Cli {
     /// paths, `..`, `file://` URIs): for scenes from trusted sources only.
     #[arg(long, global = true)]
     allow_outside_paths: bool,
+    /// Most bytes all the files of one scene may have together, e.g. 512G
+    /// (default 256G): stops scenes that read without end.
+    #[arg(long, global = true, value_parser = device::parse_size, value_name = "SIZE")]
+    max_scene_bytes: Option<u64>,
+    /// Most triangles the shapes of one scene may generate: subdivision
+    /// surfaces, tessellated spheres and patches (default 268435456).
+    #[arg(long, global = true, value_parser = clap::value_parser!(u64).range(1..), value_name = "COUNT")]
+    max_generated_triangles: Option<u64>,
 }
 
 #[derive(Subcommand)]
@@ -68,6 +76,12 @@ fn main() -> ExitCode {
         .init();
     let cli = Cli::parse();
     atoll_scene::input::allow_outside_paths(cli.allow_outside_paths);
+    if let Some(bytes) = cli.max_scene_bytes {
+        atoll_scene::input::set_max_scene_bytes(bytes);
+    }
+    if let Some(triangles) = cli.max_generated_triangles {
+        atoll_scene::input::set_max_generated_triangles(triangles);
+    }
     let result = match cli.command {
         Some(Command::Render(args)) => render::run(*args),
         Some(Command::Info(args)) => info::run(args),

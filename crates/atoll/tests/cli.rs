@@ -183,10 +183,15 @@ fn bad_arguments_exit_2() {
         assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
         assert!(!stderr(&out).contains("panicked"), "{args:?}: {}", stderr(&out));
     }
-    // A generated scene larger than the machine: refused before building (exit 1).
+    // A generated scene past what 32-bit vertex indices address: refused
+    // before anything is estimated or built.
     let out = atoll(&dir, &["info", "landscape:4294967295"]);
-    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
-    assert!(stderr(&out).contains("bytes of host memory"), "{}", stderr(&out));
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("landscape:4294967295: growth 4294967295"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("32-bit indices"), "{}", stderr(&out));
+    let out = atoll(&dir, &["gen", "landscape", "--detail", "150"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("tessellates objects"), "{}", stderr(&out));
     // A gate that cannot fail is refused.
     for limit in ["nan", "inf", "-0.1"] {
         let out = atoll(&dir, &["compare", "a.exr", "b.exr", "--max-mean-diff", limit]);
@@ -204,6 +209,28 @@ fn bad_arguments_exit_2() {
     let out = atoll(&dir, &["render", "-o", "folder.png"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("is a folder"), "{}", stderr(&out));
+}
+
+/// The scene limits are set on the command line, sizes with units.
+#[test]
+fn scene_limits_from_the_command_line() {
+    let dir = scratch("limits");
+    std::fs::write(dir.join("ball.pbrt"), "WorldBegin\nShape \"sphere\"\n").unwrap();
+    let out = atoll(&dir, &["info", "ball.pbrt", "--max-scene-bytes", "10"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("more than the 10 one scene may read"), "{}", stderr(&out));
+    let out = atoll(&dir, &["info", "ball.pbrt", "--max-generated-triangles", "100"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).starts_with("error: ball.pbrt:2:1: sphere: 3968 triangles"), "{}", stderr(&out));
+    let out =
+        atoll(&dir, &["--max-scene-bytes", "1K", "--max-generated-triangles", "4000", "info", "ball.pbrt"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr(&out));
+    for bad in
+        [&["--max-scene-bytes", "0"][..], &["--max-scene-bytes", "12X"], &["--max-generated-triangles", "0"]]
+    {
+        let out = atoll(&dir, &[&["info", "ball.pbrt"][..], bad].concat());
+        assert_eq!(out.status.code(), Some(2), "{bad:?}: {}", stderr(&out));
+    }
 }
 
 /// glTF buffers outside the model's folder are refused, naming the URI,

@@ -333,6 +333,16 @@ fn light_rgb_unchecked(sp: SpectrumParam, what: &str, loc: &FileLoc, w: &mut War
     }
 }
 
+/// A light's `scale`: refused when negative, as negative radiance is.
+fn light_scale(p: &ParamList, what: &str, loc: &FileLoc) -> Result<f32, SceneError> {
+    let scale = p.float_or("scale", 1.0)?;
+    if scale < 0.0 {
+        let at = p.find("scale", &[ParamType::Float]).map_or(loc, |q| &q.loc);
+        return Err(SceneError::at(at, format!("{what}: negative \"scale\" {scale}")));
+    }
+    Ok(scale)
+}
+
 /// `AreaLightSource "diffuse"`; `None` (after a warning) for other types.
 pub fn area_light(
     ty: &str,
@@ -348,7 +358,7 @@ pub fn area_light(
     let what = "area light \"diffuse\"";
     p.find("nsamples", &[ParamType::Integer]);
     let l = p.spectrum("L", false)?.map(|s| light_rgb(s, what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
-    let scale = p.float_or("scale", 1.0)?;
+    let scale = light_scale(p, what, loc)?;
     let two_sided = p.bool_or("twosided", false)?;
     // An image (`filename`, read by the builder) replaces "L": the radiance
     // is `scale` times the image (pbrt-v4 refuses both; we warn).
@@ -383,14 +393,14 @@ pub fn light(
         "point" => {
             let i =
                 p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
-            let scale = p.float_or("scale", 1.0)?;
+            let scale = light_scale(p, &what, loc)?;
             let position = transform::point(ctm, p3("from", Vec3::ZERO)?).as_vec3();
             Light::Point { position, intensity: i * scale }
         }
         "spot" => {
             let i =
                 p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
-            let scale = p.float_or("scale", 1.0)?;
+            let scale = light_scale(p, &what, loc)?;
             let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
             let cone_angle = p.float_or("coneangle", 30.0)?;
             let cone_delta = p.float_or("conedelta", 5.0)?;
@@ -420,7 +430,7 @@ pub fn light(
         "distant" => {
             let l =
                 p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
-            let scale = p.float_or("scale", 1.0)?;
+            let scale = light_scale(p, &what, loc)?;
             let (from, to) = (p3("from", Vec3::ZERO)?, p3("to", Vec3::Z)?);
             // pbrt stores the direction towards the light (from - to); ours is the way light travels.
             let Some(direction) = ctm.transform_vector3(to - from).try_normalize() else {
@@ -430,7 +440,7 @@ pub fn light(
         }
         "infinite" => {
             let l = p.spectrum("L", false)?;
-            let scale = p.float_or("scale", 1.0)?;
+            let scale = light_scale(p, &what, loc)?;
             // pbrt-v4's "illuminance": scale the light so that a surface
             // facing up (+z in the light's space) receives this illuminance
             // (luminance units; atoll renders RGB, so the light's luminance

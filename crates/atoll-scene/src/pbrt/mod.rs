@@ -39,6 +39,10 @@ pub use crate::load::LoadedScene;
 /// Loads a `.pbrt` (or `.pbrt.gz`) file. Relative paths inside it (`Include`,
 /// `plymesh` file names) resolve against the file's directory, as pbrt-v4 does.
 pub fn load_file(path: &Path) -> Result<LoadedScene, SceneError> {
+    crate::input::scene_load(|| load_path(path))
+}
+
+fn load_path(path: &Path) -> Result<LoadedScene, SceneError> {
     let name = path.display().to_string();
     let bytes = read_scene_file(path)
         .map_err(|e| SceneError::caused_by(&FileLoc::whole_file(name.as_str()), e.to_string(), e))?;
@@ -53,7 +57,7 @@ pub fn load_file(path: &Path) -> Result<LoadedScene, SceneError> {
 /// Loads scene text. `name` is used in messages; relative paths resolve
 /// against `base_dir`.
 pub fn load_str(text: &str, name: &str, base_dir: &Path) -> Result<LoadedScene, SceneError> {
-    builder::Builder::new(base_dir).load(text.as_bytes().to_vec(), name, None)
+    crate::input::scene_load(|| builder::Builder::new(base_dir).load(text.as_bytes().to_vec(), name, None))
 }
 
 /// Why a scene file's bytes could not be had; the caller says which file.

@@ -360,6 +360,25 @@ impl ParamList {
         let empty = || SceneError::at(&p.loc, format!("parameter \"{}\": no value given", p.decl));
         let many = || SceneError::at(&p.loc, format!("parameter \"{}\": more than one value given", p.decl));
         let v = p.numbers();
+        // Colours and spectra are never negative (pbrt-v4 refuses negative
+        // RGB values for every spectrum): a negative reflectance or eta has
+        // no meaning, and a negative light would subtract from the image.
+        // A blackbody's numbers are its temperature (checked below) and
+        // pbrt-v3's scale.
+        let values = match p.ty {
+            T::Spectrum => v.iter().skip(1).step_by(2).collect::<Vec<_>>(),
+            T::Blackbody => v.iter().skip(1).collect(),
+            _ => v.iter().collect(),
+        };
+        if let Some(x) = values.into_iter().find(|x| **x < 0.0) {
+            return Err(SceneError::at(
+                &p.loc,
+                format!(
+                    "parameter \"{}\": negative value {x} (colours and spectra cannot be negative)",
+                    p.decl
+                ),
+            ));
+        }
         Ok(Some(match (p.ty, &p.values) {
             (_, ParamValues::Empty) => return Err(empty()),
             (T::Rgb, _) if v.len() > 3 => return Err(many()),

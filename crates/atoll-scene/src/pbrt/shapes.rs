@@ -50,6 +50,10 @@ pub fn shape_mesh(
                 ));
             }
             let control = triangle_mesh(p, loc, w)?;
+            let n = control.indices.len() as u64;
+            let triangles = 4u64.checked_pow(levels as u32).and_then(|f| f.checked_mul(n));
+            let what = format!("loopsubdiv: {levels} levels of subdivision of {n} triangles");
+            generate(&what, triangles, loc)?;
             Ok(Some(super::subdivision::loop_subdivide(&control.positions, &control.indices, levels as u32)))
         }
         "bilinearmesh" => bilinear(p, loc, w).map(Some),
@@ -64,7 +68,9 @@ pub fn shape_mesh(
                     "sphere: partial spheres (zmin, zmax, phimax) are not supported; using the full sphere",
                 );
             }
-            Ok(Some(sphere(radius, SPHERE_SEGMENTS.0, SPHERE_SEGMENTS.1)))
+            let (n_phi, n_theta) = SPHERE_SEGMENTS;
+            generate("sphere", Some(sphere_triangles(n_phi, n_theta)), loc)?;
+            Ok(Some(sphere(radius, n_phi, n_theta)))
         }
         _ => {
             p.mark_all_used();
@@ -72,6 +78,22 @@ pub fn shape_mesh(
             Ok(None)
         }
     }
+}
+
+/// Draws the `triangles` a shape is about to generate from the scene's
+/// budget ([`crate::input::max_generated_triangles`]), before anything is
+/// allocated for them; `None` is a count past `u64`. A mesh's vertices are
+/// addressed with 32 bits, so no more triangles than that either.
+fn generate(what: &str, triangles: Option<u64>, loc: &FileLoc) -> Result<(), SceneError> {
+    let Some(t) = triangles.filter(|&t| t <= u32::MAX as u64) else {
+        let count = triangles.map_or("more than 2^64".into(), |t| t.to_string());
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: {count} triangles, more than one mesh can hold (2^32 - 1)"),
+        ));
+    };
+    crate::input::on_budget(|b| b.generate_triangles(t))
+        .map_err(|m| SceneError::at(loc, format!("{what}: {m}")))
 }
 
 fn triangle_mesh(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMesh, SceneError> {
@@ -161,6 +183,8 @@ fn bilinear(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMe
         w.warn(loc, format!("bilinearmesh: {} \"uv\"s for {n} vertices; discarding them", uvs.len()));
         uvs.clear();
     }
+    let triangles = super::subdivision::bilinear_triangles(&positions, &patches);
+    generate(&format!("bilinearmesh: {} patches", patches.len()), Some(triangles), loc)?;
     Ok(super::subdivision::bilinear_mesh(&positions, &normals, &uvs, &patches))
 }
 
@@ -199,6 +223,12 @@ fn ply_mesh(
         uvs: m.uvs,
         indices: m.indices,
     })
+}
+
+/// The triangles of [`sphere`]`(_, n_phi, n_theta)`: two per quad but one
+/// at each pole.
+pub fn sphere_triangles(n_phi: u32, n_theta: u32) -> u64 {
+    2 * n_phi as u64 * n_theta.saturating_sub(1) as u64
 }
 
 /// A UV sphere about the z axis (pbrt's sphere pole axis) with smooth normals
@@ -251,6 +281,7 @@ mod tests {
     fn sphere_is_closed_and_faces_out() {
         let s = sphere(2.0, 16, 8);
         assert_eq!(s.indices.len(), 16 * 8 * 2 - 2 * 16);
+        assert_eq!(s.indices.len() as u64, sphere_triangles(16, 8));
         for t in &s.indices {
             let [p0, p1, p2] = t.map(|i| s.positions[i as usize]);
             let n = (p0 - p2).cross(p1 - p2);

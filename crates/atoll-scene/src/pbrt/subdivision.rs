@@ -132,6 +132,25 @@ fn vertex_normals(p: &[Vec3], faces: &[[u32; 3]]) -> Vec<Vec3> {
 /// Samples per side of a curved bilinear patch (planar ones become two triangles).
 pub const BILINEAR_GRID: u32 = 8;
 
+/// Samples per side of `patch` in [`bilinear_mesh`]: 1 for a planar patch,
+/// [`BILINEAR_GRID`] for a curved one.
+fn patch_grid(positions: &[Vec3], patch: [u32; 4]) -> u32 {
+    let [p00, p10, p01, p11] = patch.map(|i| positions[i as usize]);
+    let extent = (p11 - p00).length().max((p10 - p01).length()).max(f32::MIN_POSITIVE);
+    let normal = (p10 - p00).cross(p01 - p00).normalize_or_zero();
+    let planar = (p11 - p00).dot(normal).abs() <= 1e-6 * extent;
+    if planar {
+        1
+    } else {
+        BILINEAR_GRID
+    }
+}
+
+/// The triangles [`bilinear_mesh`] makes of `patches`, without making them.
+pub fn bilinear_triangles(positions: &[Vec3], patches: &[[u32; 4]]) -> u64 {
+    patches.iter().map(|&patch| 2 * (patch_grid(positions, patch) as u64).pow(2)).sum()
+}
+
 /// pbrt-v4's `bilinearmesh`: patches of four vertices (`p00, p10, p01,
 /// p11`), with optional per-vertex normals and uvs interpolated over them.
 /// A planar patch is two triangles, exactly; a curved one is sampled on a
@@ -140,10 +159,7 @@ pub fn bilinear_mesh(positions: &[Vec3], normals: &[Vec3], uvs: &[Vec2], patches
     let mut m = ShapeMesh { name: "bilinearmesh".into(), ..Default::default() };
     for &patch in patches {
         let [p00, p10, p01, p11] = patch.map(|i| positions[i as usize]);
-        let extent = (p11 - p00).length().max((p10 - p01).length()).max(f32::MIN_POSITIVE);
-        let normal = (p10 - p00).cross(p01 - p00).normalize_or_zero();
-        let planar = (p11 - p00).dot(normal).abs() <= 1e-6 * extent;
-        let grid = if planar { 1 } else { BILINEAR_GRID };
+        let grid = patch_grid(positions, patch);
         let base = m.positions.len() as u32;
         for j in 0..=grid {
             for i in 0..=grid {
@@ -241,6 +257,7 @@ mod tests {
         let uv = [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE];
         let flat = bilinear_mesh(&p, &[], &uv, &[[0, 1, 2, 3]]);
         assert_eq!((flat.positions.len(), flat.indices.len()), (4, 2));
+        assert_eq!(bilinear_triangles(&p, &[[0, 1, 2, 3]]), 2);
         let [a, b, c] = flat.indices[0].map(|i| flat.positions[i as usize]);
         assert!((b - a).cross(c - a).z > 0.0, "faces +z like dp/du × dp/dv");
         assert_eq!(flat.uvs[3], Vec2::ONE);
@@ -249,6 +266,7 @@ mod tests {
         let curved = bilinear_mesh(&saddle, &[], &[], &[[0, 1, 2, 3]]);
         let g = BILINEAR_GRID as usize;
         assert_eq!((curved.positions.len(), curved.indices.len()), ((g + 1) * (g + 1), 2 * g * g));
+        assert_eq!(bilinear_triangles(&saddle, &[[0, 1, 2, 3]]), 2 * (g * g) as u64);
         assert!(curved.positions.iter().all(|q| (q.z - q.x * q.y).abs() < 1e-6));
     }
 }
