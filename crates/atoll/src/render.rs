@@ -7,7 +7,7 @@ use atoll_dist::{RingOrder, Strategy, Transport};
 use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::Scene;
-use atoll_scene::{IntegratorSettings, LightSampler};
+use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler};
 use clap::Args;
 use glam::UVec2;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -179,28 +179,7 @@ pub struct RenderArgs {
 fn parse_resolution(s: &str) -> Result<UVec2, String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 512x512")?;
     let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
-    let res = UVec2::new(parse(w)?, parse(h)?);
-    check_resolution(res)?;
-    Ok(res)
-}
-
-/// Most pixels a frame may have: its film alone is 12 bytes a pixel, and
-/// every device keeps one (16384 × 16384 is 3 GiB).
-pub const MAX_PIXELS: u64 = 1 << 28;
-
-/// A resolution of at least one pixel and at most [`MAX_PIXELS`].
-fn check_resolution(res: UVec2) -> Result<(), String> {
-    if res.x == 0 || res.y == 0 {
-        return Err("resolution must be at least 1x1".into());
-    }
-    let pixels = res.x as u64 * res.y as u64;
-    if pixels > MAX_PIXELS {
-        return Err(format!(
-            "{}x{} is {pixels} pixels, more than the {MAX_PIXELS} a frame may have",
-            res.x, res.y
-        ));
-    }
-    Ok(())
+    FilmSettings::check_resolution(parse(w)? as u64, parse(h)? as u64)
 }
 
 /// `--threads`: at least 1, at most 16 per core (more only costs memory
@@ -320,8 +299,16 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if let Some(res) = args.res {
         options.resolution = res;
     }
-    // A scene's own resolution gets the same limits as --res.
-    check_resolution(options.resolution).map_err(|e| CliError::Input(format!("resolution: {e}")))?;
+    // A scene's own resolution gets the same limits as --res (loaders other
+    // than PBRT's derive it, e.g. from a glTF camera's aspect ratio).
+    if args.res.is_none() {
+        let res = options.resolution;
+        FilmSettings::check_resolution(res.x as u64, res.y as u64).map_err(|e| {
+            let scene =
+                args.scene.as_deref().map_or("the built-in scene".into(), |p| p.display().to_string());
+            CliError::Input(format!("{scene}: {e}"))
+        })?;
+    }
     if let Some(depth) = args.max_depth {
         options.integrator = IntegratorSettings::Path { max_depth: depth };
     }
@@ -333,9 +320,16 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if let Some(sampler) = args.light_sampler {
         options.light_sampler = sampler;
     }
-    let output = args.output.clone().unwrap_or_else(|| {
-        PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
-    });
+    let output = match (&args.output, &scene.settings.film.filename) {
+        (Some(output), _) => output.clone(),
+        // A scene from elsewhere must not choose where images land: no
+        // absolute paths or `..` (as for the files it reads).
+        (None, Some(name)) => atoll_scene::input::beside(Path::new(""), name).map_err(|e| {
+            let scene = args.scene.as_deref().map_or(String::new(), |p| p.display().to_string());
+            CliError::Input(format!("{scene}: Film \"filename\": {e}"))
+        })?,
+        (None, None) => PathBuf::from("atoll.png"),
+    };
     if args.output.is_none() {
         check_output(&output)?;
     }
