@@ -51,6 +51,9 @@ pub enum CliError {
     Runtime(String),
     /// Already said (by MPI rank 0, for every rank): exit with this code.
     Reported(u8),
+    /// A bug: a panic while reading a scene: exit code 70 (sysexits'
+    /// EX_SOFTWARE).
+    Internal(String),
 }
 
 fn main() -> ExitCode {
@@ -66,6 +69,7 @@ fn main() -> ExitCode {
         .with_target(false)
         .without_time()
         .init();
+    load::install_panic_hook();
     let cli = Cli::parse();
     atoll_scene::input::allow_outside_paths(cli.allow_outside_paths);
     let result = match cli.command {
@@ -87,5 +91,9 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
         Err(CliError::Reported(code)) => ExitCode::from(code),
+        Err(CliError::Internal(message)) => {
+            eprintln!("atoll: {message}");
+            ExitCode::from(70)
+        }
     }
 }

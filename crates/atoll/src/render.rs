@@ -200,15 +200,10 @@ fn parse_distance(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Refuses an output that cannot be written, before anything is loaded or
-/// rendered: an extension other than .exr or .png, a folder that does not
-/// exist, or one this user cannot write in (tried with a temporary file,
-/// removed at once).
-pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
-    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("exr") | Some("png") => {}
-        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
-    }
+/// The folder of `output`, refused when it does not exist, or when `output`
+/// exists and is not a regular file (a folder, a pipe, a device: replacing
+/// one with an image is never what the user meant).
+pub(crate) fn check_folder(output: &Path) -> Result<&Path, CliError> {
     let dir = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -220,9 +215,25 @@ pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
             dir.display()
         )));
     }
-    if output.is_dir() {
-        return Err(CliError::Input(format!("{}: is a folder", output.display())));
+    match std::fs::metadata(output) {
+        Ok(m) if m.is_dir() => Err(CliError::Input(format!("{}: is a folder", output.display()))),
+        Ok(m) if !m.is_file() => {
+            Err(CliError::Input(format!("{}: is not a regular file (a pipe or a device)", output.display())))
+        }
+        _ => Ok(dir),
     }
+}
+
+/// Refuses an output that cannot be written, before anything is loaded or
+/// rendered: an extension other than .exr or .png, a folder that does not
+/// exist, or one this user cannot write in (tried with a temporary file,
+/// removed at once).
+pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
+    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("exr") | Some("png") => {}
+        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
+    }
+    let dir = check_folder(output)?;
     tempfile::tempfile_in(dir)
         .map(drop)
         .map_err(|e| CliError::Input(format!("{}: cannot write in {}: {e}", output.display(), dir.display())))
@@ -250,7 +261,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     })
     .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
     bar.finish_and_clear();
-    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, &output)?;
     let run = Run {
         load_seconds,
         prepare_seconds: out.prepare_seconds,
@@ -409,10 +420,22 @@ fn render_streams(
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
-    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, output)?;
     let on = format!("{description} x {} wavefronts", devices.len());
     print_summary(output, &options, &on, Run::of(&out, load_seconds));
     Ok(())
+}
+
+/// Writes the rendered image to `output`; when that fails after the render
+/// (the folder removed or full since it was checked), the image is saved
+/// under another name ([`atoll_render::Film::write_fallback`]) and the error
+/// says where.
+pub(crate) fn write_image(film: &atoll_render::Film, output: &Path) -> Result<(), CliError> {
+    let Err(e) = film.write(output) else { return Ok(()) };
+    Err(CliError::Runtime(match film.write_fallback(output) {
+        Ok(saved) => format!("{e}; the image was saved as {} instead", saved.display()),
+        Err(again) => format!("{e}; saving it elsewhere failed too: {again}"),
+    }))
 }
 
 /// How a render went, for the line it ends with.
@@ -488,7 +511,7 @@ fn render_on_devices(
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, output)?;
     print!("{}", multi::device_table(&out));
     print!("{}", multi::shared_table(&out));
     let on = format!("{} devices", out.devices.len());
@@ -537,6 +560,22 @@ fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_image_that_cannot_be_written_is_saved_elsewhere_and_said_where() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut film = atoll_render::Film::new(UVec2::new(2, 2));
+        film.spp = 1;
+        assert!(write_image(&film, &dir.path().join("ok.png")).is_ok());
+        // The folder went away during the render.
+        let output = dir.path().join("gone").join("frame.png");
+        let Err(CliError::Runtime(message)) = write_image(&film, &output) else { panic!("no error") };
+        let saved = message.split("saved as ").nth(1).and_then(|s| s.strip_suffix(" instead")).unwrap();
+        assert!(message.starts_with(&output.display().to_string()), "{message}");
+        let saved = Path::new(saved);
+        assert!(saved.starts_with(std::env::temp_dir()) && saved.is_file(), "{message}");
+        std::fs::remove_file(saved).unwrap();
+    }
 
     #[test]
     fn wavefronts_per_gpu() {

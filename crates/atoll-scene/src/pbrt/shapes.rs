@@ -26,6 +26,10 @@ pub struct ShapeMesh {
 /// The shape types [`shape_mesh`] turns into triangles.
 pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere", "loopsubdiv", "bilinearmesh"];
 
+/// Most triangles a subdivided surface may have (some 6 GiB while it is
+/// made; its vertex indices stay far from u32's range).
+pub const MAX_SUBDIVIDED_TRIANGLES: u64 = 1 << 26;
+
 /// Longitude and latitude steps of a tessellated sphere.
 pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
 
@@ -50,6 +54,17 @@ pub fn shape_mesh(
                 ));
             }
             let control = triangle_mesh(p, loc, w)?;
+            // Every level makes four triangles of one: eight levels of a
+            // large mesh would need more memory than any machine has.
+            let triangles = (control.indices.len() as u64).saturating_mul(1 << (2 * levels));
+            if triangles > MAX_SUBDIVIDED_TRIANGLES {
+                let why = format!(
+                    "loopsubdiv: {} triangles at {levels} levels make {triangles}, more than the {MAX_SUBDIVIDED_TRIANGLES} one surface may have",
+                    control.indices.len()
+                );
+                let memory = std::io::Error::new(std::io::ErrorKind::OutOfMemory, why.clone());
+                return Err(SceneError::caused_by(loc, why, memory));
+            }
             Ok(Some(super::subdivision::loop_subdivide(&control.positions, &control.indices, levels as u32)))
         }
         "bilinearmesh" => bilinear(p, loc, w).map(Some),
@@ -176,9 +191,11 @@ fn ply_mesh(
     let path = crate::input::beside(base_dir, &filename)
         .map_err(|e| SceneError::at(loc, format!("plymesh: {e}")))?;
     let m = ply::read_ply(&path).map_err(|e| match e {
-        ply::PlyError::Io { source, .. } => {
-            SceneError::at(loc, format!("plymesh: cannot read PLY file '{}': {source}", path.display()))
-        }
+        ply::PlyError::Io { source, .. } => SceneError::caused_by(
+            loc,
+            format!("plymesh: cannot read PLY file '{}': {source}", path.display()),
+            source,
+        ),
         ply::PlyError::Invalid(msg) => {
             SceneError::at(loc, format!("plymesh: bad PLY file '{}': {msg}", path.display()))
         }

@@ -135,7 +135,7 @@ pub fn gltf_data_uri() -> String {
 /// A GLB: the document (buffer without URI) and the buffer as its binary chunk.
 pub fn glb() -> Vec<u8> {
     let mut json = GLTF.replace("\"uri\":\"BUFFER_URI\",", "").into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin = gltf_bin();
