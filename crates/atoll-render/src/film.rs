@@ -1,6 +1,6 @@
 //! The film: per-pixel radiance sums with a one-pixel box filter, and image output.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{UVec2, Vec3};
 
@@ -128,6 +128,54 @@ impl Film {
         }
     }
 
+    /// Writes the image under a new name when [`Film::write`] to `path`
+    /// failed (a folder gone or full, the target replaced by a folder), so
+    /// that the render is not lost: `NAME-XXXXXX.EXT` beside `path`, else in
+    /// the temporary folder. Returns where it went.
+    pub fn write_fallback(&self, path: &Path) -> Result<PathBuf, ImageError> {
+        let display = path.display().to_string();
+        let ext = match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+            Some("exr") => "exr",
+            _ => "png",
+        };
+        let stem = path.file_stem().map_or("atoll".into(), |s| s.to_string_lossy().into_owned());
+        let beside = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let mut last = None;
+        for dir in [beside, std::env::temp_dir()] {
+            let made = tempfile::Builder::new()
+                .prefix(&format!("{stem}-"))
+                .suffix(&format!(".{ext}"))
+                .tempfile_in(&dir)
+                .map_err(|source| ImageError::Temporary { path: display.clone(), source });
+            let tmp = match made {
+                Ok(tmp) => tmp,
+                Err(e) => {
+                    last = Some(e);
+                    continue;
+                }
+            };
+            let written = if ext == "exr" { self.write_exr(tmp.path()) } else { self.write_png(tmp.path()) };
+            match written {
+                Ok(()) => {
+                    return tmp
+                        .keep()
+                        .map(|(_, kept)| kept)
+                        .map_err(|e| ImageError::Rename { path: display, source: e.error })
+                }
+                Err(WriteFailure::Exr(source)) => {
+                    last = Some(ImageError::Exr { path: display.clone(), source })
+                }
+                Err(WriteFailure::Png(source)) => {
+                    last = Some(ImageError::Png { path: display.clone(), source })
+                }
+            }
+        }
+        Err(last.expect("two folders were tried"))
+    }
+
     fn write_exr(&self, path: &Path) -> Result<(), WriteFailure> {
         let pixels = self.pixels();
         let width = self.resolution.x as usize;
@@ -228,5 +276,31 @@ mod tests {
             .collect();
         assert!(names.iter().all(|n| !n.starts_with(".atoll-")), "{names:?}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    #[test]
+    fn a_failed_write_falls_back_beside_the_target_or_to_the_temporary_folder() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut film = Film::new(UVec2::new(2, 2));
+        film.add(1, Vec3::ONE);
+        film.spp = 1;
+        // The target became a folder: the image goes beside it, new name.
+        let folder = dir.path().join("out.png");
+        std::fs::create_dir(&folder).unwrap();
+        assert!(film.write(&folder).is_err());
+        let saved = film.write_fallback(&folder).unwrap();
+        assert_eq!(saved.parent(), Some(dir.path()));
+        let name = saved.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(name.starts_with("out-") && name.ends_with(".png"), "{name}");
+        assert_eq!(&std::fs::read(&saved).unwrap()[1..4], b"PNG");
+        assert!(folder.is_dir(), "the folder is left alone");
+        // The folder is gone: the image goes to the temporary folder.
+        let gone = dir.path().join("gone").join("render.exr");
+        assert!(film.write(&gone).is_err());
+        let saved = film.write_fallback(&gone).unwrap();
+        assert_eq!(saved.parent(), Some(std::env::temp_dir().as_path()));
+        assert!(saved.file_name().unwrap().to_string_lossy().starts_with("render-"));
+        assert_eq!(&std::fs::read(&saved).unwrap()[..4], &[0x76, 0x2f, 0x31, 0x01], "an EXR");
+        std::fs::remove_file(saved).unwrap();
     }
 }

@@ -30,6 +30,25 @@ pub struct FilmSettings {
     pub filename: Option<String>,
 }
 
+impl FilmSettings {
+    /// Most pixels a frame may have: its film alone is 12 bytes a pixel,
+    /// and every device keeps one (16384 × 16384 is 3 GiB).
+    pub const MAX_PIXELS: u64 = 1 << 28;
+
+    /// Refuses a resolution of no pixels or of more than [`Self::MAX_PIXELS`].
+    pub fn check_resolution(x: u64, y: u64) -> Result<UVec2, String> {
+        if x == 0 || y == 0 {
+            return Err(format!("resolution {x}x{y}: must be at least 1x1"));
+        }
+        match x.checked_mul(y) {
+            Some(pixels) if pixels <= Self::MAX_PIXELS => Ok(UVec2::new(x as u32, y as u32)),
+            _ => {
+                Err(format!("resolution {x}x{y}: more than the {} pixels a frame may have", Self::MAX_PIXELS))
+            }
+        }
+    }
+}
+
 impl Default for FilmSettings {
     fn default() -> Self {
         // pbrt-v4's defaults.

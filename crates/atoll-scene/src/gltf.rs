@@ -75,8 +75,9 @@ use crate::{
 pub fn load_gltf(path: &Path) -> Result<LoadedScene, SceneError> {
     crate::input::scene_load(|| {
         let name = path.display().to_string();
-        let bytes = crate::input::read(path)
-            .map_err(|e| SceneError::at(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}")))?;
+        let bytes = crate::input::read(path).map_err(|e| {
+            SceneError::caused_by(&FileLoc::whole_file(name.as_str()), format!("cannot read: {e}"), e)
+        })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         load_gltf_bytes(&bytes, &name, &base)
     })
@@ -311,7 +312,7 @@ impl<'a> Loader<'a> {
             self.w.warn(&self.loc, format!("{what}: morph targets are not supported; using the base shape"));
         }
         let (material, alpha) = self.material(&prim.material());
-        let emission = emission(&prim.material());
+        let emission = emission(&prim.material()).map_err(|e| SceneError::at(&self.loc, e))?;
         let mesh = TriangleMesh {
             name: what.to_string(),
             positions,
@@ -432,25 +433,26 @@ impl<'a> Loader<'a> {
             ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => uri.to_string(),
             _ => image.name().map(String::from).unwrap_or_else(|| format!("image {}", image.index())),
         };
-        let external = match image.source() {
+        let decoded = match image.source() {
             ::gltf::image::Source::Uri { uri, .. } if !uri.starts_with("data:") => {
-                match percent_decode(uri) {
-                    Some(decoded) => external_file(self.base, &decoded)
-                        .map(drop)
-                        .map_err(ImageLoadError::io(Path::new(uri))),
-                    None => Err(ImageLoadError::io(Path::new(uri))(std::io::Error::new(
-                        std::io::ErrorKind::InvalidInput,
-                        "bad URI (percent escapes that are not UTF-8)",
-                    ))),
-                }
+                let path = Path::new(uri);
+                // Read here, not by the gltf crate: only regular files in the
+                // model's folder, and a file too big for memory is an error.
+                percent_decode(uri)
+                    .ok_or_else(|| {
+                        std::io::Error::new(
+                            std::io::ErrorKind::InvalidInput,
+                            "bad URI (percent escapes that are not UTF-8)",
+                        )
+                    })
+                    .and_then(|decoded| crate::input::read(&crate::input::beside(self.base, &decoded)?))
+                    .map_err(ImageLoadError::io(path))
+                    .and_then(|bytes| decode_image(&bytes).map_err(ImageLoadError::decode(path)))
             }
-            _ => Ok(()),
-        };
-        let decoded = external.and_then(|()| {
-            ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
-                .map_err(|e| ImageLoadError::Gltf(Arc::new(e)))
-                .and_then(|data| texture_image(&name, data, srgb))
-        });
+            _ => ::gltf::image::Data::from_source(image.source(), Some(self.base), &self.buffers)
+                .map_err(|e| ImageLoadError::Gltf(Arc::new(e))),
+        }
+        .and_then(|data| texture_image(&name, data, srgb));
         let id = match decoded {
             Ok(t) => Some(self.out.scene.textures.add_image(t)),
             Err(e) => {
@@ -733,9 +735,12 @@ pub fn texture_image(
 }
 
 /// `emissiveFactor × emissive_strength` as a one-sided area light.
-fn emission(m: &::gltf::Material) -> Option<AreaEmission> {
+fn emission(m: &::gltf::Material) -> Result<Option<AreaEmission>, String> {
     let radiance = Rgb::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0);
-    (radiance.max_element() > 0.0).then_some(AreaEmission { radiance, two_sided: false })
+    AreaEmission::one_sided(radiance).map_err(|e| match m.index() {
+        Some(i) => format!("material {i}: {e}"),
+        None => format!("the default material: {e}"),
+    })
 }
 
 /// Triangles from a primitive's indices (strips and fans converted; an
@@ -774,6 +779,8 @@ enum AccessorError {
     Stride { attr: &'static str, index: usize, stride: usize, size: usize },
     #[error("{attr} accessor {index}: sparse storage with no entries or non-integer indices")]
     Sparse { attr: &'static str, index: usize },
+    #[error("{attr} accessor {index}: its {count} elements do not lie within its buffer view and buffer")]
+    Bounds { attr: &'static str, index: usize, count: usize },
 }
 
 /// Checks what the gltf crate's reader assumes without checking (it panics
@@ -793,9 +800,19 @@ fn check_accessor(
     if acc.count() == 0 {
         return Err(AccessorError::Empty { attr, index });
     }
-    if let Some(stride) = acc.view().and_then(|v| v.stride()) {
+    if let Some(view) = acc.view() {
+        let stride = view.stride().unwrap_or(acc.size());
         if stride < acc.size() {
             return Err(AccessorError::Stride { attr, index, stride, size: acc.size() });
+        }
+        // The reader adds and multiplies these unchecked: offsets near 2^64
+        // or counts of 2^62 overflow there; checked here.
+        let last = (acc.count() - 1).checked_mul(stride).and_then(|b| b.checked_add(acc.offset()));
+        let in_view = last.and_then(|b| b.checked_add(acc.size())).is_some_and(|end| end <= view.length());
+        let in_buffer =
+            view.offset().checked_add(view.length()).is_some_and(|end| end <= view.buffer().length());
+        if !(in_view && in_buffer) {
+            return Err(AccessorError::Bounds { attr, index, count: acc.count() });
         }
     }
     if let Some(sparse) = doc.as_json().accessors.get(acc.index()).and_then(|a| a.sparse.as_ref()) {
@@ -861,35 +878,72 @@ fn read_buffers(
                 format!("buffer {} (data URI)", buffer.index())
             }
             ::gltf::buffer::Source::Uri(uri) => {
-                // The gltf crate unwraps its percent-decoding: refuse what it cannot decode.
+                // Read here, not by the gltf crate (which unwraps its
+                // percent-decoding and reads any file whole): only a
+                // regular file in the model's folder, and a file too big
+                // for memory is an error.
                 let Some(decoded) = percent_decode(uri) else {
                     return Err(SceneError::at(loc, format!("buffer {}: bad URI '{uri}'", buffer.index())));
                 };
-                // The crate reads the file itself: only a regular file in the model's folder.
-                external_file(base, &decoded)
-                    .map_err(|e| SceneError::at(loc, format!("cannot read buffer '{uri}': {e}")))?;
-                format!("buffer '{uri}'")
+                let mut bytes = crate::input::beside(base, &decoded)
+                    .and_then(|path| crate::input::read(&path))
+                    .map_err(|e| SceneError::caused_by(loc, format!("cannot read buffer '{uri}': {e}"), e))?;
+                // As the gltf crate does: buffers padded to 4 bytes.
+                bytes.resize(bytes.len().next_multiple_of(4), 0);
+                out.push(check_length(
+                    ::gltf::buffer::Data(bytes),
+                    &buffer,
+                    &format!("buffer '{uri}'"),
+                    loc,
+                )?);
+                continue;
             }
         };
         let data = ::gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
             .map_err(|e| SceneError::at(loc, format!("cannot read {what}: {e}")))?;
-        if data.len() < buffer.length() {
-            return Err(SceneError::at(
-                loc,
-                format!("{what} has {} bytes but the file says {} (truncated?)", data.len(), buffer.length()),
-            ));
-        }
-        out.push(data);
+        out.push(check_length(data, &buffer, &what, loc)?);
     }
     Ok(out)
 }
 
-/// The external file a URI names, refused unless it is a regular file in
-/// the model's folder ([`crate::input::beside`], [`crate::input::check_regular`]).
-fn external_file(base: &Path, decoded_uri: &str) -> std::io::Result<std::path::PathBuf> {
-    let path = crate::input::beside(base, decoded_uri)?;
-    crate::input::check_regular(&path)?;
-    Ok(path)
+/// `data` if it holds the `byteLength` its buffer claims.
+fn check_length(
+    data: ::gltf::buffer::Data,
+    buffer: &::gltf::Buffer,
+    what: &str,
+    loc: &FileLoc,
+) -> Result<::gltf::buffer::Data, SceneError> {
+    if data.len() < buffer.length() {
+        return Err(SceneError::at(
+            loc,
+            format!("{what} has {} bytes but the file says {} (truncated?)", data.len(), buffer.length()),
+        ));
+    }
+    Ok(data)
+}
+
+/// An encoded image (PNG, JPEG, ...: its bytes say which) as glTF's
+/// decoded image, decoded under the image crate's default memory limits.
+fn decode_image(bytes: &[u8]) -> Result<::gltf::image::Data, image::ImageError> {
+    use ::gltf::image::Format as F;
+    use image::DynamicImage as D;
+    let image = image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format()?.decode()?;
+    let (width, height) = (image.width(), image.height());
+    let words = |w: &[u16]| w.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let floats = |f: &[f32]| f.iter().flat_map(|v| v.to_ne_bytes()).collect();
+    let (format, pixels) = match image {
+        D::ImageLuma8(i) => (F::R8, i.into_raw()),
+        D::ImageLumaA8(i) => (F::R8G8, i.into_raw()),
+        D::ImageRgb8(i) => (F::R8G8B8, i.into_raw()),
+        D::ImageLuma16(i) => (F::R16, words(&i)),
+        D::ImageLumaA16(i) => (F::R16G16, words(&i)),
+        D::ImageRgb16(i) => (F::R16G16B16, words(&i)),
+        D::ImageRgba16(i) => (F::R16G16B16A16, words(&i)),
+        D::ImageRgb32F(i) => (F::R32G32B32FLOAT, floats(&i)),
+        D::ImageRgba32F(i) => (F::R32G32B32A32FLOAT, floats(&i)),
+        other => (F::R8G8B8A8, other.into_rgba8().into_raw()),
+    };
+    Ok(::gltf::image::Data { pixels, format, width, height })
 }
 
 /// Decodes `%XX` escapes of a relative URI; `None` when they are malformed or not UTF-8.

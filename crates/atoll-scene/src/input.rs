@@ -248,9 +248,30 @@ pub fn check_regular(path: &Path) -> io::Result<u64> {
 /// is cut there).
 pub fn read(path: &Path) -> io::Result<Vec<u8>> {
     let len = check_regular(path)?;
-    let mut bytes = Vec::with_capacity(len as usize);
+    let mut bytes = Vec::new();
+    // A file may be larger than the memory there is (a sparse file of
+    // 60 GiB takes no disk): an error of kind `OutOfMemory`, not an abort.
+    bytes.try_reserve_exact(len as usize).map_err(|_| {
+        io::Error::new(
+            io::ErrorKind::OutOfMemory,
+            format!("has {len} bytes, more than this process can allocate"),
+        )
+    })?;
     std::fs::File::open(path)?.take(len).read_to_end(&mut bytes)?;
     Ok(bytes)
+}
+
+/// Whether `error` or any error beneath it is an I/O error of kind
+/// `OutOfMemory`: the input did not fit, rather than being wrong.
+pub fn is_out_of_memory(error: &(dyn std::error::Error + 'static)) -> bool {
+    let mut next = Some(error);
+    while let Some(e) = next {
+        if e.downcast_ref::<io::Error>().is_some_and(|io| io.kind() == io::ErrorKind::OutOfMemory) {
+            return true;
+        }
+        next = e.source();
+    }
+    false
 }
 
 /// `compressed` gzip data inflated, at most [`MAX_INFLATION`] times its size.

@@ -19,6 +19,18 @@ pub struct AreaEmission {
     pub two_sided: bool,
 }
 
+impl AreaEmission {
+    /// One-sided emission of `radiance`; `None` when it is black. Negative
+    /// light is no light, and infinite or NaN radiance would fill the image
+    /// with them: both are refused, saying why.
+    pub fn one_sided(radiance: Rgb) -> Result<Option<AreaEmission>, String> {
+        if !radiance.is_finite() || radiance.min_element() < 0.0 {
+            return Err(format!("emission {radiance:?} is negative, infinite or NaN"));
+        }
+        Ok((radiance.max_element() > 0.0).then_some(AreaEmission { radiance, two_sided: false }))
+    }
+}
+
 /// A light that is not attached to geometry. Positions and directions are in
 /// world space; every value already includes the light's `scale`.
 #[derive(Clone, Debug, PartialEq)]

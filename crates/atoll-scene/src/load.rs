@@ -32,7 +32,32 @@ pub const SUPPORTED_EXTENSIONS: &str = ".pbrt, .pbrt.gz, .obj, .gltf, .glb, .ply
 /// Loads a scene file of any supported format (see the module docs), chosen
 /// by its extension (case-insensitive).
 pub fn load_any(path: &Path) -> Result<LoadedScene, SceneError> {
-    crate::input::scene_load(|| load_by_extension(path))
+    let loaded = crate::input::scene_load(|| load_by_extension(path))?;
+    check_finite(&loaded.scene, &FileLoc::whole_file(path.display().to_string()))?;
+    Ok(loaded)
+}
+
+/// Refuses a scene whose camera or instances have infinite or NaN
+/// transforms, or whose geometry lies beyond f32's range once placed
+/// (finite numbers can multiply past it): rays and bounding boxes of
+/// infinities break every later step.
+fn check_finite(scene: &Scene, loc: &FileLoc) -> Result<(), SceneError> {
+    if !scene.settings.camera.camera_to_world.is_finite() {
+        return Err(SceneError::at(loc, "the camera's transform is infinite or NaN (numbers too large?)"));
+    }
+    if let Some(i) = scene.instances.iter().position(|i| !i.object_to_world.is_finite()) {
+        return Err(SceneError::at(
+            loc,
+            format!("instance {i} has an infinite or NaN transform (numbers too large?)"),
+        ));
+    }
+    match scene.world_bounds() {
+        Some((lo, hi)) if !(lo.is_finite() && hi.is_finite()) => Err(SceneError::at(
+            loc,
+            format!("the geometry reaches beyond f32's range once placed (bounds {lo} to {hi})"),
+        )),
+        _ => Ok(()),
+    }
 }
 
 fn load_by_extension(path: &Path) -> Result<LoadedScene, SceneError> {
@@ -66,7 +91,9 @@ pub fn load_ply(path: &Path) -> Result<LoadedScene, SceneError> {
 fn load_ply_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(path.display().to_string());
     let m = crate::ply::read_ply(path).map_err(|e| match e {
-        crate::ply::PlyError::Io { source, .. } => SceneError::at(&loc, format!("cannot read: {source}")),
+        crate::ply::PlyError::Io { source, .. } => {
+            SceneError::caused_by(&loc, format!("cannot read: {source}"), source)
+        }
         crate::ply::PlyError::Invalid(msg) => SceneError::at(&loc, format!("bad PLY file: {msg}")),
     })?;
     let mut w = WarningSink::default();
@@ -92,7 +119,8 @@ pub fn load_off(path: &Path) -> Result<LoadedScene, SceneError> {
 
 fn load_off_file(path: &Path) -> Result<LoadedScene, SceneError> {
     let loc = FileLoc::whole_file(path.display().to_string());
-    let bytes = crate::input::read(path).map_err(|e| SceneError::at(&loc, format!("cannot read: {e}")))?;
+    let bytes =
+        crate::input::read(path).map_err(|e| SceneError::caused_by(&loc, format!("cannot read: {e}"), e))?;
     let m = crate::off::parse_off(&bytes).map_err(|e| SceneError::at(&e.loc(&loc.file), e.message))?;
     let mut w = WarningSink::default();
     if m.degenerate_faces > 0 {

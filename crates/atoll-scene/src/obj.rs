@@ -55,8 +55,8 @@ pub fn load_obj(path: &Path) -> Result<LoadedScene, SceneError> {
     crate::input::scene_load(|| {
         let name = path.display().to_string();
         let whole = FileLoc::whole_file(name.as_str());
-        let bytes =
-            crate::input::read(path).map_err(|e| SceneError::at(&whole, format!("cannot read: {e}")))?;
+        let bytes = crate::input::read(path)
+            .map_err(|e| SceneError::caused_by(&whole, format!("cannot read: {e}"), e))?;
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
         load_obj_bytes(&bytes, &name, &dir)
     })
@@ -79,15 +79,21 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
     }
     // MTL files are decoded the same way, so material names written with the
     // same 8-bit encoding still match.
-    let libs: RefCell<Vec<(String, Option<tobj::LoadError>)>> = RefCell::new(Vec::new());
+    let libs: RefCell<Vec<(String, Option<String>)>> = RefCell::new(Vec::new());
     let loader = |mtl: &Path| {
         let read =
             crate::input::beside(dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
-        let result = match read {
-            Ok(b) => mtl_for_tobj(&decode_text(&b).0).and_then(|t| tobj::load_mtl_buf(&mut t.as_bytes())),
-            Err(_) => Err(tobj::LoadError::OpenFileFailed),
+        let (result, why) = match read {
+            Ok(b) => {
+                let result =
+                    mtl_for_tobj(&decode_text(&b).0).and_then(|t| tobj::load_mtl_buf(&mut t.as_bytes()));
+                let why = result.as_ref().err().map(|e| e.to_string());
+                (result, why)
+            }
+            // Why it could not be read (refused, missing, too big) is said below.
+            Err(e) => (Err(tobj::LoadError::OpenFileFailed), Some(format!("cannot be read: {e}"))),
         };
-        libs.borrow_mut().push((mtl.display().to_string(), result.as_ref().err().copied()));
+        libs.borrow_mut().push((mtl.display().to_string(), why));
         result
     };
     let options =
@@ -102,10 +108,8 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
         Ok(r) => r,
         Err(e) => return Err(obj_error(e, text.as_bytes(), reader.current_line(), name)),
     };
-    for (lib, err) in libs.into_inner() {
-        if let Some(e) = err {
-            let why =
-                if e == tobj::LoadError::OpenFileFailed { "cannot be opened".into() } else { e.to_string() };
+    for (lib, why) in libs.into_inner() {
+        if let Some(why) = why {
             w.warn(&whole, format!("material library '{lib}' {why}; its materials use the default diffuse"));
         }
     }
@@ -143,7 +147,7 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
             uvs: m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect(),
             indices: m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             material,
-            emission: mat.and_then(mtl_emission),
+            emission: mat.map(mtl_emission).transpose().map_err(|e| SceneError::at(&whole, e))?.flatten(),
             flip_normals: false,
             alpha,
         };
@@ -437,9 +441,9 @@ pub fn mtl_material(mtl: &tobj::Material) -> Material {
 }
 
 /// `Ke` as an area light, when non-zero.
-fn mtl_emission(mtl: &tobj::Material) -> Option<AreaEmission> {
-    let ke = Rgb::from(mtl.emissive?);
-    (ke.max_element() > 0.0).then_some(AreaEmission { radiance: ke, two_sided: false })
+fn mtl_emission(mtl: &tobj::Material) -> Result<Option<AreaEmission>, String> {
+    let Some(ke) = mtl.emissive else { return Ok(None) };
+    AreaEmission::one_sided(Rgb::from(ke)).map_err(|e| format!("material '{}': Ke: {e}", mtl.name))
 }
 
 /// A `SceneError` for a tobj failure. Errors about one line point at it

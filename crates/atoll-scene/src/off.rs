@@ -108,6 +108,9 @@ pub fn parse_off(bytes: &[u8]) -> Result<OffMesh, OffError> {
         if v.len() < expected {
             return err(n, format!("expected {expected} numbers for a vertex, found '{l}'"));
         }
+        if v.iter().any(|x| !x.is_finite()) {
+            return err(n, format!("vertex '{l}': numbers beyond f32's range, infinite or NaN"));
+        }
         m.positions.push(Vec3::new(v[0], v[1], v[2]));
         if has_normals {
             m.normals.push(Vec3::new(v[3], v[4], v[5]));

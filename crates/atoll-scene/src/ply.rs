@@ -272,7 +272,36 @@ fn parse_uncompressed(bytes: &[u8]) -> Result<PlyMesh, PlyError> {
     }
 }
 
+/// Refuses element counts the body cannot hold: every row takes at least
+/// its scalars' bytes (and a list's length) in binary, and one character a
+/// property in ASCII. Counts of 10^18 are refused before anything is read;
+/// an element without properties takes no bytes, and is not read at all.
+fn check_counts(header: &Header, body_len: usize) -> Result<(), PlyError> {
+    let mut least = 0u64;
+    for e in &header.elements {
+        let row: u64 = match header.format {
+            Format::Ascii => e.props.len() as u64,
+            _ => e
+                .props
+                .iter()
+                .map(|p| match p.kind {
+                    PropKind::Scalar(ty) | PropKind::List { count: ty, .. } => ty.size() as u64,
+                })
+                .sum(),
+        };
+        least = least.saturating_add((e.count as u64).saturating_mul(row));
+        if least > body_len as u64 {
+            return invalid(format!(
+                "element '{}' claims {} rows, more than the file's {body_len} bytes of data can hold (truncated?)",
+                e.name, e.count
+            ));
+        }
+    }
+    Ok(())
+}
+
 fn read_body(header: &Header, src: &mut dyn Values, body_len: usize) -> Result<PlyMesh, PlyError> {
+    check_counts(header, body_len)?;
     let mut mesh = PlyMesh::default();
     // Face index lists, flattened: (start, len) into `face_items`.
     let mut faces: Vec<(usize, usize)> = Vec::new();

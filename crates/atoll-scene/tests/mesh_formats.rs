@@ -85,7 +85,7 @@ fn obj_without_its_mtl_warns_and_uses_the_default() {
     assert_eq!(
         w[0].to_string(),
         format!(
-            "{}: material library 'scene.mtl' cannot be opened; its materials use the default diffuse",
+            "{}: material library 'scene.mtl' cannot be read: No such file or directory (os error 2); its materials use the default diffuse",
             path.display()
         )
     );

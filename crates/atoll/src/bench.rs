@@ -15,11 +15,13 @@ use crate::CliError;
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Triangles in the generated traversal scene.
-    #[arg(long, default_value_t = 2_000_000)]
+    /// Triangles in the generated traversal scene (at most 2^28: some
+    /// 20 GiB with its BVH).
+    #[arg(long, default_value_t = 2_000_000,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 28))]
     pub triangles: usize,
     /// Samples per pixel for the Cornell-box path-tracing run.
-    #[arg(long, default_value_t = 16)]
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     pub spp: u32,
     /// Skip the traversal benchmark.
     #[arg(long)]
@@ -29,7 +31,8 @@ pub struct BenchArgs {
     #[arg(long)]
     pub flat: bool,
     /// Path-tracing runs after an untimed 1-spp warm-up; the median is reported.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub runs: usize,
     /// Measure queue copy speed between GPUs 0 and 1 (peer copies vs
     /// through the host) instead of everything else.

@@ -49,6 +49,9 @@ pub fn run(args: GenArgs) -> Result<(), CliError> {
     }
 }
 
+/// Most `--detail` there may be.
+const MAX_DETAIL: f32 = 1000.0;
+
 fn mib(bytes: u64) -> String {
     format!("{:.1} MiB", bytes as f64 / (1024.0 * 1024.0))
 }
@@ -57,8 +60,13 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
     if args.growth == 0 {
         return Err(CliError::Input("--growth must be at least 1".into()));
     }
-    if !(args.detail > 0.0 && args.detail.is_finite()) {
-        return Err(CliError::Input(format!("--detail must be positive, not {}", args.detail)));
+    // Detail multiplies triangle counts: past a thousand, sizes overflow
+    // long before any machine could hold the result.
+    if !(args.detail > 0.0 && args.detail <= MAX_DETAIL) {
+        return Err(CliError::Input(format!(
+            "--detail must be above 0 and at most {MAX_DETAIL}, not {}",
+            args.detail
+        )));
     }
     let landscape = Landscape { growth: args.growth, seed: args.seed, detail: args.detail };
     landscape.check().map_err(CliError::Input)?;
@@ -74,6 +82,8 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
         mib(e.bytes - e.geometry_bytes)
     );
     let Some(path) = args.output else { return Ok(()) };
+    crate::render::check_folder(&path)?;
+    crate::load::check_fits_host(&path, e.bytes)?;
     let start = Instant::now();
     let scene = landscape.build();
     let build_seconds = start.elapsed().as_secs_f64();
@@ -81,7 +91,7 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
     let header =
         format!("atoll gen landscape --growth {} --seed {} --detail {}", args.growth, args.seed, args.detail);
     let file = std::fs::File::create(&path)
-        .map_err(|e| CliError::Runtime(format!("{}: cannot create: {e}", path.display())))?;
+        .map_err(|e| CliError::Input(format!("{}: cannot create: {e}", path.display())))?;
     let mut out = BufWriter::with_capacity(1 << 20, file);
     write_pbrt(&scene, &mut out, &header)
         .and_then(|_| out.flush())

@@ -3,6 +3,8 @@
 //! `landscape:GROWTH[:SEED]`, or the built-in Cornell box.
 
 use std::path::Path;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
 
 use atoll_scene::landscape::Landscape;
 use atoll_scene::Scene;
@@ -24,12 +26,62 @@ pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
         check_fits_host(path, landscape.estimate().bytes)?;
         return Ok(landscape.build());
     }
-    atoll_scene::load_any(path).map(|l| l.scene).map_err(|e| CliError::Input(e.to_string()))
+    guarded(path, || {
+        atoll_scene::load_any(path).map(|l| l.scene).map_err(|e| {
+            // A file larger than the memory there is did not fit; it is not wrong.
+            if atoll_scene::input::is_out_of_memory(&e) {
+                CliError::Runtime(e.to_string())
+            } else {
+                CliError::Input(e.to_string())
+            }
+        })
+    })
+}
+
+/// Panics seen while [`guarded`] runs: silenced, their message and place
+/// kept for the error that reports them.
+static QUIET_PANICS: AtomicUsize = AtomicUsize::new(0);
+static LAST_PANIC: Mutex<Option<String>> = Mutex::new(None);
+
+/// Installs the panic hook [`guarded`] relies on: while a guarded load
+/// runs (on any thread), a panic prints nothing and is remembered; at
+/// other times panics print as usual.
+pub fn install_panic_hook() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        if QUIET_PANICS.load(Ordering::SeqCst) == 0 {
+            return default(info);
+        }
+        let message = match (info.payload().downcast_ref::<&str>(), info.payload().downcast_ref::<String>()) {
+            (Some(s), _) => s.to_string(),
+            (_, Some(s)) => s.clone(),
+            _ => "a panic".to_string(),
+        };
+        let place = info.location().map_or(String::new(), |l| format!(" at {}:{}", l.file(), l.line()));
+        LAST_PANIC.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert(format!("{message}{place}"));
+    }));
+}
+
+/// Runs `load` (reading `path`); a panic in it, which no input should
+/// cause and which the loaders try hard not to, becomes an internal error
+/// naming the file instead of a crash with a backtrace notice.
+pub fn guarded<T>(path: &Path, load: impl FnOnce() -> Result<T, CliError>) -> Result<T, CliError> {
+    QUIET_PANICS.fetch_add(1, Ordering::SeqCst);
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(load));
+    QUIET_PANICS.fetch_sub(1, Ordering::SeqCst);
+    let last = LAST_PANIC.lock().unwrap_or_else(|e| e.into_inner()).take();
+    result.unwrap_or_else(|_| {
+        let what = last.unwrap_or_else(|| "a panic".into());
+        Err(CliError::Internal(format!(
+            "internal error while reading {}: {what} (please report)",
+            path.display()
+        )))
+    })
 }
 
 /// Refuses, before building, a generated scene whose meshes alone would
 /// take more host memory than the OS has available.
-fn check_fits_host(source: &Path, bytes: u64) -> Result<(), CliError> {
+pub(crate) fn check_fits_host(source: &Path, bytes: u64) -> Result<(), CliError> {
     match atoll_dist::placement::host_memory_available() {
         Some(available) if bytes > available => Err(CliError::Runtime(format!(
             "{}: its meshes need {bytes} bytes of host memory, {available} are available",
@@ -63,6 +115,25 @@ pub fn parse_landscape(source: &str) -> Option<Result<Landscape, CliError>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_panic_while_loading_is_an_internal_error_naming_the_file() {
+        install_panic_hook();
+        let e =
+            guarded(Path::new("scenes/broken.gltf"), || -> Result<(), CliError> { panic!("index 7 of 3") });
+        let Err(CliError::Internal(message)) = e else { panic!("not an internal error") };
+        assert!(
+            message.starts_with("internal error while reading scenes/broken.gltf: index 7 of 3 at "),
+            "{message}"
+        );
+        assert!(message.contains("load.rs:") && message.ends_with("(please report)"), "{message}");
+        // Errors and results pass through untouched.
+        assert!(matches!(
+            guarded(Path::new("x"), || Err::<(), _>(CliError::Input("bad".into()))),
+            Err(CliError::Input(_))
+        ));
+        assert_eq!(guarded(Path::new("x"), || Ok(7)).ok(), Some(7));
+    }
 
     #[test]
     fn landscape_sources_parse() {

@@ -59,6 +59,9 @@ pub enum CliError {
     Runtime(String),
     /// Already said (by MPI rank 0, for every rank): exit with this code.
     Reported(u8),
+    /// A bug: a panic while reading a scene: exit code 70 (sysexits'
+    /// EX_SOFTWARE).
+    Internal(String),
 }
 
 fn main() -> ExitCode {
@@ -74,6 +77,7 @@ fn main() -> ExitCode {
         .with_target(false)
         .without_time()
         .init();
+    load::install_panic_hook();
     let cli = Cli::parse();
     atoll_scene::input::allow_outside_paths(cli.allow_outside_paths);
     if let Some(bytes) = cli.max_scene_bytes {
@@ -101,5 +105,9 @@ fn main() -> ExitCode {
             ExitCode::from(1)
         }
         Err(CliError::Reported(code)) => ExitCode::from(code),
+        Err(CliError::Internal(message)) => {
+            eprintln!("atoll: {message}");
+            ExitCode::from(70)
+        }
     }
 }

@@ -285,7 +285,7 @@ pub fn write_ownership(
         None => Some(0),
     };
     let film = atoll_dist::ownership::ownership_view(scene, options, &owner);
-    film.write(path).map_err(|e| CliError::Runtime(e.to_string()))?;
+    crate::render::write_image(&film, path)?;
     eprintln!("ownership view: {}", path.display());
     Ok(())
 }

@@ -40,8 +40,11 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         Err(CliError::Input(_)) => Some(2),
         Err(CliError::Runtime(_)) => Some(1),
         Err(CliError::Reported(code)) => Some(*code),
+        Err(CliError::Internal(_)) => Some(70),
     };
-    if let (true, Err(CliError::Input(message) | CliError::Runtime(message))) = (ranks.is_root(), &result) {
+    if let (true, Err(CliError::Input(message) | CliError::Runtime(message) | CliError::Internal(message))) =
+        (ranks.is_root(), &result)
+    {
         eprintln!("error: {message}");
     }
     ranks.wait_for_all();
@@ -115,7 +118,7 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     if !ranks.is_root() {
         return Ok(());
     }
-    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    crate::render::write_image(&out.film, &output)?;
     print!("rank  {}", multi::device_table_header());
     print!("{}", rows.concat());
     let on = format!("{} ranks ({devices_in_all} devices)", ranks.size());
@@ -286,7 +289,9 @@ fn together<T>(ranks: &Ranks, result: Result<T, CliError>, what: &str) -> Result
     }
     let mine = match &result {
         Ok(_) => String::new(),
-        Err(CliError::Input(message) | CliError::Runtime(message)) => message.clone(),
+        Err(CliError::Input(message) | CliError::Runtime(message) | CliError::Internal(message)) => {
+            message.clone()
+        }
         Err(CliError::Reported(code)) => format!("failed (exit code {code})"),
     };
     let all = ranks.gather_text(&mine);

@@ -7,7 +7,7 @@ use atoll_dist::{RingOrder, Strategy, Transport};
 use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
 use atoll_scene::Scene;
-use atoll_scene::{IntegratorSettings, LightSampler};
+use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler};
 use clap::Args;
 use glam::UVec2;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -179,28 +179,7 @@ pub struct RenderArgs {
 fn parse_resolution(s: &str) -> Result<UVec2, String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 512x512")?;
     let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
-    let res = UVec2::new(parse(w)?, parse(h)?);
-    check_resolution(res)?;
-    Ok(res)
-}
-
-/// Most pixels a frame may have: its film alone is 12 bytes a pixel, and
-/// every device keeps one (16384 × 16384 is 3 GiB).
-pub const MAX_PIXELS: u64 = 1 << 28;
-
-/// A resolution of at least one pixel and at most [`MAX_PIXELS`].
-fn check_resolution(res: UVec2) -> Result<(), String> {
-    if res.x == 0 || res.y == 0 {
-        return Err("resolution must be at least 1x1".into());
-    }
-    let pixels = res.x as u64 * res.y as u64;
-    if pixels > MAX_PIXELS {
-        return Err(format!(
-            "{}x{} is {pixels} pixels, more than the {MAX_PIXELS} a frame may have",
-            res.x, res.y
-        ));
-    }
-    Ok(())
+    FilmSettings::check_resolution(parse(w)? as u64, parse(h)? as u64)
 }
 
 /// `--threads`: at least 1, at most 16 per core (more only costs memory
@@ -221,15 +200,10 @@ fn parse_distance(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Refuses an output that cannot be written, before anything is loaded or
-/// rendered: an extension other than .exr or .png, a folder that does not
-/// exist, or one this user cannot write in (tried with a temporary file,
-/// removed at once).
-pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
-    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
-        Some("exr") | Some("png") => {}
-        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
-    }
+/// The folder of `output`, refused when it does not exist, or when `output`
+/// exists and is not a regular file (a folder, a pipe, a device: replacing
+/// one with an image is never what the user meant).
+pub(crate) fn check_folder(output: &Path) -> Result<&Path, CliError> {
     let dir = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
@@ -241,9 +215,25 @@ pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
             dir.display()
         )));
     }
-    if output.is_dir() {
-        return Err(CliError::Input(format!("{}: is a folder", output.display())));
+    match std::fs::metadata(output) {
+        Ok(m) if m.is_dir() => Err(CliError::Input(format!("{}: is a folder", output.display()))),
+        Ok(m) if !m.is_file() => {
+            Err(CliError::Input(format!("{}: is not a regular file (a pipe or a device)", output.display())))
+        }
+        _ => Ok(dir),
     }
+}
+
+/// Refuses an output that cannot be written, before anything is loaded or
+/// rendered: an extension other than .exr or .png, a folder that does not
+/// exist, or one this user cannot write in (tried with a temporary file,
+/// removed at once).
+pub(crate) fn check_output(output: &Path) -> Result<(), CliError> {
+    match output.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()).as_deref() {
+        Some("exr") | Some("png") => {}
+        _ => return Err(CliError::Input(format!("{}: output must end in .exr or .png", output.display()))),
+    }
+    let dir = check_folder(output)?;
     tempfile::tempfile_in(dir)
         .map(drop)
         .map_err(|e| CliError::Input(format!("{}: cannot write in {}: {e}", output.display(), dir.display())))
@@ -271,7 +261,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     })
     .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
     bar.finish_and_clear();
-    out.film.write(&output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, &output)?;
     let run = Run {
         load_seconds,
         prepare_seconds: out.prepare_seconds,
@@ -320,8 +310,16 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if let Some(res) = args.res {
         options.resolution = res;
     }
-    // A scene's own resolution gets the same limits as --res.
-    check_resolution(options.resolution).map_err(|e| CliError::Input(format!("resolution: {e}")))?;
+    // A scene's own resolution gets the same limits as --res (loaders other
+    // than PBRT's derive it, e.g. from a glTF camera's aspect ratio).
+    if args.res.is_none() {
+        let res = options.resolution;
+        FilmSettings::check_resolution(res.x as u64, res.y as u64).map_err(|e| {
+            let scene =
+                args.scene.as_deref().map_or("the built-in scene".into(), |p| p.display().to_string());
+            CliError::Input(format!("{scene}: {e}"))
+        })?;
+    }
     if let Some(depth) = args.max_depth {
         options.integrator = IntegratorSettings::Path { max_depth: depth };
     }
@@ -333,9 +331,16 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if let Some(sampler) = args.light_sampler {
         options.light_sampler = sampler;
     }
-    let output = args.output.clone().unwrap_or_else(|| {
-        PathBuf::from(scene.settings.film.filename.clone().unwrap_or_else(|| "atoll.png".into()))
-    });
+    let output = match (&args.output, &scene.settings.film.filename) {
+        (Some(output), _) => output.clone(),
+        // A scene from elsewhere must not choose where images land: no
+        // absolute paths or `..` (as for the files it reads).
+        (None, Some(name)) => atoll_scene::input::beside(Path::new(""), name).map_err(|e| {
+            let scene = args.scene.as_deref().map_or(String::new(), |p| p.display().to_string());
+            CliError::Input(format!("{scene}: Film \"filename\": {e}"))
+        })?,
+        (None, None) => PathBuf::from("atoll.png"),
+    };
     if args.output.is_none() {
         check_output(&output)?;
     }
@@ -415,10 +420,22 @@ fn render_streams(
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
-    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, output)?;
     let on = format!("{description} x {} wavefronts", devices.len());
     print_summary(output, &options, &on, Run::of(&out, load_seconds));
     Ok(())
+}
+
+/// Writes the rendered image to `output`; when that fails after the render
+/// (the folder removed or full since it was checked), the image is saved
+/// under another name ([`atoll_render::Film::write_fallback`]) and the error
+/// says where.
+pub(crate) fn write_image(film: &atoll_render::Film, output: &Path) -> Result<(), CliError> {
+    let Err(e) = film.write(output) else { return Ok(()) };
+    Err(CliError::Runtime(match film.write_fallback(output) {
+        Ok(saved) => format!("{e}; the image was saved as {} instead", saved.display()),
+        Err(again) => format!("{e}; saving it elsewhere failed too: {again}"),
+    }))
 }
 
 /// How a render went, for the line it ends with.
@@ -494,7 +511,7 @@ fn render_on_devices(
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    out.film.write(output).map_err(|e| CliError::Runtime(e.to_string()))?;
+    write_image(&out.film, output)?;
     print!("{}", multi::device_table(&out));
     print!("{}", multi::shared_table(&out));
     let on = format!("{} devices", out.devices.len());
@@ -543,6 +560,22 @@ fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_image_that_cannot_be_written_is_saved_elsewhere_and_said_where() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut film = atoll_render::Film::new(UVec2::new(2, 2));
+        film.spp = 1;
+        assert!(write_image(&film, &dir.path().join("ok.png")).is_ok());
+        // The folder went away during the render.
+        let output = dir.path().join("gone").join("frame.png");
+        let Err(CliError::Runtime(message)) = write_image(&film, &output) else { panic!("no error") };
+        let saved = message.split("saved as ").nth(1).and_then(|s| s.strip_suffix(" instead")).unwrap();
+        assert!(message.starts_with(&output.display().to_string()), "{message}");
+        let saved = Path::new(saved);
+        assert!(saved.starts_with(std::env::temp_dir()) && saved.is_file(), "{message}");
+        std::fs::remove_file(saved).unwrap();
+    }
 
     #[test]
     fn wavefronts_per_gpu() {

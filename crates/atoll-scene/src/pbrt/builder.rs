@@ -16,7 +16,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use glam::{Affine3A, DMat3, DMat4, DVec3, UVec2};
+use glam::{Affine3A, DMat3, DMat4, DVec3};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
@@ -528,10 +528,10 @@ impl Builder {
             }
             E::Camera => self.camera(&name, &p, &loc)?,
             E::Film => {
-                let res = |v: Option<i64>, d: u32| -> Result<u32, SceneError> {
+                let res = |v: Option<i64>, d: u32| -> Result<u64, SceneError> {
                     match v {
-                        None => Ok(d),
-                        Some(r) if r > 0 => Ok(r as u32),
+                        None => Ok(d as u64),
+                        Some(r) if r > 0 => Ok(r as u64),
                         Some(r) => {
                             Err(SceneError::at(&loc, format!("Film: resolution {r} must be positive")))
                         }
@@ -540,18 +540,19 @@ impl Builder {
                 let d = self.scene.settings.film.resolution;
                 let x = res(p.int("xresolution")?, d.x)?;
                 let y = res(p.int("yresolution")?, d.y)?;
-                self.scene.settings.film.resolution = UVec2::new(x, y);
+                self.scene.settings.film.resolution = crate::FilmSettings::check_resolution(x, y)
+                    .map_err(|e| SceneError::at(&loc, format!("Film: {e}")))?;
                 self.scene.settings.film.filename = p.string("filename")?;
             }
             E::Sampler => {
                 if let Some(n) = p.int("pixelsamples")? {
-                    if n <= 0 {
+                    let Some(spp) = u32::try_from(n).ok().filter(|&n| n > 0) else {
                         return Err(SceneError::at(
                             &loc,
-                            format!("Sampler: pixelsamples {n} must be positive"),
+                            format!("Sampler: pixelsamples {n} must be from 1 to {}", u32::MAX),
                         ));
-                    }
-                    self.scene.settings.spp = n as u32;
+                    };
+                    self.scene.settings.spp = spp;
                 }
             }
             E::Integrator => self.integrator(&name, &p, &loc)?,
@@ -758,17 +759,17 @@ impl Builder {
             IntegratorSettings::AmbientOcclusion { max_distance }
         } else {
             let depth = p.int("maxdepth")?.unwrap_or(5);
-            if depth < 0 {
+            let Ok(depth) = u32::try_from(depth) else {
                 return Err(SceneError::at(
                     loc,
-                    format!("Integrator: maxdepth {depth} must not be negative"),
+                    format!("Integrator: maxdepth {depth} must be from 0 to {}", u32::MAX),
                 ));
-            }
+            };
             if name != "path" && name != "volpath" {
                 p.mark_all_used();
                 self.warn(loc, format!("integrator \"{name}\" is not supported; rendering with \"path\""));
             }
-            IntegratorSettings::Path { max_depth: depth as u32 }
+            IntegratorSettings::Path { max_depth: depth }
         };
         Ok(())
     }

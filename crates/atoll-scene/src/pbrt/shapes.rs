@@ -92,8 +92,12 @@ fn generate(what: &str, triangles: Option<u64>, loc: &FileLoc) -> Result<(), Sce
             format!("{what}: {count} triangles, more than one mesh can hold (2^32 - 1)"),
         ));
     };
-    crate::input::on_budget(|b| b.generate_triangles(t))
-        .map_err(|m| SceneError::at(loc, format!("{what}: {m}")))
+    // Past the budget the scene does not fit (exit 1), as for memory.
+    crate::input::on_budget(|b| b.generate_triangles(t)).map_err(|m| {
+        let why = format!("{what}: {m}");
+        let memory = std::io::Error::new(std::io::ErrorKind::OutOfMemory, why.clone());
+        SceneError::caused_by(loc, why, memory)
+    })
 }
 
 fn triangle_mesh(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMesh, SceneError> {
@@ -200,9 +204,11 @@ fn ply_mesh(
     let path = crate::input::beside(base_dir, &filename)
         .map_err(|e| SceneError::at(loc, format!("plymesh: {e}")))?;
     let m = ply::read_ply(&path).map_err(|e| match e {
-        ply::PlyError::Io { source, .. } => {
-            SceneError::at(loc, format!("plymesh: cannot read PLY file '{}': {source}", path.display()))
-        }
+        ply::PlyError::Io { source, .. } => SceneError::caused_by(
+            loc,
+            format!("plymesh: cannot read PLY file '{}': {source}", path.display()),
+            source,
+        ),
         ply::PlyError::Invalid(msg) => {
             SceneError::at(loc, format!("plymesh: bad PLY file '{}': {msg}", path.display()))
         }
