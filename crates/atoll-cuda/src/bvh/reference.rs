@@ -1,7 +1,8 @@
 //! Host reference of the GPU LBVH build, step for step what the kernels
 //! in `kernels/lbvh.cu`, `sort.cu` and `treelet.cu` compute, with the same
 //! float operations in the same order (the kernels use `__fadd_rn` and
-//! friends where contraction would differ). The GPU tests compare the GPU's
+//! friends where contraction would differ); the independent per-primitive
+//! steps and the treelet rounds run on all cores. The GPU tests compare the GPU's
 //! output with this bit for bit; the host tests check its invariants and
 //! its SAH against `atoll_bvh`'s binned-SAH builder without a GPU.
 //!
@@ -9,6 +10,8 @@
 //! `0..P` (per segment of `n` primitives starting at sorted position `lo`,
 //! slots `lo..lo+n-1` with the root at `lo`, slot `lo+n-1` spare) and leaves
 //! `P..2P` (leaf `P + j` is sorted primitive `j`).
+
+use rayon::prelude::*;
 
 use super::host::{HostSceneBvh, ScenePlan};
 use super::layout::{
@@ -167,7 +170,7 @@ pub(crate) fn sorted_codes(boxes: &[Bounds], seg_start: &[u32]) -> (Vec<u32>, Ve
         }
     }
     let keys: Vec<u32> = boxes
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(p, b)| {
             let s = segment_of(p as u32, seg_start);
@@ -180,8 +183,9 @@ pub(crate) fn sorted_codes(boxes: &[Bounds], seg_start: &[u32]) -> (Vec<u32>, Ve
         })
         .collect();
     let mut values: Vec<u32> = (0..boxes.len() as u32).collect();
-    values.sort_by_key(|&p| (segment_of(p, seg_start), keys[p as usize]));
-    (values.iter().map(|&p| keys[p as usize]).collect(), values)
+    // Stable, as the GPU's radix sort.
+    values.par_sort_by_key(|&p| (segment_of(p, seg_start), keys[p as usize]));
+    (values.par_iter().map(|&p| keys[p as usize]).collect(), values)
 }
 
 /// Karras' delta on local positions `a`, `b` of a segment (`karras_delta`).
@@ -451,6 +455,7 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
     let corners =
         |tri: u32| -> [[f32; 3]; 3] { std::array::from_fn(|k| vertex(t.triangles[3 * tri as usize + k])) };
     let boxes: Vec<Bounds> = (0..plan.primitives())
+        .into_par_iter()
         .map(|p| {
             let [a, b, c] = corners(triangle(p));
             (
@@ -460,8 +465,8 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
         })
         .collect();
     let (tree, blas) = build(&boxes, &plan.seg_start, options.max_leaf, options);
-    let tri_ids: Vec<u32> = blas.order.iter().map(|&j| triangle(tree.values[j as usize])).collect();
-    let tris = tri_ids.iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
+    let tri_ids: Vec<u32> = blas.order.par_iter().map(|&j| triangle(tree.values[j as usize])).collect();
+    let tris = tri_ids.par_iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
 
     let instance_boxes: Vec<Bounds> = plan
         .valid_instances

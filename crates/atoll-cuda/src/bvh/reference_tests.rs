@@ -180,6 +180,25 @@ fn bounds_costs_and_collapse_are_consistent() {
     }
 }
 
+/// The parallel treelet round (by height) makes the sequential post-order
+/// pass's tree bit for bit, over several segments and every round's gamma.
+#[test]
+fn parallel_treelet_rounds_equal_the_sequential_pass() {
+    let boxes = random_boxes(40_000, 11);
+    let seg_start = [0, 3, 10_000, 10_001, 40_000];
+    let options = BuildOptions::default();
+    let (ci, ct) = (options.intersection_cost, options.traversal_cost);
+    let mut parallel = build_tree(&boxes, &seg_start, 4, ci, ct);
+    let mut sequential = parallel.clone();
+    for round in 0..options.treelet_rounds {
+        crate::bvh::treelet_reference::round(&mut parallel, options.gamma(round), 4, ci, ct);
+        crate::bvh::treelet_reference::round_sequential(&mut sequential, options.gamma(round), 4, ci, ct);
+        assert!(parallel == sequential, "round {round}: the trees differ");
+    }
+    // The rounds changed the tree (the comparison is not of two untouched trees).
+    assert!(parallel != build_tree(&boxes, &seg_start, 4, ci, ct));
+}
+
 #[test]
 fn treelet_rounds_lower_the_sah_and_keep_the_tree_valid() {
     let boxes = random_boxes(30_000, 9);

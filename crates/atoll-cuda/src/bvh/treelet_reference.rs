@@ -3,8 +3,15 @@
 //! be compared bit for bit.
 //!
 //! The GPU processes treelet roots in parallel, bottom-up; a root's result
-//! depends only on its subtree after all treelets below it are done, so a
-//! sequential post-order pass over the same roots gives the same tree.
+//! depends only on its subtree after all treelets below it are done. So do
+//! the threads here: roots are taken by their height at the start of the
+//! round, lowest first. Roots of one height have disjoint subtrees (none is
+//! below another), and a restructuring only rearranges nodes within its
+//! root's subtree, so each height's treelets are planned in parallel from
+//! the tree as it is and then written; the tree is the sequential
+//! post-order pass's, bit for bit.
+
+use rayon::prelude::*;
 
 use super::layout::{BUILD_COUNT_MASK, BUILD_LEAF_BIT};
 use super::reference::{sah_node_cost, BuildTree};
@@ -16,9 +23,66 @@ const SUBSETS: usize = 1 << TREELET_LEAVES;
 
 /// Restructures every node with at least `gamma` primitives, bottom-up.
 pub(crate) fn round(tree: &mut BuildTree, gamma: u32, max_leaf: u32, ci: f32, ct: f32) {
+    for roots in roots_by_height(tree, gamma) {
+        let plans: Vec<Rewrite> = roots.par_iter().filter_map(|&n| plan(tree, n, max_leaf, ci, ct)).collect();
+        for rewrite in &plans {
+            rewrite.apply(tree);
+        }
+    }
+}
+
+/// The nodes with at least `gamma` primitives, grouped by their height in
+/// the tree (leaves 0), lowest first.
+fn roots_by_height(tree: &BuildTree, gamma: u32) -> Vec<Vec<u32>> {
+    let p = tree.prims();
+    let mut height = vec![0u32; p as usize];
+    let mut levels: Vec<Vec<u32>> = Vec::new();
+    for n in tree.post_order() {
+        let h = 1 + tree.child[n as usize]
+            .iter()
+            .map(|&c| if c < p { height[c as usize] } else { 0 })
+            .max()
+            .unwrap_or(0);
+        height[n as usize] = h;
+        if tree.count(n) >= gamma {
+            let level = h as usize - 1;
+            if levels.len() <= level {
+                levels.resize_with(level + 1, Vec::new);
+            }
+            levels[level].push(n);
+        }
+    }
+    levels
+}
+
+/// One treelet's new shape: for each of its inner nodes (the root first),
+/// its children, box, cost and packed count.
+struct Rewrite {
+    nodes: Vec<(u32, [u32; 2], Bounds, f32, u32)>,
+}
+
+impl Rewrite {
+    fn apply(&self, tree: &mut BuildTree) {
+        for &(n, ids, bounds, cost, packed) in &self.nodes {
+            for id in ids {
+                tree.parent[id as usize] = n;
+            }
+            tree.child[n as usize] = ids;
+            tree.bounds[n as usize] = bounds;
+            tree.cost[n as usize] = cost;
+            tree.packed[n as usize] = packed;
+        }
+    }
+}
+
+/// The sequential pass the parallel one must equal (tests).
+#[cfg(test)]
+pub(crate) fn round_sequential(tree: &mut BuildTree, gamma: u32, max_leaf: u32, ci: f32, ct: f32) {
     for n in tree.post_order() {
         if tree.count(n) >= gamma {
-            restructure(tree, n, max_leaf, ci, ct);
+            if let Some(rewrite) = plan(tree, n, max_leaf, ci, ct) {
+                rewrite.apply(tree);
+            }
         }
     }
 }
@@ -52,7 +116,9 @@ fn subset_bounds(boxes: &[Bounds], s: usize) -> Bounds {
     b
 }
 
-fn restructure(tree: &mut BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32) {
+/// The restructuring of the treelet at `root`, from `tree` as it is; `None`
+/// where the subtree has too few nodes for a treelet.
+fn plan(tree: &BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32) -> Option<Rewrite> {
     let p = tree.prims();
     // Treelet formation: open the largest-area leaf (first on ties) until 7.
     let mut leaves: Vec<u32> = tree.child[root as usize].to_vec();
@@ -79,7 +145,7 @@ fn restructure(tree: &mut BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32)
         leaves.push(b);
     }
     if leaves.len() < TREELET_LEAVES {
-        return;
+        return None;
     }
     let boxes: Vec<Bounds> = leaves.iter().map(|&n| tree.bounds[n as usize]).collect();
     let mut sh = Scratch {
@@ -134,6 +200,7 @@ fn restructure(tree: &mut BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32)
     finish(&mut sh, all, best, best_left, max_leaf, ci, ct);
 
     // Rebuild top-down with the treelet's own inner slots (a stack, as the kernel).
+    let mut rewrite = Rewrite { nodes: Vec::with_capacity(TREELET_LEAVES - 1) };
     let mut stack = vec![(all, root)];
     let mut next_inner = 1;
     while let Some((s, n)) = stack.pop() {
@@ -148,12 +215,9 @@ fn restructure(tree: &mut BuildTree, root: u32, max_leaf: u32, ci: f32, ct: f32)
                 stack.push((sides[k], id));
                 id
             };
-            tree.parent[ids[k] as usize] = n;
         }
-        tree.child[n as usize] = ids;
-        tree.bounds[n as usize] = subset_bounds(&boxes, s);
-        tree.cost[n as usize] = sh.cost[s];
-        tree.packed[n as usize] =
-            (sh.count[s] & BUILD_COUNT_MASK) | if sh.as_leaf[s] { BUILD_LEAF_BIT } else { 0 };
+        let packed = (sh.count[s] & BUILD_COUNT_MASK) | if sh.as_leaf[s] { BUILD_LEAF_BIT } else { 0 };
+        rewrite.nodes.push((n, ids, subset_bounds(&boxes, s), sh.cost[s], packed));
     }
+    Some(rewrite)
 }
