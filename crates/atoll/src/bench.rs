@@ -43,10 +43,21 @@ pub struct BenchArgs {
     /// and rings of processes) instead of everything else.
     #[arg(long, conflicts_with = "peer")]
     pub queue_copy: bool,
+    /// No progress lines on stderr (results only).
+    #[arg(short, long)]
+    pub quiet: bool,
     #[command(flatten)]
     pub device: DeviceArgs,
     #[command(flatten)]
     pub waves: WaveArgs,
+}
+
+/// A progress line on stderr: each step takes seconds (kernels compile on
+/// first use, scenes are generated), which would otherwise pass in silence.
+fn step(args: &BenchArgs, what: std::fmt::Arguments) {
+    if !args.quiet {
+        eprintln!("bench: {what}");
+    }
 }
 
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
@@ -58,6 +69,13 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         return queue_copies(&args, selected);
     }
     if !args.no_traversal {
+        step(
+            &args,
+            format_args!(
+                "BVH builds and traversal on {} triangles ({})",
+                args.triangles, selected.description
+            ),
+        );
         match &selected.gpu {
             Some(gpu) => gpu_traversal(&args, gpu)?,
             None => traversal(&args)?,
@@ -98,8 +116,15 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         Ok((out.render_seconds, out.samples_per_second(), out.rays_per_second()))
     };
     // Warm-up: kernel compilation, caches, clocks.
+    step(&args, format_args!("path tracing the Cornell box: warming up (kernels compile on first use)"));
     run_once(1)?;
-    let mut runs = (0..args.runs.max(1)).map(|_| run_once(args.spp)).collect::<Result<Vec<_>, _>>()?;
+    let runs = args.runs.max(1);
+    let mut runs = (0..runs)
+        .map(|k| {
+            step(&args, format_args!("path tracing the Cornell box: run {} of {runs}", k + 1));
+            run_once(args.spp)
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     runs.sort_by(|a, b| a.0.total_cmp(&b.0));
     let (seconds, samples, rays) = runs[runs.len() / 2];
     println!(
