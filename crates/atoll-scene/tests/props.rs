@@ -549,20 +549,7 @@ fn gltf_json(uri: Option<&str>) -> String {
 
 /// A GLB of `json` with `bin` as its BIN chunk.
 fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let mut j = json.as_bytes().to_vec();
-    j.resize(j.len().next_multiple_of(4), b' ');
-    let mut b = bin.to_vec();
-    b.resize(b.len().next_multiple_of(4), 0);
-    let total = 12 + 8 + j.len() + 8 + b.len();
-    let mut out = b"glTF".to_vec();
-    for x in [2u32, total as u32, j.len() as u32, 0x4E4F534A] {
-        out.extend(x.to_le_bytes());
-    }
-    out.extend(j);
-    out.extend((b.len() as u32).to_le_bytes());
-    out.extend(0x004E4942u32.to_le_bytes());
-    out.extend(b);
-    out
+    common::glb(json.as_bytes(), bin)
 }
 
 /// Every seed loads as it is: a property over broken seeds would test little.

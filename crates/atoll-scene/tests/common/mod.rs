@@ -44,3 +44,21 @@ pub fn tri(p: [[f32; 3]; 3]) -> String {
 pub fn assert_close(a: glam::Vec3, b: glam::Vec3, eps: f32) {
     assert!((a - b).abs().max_element() <= eps, "{a} != {b}");
 }
+
+/// A binary glTF (GLB) of JSON text `json` with `bin` as its BIN chunk.
+pub fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
+    let mut j = json.to_vec();
+    j.resize(j.len().next_multiple_of(4), b' ');
+    let mut b = bin.to_vec();
+    b.resize(b.len().next_multiple_of(4), 0);
+    let total = 12 + 8 + j.len() + 8 + b.len();
+    let mut out = b"glTF".to_vec();
+    for x in [2u32, total as u32, j.len() as u32, 0x4E4F534A] {
+        out.extend(x.to_le_bytes());
+    }
+    out.extend(j);
+    out.extend((b.len() as u32).to_le_bytes());
+    out.extend(0x004E4942u32.to_le_bytes());
+    out.extend(b);
+    out
+}
