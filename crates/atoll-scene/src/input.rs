@@ -123,12 +123,32 @@ pub struct LoadBudget {
     bytes: AtomicU64,
     max_triangles: u64,
     triangles: AtomicU64,
+    max_files: u64,
+    files: AtomicU64,
 }
+
+/// Most files (counting each time one is read) one scene may read: far
+/// more than production scenes have (thousands), and a stop for Include
+/// chains that read tiny files exponentially many times, which the byte
+/// budget would let run for hours.
+pub const MAX_SCENE_FILES: u64 = 1_000_000;
 
 impl LoadBudget {
     /// A budget of `max_bytes` bytes read and `max_triangles` generated.
     pub fn new(max_bytes: u64, max_triangles: u64) -> Self {
-        LoadBudget { max_bytes, bytes: AtomicU64::new(0), max_triangles, triangles: AtomicU64::new(0) }
+        LoadBudget {
+            max_bytes,
+            bytes: AtomicU64::new(0),
+            max_triangles,
+            triangles: AtomicU64::new(0),
+            max_files: MAX_SCENE_FILES,
+            files: AtomicU64::new(0),
+        }
+    }
+
+    /// The same budget allowing at most `max_files` file reads.
+    pub fn with_max_files(self, max_files: u64) -> Self {
+        LoadBudget { max_files, ..self }
     }
 
     /// A budget with the limits set now ([`max_scene_bytes`],
@@ -155,8 +175,18 @@ impl LoadBudget {
             .map_err(|u| u.saturating_add(n))
     }
 
-    /// Counts a file of `n` bytes; refused past the scene's byte budget.
+    /// Counts a file of `n` bytes; refused past the scene's byte budget or
+    /// its number of file reads.
     pub fn read_bytes(&self, n: u64) -> io::Result<()> {
+        Self::draw(&self.files, 1, self.max_files).map_err(|_| {
+            io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!(
+                    "more than the {} file reads one scene may make (files included over and over?)",
+                    self.max_files
+                ),
+            )
+        })?;
         Self::draw(&self.bytes, n, self.max_bytes).map_err(|total| {
             io::Error::new(
                 io::ErrorKind::InvalidInput,

@@ -57,6 +57,27 @@ fn all_the_files_of_a_scene_share_one_byte_budget() {
     assert!(loaded.unwrap_err().message.contains("--max-scene-bytes"));
 }
 
+/// An Include chain that reads a tiny file exponentially many times stops
+/// at the number of file reads, long before its bytes add up.
+#[test]
+fn file_reads_are_counted_so_include_chains_stop() {
+    let dir = temp_dir("limits-files");
+    write(&dir, "leaf.pbrt", "# nothing\n");
+    // Level k includes level k-1 twice: 2^12 reads of the leaf.
+    write(&dir, "level0.pbrt", "Include \"leaf.pbrt\"\nInclude \"leaf.pbrt\"\n");
+    for k in 1..12 {
+        let prev = format!("level{}.pbrt", k - 1);
+        write(&dir, &format!("level{k}.pbrt"), format!("Include \"{prev}\"\nInclude \"{prev}\"\n"));
+    }
+    let main = write(&dir, "scene.pbrt", format!("{OPTIONS}Include \"level11.pbrt\"\n"));
+    let (loaded, _) = load_with(LoadBudget::new(u64::MAX, u64::MAX).with_max_files(10_000), &main);
+    assert!(loaded.is_ok(), "{:?}", loaded.err());
+    let (loaded, _) = load_with(LoadBudget::new(u64::MAX, u64::MAX).with_max_files(1_000), &main);
+    let e = loaded.unwrap_err();
+    assert!(e.message.contains("1000 file reads"), "{e}");
+    assert!(e.line > 0, "the Include that went past the limit is named: {e}");
+}
+
 #[test]
 fn the_byte_budget_setting_applies_to_loads_that_start_after_it() {
     use atoll_scene::input::{max_scene_bytes, set_max_scene_bytes, DEFAULT_MAX_SCENE_BYTES};

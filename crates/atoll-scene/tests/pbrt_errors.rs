@@ -199,12 +199,15 @@ fn negative_colours_and_light_scales() {
         ("LightSource \"infinite\" \"rgb L\" [ 1 1 1 ] \"float scale\" -1", "negative \"scale\""),
         ("LightSource \"spot\" \"blackbody I\" [ 5500 -1 ]", "\"blackbody I\": negative value -1"),
         ("AreaLightSource \"diffuse\" \"float scale\" -3", "area light \"diffuse\": negative \"scale\" -3"),
+        ("LightSource \"spot\" \"float power\" -5", "light \"spot\": negative \"power\" -5"),
     ];
     for (i, (statement, expected)) in cases.into_iter().enumerate() {
         let e = error_at(&format!("negative{i}"), &format!("{OPTIONS}\n{statement}\n"), 4);
         assert!(e.contains(expected), "{statement}: {e}");
     }
     // Zero is no light and black, not an error.
-    let ok = "LightSource \"point\" \"float scale\" 0\nMaterial \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]";
+    // A spot's power of 0 is pbrt-v4's "unset": its intensity stays.
+    let ok = "LightSource \"point\" \"float scale\" 0\nMaterial \"diffuse\" \"rgb reflectance\" [ 0 0 0 ]\n\
+              LightSource \"spot\" \"float power\" 0";
     load_str(&format!("{OPTIONS}{ok}\n"), "zero", Path::new(".")).unwrap();
 }

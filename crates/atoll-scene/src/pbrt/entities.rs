@@ -415,9 +415,16 @@ pub fn light(
             };
             let position = transform::point(ctm, from).as_vec3();
             let mut light = Light::spot(position, direction.as_vec3(), i * scale, cone_angle, cone_delta);
-            // pbrt-v4: `power` (W) sets the emitted power, replacing I's brightness.
+            // pbrt-v4: `power` (W) sets the emitted power, replacing I's
+            // brightness; 0 leaves I as it is (pbrt's "unset"), and a
+            // negative power means nothing, as negative radiance.
+            let power = p.float("power")?;
+            if let Some(power) = power.filter(|&v| v < 0.0) {
+                let at = p.find("power", &[ParamType::Float]).map_or(loc, |q| &q.loc);
+                return Err(SceneError::at(at, format!("{what}: negative \"power\" {power}")));
+            }
             if let (Some(power), Light::Spot { intensity, cos_falloff_start, cos_falloff_end, .. }) =
-                (p.float("power")?, &mut light)
+                (power.filter(|&v| v > 0.0), &mut light)
             {
                 let per_unit =
                     Light::spot_solid_angle(*cos_falloff_start, *cos_falloff_end) * crate::luminance(i);
