@@ -58,6 +58,19 @@ enum WriteFailure {
     Png(image::ImageError),
 }
 
+/// A new file `PREFIXxxxxxx.EXT` in `dir` for an image: a temporary file
+/// (removed unless kept) with the permissions of any file the user creates
+/// (0666 less the umask; temporary files default to 0600, which would
+/// leave the image readable by its owner alone).
+fn image_file_in(dir: &Path, prefix: &str, ext: &str) -> std::io::Result<tempfile::NamedTempFile> {
+    let suffix = format!(".{ext}");
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(prefix).suffix(&suffix);
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    builder.tempfile_in(dir)
+}
+
 impl Film {
     pub fn new(resolution: UVec2) -> Self {
         Film { resolution, sum: vec![Vec3::ZERO; (resolution.x * resolution.y) as usize], spp: 0 }
@@ -110,10 +123,7 @@ impl Film {
             Some(p) if !p.as_os_str().is_empty() => p,
             _ => Path::new("."),
         };
-        let tmp = tempfile::Builder::new()
-            .prefix(".atoll-")
-            .suffix(&format!(".{ext}"))
-            .tempfile_in(dir)
+        let tmp = image_file_in(dir, ".atoll-", &ext)
             .map_err(|source| ImageError::Temporary { path: display.clone(), source })?;
         let written = match ext.as_str() {
             "exr" => self.write_exr(tmp.path()),
@@ -145,10 +155,7 @@ impl Film {
         };
         let mut last = None;
         for dir in [beside, std::env::temp_dir()] {
-            let made = tempfile::Builder::new()
-                .prefix(&format!("{stem}-"))
-                .suffix(&format!(".{ext}"))
-                .tempfile_in(&dir)
+            let made = image_file_in(&dir, &format!("{stem}-"), ext)
                 .map_err(|source| ImageError::Temporary { path: display.clone(), source });
             let tmp = match made {
                 Ok(tmp) => tmp,
@@ -276,6 +283,28 @@ mod tests {
             .collect();
         assert!(names.iter().all(|n| !n.starts_with(".atoll-")), "{names:?}");
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// Images get the permissions of any file the user creates, not a
+    /// temporary file's owner-only ones.
+    #[cfg(unix)]
+    #[test]
+    fn written_images_have_the_permissions_of_new_files() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, b"x").unwrap();
+        let mut film = Film::new(UVec2::new(2, 2));
+        film.spp = 1;
+        for name in ["a.png", "a.exr"] {
+            let path = dir.path().join(name);
+            film.write(&path).unwrap();
+            assert_eq!(mode(&path), mode(&plain), "{name}");
+        }
+        std::fs::create_dir(dir.path().join("b.png")).unwrap();
+        let saved = film.write_fallback(&dir.path().join("b.png")).unwrap();
+        assert_eq!(mode(&saved), mode(&plain));
     }
 
     #[test]
