@@ -8,7 +8,7 @@ use atoll_scene::{
     load_any, AlphaMode, AreaEmission, Channel, Light, Material, PrincipledParams, Rgb, TexInput, Texels,
     Texture, TexturedParam, UvMapping, Wrap,
 };
-use common::{assert_close, temp_dir, write};
+use common::{assert_close, gltf_bin, temp_dir, write};
 use glam::{UVec2, Vec3};
 use serde_json::json;
 
@@ -135,22 +135,6 @@ fn bad_obj_files_are_errors_with_lines() {
     }
     let e = load_any(&write(&dir, "points.obj", "v 0 0 0\nv 1 0 0\np 1 2\n")).unwrap_err();
     assert!(e.message.contains("no triangles"), "{e}");
-}
-
-/// Little-endian bytes of f32s.
-fn f32s(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
-}
-
-/// The binary buffer of [`gltf_json`]: a triangle (positions, normals, uvs,
-/// u16 indices) and a 4-vertex triangle strip.
-fn gltf_bin() -> Vec<u8> {
-    let mut b = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
-    b.extend(f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
-    b.extend(f32s(&[0., 0., 1., 0., 0., 1.]));
-    b.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
-    b.extend(f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]));
-    b
 }
 
 /// A glTF scene exercising instancing, materials, camera and lights.

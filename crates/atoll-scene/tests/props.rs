@@ -26,7 +26,7 @@ use std::sync::Once;
 use atoll_scene::load_any;
 use atoll_scene::pbrt::parser::Parser;
 use atoll_scene::pbrt::tokenizer::{TokenKind, Tokenizer};
-use common::temp_dir;
+use common::{gltf_bin, temp_dir};
 use proptest::prelude::*;
 use proptest::sample::Index;
 use proptest::test_runner::{RngSeed, TestCaseError};
@@ -469,21 +469,6 @@ v 0 1 1\nusemtl glass\nf -3 -2 -1\ng lamp\nusemtl lamp\nf 5 6 7\ns 1\nl 1 2\n";
 const MTL: &str =
     "newmtl red\nKd 0.8 0.1 0.1\nKs 0.1 0.1 0.1\nNs 10\nd 0.5\nmap_Kd -s 2 2 -clamp on missing.png\n\
 newmtl glass\nillum 7\nNi 1.5\nNs 300\nnewmtl lamp\nKd 0 0 0\nKe 4 4 4\nTr 0.25\n";
-
-fn f32s(v: &[f32]) -> Vec<u8> {
-    v.iter().flat_map(|x| x.to_le_bytes()).collect()
-}
-
-/// The buffer of [`gltf_json`]: a triangle (positions, normals, uvs, u16
-/// indices) and a 4-vertex triangle strip.
-fn gltf_bin() -> Vec<u8> {
-    let mut b = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
-    b.extend(f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
-    b.extend(f32s(&[0., 0., 1., 0., 0., 1.]));
-    b.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
-    b.extend(f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]));
-    b
-}
 
 /// A glTF scene with instancing, materials, a camera and lights; the
 /// buffer is `uri` (`None`: the GLB chunk).

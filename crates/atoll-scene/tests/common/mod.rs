@@ -62,3 +62,19 @@ pub fn glb(json: &[u8], bin: &[u8]) -> Vec<u8> {
     out.extend(b);
     out
 }
+
+/// Little-endian bytes of f32s.
+pub fn f32s(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// The binary buffer of the tests' glTF scenes: a triangle (positions,
+/// normals, uvs, u16 indices) and a 4-vertex triangle strip (152 bytes).
+pub fn gltf_bin() -> Vec<u8> {
+    let mut b = f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0.]);
+    b.extend(f32s(&[0., 0., 1., 0., 0., 1., 0., 0., 1.]));
+    b.extend(f32s(&[0., 0., 1., 0., 0., 1.]));
+    b.extend([0u16, 1, 2, 0].iter().flat_map(|i| i.to_le_bytes()));
+    b.extend(f32s(&[0., 0., 0., 1., 0., 0., 0., 1., 0., 1., 1., 0.]));
+    b
+}
