@@ -221,10 +221,8 @@ fn table_bytes<T: bytemuck::Pod>(v: Vec<T>) -> Vec<u8> {
 /// whose build does not fit the leader; refused when it would not fit host
 /// memory either.
 fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError> {
-    let whole = ScenePart::whole(scene);
-    let counts = TableCounts::of_part(scene, &whole);
     let options = BuildOptions::default();
-    let plan = crate::scene::part_plan(scene, &whole);
+    let plan = crate::scene::part_plan(scene, &ScenePart::whole(scene));
     // The build's arrays are the GPU build's; the tables are held twice
     // while each becomes bytes.
     let needed = plan.scene_tables + plan.bvh + plan.scene_tables.max(plan.bvh);
@@ -245,36 +243,19 @@ fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError>
     let t = SceneTables::build(scene);
     let bvh = reference::build_scene(&t, &options);
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+    let counts = t.counts();
     let scene_plan = ScenePlan::new(&t.objects, &t.instances);
-    let stats = GpuBvhStats {
+    let mut stats = GpuBvhStats {
         wall_ms,
         triangles: scene_plan.primitives(),
         blases: scene_plan.segments(),
         instances: scene_plan.valid_instances.len() as u32,
         blas_nodes: bvh.blas_nodes.len() as u32,
         tlas_nodes: bvh.tlas_nodes.len() as u32,
-        bytes: (std::mem::size_of_val(bvh.blas_nodes.as_slice())
-            + std::mem::size_of_val(bvh.tlas_nodes.as_slice())
-            + std::mem::size_of_val(bvh.tris.as_slice())
-            + std::mem::size_of_val(bvh.tri_ids.as_slice())
-            + std::mem::size_of_val(bvh.instances.as_slice())) as u64,
         ..Default::default()
     };
-    let meta = SceneMeta {
-        counts,
-        host_meshes: t.meshes.clone(),
-        host_objects: t.objects.clone(),
-        host_instances: t.instances.clone(),
-        tlas_root: bvh.tlas_root,
-        triangle_test: bvh.triangle_test,
-        blas_roots: bvh.blas_roots.clone(),
-        blas_bounds: bvh.blas_bounds.clone(),
-        tlas_bounds: bvh.tlas_bounds,
-        plan: scene_plan,
-        options,
-        stats,
-        scene_triangles: counts.triangles,
-    };
+    let (host_meshes, host_objects, host_instances) =
+        (t.meshes.clone(), t.objects.clone(), t.instances.clone());
     let SceneTables {
         vertices,
         normals,
@@ -304,6 +285,23 @@ fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError>
         table_bytes(bvh.tris),
         table_bytes(bvh.tri_ids),
     ];
+    // What the device holds of the BVH, placeholders included (as `GpuSceneBvh::bytes`).
+    stats.bytes = tables[10..].iter().map(|t| t.len() as u64).sum();
+    let meta = SceneMeta {
+        counts,
+        host_meshes,
+        host_objects,
+        host_instances,
+        tlas_root: bvh.tlas_root,
+        triangle_test: bvh.triangle_test,
+        blas_roots: bvh.blas_roots.clone(),
+        blas_bounds: bvh.blas_bounds.clone(),
+        tlas_bounds: bvh.tlas_bounds,
+        plan: scene_plan,
+        options,
+        stats,
+        scene_triangles: counts.triangles,
+    };
     Ok(Laid { scene: scene.clone(), chunk_bytes, tables, meta })
 }
 
