@@ -58,6 +58,14 @@ enum WriteFailure {
     Png(image::ImageError),
 }
 
+/// The folder `path` is in (`.` for a bare name).
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
 /// A new file `PREFIXxxxxxx.EXT` in `dir` for an image: a temporary file
 /// (removed unless kept) with the permissions of any file the user creates
 /// (0666 less the umask; temporary files default to 0600, which would
@@ -119,23 +127,20 @@ impl Film {
             Some(e @ ("exr" | "png")) => e.to_string(),
             _ => return Err(ImageError::UnknownFormat { path: display }),
         };
-        let dir = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p,
-            _ => Path::new("."),
-        };
-        let tmp = image_file_in(dir, ".atoll-", &ext)
+        let tmp = image_file_in(folder_of(path), ".atoll-", &ext)
             .map_err(|source| ImageError::Temporary { path: display.clone(), source })?;
-        let written = match ext.as_str() {
-            "exr" => self.write_exr(tmp.path()),
-            _ => self.write_png(tmp.path()),
-        };
-        match written {
-            Ok(()) => {
-                tmp.persist(path).map(drop).map_err(|e| ImageError::Rename { path: display, source: e.error })
-            }
-            Err(WriteFailure::Exr(source)) => Err(ImageError::Exr { path: display, source }),
-            Err(WriteFailure::Png(source)) => Err(ImageError::Png { path: display, source }),
-        }
+        self.write_as(tmp.path(), &ext, &display)?;
+        tmp.persist(path).map(drop).map_err(|e| ImageError::Rename { path: display, source: e.error })
+    }
+
+    /// Writes the image to `file` in format `ext` (`exr`, else PNG); errors
+    /// name `display`, the image the user asked for.
+    fn write_as(&self, file: &Path, ext: &str, display: &str) -> Result<(), ImageError> {
+        let written = if ext == "exr" { self.write_exr(file) } else { self.write_png(file) };
+        written.map_err(|failure| match failure {
+            WriteFailure::Exr(source) => ImageError::Exr { path: display.to_string(), source },
+            WriteFailure::Png(source) => ImageError::Png { path: display.to_string(), source },
+        })
     }
 
     /// Writes the image under a new name when [`Film::write`] to `path`
@@ -149,12 +154,8 @@ impl Film {
             _ => "png",
         };
         let stem = path.file_stem().map_or("atoll".into(), |s| s.to_string_lossy().into_owned());
-        let beside = match path.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
         let mut last = None;
-        for dir in [beside, std::env::temp_dir()] {
+        for dir in [folder_of(path).to_path_buf(), std::env::temp_dir()] {
             let made = image_file_in(&dir, &format!("{stem}-"), ext)
                 .map_err(|source| ImageError::Temporary { path: display.clone(), source });
             let tmp = match made {
@@ -164,20 +165,14 @@ impl Film {
                     continue;
                 }
             };
-            let written = if ext == "exr" { self.write_exr(tmp.path()) } else { self.write_png(tmp.path()) };
-            match written {
+            match self.write_as(tmp.path(), ext, &display) {
                 Ok(()) => {
                     return tmp
                         .keep()
                         .map(|(_, kept)| kept)
                         .map_err(|e| ImageError::Rename { path: display, source: e.error })
                 }
-                Err(WriteFailure::Exr(source)) => {
-                    last = Some(ImageError::Exr { path: display.clone(), source })
-                }
-                Err(WriteFailure::Png(source)) => {
-                    last = Some(ImageError::Png { path: display.clone(), source })
-                }
+                Err(e) => last = Some(e),
             }
         }
         Err(last.expect("two folders were tried"))
