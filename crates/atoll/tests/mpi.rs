@@ -128,10 +128,12 @@ fn waves_by_rank(stdout: &str, ranks: usize) -> Vec<usize> {
 #[test]
 fn ranks_render_the_image_of_one_process() {
     let dir = scratch("same");
-    let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
+    // Waves of 256 pixels: 48 in the frame, so that a rank that starts
+    // late (three processes on CI's two cores) still finds some left.
+    let alone = render_alone(&dir, &["--device", "cpu", "--wave-size", "256"], "alone.exr");
     assert!(alone.status.success(), "{}", text(&alone.stderr));
 
-    let out = mpirun(&dir, &[(3, &["--device", "cpu", "--threads", "1"])], "three.exr");
+    let out = mpirun(&dir, &[(3, &["--device", "cpu", "--threads", "1", "--wave-size", "256"])], "three.exr");
     let stdout = text(&out.stdout);
     assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
     assert!(stdout.contains("on 3 ranks (3 devices)"), "{stdout}");
