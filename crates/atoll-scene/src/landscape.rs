@@ -243,22 +243,25 @@ impl Landscape {
     pub fn build(&self) -> Scene {
         let mut scene = Scene { materials: materials(), ..Default::default() };
         let terrain = Terrain::new(self);
-        let ground = scene.add_mesh(terrain.mesh());
-        let world = scene.add_object(Object { name: "world".into(), meshes: vec![ground] });
-        scene.instances.push(Instance { object: world, object_to_world: Affine3A::IDENTITY });
-
         let meshes = object_meshes(self.tessellation(self.growth()), self.seed);
         let triangles = meshes.each_ref().map(|m| triangle_count(m));
+        let n = self.instance_count(&triangles);
+        // The terrain and the placements are independent: make them together.
+        let (ground, placements) = rayon::join(|| terrain.mesh(), || self.placements(&terrain, n));
+        let ground = scene.add_mesh(ground);
+        let world = scene.add_object(Object { name: "world".into(), meshes: vec![ground] });
         let mut ids = Vec::with_capacity(KINDS.len());
         for (kind, meshes) in KINDS.iter().zip(meshes) {
             let meshes = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
             ids.push(scene.add_object(Object { name: kind.name.into(), meshes }));
         }
-        let n = self.instance_count(&triangles);
-        scene.instances.reserve(n as usize);
-        for (kind, object_to_world) in self.placements(&terrain, n) {
-            scene.instances.push(Instance { object: ids[kind], object_to_world });
-        }
+        scene.instances = std::iter::once(Instance { object: world, object_to_world: Affine3A::IDENTITY })
+            .chain(
+                placements
+                    .into_iter()
+                    .map(|(kind, object_to_world)| Instance { object: ids[kind as usize], object_to_world }),
+            )
+            .collect();
         self.set_view(&mut scene, &terrain);
         scene
     }
@@ -266,8 +269,10 @@ impl Landscape {
     /// `n` placements `(kind, transform)` on a jittered grid: the grid has the
     /// fewest square cells ≥ `n`, and evenly spaced cells are skipped so that
     /// exactly `n` remain. Kinds come in the exact proportions of their
-    /// weights, shuffled over the cells.
-    fn placements<'a>(&self, terrain: &'a Terrain, n: u64) -> impl Iterator<Item = (usize, Affine3A)> + 'a {
+    /// weights, shuffled over the cells. Made in parallel; each placement
+    /// depends only on its index, so the result does not.
+    fn placements(&self, terrain: &Terrain, n: u64) -> Vec<(u8, Affine3A)> {
+        use rayon::prelude::*;
         let mut kinds: Vec<u8> = (0..n).map(|i| PATTERN[(i % PATTERN_LEN as u64) as usize]).collect();
         let mut rng = Rng(hash(self.seed ^ 0x51ac_e5ed));
         for i in (1..kinds.len()).rev() {
@@ -277,21 +282,25 @@ impl Landscape {
         let cells = side * side;
         let cell = 2.0 * terrain.half / side as f32;
         let seed = hash(self.seed ^ 0x9_1ace);
-        let kept = (0..cells).filter(move |&c| (c + 1) * n / cells > c * n / cells);
-        kept.zip(kinds).map(move |(c, kind)| {
-            let mut rng = Rng(hash(c as u32 ^ hash((c >> 32) as u32 ^ seed)));
-            let (i, j) = ((c % side) as f32, (c / side) as f32);
-            let x = -terrain.half + (i + 0.1 + 0.8 * rng.next()) * cell;
-            let z = -terrain.half + (j + 0.1 + 0.8 * rng.next()) * cell;
-            let k = &KINDS[kind as usize];
-            // Squared: many small instances, few big ones, as in nature.
-            let u = rng.next();
-            let scale = k.scale.0 + (k.scale.1 - k.scale.0) * u * u;
-            let rotation = Quat::from_rotation_y(rng.next() * std::f32::consts::TAU);
-            // Objects are modelled with their ground contact at the origin.
-            let position = Vec3::new(x, terrain.surface_height(x, z), z);
-            (kind as usize, Affine3A::from_scale_rotation_translation(Vec3::splat(scale), rotation, position))
-        })
+        kinds
+            .into_par_iter()
+            .enumerate()
+            .map(|(m, kind)| {
+                let c = kept_cell(m as u64, n, cells);
+                let mut rng = Rng(hash(c as u32 ^ hash((c >> 32) as u32 ^ seed)));
+                let (i, j) = ((c % side) as f32, (c / side) as f32);
+                let x = -terrain.half + (i + 0.1 + 0.8 * rng.next()) * cell;
+                let z = -terrain.half + (j + 0.1 + 0.8 * rng.next()) * cell;
+                let k = &KINDS[kind as usize];
+                // Squared: many small instances, few big ones, as in nature.
+                let u = rng.next();
+                let scale = k.scale.0 + (k.scale.1 - k.scale.0) * u * u;
+                let rotation = Quat::from_rotation_y(rng.next() * std::f32::consts::TAU);
+                // Objects are modelled with their ground contact at the origin.
+                let position = Vec3::new(x, terrain.surface_height(x, z), z);
+                (kind, Affine3A::from_scale_rotation_translation(Vec3::splat(scale), rotation, position))
+            })
+            .collect()
     }
 
     /// Camera, film, sampler, integrator and lights: a view from the
@@ -351,6 +360,14 @@ fn kind_counts(n: u64) -> [u64; KINDS.len()] {
         counts[kind as usize] += full + (slot < rest) as u64;
     }
     counts
+}
+
+/// The cell of the `m`-th of `n` placements over `cells ≥ n` grid cells:
+/// cell `c` is kept when `⌊(c+1)n/cells⌋ > ⌊cn/cells⌋`, which spaces the
+/// skipped cells evenly; the `m`-th kept cell is the first `c` with
+/// `(c+1)n ≥ (m+1)·cells`. In closed form so placements need no scan.
+fn kept_cell(m: u64, n: u64, cells: u64) -> u64 {
+    ((m + 1) as u128 * cells as u128).div_ceil(n as u128) as u64 - 1
 }
 
 fn triangle_count(meshes: &[TriangleMesh]) -> u64 {
@@ -485,34 +502,48 @@ impl Terrain {
     }
 
     /// The terrain mesh, normals from central differences of the heights.
+    /// Made in parallel; every element depends only on its index.
     fn mesh(&self) -> TriangleMesh {
+        use rayon::prelude::*;
         let (n, row) = (self.quads, self.quads as usize + 1);
-        let mut heights = Vec::with_capacity(row * row);
-        for j in 0..=n {
-            heights.extend((0..=n).map(|i| self.vertex_height(i, j)));
-        }
-        let mut positions = Vec::with_capacity(row * row);
-        let mut normals = Vec::with_capacity(row * row);
-        for j in 0..row {
-            for i in 0..row {
-                positions.push(Vec3::new(self.coord(i as u32), heights[j * row + i], self.coord(j as u32)));
+        let heights: Vec<f32> = (0..row * row)
+            .into_par_iter()
+            .map(|k| self.vertex_height((k % row) as u32, (k / row) as u32))
+            .collect();
+        let positions = (0..row * row)
+            .into_par_iter()
+            .map(|k| {
+                let (i, j) = (k % row, k / row);
+                Vec3::new(self.coord(i as u32), heights[k], self.coord(j as u32))
+            })
+            .collect();
+        let normals = (0..row * row)
+            .into_par_iter()
+            .map(|k| {
+                let (i, j) = (k % row, k / row);
                 // One-sided differences at the border.
                 let (i0, i1, j0, j1) =
                     (i.saturating_sub(1), (i + 1).min(row - 1), j.saturating_sub(1), (j + 1).min(row - 1));
                 let dx = (heights[j * row + i1] - heights[j * row + i0]) / ((i1 - i0) as f32 * self.step);
                 let dz = (heights[j1 * row + i] - heights[j0 * row + i]) / ((j1 - j0) as f32 * self.step);
-                normals.push(Vec3::new(-dx, 1.0, -dz).normalize());
-            }
-        }
-        let mut indices = Vec::with_capacity(2 * (n * n) as usize);
-        for j in 0..n {
-            for i in 0..n {
+                Vec3::new(-dx, 1.0, -dz).normalize()
+            })
+            .collect();
+        let indices = (0..2 * (n as usize) * (n as usize))
+            .into_par_iter()
+            .map(|t| {
+                let quad = (t / 2) as u32;
+                let (i, j) = (quad % n, quad / n);
                 let a = j * (n + 1) + i;
                 let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
                 // Wound so the geometric normal points up (+y).
-                indices.extend([[a, c, b], [b, c, d]]);
-            }
-        }
+                if t % 2 == 0 {
+                    [a, c, b]
+                } else {
+                    [b, c, d]
+                }
+            })
+            .collect();
         TriangleMesh {
             name: "terrain".into(),
             positions,
@@ -536,5 +567,21 @@ impl Rng {
     /// Uniform in [0, 1).
     fn next(&mut self) -> f32 {
         unit(self.next_u32())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::kept_cell;
+
+    #[test]
+    fn kept_cells_in_closed_form_are_the_scanned_ones() {
+        for n in [1u64, 2, 3, 7, 10, 99, 100, 101, 1055, 4097] {
+            let side = ((n as f64).sqrt().ceil() as u64).max(1);
+            let cells = side * side;
+            let scanned: Vec<u64> = (0..cells).filter(|&c| (c + 1) * n / cells > c * n / cells).collect();
+            let closed: Vec<u64> = (0..n).map(|m| kept_cell(m, n, cells)).collect();
+            assert_eq!(scanned, closed, "n = {n}");
+        }
     }
 }

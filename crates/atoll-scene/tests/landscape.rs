@@ -251,3 +251,35 @@ fn sizes_past_the_scene_model_are_refused() {
         assert!(e.contains(why), "{l:?}: {e}");
     }
 }
+
+/// FNV-1a over the bytes of every mesh array and instance transform, in
+/// scene order.
+fn fingerprint(scene: &Scene) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h = (h ^ b as u64).wrapping_mul(0x100_0000_01b3);
+        }
+    };
+    for m in &scene.meshes {
+        eat(bytemuck::cast_slice(&m.positions));
+        eat(bytemuck::cast_slice(&m.normals));
+        eat(bytemuck::cast_slice(&m.indices));
+    }
+    for i in &scene.instances {
+        eat(&i.object.to_le_bytes());
+        eat(bytemuck::cast_slice(&i.object_to_world.to_cols_array()));
+    }
+    h
+}
+
+/// The landscape is a benchmark: the same fields must give the same
+/// scene from one version to the next (and whatever the thread count), or
+/// numbers measured before would stop being comparable.
+#[test]
+fn the_scene_is_the_same_bit_for_bit_as_it_was() {
+    let scene = landscape(3, 5, 0.5).build();
+    assert_eq!(fingerprint(&scene), 16569200931050012473, "growth 3, seed 5, detail 0.5");
+    let scene = Landscape::new(1).build();
+    assert_eq!(fingerprint(&scene), 7820661534689539574, "growth 1");
+}
