@@ -8,6 +8,8 @@
 //! skipped. Faces with other vertex counts are skipped and counted (pbrt-v4
 //! ignores them too).
 
+mod fast;
+
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
@@ -264,11 +266,14 @@ fn parse_uncompressed(bytes: &[u8]) -> Result<PlyMesh, PlyError> {
             let text = String::from_utf8_lossy(body);
             read_body(&header, &mut Ascii { words: text.split_ascii_whitespace() }, body.len())
         }
-        f => read_body(
-            &header,
-            &mut Binary { bytes: body, pos: 0, big_endian: f == Format::BinaryBe },
-            body.len(),
-        ),
+        f => match fast::read(&header, body) {
+            Some(mesh) => Ok(mesh),
+            None => read_body(
+                &header,
+                &mut Binary { bytes: body, pos: 0, big_endian: f == Format::BinaryBe },
+                body.len(),
+            ),
+        },
     }
 }
 
@@ -494,6 +499,113 @@ mod tests {
             let e = parse_ply(format!("{header}{bad}").as_bytes()).unwrap_err().to_string();
             assert!(e.contains("is not an integer") && e.contains("'face' 0"), "{e}");
         }
+    }
+
+    /// A binary PLY of `quads` quads in a strip, with normals as doubles,
+    /// an extra vertex property, and faces as triangles, quads or
+    /// pentagons by `shape` (0, 1, 2 cycling).
+    fn strip(big_endian: bool, quads: u32, mixed: bool, index: &str) -> Vec<u8> {
+        let fmt = if big_endian { "binary_big_endian" } else { "binary_little_endian" };
+        let vertices = 2 * (quads + 1);
+        let faces = if mixed { quads } else { 2 * quads };
+        let mut b = format!(
+            "ply\nformat {fmt} 1.0\nelement vertex {vertices}\nproperty float x\nproperty short quality\n\
+             property float y\nproperty float z\nproperty double nx\nproperty double ny\nproperty double nz\n\
+             element face {faces}\nproperty uchar flags\nproperty list uchar {index} vertex_indices\n\
+             property float area\nend_header\n"
+        )
+        .into_bytes();
+        let put = |b: &mut Vec<u8>, le: &[u8]| {
+            let mut v = le.to_vec();
+            if big_endian {
+                v.reverse();
+            }
+            b.extend(v);
+        };
+        for i in 0..=quads {
+            for y in 0..2 {
+                put(&mut b, &(i as f32 * 0.5).to_le_bytes());
+                put(&mut b, &(-7i16).to_le_bytes());
+                put(&mut b, &(y as f32).to_le_bytes());
+                put(&mut b, &(0.1f32 * i as f32).to_le_bytes());
+                for n in [0.0f64, 0.6, 0.8] {
+                    put(&mut b, &n.to_le_bytes());
+                }
+            }
+        }
+        let idx = |b: &mut Vec<u8>, v: u32| match index {
+            "ushort" => put(b, &(v as u16).to_le_bytes()),
+            _ => put(b, &v.to_le_bytes()),
+        };
+        for q in 0..quads {
+            let a = 2 * q;
+            let face = |b: &mut Vec<u8>, vs: &[u32]| {
+                b.push(1);
+                b.push(vs.len() as u8);
+                vs.iter().for_each(|&v| idx(b, v));
+                put(b, &1.5f32.to_le_bytes());
+            };
+            if !mixed {
+                face(&mut b, &[a, a + 2, a + 1]);
+                face(&mut b, &[a + 1, a + 2, a + 3]);
+            } else {
+                match q % 3 {
+                    0 => face(&mut b, &[a, a + 2, a + 1]),
+                    1 => face(&mut b, &[a, a + 2, a + 3, a + 1]),
+                    _ => face(&mut b, &[a, a + 2, a + 3, a + 1, a]),
+                }
+            }
+        }
+        b
+    }
+
+    /// The general reader alone, as the fast path must match it.
+    fn general(bytes: &[u8]) -> Result<PlyMesh, PlyError> {
+        let header = parse_header(bytes)?;
+        let body = &bytes[header.body_start..];
+        let big_endian = header.format == Format::BinaryBe;
+        read_body(&header, &mut Binary { bytes: body, pos: 0, big_endian }, body.len())
+    }
+
+    #[test]
+    fn the_fast_binary_path_gives_the_general_readers_mesh() {
+        for be in [false, true] {
+            for mixed in [false, true] {
+                for index in ["uint", "int", "ushort"] {
+                    for quads in [1, 5, 40_000] {
+                        let bytes = strip(be, quads, mixed, index);
+                        let header = parse_header(&bytes).unwrap();
+                        let fast = fast::read(&header, &bytes[header.body_start..]).expect("fast path");
+                        let general = general(&bytes).unwrap();
+                        assert_eq!(fast, general, "be {be}, mixed {mixed}, {index}, {quads} quads");
+                        assert!(fast.normals.len() == fast.positions.len() && fast.uvs.is_empty());
+                        if mixed {
+                            assert_eq!(fast.skipped_faces, quads as usize / 3);
+                        } else {
+                            assert_eq!(fast.indices.len(), 2 * quads as usize);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_fast_binary_path_leaves_errors_to_the_general_reader() {
+        let good = strip(false, 100, false, "uint");
+        let header = parse_header(&good).unwrap();
+        let body = header.body_start;
+        // An index out of range (the last face's last index), a short body.
+        let mut bad_index = good.clone();
+        let n = bad_index.len();
+        bad_index[n - 8..n - 4].copy_from_slice(&999u32.to_le_bytes());
+        let truncated = &good[..good.len() - 3];
+        for bad in [&bad_index[..], truncated] {
+            assert!(fast::read(&header, &bad[body..]).is_none());
+            let e = parse_ply(bad).unwrap_err().to_string();
+            assert_eq!(e, general(bad).unwrap_err().to_string());
+        }
+        assert!(parse_ply(&bad_index).unwrap_err().to_string().contains("out of range"));
     }
 
     #[test]
