@@ -16,17 +16,18 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use glam::{Affine3A, DMat3, DMat4, DVec3};
+use glam::{Affine3A, DMat4, DVec3};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
     AlphaMode, AreaEmission, Instance, IntegratorSettings, LightSampler, Material, MaterialId, MeshAlpha,
-    MeshId, Object, Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam, TriangleMesh,
+    MeshId, Object, Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam,
 };
 
 use super::params::{Param, ParamList, ParamType};
 use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
-use super::shapes::{self, ShapeMesh};
+use super::pending::{PendingShape, ShapePlace};
+use super::shapes::{self, ShapeSource};
 use super::textures::{NamedTextures, TexCtx};
 use super::tokenizer::Tokenizer;
 use super::{entities, transform, LoadedScene, WarningSink};
@@ -133,6 +134,8 @@ pub struct Builder {
     default_material: Option<MaterialId>,
     /// Meshes whose `NamedMaterial` was not defined yet when they were created.
     pending_materials: Vec<(MeshId, String, FileLoc)>,
+    /// Shapes whose triangles are made at the end, in parallel.
+    pending_shapes: Vec<PendingShape>,
     world_meshes: Vec<MeshId>,
     objects: Vec<ObjectDef>,
     object_names: HashMap<String, usize>,
@@ -168,6 +171,7 @@ impl Builder {
             named_materials: HashMap::new(),
             default_material: None,
             pending_materials: Vec::new(),
+            pending_shapes: Vec::new(),
             world_meshes: Vec::new(),
             objects: Vec::new(),
             object_names: HashMap::new(),
@@ -477,9 +481,9 @@ impl Builder {
                 self.skip_shape(&name, &loc);
             }
             E::Shape => {
-                if let Some(mesh) = shapes::shape_mesh(&name, &p, &loc, &self.base_dir, w)? {
+                if let Some(source) = shapes::shape_source(&name, &p, &loc, &self.base_dir, w)? {
                     let alpha = self.shape_alpha(&name, &p, &loc)?;
-                    self.add_shape(mesh, alpha, &loc)?;
+                    self.add_shape(source, alpha, &loc);
                 }
             }
             E::Material if name == "mix" => {
@@ -787,35 +791,16 @@ impl Builder {
         }
     }
 
-    /// Transforms a shape's mesh by the CTM and adds it to the world or to the
-    /// object being defined.
-    fn add_shape(
-        &mut self,
-        shape: ShapeMesh,
-        alpha: Option<MeshAlpha>,
-        loc: &FileLoc,
-    ) -> Result<(), SceneError> {
-        if shape.indices.is_empty() {
-            self.warn(loc, format!("shape \"{}\" has no triangles; skipped", shape.name));
-            return Ok(());
+    /// Records a shape for the world or the object being defined, with the
+    /// graphics state's transform, material and emission; its triangles are
+    /// made at the end ([`Builder::add_pending_shapes`]).
+    fn add_shape(&mut self, source: ShapeSource, alpha: Option<MeshAlpha>, loc: &FileLoc) {
+        if let ShapeSource::Mesh(m) = &source {
+            if m.indices.is_empty() {
+                self.warn(loc, format!("shape \"{}\" has no triangles; skipped", m.name));
+                return;
+            }
         }
-        let ctm = self.gs.ctm;
-        let reverse = self.gs.reverse_orientation;
-        let positions =
-            shape.positions.iter().map(|p| transform::point(&ctm, p.as_dvec3()).as_vec3()).collect();
-        let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
-        let normals = shape
-            .normals
-            .iter()
-            .map(|n| {
-                let n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
-                if reverse {
-                    -n
-                } else {
-                    n
-                }
-            })
-            .collect();
         let mut emission = self.gs.area_light;
         if emission.is_some() && self.active_object.is_some() {
             self.warn(
@@ -825,32 +810,44 @@ impl Builder {
             emission = None;
         }
         let material = self.current_material();
-        let mesh = TriangleMesh {
-            name: shape.name,
-            positions,
-            normals,
-            uvs: shape.uvs,
-            indices: shape.indices,
-            material: material.unwrap_or(0),
-            emission,
-            flip_normals: reverse ^ transform::swaps_handedness(&ctm),
-            alpha,
+        let named_material = match (&self.gs.material, material) {
+            (MaterialRef::Named(name, at), None) => Some((name.clone(), at.clone())),
+            _ => None,
         };
-        mesh.validate()
-            .map_err(|m| SceneError::caused_by(loc, format!("shape \"{}\": {m}", mesh.name), m))?;
-        let emits = mesh.emission.is_some();
-        let id = self.scene.add_mesh(mesh);
-        if let (true, Some(texture)) = (emits, self.gs.area_light_texture) {
-            self.scene.textures.bind_emission(id, texture);
-        }
-        if material.is_none() {
-            if let MaterialRef::Named(name, at) = &self.gs.material {
-                self.pending_materials.push((id, name.clone(), at.clone()));
+        let place = ShapePlace {
+            loc: loc.clone(),
+            ctm: self.gs.ctm,
+            reverse_orientation: self.gs.reverse_orientation,
+            material,
+            named_material,
+            emission_texture: emission.and(self.gs.area_light_texture),
+            emission,
+            alpha,
+            object: self.active_object,
+        };
+        self.pending_shapes.push(PendingShape { source, place });
+    }
+
+    /// Makes the pending shapes (in parallel) and adds their meshes in the
+    /// order of their directives.
+    fn add_pending_shapes(&mut self) -> Result<(), SceneError> {
+        for made in super::pending::make_all(std::mem::take(&mut self.pending_shapes))? {
+            let place = made.place;
+            for warning in made.warnings {
+                self.warn(&place.loc, warning);
             }
-        }
-        match self.active_object {
-            Some(o) => self.objects[o].meshes.push(id),
-            None => self.world_meshes.push(id),
+            let Some(mesh) = made.mesh else { continue };
+            let id = self.scene.add_mesh(mesh);
+            if let Some(texture) = place.emission_texture {
+                self.scene.textures.bind_emission(id, texture);
+            }
+            if let Some((name, at)) = place.named_material {
+                self.pending_materials.push((id, name, at));
+            }
+            match place.object {
+                Some(o) => self.objects[o].meshes.push(id),
+                None => self.world_meshes.push(id),
+            }
         }
         Ok(())
     }
@@ -876,6 +873,7 @@ impl Builder {
                 );
             }
         }
+        self.add_pending_shapes()?;
         for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {
             let Some(slot) = self.named_materials.get_mut(&name) else {
                 return Err(SceneError::at(

@@ -23,6 +23,7 @@ pub mod builder;
 pub mod entities;
 pub mod params;
 pub mod parser;
+mod pending;
 pub mod shapes;
 pub mod spectrum;
 pub mod subdivision;

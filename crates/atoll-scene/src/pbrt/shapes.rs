@@ -29,18 +29,53 @@ pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere", "loopsubdi
 /// Longitude and latitude steps of a tessellated sphere.
 pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
 
-/// The mesh of `Shape "ty" params`; `None` (after a warning) for shapes we skip.
-/// Relative file names resolve against `base_dir` (the main scene file's directory).
-pub fn shape_mesh(
+/// Where a shape's triangles come from: made from the directive's
+/// parameters, or a PLY file read later ([`ShapeSource::mesh`]), in
+/// parallel with the scene's other files.
+#[derive(Clone, Debug)]
+pub enum ShapeSource {
+    Mesh(ShapeMesh),
+    Ply {
+        path: std::path::PathBuf,
+        /// As the scene names it, for messages and the mesh's name.
+        filename: String,
+    },
+}
+
+impl ShapeSource {
+    /// The shape's triangles in object space, with what to warn about.
+    pub fn mesh(self, loc: &FileLoc) -> Result<(ShapeMesh, Option<String>), SceneError> {
+        match self {
+            ShapeSource::Mesh(mesh) => Ok((mesh, None)),
+            ShapeSource::Ply { path, filename } => read_ply_mesh(&path, filename, loc),
+        }
+    }
+}
+
+/// Where the triangles of `Shape "ty" params` come from; `None` (after a
+/// warning) for shapes we skip.
+pub fn shape_source(
     ty: &str,
     p: &ParamList,
     loc: &FileLoc,
     base_dir: &Path,
     w: &mut WarningSink,
+) -> Result<Option<ShapeSource>, SceneError> {
+    if ty == "plymesh" {
+        return ply_source(p, loc, base_dir).map(Some);
+    }
+    made_mesh(ty, p, loc, w).map(|m| m.map(ShapeSource::Mesh))
+}
+
+/// The mesh of a shape made from its parameters.
+fn made_mesh(
+    ty: &str,
+    p: &ParamList,
+    loc: &FileLoc,
+    w: &mut WarningSink,
 ) -> Result<Option<ShapeMesh>, SceneError> {
     match ty {
         "trianglemesh" => triangle_mesh(p, loc, w).map(Some),
-        "plymesh" => ply_mesh(p, loc, base_dir, w).map(Some),
         "loopsubdiv" => {
             let levels = p.int("levels")?.unwrap_or(3);
             if !(0..=8).contains(&levels) {
@@ -192,18 +227,21 @@ fn bilinear(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<ShapeMe
     Ok(super::subdivision::bilinear_mesh(&positions, &normals, &uvs, &patches))
 }
 
-fn ply_mesh(
-    p: &ParamList,
-    loc: &FileLoc,
-    base_dir: &Path,
-    w: &mut WarningSink,
-) -> Result<ShapeMesh, SceneError> {
+fn ply_source(p: &ParamList, loc: &FileLoc, base_dir: &Path) -> Result<ShapeSource, SceneError> {
     let Some(filename) = p.string("filename")? else {
         return Err(SceneError::at(loc, "plymesh: \"string filename\" must be given"));
     };
     let path = crate::input::beside(base_dir, &filename)
         .map_err(|e| SceneError::at(loc, format!("plymesh: {e}")))?;
-    let m = ply::read_ply(&path).map_err(|e| match e {
+    Ok(ShapeSource::Ply { path, filename })
+}
+
+fn read_ply_mesh(
+    path: &Path,
+    filename: String,
+    loc: &FileLoc,
+) -> Result<(ShapeMesh, Option<String>), SceneError> {
+    let m = ply::read_ply(path).map_err(|e| match e {
         ply::PlyError::Io { source, .. } => SceneError::caused_by(
             loc,
             format!("plymesh: cannot read PLY file '{}': {source}", path.display()),
@@ -213,22 +251,20 @@ fn ply_mesh(
             SceneError::at(loc, format!("plymesh: bad PLY file '{}': {msg}", path.display()))
         }
     })?;
-    if m.skipped_faces > 0 {
-        w.warn(
-            loc,
-            format!(
-                "plymesh '{filename}': {} faces that are neither triangles nor quads skipped",
-                m.skipped_faces
-            ),
-        );
-    }
-    Ok(ShapeMesh {
+    let warning = (m.skipped_faces > 0).then(|| {
+        format!(
+            "plymesh '{filename}': {} faces that are neither triangles nor quads skipped",
+            m.skipped_faces
+        )
+    });
+    let mesh = ShapeMesh {
         name: filename,
         positions: m.positions,
         normals: m.normals,
         uvs: m.uvs,
         indices: m.indices,
-    })
+    };
+    Ok((mesh, warning))
 }
 
 /// The triangles of [`sphere`]`(_, n_phi, n_theta)`: two per quad but one
