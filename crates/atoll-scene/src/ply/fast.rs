@@ -242,13 +242,13 @@ impl FaceLayout {
             let n = usize::try_from(scalar_int(self.count, body.get(..at + count_size)?, at, be)?).ok()?;
             at += count_size;
             let items = body.get(at..at.checked_add(n.checked_mul(item_size)?)?)?;
-            for k in 0..n {
-                let v = scalar_int(self.item, items, k * item_size, be)?;
+            for (k, item) in items.chunks_exact(item_size).enumerate() {
+                let v = scalar_int(self.item, item, 0, be)?;
                 if !(0..vertices as i64).contains(&v) {
                     return None;
                 }
-                if k < 4 {
-                    face[k] = v as u32;
+                if let Some(slot) = face.get_mut(k) {
+                    *slot = v as u32;
                 }
             }
             match n {
