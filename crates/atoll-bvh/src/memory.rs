@@ -70,21 +70,37 @@ impl ByteModel {
     };
 }
 
-/// Sizes a part is made of, as [`part_bytes`] charges them.
+/// Sizes a scene or a part is made of, as a [`ByteModel`] charges them:
+/// counted from a part ([`part_bytes`]), or known before a scene is built
+/// (a generated scene's estimate) so that one that cannot fit is refused
+/// before it is made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct PartCounts {
+pub struct SceneCounts {
     /// Mesh arrays: whole vertex arrays, index entries of included triangles.
-    geometry: u64,
+    pub geometry: u64,
     /// Vertices of the meshes the part touches (each mesh once).
-    vertices: u64,
+    pub vertices: u64,
     /// Triangles in bottom-level BVHs (each object once, however instanced).
-    triangles: u64,
+    pub triangles: u64,
     /// Triangles of the part's largest object.
-    largest_object: u64,
+    pub largest_object: u64,
     /// Objects with at least one triangle in the part.
-    objects: u64,
+    pub objects: u64,
     /// Instances of those objects in the part.
-    instances: u64,
+    pub instances: u64,
+}
+
+impl ByteModel {
+    /// Bytes a device with this model needs for a scene of `counts`,
+    /// textures aside.
+    pub fn bytes(&self, c: &SceneCounts) -> u64 {
+        c.geometry
+            + c.vertices * self.per_vertex
+            + c.triangles * self.per_triangle
+            + c.objects * self.per_object
+            + c.instances * self.per_instance
+            + c.largest_object * self.scratch_per_triangle
+    }
 }
 
 /// Bytes of one mesh's vertex arrays (positions, normals, uvs) as stored.
@@ -93,7 +109,7 @@ fn vertex_bytes(scene: &Scene, mesh: MeshId) -> u64 {
     (m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8) as u64
 }
 
-fn counts(scene: &Scene, part: &ScenePart) -> PartCounts {
+fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
     let mut objects: Vec<ObjectId> =
         part.instances.iter().map(|&i| scene.instances[i as usize].object).collect();
     objects.sort_unstable();
@@ -102,7 +118,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> PartCounts {
         instances_of[o as usize] += 1;
     }
     objects.dedup();
-    let mut c = PartCounts::default();
+    let mut c = SceneCounts::default();
     // Per mesh, the triangle ranges any object of the part includes.
     let mut ranges: Vec<(MeshId, u32, u32)> = Vec::new();
     for &o in &objects {
@@ -157,14 +173,7 @@ pub fn part_geometry_bytes(scene: &Scene, part: &ScenePart) -> u64 {
 /// the hits it finds and the paths it spawns, on any material, so each
 /// holds them all.
 pub fn part_bytes(scene: &Scene, part: &ScenePart, model: &ByteModel) -> u64 {
-    let c = counts(scene, part);
-    scene.textures.memory_bytes()
-        + c.geometry
-        + c.vertices * model.per_vertex
-        + c.triangles * model.per_triangle
-        + c.objects * model.per_object
-        + c.instances * model.per_instance
-        + c.largest_object * model.scratch_per_triangle
+    scene.textures.memory_bytes() + model.bytes(&counts(scene, part))
 }
 
 #[cfg(test)]

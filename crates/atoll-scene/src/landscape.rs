@@ -137,6 +137,10 @@ pub struct LandscapeEstimate {
     pub instances: u64,
     pub unique_triangles: u64,
     pub instanced_triangles: u64,
+    /// Vertices of all meshes.
+    pub vertices: u64,
+    /// Triangles of the object with the most (the terrain, but at tiny growths).
+    pub largest_object_triangles: u64,
     /// Mesh data (as [`crate::SceneStats::geometry_bytes`]).
     pub geometry_bytes: u64,
     /// Mesh data plus `instances × size_of::<Instance>()`.
@@ -221,7 +225,10 @@ impl Landscape {
         let geometry_bytes = tv * tv * 24
             + terrain_triangles * 12
             + objects.iter().flatten().map(TriangleMesh::memory_bytes).sum::<u64>();
+        let object_vertices: u64 = objects.iter().flatten().map(|m| m.positions.len() as u64).sum();
         LandscapeEstimate {
+            vertices: tv * tv + object_vertices,
+            largest_object_triangles: triangles.iter().copied().fold(terrain_triangles, u64::max),
             meshes: 1 + objects.iter().map(|m| m.len() as u64).sum::<u64>(),
             objects: 1 + KINDS.len() as u64,
             instances: n + 1,

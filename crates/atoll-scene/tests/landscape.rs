@@ -107,6 +107,12 @@ fn estimate_matches_the_built_scene() {
         assert_eq!(e.unique_triangles, s.unique_triangles);
         assert_eq!(e.instanced_triangles, s.instanced_triangles);
         assert_eq!(e.geometry_bytes, s.geometry_bytes);
+        let vertices: usize = scene.meshes.iter().map(|m| m.positions.len()).sum();
+        assert_eq!(e.vertices, vertices as u64);
+        let object_triangles = |o: &atoll_scene::Object| -> u64 {
+            o.meshes.iter().map(|&m| scene.meshes[m as usize].triangle_count() as u64).sum()
+        };
+        assert_eq!(e.largest_object_triangles, scene.objects.iter().map(object_triangles).max().unwrap());
         let instance_bytes = (s.instances * std::mem::size_of::<atoll_scene::Instance>()) as u64;
         assert_eq!(e.bytes, s.geometry_bytes + instance_bytes);
     }

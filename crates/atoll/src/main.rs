@@ -7,6 +7,7 @@ mod gen;
 mod info;
 mod load;
 mod multi;
+mod preflight;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod render;

@@ -243,12 +243,16 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.mpi {
         return run_ranked(args);
     }
+    let selected_early = select_before_loading(&args)?;
     let Frame { scene, mut options, output, load_seconds } = load_frame(&args)?;
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(&args, specs, &mut options);
         return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
     }
-    let mut selected = open_device(&args, &scene, &mut options)?;
+    let mut selected = match selected_early {
+        Some(selected) => fit_device_waves(&args, selected, &scene, &mut options),
+        None => open_device(&args, &scene, &mut options)?,
+    };
     let more = gpu_wavefronts(selected.device.as_ref(), &args, &scene, &options)?;
     if !more.is_empty() {
         return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
@@ -364,12 +368,36 @@ pub(crate) fn open_device(
     options: &mut RenderOptions,
 ) -> Result<crate::device::Selected, CliError> {
     let selected = select(&args.device, args.threads)?;
+    Ok(fit_device_waves(args, selected, scene, options))
+}
+
+/// The wave settings for `selected` rendering `scene`.
+fn fit_device_waves(
+    args: &RenderArgs,
+    selected: crate::device::Selected,
+    scene: &Arc<Scene>,
+    options: &mut RenderOptions,
+) -> crate::device::Selected {
     args.waves.apply(options, selected.gpu.is_some());
     if let (Some(gpu), None) = (&selected.gpu, args.waves.wave_size) {
         let whole = atoll_bvh::ScenePart::whole(scene);
         crate::streams::fit_wave_size(gpu, scene, &whole, options, args.device.device_memory);
     }
-    Ok(selected)
+    selected
+}
+
+/// `--device` opened before the scene is loaded, where the scene's sizes
+/// are known without building it: a scene that cannot fit is refused in
+/// milliseconds, not after its build ([`crate::preflight`]).
+fn select_before_loading(args: &RenderArgs) -> Result<Option<crate::device::Selected>, CliError> {
+    let (None, Some(source)) = (&args.devices, args.scene.as_deref()) else { return Ok(None) };
+    let Some(counts) = crate::preflight::known_sizes(Some(source))? else { return Ok(None) };
+    if let Some(output) = &args.output {
+        check_output(output)?;
+    }
+    let selected = select(&args.device, args.threads)?;
+    crate::preflight::check_fits(source, &counts, selected.device.as_ref(), args.device.device_memory)?;
+    Ok(Some(selected))
 }
 
 /// The further wavefronts `--streams` asks for beside `device` (on a GPU:

@@ -272,3 +272,25 @@ fn a_render_touches_only_its_output() {
     names.sort();
     assert_eq!(names, ["out.partial.png", "out.png"]);
 }
+
+#[test]
+fn a_generated_scene_that_cannot_fit_is_refused_before_it_is_built() {
+    let dir = scratch("refused_early");
+    // Some 60 GB for the CPU device: built, it would take minutes and more
+    // memory than a test machine has. Refused from its sizes, it takes none.
+    let out =
+        atoll(&dir, &["render", "landscape:9000", "--device", "cpu", "--device-memory", "4G", "-o", "x.png"]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("landscape:9000: does not fit cpu") && err.contains("estimated before building it"),
+        "{err}"
+    );
+    assert!(!dir.join("x.png").exists());
+    // One that fits renders.
+    let out = atoll(
+        &dir,
+        &["render", "landscape:1", "--device", "cpu", "--spp", "1", "--res", "16x9", "-o", "y.png"],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+}

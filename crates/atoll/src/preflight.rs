@@ -1,0 +1,96 @@
+//! Refusing a scene that cannot fit the device before anything of it is
+//! built. A generated scene's sizes follow from its parameters, so the
+//! device's byte model (the estimate placement plans with) is compared
+//! with the device's memory in milliseconds, rather than after a build
+//! that takes minutes and the host memory of the whole scene.
+
+use std::path::Path;
+
+use atoll_bvh::SceneCounts;
+use atoll_render::Device;
+
+use crate::CliError;
+
+/// The sizes of the scene at `source` where they are known without
+/// building it (a generated landscape); `None` otherwise.
+pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneCounts>, CliError> {
+    let Some(landscape) = source.and_then(|s| s.to_str()).and_then(crate::load::parse_landscape) else {
+        return Ok(None);
+    };
+    let landscape = landscape?;
+    // A landscape the scene model cannot hold is refused when it is loaded.
+    if landscape.check().is_err() {
+        return Ok(None);
+    }
+    let e = landscape.estimate();
+    Ok(Some(SceneCounts {
+        geometry: e.geometry_bytes,
+        vertices: e.vertices,
+        triangles: e.unique_triangles,
+        largest_object: e.largest_object_triangles,
+        objects: e.objects,
+        instances: e.instances,
+    }))
+}
+
+/// Refuses a scene of `counts` that `device` cannot hold: its memory is
+/// the smallest of what is free on it (host memory available, for a device
+/// that draws on it) and `budget` (`--device-memory`).
+pub(crate) fn check_fits(
+    source: &Path,
+    counts: &SceneCounts,
+    device: &dyn Device,
+    budget: Option<u64>,
+) -> Result<(), CliError> {
+    let free = device.free_memory();
+    let host = if free.is_none() { atoll_render::device::host_memory_available() } else { None };
+    let Some(capacity) = free.into_iter().chain(host).chain(budget).min() else { return Ok(()) };
+    let needed = device.byte_model().bytes(counts);
+    if needed <= capacity {
+        return Ok(());
+    }
+    let what = if budget == Some(capacity) {
+        "its --device-memory budget"
+    } else if host == Some(capacity) {
+        "host memory available"
+    } else {
+        "its free memory"
+    };
+    Err(CliError::Runtime(format!(
+        "{}: does not fit {}: it needs about {needed} bytes ({} triangles in {} objects, {} instances; \
+         estimated before building it), more than the {capacity} bytes of {what}",
+        source.display(),
+        device.name(),
+        counts.triangles,
+        counts.objects,
+        counts.instances,
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use atoll_render::CpuDevice;
+
+    #[test]
+    fn a_landscape_that_cannot_fit_the_budget_is_refused_from_its_sizes() {
+        let source = Path::new("landscape:100");
+        let counts = known_sizes(Some(source)).unwrap().expect("a landscape's sizes are known");
+        let device = CpuDevice::new();
+        let needed = device.byte_model().bytes(&counts);
+        // The estimate is the byte model's charge for the built scene.
+        let scene = atoll_scene::landscape::Landscape::new(100).build();
+        let whole = atoll_bvh::ScenePart::whole(&scene);
+        assert_eq!(needed, atoll_bvh::part_bytes(&scene, &whole, &device.byte_model()));
+        assert!(check_fits(source, &counts, &device, Some(needed)).is_ok());
+        let Err(CliError::Runtime(message)) = check_fits(source, &counts, &device, Some(needed - 1)) else {
+            panic!("not refused")
+        };
+        assert!(message.contains("estimated before building it") && message.contains("--device-memory"));
+        // A CPU device without a budget has the host's memory.
+        let host = atoll_render::device::host_memory_available();
+        assert_eq!(check_fits(source, &counts, &device, None).is_ok(), host.is_none_or(|h| needed <= h));
+        assert!(known_sizes(Some(Path::new("scene.pbrt"))).unwrap().is_none());
+        assert!(known_sizes(None).unwrap().is_none());
+    }
+}
