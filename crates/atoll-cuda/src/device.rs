@@ -443,7 +443,10 @@ impl CudaDevice {
 
         // Compile (or load from the cache) before the clock of the first wave starts.
         let kernels = Kernels::load(&gpu, frame)?;
+        let start = Instant::now();
         let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
+        gpu.synchronize()?;
+        let upload_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let bvh = bvh::GpuSceneBvh::build(&gpu, &gpu_scene)?;
         gpu.synchronize()?;
@@ -459,6 +462,7 @@ impl CudaDevice {
             s.scene.bytes() + s.bvh.bytes()
         };
         stats.bvh_build_seconds = bvh_build_seconds;
+        stats.upload_seconds = upload_seconds;
         stats.bvh_sah_cost = self.resident()?.scene.bvh.sah_cost();
         Ok(stats)
     }

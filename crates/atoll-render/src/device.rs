@@ -59,6 +59,9 @@ pub struct PrepareStats {
     pub scene_bytes: u64,
     /// Bytes of queues and film.
     pub frame_bytes: u64,
+    /// Seconds copying the scene's tables to the device (0 where it reads
+    /// them in place).
+    pub upload_seconds: f64,
     pub bvh_build_seconds: f64,
     pub bvh_sah_cost: f32,
     /// Under the shared strategy, what of the chunked scene the device

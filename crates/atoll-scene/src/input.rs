@@ -125,6 +125,10 @@ pub struct LoadBudget {
     triangles: AtomicU64,
     max_files: u64,
     files: AtomicU64,
+    /// Progress, for reports: triangles of the meshes made so far, and
+    /// nanoseconds threads spent reading files (summed over threads).
+    triangles_loaded: AtomicU64,
+    read_nanos: AtomicU64,
 }
 
 /// Most files (counting each time one is read) one scene may read: far
@@ -143,6 +147,8 @@ impl LoadBudget {
             triangles: AtomicU64::new(0),
             max_files: MAX_SCENE_FILES,
             files: AtomicU64::new(0),
+            triangles_loaded: AtomicU64::new(0),
+            read_nanos: AtomicU64::new(0),
         }
     }
 
@@ -165,6 +171,26 @@ impl LoadBudget {
     /// Triangles generated so far.
     pub fn triangles(&self) -> u64 {
         self.triangles.load(Ordering::Relaxed)
+    }
+
+    /// Files read so far (each read counted).
+    pub fn files(&self) -> u64 {
+        self.files.load(Ordering::Relaxed)
+    }
+
+    /// Triangles of the meshes made so far (read or generated).
+    pub fn triangles_loaded(&self) -> u64 {
+        self.triangles_loaded.load(Ordering::Relaxed)
+    }
+
+    /// Counts `n` triangles of a mesh made.
+    pub fn count_loaded_triangles(&self, n: u64) {
+        self.triangles_loaded.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// Seconds threads spent reading files, summed over threads.
+    pub fn read_seconds(&self) -> f64 {
+        self.read_nanos.load(Ordering::Relaxed) as f64 * 1e-9
     }
 
     /// Adds `n` to `used`, refusing (and leaving it as it was) when the
@@ -287,7 +313,10 @@ pub fn read(path: &Path) -> io::Result<Vec<u8>> {
             format!("has {len} bytes, more than this process can allocate"),
         )
     })?;
+    let start = std::time::Instant::now();
     std::fs::File::open(path)?.take(len).read_to_end(&mut bytes)?;
+    let nanos = start.elapsed().as_nanos() as u64;
+    on_budget(|b| b.read_nanos.fetch_add(nanos, Ordering::Relaxed));
     Ok(bytes)
 }
 

@@ -3,9 +3,10 @@
 //! `landscape:GROWTH[:SEED]`, or the built-in Cornell box.
 
 use std::path::Path;
-use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
 
+use atoll_scene::input::LoadBudget;
 use atoll_scene::landscape::Landscape;
 use atoll_scene::Scene;
 
@@ -14,9 +15,102 @@ use crate::CliError;
 /// The prefix that names a generated landscape instead of a file.
 const LANDSCAPE: &str = "landscape:";
 
+/// What loading a scene took and read, for the closing line.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LoadReport {
+    pub seconds: f64,
+    /// Files read (each read counted) and their bytes.
+    pub files: u64,
+    pub bytes: u64,
+    /// Seconds threads spent reading files, summed over threads; the rest
+    /// of the load is parsing and making meshes.
+    pub read_seconds: f64,
+    /// Triangles of the scene's meshes.
+    pub triangles: u64,
+}
+
+impl std::fmt::Display for LoadReport {
+    /// `load 2.10 s: 12 files, 3.40 GB (2.1 GB/s), read 0.80 s over threads, 120.0 M triangles`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "load {:.2} s", self.seconds)?;
+        if self.files > 0 {
+            let gb = self.bytes as f64 / 1e9;
+            write!(
+                f,
+                ": {} files, {gb:.2} GB ({:.2} GB/s), read {:.2} s over threads",
+                self.files,
+                gb / self.seconds.max(1e-9),
+                self.read_seconds
+            )?;
+        }
+        write!(f, ", {:.1} M triangles", self.triangles as f64 / 1e6)
+    }
+}
+
 /// Loads `path` (or the built-in Cornell box for `None`). Warnings have
 /// already been printed by the loader through `tracing`.
 pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
+    load_scene_reporting(path, true).map(|(scene, _)| scene)
+}
+
+/// [`load_scene`], showing what it reads as it goes (unless `quiet`) and
+/// reporting it.
+pub fn load_scene_reporting(path: Option<&Path>, quiet: bool) -> Result<(Scene, LoadReport), CliError> {
+    let start = std::time::Instant::now();
+    let budget = Arc::new(LoadBudget::from_settings());
+    let done = AtomicBool::new(false);
+    let scene = std::thread::scope(|s| {
+        if !quiet {
+            s.spawn(|| show_progress(&budget, &done, start));
+        }
+        let scene = atoll_scene::input::with_budget(budget.clone(), || load_unreported(path));
+        done.store(true, Ordering::Relaxed);
+        scene
+    })?;
+    let report = LoadReport {
+        seconds: start.elapsed().as_secs_f64(),
+        files: budget.files(),
+        bytes: budget.bytes(),
+        read_seconds: budget.read_seconds(),
+        triangles: scene.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+    };
+    Ok((scene, report))
+}
+
+/// A spinner with the files, bytes and triangles read so far and their
+/// rates, until `done`; shown only for loads that last.
+fn show_progress(budget: &LoadBudget, done: &AtomicBool, start: std::time::Instant) {
+    let tick = std::time::Duration::from_millis(100);
+    let mut bar = None;
+    while !done.load(Ordering::Relaxed) {
+        std::thread::sleep(tick);
+        let seconds = start.elapsed().as_secs_f64();
+        if seconds < 1.0 {
+            continue;
+        }
+        let bar = bar.get_or_insert_with(|| {
+            let bar = indicatif::ProgressBar::new_spinner();
+            bar.set_style(
+                indicatif::ProgressStyle::with_template("{spinner} loading [{elapsed_precise}] {msg}")
+                    .expect("valid template"),
+            );
+            bar
+        });
+        let (gb, triangles) = (budget.bytes() as f64 / 1e9, budget.triangles_loaded() as f64 / 1e6);
+        bar.set_message(format!(
+            "{} files, {gb:.2} GB ({:.2} GB/s), {triangles:.1} M triangles ({:.1} M/s)",
+            budget.files(),
+            gb / seconds,
+            triangles / seconds
+        ));
+        bar.tick();
+    }
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+}
+
+fn load_unreported(path: Option<&Path>) -> Result<Scene, CliError> {
     let Some(path) = path else {
         return Ok(atoll_scene::cornell::builtin_cornell_box());
     };

@@ -21,6 +21,7 @@ use atoll_dist::{
 use atoll_render::{Device, RenderOptions};
 use atoll_scene::Scene;
 
+use crate::load::LoadReport;
 use crate::multi::{self, DeviceList, DeviceSpec};
 use crate::render::{
     gpu_wavefronts, load_frame, multi_args, open_device, print_summary, progress_bar, set_waves_for_devices,
@@ -53,8 +54,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
 fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     let rank = ranks.rank();
-    let Frame { scene, mut options, output, load_seconds } =
-        together(ranks, load_frame(&args), "load the scene")?;
+    let Frame { scene, mut options, output, load } = together(ranks, load_frame(&args), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
         together(ranks, rank_devices(ranks.is_root(), &args, &scene, &mut options), "open their devices")?;
     let ring = together(ranks, rank_ring(ranks, &args, &scene, &options, &mut devices), "plan rings")?;
@@ -109,8 +109,10 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     // The frame lasts until the last rank is done (they start together).
     let render_seconds = ranks.max(out.render_seconds);
     let run = Run {
-        load_seconds: ranks.max(load_seconds),
+        load: LoadReport { seconds: ranks.max(load.seconds), ..load },
         prepare_seconds: ranks.max(out.prepare_seconds),
+        upload_seconds: 0.0,
+        bvh_build_seconds: 0.0,
         render_seconds,
         samples_per_second: out.film.pixel_count() as f64 * out.film.spp as f64 / render_seconds.max(1e-9),
         rays_per_second: rays as f64 / render_seconds.max(1e-9),

@@ -13,7 +13,7 @@ use glam::UVec2;
 use indicatif::{ProgressBar, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
-use crate::load::load_scene;
+use crate::load::{load_scene_reporting, LoadReport};
 use crate::multi::{
     self, parse_devices, parse_partitioning, parse_ring_order, parse_transport, DeviceList, DeviceSpec,
     MultiArgs, Partitioning,
@@ -244,10 +244,10 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         return run_ranked(args);
     }
     let selected_early = select_before_loading(&args)?;
-    let Frame { scene, mut options, output, load_seconds } = load_frame(&args)?;
+    let Frame { scene, mut options, output, load } = load_frame(&args)?;
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(&args, specs, &mut options);
-        return render_on_devices(&scene, options, &args, specs, &output, load_seconds);
+        return render_on_devices(&scene, options, &args, specs, &output, load);
     }
     let mut selected = match selected_early {
         Some(selected) => fit_device_waves(&args, selected, &scene, &mut options),
@@ -255,7 +255,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     };
     let more = gpu_wavefronts(selected.device.as_ref(), &args, &scene, &options)?;
     if !more.is_empty() {
-        return render_streams(&scene, options, &args, selected, more, &output, load_seconds);
+        return render_streams(&scene, options, &args, selected, more, &output, load);
     }
     let render = if args.warmup { render_warmed } else { render };
     let bar = progress_bar(args.quiet);
@@ -267,8 +267,10 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     bar.finish_and_clear();
     write_image(&out.film, &output)?;
     let run = Run {
-        load_seconds,
+        load,
         prepare_seconds: out.prepare_seconds,
+        upload_seconds: out.prepare.upload_seconds,
+        bvh_build_seconds: out.prepare.bvh_build_seconds,
         render_seconds: out.render_seconds,
         samples_per_second: out.samples_per_second(),
         rays_per_second: out.rays_per_second(),
@@ -295,7 +297,7 @@ pub(crate) struct Frame {
     pub scene: Arc<Scene>,
     pub options: RenderOptions,
     pub output: PathBuf,
-    pub load_seconds: f64,
+    pub load: LoadReport,
 }
 
 /// Loads the scene and applies the command line's overrides; refuses a bad
@@ -304,9 +306,7 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if let Some(output) = &args.output {
         check_output(output)?;
     }
-    let loading = std::time::Instant::now();
-    let scene = load_scene(args.scene.as_deref())?;
-    let load_seconds = loading.elapsed().as_secs_f64();
+    let (scene, load) = load_scene_reporting(args.scene.as_deref(), args.quiet)?;
     let mut options = RenderOptions::from_scene(&scene);
     if let Some(spp) = args.spp {
         options.spp = spp;
@@ -348,7 +348,7 @@ pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
     if args.output.is_none() {
         check_output(&output)?;
     }
-    Ok(Frame { scene: Arc::new(scene), options, output, load_seconds })
+    Ok(Frame { scene: Arc::new(scene), options, output, load })
 }
 
 /// Wave settings for `--devices`: GPU-sized waves when any is a GPU, fitted
@@ -428,7 +428,7 @@ fn render_streams(
     selected: crate::device::Selected,
     more: Vec<Box<dyn atoll_render::Device>>,
     output: &Path,
-    load_seconds: f64,
+    load: LoadReport,
 ) -> Result<(), CliError> {
     let description = selected.description.clone();
     let mut devices = vec![selected.device];
@@ -450,7 +450,7 @@ fn render_streams(
     bar.finish_and_clear();
     write_image(&out.film, output)?;
     let on = format!("{description} x {} wavefronts", devices.len());
-    print_summary(output, &options, &on, Run::of(&out, load_seconds));
+    print_summary(output, &options, &on, Run::of(&out, load));
     Ok(())
 }
 
@@ -468,18 +468,27 @@ pub(crate) fn write_image(film: &atoll_render::Film, output: &Path) -> Result<()
 
 /// How a render went, for the line it ends with.
 pub(crate) struct Run {
-    pub load_seconds: f64,
+    pub load: LoadReport,
     pub prepare_seconds: f64,
+    /// Of the preparing (the slowest device's, several rendering): scene
+    /// uploads and BVH builds; 0 where a device does not report them.
+    pub upload_seconds: f64,
+    pub bvh_build_seconds: f64,
     pub render_seconds: f64,
     pub samples_per_second: f64,
     pub rays_per_second: f64,
 }
 
 impl Run {
-    fn of(out: &atoll_dist::MultiOutput, load_seconds: f64) -> Self {
+    fn of(out: &atoll_dist::MultiOutput, load: LoadReport) -> Self {
+        let slowest = |f: fn(&atoll_render::device::PrepareStats) -> f64| {
+            out.devices.iter().map(|d| f(&d.prepare)).fold(0.0, f64::max)
+        };
         Run {
-            load_seconds,
+            load,
             prepare_seconds: out.prepare_seconds,
+            upload_seconds: slowest(|p| p.upload_seconds),
+            bvh_build_seconds: slowest(|p| p.bvh_build_seconds),
             render_seconds: out.render_seconds,
             samples_per_second: out.samples_per_second(),
             rays_per_second: out.rays_per_second(),
@@ -490,15 +499,23 @@ impl Run {
 /// The line every render ends with: the image, its size, what rendered it,
 /// the times and the speed (scripts read the `M samples/s`).
 pub(crate) fn print_summary(output: &Path, options: &RenderOptions, on: &str, run: Run) {
+    let parts: Vec<String> = [("upload", run.upload_seconds), ("BVH build", run.bvh_build_seconds)]
+        .iter()
+        .filter(|(_, seconds)| *seconds > 0.0)
+        .map(|(what, seconds)| format!("{what} {seconds:.2} s"))
+        .collect();
+    let mut prepare = format!("prepare {:.2} s", run.prepare_seconds);
+    if !parts.is_empty() {
+        prepare += &format!(": {}", parts.join(", "));
+    }
     println!(
-        "{}: {}x{} {} spp on {on} in {:.2} s (load {:.2} s, prepare {:.2} s): {:.2} M samples/s, {:.2} M rays/s",
+        "{}: {}x{} {} spp on {on} in {:.2} s ({}; {prepare}): {:.2} M samples/s, {:.2} M rays/s",
         output.display(),
         options.resolution.x,
         options.resolution.y,
         options.spp,
         run.render_seconds,
-        run.load_seconds,
-        run.prepare_seconds,
+        run.load,
         run.samples_per_second / 1e6,
         run.rays_per_second / 1e6,
     );
@@ -531,7 +548,7 @@ fn render_on_devices(
     args: &RenderArgs,
     specs: &[DeviceSpec],
     output: &Path,
-    load_seconds: f64,
+    load: LoadReport,
 ) -> Result<(), CliError> {
     let bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args(args, specs), &mut |done, total| {
@@ -543,7 +560,7 @@ fn render_on_devices(
     print!("{}", multi::device_table(&out));
     print!("{}", multi::shared_table(&out));
     let on = format!("{} devices", out.devices.len());
-    print_summary(output, &options, &on, Run::of(&out, load_seconds));
+    print_summary(output, &options, &on, Run::of(&out, load));
     Ok(())
 }
 

@@ -297,6 +297,7 @@ impl Device for CpuDevice {
             frame_bytes: self.frame_bytes(&frame.options),
             bvh_build_seconds: build,
             bvh_sah_cost: bvh_stats.blas.sah_cost,
+            upload_seconds: 0.0,
             shared: None,
         })
     }

@@ -229,6 +229,7 @@ impl SceneSharing for CpuSharing {
                     frame_bytes: device.frame_bytes(&frame.options),
                     bvh_build_seconds: bvh_stats.build_ms / 1e3,
                     bvh_sah_cost: bvh_stats.blas.sah_cost,
+                    upload_seconds: 0.0,
                     shared: Some(residency),
                 })
             })

@@ -105,6 +105,7 @@ impl PendingShape {
         };
         mesh.validate()
             .map_err(|m| SceneError::caused_by(&place.loc, format!("shape \"{}\": {m}", mesh.name), m))?;
+        crate::input::on_budget(|b| b.count_loaded_triangles(mesh.indices.len() as u64));
         Ok(MadeShape { place, mesh: Some(mesh), warnings })
     }
 }
