@@ -435,7 +435,7 @@ pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
 
 /// Copies `data` to a new device buffer; an empty table becomes one zeroed
 /// element (zero-length allocations fail), never read since its count is 0.
-pub(crate) fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
+pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
     gpu: &Gpu,
     data: &[T],
     what: &str,
@@ -444,7 +444,63 @@ pub(crate) fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZero
     if data.is_empty() {
         return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
     }
-    gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))
+    if std::mem::size_of_val(data) < STAGED_UPLOAD_BYTES {
+        return gpu.stream.clone_htod(data).map_err(CudaError::driver(context()));
+    }
+    staged_upload(gpu, data).map_err(CudaError::driver(context()))
+}
+
+/// Tables at least this large go through page-locked staging buffers of
+/// [`STAGING_BYTES`]: from pageable memory the driver copies through a
+/// small staging buffer of its own, at a fraction of the link's speed.
+const STAGED_UPLOAD_BYTES: usize = 64 << 20;
+const STAGING_BYTES: usize = 64 << 20;
+
+/// Copies `data` to a new device buffer through two page-locked buffers:
+/// threads fill one while the copy engine drains the other.
+fn staged_upload<T: cudarc::driver::DeviceRepr + Copy>(
+    gpu: &Gpu,
+    data: &[T],
+) -> Result<cudarc::driver::CudaSlice<T>, cudarc::driver::DriverError> {
+    use cudarc::driver::DevicePtrMut;
+    use rayon::prelude::*;
+    // SAFETY: every byte is written by the copies below before the buffer
+    // is returned (they cover `data` whole, and the stream is synchronised).
+    let mut device = unsafe { gpu.stream.alloc::<T>(data.len()) }?;
+    // SAFETY: `T` is plain device data (`DeviceRepr + Copy`): its bytes
+    // are what the device reads.
+    let bytes =
+        unsafe { std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data)) };
+    // SAFETY: written before each copy reads them.
+    let mut staging = [unsafe { gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES) }?, unsafe {
+        gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES)
+    }?];
+    let done = [gpu.ctx.new_event(None)?, gpu.ctx.new_event(None)?];
+    {
+        let (base, _written) = device.device_ptr_mut(&gpu.stream);
+        for (i, chunk) in bytes.chunks(STAGING_BYTES).enumerate() {
+            let b = i % 2;
+            // The copy that last read this buffer is over (no-op at first).
+            done[b].synchronize()?;
+            let host = &mut staging[b].as_mut_slice()?[..chunk.len()];
+            host.par_chunks_mut(1 << 20)
+                .zip(chunk.par_chunks(1 << 20))
+                .for_each(|(h, c)| h.copy_from_slice(c));
+            // SAFETY: the destination lies inside `device` (offsets of
+            // `data`'s bytes), and `host` is not written again before
+            // `done[b]` says this copy is over.
+            unsafe {
+                cudarc::driver::result::memcpy_htod_async(
+                    base + (i * STAGING_BYTES) as u64,
+                    host,
+                    gpu.stream.cu_stream(),
+                )
+            }?;
+            done[b].record(&gpu.stream)?;
+        }
+    }
+    gpu.stream.synchronize()?;
+    Ok(device)
 }
 
 #[cfg(test)]

@@ -16,6 +16,7 @@ use atoll_bvh::{ByteModel, MeshRange, ScenePart};
 use atoll_scene::{Scene, Texels, TextureImage};
 use cudarc::driver::CudaSlice;
 use glam::{Affine3A, Mat3};
+use rayon::prelude::*;
 
 use crate::error::{fmt_bytes, CudaError};
 use crate::gpu::{upload, Gpu};
@@ -182,95 +183,41 @@ impl SceneTables {
     /// ranges of triangles.
     pub(crate) fn build_part(scene: &Scene, part: &ScenePart) -> Self {
         let counts = TableCounts::of_part(scene, part);
-        let mut instances: Vec<GpuInstance> = scene.instances.iter().map(gpu_instance).collect();
-        let mut in_part = vec![false; instances.len()];
+        let mut in_part = vec![false; scene.instances.len()];
         for &i in &part.instances {
             in_part[i as usize] = true;
         }
-        for (instance, in_part) in instances.iter_mut().zip(in_part) {
-            instance.excluded = u32::from(!in_part);
-        }
+        let instances = scene
+            .instances
+            .par_iter()
+            .zip(in_part)
+            .map(|(instance, in_part)| GpuInstance {
+                excluded: u32::from(!in_part),
+                ..gpu_instance(instance)
+            })
+            .collect();
+        let plan = TablePlan::of(scene, part);
+        let vertex_words = |n: usize, has: bool| if has { counts.vertices as usize * n } else { 0 };
         let mut t = SceneTables {
-            vertices: Vec::with_capacity(counts.vertices as usize * 3),
-            normals: Vec::with_capacity(if counts.has_normals { counts.vertices as usize * 3 } else { 0 }),
-            triangles: Vec::with_capacity(counts.triangles as usize * 3),
-            triangle_mesh: Vec::with_capacity(counts.triangles as usize),
-            meshes: Vec::with_capacity(counts.meshes as usize),
-            objects: Vec::with_capacity(scene.objects.len()),
+            // Zeroed allocations come from the OS as zero pages: filling
+            // them in parallel below is their one pass.
+            vertices: vec![0.0; vertex_words(3, true)],
+            normals: vec![0.0; vertex_words(3, counts.has_normals)],
+            triangles: vec![0; counts.triangles as usize * 3],
+            triangle_mesh: vec![0; counts.triangles as usize],
+            meshes: plan.meshes,
+            objects: plan.objects,
             instances,
-            uvs: Vec::with_capacity(if counts.has_uvs { counts.vertices as usize * 2 } else { 0 }),
+            uvs: vec![0.0; vertex_words(2, counts.has_uvs)],
             images: Vec::with_capacity(counts.images as usize),
             texels: Vec::with_capacity(counts.texel_words as usize),
         };
         for image in &scene.textures.images {
             t.push_image(image);
         }
-        let mut vertex_blocks: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
-        for ranges in part_ranges(scene, part) {
-            let first_triangle = t.triangle_mesh.len() as u32;
-            let first_mesh = t.meshes.len() as u32;
-            for range in ranges.iter().flatten() {
-                let mesh = &scene.meshes[range.mesh as usize];
-                let first_vertex =
-                    *vertex_blocks.entry(range.mesh).or_insert_with(|| t.push_vertices(mesh, &counts));
-                let gpu_mesh_index = t.meshes.len() as u32;
-                let mut flags = 0;
-                if !mesh.normals.is_empty() {
-                    flags |= mesh_flags::HAS_NORMALS;
-                }
-                if mesh.flip_normals {
-                    flags |= mesh_flags::FLIP_NORMALS;
-                }
-                if mesh.emission.is_some() {
-                    flags |= mesh_flags::EMISSIVE;
-                }
-                if !mesh.uvs.is_empty() {
-                    flags |= mesh_flags::HAS_UVS;
-                }
-                let triangles = &mesh.indices[range.triangles.start as usize..range.triangles.end as usize];
-                t.meshes.push(GpuMesh {
-                    first_triangle: t.triangle_mesh.len() as u32,
-                    triangle_count: triangles.len() as u32,
-                    first_vertex,
-                    vertex_count: mesh.positions.len() as u32,
-                    material: mesh.material,
-                    flags,
-                    scene_mesh: range.mesh,
-                    first_scene_triangle: range.triangles.start,
-                });
-                t.triangles.extend(triangles.iter().flat_map(|tri| tri.map(|i| first_vertex + i)));
-                t.triangle_mesh.extend(std::iter::repeat_n(gpu_mesh_index, triangles.len()));
-            }
-            t.objects.push(GpuObject {
-                first_triangle,
-                triangle_count: t.triangle_mesh.len() as u32 - first_triangle,
-                first_mesh,
-                mesh_count: t.meshes.len() as u32 - first_mesh,
-            });
-        }
+        fill_vertices(scene, &plan.vertex_blocks, &mut t);
+        fill_triangles(scene, &t.meshes, &mut t.triangles, &mut t.triangle_mesh);
         t
-    }
-
-    /// Appends `mesh`'s vertex arrays (normals and uvs zero-filled where
-    /// the mesh has none but others do); returns its first vertex.
-    fn push_vertices(&mut self, mesh: &atoll_scene::TriangleMesh, counts: &TableCounts) -> u32 {
-        let first_vertex = (self.vertices.len() / 3) as u32;
-        self.vertices.extend(mesh.positions.iter().flat_map(|p| p.to_array()));
-        if counts.has_normals {
-            if mesh.normals.is_empty() {
-                self.normals.resize(self.vertices.len(), 0.0);
-            } else {
-                self.normals.extend(mesh.normals.iter().flat_map(|n| n.to_array()));
-            }
-        }
-        if counts.has_uvs {
-            if mesh.uvs.is_empty() {
-                self.uvs.resize(self.vertices.len() / 3 * 2, 0.0);
-            } else {
-                self.uvs.extend(mesh.uvs.iter().flat_map(|uv| uv.to_array()));
-            }
-        }
-        first_vertex
     }
 
     pub fn counts(&self) -> TableCounts {
@@ -312,6 +259,135 @@ impl SceneTables {
             pad: [0; 3],
         });
     }
+}
+
+/// Where a part's tables put everything, found in one cheap pass over its
+/// mesh ranges (the order [`SceneTables::build_part`] documents); the big
+/// arrays are then filled in parallel, each range and vertex block into
+/// its own slice.
+struct TablePlan {
+    meshes: Vec<GpuMesh>,
+    objects: Vec<GpuObject>,
+    /// Scene meshes whose vertices the tables hold, in table order (each
+    /// starts where the previous ends).
+    vertex_blocks: Vec<atoll_scene::MeshId>,
+}
+
+impl TablePlan {
+    fn of(scene: &Scene, part: &ScenePart) -> Self {
+        let mut plan = TablePlan { meshes: Vec::new(), objects: Vec::new(), vertex_blocks: Vec::new() };
+        let mut first_vertices: std::collections::HashMap<u32, u32> = std::collections::HashMap::new();
+        let (mut vertices, mut triangles) = (0u32, 0u32);
+        for ranges in part_ranges(scene, part) {
+            let (first_triangle, first_mesh) = (triangles, plan.meshes.len() as u32);
+            for range in ranges.iter().flatten() {
+                let mesh = &scene.meshes[range.mesh as usize];
+                let first_vertex = *first_vertices.entry(range.mesh).or_insert_with(|| {
+                    plan.vertex_blocks.push(range.mesh);
+                    vertices += mesh.positions.len() as u32;
+                    vertices - mesh.positions.len() as u32
+                });
+                let mut flags = 0;
+                if !mesh.normals.is_empty() {
+                    flags |= mesh_flags::HAS_NORMALS;
+                }
+                if mesh.flip_normals {
+                    flags |= mesh_flags::FLIP_NORMALS;
+                }
+                if mesh.emission.is_some() {
+                    flags |= mesh_flags::EMISSIVE;
+                }
+                if !mesh.uvs.is_empty() {
+                    flags |= mesh_flags::HAS_UVS;
+                }
+                let count = range.triangles.end - range.triangles.start;
+                plan.meshes.push(GpuMesh {
+                    first_triangle: triangles,
+                    triangle_count: count,
+                    first_vertex,
+                    vertex_count: mesh.positions.len() as u32,
+                    material: mesh.material,
+                    flags,
+                    scene_mesh: range.mesh,
+                    first_scene_triangle: range.triangles.start,
+                });
+                triangles += count;
+            }
+            plan.objects.push(GpuObject {
+                first_triangle,
+                triangle_count: triangles - first_triangle,
+                first_mesh,
+                mesh_count: plan.meshes.len() as u32 - first_mesh,
+            });
+        }
+        plan
+    }
+}
+
+/// Fewest entries one parallel task fills.
+const MIN_ENTRIES: usize = 1 << 14;
+
+/// Copies the vertex arrays of `blocks` (in order) into `t`'s vertex,
+/// normal and uv tables; rows of meshes without normals or uvs stay zero.
+fn fill_vertices(scene: &Scene, blocks: &[atoll_scene::MeshId], t: &mut SceneTables) {
+    let (mut vertices, mut normals, mut uvs) = (&mut t.vertices[..], &mut t.normals[..], &mut t.uvs[..]);
+    let mut jobs = Vec::with_capacity(blocks.len());
+    for &m in blocks {
+        let mesh = &scene.meshes[m as usize];
+        let n = mesh.positions.len();
+        // Tables without normals or uvs are empty: their slices too.
+        let (n_normals, n_uvs) =
+            (if normals.is_empty() { 0 } else { 3 * n }, if uvs.is_empty() { 0 } else { 2 * n });
+        let (v, rest) = std::mem::take(&mut vertices).split_at_mut(3 * n);
+        vertices = rest;
+        let (nv, rest) = std::mem::take(&mut normals).split_at_mut(n_normals);
+        normals = rest;
+        let (uv, rest) = std::mem::take(&mut uvs).split_at_mut(n_uvs);
+        uvs = rest;
+        jobs.push((mesh, v, nv, uv));
+    }
+    jobs.into_par_iter().for_each(|(mesh, v, nv, uv)| {
+        v.par_chunks_mut(3)
+            .with_min_len(MIN_ENTRIES)
+            .zip(&mesh.positions)
+            .for_each(|(o, p)| o.copy_from_slice(&p.to_array()));
+        if !nv.is_empty() && !mesh.normals.is_empty() {
+            nv.par_chunks_mut(3)
+                .with_min_len(MIN_ENTRIES)
+                .zip(&mesh.normals)
+                .for_each(|(o, n)| o.copy_from_slice(&n.to_array()));
+        }
+        if !uv.is_empty() && !mesh.uvs.is_empty() {
+            uv.par_chunks_mut(2)
+                .with_min_len(MIN_ENTRIES)
+                .zip(&mesh.uvs)
+                .for_each(|(o, n)| o.copy_from_slice(&n.to_array()));
+        }
+    });
+}
+
+/// Writes every table mesh's triangles (absolute vertex indices) and
+/// their mesh index, each mesh into its own slice, in parallel.
+fn fill_triangles(scene: &Scene, meshes: &[GpuMesh], triangles: &mut [u32], triangle_mesh: &mut [u32]) {
+    let (mut triangles, mut triangle_mesh) = (triangles, triangle_mesh);
+    let mut jobs = Vec::with_capacity(meshes.len());
+    for (index, m) in meshes.iter().enumerate() {
+        let n = m.triangle_count as usize;
+        let (tri, rest) = std::mem::take(&mut triangles).split_at_mut(3 * n);
+        triangles = rest;
+        let (owner, rest) = std::mem::take(&mut triangle_mesh).split_at_mut(n);
+        triangle_mesh = rest;
+        jobs.push((index as u32, m, tri, owner));
+    }
+    jobs.into_par_iter().for_each(|(index, m, tri, owner)| {
+        let start = m.first_scene_triangle as usize;
+        let source = &scene.meshes[m.scene_mesh as usize].indices[start..start + m.triangle_count as usize];
+        tri.par_chunks_mut(3)
+            .with_min_len(MIN_ENTRIES)
+            .zip(source)
+            .for_each(|(o, t)| o.copy_from_slice(&t.map(|i| m.first_vertex + i)));
+        owner.par_iter_mut().with_min_len(MIN_ENTRIES).for_each(|o| *o = index);
+    });
 }
 
 /// Bytes of the rows every device's tables keep for the whole scene,

@@ -155,3 +155,17 @@ fn queues_round_trip_and_grow_keeping_contents() {
     q.set_known_len(Queue::Shadows, None);
     assert_eq!(q.len(&gpu, Queue::Shadows).unwrap(), 0);
 }
+
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn large_uploads_through_page_locked_staging_arrive_whole() {
+    let Some(gpu) = gpu_or_skip("staged upload") else { return };
+    // Past the staging threshold, over two and a half staging buffers, and
+    // not a whole number of them: every chunk and the tail must land.
+    let n = (160 << 20) / 4 + 12_345;
+    let data: Vec<u32> = (0..n as u32).map(|i| i.wrapping_mul(2_654_435_761)).collect();
+    let device = atoll_cuda::gpu::upload(&gpu, &data, "test data").unwrap();
+    let back = gpu.stream.clone_dtoh(&device).unwrap();
+    assert_eq!(back.len(), data.len());
+    assert!(back == data, "first difference at {:?}", back.iter().zip(&data).position(|(a, b)| a != b));
+}
