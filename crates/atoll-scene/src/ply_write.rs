@@ -31,8 +31,9 @@ impl<W: Write> PlyWriter<W> {
     /// Writes the header of a mesh of `vertices` vertices (with normals when
     /// `normals`) and `faces` triangles. `comment` goes in a comment line.
     pub fn new(mut out: W, vertices: u64, faces: u64, normals: bool, comment: &str) -> io::Result<Self> {
-        // Indices are written as 32-bit unsigned integers.
-        if vertices > u32::MAX as u64 + 1 {
+        // Indices are written as 32-bit unsigned integers (and callers
+        // count vertices in them).
+        if vertices > u32::MAX as u64 {
             return Err(io::Error::new(
                 io::ErrorKind::InvalidInput,
                 format!("{vertices} vertices: more than 32-bit indices can address"),

@@ -133,7 +133,8 @@ impl Tiling {
         let (a0, a1, b0, b1) =
             (i0.saturating_sub(1), (i1 + 1).min(t.quads), j0.saturating_sub(1), (j1 + 1).min(t.quads));
         let width = (a1 - a0 + 1) as usize;
-        let heights: Vec<f32> = (b0..=b1).flat_map(|j| (a0..=a1).map(move |i| t.vertex_height(i, j))).collect();
+        let heights: Vec<f32> =
+            (b0..=b1).flat_map(|j| (a0..=a1).map(move |i| t.vertex_height(i, j))).collect();
         let h = |i: u32, j: u32| heights[(j - b0) as usize * width + (i - a0) as usize];
         let row = (i1 - i0 + 1) as usize;
         let mut positions = Vec::with_capacity(row * (j1 - j0 + 1) as usize);
