@@ -103,9 +103,14 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
     let header =
         format!("atoll gen landscape --growth {} --seed {} --detail {}", args.growth, args.seed, args.detail);
     if args.files {
-        let options = files::Options { tiles: args.tiles, instanced: args.instanced, gzip: args.gzip };
+        let tiles = args.tiles.unwrap_or_else(|| landscape.default_tiles());
+        let tiling = landscape.tiling(tiles).map_err(|e| CliError::Input(format!("--tiles: {e}")))?;
+        let form = if args.instanced { "objects instanced" } else { "objects baked" };
+        let ply = if args.gzip { "gzipped binary PLY" } else { "binary PLY" };
+        println!("files              {tiles} x {tiles} tiles of {ply}, {form}");
+        let options = files::Options { instanced: args.instanced, gzip: args.gzip };
         let start = Instant::now();
-        let written = files::write(&landscape, &path, &options, &header)?;
+        let written = files::write(&landscape, &tiling, &path, &options, &header)?;
         written.print(&path, start.elapsed().as_secs_f64());
         return Ok(());
     }

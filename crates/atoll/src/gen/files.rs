@@ -36,8 +36,6 @@ use crate::CliError;
 
 /// How the folder is written.
 pub struct Options {
-    /// Tiles along a side; `None` picks [`Landscape::default_tiles`].
-    pub tiles: Option<u32>,
     /// Objects as `ObjectBegin`/`ObjectInstance` instead of baked meshes.
     pub instanced: bool,
     /// PLY files gzip-compressed (`.ply.gz`).
@@ -76,27 +74,28 @@ impl Written {
     }
 }
 
-/// Writes `landscape` into the folder `dir` (made if missing; files of the
-/// same names are replaced). `header` is the first comment of scene.pbrt.
+/// Writes `landscape`, cut as `tiling`, into the folder `dir` (made if
+/// missing; files of the same names are replaced, others left alone).
+/// `header` is the first comment of scene.pbrt.
 pub fn write(
     landscape: &Landscape,
+    tiling: &Tiling,
     dir: &Path,
     options: &Options,
     header: &str,
 ) -> Result<Written, CliError> {
-    let tiles = options.tiles.unwrap_or_else(|| landscape.default_tiles());
-    let tiling = landscape.tiling(tiles).map_err(|e| CliError::Input(format!("--tiles: {e}")))?;
+    let tiles = tiling.tiles();
     make_folders(dir)?;
     let out = Out { dir, gzip: options.gzip };
-    let groups = Group::all(&tiling);
-    let mut written = if options.instanced { write_objects(&tiling, &out)? } else { Written::default() };
+    let groups = Group::all(tiling);
+    let mut written = if options.instanced { write_objects(tiling, &out)? } else { Written::default() };
     let per_tile = (0..tiles * tiles)
         .into_par_iter()
-        .map(|t| write_tile(&tiling, &groups, &out, options.instanced, t, header))
+        .map(|t| write_tile(tiling, &groups, &out, options.instanced, t, header))
         .collect::<Result<Vec<_>, _>>()?;
     written = per_tile.into_iter().fold(written, Written::add);
     // Last, so that a folder whose writing failed has no scene to load.
-    Ok(written.add(write_scene(landscape, &tiling, &out, options.instanced, header)?))
+    Ok(written.add(write_scene(landscape, tiling, &out, options.instanced, header)?))
 }
 
 fn make_folders(dir: &Path) -> Result<(), CliError> {
@@ -396,7 +395,8 @@ mod tests {
     }
 
     fn write_to(dir: &Path, instanced: bool, gzip: bool) -> Written {
-        write(&landscape(), dir, &Options { tiles: Some(3), instanced, gzip }, "test").unwrap()
+        let tiling = landscape().tiling(3).unwrap();
+        write(&landscape(), &tiling, dir, &Options { instanced, gzip }, "test").unwrap()
     }
 
     /// Loads the folder's scene with atoll's loader: no warnings allowed.
@@ -569,15 +569,15 @@ mod tests {
     }
 
     #[test]
-    fn bad_outputs_and_tiles_are_refused() {
+    fn bad_outputs_are_refused() {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("file");
         std::fs::write(&file, "x").unwrap();
-        let options = |tiles| Options { tiles: Some(tiles), instanced: false, gzip: false };
-        assert!(matches!(write(&landscape(), &file, &options(2), ""), Err(CliError::Input(_))));
-        assert!(matches!(write(&landscape(), dir.path(), &options(0), ""), Err(CliError::Input(_))));
-        assert!(matches!(write(&landscape(), dir.path(), &options(100_000), ""), Err(CliError::Input(_))));
+        let (l, options) = (landscape(), Options { instanced: false, gzip: false });
+        let tiling = l.tiling(2).unwrap();
+        assert!(matches!(write(&l, &tiling, &file, &options, ""), Err(CliError::Input(_))));
         // A folder beneath a file cannot be made.
-        assert!(matches!(write(&landscape(), &file.join("sub"), &options(1), ""), Err(CliError::Runtime(_))));
+        assert!(matches!(write(&l, &tiling, &file.join("sub"), &options, ""), Err(CliError::Runtime(_))));
+        assert!(!dir.path().join("scene.pbrt").exists());
     }
 }
