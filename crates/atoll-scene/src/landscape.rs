@@ -28,6 +28,7 @@
 //! no time, no thread count, so the same fields give the same scene.
 
 mod shapes;
+mod tiles;
 
 use glam::{Affine3A, Quat, UVec2, Vec3};
 
@@ -36,6 +37,7 @@ use crate::{
 };
 
 use shapes::{hash, unit};
+pub use tiles::{Placement, Tiling, MATERIAL_NAMES, MAX_TILES};
 
 /// Half the side of the square terrain at growth 1, in scene units (metres).
 const HALF_SIZE: f32 = 50.0;

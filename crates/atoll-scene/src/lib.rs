@@ -24,6 +24,7 @@ pub mod obj;
 pub mod off;
 pub mod pbrt;
 pub mod ply;
+pub mod ply_write;
 pub mod procedural;
 pub mod scene;
 pub mod texture;

@@ -13,6 +13,8 @@ use glam::{Affine3A, Mat4, Vec3};
 
 use crate::CliError;
 
+mod files;
+
 #[derive(Args)]
 pub struct GenArgs {
     #[command(subcommand)]
@@ -38,9 +40,25 @@ pub struct LandscapeArgs {
     /// Tessellation multiplier of the terrain and objects (triangles, not instances).
     #[arg(long, default_value_t = 1.0)]
     pub detail: f32,
-    /// Write the scene here as PBRT-v4 text.
+    /// Write the scene here as PBRT-v4 text (with --files: a folder).
     #[arg(short, long)]
     pub output: Option<PathBuf>,
+    /// Write -o as a folder of files, the way production scenes come:
+    /// DIR/scene.pbrt Imports geometry/tile-NNNN.pbrt, one per square tile,
+    /// whose meshes are binary PLY files; the objects on a tile are baked
+    /// into unique world-space meshes, one PLY per tile and material.
+    #[arg(long, requires = "output")]
+    pub files: bool,
+    /// With --files: tiles along a side [default: about 4 million triangles a tile].
+    #[arg(long, requires = "files")]
+    pub tiles: Option<u32>,
+    /// With --files: keep the objects as instances (ObjectBegin in
+    /// scene.pbrt, ObjectInstance in the tiles) instead of baking them.
+    #[arg(long, requires = "files")]
+    pub instanced: bool,
+    /// With --files: gzip the PLY files (.ply.gz, fastest compression).
+    #[arg(long, requires = "files")]
+    pub gzip: bool,
 }
 
 pub fn run(args: GenArgs) -> Result<(), CliError> {
@@ -82,14 +100,26 @@ fn landscape(args: LandscapeArgs) -> Result<(), CliError> {
         mib(e.bytes - e.geometry_bytes)
     );
     let Some(path) = args.output else { return Ok(()) };
+    let header =
+        format!("atoll gen landscape --growth {} --seed {} --detail {}", args.growth, args.seed, args.detail);
+    if args.files {
+        let tiles = args.tiles.unwrap_or_else(|| landscape.default_tiles());
+        let tiling = landscape.tiling(tiles).map_err(|e| CliError::Input(format!("--tiles: {e}")))?;
+        let form = if args.instanced { "objects instanced" } else { "objects baked" };
+        let ply = if args.gzip { "gzipped binary PLY" } else { "binary PLY" };
+        println!("files              {tiles} x {tiles} tiles of {ply}, {form}");
+        let options = files::Options { instanced: args.instanced, gzip: args.gzip };
+        let start = Instant::now();
+        let written = files::write(&landscape, &tiling, &path, &options, &header)?;
+        written.print(&path, start.elapsed().as_secs_f64());
+        return Ok(());
+    }
     crate::render::check_folder(&path)?;
     crate::load::check_fits_host(&path, e.bytes)?;
     let start = Instant::now();
     let scene = landscape.build();
     let build_seconds = start.elapsed().as_secs_f64();
     let start = Instant::now();
-    let header =
-        format!("atoll gen landscape --growth {} --seed {} --detail {}", args.growth, args.seed, args.detail);
     let file = std::fs::File::create(&path)
         .map_err(|e| CliError::Input(format!("{}: cannot create: {e}", path.display())))?;
     let mut out = BufWriter::with_capacity(1 << 20, file);
@@ -254,6 +284,13 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
 /// materials in the same order (materials are numbered by first use there,
 /// so a scene whose meshes use them in id order keeps its ids).
 pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Result<()> {
+    write_prelude(scene, out, header)?;
+    write_geometry(scene, out)
+}
+
+/// The start of [`write_pbrt`]'s text: options, `WorldBegin`, lights and
+/// named materials (`material_ID`); geometry may follow.
+fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Result<()> {
     let s = &scene.settings;
     writeln!(out, "# {header}")?;
     // f64 on the way out and in, so the loader's inverse gives back camera_to_world.
@@ -333,7 +370,12 @@ pub fn write_pbrt(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resu
     for (id, m) in scene.materials.iter().enumerate() {
         material(out, id, m)?;
     }
+    Ok(())
+}
 
+/// The geometry of [`write_pbrt`]'s text: world-level meshes, object
+/// definitions and their instances.
+fn write_geometry(scene: &Scene, out: &mut impl Write) -> io::Result<()> {
     let mut uses = vec![0usize; scene.objects.len()];
     for inst in &scene.instances {
         uses[inst.object as usize] += 1;
