@@ -24,6 +24,7 @@ use crate::{
     MeshId, Object, Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam,
 };
 
+use super::ahead::{Included, Next, Source};
 use super::params::{Param, ParamList, ParamType};
 use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
 use super::pending::{PendingShape, ShapePlace};
@@ -127,8 +128,8 @@ pub struct Builder {
     pushed: Vec<(GraphicsState, Block, FileLoc)>,
     named_coordinate_systems: HashMap<String, DMat4>,
     in_world: bool,
-    /// Open files, innermost last, with their canonical paths for cycle checks.
-    parsers: Vec<(Parser, Option<PathBuf>)>,
+    /// Open files, innermost last, each read ahead ([`super::ahead`]).
+    sources: Vec<Source>,
     anonymous: Vec<MaterialSlot>,
     named_materials: HashMap<String, MaterialSlot>,
     default_material: Option<MaterialId>,
@@ -166,7 +167,7 @@ impl Builder {
             pushed: Vec::new(),
             named_coordinate_systems: HashMap::new(),
             in_world: false,
-            parsers: Vec::new(),
+            sources: Vec::new(),
             anonymous: Vec::new(),
             named_materials: HashMap::new(),
             default_material: None,
@@ -192,16 +193,20 @@ impl Builder {
         name: &str,
         canonical: Option<PathBuf>,
     ) -> Result<LoadedScene, SceneError> {
-        self.parsers.push((Parser::new(Tokenizer::new(name, bytes)?), canonical));
+        self.sources.push(Source::live(Parser::new(Tokenizer::new(name, bytes)?), canonical));
         let mut last_loc = FileLoc::whole_file(name);
-        while let Some((parser, _)) = self.parsers.last_mut() {
-            match parser.next_directive()? {
-                Some(d) => {
+        while let Some(source) = self.sources.last_mut() {
+            match source.next(&self.base_dir)? {
+                Some(Next::Directive(d)) => {
                     last_loc = d.loc.clone();
                     self.directive(d)?;
                 }
+                Some(Next::Include(d, file)) => {
+                    last_loc = d.loc.clone();
+                    self.include(d, file.take()?)?;
+                }
                 None => {
-                    self.parsers.pop();
+                    self.sources.pop();
                 }
             }
         }
@@ -263,11 +268,7 @@ impl Builder {
         let loc = d.loc;
         use Statement as S;
         match d.statement {
-            S::Include(f) => self.include(&f, &loc)?,
-            S::Import(f) => {
-                self.require_world("Import", &loc)?;
-                self.include(&f, &loc)?
-            }
+            S::Include(_) | S::Import(_) => unreachable!("files are included as they are read ahead"),
             S::WorldBegin => {
                 self.require_options("WorldBegin", &loc)?;
                 self.in_world = true;
@@ -388,23 +389,21 @@ impl Builder {
         }
     }
 
-    fn include(&mut self, file: &str, loc: &FileLoc) -> Result<(), SceneError> {
-        let path = crate::input::beside(&self.base_dir, file)
-            .map_err(|e| SceneError::caused_by(loc, format!("Include: {e}"), e))?;
-        let canonical = path.canonicalize().map_err(|e| {
-            SceneError::caused_by(loc, format!("cannot read included file '{}': {e}", path.display()), e)
-        })?;
-        if let Some(i) = self.parsers.iter().position(|(_, c)| c.as_ref() == Some(&canonical)) {
-            let chain: Vec<&str> = self.parsers[i..].iter().map(|(p, _)| p.file()).collect();
+    /// `Include` or `Import` of a file read ahead: its directives come next.
+    fn include(&mut self, d: Directive, included: Included) -> Result<(), SceneError> {
+        if matches!(d.statement, Statement::Import(_)) {
+            self.require_world("Import", &d.loc)?;
+        }
+        let canonical = &included.source.canonical;
+        if let Some(i) = self.sources.iter().position(|s| s.canonical.is_some() && s.canonical == *canonical)
+        {
+            let chain: Vec<&str> = self.sources[i..].iter().map(|s| &*s.file).collect();
             return Err(SceneError::at(
-                loc,
-                format!("cyclic Include: {} -> {}", chain.join(" -> "), path.display()),
+                &d.loc,
+                format!("cyclic Include: {} -> {}", chain.join(" -> "), included.source.file),
             ));
         }
-        let bytes = super::read_scene_file(&path)
-            .map_err(|e| SceneError::caused_by(loc, format!("Include '{}': {e}", path.display()), e))?;
-        let name = path.display().to_string();
-        self.parsers.push((Parser::new(Tokenizer::new(name, bytes)?), Some(canonical)));
+        self.sources.push(included.source);
         Ok(())
     }
 

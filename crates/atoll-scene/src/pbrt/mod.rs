@@ -19,6 +19,7 @@
 //! `WorldEnd`, `Film "image"`, two-value `blackbody`, the infinite light's
 //! `mapname`; what cannot be honoured is warned about.
 
+mod ahead;
 pub mod builder;
 pub mod entities;
 pub mod params;
