@@ -117,7 +117,6 @@ pub fn max_generated_triangles() -> u64 {
 /// What one scene load may still read and generate. Shared (an `Arc` of
 /// atomics) so that threads loading parts of one scene draw on one budget:
 /// give a worker the loader's [`current_budget`] through [`with_budget`].
-#[derive(Debug)]
 pub struct LoadBudget {
     max_bytes: u64,
     bytes: AtomicU64,
@@ -129,6 +128,38 @@ pub struct LoadBudget {
     /// nanoseconds threads spent reading files (summed over threads).
     triangles_loaded: AtomicU64,
     read_nanos: AtomicU64,
+    /// What the scene's sizes, known before its meshes are read, must pass.
+    size_check: Option<SizeCheck>,
+}
+
+/// A check of a scene's [`SceneSizes`] before its meshes are read:
+/// `Err(why)` when the scene cannot fit where it is going.
+pub type SizeCheck = Box<dyn Fn(&SceneSizes) -> Result<(), String> + Send + Sync>;
+
+/// A scene's sizes as known before its meshes are made (from mesh file
+/// headers: faces count as one triangle each, so triangles are a lower
+/// bound where files hold quads).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneSizes {
+    /// Bytes of the meshes' arrays.
+    pub geometry_bytes: u64,
+    pub vertices: u64,
+    pub triangles: u64,
+    /// Triangles of the object with the most.
+    pub largest_object_triangles: u64,
+    pub objects: u64,
+    pub instances: u64,
+}
+
+impl std::fmt::Debug for LoadBudget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LoadBudget")
+            .field("bytes", &self.bytes())
+            .field("files", &self.files())
+            .field("triangles", &self.triangles())
+            .field("size_check", &self.size_check.is_some())
+            .finish_non_exhaustive()
+    }
 }
 
 /// Most files (counting each time one is read) one scene may read: far
@@ -149,7 +180,24 @@ impl LoadBudget {
             files: AtomicU64::new(0),
             triangles_loaded: AtomicU64::new(0),
             read_nanos: AtomicU64::new(0),
+            size_check: None,
         }
+    }
+
+    /// The same budget, with a check of the scene's sizes that loaders run
+    /// before they read its meshes ([`LoadBudget::check_sizes`]).
+    pub fn with_size_check(self, check: SizeCheck) -> Self {
+        LoadBudget { size_check: Some(check), ..self }
+    }
+
+    /// Whether there is a size check (estimating sizes costs file reads).
+    pub fn has_size_check(&self) -> bool {
+        self.size_check.is_some()
+    }
+
+    /// Runs the size check, if any: `Err(why)` when the scene cannot fit.
+    pub fn check_sizes(&self, sizes: &SceneSizes) -> Result<(), String> {
+        self.size_check.as_ref().map_or(Ok(()), |check| check(sizes))
     }
 
     /// The same budget allowing at most `max_files` file reads.
@@ -303,8 +351,16 @@ pub fn check_regular(path: &Path) -> io::Result<u64> {
 /// further than the size it had when checked (a file growing while read
 /// is cut there).
 pub fn read(path: &Path) -> io::Result<Vec<u8>> {
-    let len = check_regular(path)?;
     let mut bytes = Vec::new();
+    read_into(path, &mut bytes)?;
+    Ok(bytes)
+}
+
+/// [`read`] into `bytes` (cleared first), reusing its memory: fresh memory
+/// costs the kernel a page clear per 4 KiB, as much as the read itself.
+pub fn read_into(path: &Path, bytes: &mut Vec<u8>) -> io::Result<()> {
+    let len = check_regular(path)?;
+    bytes.clear();
     // A file may be larger than the memory there is (a sparse file of
     // 60 GiB takes no disk): an error of kind `OutOfMemory`, not an abort.
     bytes.try_reserve_exact(len as usize).map_err(|_| {
@@ -314,10 +370,10 @@ pub fn read(path: &Path) -> io::Result<Vec<u8>> {
         )
     })?;
     let start = std::time::Instant::now();
-    std::fs::File::open(path)?.take(len).read_to_end(&mut bytes)?;
+    std::fs::File::open(path)?.take(len).read_to_end(bytes)?;
     let nanos = start.elapsed().as_nanos() as u64;
     on_budget(|b| b.read_nanos.fetch_add(nanos, Ordering::Relaxed));
-    Ok(bytes)
+    Ok(())
 }
 
 /// Whether `error` or any error beneath it is an I/O error of kind

@@ -43,9 +43,65 @@ fn invalid<T>(msg: impl Into<String>) -> Result<T, PlyError> {
 
 /// Reads a PLY (or gzip-compressed PLY) file.
 pub fn read_ply(path: &Path) -> Result<PlyMesh, PlyError> {
-    let bytes =
-        crate::input::read(path).map_err(|source| PlyError::Io { path: path.to_path_buf(), source })?;
-    parse_ply(&bytes)
+    thread_local! {
+        /// The bytes of the last file this thread read, whose memory the
+        /// next read reuses (scenes read hundreds of mesh files).
+        static BYTES: std::cell::RefCell<Vec<u8>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    /// Larger buffers are not kept: one huge file must not hold its
+    /// memory for good.
+    const KEPT_BYTES: usize = 1 << 30;
+    let mut bytes = BYTES.with(|b| std::mem::take(&mut *b.borrow_mut()));
+    let read = crate::input::read_into(path, &mut bytes);
+    let mesh = read
+        .map_err(|source| PlyError::Io { path: path.to_path_buf(), source })
+        .and_then(|()| parse_ply(&bytes));
+    if bytes.capacity() <= KEPT_BYTES {
+        BYTES.with(|b| *b.borrow_mut() = bytes);
+    }
+    mesh
+}
+
+/// What a PLY file's header says of its mesh, for estimates made before
+/// the file is read.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlySizes {
+    pub vertices: u64,
+    /// Faces (each at least one triangle).
+    pub faces: u64,
+    pub normals: bool,
+    pub uvs: bool,
+}
+
+/// The sizes in `path`'s header (gzip-compressed or not), read from its
+/// first bytes; `None` when they cannot be had (a file that is missing, not
+/// regular, or not PLY): reading the whole file then says why.
+pub fn peek_sizes(path: &Path) -> Option<PlySizes> {
+    use std::io::Read;
+    /// Headers are a few hundred bytes; one this long is not believed.
+    const MOST: u64 = 64 << 10;
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let file = std::fs::File::open(path).ok()?;
+    let mut start = Vec::new();
+    let mut magic = [0u8; 2];
+    let gz = std::fs::File::open(path).ok()?.read_exact(&mut magic).is_ok() && magic == [0x1f, 0x8b];
+    if gz {
+        flate2::read::GzDecoder::new(file).take(MOST).read_to_end(&mut start).ok()?;
+    } else {
+        file.take(MOST).read_to_end(&mut start).ok()?;
+    }
+    let header = parse_header(&start).ok()?;
+    let vertex = header.elements.iter().find(|e| e.name == "vertex")?;
+    let layout = VertexLayout::new(vertex);
+    let faces = header.elements.iter().find(|e| e.name == "face").map_or(0, |e| e.count);
+    Some(PlySizes {
+        vertices: vertex.count as u64,
+        faces: faces as u64,
+        normals: layout.normal.iter().all(Option::is_some),
+        uvs: layout.uv.iter().all(Option::is_some),
+    })
 }
 
 /// Parses the bytes of a PLY file (gzip-compressed or not).
@@ -606,6 +662,28 @@ mod tests {
             assert_eq!(e, general(bad).unwrap_err().to_string());
         }
         assert!(parse_ply(&bad_index).unwrap_err().to_string().contains("out of range"));
+    }
+
+    #[test]
+    fn sizes_come_from_the_header_alone() {
+        use std::io::Write;
+        let dir = std::env::temp_dir().join(format!("atoll-ply-peek-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let bytes = strip(false, 1000, false, "uint");
+        let (plain, gz) = (dir.join("a.ply"), dir.join("a.ply.gz"));
+        // Half a file: the header is all that is read.
+        std::fs::write(&plain, &bytes[..bytes.len() / 2]).unwrap();
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+        e.write_all(&bytes).unwrap();
+        std::fs::write(&gz, e.finish().unwrap()).unwrap();
+        let want = PlySizes { vertices: 2002, faces: 2000, normals: true, uvs: false };
+        assert_eq!(peek_sizes(&plain), Some(want));
+        assert_eq!(peek_sizes(&gz), Some(want));
+        assert_eq!(peek_sizes(&dir.join("missing.ply")), None);
+        assert_eq!(peek_sizes(&dir), None);
+        std::fs::write(&plain, b"not a ply").unwrap();
+        assert_eq!(peek_sizes(&plain), None);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

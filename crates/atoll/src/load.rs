@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use atoll_scene::input::LoadBudget;
+use atoll_scene::input::{LoadBudget, SizeCheck};
 use atoll_scene::landscape::Landscape;
 use atoll_scene::Scene;
 
@@ -50,14 +50,23 @@ impl std::fmt::Display for LoadReport {
 /// Loads `path` (or the built-in Cornell box for `None`). Warnings have
 /// already been printed by the loader through `tracing`.
 pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
-    load_scene_reporting(path, true).map(|(scene, _)| scene)
+    load_scene_reporting(path, true, None).map(|(scene, _)| scene)
 }
 
 /// [`load_scene`], showing what it reads as it goes (unless `quiet`) and
-/// reporting it.
-pub fn load_scene_reporting(path: Option<&Path>, quiet: bool) -> Result<(Scene, LoadReport), CliError> {
+/// reporting it; a file scene's sizes pass `size_check` before its meshes
+/// are read.
+pub fn load_scene_reporting(
+    path: Option<&Path>,
+    quiet: bool,
+    size_check: Option<SizeCheck>,
+) -> Result<(Scene, LoadReport), CliError> {
     let start = std::time::Instant::now();
-    let budget = Arc::new(LoadBudget::from_settings());
+    let mut budget = LoadBudget::from_settings();
+    if let Some(check) = size_check {
+        budget = budget.with_size_check(check);
+    }
+    let budget = Arc::new(budget);
     let done = AtomicBool::new(false);
     let scene = std::thread::scope(|s| {
         if !quiet {

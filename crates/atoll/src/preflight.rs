@@ -6,8 +6,9 @@
 
 use std::path::Path;
 
-use atoll_bvh::SceneCounts;
+use atoll_bvh::{ByteModel, SceneCounts};
 use atoll_render::Device;
+use atoll_scene::input::{SceneSizes, SizeCheck};
 
 use crate::CliError;
 
@@ -33,38 +34,71 @@ pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneCounts>, 
     }))
 }
 
-/// Refuses a scene of `counts` that `device` cannot hold: its memory is
-/// the smallest of what is free on it (host memory available, for a device
-/// that draws on it) and `budget` (`--device-memory`).
+/// What a device can hold, for checks made before a scene is built: the
+/// smallest of what is free on it (host memory available, for a device
+/// that draws on it) and its budget (`--device-memory`).
+#[derive(Clone, Debug)]
+pub(crate) struct Room {
+    device: String,
+    model: ByteModel,
+    capacity: u64,
+    /// Which limit `capacity` is, for messages.
+    limit: &'static str,
+}
+
+impl Room {
+    /// `None` where nothing bounds the device's memory.
+    pub fn of(device: &dyn Device, budget: Option<u64>) -> Option<Room> {
+        let free = device.free_memory();
+        let host = if free.is_none() { atoll_render::device::host_memory_available() } else { None };
+        let capacity = free.into_iter().chain(host).chain(budget).min()?;
+        let limit = if budget == Some(capacity) {
+            "its --device-memory budget"
+        } else if host == Some(capacity) {
+            "host memory available"
+        } else {
+            "its free memory"
+        };
+        Some(Room { device: device.name(), model: device.byte_model(), capacity, limit })
+    }
+
+    /// `Err(why)` when a scene of `counts` cannot fit.
+    pub fn check(&self, counts: &SceneCounts) -> Result<(), String> {
+        let needed = self.model.bytes(counts);
+        if needed <= self.capacity {
+            return Ok(());
+        }
+        Err(format!(
+            "does not fit {}: it needs about {needed} bytes ({} triangles in {} objects, {} instances; \
+             estimated before building it), more than the {} bytes of {}",
+            self.device, counts.triangles, counts.objects, counts.instances, self.capacity, self.limit
+        ))
+    }
+
+    /// The same check for a loader ([`atoll_scene::input::LoadBudget::with_size_check`]).
+    pub fn size_check(self) -> SizeCheck {
+        Box::new(move |s: &SceneSizes| {
+            self.check(&SceneCounts {
+                geometry: s.geometry_bytes,
+                vertices: s.vertices,
+                triangles: s.triangles,
+                largest_object: s.largest_object_triangles,
+                objects: s.objects,
+                instances: s.instances,
+            })
+        })
+    }
+}
+
+/// Refuses a scene of `counts` that `device` cannot hold ([`Room`]).
 pub(crate) fn check_fits(
     source: &Path,
     counts: &SceneCounts,
     device: &dyn Device,
     budget: Option<u64>,
 ) -> Result<(), CliError> {
-    let free = device.free_memory();
-    let host = if free.is_none() { atoll_render::device::host_memory_available() } else { None };
-    let Some(capacity) = free.into_iter().chain(host).chain(budget).min() else { return Ok(()) };
-    let needed = device.byte_model().bytes(counts);
-    if needed <= capacity {
-        return Ok(());
-    }
-    let what = if budget == Some(capacity) {
-        "its --device-memory budget"
-    } else if host == Some(capacity) {
-        "host memory available"
-    } else {
-        "its free memory"
-    };
-    Err(CliError::Runtime(format!(
-        "{}: does not fit {}: it needs about {needed} bytes ({} triangles in {} objects, {} instances; \
-         estimated before building it), more than the {capacity} bytes of {what}",
-        source.display(),
-        device.name(),
-        counts.triangles,
-        counts.objects,
-        counts.instances,
-    )))
+    let Some(room) = Room::of(device, budget) else { return Ok(()) };
+    room.check(counts).map_err(|why| CliError::Runtime(format!("{}: {why}", source.display())))
 }
 
 #[cfg(test)]

@@ -54,7 +54,8 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
 
 fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     let rank = ranks.rank();
-    let Frame { scene, mut options, output, load } = together(ranks, load_frame(&args), "load the scene")?;
+    let Frame { scene, mut options, output, load } =
+        together(ranks, load_frame(&args, None), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
         together(ranks, rank_devices(ranks.is_root(), &args, &scene, &mut options), "open their devices")?;
     let ring = together(ranks, rank_ring(ranks, &args, &scene, &options, &mut devices), "plan rings")?;

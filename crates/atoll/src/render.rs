@@ -18,7 +18,9 @@ use crate::multi::{
     self, parse_devices, parse_partitioning, parse_ring_order, parse_transport, DeviceList, DeviceSpec,
     MultiArgs, Partitioning,
 };
+use crate::preflight::Room;
 use crate::CliError;
+use atoll_scene::input::SizeCheck;
 
 /// How the wavefront loop is fed (shared by `render` and `bench`).
 #[derive(Args, Clone, Default)]
@@ -243,8 +245,8 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.mpi {
         return run_ranked(args);
     }
-    let selected_early = select_before_loading(&args)?;
-    let Frame { scene, mut options, output, load } = load_frame(&args)?;
+    let (selected_early, size_check) = select_before_loading(&args)?;
+    let Frame { scene, mut options, output, load } = load_frame(&args, size_check)?;
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(&args, specs, &mut options);
         return render_on_devices(&scene, options, &args, specs, &output, load);
@@ -302,11 +304,12 @@ pub(crate) struct Frame {
 
 /// Loads the scene and applies the command line's overrides; refuses a bad
 /// output name before any render time is spent.
-pub(crate) fn load_frame(args: &RenderArgs) -> Result<Frame, CliError> {
+/// A file scene's sizes pass `size_check` before its meshes are read.
+pub(crate) fn load_frame(args: &RenderArgs, size_check: Option<SizeCheck>) -> Result<Frame, CliError> {
     if let Some(output) = &args.output {
         check_output(output)?;
     }
-    let (scene, load) = load_scene_reporting(args.scene.as_deref(), args.quiet)?;
+    let (scene, load) = load_scene_reporting(args.scene.as_deref(), args.quiet, size_check)?;
     let mut options = RenderOptions::from_scene(&scene);
     if let Some(spp) = args.spp {
         options.spp = spp;
@@ -386,18 +389,27 @@ fn fit_device_waves(
     selected
 }
 
-/// `--device` opened before the scene is loaded, where the scene's sizes
-/// are known without building it: a scene that cannot fit is refused in
-/// milliseconds, not after its build ([`crate::preflight`]).
-fn select_before_loading(args: &RenderArgs) -> Result<Option<crate::device::Selected>, CliError> {
-    let (None, Some(source)) = (&args.devices, args.scene.as_deref()) else { return Ok(None) };
-    let Some(counts) = crate::preflight::known_sizes(Some(source))? else { return Ok(None) };
+/// `--device` opened before the scene is loaded, so that a scene that
+/// cannot fit it is refused before it is built ([`crate::preflight`]): a
+/// generated scene's sizes are known now; a file scene's are checked by
+/// the loader once its text is read, before its meshes are (the check
+/// returned).
+fn select_before_loading(
+    args: &RenderArgs,
+) -> Result<(Option<crate::device::Selected>, Option<SizeCheck>), CliError> {
+    let (None, Some(source)) = (&args.devices, args.scene.as_deref()) else { return Ok((None, None)) };
     if let Some(output) = &args.output {
         check_output(output)?;
     }
+    let known = crate::preflight::known_sizes(Some(source))?;
     let selected = select(&args.device, args.threads)?;
-    crate::preflight::check_fits(source, &counts, selected.device.as_ref(), args.device.device_memory)?;
-    Ok(Some(selected))
+    let budget = args.device.device_memory;
+    let Some(counts) = known else {
+        let check = Room::of(selected.device.as_ref(), budget).map(Room::size_check);
+        return Ok((Some(selected), check));
+    };
+    crate::preflight::check_fits(source, &counts, selected.device.as_ref(), budget)?;
+    Ok((Some(selected), None))
 }
 
 /// The further wavefronts `--streams` asks for beside `device` (on a GPU:

@@ -109,3 +109,27 @@ fn a_broken_imported_file_is_an_error_at_its_place_and_nothing_is_written() {
     assert!(err.contains("scene.pbrt:") && err.contains("tile-0007.pbrt"), "{err}");
     assert!(!dir.join("out.png").exists());
 }
+
+#[test]
+fn a_file_scene_that_cannot_fit_is_refused_before_its_meshes_are_read() {
+    let dir = scratch("refused");
+    let scene = generated(&dir, &[]);
+    // Cut a mesh file after its header: reading it would be an input
+    // error (exit 2); the sizes come from the headers alone.
+    let ply = scene.parent().unwrap().join("geometry/tile-0004-ground.ply");
+    let bytes = std::fs::read(&ply).unwrap();
+    let header = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    std::fs::write(&ply, &bytes[..header + 7]).unwrap();
+    let args = ["render", "scene/scene.pbrt", "--device", "cpu", "--device-memory", "1M", "-o", "out.png"];
+    let out = atoll(&dir, &args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("scene.pbrt: does not fit cpu") && err.contains("estimated before building it"),
+        "{err}"
+    );
+    assert!(!dir.join("out.png").exists());
+    // With room, the cut file is read, and is the error.
+    let out = atoll(&dir, &["render", "scene/scene.pbrt", "--device", "cpu", "-o", "out.png"]);
+    assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+}

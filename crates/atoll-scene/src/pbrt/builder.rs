@@ -210,7 +210,25 @@ impl Builder {
                 }
             }
         }
+        self.check_sizes(&FileLoc::whole_file(name))?;
         self.finish(&last_loc)
+    }
+
+    /// Runs the load's size check ([`crate::input::LoadBudget::with_size_check`])
+    /// on the sizes the scene will have, before any mesh file is read: a
+    /// scene that cannot fit is refused without reading it. Not fitting is
+    /// not bad input: the error is of kind out-of-memory.
+    fn check_sizes(&self, main: &FileLoc) -> Result<(), SceneError> {
+        if !crate::input::on_budget(|b| b.has_size_check()) {
+            return Ok(());
+        }
+        let objects = self.objects.len() as u64 + 1;
+        let instances = self.instance_uses.len() as u64 + 1;
+        let sizes = super::pending::sizes(&self.pending_shapes, objects, instances);
+        crate::input::on_budget(|b| b.check_sizes(&sizes)).map_err(|why| {
+            let cause = std::io::Error::new(std::io::ErrorKind::OutOfMemory, why.clone());
+            SceneError::caused_by(main, why, cause)
+        })
     }
 
     fn warn(&mut self, loc: &FileLoc, msg: impl Into<String>) {

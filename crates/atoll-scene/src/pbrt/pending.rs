@@ -4,10 +4,11 @@
 //! directives, so the scene equals the one a serial load gives, whatever
 //! the thread count.
 
-use glam::{DMat3, DMat4};
+use glam::{DMat3, DMat4, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{FileLoc, SceneError};
+use crate::input::SceneSizes;
 use crate::{AreaEmission, MaterialId, MeshAlpha, TextureId, TriangleMesh};
 
 use super::shapes::ShapeSource;
@@ -61,6 +62,33 @@ pub(super) fn make_all(pending: Vec<PendingShape>) -> Result<Vec<MadeShape>, Sce
         .collect()
 }
 
+/// The sizes of the scene the pending shapes make, in `objects` objects
+/// with `instances` instances, before anything is read: PLY files from
+/// their headers ([`crate::ply::peek_sizes`]; one that cannot be peeked
+/// counts nothing, and its read says why later).
+pub(super) fn sizes(pending: &[PendingShape], objects: u64, instances: u64) -> SceneSizes {
+    let mut s = SceneSizes { objects, instances, ..Default::default() };
+    let mut per_object: std::collections::HashMap<Option<usize>, u64> = Default::default();
+    for p in pending {
+        let (vertices, triangles, normals, uvs) = match &p.source {
+            ShapeSource::Mesh(m) => {
+                (m.positions.len() as u64, m.indices.len() as u64, !m.normals.is_empty(), !m.uvs.is_empty())
+            }
+            ShapeSource::Ply { path, .. } => match crate::ply::peek_sizes(path) {
+                Some(ply) => (ply.vertices, ply.faces, ply.normals, ply.uvs),
+                None => continue,
+            },
+        };
+        let per_vertex = 12 + 12 * u64::from(normals) + 8 * u64::from(uvs);
+        s.vertices += vertices;
+        s.triangles += triangles;
+        s.geometry_bytes += vertices * per_vertex + triangles * 12;
+        *per_object.entry(p.place.object).or_default() += triangles;
+    }
+    s.largest_object_triangles = per_object.into_values().max().unwrap_or(0);
+    s
+}
+
 impl PendingShape {
     fn make(self) -> Result<MadeShape, SceneError> {
         let PendingShape { source, place } = self;
@@ -72,26 +100,26 @@ impl PendingShape {
         }
         let ctm = place.ctm;
         let reverse = place.reverse_orientation;
-        let positions = shape
-            .positions
-            .par_iter()
-            .with_min_len(MIN_VERTICES)
-            .map(|p| transform::point(&ctm, p.as_dvec3()).as_vec3())
-            .collect();
         let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
-        let normals = shape
-            .normals
-            .par_iter()
-            .with_min_len(MIN_VERTICES)
-            .map(|n| {
-                let n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
-                if reverse {
-                    -n
-                } else {
-                    n
-                }
-            })
-            .collect();
+        let normal = |n: Vec3| {
+            let n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
+            if reverse {
+                -n
+            } else {
+                n
+            }
+        };
+        // In place: the arrays are the shape's own (PLY files are read into
+        // fresh ones), and a second copy costs as much as the transform.
+        let (mut positions, mut normals) = (shape.positions, shape.normals);
+        // The identity moves no point (x·1 + 0 is exact): baked geometry
+        // skips the pass.
+        if ctm != DMat4::IDENTITY {
+            positions.par_iter_mut().with_min_len(MIN_VERTICES).for_each(|p| {
+                *p = transform::point(&ctm, p.as_dvec3()).as_vec3();
+            });
+        }
+        normals.par_iter_mut().with_min_len(MIN_VERTICES).for_each(|n| *n = normal(*n));
         let mesh = TriangleMesh {
             name: shape.name,
             positions,
