@@ -1,6 +1,7 @@
 //! The two-level scene: meshes grouped into objects, objects placed by instances.
 
 use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
 
 use crate::{Light, Material, MeshId, RenderSettings, TriangleMesh};
 
@@ -98,36 +99,29 @@ impl Scene {
 
     /// Object-space bounds of one object; `None` when it has no vertices.
     pub fn object_bounds(&self, object: crate::ObjectId) -> Option<(Vec3, Vec3)> {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for &m in &self.objects[object as usize].meshes {
-            for &p in &self.meshes[m as usize].positions {
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-        }
+        let meshes = &self.objects[object as usize].meshes;
+        let points = meshes.par_iter().flat_map(|&m| self.meshes[m as usize].positions.par_iter().copied());
+        let (lo, hi) = bounds_of(points);
         (lo.x <= hi.x).then_some((lo, hi))
     }
 
     /// World-space bounds of all instances; `None` for an empty scene.
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
         let object_bounds: Vec<_> = (0..self.objects.len() as u32).map(|o| self.object_bounds(o)).collect();
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for inst in &self.instances {
-            if let Some((a, b)) = object_bounds[inst.object as usize] {
-                for i in 0..8 {
+        let corners = self.instances.par_iter().flat_map_iter(|inst| {
+            let bounds = object_bounds[inst.object as usize];
+            bounds.into_iter().flat_map(move |(a, b)| {
+                (0..8).map(move |i| {
                     let corner = Vec3::new(
                         if i & 1 == 0 { a.x } else { b.x },
                         if i & 2 == 0 { a.y } else { b.y },
                         if i & 4 == 0 { a.z } else { b.z },
                     );
-                    let p = inst.object_to_world.transform_point3(corner);
-                    lo = lo.min(p);
-                    hi = hi.max(p);
-                }
-            }
-        }
+                    inst.object_to_world.transform_point3(corner)
+                })
+            })
+        });
+        let (lo, hi) = bounds_of(corners);
         (lo.x <= hi.x).then_some((lo, hi))
     }
 
@@ -162,4 +156,13 @@ impl Scene {
             .map(|m| m.indices.len() as u64)
             .sum()
     }
+}
+
+/// The smallest box around `points` (inverted when there are none); in
+/// parallel, and exact whatever the order: min and max round nothing.
+fn bounds_of(points: impl ParallelIterator<Item = Vec3>) -> (Vec3, Vec3) {
+    let empty = || (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    points
+        .fold(empty, |(lo, hi), p| (lo.min(p), hi.max(p)))
+        .reduce(empty, |(a, b), (c, d)| (a.min(c), b.max(d)))
 }
