@@ -93,13 +93,18 @@ pub struct SceneCounts {
 impl ByteModel {
     /// Bytes a device with this model needs for a scene of `counts`,
     /// textures aside.
+    /// Saturating: counts estimated before a scene is built may be absurd.
     pub fn bytes(&self, c: &SceneCounts) -> u64 {
-        c.geometry
-            + c.vertices * self.per_vertex
-            + c.triangles * self.per_triangle
-            + c.objects * self.per_object
-            + c.instances * self.per_instance
-            + c.largest_object * self.scratch_per_triangle
+        [
+            (c.geometry, 1),
+            (c.vertices, self.per_vertex),
+            (c.triangles, self.per_triangle),
+            (c.objects, self.per_object),
+            (c.instances, self.per_instance),
+            (c.largest_object, self.scratch_per_triangle),
+        ]
+        .iter()
+        .fold(0u64, |sum, &(n, each)| sum.saturating_add(n.saturating_mul(each)))
     }
 }
 

@@ -80,7 +80,8 @@ pub fn peek_sizes(path: &Path) -> Option<PlySizes> {
     use std::io::Read;
     /// Headers are a few hundred bytes; one this long is not believed.
     const MOST: u64 = 64 << 10;
-    if !std::fs::metadata(path).ok()?.is_file() {
+    let meta = std::fs::metadata(path).ok()?;
+    if !meta.is_file() {
         return None;
     }
     let file = std::fs::File::open(path).ok()?;
@@ -93,6 +94,11 @@ pub fn peek_sizes(path: &Path) -> Option<PlySizes> {
         file.take(MOST).read_to_end(&mut start).ok()?;
     }
     let header = parse_header(&start).ok()?;
+    // Counts are believed only where the file could hold them (gzip data
+    // inflates at most so much): a header claiming billions of rows in a
+    // small file is for the full read to refuse, as bad input.
+    let most = if gz { meta.len().saturating_mul(crate::input::MAX_INFLATION) } else { meta.len() };
+    check_counts(&header, usize::try_from(most).unwrap_or(usize::MAX)).ok()?;
     let vertex = header.elements.iter().find(|e| e.name == "vertex")?;
     let layout = VertexLayout::new(vertex);
     let faces = header.elements.iter().find(|e| e.name == "face").map_or(0, |e| e.count);
@@ -671,8 +677,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let bytes = strip(false, 1000, false, "uint");
         let (plain, gz) = (dir.join("a.ply"), dir.join("a.ply.gz"));
-        // Half a file: the header is all that is read.
-        std::fs::write(&plain, &bytes[..bytes.len() / 2]).unwrap();
+        std::fs::write(&plain, &bytes).unwrap();
         let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
         e.write_all(&bytes).unwrap();
         std::fs::write(&gz, e.finish().unwrap()).unwrap();
@@ -681,6 +686,13 @@ mod tests {
         assert_eq!(peek_sizes(&gz), Some(want));
         assert_eq!(peek_sizes(&dir.join("missing.ply")), None);
         assert_eq!(peek_sizes(&dir), None);
+        // More rows than the file could hold: not believed.
+        std::fs::write(&plain, &bytes[..bytes.len() / 2]).unwrap();
+        assert_eq!(peek_sizes(&plain), None);
+        let text = String::from_utf8_lossy(&bytes[..200])
+            .replace("element vertex 2002", "element vertex 4000000000");
+        std::fs::write(&plain, text.as_bytes()).unwrap();
+        assert_eq!(peek_sizes(&plain), None);
         std::fs::write(&plain, b"not a ply").unwrap();
         assert_eq!(peek_sizes(&plain), None);
         std::fs::remove_dir_all(&dir).unwrap();

@@ -79,11 +79,14 @@ pub(super) fn sizes(pending: &[PendingShape], objects: u64, instances: u64) -> S
                 None => continue,
             },
         };
+        // Saturating: sizes are estimates, and a file's claims are not trusted.
         let per_vertex = 12 + 12 * u64::from(normals) + 8 * u64::from(uvs);
-        s.vertices += vertices;
-        s.triangles += triangles;
-        s.geometry_bytes += vertices * per_vertex + triangles * 12;
-        *per_object.entry(p.place.object).or_default() += triangles;
+        s.vertices = s.vertices.saturating_add(vertices);
+        s.triangles = s.triangles.saturating_add(triangles);
+        let bytes = vertices.saturating_mul(per_vertex).saturating_add(triangles.saturating_mul(12));
+        s.geometry_bytes = s.geometry_bytes.saturating_add(bytes);
+        let object = per_object.entry(p.place.object).or_default();
+        *object = object.saturating_add(triangles);
     }
     s.largest_object_triangles = per_object.into_values().max().unwrap_or(0);
     s
