@@ -203,7 +203,9 @@ pub fn setup(
     options: &RenderOptions,
     args: &MultiArgs,
 ) -> Result<(Vec<Box<dyn Device>>, Layout), CliError> {
+    let start = std::time::Instant::now();
     let mut devices = open_devices(args.specs, args.budget, args.threads)?;
+    tracing::info!("opened {} devices in {:.2} s", devices.len(), start.elapsed().as_secs_f64());
     let mut gpus: Vec<usize> =
         args.specs.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
     gpus.sort_unstable();
@@ -236,10 +238,12 @@ pub fn setup(
         may_add_wavefronts,
         shared: args.shared,
     };
+    let start = std::time::Instant::now();
     let placement = place(&mut devices, scene, options, &request).map_err(|e| match e {
         PlacementError::Request(message) => CliError::Input(message),
         other => CliError::Runtime(other.to_string()),
     })?;
+    tracing::info!("placed the scene in {:.2} s", start.elapsed().as_secs_f64());
     if let Some((_, kind)) = &placement.partition {
         eprintln!("partition: {kind}");
     }
