@@ -115,14 +115,14 @@ fn vertex_bytes(scene: &Scene, mesh: MeshId) -> u64 {
 }
 
 fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
-    let mut objects: Vec<ObjectId> =
-        part.instances.iter().map(|&i| scene.instances[i as usize].object).collect();
-    objects.sort_unstable();
+    // Counted per object rather than sorted: parts of big scenes hold
+    // millions of instances of a few objects.
     let mut instances_of = vec![0u64; scene.objects.len()];
-    for &o in &objects {
-        instances_of[o as usize] += 1;
+    for &i in &part.instances {
+        instances_of[scene.instances[i as usize].object as usize] += 1;
     }
-    objects.dedup();
+    let objects: Vec<ObjectId> =
+        (0..scene.objects.len() as ObjectId).filter(|&o| instances_of[o as usize] > 0).collect();
     let mut c = SceneCounts::default();
     // Per mesh, the triangle ranges any object of the part includes.
     let mut ranges: Vec<(MeshId, u32, u32)> = Vec::new();
