@@ -87,7 +87,7 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     }
 
     let handout = ranks.waves();
-    let bar = progress_bar(args.quiet || !ranks.is_root());
+    let mut bar = progress_bar(args.quiet || !ranks.is_root());
     let frame = MultiFrame {
         layout: &layout,
         transport: args.ring_transport,
@@ -95,8 +95,7 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
         shared: Some(Shared { handout: &handout, ring: ring.as_ref().map(|(r, _)| r as &dyn RingPeers) }),
     };
     let rendered = render_multi_with(&mut devices, &scene, options.clone(), &frame, &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        bar.update(done, total)
     })
     .map_err(|e| CliError::Runtime(e.to_string()));
     bar.finish_and_clear();

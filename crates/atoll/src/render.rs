@@ -260,12 +260,10 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         return render_streams(&scene, options, &args, selected, more, &output, load);
     }
     let render = if args.warmup { render_warmed } else { render };
-    let bar = progress_bar(args.quiet);
-    let out = render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })
-    .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
+    let mut bar = progress_bar(args.quiet);
+    let out =
+        render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| bar.update(done, total))
+            .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
     bar.finish_and_clear();
     write_image(&out.film, &output)?;
     let run = Run {
@@ -446,17 +444,14 @@ fn render_streams(
     let mut devices = vec![selected.device];
     devices.extend(more);
     let render = if args.warmup { atoll_dist::render_multi_warmed } else { atoll_dist::render_multi };
-    let bar = progress_bar(args.quiet);
+    let mut bar = progress_bar(args.quiet);
     let out = render(
         &mut devices,
         scene,
         options.clone(),
         &atoll_dist::Layout::Replicate,
         None,
-        &mut |done, total| {
-            bar.set_length(total as u64);
-            bar.set_position(done as u64);
-        },
+        &mut |done, total| bar.update(done, total),
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
@@ -544,13 +539,44 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
     s.parse().map_err(|e: atoll_dist::ParseStrategyError| e.to_string())
 }
 
-pub(crate) fn progress_bar(quiet: bool) -> ProgressBar {
-    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new(0) };
+pub(crate) fn progress_bar(quiet: bool) -> RenderProgress {
+    let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}")
-            .expect("valid template"),
+        ProgressStyle::with_template("{spinner} preparing [{elapsed_precise}]").expect("valid template"),
     );
-    bar
+    bar.enable_steady_tick(std::time::Duration::from_millis(100));
+    RenderProgress { bar, rendering: false }
+}
+
+/// A render's progress: a spinner while the devices prepare (uploads, BVH
+/// builds: no wave is handed out yet), then a bar over the frame's waves.
+pub(crate) struct RenderProgress {
+    bar: ProgressBar,
+    rendering: bool,
+}
+
+impl RenderProgress {
+    /// `done` of `total` waves handed out.
+    pub fn update(&mut self, done: usize, total: usize) {
+        if !self.rendering {
+            self.rendering = true;
+            self.bar.disable_steady_tick();
+            self.bar.set_style(
+                ProgressStyle::with_template(
+                    "{spinner} [{elapsed_precise}] {wide_bar} {percent:>3}% eta {eta}",
+                )
+                .expect("valid template"),
+            );
+            self.bar.reset_elapsed();
+            self.bar.reset_eta();
+        }
+        self.bar.set_length(total as u64);
+        self.bar.set_position(done as u64);
+    }
+
+    pub fn finish_and_clear(&self) {
+        self.bar.finish_and_clear();
+    }
 }
 
 /// `--devices`: plan, render on every device, write, print the per-device table.
@@ -562,10 +588,9 @@ fn render_on_devices(
     output: &Path,
     load: LoadReport,
 ) -> Result<(), CliError> {
-    let bar = progress_bar(args.quiet);
+    let mut bar = progress_bar(args.quiet);
     let out = multi::render(scene, options.clone(), &multi_args(args, specs), &mut |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
+        bar.update(done, total)
     })?;
     bar.finish_and_clear();
     write_image(&out.film, output)?;
