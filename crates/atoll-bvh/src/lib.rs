@@ -39,7 +39,7 @@ pub use bvh2::{Bvh2, Bvh2Node};
 pub use bvh4::{Bvh4Cpu, Bvh4CpuNode};
 pub use cwbvh::{Cwbvh, CwbvhNode};
 pub use layout::{BvhLayout, BvhStats, TraversalRay, MAX_DEPTH};
-pub use memory::{part_bytes, part_geometry_bytes, ByteModel, SceneCounts};
+pub use memory::{part_bytes, part_geometry_bytes, ByteModel};
 pub use scene_bvh::{
     HitFilter, MemoryTable, MeshRange, NoFilter, NoVisits, SceneBvh, SceneBvhStats, ScenePart, Visits,
 };

@@ -13,7 +13,7 @@
 //! bytes of a mesh are charged once per part however many objects, ranges or
 //! instances use it.
 
-use atoll_scene::{MeshId, ObjectId, Scene};
+use atoll_scene::{MeshId, ObjectId, Scene, SceneSizes};
 
 use crate::ScenePart;
 
@@ -70,38 +70,19 @@ impl ByteModel {
     };
 }
 
-/// Sizes a scene or a part is made of, as a [`ByteModel`] charges them:
-/// counted from a part ([`part_bytes`]), or known before a scene is built
-/// (a generated scene's estimate) so that one that cannot fit is refused
-/// before it is made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SceneCounts {
-    /// Mesh arrays: whole vertex arrays, index entries of included triangles.
-    pub geometry: u64,
-    /// Vertices of the meshes the part touches (each mesh once).
-    pub vertices: u64,
-    /// Triangles in bottom-level BVHs (each object once, however instanced).
-    pub triangles: u64,
-    /// Triangles of the part's largest object.
-    pub largest_object: u64,
-    /// Objects with at least one triangle in the part.
-    pub objects: u64,
-    /// Instances of those objects in the part.
-    pub instances: u64,
-}
-
 impl ByteModel {
-    /// Bytes a device with this model needs for a scene of `counts`,
-    /// textures aside.
-    /// Saturating: counts estimated before a scene is built may be absurd.
-    pub fn bytes(&self, c: &SceneCounts) -> u64 {
+    /// Bytes a device with this model needs for a scene of `sizes`,
+    /// textures aside. Saturating: sizes known before a scene is built
+    /// come from its files, which may claim anything.
+    pub fn bytes(&self, sizes: &SceneSizes) -> u64 {
+        let c = sizes;
         [
-            (c.geometry, 1),
+            (c.geometry_bytes, 1),
             (c.vertices, self.per_vertex),
             (c.triangles, self.per_triangle),
             (c.objects, self.per_object),
             (c.instances, self.per_instance),
-            (c.largest_object, self.scratch_per_triangle),
+            (c.largest_object_triangles, self.scratch_per_triangle),
         ]
         .iter()
         .fold(0u64, |sum, &(n, each)| sum.saturating_add(n.saturating_mul(each)))
@@ -114,7 +95,7 @@ fn vertex_bytes(scene: &Scene, mesh: MeshId) -> u64 {
     (m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8) as u64
 }
 
-fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
+fn counts(scene: &Scene, part: &ScenePart) -> SceneSizes {
     // Counted per object rather than sorted: parts of big scenes hold
     // millions of instances of a few objects.
     let mut instances_of = vec![0u64; scene.objects.len()];
@@ -123,7 +104,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
     }
     let objects: Vec<ObjectId> =
         (0..scene.objects.len() as ObjectId).filter(|&o| instances_of[o as usize] > 0).collect();
-    let mut c = SceneCounts::default();
+    let mut c = SceneSizes::default();
     // Per mesh, the triangle ranges any object of the part includes.
     let mut ranges: Vec<(MeshId, u32, u32)> = Vec::new();
     for &o in &objects {
@@ -136,7 +117,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
         }
         if tris > 0 {
             c.triangles += tris;
-            c.largest_object = c.largest_object.max(tris);
+            c.largest_object_triangles = c.largest_object_triangles.max(tris);
             c.objects += 1;
             c.instances += instances_of[o as usize];
         }
@@ -147,7 +128,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
     while i < ranges.len() {
         let mesh = ranges[i].0;
         c.vertices += scene.meshes[mesh as usize].positions.len() as u64;
-        c.geometry += vertex_bytes(scene, mesh);
+        c.geometry_bytes += vertex_bytes(scene, mesh);
         let (mut start, mut end) = (ranges[i].1, ranges[i].2);
         let mut covered = 0u64;
         while i < ranges.len() && ranges[i].0 == mesh {
@@ -160,7 +141,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
             i += 1;
         }
         covered += (end - start) as u64;
-        c.geometry += covered * INDEX_BYTES;
+        c.geometry_bytes += covered * INDEX_BYTES;
     }
     c
 }
@@ -169,7 +150,7 @@ fn counts(scene: &Scene, part: &ScenePart) -> SceneCounts {
 /// mesh with a triangle in the part, and the index entries of the included
 /// triangles. Meshes of objects the part has no instance of do not count.
 pub fn part_geometry_bytes(scene: &Scene, part: &ScenePart) -> u64 {
-    counts(scene, part).geometry
+    counts(scene, part).geometry_bytes
 }
 
 /// Bytes a device with `model` needs for `part`: geometry (see

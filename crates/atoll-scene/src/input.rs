@@ -132,24 +132,9 @@ pub struct LoadBudget {
     size_check: Option<SizeCheck>,
 }
 
-/// A check of a scene's [`SceneSizes`] before its meshes are read:
+/// A check of a scene's [`crate::SceneSizes`] before its meshes are read:
 /// `Err(why)` when the scene cannot fit where it is going.
-pub type SizeCheck = Box<dyn Fn(&SceneSizes) -> Result<(), String> + Send + Sync>;
-
-/// A scene's sizes as known before its meshes are made (from mesh file
-/// headers: faces count as one triangle each, so triangles are a lower
-/// bound where files hold quads).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct SceneSizes {
-    /// Bytes of the meshes' arrays.
-    pub geometry_bytes: u64,
-    pub vertices: u64,
-    pub triangles: u64,
-    /// Triangles of the object with the most.
-    pub largest_object_triangles: u64,
-    pub objects: u64,
-    pub instances: u64,
-}
+pub type SizeCheck = Box<dyn Fn(&crate::SceneSizes) -> Result<(), String> + Send + Sync>;
 
 impl std::fmt::Debug for LoadBudget {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -196,7 +181,7 @@ impl LoadBudget {
     }
 
     /// Runs the size check, if any: `Err(why)` when the scene cannot fit.
-    pub fn check_sizes(&self, sizes: &SceneSizes) -> Result<(), String> {
+    pub fn check_sizes(&self, sizes: &crate::SceneSizes) -> Result<(), String> {
         self.size_check.as_ref().map_or(Ok(()), |check| check(sizes))
     }
 

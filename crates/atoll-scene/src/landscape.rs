@@ -149,6 +149,20 @@ pub struct LandscapeEstimate {
     pub bytes: u64,
 }
 
+impl LandscapeEstimate {
+    /// The sizes a device's byte model charges.
+    pub fn sizes(&self) -> crate::SceneSizes {
+        crate::SceneSizes {
+            geometry_bytes: self.geometry_bytes,
+            vertices: self.vertices,
+            triangles: self.unique_triangles,
+            largest_object_triangles: self.largest_object_triangles,
+            objects: self.objects,
+            instances: self.instances,
+        }
+    }
+}
+
 impl Landscape {
     /// Growth `growth`, seed 0, detail 1.
     pub fn new(growth: u32) -> Self {

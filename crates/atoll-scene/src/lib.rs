@@ -37,7 +37,7 @@ pub use light::{AreaEmission, Light};
 pub use load::{load_any, LoadedScene};
 pub use material::{CoatedDiffuseParams, Material, MaterialId, PrincipledParams};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
-pub use scene::{Instance, Object, ObjectId, Scene, SceneStats};
+pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{
     AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, TexInput, Texels,
     Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping, Wrap,

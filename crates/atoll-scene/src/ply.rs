@@ -84,10 +84,12 @@ pub fn peek_sizes(path: &Path) -> Option<PlySizes> {
     if !meta.is_file() {
         return None;
     }
-    let file = std::fs::File::open(path).ok()?;
+    use std::io::Seek;
+    let mut file = std::fs::File::open(path).ok()?;
     let mut start = Vec::new();
     let mut magic = [0u8; 2];
-    let gz = std::fs::File::open(path).ok()?.read_exact(&mut magic).is_ok() && magic == [0x1f, 0x8b];
+    let gz = file.read_exact(&mut magic).is_ok() && magic == [0x1f, 0x8b];
+    file.rewind().ok()?;
     if gz {
         flate2::read::GzDecoder::new(file).take(MOST).read_to_end(&mut start).ok()?;
     } else {

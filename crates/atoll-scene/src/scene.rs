@@ -166,3 +166,20 @@ fn bounds_of(points: impl ParallelIterator<Item = Vec3>) -> (Vec3, Vec3) {
         .fold(empty, |(lo, hi), p| (lo.min(p), hi.max(p)))
         .reduce(empty, |(a, b), (c, d)| (a.min(c), b.max(d)))
 }
+
+/// The sizes a device's memory use follows from ([`atoll_bvh`'s byte
+/// model]): counted from a built scene or part, or known before a scene is
+/// built (a generated scene's estimate; a file scene's mesh headers, where
+/// faces count as one triangle each, so triangles are then a lower bound),
+/// so that one that cannot fit is refused before it is made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneSizes {
+    /// Bytes of the meshes' arrays.
+    pub geometry_bytes: u64,
+    pub vertices: u64,
+    pub triangles: u64,
+    /// Triangles of the object with the most.
+    pub largest_object_triangles: u64,
+    pub objects: u64,
+    pub instances: u64,
+}

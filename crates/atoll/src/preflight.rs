@@ -1,20 +1,23 @@
 //! Refusing a scene that cannot fit the device before anything of it is
-//! built. A generated scene's sizes follow from its parameters, so the
-//! device's byte model (the estimate placement plans with) is compared
-//! with the device's memory in milliseconds, rather than after a build
-//! that takes minutes and the host memory of the whole scene.
+//! built. A generated scene's sizes follow from its parameters, a file
+//! scene's from its text and mesh headers (checked by the loader through
+//! [`Room::size_check`]); the device's byte model (the estimate placement
+//! plans with) over them is compared with the device's memory in
+//! milliseconds, rather than after a build that takes minutes and the host
+//! memory of the whole scene.
 
 use std::path::Path;
 
-use atoll_bvh::{ByteModel, SceneCounts};
+use atoll_bvh::ByteModel;
 use atoll_render::Device;
-use atoll_scene::input::{SceneSizes, SizeCheck};
+use atoll_scene::input::SizeCheck;
+use atoll_scene::SceneSizes;
 
 use crate::CliError;
 
 /// The sizes of the scene at `source` where they are known without
 /// building it (a generated landscape); `None` otherwise.
-pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneCounts>, CliError> {
+pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneSizes>, CliError> {
     let Some(landscape) = source.and_then(|s| s.to_str()).and_then(crate::load::parse_landscape) else {
         return Ok(None);
     };
@@ -23,15 +26,7 @@ pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneCounts>, 
     if landscape.check().is_err() {
         return Ok(None);
     }
-    let e = landscape.estimate();
-    Ok(Some(SceneCounts {
-        geometry: e.geometry_bytes,
-        vertices: e.vertices,
-        triangles: e.unique_triangles,
-        largest_object: e.largest_object_triangles,
-        objects: e.objects,
-        instances: e.instances,
-    }))
+    Ok(Some(landscape.estimate().sizes()))
 }
 
 /// What a device can hold, for checks made before a scene is built: the
@@ -63,7 +58,7 @@ impl Room {
     }
 
     /// `Err(why)` when a scene of `counts` cannot fit.
-    pub fn check(&self, counts: &SceneCounts) -> Result<(), String> {
+    pub fn check(&self, counts: &SceneSizes) -> Result<(), String> {
         let needed = self.model.bytes(counts);
         if needed <= self.capacity {
             return Ok(());
@@ -77,23 +72,14 @@ impl Room {
 
     /// The same check for a loader ([`atoll_scene::input::LoadBudget::with_size_check`]).
     pub fn size_check(self) -> SizeCheck {
-        Box::new(move |s: &SceneSizes| {
-            self.check(&SceneCounts {
-                geometry: s.geometry_bytes,
-                vertices: s.vertices,
-                triangles: s.triangles,
-                largest_object: s.largest_object_triangles,
-                objects: s.objects,
-                instances: s.instances,
-            })
-        })
+        Box::new(move |sizes: &SceneSizes| self.check(sizes))
     }
 }
 
 /// Refuses a scene of `counts` that `device` cannot hold ([`Room`]).
 pub(crate) fn check_fits(
     source: &Path,
-    counts: &SceneCounts,
+    counts: &SceneSizes,
     device: &dyn Device,
     budget: Option<u64>,
 ) -> Result<(), CliError> {

@@ -8,7 +8,7 @@ use glam::{DMat3, DMat4, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{FileLoc, SceneError};
-use crate::input::SceneSizes;
+use crate::SceneSizes;
 use crate::{AreaEmission, MaterialId, MeshAlpha, TextureId, TriangleMesh};
 
 use super::shapes::ShapeSource;
