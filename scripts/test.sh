@@ -52,6 +52,9 @@ fi
 export LD_LIBRARY_PATH="$PWD/$NVRTC_LIB${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}"
 export ATOLL_REQUIRE_NVRTC=1
 
+# A clean clone gains nothing from incremental state, and it costs disk.
+export CARGO_INCREMENTAL=0
+
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets --locked --features atoll/mpi -- -D warnings
 # The binary without MPI too (what the README's render command builds).
