@@ -105,6 +105,7 @@ pub fn open_devices(
     budget: Option<u64>,
     threads: Option<usize>,
 ) -> Result<Vec<Box<dyn Device>>, CliError> {
+    let start = std::time::Instant::now();
     let mut devices: Vec<Box<dyn Device>> = Vec::new();
     let mut cpus = 0;
     for spec in specs {
@@ -154,6 +155,7 @@ pub fn open_devices(
             }
         }
     }
+    tracing::info!("opened {} devices in {:.2} s", devices.len(), start.elapsed().as_secs_f64());
     Ok(devices)
 }
 
@@ -162,7 +164,6 @@ pub struct MultiArgs<'a> {
     pub specs: &'a [DeviceSpec],
     pub strategy: Strategy,
     pub budget: Option<u64>,
-    pub threads: Option<usize>,
     pub ownership: Option<&'a Path>,
     /// How ring queues move (`None`: the fastest the devices allow).
     pub transport: Option<Transport>,
@@ -185,27 +186,27 @@ pub struct MultiArgs<'a> {
 /// Plans, partitions and renders `scene` on the listed devices; prints the
 /// choice before.
 pub fn render(
+    devices: Vec<Box<dyn Device>>,
     scene: &Arc<Scene>,
     options: RenderOptions,
     args: &MultiArgs,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, CliError> {
-    let (mut devices, layout) = setup(scene, &options, args)?;
+    let (mut devices, layout) = place_on(devices, scene, &options, args)?;
     let render = if args.warmup { render_multi_warmed } else { render_multi };
     render(&mut devices, scene, options, &layout, args.transport, progress)
         .map_err(|e| CliError::Runtime(e.to_string()))
 }
 
-/// Opens the listed devices, places `scene` on them (atoll-dist decides
-/// the strategy, partition and further wavefronts), and prints the choice.
-pub fn setup(
+/// Places `scene` on `devices`, opened from the listed ones (atoll-dist
+/// decides the strategy, partition and further wavefronts), and prints the
+/// choice.
+pub fn place_on(
+    mut devices: Vec<Box<dyn Device>>,
     scene: &Arc<Scene>,
     options: &RenderOptions,
     args: &MultiArgs,
 ) -> Result<(Vec<Box<dyn Device>>, Layout), CliError> {
-    let start = std::time::Instant::now();
-    let mut devices = open_devices(args.specs, args.budget, args.threads)?;
-    tracing::info!("opened {} devices in {:.2} s", devices.len(), start.elapsed().as_secs_f64());
     let mut gpus: Vec<usize> =
         args.specs.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
     gpus.sort_unstable();

@@ -29,16 +29,19 @@ pub(crate) fn known_sizes(source: Option<&Path>) -> Result<Option<SceneSizes>, C
     Ok(Some(landscape.estimate().sizes()))
 }
 
-/// What a device can hold, for checks made before a scene is built: the
-/// smallest of what is free on it (host memory available, for a device
-/// that draws on it) and its budget (`--device-memory`).
+/// What a device, or a set of devices together, can hold, for checks made
+/// before a scene is built: the smallest of what is free on each (host
+/// memory available, for devices that draw on it) and its budget
+/// (`--device-memory`).
 #[derive(Clone, Debug)]
 pub(crate) struct Room {
+    /// e.g. `cuda:0`, or `the 2 devices cuda:0, cuda:1`.
     device: String,
-    model: ByteModel,
+    /// The devices' byte models: the scene needs at least the least of them.
+    models: Vec<ByteModel>,
     capacity: u64,
     /// Which limit `capacity` is, for messages.
-    limit: &'static str,
+    limit: String,
 }
 
 impl Room {
@@ -54,12 +57,54 @@ impl Room {
         } else {
             "its free memory"
         };
-        Some(Room { device: device.name(), model: device.byte_model(), capacity, limit })
+        Some(Room { device: device.name(), models: vec![device.byte_model()], capacity, limit: limit.into() })
+    }
+
+    /// What `devices` hold together however the scene is split over them
+    /// (a bound below which no strategy can go): each piece of hardware
+    /// counted once, devices that draw on host memory sharing what the
+    /// host has, and where `host_tier` (scene memory shared over devices
+    /// of their own memory, whose coldest chunks may stay on the host) the
+    /// host's share for chunks as well. `None` where nothing bounds them.
+    pub fn of_devices(devices: &[Box<dyn Device>], budget: Option<u64>, host_tier: bool) -> Option<Room> {
+        if let [device] = devices {
+            return Room::of(device.as_ref(), budget);
+        }
+        let host = atoll_render::device::host_memory_available();
+        let leaders: Vec<&dyn Device> = devices
+            .iter()
+            .enumerate()
+            .filter(|(i, d)| !devices[..*i].iter().any(|e| d.shares_memory_with(e.as_ref())))
+            .map(|(_, d)| d.as_ref())
+            .collect();
+        let mut capacity = 0u64;
+        let on_host = leaders.iter().filter(|d| d.free_memory().is_none()).count() as u64;
+        for device in leaders.iter().filter(|d| d.free_memory().is_some()) {
+            let free = device.free_memory().expect("memory of its own");
+            capacity = capacity.saturating_add(budget.map_or(free, |b| b.min(free)));
+        }
+        if on_host > 0 {
+            let budgets = budget.map(|b| b.saturating_mul(on_host));
+            capacity = capacity.saturating_add(host.into_iter().chain(budgets).min()?);
+        }
+        let mut limit = String::from("their memory together");
+        if host_tier && on_host == 0 {
+            // The shared strategy's own rule for the host's share.
+            capacity = capacity.saturating_add(host?.saturating_sub(host? / 4));
+            limit.push_str(", host memory for chunks included");
+        }
+        let names: Vec<String> = devices.iter().map(|d| d.name()).collect();
+        Some(Room {
+            device: format!("the {} devices {}", devices.len(), names.join(", ")),
+            models: devices.iter().map(|d| d.byte_model()).collect(),
+            capacity,
+            limit,
+        })
     }
 
     /// `Err(why)` when a scene of `counts` cannot fit.
     pub fn check(&self, counts: &SceneSizes) -> Result<(), String> {
-        let needed = self.model.bytes(counts);
+        let needed = self.models.iter().map(|m| m.bytes(counts)).min().unwrap_or(0);
         if needed <= self.capacity {
             return Ok(());
         }
@@ -76,14 +121,10 @@ impl Room {
     }
 }
 
-/// Refuses a scene of `counts` that `device` cannot hold ([`Room`]).
-pub(crate) fn check_fits(
-    source: &Path,
-    counts: &SceneSizes,
-    device: &dyn Device,
-    budget: Option<u64>,
-) -> Result<(), CliError> {
-    let Some(room) = Room::of(device, budget) else { return Ok(()) };
+/// Refuses a scene of `counts` that `room` cannot hold; none bounds a
+/// device without a limit.
+pub(crate) fn check_fits(source: &Path, counts: &SceneSizes, room: Option<&Room>) -> Result<(), CliError> {
+    let Some(room) = room else { return Ok(()) };
     room.check(counts).map_err(|why| CliError::Runtime(format!("{}: {why}", source.display())))
 }
 
@@ -102,14 +143,19 @@ mod tests {
         let scene = atoll_scene::landscape::Landscape::new(100).build();
         let whole = atoll_bvh::ScenePart::whole(&scene);
         assert_eq!(needed, atoll_bvh::part_bytes(&scene, &whole, &device.byte_model()));
-        assert!(check_fits(source, &counts, &device, Some(needed)).is_ok());
-        let Err(CliError::Runtime(message)) = check_fits(source, &counts, &device, Some(needed - 1)) else {
+        assert!(check_fits(source, &counts, Room::of(&device, Some(needed)).as_ref()).is_ok());
+        let Err(CliError::Runtime(message)) =
+            check_fits(source, &counts, Room::of(&device, Some(needed - 1)).as_ref())
+        else {
             panic!("not refused")
         };
         assert!(message.contains("estimated before building it") && message.contains("--device-memory"));
         // A CPU device without a budget has the host's memory.
         let host = atoll_render::device::host_memory_available();
-        assert_eq!(check_fits(source, &counts, &device, None).is_ok(), host.is_none_or(|h| needed <= h));
+        assert_eq!(
+            check_fits(source, &counts, Room::of(&device, None).as_ref()).is_ok(),
+            host.is_none_or(|h| needed <= h)
+        );
         assert!(known_sizes(Some(Path::new("scene.pbrt"))).unwrap().is_none());
         assert!(known_sizes(None).unwrap().is_none());
     }

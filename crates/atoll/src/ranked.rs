@@ -149,7 +149,8 @@ fn rank_devices(
                 ownership: args.ownership.as_deref().filter(|_| root),
                 ..multi_args(args, specs)
             };
-            let (devices, layout) = multi::setup(scene, options, &several)?;
+            let devices = multi::open_devices(specs, args.device.device_memory, args.threads)?;
+            let (devices, layout) = multi::place_on(devices, scene, options, &several)?;
             let description = format!("{} devices", devices.len());
             Ok(RankDevices { devices, layout, description })
         }

@@ -245,15 +245,19 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.mpi {
         return run_ranked(args);
     }
-    let (selected_early, size_check) = select_before_loading(&args)?;
+    let (opened, size_check) = open_before_loading(&args)?;
     let Frame { scene, mut options, output, load } = load_frame(&args, size_check)?;
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(&args, specs, &mut options);
-        return render_on_devices(&scene, options, &args, specs, &output, load);
+        let devices = match opened {
+            Some(Opened::Many(devices)) => devices,
+            _ => multi::open_devices(specs, args.device.device_memory, args.threads)?,
+        };
+        return render_on_devices(&scene, options, &args, specs, devices, &output, load);
     }
-    let mut selected = match selected_early {
-        Some(selected) => fit_device_waves(&args, selected, &scene, &mut options),
-        None => open_device(&args, &scene, &mut options)?,
+    let mut selected = match opened {
+        Some(Opened::One(selected)) => fit_device_waves(&args, selected, &scene, &mut options),
+        _ => open_device(&args, &scene, &mut options)?,
     };
     let more = gpu_wavefronts(selected.device.as_ref(), &args, &scene, &options)?;
     if !more.is_empty() {
@@ -387,27 +391,44 @@ fn fit_device_waves(
     selected
 }
 
-/// `--device` opened before the scene is loaded, so that a scene that
-/// cannot fit it is refused before it is built ([`crate::preflight`]): a
-/// generated scene's sizes are known now; a file scene's are checked by
-/// the loader once its text is read, before its meshes are (the check
-/// returned).
-fn select_before_loading(
-    args: &RenderArgs,
-) -> Result<(Option<crate::device::Selected>, Option<SizeCheck>), CliError> {
-    let (None, Some(source)) = (&args.devices, args.scene.as_deref()) else { return Ok((None, None)) };
+/// Devices opened before the scene is loaded.
+enum Opened {
+    /// `--device`.
+    One(crate::device::Selected),
+    /// `--devices`.
+    Many(Vec<Box<dyn atoll_render::Device>>),
+}
+
+/// `--device` or `--devices` opened before the scene is loaded, so that a
+/// scene that cannot fit them is refused before it is built
+/// ([`crate::preflight`]): a generated scene's sizes are known now; a file
+/// scene's are checked by the loader once its text is read, before its
+/// meshes are (the check returned). Devices that together cannot hold the
+/// scene, however it is split, refuse it the same way.
+fn open_before_loading(args: &RenderArgs) -> Result<(Option<Opened>, Option<SizeCheck>), CliError> {
+    let Some(source) = args.scene.as_deref() else { return Ok((None, None)) };
     if let Some(output) = &args.output {
         check_output(output)?;
     }
     let known = crate::preflight::known_sizes(Some(source))?;
-    let selected = select(&args.device, args.threads)?;
     let budget = args.device.device_memory;
-    let Some(counts) = known else {
-        let check = Room::of(selected.device.as_ref(), budget).map(Room::size_check);
-        return Ok((Some(selected), check));
+    let (opened, room) = match &args.devices {
+        None => {
+            let selected = select(&args.device, args.threads)?;
+            let room = Room::of(selected.device.as_ref(), budget);
+            (Opened::One(selected), room)
+        }
+        Some(DeviceList(specs)) => {
+            let devices = multi::open_devices(specs, budget, args.threads)?;
+            // Scene memory shared over the devices may leave chunks on the host.
+            let host_tier = matches!(args.strategy, Strategy::Shared | Strategy::Auto);
+            let room = Room::of_devices(&devices, budget, host_tier);
+            (Opened::Many(devices), room)
+        }
     };
-    crate::preflight::check_fits(source, &counts, selected.device.as_ref(), budget)?;
-    Ok((Some(selected), None))
+    let Some(counts) = known else { return Ok((Some(opened), room.map(Room::size_check))) };
+    crate::preflight::check_fits(source, &counts, room.as_ref())?;
+    Ok((Some(opened), None))
 }
 
 /// The further wavefronts `--streams` asks for beside `device` (on a GPU:
@@ -585,13 +606,15 @@ fn render_on_devices(
     options: RenderOptions,
     args: &RenderArgs,
     specs: &[DeviceSpec],
+    devices: Vec<Box<dyn atoll_render::Device>>,
     output: &Path,
     load: LoadReport,
 ) -> Result<(), CliError> {
     let mut bar = progress_bar(args.quiet);
-    let out = multi::render(scene, options.clone(), &multi_args(args, specs), &mut |done, total| {
-        bar.update(done, total)
-    })?;
+    let out =
+        multi::render(devices, scene, options.clone(), &multi_args(args, specs), &mut |done, total| {
+            bar.update(done, total)
+        })?;
     bar.finish_and_clear();
     write_image(&out.film, output)?;
     print!("{}", multi::device_table(&out));
@@ -607,7 +630,6 @@ pub(crate) fn multi_args<'a>(args: &'a RenderArgs, specs: &'a [DeviceSpec]) -> M
         specs,
         strategy: args.strategy,
         budget: args.device.device_memory,
-        threads: args.threads,
         ownership: args.ownership.as_deref(),
         transport: args.ring_transport,
         partitioning: args.partitioning,

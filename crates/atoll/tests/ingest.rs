@@ -132,4 +132,24 @@ fn a_file_scene_that_cannot_fit_is_refused_before_its_meshes_are_read() {
     // With room, the cut file is read, and is the error.
     let out = atoll(&dir, &["render", "scene/scene.pbrt", "--device", "cpu", "-o", "out.png"]);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // Devices hold what their budgets hold together: a budget of a little
+    // over half the estimate is refused on one device, not on two.
+    let needed: u64 =
+        err.split("needs about ").nth(1).and_then(|r| r.split(' ').next()).unwrap().parse().unwrap();
+    let half = format!("{}", needed / 2 + needed / 8);
+    let on = |budget: &str, devices: &[&str]| {
+        let mut args = vec!["render", "scene/scene.pbrt", "--device-memory", budget, "-o", "out.png"];
+        args.extend_from_slice(devices);
+        atoll(&dir, &args)
+    };
+    let one = on(&half, &["--device", "cpu"]);
+    assert_eq!(one.status.code(), Some(1), "{}", String::from_utf8_lossy(&one.stderr));
+    let two = on(&half, &["--devices", "cpu:2"]);
+    assert_eq!(two.status.code(), Some(2), "{}", String::from_utf8_lossy(&two.stderr));
+    let too_small = on("1M", &["--devices", "cpu:2"]);
+    let err = String::from_utf8_lossy(&too_small.stderr);
+    assert_eq!(too_small.status.code(), Some(1), "{err}");
+    assert!(err.contains("scene.pbrt: does not fit the 2 devices cpu:0, cpu:1"), "{err}");
+    assert!(!dir.join("out.png").exists());
 }
