@@ -128,8 +128,23 @@ pub struct LoadBudget {
     /// nanoseconds threads spent reading files (summed over threads).
     triangles_loaded: AtomicU64,
     read_nanos: AtomicU64,
+    /// When the budget was made, and the nanoseconds after it at which the
+    /// loader finished each [`LoadPhase`] (0: not reached, or no such phase).
+    started: std::time::Instant,
+    phase_ends: [AtomicU64; 2],
     /// What the scene's sizes, known before its meshes are read, must pass.
     size_check: Option<SizeCheck>,
+}
+
+/// The phases of a load, in order, for loaders that read a scene's text
+/// first and its meshes after (PBRT); what follows the last is assembling
+/// the scene.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoadPhase {
+    /// The scene's text (its included files and textures with it).
+    Text = 0,
+    /// The mesh files, read and decoded in parallel.
+    Meshes = 1,
 }
 
 /// A check of a scene's [`crate::SceneSizes`] before its meshes are read:
@@ -165,8 +180,23 @@ impl LoadBudget {
             files: AtomicU64::new(0),
             triangles_loaded: AtomicU64::new(0),
             read_nanos: AtomicU64::new(0),
+            started: std::time::Instant::now(),
+            phase_ends: Default::default(),
             size_check: None,
         }
+    }
+
+    /// Notes that the loader has finished `phase`, now.
+    pub fn end_phase(&self, phase: LoadPhase) {
+        let nanos = self.started.elapsed().as_nanos().clamp(1, u64::MAX as u128) as u64;
+        self.phase_ends[phase as usize].store(nanos, Ordering::Relaxed);
+    }
+
+    /// Seconds after the budget was made at which `phase` ended, for
+    /// loaders that have it.
+    pub fn phase_end(&self, phase: LoadPhase) -> Option<f64> {
+        let nanos = self.phase_ends[phase as usize].load(Ordering::Relaxed);
+        (nanos > 0).then_some(nanos as f64 * 1e-9)
     }
 
     /// The same budget, with a check of the scene's sizes that loaders run

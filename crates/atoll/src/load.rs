@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use atoll_scene::input::{LoadBudget, SizeCheck};
+use atoll_scene::input::{LoadBudget, LoadPhase, SizeCheck};
 use atoll_scene::landscape::Landscape;
 use atoll_scene::Scene;
 
@@ -27,12 +27,21 @@ pub struct LoadReport {
     pub read_seconds: f64,
     /// Triangles of the scene's meshes.
     pub triangles: u64,
+    /// Wall-clock seconds of the scene's text and of its mesh files, for
+    /// loaders that read one before the other; the rest of `seconds` is
+    /// assembling the scene.
+    pub phases: Option<(f64, f64)>,
 }
 
 impl std::fmt::Display for LoadReport {
-    /// `load 2.10 s: 12 files, 3.40 GB (2.1 GB/s), read 0.80 s over threads, 120.0 M triangles`.
+    /// `load 2.10 s (text 0.05 s, meshes 1.90 s, scene 0.15 s): 12 files,
+    /// 3.40 GB (2.1 GB/s), read 0.80 s over threads, 120.0 M triangles`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(f, "load {:.2} s", self.seconds)?;
+        if let Some((text, meshes)) = self.phases {
+            let scene = (self.seconds - text - meshes).max(0.0);
+            write!(f, " (text {text:.2} s, meshes {meshes:.2} s, scene {scene:.2} s)")?;
+        }
         if self.files > 0 {
             let gb = self.bytes as f64 / 1e9;
             write!(
@@ -82,6 +91,10 @@ pub fn load_scene_reporting(
         bytes: budget.bytes(),
         read_seconds: budget.read_seconds(),
         triangles: scene.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+        phases: budget
+            .phase_end(LoadPhase::Text)
+            .zip(budget.phase_end(LoadPhase::Meshes))
+            .map(|(text, meshes)| (text, meshes - text)),
     };
     Ok((scene, report))
 }

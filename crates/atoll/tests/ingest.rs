@@ -89,8 +89,38 @@ fn a_broken_imported_file_is_an_error_at_its_place_and_nothing_is_written() {
     let dir = scratch("broken");
     let scene = generated(&dir, &[]);
     let geometry = scene.parent().unwrap().join("geometry");
-    let render =
-        |dir: &Path| atoll(dir, &["render", "scene/scene.pbrt", "--device", "cpu", "-o", "out.png", "-q"]);
+    let render = |dir: &Path| {
+        atoll(
+            dir,
+            &[
+                "render",
+                "scene/scene.pbrt",
+                "--device",
+                "cpu",
+                "--res",
+                "32x18",
+                "--spp",
+                "1",
+                "-o",
+                "out.png",
+                "-q",
+            ],
+        )
+    };
+    // Whole, it renders, and the closing line splits the load's time.
+    let out = render(&dir);
+    let line = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let split = line.split("(text ").nth(1).expect("the load's phases");
+    let seconds: Vec<f64> = split
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .filter(|w| !w.is_empty())
+        .take(3)
+        .map(|w| w.parse().unwrap())
+        .collect();
+    assert!(split.starts_with(&format!("{:.2} s, meshes", seconds[0])) && seconds.len() == 3, "{line}");
+    assert!(line.contains(" files, ") && line.contains("over threads"), "{line}");
+    std::fs::remove_file(dir.join("out.png")).unwrap();
     // A truncated PLY: the error is at the Shape that names it.
     let ply = geometry.join("tile-0004-ground.ply");
     let bytes = std::fs::read(&ply).unwrap();

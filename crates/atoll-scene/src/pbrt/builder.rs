@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use glam::{Affine3A, DMat4, DVec3};
 
 use crate::error::{FileLoc, SceneError};
+use crate::input::LoadPhase;
 use crate::{
     AlphaMode, AreaEmission, Instance, IntegratorSettings, LightSampler, Material, MaterialId, MeshAlpha,
     MeshId, Object, Rgb, Scene, TexInput, Texture, TextureBinding, TextureId, TexturedParam,
@@ -890,7 +891,9 @@ impl Builder {
                 );
             }
         }
+        crate::input::on_budget(|b| b.end_phase(LoadPhase::Text));
         self.add_pending_shapes()?;
+        crate::input::on_budget(|b| b.end_phase(LoadPhase::Meshes));
         for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {
             let Some(slot) = self.named_materials.get_mut(&name) else {
                 return Err(SceneError::at(
