@@ -173,6 +173,7 @@ pub fn place(
     request: &PlacementRequest,
 ) -> Result<Placement, PlacementError> {
     let n = devices.len();
+    let start = std::time::Instant::now();
     let model = widest_model(devices.iter().map(|d| d.byte_model()));
     // Replicas on one GPU share one copy of the scene; ring members on one
     // GPU hold different parts, so each has its share of the memory.
@@ -194,6 +195,8 @@ pub fn place(
             Err(_) => plan(scene, &model, n, budget, Some(Strategy::Auto))?,
         },
     };
+    tracing::info!("planned {plan:?} in {:.2} s", start.elapsed().as_secs_f64());
+    let start = std::time::Instant::now();
     let mut notes = Vec::new();
     let (layout, partition) = match plan {
         Plan::Replicate => {
@@ -224,6 +227,8 @@ pub fn place(
     if used < n {
         notes.push(format!("{} of {n} devices idle (rings of {used} devices in all)", n - used));
     }
+    tracing::info!("partitioned the scene in {:.2} s", start.elapsed().as_secs_f64());
+    let start = std::time::Instant::now();
     devices.truncate(used);
     let mut layout = layout;
     match (&mut layout, &partition) {
@@ -278,6 +283,7 @@ pub fn place(
             }
         }
     }
+    tracing::info!("added {} devices in {:.2} s", devices.len() - used, start.elapsed().as_secs_f64());
     Ok(Placement { plan, layout, partition, notes })
 }
 
