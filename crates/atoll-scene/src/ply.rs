@@ -670,6 +670,16 @@ mod tests {
             assert_eq!(e, general(bad).unwrap_err().to_string());
         }
         assert!(parse_ply(&bad_index).unwrap_err().to_string().contains("out of range"));
+        // A negative signed index, which read unsigned is merely large.
+        let mut negative = strip(false, 100, false, "int");
+        let n = negative.len();
+        negative[n - 8..n - 4].copy_from_slice(&(-1i32).to_le_bytes());
+        let signed = parse_header(&negative).unwrap();
+        assert!(fast::read(&signed, &negative[signed.body_start..]).is_none());
+        assert_eq!(
+            parse_ply(&negative).unwrap_err().to_string(),
+            general(&negative).unwrap_err().to_string()
+        );
     }
 
     #[test]

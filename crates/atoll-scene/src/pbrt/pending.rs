@@ -4,7 +4,7 @@
 //! directives, so the scene equals the one a serial load gives, whatever
 //! the thread count.
 
-use glam::{DMat3, DMat4, Vec3};
+use glam::{DMat3, DMat4, DVec3};
 use rayon::prelude::*;
 
 use crate::error::{FileLoc, SceneError};
@@ -104,8 +104,8 @@ impl PendingShape {
         let ctm = place.ctm;
         let reverse = place.reverse_orientation;
         let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
-        let normal = |n: Vec3| {
-            let n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
+        let unit = |n: DVec3| {
+            let n = n.normalize_or_zero().as_vec3();
             if reverse {
                 -n
             } else {
@@ -122,7 +122,16 @@ impl PendingShape {
                 *p = transform::point(&ctm, p.as_dvec3()).as_vec3();
             });
         }
-        normals.par_iter_mut().with_min_len(MIN_VERTICES).for_each(|n| *n = normal(*n));
+        if ctm == DMat4::IDENTITY {
+            // The identity's normal matrix moves no normal either (a NaN or
+            // infinite one becomes zero both ways): normalised alone.
+            normals.par_iter_mut().with_min_len(MIN_VERTICES).for_each(|n| *n = unit(n.as_dvec3()));
+        } else {
+            normals
+                .par_iter_mut()
+                .with_min_len(MIN_VERTICES)
+                .for_each(|n| *n = unit(normal_matrix * n.as_dvec3()));
+        }
         let mesh = TriangleMesh {
             name: shape.name,
             positions,

@@ -81,6 +81,18 @@ fn scalar_int(ty: Scalar, b: &[u8], at: usize, be: bool) -> Option<i64> {
     })
 }
 
+/// The little-endian `f32` at byte `at` of `row`.
+#[inline(always)]
+fn f32_le(row: &[u8], at: usize) -> f32 {
+    f32::from_le_bytes(row[at..at + 4].try_into().expect("4 bytes"))
+}
+
+/// The little-endian `u32` at byte `at` of `row`.
+#[inline(always)]
+fn u32_le(row: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(row[at..at + 4].try_into().expect("4 bytes"))
+}
+
 /// `N` bytes at `at`, in little-endian order.
 #[inline(always)]
 fn bytes<const N: usize>(b: &[u8], at: usize, be: bool) -> [u8; N] {
@@ -118,6 +130,13 @@ impl<'a> FixedRows<'a> {
         self.rows.len()
     }
 
+    /// The offsets of properties `ks` where each is a little-endian `f32`:
+    /// the layout of nearly every mesh, decoded without a type per value.
+    fn f32_le_offsets<const N: usize>(&self, ks: [usize; N]) -> Option<[usize; N]> {
+        let all = !self.big_endian && ks.iter().all(|&k| self.props[k].0 == Scalar::F32);
+        all.then(|| ks.map(|k| self.props[k].1))
+    }
+
     /// A reader of property `k` of row `i` as an `f32`.
     fn column(&self, k: usize) -> impl Fn(usize) -> f32 + Sync + '_ {
         let (ty, offset) = self.props[k];
@@ -129,8 +148,17 @@ fn read_vertices(e: &Element, rows: &FixedRows, mesh: &mut PlyMesh) -> Option<()
     let layout = VertexLayout::new(e);
     let column = |k: Option<usize>| k.map(|k| rows.column(k));
     let vec3 = |ks: [Option<usize>; 3]| -> Option<Vec<Vec3>> {
-        let [x, y, z] = ks.map(column);
-        let (x, y, z) = (x?, y?, z?);
+        let ks = [ks[0]?, ks[1]?, ks[2]?];
+        if let Some([x, y, z]) = rows.f32_le_offsets(ks) {
+            return Some(
+                rows.rows
+                    .par_chunks_exact(rows.row_size)
+                    .with_min_len(MIN_ROWS)
+                    .map(|row| Vec3::new(f32_le(row, x), f32_le(row, y), f32_le(row, z)))
+                    .collect(),
+            );
+        }
+        let [x, y, z] = ks.map(|k| rows.column(k));
         Some(
             (0..e.count)
                 .into_par_iter()
@@ -203,6 +231,22 @@ impl FaceLayout {
         // `Option`s would gather pieces and copy them); a row that breaks
         // the assumption raises the flag instead.
         let broken = AtomicBool::new(false);
+        if let Some(limit) = self.u8_count_32_bit_items(vertices) {
+            // The layout of nearly every mesh, without a type per value.
+            let at = self.before + 1;
+            let indices = rows
+                .par_chunks_exact(row)
+                .with_min_len(MIN_ROWS)
+                .map(|r| {
+                    let t = [u32_le(r, at), u32_le(r, at + 4), u32_le(r, at + 8)];
+                    if r[self.before] != 3 || t.iter().any(|&v| u64::from(v) >= limit) {
+                        broken.store(true, Ordering::Relaxed);
+                    }
+                    t
+                })
+                .collect();
+            return (!broken.into_inner()).then_some((indices, bytes));
+        }
         let indices: Vec<[u32; 3]> = (0..faces)
             .into_par_iter()
             .with_min_len(MIN_ROWS)
@@ -226,6 +270,18 @@ impl FaceLayout {
             return None;
         }
         Some((indices, bytes))
+    }
+
+    /// For little-endian rows with a `u8` count and 32-bit indices, the
+    /// bound every index must be below: the vertex count, and for signed
+    /// indices read as unsigned, 2^31 (negatives come out above it).
+    fn u8_count_32_bit_items(&self, vertices: usize) -> Option<u64> {
+        let type_limit = match self.item {
+            Scalar::U32 => 1u64 << 32,
+            Scalar::I32 => 1u64 << 31,
+            _ => return None,
+        };
+        (!self.big_endian && self.count == Scalar::U8).then(|| type_limit.min(vertices as u64))
     }
 
     /// One pass over rows of any length: triangles, quads split in two,
