@@ -45,8 +45,8 @@ pub mod work;
 pub use handout::{Joined, Joining, LocalHandout, Pace, Pacing, Speed, WaveHandout};
 pub use layout::{Layout, RingOrder};
 pub use partition::{
-    min_parts, partition, plan, ParseStrategyError, Partition, PartitionError, PartitionOptions, Plan,
-    Strategy,
+    min_parts, partition, plan, plan_partitioned, ParseStrategyError, Partition, PartitionError,
+    PartitionOptions, Plan, Strategy,
 };
 pub use render::{
     render_multi, render_multi_warmed, render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared,

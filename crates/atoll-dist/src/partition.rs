@@ -581,19 +581,20 @@ fn assemble<'a>(pieces: impl Iterator<Item = &'a Piece>) -> ScenePart {
 /// The smallest K in `1..=max_parts` whose partition fits every part under
 /// `budget`, or `None` when none does.
 pub fn min_parts(scene: &Scene, model: &ByteModel, budget: u64, max_parts: usize) -> Option<usize> {
-    smallest_fitting(scene, model, budget, 1..=max_parts)
+    smallest_fitting(scene, model, budget, 1..=max_parts).map(|(k, _)| k)
 }
 
-/// The first K of `ks` whose partition fits `budget`. Each try is cheap
-/// (work per object and mesh, not per triangle), so a linear search does.
+/// The first K of `ks` whose memory-balanced partition fits `budget`, with
+/// that partition. Each try is cheap (work per object, mesh and instance,
+/// not per triangle), so a linear search does.
 fn smallest_fitting(
     scene: &Scene,
     model: &ByteModel,
     budget: u64,
     mut ks: impl Iterator<Item = usize>,
-) -> Option<usize> {
+) -> Option<(usize, Partition)> {
     let options = PartitionOptions { budget: Some(budget), ..Default::default() };
-    ks.find(|&k| partition(scene, k, model, &options).is_ok())
+    ks.find_map(|k| partition(scene, k, model, &options).ok().map(|p| (k, p)))
 }
 
 /// Which distribution strategy to use, as the command line names it.
@@ -682,28 +683,42 @@ pub fn plan(
     budget: Option<u64>,
     forced: Option<Strategy>,
 ) -> Result<Plan, PartitionError> {
+    plan_partitioned(scene, model, devices, budget, forced).map(|(plan, _)| plan)
+}
+
+/// [`plan`], with the memory-balanced partition (under `budget`) that
+/// found a ring's K, where it made one: on scenes of millions of instances
+/// a partition takes a second, and rings cut that way need not make it
+/// again.
+pub fn plan_partitioned(
+    scene: &Scene,
+    model: &ByteModel,
+    devices: usize,
+    budget: Option<u64>,
+    forced: Option<Strategy>,
+) -> Result<(Plan, Option<Partition>), PartitionError> {
     if devices == 0 {
         return Err(PartitionError::NoParts(devices));
     }
     let whole = || part_bytes(scene, &ScenePart::whole(scene), model);
-    let ring = |smallest: usize| -> Result<Plan, PartitionError> {
-        let Some(budget) = budget else { return Ok(Plan::Ring { k: devices, islands: 1 }) };
-        let k = smallest_fitting(scene, model, budget, smallest..=devices)
+    let ring = |smallest: usize| {
+        let Some(budget) = budget else { return Ok((Plan::Ring { k: devices, islands: 1 }, None)) };
+        let (k, partition) = smallest_fitting(scene, model, budget, smallest..=devices)
             .ok_or(PartitionError::TooFewDevices { devices, budget, total: whole() })?;
-        Ok(Plan::Ring { k, islands: devices / k })
+        Ok((Plan::Ring { k, islands: devices / k }, Some(partition)))
     };
     match forced.unwrap_or_default() {
         Strategy::Replicate => match budget {
             Some(budget) if whole() > budget => {
                 Err(PartitionError::ReplicaTooBig { needed: whole(), budget })
             }
-            _ => Ok(Plan::Replicate),
+            _ => Ok((Plan::Replicate, None)),
         },
         Strategy::Ring => ring(devices.min(2)),
-        Strategy::Shared => Ok(Plan::Shared),
+        Strategy::Shared => Ok((Plan::Shared, None)),
         Strategy::Auto => match budget {
             Some(budget) if whole() > budget => ring(2.min(devices)),
-            _ => Ok(Plan::Replicate),
+            _ => Ok((Plan::Replicate, None)),
         },
     }
 }

@@ -12,7 +12,7 @@ use atoll_render::{Device, DeviceError, RenderOptions};
 use atoll_scene::Scene;
 
 use crate::partition::{
-    partition, plan, PartitionError, PartitionOptions, Plan, Strategy, GPU_INSTANCE_COST,
+    partition, plan_partitioned, PartitionError, PartitionOptions, Plan, Strategy, GPU_INSTANCE_COST,
 };
 use crate::shared::SharedSpec;
 use crate::spatial::partition_spatial;
@@ -50,9 +50,14 @@ pub fn partition_ring(
     budget: Option<u64>,
     resolution: glam::UVec2,
     partitioning: Partitioning,
+    memory_balanced: Option<Partition>,
 ) -> Result<(Partition, &'static str), PartitionError> {
     let options = PartitionOptions { budget, ..Default::default() };
-    let memory = || partition(scene, k, model, &options).map(|p| (p, "memory-balanced"));
+    // `memory_balanced` was made with these options where it has K parts.
+    let memory = || match memory_balanced.filter(|p| p.parts.len() == k) {
+        Some(p) => Ok((p, "memory-balanced")),
+        None => partition(scene, k, model, &options).map(|p| (p, "memory-balanced")),
+    };
     let spatial = || partition_spatial(scene, k, model, &options).map(|p| (p, "spatial slabs"));
     let work = || {
         partition_work_balanced(scene, k, resolution, model, &options).map(|p| (p, "work-balanced chunks"))
@@ -179,6 +184,14 @@ pub fn place(
     // GPU hold different parts, so each has its share of the memory.
     let replica_budget = scene_budget(devices, scene, request.budget, options, Sharing::Scene);
     let budget = scene_budget(devices, scene, request.budget, options, Sharing::Memory);
+    // The memory-balanced partition that found a ring's K, for reuse.
+    let mut found = None;
+    let mut planned = |budget, strategy| {
+        plan_partitioned(scene, &model, n, budget, Some(strategy)).map(|(plan, partition)| {
+            found = partition;
+            plan
+        })
+    };
     let plan = match (request.strategy, request.ring_size) {
         (Strategy::Ring, Some(k)) if (2..=n).contains(&k) => Plan::Ring { k, islands: n / k },
         (_, Some(k)) => {
@@ -186,13 +199,13 @@ pub fn place(
                 "--ring-size {k}: needs --strategy ring and between 2 and {n} (the devices listed)"
             )))
         }
-        (Strategy::Ring, None) => plan(scene, &model, n, budget, Some(Strategy::Ring))?,
-        (Strategy::Replicate, None) => plan(scene, &model, n, replica_budget, Some(Strategy::Replicate))?,
+        (Strategy::Ring, None) => planned(budget, Strategy::Ring)?,
+        (Strategy::Replicate, None) => planned(replica_budget, Strategy::Replicate)?,
         (Strategy::Shared, None) => Plan::Shared,
-        (Strategy::Auto, None) => match plan(scene, &model, n, replica_budget, Some(Strategy::Replicate)) {
+        (Strategy::Auto, None) => match planned(replica_budget, Strategy::Replicate) {
             Ok(p) => p,
             Err(_) if sharing_is_faster(devices, scene) => Plan::Shared,
-            Err(_) => plan(scene, &model, n, budget, Some(Strategy::Auto))?,
+            Err(_) => planned(budget, Strategy::Auto)?,
         },
     };
     tracing::info!("planned {plan:?} in {:.2} s", start.elapsed().as_secs_f64());
@@ -210,7 +223,7 @@ pub fn place(
         }
         Plan::Ring { k, islands } => {
             let (p, kind) =
-                partition_ring(scene, k, &model, budget, options.resolution, request.partitioning)?;
+                partition_ring(scene, k, &model, budget, options.resolution, request.partitioning, found)?;
             (Layout::Ring { parts: p.parts.clone(), islands, order: request.ring_order }, Some((p, kind)))
         }
         Plan::Shared => {

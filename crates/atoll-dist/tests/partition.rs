@@ -2,7 +2,9 @@
 //! respected, big objects split, deterministic; `min_parts` and `plan`.
 
 use atoll_bvh::{part_bytes, ByteModel, SceneBvh, ScenePart};
-use atoll_dist::{min_parts, partition, plan, Partition, PartitionError, PartitionOptions, Plan, Strategy};
+use atoll_dist::{
+    min_parts, partition, plan, plan_partitioned, Partition, PartitionError, PartitionOptions, Plan, Strategy,
+};
 use atoll_scene::{Instance, Object, ObjectId, Scene, TextureImage, TriangleMesh};
 use glam::{Affine3A, Vec2, Vec3};
 
@@ -266,6 +268,12 @@ fn plan_replicates_when_it_fits_else_rings_with_islands() {
     assert!(matches!(err, PartitionError::TooFewDevices { .. }), "{err:?}");
     assert!(err.to_string().contains(&format!("{} devices", k - 1)), "{err}");
     assert_eq!(plan(&scene, &MODEL, 0, None, None), Err(PartitionError::NoParts(0)));
+    // The partition that found K comes with the plan, as made afresh.
+    let (ring, found) = plan_partitioned(&scene, &MODEL, 8, Some(budget), None).unwrap();
+    assert_eq!(ring, Plan::Ring { k, islands: 8 / k });
+    let options = PartitionOptions { budget: Some(budget), ..Default::default() };
+    assert_eq!(found, Some(partition(&scene, k, &MODEL, &options).unwrap()));
+    assert_eq!(plan_partitioned(&scene, &MODEL, 4, None, None).unwrap(), (Plan::Replicate, None));
 
     // Forced.
     assert_eq!(plan(&scene, &MODEL, 4, None, Some(Strategy::Ring)), Ok(Plan::Ring { k: 4, islands: 1 }));

@@ -264,6 +264,7 @@ fn rank_ring(
         budget,
         options.resolution,
         args.partitioning,
+        None,
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     let ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
