@@ -435,19 +435,13 @@ pub fn launch_1d(threads: u32, block: u32) -> LaunchConfig {
 
 /// Copies `data` to a new device buffer; an empty table becomes one zeroed
 /// element (zero-length allocations fail), never read since its count is 0.
+/// For several tables, an [`Uploader`] shares its staging buffers.
 pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
     gpu: &Gpu,
     data: &[T],
     what: &str,
 ) -> Result<cudarc::driver::CudaSlice<T>, CudaError> {
-    let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
-    if data.is_empty() {
-        return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
-    }
-    if std::mem::size_of_val(data) < STAGED_UPLOAD_BYTES {
-        return gpu.stream.clone_htod(data).map_err(CudaError::driver(context()));
-    }
-    staged_upload(gpu, data).map_err(CudaError::driver(context()))
+    Uploader::new(gpu).upload(data, what)
 }
 
 /// Tables at least this large go through page-locked staging buffers of
@@ -456,51 +450,95 @@ pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + 
 const STAGED_UPLOAD_BYTES: usize = 64 << 20;
 const STAGING_BYTES: usize = 64 << 20;
 
-/// Copies `data` to a new device buffer through two page-locked buffers:
-/// threads fill one while the copy engine drains the other.
-fn staged_upload<T: cudarc::driver::DeviceRepr + Copy>(
-    gpu: &Gpu,
-    data: &[T],
-) -> Result<cudarc::driver::CudaSlice<T>, cudarc::driver::DriverError> {
-    use cudarc::driver::DevicePtrMut;
-    use rayon::prelude::*;
-    // SAFETY: every byte is written by the copies below before the buffer
-    // is returned (they cover `data` whole, and the stream is synchronised).
-    let mut device = unsafe { gpu.stream.alloc::<T>(data.len()) }?;
-    // SAFETY: `T` is plain device data (`DeviceRepr + Copy`): its bytes
-    // are what the device reads.
-    let bytes =
-        unsafe { std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data)) };
-    // SAFETY: written before each copy reads them.
-    let mut staging = [unsafe { gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES) }?, unsafe {
-        gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES)
-    }?];
-    let done = [gpu.ctx.new_event(None)?, gpu.ctx.new_event(None)?];
-    {
-        let (base, _written) = device.device_ptr_mut(&gpu.stream);
-        for (i, chunk) in bytes.chunks(STAGING_BYTES).enumerate() {
-            let b = i % 2;
-            // The copy that last read this buffer is over (no-op at first).
-            done[b].synchronize()?;
-            let host = &mut staging[b].as_mut_slice()?[..chunk.len()];
-            host.par_chunks_mut(1 << 20)
-                .zip(chunk.par_chunks(1 << 20))
-                .for_each(|(h, c)| h.copy_from_slice(c));
-            // SAFETY: the destination lies inside `device` (offsets of
-            // `data`'s bytes), and `host` is not written again before
-            // `done[b]` says this copy is over.
-            unsafe {
-                cudarc::driver::result::memcpy_htod_async(
-                    base + (i * STAGING_BYTES) as u64,
-                    host,
-                    gpu.stream.cu_stream(),
-                )
-            }?;
-            done[b].record(&gpu.stream)?;
-        }
+/// Copies tables to one GPU, large ones through two page-locked buffers
+/// made at the first that needs them and kept for the rest (making
+/// page-locked memory costs more than copying through it).
+pub struct Uploader<'g> {
+    gpu: &'g Gpu,
+    staging: Option<Staging>,
+}
+
+/// Two page-locked buffers, and for each the event after the copy that
+/// last read it.
+struct Staging {
+    buffers: [cudarc::driver::PinnedHostSlice<u8>; 2],
+    done: [cudarc::driver::CudaEvent; 2],
+}
+
+impl<'g> Uploader<'g> {
+    pub fn new(gpu: &'g Gpu) -> Self {
+        Uploader { gpu, staging: None }
     }
-    gpu.stream.synchronize()?;
-    Ok(device)
+
+    /// [`upload`], staged through the shared buffers.
+    pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + Copy>(
+        &mut self,
+        data: &[T],
+        what: &str,
+    ) -> Result<cudarc::driver::CudaSlice<T>, CudaError> {
+        let gpu = self.gpu;
+        let context = || format!("{}: uploading {what} ({} entries)", gpu.label(), data.len());
+        if data.is_empty() {
+            return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
+        }
+        if std::mem::size_of_val(data) < STAGED_UPLOAD_BYTES {
+            return gpu.stream.clone_htod(data).map_err(CudaError::driver(context()));
+        }
+        self.staged(data).map_err(CudaError::driver(context()))
+    }
+
+    /// Copies `data` to a new device buffer through the two page-locked
+    /// buffers: threads fill one while the copy engine drains the other.
+    fn staged<T: cudarc::driver::DeviceRepr + Copy>(
+        &mut self,
+        data: &[T],
+    ) -> Result<cudarc::driver::CudaSlice<T>, cudarc::driver::DriverError> {
+        use cudarc::driver::DevicePtrMut;
+        use rayon::prelude::*;
+        let gpu = self.gpu;
+        // SAFETY: every byte is written by the copies below before the buffer
+        // is returned (they cover `data` whole, and the stream is synchronised).
+        let mut device = unsafe { gpu.stream.alloc::<T>(data.len()) }?;
+        // SAFETY: `T` is plain device data (`DeviceRepr + Copy`): its bytes
+        // are what the device reads.
+        let bytes =
+            unsafe { std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data)) };
+        let staging = match &mut self.staging {
+            Some(staging) => staging,
+            None => self.staging.insert(Staging {
+                // SAFETY: written before each copy reads them.
+                buffers: [unsafe { gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES) }?, unsafe {
+                    gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES)
+                }?],
+                done: [gpu.ctx.new_event(None)?, gpu.ctx.new_event(None)?],
+            }),
+        };
+        {
+            let (base, _written) = device.device_ptr_mut(&gpu.stream);
+            for (i, chunk) in bytes.chunks(STAGING_BYTES).enumerate() {
+                let b = i % 2;
+                // The copy that last read this buffer is over (no-op at first).
+                staging.done[b].synchronize()?;
+                let host = &mut staging.buffers[b].as_mut_slice()?[..chunk.len()];
+                host.par_chunks_mut(1 << 20)
+                    .zip(chunk.par_chunks(1 << 20))
+                    .for_each(|(h, c)| h.copy_from_slice(c));
+                // SAFETY: the destination lies inside `device` (offsets of
+                // `data`'s bytes), and `host` is not written again before
+                // `done[b]` says this copy is over.
+                unsafe {
+                    cudarc::driver::result::memcpy_htod_async(
+                        base + (i * STAGING_BYTES) as u64,
+                        host,
+                        gpu.stream.cu_stream(),
+                    )
+                }?;
+                staging.done[b].record(&gpu.stream)?;
+            }
+        }
+        gpu.stream.synchronize()?;
+        Ok(device)
+    }
 }
 
 #[cfg(test)]

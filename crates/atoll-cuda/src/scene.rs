@@ -19,7 +19,7 @@ use glam::{Affine3A, Mat3};
 use rayon::prelude::*;
 
 use crate::error::{fmt_bytes, CudaError};
-use crate::gpu::{upload, Gpu};
+use crate::gpu::{Gpu, Uploader};
 use crate::layout::{image_format, mesh_flags, GpuImage, GpuInstance, GpuMesh, GpuObject};
 
 /// The scene tables in host memory, exactly as they go to the device.
@@ -530,24 +530,37 @@ impl GpuScene {
     ) -> Result<GpuScene, CudaError> {
         let plan = MemoryPlan { queues: frame_bytes, ..part_plan(scene, part) };
         plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
-        Self::upload_tables(gpu, SceneTables::build_part(scene, part))
+        let start = std::time::Instant::now();
+        let tables = SceneTables::build_part(scene, part);
+        let built = start.elapsed().as_secs_f64();
+        let uploaded = Self::upload_tables(gpu, tables)?;
+        gpu.synchronize()?;
+        let seconds = start.elapsed().as_secs_f64() - built;
+        let gb = uploaded.bytes() as f64 / 1e9;
+        tracing::info!(
+            "{}: built the scene's tables in {built:.2} s, uploaded {gb:.2} GB in {seconds:.2} s ({:.1} GB/s)",
+            gpu.label(),
+            gb / seconds.max(1e-9)
+        );
+        Ok(uploaded)
     }
 
     /// Uploads prepared tables (no memory check).
     pub fn upload_tables(gpu: &Arc<Gpu>, t: SceneTables) -> Result<GpuScene, CudaError> {
         let counts = t.counts();
+        let mut up = Uploader::new(gpu);
         let scene = GpuScene {
             gpu: gpu.clone(),
-            vertices: upload(gpu, &t.vertices, "vertices")?,
-            normals: upload(gpu, &t.normals, "normals")?,
-            triangles: upload(gpu, &t.triangles, "triangles")?,
-            triangle_mesh: upload(gpu, &t.triangle_mesh, "triangle meshes")?,
-            meshes: upload(gpu, &t.meshes, "meshes")?,
-            objects: upload(gpu, &t.objects, "objects")?,
-            instances: upload(gpu, &t.instances, "instances")?,
-            uvs: upload(gpu, &t.uvs, "uvs")?,
-            images: upload(gpu, &t.images, "images")?,
-            texels: upload(gpu, &t.texels, "texels")?,
+            vertices: up.upload(&t.vertices, "vertices")?,
+            normals: up.upload(&t.normals, "normals")?,
+            triangles: up.upload(&t.triangles, "triangles")?,
+            triangle_mesh: up.upload(&t.triangle_mesh, "triangle meshes")?,
+            meshes: up.upload(&t.meshes, "meshes")?,
+            objects: up.upload(&t.objects, "objects")?,
+            instances: up.upload(&t.instances, "instances")?,
+            uvs: up.upload(&t.uvs, "uvs")?,
+            images: up.upload(&t.images, "images")?,
+            texels: up.upload(&t.texels, "texels")?,
             counts,
             host_meshes: t.meshes,
             host_objects: t.objects,
