@@ -15,7 +15,7 @@ use std::sync::Arc;
 use atoll_bvh::{ByteModel, MeshRange, ScenePart};
 use atoll_scene::{Scene, Texels, TextureImage};
 use cudarc::driver::CudaSlice;
-use glam::{Affine3A, Mat3};
+use glam::{Affine3A, Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 
 use crate::error::{fmt_bytes, CudaError};
@@ -174,49 +174,23 @@ impl SceneTables {
         Self::build_part(scene, &ScenePart::whole(scene))
     }
 
-    /// Flattens `part` of `scene`: only the part's triangles are stored;
-    /// every object and instance keeps its row (hits and lights use
-    /// scene-wide indices), instances outside the part marked `excluded`.
-    /// A mesh held only in part keeps all its vertices (the triangle ranges
-    /// index them), once however many ranges of it the part holds (a
-    /// terrain cut into interleaved chunks has thousands), but only its
-    /// ranges of triangles.
+    /// Flattens `part` of `scene` ([`make_tables`]) into host tables.
     pub(crate) fn build_part(scene: &Scene, part: &ScenePart) -> Self {
-        let counts = TableCounts::of_part(scene, part);
-        let mut in_part = vec![false; scene.instances.len()];
-        for &i in &part.instances {
-            in_part[i as usize] = true;
-        }
-        let instances = scene
-            .instances
-            .par_iter()
-            .zip(in_part)
-            .map(|(instance, in_part)| GpuInstance {
-                excluded: u32::from(!in_part),
-                ..gpu_instance(instance)
-            })
-            .collect();
-        let plan = TablePlan::of(scene, part);
-        let vertex_words = |n: usize, has: bool| if has { counts.vertices as usize * n } else { 0 };
-        let mut t = SceneTables {
-            // Zeroed allocations come from the OS as zero pages: filling
-            // them in parallel below is their one pass.
-            vertices: vec![0.0; vertex_words(3, true)],
-            normals: vec![0.0; vertex_words(3, counts.has_normals)],
-            triangles: vec![0; counts.triangles as usize * 3],
-            triangle_mesh: vec![0; counts.triangles as usize],
-            meshes: plan.meshes,
-            objects: plan.objects,
-            instances,
-            uvs: vec![0.0; vertex_words(2, counts.has_uvs)],
-            images: Vec::with_capacity(counts.images as usize),
-            texels: Vec::with_capacity(counts.texel_words as usize),
-        };
-        for image in &scene.textures.images {
-            t.push_image(image);
-        }
-        fill_vertices(scene, &plan.vertex_blocks, &mut t);
-        fill_triangles(scene, &t.meshes, &mut t.triangles, &mut t.triangle_mesh);
+        let mut t = SceneTables::default();
+        let Ok(()) = make_tables::<std::convert::Infallible>(scene, part, &mut |table| {
+            match table {
+                Table::Vertices(v) => t.vertices = v,
+                Table::Normals(v) => t.normals = v,
+                Table::Uvs(v) => t.uvs = v,
+                Table::Triangles(v) => t.triangles = v,
+                Table::TriangleMesh(v) => t.triangle_mesh = v,
+                Table::Meshes(v) => t.meshes = v,
+                Table::Objects(v) => t.objects = v,
+                Table::Instances(v) => t.instances = v,
+                Table::Images(images, texels) => (t.images, t.texels) = (images, texels),
+            }
+            Ok(())
+        });
         t
     }
 
@@ -233,36 +207,10 @@ impl SceneTables {
             texel_words: self.texels.len() as u64,
         }
     }
-
-    /// Appends one image's texels in the device format.
-    fn push_image(&mut self, image: &TextureImage) {
-        let texel_offset = self.texels.len() as u64;
-        let format = match &image.texels {
-            Texels::Rgba8 { srgb, data } => {
-                self.texels.extend(data.iter().map(|p| u32::from_le_bytes(*p)));
-                if *srgb {
-                    image_format::RGBA8_SRGB
-                } else {
-                    image_format::RGBA8
-                }
-            }
-            Texels::RgbaF32(data) => {
-                self.texels.extend(data.iter().flat_map(|p| p.map(f32::to_bits)));
-                image_format::RGBA_F32
-            }
-        };
-        self.images.push(GpuImage {
-            texel_offset,
-            width: image.width,
-            height: image.height,
-            format,
-            pad: [0; 3],
-        });
-    }
 }
 
 /// Where a part's tables put everything, found in one cheap pass over its
-/// mesh ranges (the order [`SceneTables::build_part`] documents); the big
+/// mesh ranges (the order [`make_tables`] documents); the big
 /// arrays are then filled in parallel, each range and vertex block into
 /// its own slice.
 struct TablePlan {
@@ -327,67 +275,156 @@ impl TablePlan {
 /// Fewest entries one parallel task fills.
 const MIN_ENTRIES: usize = 1 << 14;
 
-/// Copies the vertex arrays of `blocks` (in order) into `t`'s vertex,
-/// normal and uv tables; rows of meshes without normals or uvs stay zero.
-fn fill_vertices(scene: &Scene, blocks: &[atoll_scene::MeshId], t: &mut SceneTables) {
-    let (mut vertices, mut normals, mut uvs) = (&mut t.vertices[..], &mut t.normals[..], &mut t.uvs[..]);
+/// One of a part's tables, as [`make_tables`] hands them out.
+pub(crate) enum Table {
+    Vertices(Vec<f32>),
+    Normals(Vec<f32>),
+    Uvs(Vec<f32>),
+    Triangles(Vec<u32>),
+    TriangleMesh(Vec<u32>),
+    Meshes(Vec<GpuMesh>),
+    Objects(Vec<GpuObject>),
+    Instances(Vec<GpuInstance>),
+    /// The images and their texels.
+    Images(Vec<GpuImage>, Vec<u32>),
+}
+
+/// Flattens `part` of `scene` into its tables, handing each to `sink`
+/// before the next is made, so that an upload holds one large table at a
+/// time beside the scene rather than all of them. Only the part's
+/// triangles are stored; every object and instance keeps its row (hits and
+/// lights use scene-wide indices), instances outside the part marked
+/// `excluded`. A mesh held only in part keeps all its vertices (the
+/// triangle ranges index them), once however many ranges of it the part
+/// holds (a terrain cut into interleaved chunks has thousands), but only
+/// its ranges of triangles.
+pub(crate) fn make_tables<E>(
+    scene: &Scene,
+    part: &ScenePart,
+    sink: &mut dyn FnMut(Table) -> Result<(), E>,
+) -> Result<(), E> {
+    let counts = TableCounts::of_part(scene, part);
+    let mut in_part = vec![false; scene.instances.len()];
+    for &i in &part.instances {
+        in_part[i as usize] = true;
+    }
+    let instances = scene
+        .instances
+        .par_iter()
+        .zip(in_part)
+        .map(|(instance, in_part)| GpuInstance { excluded: u32::from(!in_part), ..gpu_instance(instance) })
+        .collect();
+    sink(Table::Instances(instances))?;
+    let plan = TablePlan::of(scene, part);
+    let vertices = counts.vertices as usize;
+    let blocks = &plan.vertex_blocks;
+    sink(Table::Vertices(vertex_table(scene, blocks, vertices, |m| &m.positions, |v: Vec3| v.to_array())))?;
+    let normals = if counts.has_normals { vertices } else { 0 };
+    sink(Table::Normals(vertex_table(scene, blocks, normals, |m| &m.normals, |v: Vec3| v.to_array())))?;
+    let uvs = if counts.has_uvs { vertices } else { 0 };
+    sink(Table::Uvs(vertex_table(scene, blocks, uvs, |m| &m.uvs, |v: Vec2| v.to_array())))?;
+    sink(Table::Triangles(triangle_table(scene, &plan.meshes, counts.triangles as usize)))?;
+    sink(Table::TriangleMesh(triangle_mesh_table(&plan.meshes, counts.triangles as usize)))?;
+    let mut images = Vec::with_capacity(counts.images as usize);
+    let mut texels = Vec::with_capacity(counts.texel_words as usize);
+    for image in &scene.textures.images {
+        images.push(push_image(image, &mut texels));
+    }
+    sink(Table::Images(images, texels))?;
+    sink(Table::Meshes(plan.meshes))?;
+    sink(Table::Objects(plan.objects))
+}
+
+/// The vertex table of one attribute (`attr`, `N` words a vertex) over
+/// the vertices of `blocks`, in order, each block filled in parallel into
+/// its own slice; rows of meshes without the attribute stay zero, and a
+/// table of no `vertices` is empty.
+fn vertex_table<A: Copy + Sync, const N: usize>(
+    scene: &Scene,
+    blocks: &[atoll_scene::MeshId],
+    vertices: usize,
+    attr: impl Fn(&atoll_scene::TriangleMesh) -> &Vec<A> + Sync,
+    words: impl Fn(A) -> [f32; N] + Sync,
+) -> Vec<f32> {
+    // Zeroed allocations come from the OS as zero pages: filling them in
+    // parallel below is their one pass.
+    let mut table = vec![0.0; vertices * N];
+    if table.is_empty() {
+        return table;
+    }
+    let mut rest = &mut table[..];
     let mut jobs = Vec::with_capacity(blocks.len());
     for &m in blocks {
         let mesh = &scene.meshes[m as usize];
-        let n = mesh.positions.len();
-        // Tables without normals or uvs are empty: their slices too.
-        let (n_normals, n_uvs) =
-            (if normals.is_empty() { 0 } else { 3 * n }, if uvs.is_empty() { 0 } else { 2 * n });
-        let (v, rest) = std::mem::take(&mut vertices).split_at_mut(3 * n);
-        vertices = rest;
-        let (nv, rest) = std::mem::take(&mut normals).split_at_mut(n_normals);
-        normals = rest;
-        let (uv, rest) = std::mem::take(&mut uvs).split_at_mut(n_uvs);
-        uvs = rest;
-        jobs.push((mesh, v, nv, uv));
+        let (slice, after) = std::mem::take(&mut rest).split_at_mut(N * mesh.positions.len());
+        rest = after;
+        jobs.push((attr(mesh), slice));
     }
-    jobs.into_par_iter().for_each(|(mesh, v, nv, uv)| {
-        v.par_chunks_mut(3)
-            .with_min_len(MIN_ENTRIES)
-            .zip(&mesh.positions)
-            .for_each(|(o, p)| o.copy_from_slice(&p.to_array()));
-        if !nv.is_empty() && !mesh.normals.is_empty() {
-            nv.par_chunks_mut(3)
-                .with_min_len(MIN_ENTRIES)
-                .zip(&mesh.normals)
-                .for_each(|(o, n)| o.copy_from_slice(&n.to_array()));
-        }
-        if !uv.is_empty() && !mesh.uvs.is_empty() {
-            uv.par_chunks_mut(2)
-                .with_min_len(MIN_ENTRIES)
-                .zip(&mesh.uvs)
-                .for_each(|(o, n)| o.copy_from_slice(&n.to_array()));
-        }
+    jobs.into_par_iter().for_each(|(values, slice)| {
+        slice.par_chunks_mut(N).with_min_len(MIN_ENTRIES).zip(values).for_each(|(o, &v)| {
+            o.copy_from_slice(&words(v));
+        });
     });
+    table
 }
 
-/// Writes every table mesh's triangles (absolute vertex indices) and
-/// their mesh index, each mesh into its own slice, in parallel.
-fn fill_triangles(scene: &Scene, meshes: &[GpuMesh], triangles: &mut [u32], triangle_mesh: &mut [u32]) {
-    let (mut triangles, mut triangle_mesh) = (triangles, triangle_mesh);
+/// Every table mesh's triangles (absolute vertex indices), each mesh into
+/// its own slice, in parallel.
+fn triangle_table(scene: &Scene, meshes: &[GpuMesh], triangles: usize) -> Vec<u32> {
+    let mut table = vec![0; 3 * triangles];
+    let mut rest = &mut table[..];
     let mut jobs = Vec::with_capacity(meshes.len());
-    for (index, m) in meshes.iter().enumerate() {
-        let n = m.triangle_count as usize;
-        let (tri, rest) = std::mem::take(&mut triangles).split_at_mut(3 * n);
-        triangles = rest;
-        let (owner, rest) = std::mem::take(&mut triangle_mesh).split_at_mut(n);
-        triangle_mesh = rest;
-        jobs.push((index as u32, m, tri, owner));
+    for m in meshes {
+        let (slice, after) = std::mem::take(&mut rest).split_at_mut(3 * m.triangle_count as usize);
+        rest = after;
+        jobs.push((m, slice));
     }
-    jobs.into_par_iter().for_each(|(index, m, tri, owner)| {
+    jobs.into_par_iter().for_each(|(m, slice)| {
         let start = m.first_scene_triangle as usize;
         let source = &scene.meshes[m.scene_mesh as usize].indices[start..start + m.triangle_count as usize];
-        tri.par_chunks_mut(3)
+        slice
+            .par_chunks_mut(3)
             .with_min_len(MIN_ENTRIES)
             .zip(source)
             .for_each(|(o, t)| o.copy_from_slice(&t.map(|i| m.first_vertex + i)));
-        owner.par_iter_mut().with_min_len(MIN_ENTRIES).for_each(|o| *o = index);
     });
+    table
+}
+
+/// Each triangle's index into the table meshes, in parallel.
+fn triangle_mesh_table(meshes: &[GpuMesh], triangles: usize) -> Vec<u32> {
+    let mut table = vec![0; triangles];
+    let mut rest = &mut table[..];
+    let mut jobs = Vec::with_capacity(meshes.len());
+    for (index, m) in meshes.iter().enumerate() {
+        let (slice, after) = std::mem::take(&mut rest).split_at_mut(m.triangle_count as usize);
+        rest = after;
+        jobs.push((index as u32, slice));
+    }
+    jobs.into_par_iter().for_each(|(index, slice)| {
+        slice.par_iter_mut().with_min_len(MIN_ENTRIES).for_each(|o| *o = index);
+    });
+    table
+}
+
+/// Appends one image's texels in the device format to `texels`; its row.
+fn push_image(image: &TextureImage, texels: &mut Vec<u32>) -> GpuImage {
+    let texel_offset = texels.len() as u64;
+    let format = match &image.texels {
+        Texels::Rgba8 { srgb, data } => {
+            texels.extend(data.iter().map(|p| u32::from_le_bytes(*p)));
+            if *srgb {
+                image_format::RGBA8_SRGB
+            } else {
+                image_format::RGBA8
+            }
+        }
+        Texels::RgbaF32(data) => {
+            texels.extend(data.iter().flat_map(|p| p.map(f32::to_bits)));
+            image_format::RGBA_F32
+        }
+    };
+    GpuImage { texel_offset, width: image.width, height: image.height, format, pad: [0; 3] }
 }
 
 /// Bytes of the rows every device's tables keep for the whole scene,
@@ -531,18 +568,73 @@ impl GpuScene {
         let plan = MemoryPlan { queues: frame_bytes, ..part_plan(scene, part) };
         plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
         let start = std::time::Instant::now();
-        let tables = SceneTables::build_part(scene, part);
-        let built = start.elapsed().as_secs_f64();
-        let uploaded = Self::upload_tables(gpu, tables)?;
+        let mut up = Uploader::new(gpu);
+        // The small tables stay on the host too (BVH builds plan from them).
+        let mut host = SceneTables::default();
+        let mut counts = TableCounts::default();
+        let (mut vertices, mut normals, mut uvs, mut triangles, mut triangle_mesh) =
+            (None, None, None, None, None);
+        let (mut images, mut texels) = (None, None);
+        make_tables(scene, part, &mut |table| {
+            match table {
+                Table::Vertices(v) => {
+                    counts.vertices = (v.len() / 3) as u64;
+                    vertices = Some(up.upload(&v, "vertices")?);
+                }
+                Table::Normals(v) => {
+                    counts.has_normals = !v.is_empty();
+                    normals = Some(up.upload(&v, "normals")?);
+                }
+                Table::Uvs(v) => {
+                    counts.has_uvs = !v.is_empty();
+                    uvs = Some(up.upload(&v, "uvs")?);
+                }
+                Table::Triangles(v) => triangles = Some(up.upload(&v, "triangles")?),
+                Table::TriangleMesh(v) => {
+                    counts.triangles = v.len() as u64;
+                    triangle_mesh = Some(up.upload(&v, "triangle meshes")?);
+                }
+                Table::Images(i, t) => {
+                    (counts.images, counts.texel_words) = (i.len() as u64, t.len() as u64);
+                    images = Some(up.upload(&i, "images")?);
+                    texels = Some(up.upload(&t, "texels")?);
+                }
+                Table::Meshes(v) => host.meshes = v,
+                Table::Objects(v) => host.objects = v,
+                Table::Instances(v) => host.instances = v,
+            }
+            Ok::<(), CudaError>(())
+        })?;
+        counts.meshes = host.meshes.len() as u64;
+        counts.objects = host.objects.len() as u64;
+        counts.instances = host.instances.len() as u64;
+        let made = "make_tables hands out every table";
+        let gpu_scene = GpuScene {
+            gpu: gpu.clone(),
+            vertices: vertices.expect(made),
+            normals: normals.expect(made),
+            triangles: triangles.expect(made),
+            triangle_mesh: triangle_mesh.expect(made),
+            meshes: up.upload(&host.meshes, "meshes")?,
+            objects: up.upload(&host.objects, "objects")?,
+            instances: up.upload(&host.instances, "instances")?,
+            uvs: uvs.expect(made),
+            images: images.expect(made),
+            texels: texels.expect(made),
+            counts,
+            host_meshes: host.meshes,
+            host_objects: host.objects,
+            host_instances: host.instances,
+        };
         gpu.synchronize()?;
-        let seconds = start.elapsed().as_secs_f64() - built;
-        let gb = uploaded.bytes() as f64 / 1e9;
+        let seconds = start.elapsed().as_secs_f64();
+        let gb = gpu_scene.bytes() as f64 / 1e9;
         tracing::info!(
-            "{}: built the scene's tables in {built:.2} s, uploaded {gb:.2} GB in {seconds:.2} s ({:.1} GB/s)",
+            "{}: made and uploaded the scene's tables, {gb:.2} GB, one at a time in {seconds:.2} s ({:.1} GB/s)",
             gpu.label(),
             gb / seconds.max(1e-9)
         );
-        Ok(uploaded)
+        Ok(gpu_scene)
     }
 
     /// Uploads prepared tables (no memory check).
