@@ -1,17 +1,13 @@
 //! `--device` and `--device-memory` end to end, and `atoll compare`.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn atoll(dir: &PathBuf, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
-}
+use common::atoll;
+use std::path::PathBuf;
+use std::process::Output;
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("atoll-device-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("device", name)
 }
 
 fn stderr(o: &Output) -> String {

@@ -1,20 +1,15 @@
 //! `atoll gen landscape` and the `landscape:GROWTH[:SEED]` scene source, end to end.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use common::atoll;
+use std::path::PathBuf;
+use std::process::Output;
 
 use atoll_scene::landscape::Landscape;
 
-fn atoll(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
-}
-
-/// A fresh scratch directory per test.
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("atoll-gen-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("gen", name)
 }
 
 fn stdout(o: &Output) -> String {

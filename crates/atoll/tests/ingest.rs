@@ -2,22 +2,17 @@
 //! parallel give the scene (and the image) of a serial load, and broken
 //! imported files give errors at their place with nothing written.
 
+mod common;
+
+use common::atoll;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::Arc;
 
 use atoll_render::{render, CpuDevice, RenderOptions};
 use atoll_scene::Scene;
 
-fn atoll(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("atoll-ingest-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("ingest", name)
 }
 
 /// A small landscape written as a scene importing 3×3 tiles of PLY files.

@@ -8,6 +8,8 @@
 //! openmpi-bin); `scripts/test.sh` installs both.
 #![cfg(feature = "mpi")]
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -15,10 +17,7 @@ const ATOLL: &str = env!("CARGO_BIN_EXE_atoll");
 const FRAME: [&str; 6] = ["--spp", "4", "--res", "64x48", "--max-depth", "5"];
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("atoll-mpi-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("mpi", name)
 }
 
 fn text(bytes: &[u8]) -> String {

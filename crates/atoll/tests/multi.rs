@@ -3,20 +3,16 @@
 //! apart makes `auto` pick a ring (or islands of rings), and the image is
 //! the one a single device renders.
 
+mod common;
+
+use common::atoll;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use atoll_bvh::{part_bytes, ByteModel, ScenePart};
 
-fn atoll(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_atoll")).args(args).current_dir(dir).output().expect("atoll runs")
-}
-
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("atoll-multi-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    common::scratch("multi", name)
 }
 
 fn text(bytes: &[u8]) -> String {
