@@ -48,6 +48,7 @@ pub mod gpu;
 mod header;
 pub mod kernel_cache;
 pub mod layout;
+pub mod nccl;
 pub mod params;
 pub mod peer;
 pub mod queues;

@@ -118,6 +118,12 @@ impl Ranks {
         largest
     }
 
+    /// Collective: rank 0's `bytes` on every process (an NCCL
+    /// communicator's unique id, say).
+    pub fn broadcast(&self, bytes: &mut [u8]) {
+        self.world.process_at_rank(0).broadcast_into(bytes);
+    }
+
     /// Collective: every process's film summed into rank 0's (the others'
     /// are left as they were).
     pub fn sum_films(&self, film: &mut Film) {

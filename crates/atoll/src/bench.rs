@@ -43,6 +43,11 @@ pub struct BenchArgs {
     /// and rings of processes) instead of everything else.
     #[arg(long, conflicts_with = "peer")]
     pub queue_copy: bool,
+    /// Under mpirun, one GPU per process (`--device cuda:N`): measure NCCL
+    /// send/recv between ranks 0 and 1, at the queue sizes of `--peer`,
+    /// instead of everything else (needs a build with `--features mpi`).
+    #[arg(long, conflicts_with_all = ["peer", "queue_copy"])]
+    pub nccl_ranks: bool,
     /// No progress lines on stderr (results only).
     #[arg(short, long)]
     pub quiet: bool,
@@ -63,6 +68,9 @@ fn step(args: &BenchArgs, what: std::fmt::Arguments) {
 pub fn run(args: BenchArgs) -> Result<(), CliError> {
     if args.peer {
         return peer_copies();
+    }
+    if args.nccl_ranks {
+        return nccl_ranks(&args);
     }
     let selected = select(&args.device, None)?;
     if args.queue_copy {
@@ -216,6 +224,70 @@ fn queue_copies(args: &BenchArgs, mut selected: crate::device::Selected) -> Resu
 
 /// GPU-to-GPU copy speed for ray queues of a few sizes (32 MiB is one wave
 /// of 262144 records).
+/// NCCL send/recv between the GPUs of ranks 0 and 1 (one each), both
+/// ways, timed like [`peer_copies`] (one untimed copy, then 20); the time
+/// of a copy is the slower rank's. Rank 0 prints.
+#[cfg(feature = "mpi")]
+fn nccl_ranks(args: &BenchArgs) -> Result<(), CliError> {
+    use atoll_cuda::nccl::{new_id, NcclIdBytes, NcclLink};
+    let runtime = |e: atoll_cuda::CudaError| CliError::Runtime(e.to_string());
+    let ranks =
+        atoll_dist::ranks::Ranks::init().map_err(|e| CliError::Runtime(format!("--nccl-ranks: {e}")))?;
+    if ranks.size() < 2 {
+        return Err(CliError::Input("--nccl-ranks: start two or more processes with mpirun".into()));
+    }
+    let selected = select(&args.device, None)?;
+    let Some(gpu) = selected.gpu else {
+        return Err(CliError::Input("--nccl-ranks: every rank needs a GPU (--device cuda:N)".into()));
+    };
+    let mut id: NcclIdBytes = [0; 128];
+    if ranks.is_root() {
+        id = new_id().map_err(runtime)?;
+    }
+    ranks.broadcast(&mut id);
+    let link = NcclLink::connect(&gpu, &id, ranks.rank(), ranks.size()).map_err(runtime)?;
+    let me = ranks.rank();
+    let names = ranks.gather_text(&selected.description);
+    const REPEATS: usize = 20;
+    for mib in [4usize, 32, 256] {
+        let bytes = mib << 20;
+        let alloc = || gpu.stream.alloc_zeros::<u8>(bytes).map_err(|e| CliError::Runtime(e.to_string()));
+        let (outgoing, mut incoming) = (alloc()?, alloc()?);
+        for (from, to) in [(0, 1), (1, 0)] {
+            let mut copy = || {
+                link.exchange(
+                    (me == from).then_some((&outgoing, to)),
+                    (me == to).then_some((&mut incoming, from)),
+                )
+            };
+            copy().map_err(runtime)?;
+            ranks.wait_for_all();
+            let start = std::time::Instant::now();
+            for _ in 0..REPEATS {
+                copy().map_err(runtime)?;
+            }
+            let seconds = ranks.max(start.elapsed().as_secs_f64());
+            if ranks.is_root() {
+                let gbps = (bytes * REPEATS) as f64 / seconds / 1e9;
+                let name = |r: usize| names.get(r).map_or("?", String::as_str);
+                println!(
+                    "NCCL send/recv  rank {from} ({}) -> rank {to} ({})  {mib:>4} MiB: {gbps:.1} GB/s",
+                    name(from),
+                    name(to)
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "mpi"))]
+fn nccl_ranks(_args: &BenchArgs) -> Result<(), CliError> {
+    Err(CliError::Input(
+        "--nccl-ranks: this atoll was built without MPI (build it with `cargo build --release --features mpi`)".into(),
+    ))
+}
+
 fn peer_copies() -> Result<(), CliError> {
     let open = |i| atoll_cuda::Gpu::open(i).map_err(|e| CliError::Runtime(e.to_string()));
     let (a, b) = (open(0)?, open(1)?);

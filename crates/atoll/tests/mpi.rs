@@ -276,3 +276,35 @@ fn a_scene_too_big_for_a_rank_is_split_over_ranks() {
     assert!(stderr.contains("--ring-ranks differs between ranks"), "{stderr}");
     assert!(!dir.join("bad.exr").exists());
 }
+
+/// `atoll bench --nccl-ranks` checks its ranks before any GPU work: one
+/// process is too few, and ranks without a GPU are refused, each with exit
+/// 2 and a message (its measurement runs on the GPU machine).
+#[test]
+fn nccl_bench_refuses_too_few_ranks_and_ranks_without_gpus() {
+    let dir = scratch("nccl-bench");
+    for (n, want) in [("1", "start two or more processes with mpirun"), ("2", "every rank needs a GPU")] {
+        let out = Command::new("timeout")
+            .args([
+                "120",
+                "mpirun",
+                "--oversubscribe",
+                "-n",
+                n,
+                ATOLL,
+                "bench",
+                "--nccl-ranks",
+                "--device",
+                "cpu",
+            ])
+            .current_dir(&dir)
+            .env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+            .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+            .output()
+            .expect("mpirun runs (Debian's openmpi-bin)");
+        let err = text(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{n} ranks: {err}");
+        assert!(err.contains(&format!("--nccl-ranks: {want}")), "{n} ranks: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    }
+}
