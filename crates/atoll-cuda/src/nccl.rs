@@ -19,7 +19,7 @@ pub fn nccl_present() -> bool {
 }
 
 /// Maps an NCCL failure to an error saying what was being done.
-fn nccl(what: &'static str) -> impl Fn(cudarc::nccl::result::NcclError) -> CudaError {
+pub(crate) fn nccl(what: &'static str) -> impl Fn(cudarc::nccl::result::NcclError) -> CudaError {
     move |e| CudaError::Usage(format!("NCCL {what}: {e:?}"))
 }
 

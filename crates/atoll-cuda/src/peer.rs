@@ -420,15 +420,11 @@ fn nccl_copy(
     dst: &mut CudaSlice<u8>,
     timed: &Timed,
 ) -> Result<Option<f64>, CudaError> {
+    use crate::nccl::{nccl, nccl_present};
     use cudarc::nccl::safe::{group_end, group_start, Comm};
-    // SAFETY: only probes whether the shared library loads.
-    if !unsafe { cudarc::nccl::sys::is_culib_present() } {
+    if !nccl_present() {
         return Ok(None);
     }
-    let nccl = |what: &str| {
-        let what = what.to_string();
-        move |e: cudarc::nccl::result::NcclError| CudaError::Usage(format!("NCCL {what}: {e:?}"))
-    };
     let comms = Comm::from_devices(vec![a.stream.clone(), b.stream.clone()]).map_err(nccl("init"))?;
     let gbps = timed(&mut || {
         group_start().map_err(nccl("group start"))?;
