@@ -979,6 +979,10 @@ impl Device for CudaDevice {
         Some(Arc::new(crate::peer::PeerTransport))
     }
 
+    fn process_transport(&self) -> Option<Arc<dyn atoll_render::ProcessTransport>> {
+        crate::nccl::nccl_present().then(|| Arc::new(crate::nccl::NcclTransport) as Arc<_>)
+    }
+
     fn as_any(&self) -> &dyn std::any::Any {
         self
     }

@@ -6,11 +6,17 @@
 
 use std::sync::Arc;
 
+use cudarc::driver::sys as sys_driver;
 use cudarc::driver::CudaSlice;
-use cudarc::nccl::safe::{group_end, group_start, Comm, Id};
+use cudarc::nccl::safe::Id;
+use cudarc::nccl::{result, sys};
+
+use atoll_render::{Device, DeviceError, ProcessLink, ProcessTransport, Queue};
 
 use crate::error::CudaError;
 use crate::gpu::Gpu;
+use crate::layout::GpuRecord;
+use crate::peer::cuda;
 
 /// Whether libnccl can be loaded.
 pub fn nccl_present() -> bool {
@@ -36,11 +42,17 @@ pub fn new_id() -> Result<NcclIdBytes, CudaError> {
     Ok(id.internal().map(|c| c as u8))
 }
 
-/// One process's place in a communicator over the processes' GPUs.
+/// One process's place in a communicator over the processes' GPUs (the
+/// raw communicator: ring steps send from and receive into buffers the
+/// device's queues own, by address).
 pub struct NcclLink {
-    comm: Comm,
+    comm: sys::ncclComm_t,
     gpu: Arc<Gpu>,
 }
+
+// SAFETY: the communicator is used by one thread at a time (`&self` calls
+// come from the device's thread; NCCL communicators may move threads).
+unsafe impl Send for NcclLink {}
 
 impl NcclLink {
     /// Joins the communicator of `size` processes that `id` names, as
@@ -54,36 +66,169 @@ impl NcclLink {
         if !nccl_present() {
             return Err(CudaError::Usage("NCCL: libnccl.so.2 cannot be loaded".into()));
         }
-        let id = Id::uninit(id.map(|b| b as std::ffi::c_char));
-        let comm = Comm::from_rank(gpu.stream.clone(), rank, size, id).map_err(nccl("joining"))?;
+        let bad = |what| CudaError::Usage(format!("NCCL: {what} out of range"));
+        let (rank, size) =
+            (i32::try_from(rank).map_err(|_| bad("rank"))?, i32::try_from(size).map_err(|_| bad("size"))?);
+        gpu.ctx
+            .bind_to_thread()
+            .map_err(CudaError::driver(format!("{}: binding the context", gpu.label())))?;
+        let id = sys::ncclUniqueId { internal: id.map(|b| b as std::ffi::c_char) };
+        let mut comm = std::mem::MaybeUninit::uninit();
+        // SAFETY: `comm` is written by NCCL before it is read.
+        let comm = unsafe {
+            result::comm_init_rank(comm.as_mut_ptr(), size, id, rank).map_err(nccl("joining"))?;
+            comm.assume_init()
+        };
         Ok(NcclLink { comm, gpu: gpu.clone() })
     }
 
-    pub fn rank(&self) -> usize {
-        self.comm.rank()
+    /// Sends `outgoing` (an address on this GPU and a byte count) to rank
+    /// `to` and receives `incoming` bytes from rank `from` at once, on the
+    /// GPU's stream, then waits: a ring step. Either may be `None` (a
+    /// one-way copy).
+    ///
+    /// # Safety
+    /// The addresses must hold the byte counts given, on this link's GPU,
+    /// and nothing else may use them until the call returns.
+    pub unsafe fn exchange_raw(
+        &self,
+        outgoing: Option<(sys_driver::CUdeviceptr, usize, usize)>,
+        incoming: Option<(sys_driver::CUdeviceptr, usize, usize)>,
+    ) -> Result<(), CudaError> {
+        let stream = self.gpu.stream.cu_stream() as sys::cudaStream_t;
+        result::group_start().map_err(nccl("group start"))?;
+        if let Some((data, bytes, to)) = outgoing.filter(|o| o.1 > 0) {
+            let data = data as *const std::ffi::c_void;
+            result::send(data, bytes, sys::ncclDataType_t::ncclUint8, to as i32, self.comm, stream)
+                .map_err(nccl("send"))?;
+        }
+        if let Some((data, bytes, from)) = incoming.filter(|i| i.1 > 0) {
+            let data = data as *mut std::ffi::c_void;
+            result::recv(data, bytes, sys::ncclDataType_t::ncclUint8, from as i32, self.comm, stream)
+                .map_err(nccl("recv"))?;
+        }
+        result::group_end().map_err(nccl("group end"))?;
+        self.gpu.synchronize()
     }
 
-    pub fn size(&self) -> usize {
-        self.comm.world_size()
-    }
-
-    /// Sends `outgoing` to rank `to` and receives `incoming` (its whole
-    /// length) from rank `from` at once, on the GPU's stream, then waits:
-    /// a ring step. Either may be `None` (a one-way copy).
+    /// [`NcclLink::exchange_raw`] of whole buffers.
     pub fn exchange(
         &self,
         outgoing: Option<(&CudaSlice<u8>, usize)>,
         incoming: Option<(&mut CudaSlice<u8>, usize)>,
     ) -> Result<(), CudaError> {
-        group_start().map_err(nccl("group start"))?;
-        if let Some((data, to)) = outgoing {
-            self.comm.send(data, to as i32).map_err(nccl("send"))?;
+        use cudarc::driver::{DevicePtr, DevicePtrMut};
+        let stream = &self.gpu.stream;
+        let out = outgoing.map(|(d, to)| (d.device_ptr(stream).0, d.len(), to));
+        let inc = incoming.map(|(d, from)| {
+            let len = d.len();
+            (d.device_ptr_mut(stream).0, len, from)
+        });
+        // SAFETY: whole buffers of this GPU, borrowed for the call.
+        unsafe { self.exchange_raw(out, inc) }
+    }
+}
+
+impl Drop for NcclLink {
+    fn drop(&mut self) {
+        // SAFETY: the communicator is this link's own, used no more.
+        let _ = unsafe { result::comm_destroy(self.comm) };
+    }
+}
+
+/// NCCL between the GPUs of processes ([`crate::device::CudaDevice`]'s
+/// process transport): rings of ranks step device to device.
+pub(crate) struct NcclTransport;
+
+impl ProcessTransport for NcclTransport {
+    fn name(&self) -> &'static str {
+        "NCCL"
+    }
+
+    fn new_id(&self) -> Result<Vec<u8>, DeviceError> {
+        new_id().map(|id| id.to_vec()).map_err(|e| e.into_device_error("NCCL"))
+    }
+
+    fn connect(
+        &self,
+        device: &mut dyn Device,
+        id: &[u8],
+        rank: usize,
+        size: usize,
+    ) -> Result<Box<dyn ProcessLink>, DeviceError> {
+        let d = cuda(device)?;
+        let label = d.gpu().label();
+        let id: &NcclIdBytes = id.try_into().map_err(|_| DeviceError::Other {
+            device: label.clone(),
+            message: "an NCCL id has 128 bytes".into(),
+        })?;
+        let link = NcclLink::connect(d.gpu(), id, rank, size).map_err(|e| e.into_device_error(&label))?;
+        Ok(Box::new(QueueLink(link)))
+    }
+}
+
+/// A ring step's queues over an [`NcclLink`].
+struct QueueLink(NcclLink);
+
+impl ProcessLink for QueueLink {
+    fn exchange(
+        &self,
+        device: &mut dyn Device,
+        queue: Queue,
+        sending: (usize, usize),
+        receiving: (usize, usize),
+    ) -> Result<(), DeviceError> {
+        let d = cuda(device)?;
+        let label = d.gpu().label();
+        d.nccl_exchange(&self.0, queue, sending, receiving).map_err(|e| e.into_device_error(&label))
+    }
+}
+
+impl crate::device::CudaDevice {
+    /// Sends the first `sending.0` records of `queue` to rank `sending.1`
+    /// and receives `receiving.0` from rank `receiving.1` into the incoming
+    /// buffer the peer ring uses, then makes that the queue.
+    fn nccl_exchange(
+        &mut self,
+        link: &NcclLink,
+        queue: Queue,
+        (sending, next): (usize, usize),
+        (receiving, prev): (usize, usize),
+    ) -> Result<(), CudaError> {
+        use cudarc::driver::DevicePtr;
+        let gpu = self.gpu().clone();
+        let slot = self.incoming_slot(queue)?;
+        let queues = self.queues_mut()?;
+        if sending.max(receiving) > slot.capacity as usize {
+            return Err(CudaError::Usage(format!(
+                "{}: a ring step of {sending} and {receiving} records passes the queues' {}",
+                gpu.label(),
+                slot.capacity
+            )));
         }
-        if let Some((data, from)) = incoming {
-            self.comm.recv(data, from as i32).map_err(nccl("recv"))?;
+        let records = match queue {
+            Queue::Paths => &queues.paths,
+            Queue::Shadows => &queues.shadows,
+        };
+        let record = std::mem::size_of::<GpuRecord>();
+        {
+            let (source, _sync) = records.device_ptr(&gpu.stream);
+            let (outgoing, incoming) =
+                ((source, sending * record, next), (slot.records, receiving * record, prev));
+            // SAFETY: both buffers hold a queue's capacity of records on
+            // this GPU, at least the counts checked above; the call waits
+            // for them.
+            unsafe { link.exchange_raw(Some(outgoing), Some(incoming)) }?;
         }
-        group_end().map_err(nccl("group end"))?;
-        self.gpu.synchronize()
+        let count = [receiving as u32];
+        // SAFETY: the slot's counter is one u32 on this GPU; the copy is
+        // waited for before `count` goes.
+        unsafe {
+            sys_driver::cuMemcpyHtoD_v2(slot.count, count.as_ptr().cast(), std::mem::size_of_val(&count))
+        }
+        .result()
+        .map_err(CudaError::driver(format!("{}: writing the received count", gpu.label())))?;
+        self.queues_mut()?.accept_incoming(&gpu, queue)
     }
 }
 

@@ -32,10 +32,10 @@ use crate::gpu::Gpu;
 /// Where a neighbour may write a queue into this device (valid until the
 /// device accepts what came in).
 #[derive(Clone, Copy, Debug)]
-struct IncomingSlot {
-    records: sys::CUdeviceptr,
-    count: sys::CUdeviceptr,
-    capacity: u32,
+pub(crate) struct IncomingSlot {
+    pub(crate) records: sys::CUdeviceptr,
+    pub(crate) count: sys::CUdeviceptr,
+    pub(crate) capacity: u32,
 }
 
 /// Lets each GPU of `gpus` read and write the others' memory directly
@@ -103,7 +103,7 @@ fn grant_pool_access(owner: &Gpu, reader: &Gpu) -> Result<(), CudaError> {
 
 impl CudaDevice {
     /// This device's buffer and counter for an incoming `queue` (see the module docs).
-    fn incoming_slot(&mut self, queue: Queue) -> Result<IncomingSlot, CudaError> {
+    pub(crate) fn incoming_slot(&mut self, queue: Queue) -> Result<IncomingSlot, CudaError> {
         let gpu = self.gpu().clone();
         let queues = self.queues_mut()?;
         let capacity = queues.capacity;
@@ -225,7 +225,7 @@ struct PeerRing {
 }
 
 /// The CUDA device behind a ring member.
-fn cuda(device: &mut dyn Device) -> Result<&mut CudaDevice, DeviceError> {
+pub(crate) fn cuda(device: &mut dyn Device) -> Result<&mut CudaDevice, DeviceError> {
     let name = device.name();
     device.as_any_mut().downcast_mut::<CudaDevice>().ok_or(DeviceError::Unsupported {
         device: name,

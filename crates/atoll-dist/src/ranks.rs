@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use atoll_render::{Device, DeviceError, Film, Queue, RayRecord};
+use atoll_render::{Device, DeviceError, Film, ProcessLink, Queue, RayRecord};
 use bytemuck::Zeroable;
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
@@ -186,6 +186,7 @@ impl Ranks {
             steps: Cell::new(0),
             outgoing: RefCell::default(),
             incoming: RefCell::default(),
+            link: None,
         })
     }
 
@@ -219,6 +220,77 @@ pub struct RankRing {
     /// The queue going out and the one coming in, kept from step to step.
     outgoing: RefCell<Vec<RayRecord>>,
     incoming: RefCell<Vec<RayRecord>>,
+    /// Where every member's device offers it, the devices' own link
+    /// ([`RankRing::connect_devices`]): records then go device to device,
+    /// and MPI carries only their counts.
+    link: Option<Box<dyn ProcessLink>>,
+}
+
+impl RankRing {
+    /// Collective over the ring: where every member's device offers the
+    /// same kind of process transport (NCCL between GPUs), member 0 makes
+    /// the link's id, the others receive it over the ring's communicator,
+    /// and all join it; queues then move device to device. Returns the
+    /// transport's name, or why not (queues then stay MPI messages through
+    /// the host).
+    /// Every member calls it, with `wanted` false where the host transport
+    /// was asked for (then no member connects).
+    pub fn connect_devices(&mut self, device: &mut dyn Device, wanted: bool) -> Result<&'static str, String> {
+        let transport = device.process_transport().filter(|_| wanted);
+        let mut all = [0u8; 2];
+        let mine = [u8::from(!wanted), u8::from(transport.is_none())];
+        self.comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
+        let Some(transport) = transport.filter(|_| all == [0, 0]) else {
+            return Err(match all[0] {
+                1 => "the host transport was asked for".into(),
+                _ => "not every rank of the ring has a GPU with NCCL".into(),
+            });
+        };
+        let name = transport.name();
+        // The id's length first (0: member 0 could not make one).
+        let root = self.comm.process_at_rank(0);
+        let mut id = if self.place.member == 0 { transport.new_id().unwrap_or_default() } else { Vec::new() };
+        let mut len = id.len() as u64;
+        root.broadcast_into(&mut len);
+        if len == 0 {
+            return Err("the ring's first rank could not make an NCCL id".into());
+        }
+        id.resize(len as usize, 0);
+        root.broadcast_into(&mut id[..]);
+        let joined = transport.connect(device, &id, self.place.member, self.place.size);
+        let mut all = 0u8;
+        self.comm.all_reduce_into(&u8::from(joined.is_ok()), &mut all, SystemOperation::min());
+        match (joined, all) {
+            (Ok(link), 1) => {
+                self.link = Some(link);
+                Ok(name)
+            }
+            (Err(e), _) => Err(e.to_string()),
+            (Ok(_), _) => Err("another rank of the ring could not join NCCL".into()),
+        }
+    }
+
+    /// This member's successor and predecessor in the ring's communicator.
+    fn neighbours(&self) -> (usize, usize) {
+        let RingPlace { size, member, .. } = self.place;
+        ((member + 1) % size, (member + size - 1) % size)
+    }
+
+    /// Tells the successor how many records come, and learns how many come
+    /// from the predecessor.
+    fn swap_counts(&self, sending: usize, step: i32) -> usize {
+        let (next, prev) = self.neighbours();
+        let (next, prev) = (self.comm.process_at_rank(next as i32), self.comm.process_at_rank(prev as i32));
+        let mine = sending as u64;
+        let mut theirs = 0u64;
+        mpi::request::scope(|scope| {
+            let sent = next.immediate_send_with_tag(scope, &mine, step);
+            let received = prev.immediate_receive_into_with_tag(scope, &mut theirs, step);
+            sleep_until_done(received);
+            sleep_until_done(sent);
+        });
+        theirs as usize
+    }
 }
 
 /// An empty queue still goes as one byte: Open MPI reads the address of an
@@ -248,6 +320,18 @@ impl RingPeers for RankRing {
     ) -> Result<(), RingError> {
         let step = self.steps.get();
         self.steps.set((step + 1) % RING_TAGS);
+        if let Some(link) = &self.link {
+            // A member whose device failed sends nothing but still steps.
+            let sending = report.keep(device.queue_len(queue), 0);
+            let waited = Instant::now();
+            let receiving = self.swap_counts(sending, step);
+            let (next, prev) = self.neighbours();
+            let exchanged = link.exchange(device, queue, (sending, next), (receiving, prev));
+            report.keep(exchanged, ());
+            report.wait_seconds += waited.elapsed().as_secs_f64();
+            report.bytes_sent += (sending * size_of::<RayRecord>()) as u64;
+            return Ok(());
+        }
         let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());
         read_for_sending(device, queue, &mut outgoing, report);
         let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };

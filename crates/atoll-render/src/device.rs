@@ -16,7 +16,7 @@ use crate::chunks::{Residency, SceneSharing};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave, DEFAULT_WAVE_SIZE};
 use crate::record::RayRecord;
-use crate::transport::DirectTransport;
+use crate::transport::{DirectTransport, ProcessTransport};
 
 /// The two queues of ray records a device holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -251,6 +251,12 @@ pub trait Device: Send {
     /// A way to move queues between devices of this kind without the host
     /// (GPU peer copies), where there is one.
     fn direct_transport(&self) -> Option<Arc<dyn DirectTransport>> {
+        None
+    }
+
+    /// A way to move queues to devices of other processes without the
+    /// host (NCCL between GPUs), where there is one.
+    fn process_transport(&self) -> Option<Arc<dyn ProcessTransport>> {
         None
     }
 

@@ -29,4 +29,4 @@ pub use film::Film;
 pub use frame::{FrameContext, RenderOptions, Wave};
 pub use integrator::{render, RenderOutput};
 pub use record::RayRecord;
-pub use transport::{DirectRing, DirectTransport};
+pub use transport::{DirectRing, DirectTransport, ProcessLink, ProcessTransport};

@@ -65,3 +65,40 @@ pub trait DirectRing: Send + Sync {
     /// sending happens: the host may never learn the queue lengths).
     fn bytes_sent(&self, device: &mut dyn Device) -> Result<u64, DeviceError>;
 }
+
+/// A transport between devices of different processes (NCCL for GPUs),
+/// for rings whose members are processes with one device each
+/// ([`Device::process_transport`]). The ring's first process makes an id
+/// ([`ProcessTransport::new_id`]) that reaches the others over the
+/// caller's own channel (MPI); then every process joins with it.
+pub trait ProcessTransport: Send + Sync {
+    /// What it is, for messages.
+    fn name(&self) -> &'static str;
+
+    /// A new id for one ring's link.
+    fn new_id(&self) -> Result<Vec<u8>, DeviceError>;
+
+    /// Joins the link of `size` processes that `id` names, as `rank`, with
+    /// `device`. Every process of the ring calls it at once.
+    fn connect(
+        &self,
+        device: &mut dyn Device,
+        id: &[u8],
+        rank: usize,
+        size: usize,
+    ) -> Result<Box<dyn ProcessLink>, DeviceError>;
+}
+
+/// One process's link into its ring ([`ProcessTransport::connect`]).
+pub trait ProcessLink: Send {
+    /// One ring step: the first `sending` records of `device`'s `queue` go
+    /// to rank `next`, and `receiving` records from rank `prev` become the
+    /// queue (the caller swapped the counts). Returns once they are there.
+    fn exchange(
+        &self,
+        device: &mut dyn Device,
+        queue: Queue,
+        sending: (usize, usize),
+        receiving: (usize, usize),
+    ) -> Result<(), DeviceError>;
+}

@@ -267,7 +267,15 @@ fn rank_ring(
         None,
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
+    let mut ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
+    let wanted = args.ring_transport != Some(atoll_dist::Transport::Host);
+    let transport = ring.connect_devices(devices[0].as_mut(), wanted);
+    if ranks.is_root() {
+        match &transport {
+            Ok(name) => eprintln!("ring transport: {name}, device to device"),
+            Err(why) => eprintln!("note: ring queues go through host memory: {why}"),
+        }
+    }
     if ranks.is_root() {
         let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
         eprintln!("partition: {kind}");
