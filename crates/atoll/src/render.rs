@@ -111,7 +111,8 @@ pub struct RenderArgs {
     #[arg(long, value_parser = parse_fraction, requires = "devices")]
     pub replicate_fraction: Option<f64>,
     /// How ring queues move between devices: peer (GPU to GPU copies, the
-    /// default for GPUs) or host (through host memory, any device).
+    /// default for GPUs) or host (through host memory, any device). Rings
+    /// of GPU ranks (`--mpi`) use NCCL unless this says host.
     #[arg(long, value_parser = parse_transport, requires = "devices")]
     pub ring_transport: Option<Transport>,
     /// Where a ring's queues are made and shaded: spread (every member
