@@ -224,6 +224,9 @@ fn rings_of_ranks_render_the_image_of_one_process() {
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stdout}{stderr}");
     assert!(stderr.contains("strategy: rings of 2 ranks (2 islands)"), "{stderr}");
+    // CPU ranks have no device-to-device transport: one line says so.
+    let notice = "note: ring queues go through host memory: not every rank of the ring has a GPU with NCCL";
+    assert_eq!(stderr.matches(notice).count(), 1, "{stderr}");
     assert!(stderr.contains("ownership view: own.png") && dir.join("own.png").exists(), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "rings.exr");
     let rows = table(&stdout);
