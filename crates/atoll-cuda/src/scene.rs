@@ -571,31 +571,17 @@ impl GpuScene {
         let mut up = Uploader::new(gpu);
         // The small tables stay on the host too (BVH builds plan from them).
         let mut host = SceneTables::default();
-        let mut counts = TableCounts::default();
         let (mut vertices, mut normals, mut uvs, mut triangles, mut triangle_mesh) =
             (None, None, None, None, None);
         let (mut images, mut texels) = (None, None);
         make_tables(scene, part, &mut |table| {
             match table {
-                Table::Vertices(v) => {
-                    counts.vertices = (v.len() / 3) as u64;
-                    vertices = Some(up.upload(&v, "vertices")?);
-                }
-                Table::Normals(v) => {
-                    counts.has_normals = !v.is_empty();
-                    normals = Some(up.upload(&v, "normals")?);
-                }
-                Table::Uvs(v) => {
-                    counts.has_uvs = !v.is_empty();
-                    uvs = Some(up.upload(&v, "uvs")?);
-                }
+                Table::Vertices(v) => vertices = Some(up.upload(&v, "vertices")?),
+                Table::Normals(v) => normals = Some(up.upload(&v, "normals")?),
+                Table::Uvs(v) => uvs = Some(up.upload(&v, "uvs")?),
                 Table::Triangles(v) => triangles = Some(up.upload(&v, "triangles")?),
-                Table::TriangleMesh(v) => {
-                    counts.triangles = v.len() as u64;
-                    triangle_mesh = Some(up.upload(&v, "triangle meshes")?);
-                }
+                Table::TriangleMesh(v) => triangle_mesh = Some(up.upload(&v, "triangle meshes")?),
                 Table::Images(i, t) => {
-                    (counts.images, counts.texel_words) = (i.len() as u64, t.len() as u64);
                     images = Some(up.upload(&i, "images")?);
                     texels = Some(up.upload(&t, "texels")?);
                 }
@@ -605,9 +591,8 @@ impl GpuScene {
             }
             Ok::<(), CudaError>(())
         })?;
-        counts.meshes = host.meshes.len() as u64;
-        counts.objects = host.objects.len() as u64;
-        counts.instances = host.instances.len() as u64;
+        // What the tables hold (the host tests pin it to the built tables').
+        let counts = TableCounts::of_part(scene, part);
         let made = "make_tables hands out every table";
         let gpu_scene = GpuScene {
             gpu: gpu.clone(),
