@@ -82,14 +82,15 @@ impl NcclLink {
         Ok(NcclLink { comm, gpu: gpu.clone() })
     }
 
-    /// Sends `outgoing` (an address on this GPU and a byte count) to rank
-    /// `to` and receives `incoming` bytes from rank `from` at once, on the
-    /// GPU's stream, then waits: a ring step. Either may be `None` (a
-    /// one-way copy).
+    /// Queues on the GPU's stream the send of `outgoing` (an address on
+    /// this GPU and a byte count) to rank `to` and the receipt of
+    /// `incoming` bytes from rank `from`, at once: a ring step. Either may
+    /// be `None` (a one-way copy). Returns without waiting: later work on
+    /// the stream comes after.
     ///
     /// # Safety
     /// The addresses must hold the byte counts given, on this link's GPU,
-    /// and nothing else may use them until the call returns.
+    /// and nothing but later work on the GPU's stream may use them.
     pub unsafe fn exchange_raw(
         &self,
         outgoing: Option<(sys_driver::CUdeviceptr, usize, usize)>,
@@ -107,11 +108,10 @@ impl NcclLink {
             result::recv(data, bytes, sys::ncclDataType_t::ncclUint8, from as i32, self.comm, stream)
                 .map_err(nccl("recv"))?;
         }
-        result::group_end().map_err(nccl("group end"))?;
-        self.gpu.synchronize()
+        result::group_end().map(drop).map_err(nccl("group end"))
     }
 
-    /// [`NcclLink::exchange_raw`] of whole buffers.
+    /// [`NcclLink::exchange_raw`] of whole buffers, waited for.
     pub fn exchange(
         &self,
         outgoing: Option<(&CudaSlice<u8>, usize)>,
@@ -124,8 +124,10 @@ impl NcclLink {
             let len = d.len();
             (d.device_ptr_mut(stream).0, len, from)
         });
-        // SAFETY: whole buffers of this GPU, borrowed for the call.
-        unsafe { self.exchange_raw(out, inc) }
+        // SAFETY: whole buffers of this GPU, borrowed until the copies are
+        // done (waited for below).
+        unsafe { self.exchange_raw(out, inc) }?;
+        self.gpu.synchronize()
     }
 }
 
@@ -185,9 +187,11 @@ impl ProcessLink for QueueLink {
 }
 
 impl crate::device::CudaDevice {
-    /// Sends the first `sending.0` records of `queue` to rank `sending.1`
-    /// and receives `receiving.0` from rank `receiving.1` into the incoming
-    /// buffer the peer ring uses, then makes that the queue.
+    /// Queues the send of the first `sending.0` records of `queue` to rank
+    /// `sending.1` and the receipt of `receiving.0` from rank `receiving.1`
+    /// into the incoming buffer the peer ring uses, which then becomes the
+    /// queue. Nothing waits: the device's later work comes after on its
+    /// stream.
     fn nccl_exchange(
         &mut self,
         link: &NcclLink,
@@ -216,18 +220,15 @@ impl crate::device::CudaDevice {
             let (outgoing, incoming) =
                 ((source, sending * record, next), (slot.records, receiving * record, prev));
             // SAFETY: both buffers hold a queue's capacity of records on
-            // this GPU, at least the counts checked above; the call waits
-            // for them.
+            // this GPU, at least the counts checked above, and the queues
+            // touch them only on this GPU's stream (the incoming buffer
+            // becomes the queue below; the sent one the next incoming).
             unsafe { link.exchange_raw(Some(outgoing), Some(incoming)) }?;
         }
-        let count = [receiving as u32];
-        // SAFETY: the slot's counter is one u32 on this GPU; the copy is
-        // waited for before `count` goes.
-        unsafe {
-            sys_driver::cuMemcpyHtoD_v2(slot.count, count.as_ptr().cast(), std::mem::size_of_val(&count))
-        }
-        .result()
-        .map_err(CudaError::driver(format!("{}: writing the received count", gpu.label())))?;
+        // SAFETY: the slot's counter is one u32 on this GPU, set in stream order.
+        unsafe { sys_driver::cuMemsetD32Async(slot.count, receiving as u32, 1, gpu.stream.cu_stream()) }
+            .result()
+            .map_err(CudaError::driver(format!("{}: writing the received count", gpu.label())))?;
         self.queues_mut()?.accept_incoming(&gpu, queue)
     }
 }

@@ -8,9 +8,8 @@
 //! Device threads ask for waves themselves, so MPI must allow calls from
 //! any thread (`MPI_THREAD_MULTIPLE`; Open MPI 4.1 gives it).
 
-use std::cell::{Cell, RefCell};
 use std::mem::size_of;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -56,6 +55,8 @@ pub enum MpiInitError {
 /// finalises MPI.
 pub struct Ranks {
     world: SimpleCommunicator,
+    /// This process's place among those of its node.
+    local_rank: usize,
     _universe: Universe,
 }
 
@@ -67,7 +68,16 @@ impl Ranks {
         if threading < Threading::Multiple {
             return Err(MpiInitError::Threading(format!("{threading:?}")));
         }
-        Ok(Ranks { world: universe.world(), _universe: universe })
+        let world = universe.world();
+        // The processes that share this one's memory: its node.
+        let local_rank = world.split_shared(world.rank()).rank() as usize;
+        Ok(Ranks { world, local_rank, _universe: universe })
+    }
+
+    /// This process's place among the processes of its node (which GPU
+    /// it takes, one per rank).
+    pub fn local_rank(&self) -> usize {
+        self.local_rank
     }
 
     /// This process's rank (0 writes the image).
@@ -171,23 +181,31 @@ impl Ranks {
     }
 
     /// Collective: rings of `size` consecutive ranks (rank r is member
-    /// r mod `size` of ring r / `size`), queues moving between them as MPI
-    /// messages; `None` for the ranks past the last whole ring.
-    pub fn ring(&self, size: usize, order: RingOrder) -> Option<RankRing> {
+    /// r mod `size` of ring r / `size`), `islands` of them over the same
+    /// ranks, one per wavefront each rank renders with (island k links
+    /// every member's k-th device); queues move between members as MPI
+    /// messages, each island on a communicator of its own. `None` for the
+    /// ranks past the last whole ring. Every rank must ask for the same
+    /// `islands`.
+    pub fn rings(&self, size: usize, order: RingOrder, islands: usize) -> Option<Vec<RankRing>> {
         let rank = self.rank();
-        let island = rank / size.max(1);
-        let whole = island < self.size() / size.max(1);
-        let color = if whole { Color::with_value(island as i32) } else { Color::undefined() };
+        let ring = rank / size.max(1);
+        let whole = ring < self.size() / size.max(1);
+        let color = if whole { Color::with_value(ring as i32) } else { Color::undefined() };
         let comm = self.world.split_by_color(color)?;
-        let place = RingPlace { size, member: rank % size, island, order };
-        Some(RankRing {
-            comm,
-            place,
-            steps: Cell::new(0),
-            outgoing: RefCell::default(),
-            incoming: RefCell::default(),
-            link: None,
-        })
+        let islands = islands.max(1);
+        let rings = (0..islands)
+            .map(|k| RankRing {
+                // A communicator per island: the islands' steps reuse tags.
+                comm: AnyThread(comm.duplicate()),
+                place: RingPlace { size, member: rank % size, island: ring * islands + k, order },
+                steps: AtomicI32::new(0),
+                outgoing: Mutex::default(),
+                incoming: Mutex::default(),
+                link: None,
+            })
+            .collect();
+        Some(rings)
     }
 
     /// The waves of the next frame, shared by every process.
@@ -211,19 +229,39 @@ impl Ranks {
 /// queues go to the next rank as MPI messages, each member polling for the
 /// previous one's while its own is on the way; the end-of-frame vote is an
 /// all-reduce over the ring's communicator.
+/// A ring is stepped by one device thread at a time, but islands step on
+/// threads of their own, so its state is behind locks.
 pub struct RankRing {
-    comm: SimpleCommunicator,
+    comm: AnyThread,
     place: RingPlace,
     /// Steps taken: each one's messages carry its tag, so that a step's
     /// queue is never taken for another's.
-    steps: Cell<i32>,
+    steps: AtomicI32,
     /// The queue going out and the one coming in, kept from step to step.
-    outgoing: RefCell<Vec<RayRecord>>,
-    incoming: RefCell<Vec<RayRecord>>,
+    outgoing: Mutex<Vec<RayRecord>>,
+    incoming: Mutex<Vec<RayRecord>>,
     /// Where every member's device offers it, the devices' own link
     /// ([`RankRing::connect_devices`]): records then go device to device,
     /// and MPI carries only their counts.
-    link: Option<Box<dyn ProcessLink>>,
+    link: Option<Mutex<Box<dyn ProcessLink>>>,
+}
+
+/// A communicator that any thread may use: [`Ranks::init`] makes sure MPI
+/// allows calls from every thread (`MPI_THREAD_MULTIPLE`).
+struct AnyThread(SimpleCommunicator);
+
+// SAFETY: the handle names a communicator of an MPI library initialised
+// with MPI_THREAD_MULTIPLE (`Ranks::init` refuses less), which makes calls
+// on it from any thread, at once, safe.
+unsafe impl Send for AnyThread {}
+// SAFETY: as for Send.
+unsafe impl Sync for AnyThread {}
+
+impl std::ops::Deref for AnyThread {
+    type Target = SimpleCommunicator;
+    fn deref(&self) -> &SimpleCommunicator {
+        &self.0
+    }
 }
 
 impl RankRing {
@@ -262,7 +300,7 @@ impl RankRing {
         self.comm.all_reduce_into(&u8::from(joined.is_ok()), &mut all, SystemOperation::min());
         match (joined, all) {
             (Ok(link), 1) => {
-                self.link = Some(link);
+                self.link = Some(Mutex::new(link));
                 Ok(name)
             }
             (Err(e), _) => Err(e.to_string()),
@@ -318,9 +356,10 @@ impl RingPeers for RankRing {
         queue: Queue,
         report: &mut DeviceReport,
     ) -> Result<(), RingError> {
-        let step = self.steps.get();
-        self.steps.set((step + 1) % RING_TAGS);
+        let step = self.steps.load(Ordering::Relaxed);
+        self.steps.store((step + 1) % RING_TAGS, Ordering::Relaxed);
         if let Some(link) = &self.link {
+            let link = link.lock().unwrap_or_else(|p| p.into_inner());
             // A member whose device failed sends nothing but still steps.
             let sending = report.keep(device.queue_len(queue), 0);
             let waited = Instant::now();
@@ -332,7 +371,8 @@ impl RingPeers for RankRing {
             report.bytes_sent += (sending * size_of::<RayRecord>()) as u64;
             return Ok(());
         }
-        let (mut outgoing, mut incoming) = (self.outgoing.borrow_mut(), self.incoming.borrow_mut());
+        let mut outgoing = self.outgoing.lock().unwrap_or_else(|p| p.into_inner());
+        let mut incoming = self.incoming.lock().unwrap_or_else(|p| p.into_inner());
         read_for_sending(device, queue, &mut outgoing, report);
         let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };
         let RingPlace { size, member, .. } = self.place;
@@ -341,11 +381,12 @@ impl RingPeers for RankRing {
         let waited = Instant::now();
         mpi::request::scope(|scope| {
             let sent = next.immediate_send_with_tag(scope, bytes, step);
+            let mut backoff = Backoff::new();
             let (message, status) = loop {
                 if let Some(probed) = prev.immediate_matched_probe_with_tag(step) {
                     break probed;
                 }
-                std::thread::sleep(POLL);
+                backoff.wait();
             };
             // Received straight into the records (their allocation kept
             // from step to step); one byte is an empty queue.
@@ -369,14 +410,41 @@ impl RingPeers for RankRing {
 /// Tags of ring steps, reused in turn (MPI guarantees tags up to 32767).
 const RING_TAGS: i32 = 1 << 14;
 
-/// Waits for `request`, sleeping between looks (see [`POLL`]).
+/// Waits for `request`, looking at it as [`Backoff`] says.
 fn sleep_until_done<'a, D: ?Sized, S: mpi::request::Scope<'a>>(mut request: mpi::request::Request<'a, D, S>) {
+    let mut backoff = Backoff::new();
     loop {
         match request.test() {
             Ok(_) => return,
             Err(pending) => request = pending,
         }
-        std::thread::sleep(POLL);
+        backoff.wait();
+    }
+}
+
+/// How a rank waits between looks at the network: yielding its core for
+/// the first [`Backoff::SPIN`] (a ring step's counts and votes come within
+/// microseconds, and every one of them holds a GPU idle), then sleeping,
+/// twice as long each time, up to [`POLL`].
+struct Backoff {
+    started: Instant,
+    sleep: Duration,
+}
+
+impl Backoff {
+    const SPIN: Duration = Duration::from_micros(50);
+
+    fn new() -> Backoff {
+        Backoff { started: Instant::now(), sleep: Duration::from_micros(10) }
+    }
+
+    fn wait(&mut self) {
+        if self.started.elapsed() < Self::SPIN {
+            std::thread::yield_now();
+            return;
+        }
+        std::thread::sleep(self.sleep);
+        self.sleep = (self.sleep * 2).min(POLL);
     }
 }
 
@@ -463,11 +531,12 @@ impl RankWaves {
             (None, _) => [-1.0, 0.0, 0.0],
         };
         root.send_with_tag(&request[..], TAKE);
+        let mut backoff = Backoff::new();
         let answer = loop {
             if let Some((message, _)) = root.immediate_matched_probe_with_tag(GIVE) {
                 break message.matched_receive::<i64>().0;
             }
-            std::thread::sleep(POLL);
+            backoff.wait();
         };
         if answer < 0 {
             self.exhausted.store(true, Ordering::Release);

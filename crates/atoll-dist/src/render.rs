@@ -11,7 +11,7 @@
 
 use std::cell::Cell;
 use std::sync::mpsc;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use atoll_bvh::ScenePart;
@@ -23,7 +23,7 @@ use atoll_scene::Scene;
 use crate::handout::{Joining, LocalHandout, Pacing, Speed, WaveHandout};
 use crate::layout::{Layout, RingOrder};
 use crate::replicate;
-use crate::ring::{ring_loop, run_member, RingLink, RingPeers};
+use crate::ring::{ring_loop, run_members, RingLink, RingPeers};
 use crate::shared::{hardware_of, prepare_shared, SharedReport};
 use crate::stripes::StripeHandout;
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
@@ -224,10 +224,11 @@ pub fn render_multi_warmed(
 pub struct Shared<'a> {
     /// Hands out the frame's waves to every process.
     pub handout: &'a dyn WaveHandout,
-    /// Set when this process's one device is a member of a ring whose
-    /// other members are other processes: its links to them. The layout
-    /// is then a ring of one part, this member's.
-    pub ring: Option<&'a dyn RingPeers>,
+    /// Set when this process's devices are members of rings whose other
+    /// members are other processes: per device, its ring's links (one
+    /// ring per device: islands). The layout is then a ring of one part,
+    /// this process's, shared by its devices.
+    pub rings: &'a [&'a (dyn RingPeers + Sync)],
 }
 
 /// How one frame is spread: over this process's devices, and with
@@ -259,13 +260,13 @@ pub fn render_multi_with(
     let MultiFrame { layout, transport, warmup, shared } = *frame;
     let alone = LocalHandout::default();
     let handout = shared.map_or(&alone as &dyn WaveHandout, |s| s.handout);
-    let remote = shared.and_then(|s| s.ring);
+    let remote: &[&(dyn RingPeers + Sync)] = shared.map_or(&[], |s| s.rings);
     // Rings, or devices replicating: what takes waves. A ring of processes
     // counts once, at its member 0.
-    let islands = match (layout, remote) {
-        (_, Some(link)) => (link.place().member == 0) as usize,
-        (Layout::Replicate | Layout::Shared(_), None) => devices.len(),
-        (Layout::Ring { islands, .. }, None) => *islands,
+    let islands = match (layout, remote.is_empty()) {
+        (_, false) => remote.iter().filter(|link| link.place().member == 0).count(),
+        (Layout::Replicate | Layout::Shared(_), true) => devices.len(),
+        (Layout::Ring { islands, .. }, true) => *islands,
     };
     let frame = Arc::new(FrameContext::new(scene, options));
     // Devices of different kinds (the CPU beside GPUs) take waves of the
@@ -302,9 +303,9 @@ pub fn render_multi_with(
     };
     handout.begin(waves.len(), pacing(&frame.options, &waves, islands, &warmed));
     let start = Instant::now();
-    let reports = match remote {
-        Some(link) => run_member(devices, &waves, shape, link, handout, progress),
-        None => run_waves(devices, &waves, shape, &direct, handout, progress),
+    let reports = match remote.is_empty() {
+        false => run_members(devices, &waves, shape, remote, handout, progress),
+        true => run_waves(devices, &waves, shape, &direct, handout, progress),
     };
     let render_seconds = start.elapsed().as_secs_f64();
     handout.end();
@@ -370,8 +371,8 @@ struct WarmUp {
 
 /// Checks `layout` against `devices`, prepares them, picks the ring
 /// transport and, with `warmup`, renders the frame's first sample and
-/// clears it (on a ring of processes, `remote`, with its members), timing
-/// each worker.
+/// clears it (on rings of processes, `remote`, with their members),
+/// timing each worker.
 fn ready_frame(
     devices: &mut [Box<dyn Device>],
     scene: &Arc<Scene>,
@@ -379,7 +380,7 @@ fn ready_frame(
     layout: &Layout,
     transport: Option<Transport>,
     warmup: Option<WarmUp>,
-    remote: Option<&dyn RingPeers>,
+    remote: &[&(dyn RingPeers + Sync)],
 ) -> Result<Ready, DeviceError> {
     if devices.is_empty() {
         return Err(DeviceError::Other {
@@ -387,12 +388,13 @@ fn ready_frame(
             message: "no devices to render on".into(),
         });
     }
-    if remote.is_some()
-        && (devices.len() != 1 || !matches!(layout, Layout::Ring { parts, .. } if parts.len() == 1))
+    if !remote.is_empty()
+        && (devices.len() != remote.len()
+            || !matches!(layout, Layout::Ring { parts, .. } if parts.len() == 1))
     {
         return Err(DeviceError::Other {
             device: "devices".into(),
-            message: "a member of a ring of processes renders on one device holding one part".into(),
+            message: "members of rings of processes render one device per ring, all holding one part".into(),
         });
     }
     if let Some(needed) = layout.devices() {
@@ -438,14 +440,14 @@ fn ready_frame(
         let first: Vec<Wave> = warm_up_waves(&work_units(&cut, cutting_for)).collect();
         let handout = LocalHandout::default();
         // Member 0 alone makes a ring of processes' warm-up queues.
-        let mine = match remote {
+        let mine = match remote.first() {
             Some(link) if link.place().member != 0 => &first[..0],
             _ => &first[..],
         };
         handout.begin(mine.len(), Pacing::default());
-        let mut reports = match remote {
-            Some(link) => run_member(devices, mine, shape, link, &handout, &mut |_, _| {})?,
-            None => run_waves(devices, mine, shape, &direct, &handout, &mut |_, _| {})?,
+        let mut reports = match remote.is_empty() {
+            false => run_members(devices, mine, shape, remote, &handout, &mut |_, _| {})?,
+            true => run_waves(devices, mine, shape, &direct, &handout, &mut |_, _| {})?,
         };
         if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
             return Err(e);
@@ -456,8 +458,10 @@ fn ready_frame(
         // its wall time made it look several times slower than it is.
         let per_wave = mine.iter().map(|w| w.pixel_count as u64).sum::<u64>() / mine.len().max(1) as u64;
         warmed = vec![(0u64, 0f64); workers];
-        for (report, device) in reports.iter().zip(devices.iter()) {
-            let worker = if remote.is_some() { 0 } else { report.island };
+        for (d, (report, device)) in reports.iter().zip(devices.iter()).enumerate() {
+            // (A process's devices in rings of processes take waves as
+            // workers 0, 1, …)
+            let worker = if remote.is_empty() { report.island } else { d };
             if let Some((samples, seconds)) = warmed.get_mut(worker) {
                 *samples += report.waves as u64 * per_wave;
                 *seconds = seconds.max(device.stats()?.busy_seconds);
@@ -498,42 +502,64 @@ pub(crate) fn run_waves(
     let votes: Vec<Vote> = (0..islands).map(|_| Vote::new(ring)).collect();
     // Device d sends to d + 1 of its ring and receives from d - 1.
     let (senders, receivers): (Vec<_>, Vec<_>) = (0..devices.len()).map(|_| mpsc::channel()).unzip();
-    let mut inboxes: Vec<Option<mpsc::Receiver<Handover>>> = receivers.into_iter().map(Some).collect();
-    let (done_tx, done_rx) = mpsc::channel::<()>();
+    let inboxes: Vec<Mutex<Option<mpsc::Receiver<Handover>>>> =
+        receivers.into_iter().map(|r| Mutex::new(Some(r))).collect();
+    let reports = on_device_threads(devices, handout, waves.len(), progress, &|d, device, taken| {
+        let (island, member) = (d / ring, d % ring);
+        let mut report = DeviceReport { name: device.name(), island, member, ..Default::default() };
+        if ring == 1 {
+            replicate::run_device(device, merge, &|| take(island), taken, &mut report);
+            return report;
+        }
+        let link = RingLink {
+            size: ring,
+            member,
+            direct: direct.get(island).map(|r| r.as_ref()),
+            to_next: senders[island * ring + (member + 1) % ring].clone(),
+            from_prev: inboxes[d]
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .take()
+                .expect("one inbox per device"),
+            steps: Cell::new(0),
+            spare: Cell::default(),
+            vote: &votes[island],
+            order,
+        };
+        ring_loop(device, &link, merge, &|| take(island), taken, &mut report);
+        report
+    });
+    Ok(reports)
+}
 
+/// What a device's thread does over a frame: given the device's index, the
+/// device and what to call when it takes a wave, its report.
+pub(crate) type DeviceWork<'a> = dyn Fn(usize, &mut dyn Device, &dyn Fn()) -> DeviceReport + Sync + 'a;
+
+/// Runs `work` (device index, device, "a wave was taken") on every device,
+/// one thread each, and returns their reports in device order with the
+/// seconds each took; `progress` hears of every wave taken, from this
+/// thread.
+pub(crate) fn on_device_threads(
+    devices: &mut [Box<dyn Device>],
+    handout: &dyn WaveHandout,
+    waves: usize,
+    progress: &mut dyn FnMut(usize, usize),
+    work: &DeviceWork<'_>,
+) -> Vec<DeviceReport> {
+    let (done_tx, done_rx) = mpsc::channel::<()>();
     let start = Instant::now();
-    let reports = std::thread::scope(|scope| {
+    std::thread::scope(|scope| {
         let handles: Vec<_> = devices
             .iter_mut()
             .enumerate()
             .map(|(d, device)| {
-                let (island, member) = (d / ring, d % ring);
-                let next_device = island * ring + (member + 1) % ring;
-                let vote = &votes[island];
-                let link = RingLink {
-                    size: ring,
-                    member,
-                    direct: direct.get(island).map(|r| r.as_ref()),
-                    to_next: senders[next_device].clone(),
-                    from_prev: inboxes[d].take().expect("one inbox per device"),
-                    steps: Cell::new(0),
-                    spare: Cell::default(),
-                    vote,
-                    order,
-                };
                 let done = done_tx.clone();
-                let take = &take;
                 scope.spawn(move || {
-                    let mut report =
-                        DeviceReport { name: device.name(), island, member, ..Default::default() };
-                    let device = device.as_mut();
                     let taken = || {
                         let _ = done.send(());
                     };
-                    match ring {
-                        1 => replicate::run_device(device, merge, &|| take(island), &taken, &mut report),
-                        _ => ring_loop(device, &link, merge, &|| take(island), &taken, &mut report),
-                    }
+                    let mut report = work(d, device.as_mut(), &taken);
                     report.wall_seconds = start.elapsed().as_secs_f64();
                     report
                 })
@@ -541,11 +567,10 @@ pub(crate) fn run_waves(
             .collect();
         drop(done_tx);
         for () in done_rx {
-            progress(handout.taken(), waves.len());
+            progress(handout.taken(), waves);
         }
         handles.into_iter().map(|h| h.join().expect("device thread panicked")).collect()
-    });
-    Ok(reports)
+    })
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use atoll_render::{Device, DeviceError, DirectRing, Queue, RayRecord, Wave};
 
 use crate::handout::WaveHandout;
 use crate::layout::RingOrder;
-use crate::render::{DeviceReport, RunShape};
+use crate::render::{on_device_threads, DeviceReport, RunShape};
 use crate::transport::{read_for_sending, Handover};
 use crate::vote::Vote;
 
@@ -177,30 +177,26 @@ impl RingLink<'_> {
     }
 }
 
-/// Renders `waves` on this process's one device, a member of a ring of
-/// processes linked by `link` (on this thread: the others are elsewhere).
-pub(crate) fn run_member(
+/// Renders `waves` on this process's devices, each a member of its own
+/// ring of processes (`links[d]` is device d's), on a thread each: the
+/// rings are islands of the same ranks, taking waves as workers 0, 1, …
+pub(crate) fn run_members(
     devices: &mut [Box<dyn Device>],
     waves: &[Wave],
     shape: RunShape,
-    link: &dyn RingPeers,
+    links: &[&(dyn RingPeers + Sync)],
     handout: &dyn WaveHandout,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Vec<DeviceReport>, DeviceError> {
-    let start = Instant::now();
-    let device = devices[0].as_mut();
-    let mut report = DeviceReport {
-        name: device.name(),
-        island: link.place().island,
-        member: link.place().member,
-        ..Default::default()
-    };
-    let take = || handout.next(0).and_then(|i| waves.get(i));
-    let progress = std::cell::RefCell::new(progress);
-    let taken = || (progress.borrow_mut())(handout.taken(), waves.len());
-    ring_loop(device, link, shape.merge, &take, &taken, &mut report);
-    report.wall_seconds = start.elapsed().as_secs_f64();
-    Ok(vec![report])
+    let reports = on_device_threads(devices, handout, waves.len(), progress, &|d, device, taken| {
+        let link = links[d];
+        let RingPlace { island, member, .. } = link.place();
+        let mut report = DeviceReport { name: device.name(), island, member, ..Default::default() };
+        let take = || handout.next(d).and_then(|i| waves.get(i));
+        ring_loop(device, link, shape.merge, &take, taken, &mut report);
+        report
+    });
+    Ok(reports)
 }
 
 /// One ring member's frame: queue waves as this member runs out of work

@@ -93,7 +93,8 @@ pub trait ProcessTransport: Send + Sync {
 pub trait ProcessLink: Send {
     /// One ring step: the first `sending` records of `device`'s `queue` go
     /// to rank `next`, and `receiving` records from rank `prev` become the
-    /// queue (the caller swapped the counts). Returns once they are there.
+    /// queue (the caller swapped the counts). May return before they are
+    /// there: the device's later work waits for them.
     fn exchange(
         &self,
         device: &mut dyn Device,

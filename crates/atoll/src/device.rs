@@ -20,19 +20,23 @@ pub enum DeviceChoice {
     Cpu,
     /// CUDA GPU with this ordinal (`cuda` is `cuda:0`).
     Cuda(usize),
+    /// Under `--mpi`, the GPU of this rank's place among the ranks of its
+    /// node (`cuda:local`): node rank r takes GPU r mod the GPUs there.
+    CudaLocal,
 }
 
-/// Parses `auto`, `cpu`, `cuda` or `cuda:N`.
+/// Parses `auto`, `cpu`, `cuda`, `cuda:N` or `cuda:local`.
 pub fn parse_device(s: &str) -> Result<DeviceChoice, String> {
     match s.trim().to_ascii_lowercase().as_str() {
         "auto" => Ok(DeviceChoice::Auto),
         "cpu" => Ok(DeviceChoice::Cpu),
         "cuda" | "gpu" => Ok(DeviceChoice::Cuda(0)),
+        "cuda:local" => Ok(DeviceChoice::CudaLocal),
         other => other
             .strip_prefix("cuda:")
             .and_then(|n| n.parse().ok())
             .map(DeviceChoice::Cuda)
-            .ok_or_else(|| format!("{s:?}: expected auto, cpu, cuda or cuda:N")),
+            .ok_or_else(|| format!("{s:?}: expected auto, cpu, cuda, cuda:N or cuda:local")),
     }
 }
 
@@ -61,12 +65,19 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
 /// The device flags shared by `render` and `bench`.
 #[derive(Args, Clone, Debug, Default)]
 pub struct DeviceArgs {
-    /// Device: auto (a CUDA GPU when one is usable, else the CPU), cpu, cuda or cuda:N.
+    /// Device: auto (a CUDA GPU when one is usable, else the CPU), cpu,
+    /// cuda, cuda:N, or with --mpi cuda:local (one GPU per rank of a node:
+    /// its r-th rank takes GPU r mod the GPUs there; what auto takes under
+    /// --mpi too).
     #[arg(long, default_value = "auto", value_parser = parse_device)]
     pub device: DeviceChoice,
     /// Memory budget of the device, e.g. 8G or 512M (default: what the device has).
     #[arg(long, value_parser = parse_size, value_name = "SIZE")]
     pub device_memory: Option<u64>,
+    /// This process's place among the processes of its node (`--mpi`
+    /// sets it; 0 otherwise): which GPU `auto` and `cuda:local` take.
+    #[arg(skip)]
+    pub local_rank: usize,
 }
 
 /// The device to render on, with what to tell the user about it.
@@ -111,7 +122,10 @@ pub fn select(args: &DeviceArgs, threads: Option<usize>) -> Result<Selected, Cli
             }
             cuda(args, ordinal).map_err(|e| CliError::Runtime(e.to_string()))
         }
-        DeviceChoice::Auto => match cuda(args, 0) {
+        DeviceChoice::CudaLocal => local_gpu(args)
+            .and_then(|ordinal| cuda(args, ordinal))
+            .map_err(|e| CliError::Runtime(format!("cuda:local: {e}"))),
+        DeviceChoice::Auto => match local_gpu(args).and_then(|ordinal| cuda(args, ordinal)) {
             Ok(selected) => {
                 eprintln!("device: {} (auto: CUDA driver and GPU found)", selected.description);
                 Ok(selected)
@@ -122,6 +136,14 @@ pub fn select(args: &DeviceArgs, threads: Option<usize>) -> Result<Selected, Cli
                 Ok(selected)
             }
         },
+    }
+}
+
+/// The GPU of this process's place on its node ([`DeviceArgs::local_rank`]).
+fn local_gpu(args: &DeviceArgs) -> Result<usize, CudaError> {
+    match atoll_cuda::gpu::device_count()? {
+        0 => Err(CudaError::NoGpu),
+        gpus => Ok(args.local_rank % gpus),
     }
 }
 
@@ -145,6 +167,7 @@ mod tests {
         assert_eq!(parse_device("CPU"), Ok(DeviceChoice::Cpu));
         assert_eq!(parse_device("cuda"), Ok(DeviceChoice::Cuda(0)));
         assert_eq!(parse_device("cuda:3"), Ok(DeviceChoice::Cuda(3)));
+        assert_eq!(parse_device("cuda:Local"), Ok(DeviceChoice::CudaLocal));
         assert!(parse_device("cuda:x").is_err());
         assert!(parse_device("metal").is_err());
     }
@@ -169,10 +192,12 @@ mod tests {
         }
         let selected = select(&DeviceArgs::default(), Some(1)).unwrap();
         assert!(selected.description.starts_with("cpu"), "{}", selected.description);
-        let cuda = DeviceArgs { device: DeviceChoice::Cuda(0), device_memory: None };
-        match select(&cuda, None) {
-            Err(CliError::Runtime(message)) => assert!(message.contains("no CUDA driver"), "{message}"),
-            _ => panic!("cuda without a driver must be an error"),
+        for device in [DeviceChoice::Cuda(0), DeviceChoice::CudaLocal] {
+            let cuda = DeviceArgs { device, ..Default::default() };
+            match select(&cuda, None) {
+                Err(CliError::Runtime(message)) => assert!(message.contains("no CUDA driver"), "{message}"),
+                _ => panic!("{device:?} without a driver must be an error"),
+            }
         }
     }
 }

@@ -249,7 +249,7 @@ pub fn place_on(
         eprintln!("partition: {kind}");
     }
     let partition = placement.partition.as_ref().map(|(p, _)| p);
-    eprintln!("{}", describe(&placement.plan, partition, args.specs.len()));
+    eprintln!("{}", describe(&placement.plan, &placement.layout, partition, args.specs.len()));
     if matches!(placement.layout, Layout::Ring { order: RingOrder::Home, .. }) {
         eprintln!("ring order: member 0 makes and shades every queue");
     }
@@ -262,20 +262,26 @@ pub fn place_on(
     Ok((devices, placement.layout))
 }
 
-/// One line saying what was chosen and why.
-fn describe(plan: &Plan, partition: Option<&Partition>, devices: usize) -> String {
-    match (plan, partition) {
-        (Plan::Ring { k, islands }, Some(p)) => {
+/// One line saying what was chosen and why (islands as `layout` has
+/// them, wavefronts sharing a GPU's part included).
+fn describe(plan: &Plan, layout: &Layout, partition: Option<&Partition>, devices: usize) -> String {
+    match (plan, layout, partition) {
+        (Plan::Ring { k, .. }, Layout::Ring { islands, .. }, Some(p)) => {
             let sizes: Vec<String> = p.bytes.iter().map(|&b| fmt_bytes(b)).collect();
             format!(
-                "strategy: ring of {k} ({islands} island{}) on {devices} devices; parts {}",
-                if *islands == 1 { "" } else { "s" },
+                "strategy: ring of {k} ({}) on {devices} devices; parts {}",
+                islands_text(*islands),
                 sizes.join(", ")
             )
         }
-        (Plan::Shared, _) => format!("strategy: shared scene memory on {devices} devices"),
+        (Plan::Shared, ..) => format!("strategy: shared scene memory on {devices} devices"),
         _ => format!("strategy: replicate on {devices} devices"),
     }
+}
+
+/// `1 island`, `3 islands`.
+pub fn islands_text(islands: usize) -> String {
+    format!("{islands} island{}", if islands == 1 { "" } else { "s" })
 }
 
 /// The false-colour view: by part (ring) or everything device 0's colour (replicate).

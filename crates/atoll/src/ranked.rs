@@ -52,8 +52,10 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     code.map_or(Ok(()), |code| Err(CliError::Reported(code)))
 }
 
-fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
+fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> {
     let rank = ranks.rank();
+    // `auto` and `cuda:local` take the GPU of this rank's place on its node.
+    args.device.local_rank = ranks.local_rank();
     let Frame { scene, mut options, output, load } =
         together(ranks, load_frame(&args, None), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
@@ -76,11 +78,19 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
     };
     together(ranks, ownership, "write the ownership view")?;
     let layout = match &ring {
-        Some((ring, partition)) => {
-            let part = partition.parts[ring.place().member].clone();
-            Layout::Ring { parts: vec![part], islands: 1, order: ring.place().order }
+        Some((rings, partition)) => {
+            let place = rings[0].place();
+            Layout::Ring {
+                parts: vec![partition.parts[place.member].clone()],
+                islands: rings.len(),
+                order: place.order,
+            }
         }
         None => layout,
+    };
+    let links: Vec<&(dyn RingPeers + Sync)> = match &ring {
+        Some((rings, _)) => rings.iter().map(|r| r as &(dyn RingPeers + Sync)).collect(),
+        None => Vec::new(),
     };
     if ranks.is_root() {
         eprintln!("{} ranks; rank 0: {description}", ranks.size());
@@ -92,7 +102,7 @@ fn render_on_ranks(ranks: &Ranks, args: RenderArgs) -> Result<(), CliError> {
         layout: &layout,
         transport: args.ring_transport,
         warmup: args.warmup,
-        shared: Some(Shared { handout: &handout, ring: ring.as_ref().map(|(r, _)| r as &dyn RingPeers) }),
+        shared: Some(Shared { handout: &handout, rings: &links }),
     };
     let rendered = render_multi_with(&mut devices, &scene, options.clone(), &frame, &mut |done, total| {
         bar.update(done, total)
@@ -184,19 +194,21 @@ fn add_wavefronts(
     Ok(())
 }
 
-/// The ring of ranks this rank belongs to and the partition of its parts, when
-/// `--ring-ranks` asks for rings or the scene does not fit the smallest
-/// rank's device (`None`: every rank holds the whole scene, or plans its
-/// own `--devices`). Rings of ranks need one device per rank (`--device`,
-/// or one listed in `--devices`). Every rank calls it at the same point
-/// (collectives inside).
+/// The rings of ranks this rank belongs to and the partition of their
+/// parts, when `--ring-ranks` asks for rings or the scene does not fit the
+/// smallest rank's device (`None`: every rank holds the whole scene, or
+/// plans its own `--devices`). Rings of ranks need one device per rank
+/// (`--device`, or one listed in `--devices`); a GPU rank then adds the
+/// wavefronts `--streams` asks for (as many as every rank of the ring
+/// fits), each the member of a ring of its own over the same ranks
+/// (islands). Every rank calls it at the same point (collectives inside).
 fn rank_ring(
     ranks: &Ranks,
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &RenderOptions,
     devices: &mut Vec<Box<dyn Device>>,
-) -> Result<Option<(RankRing, Partition)>, CliError> {
+) -> Result<Option<(Vec<RankRing>, Partition)>, CliError> {
     // What every rank must agree on, gathered first (collectives), so that
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
@@ -267,21 +279,57 @@ fn rank_ring(
         None,
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let mut ring = ranks.ring(k, args.ring_order).expect("k divides the ranks: every rank is in a ring");
+    let islands = ring_wavefronts(ranks, args, scene, options, &partition.parts[ranks.rank() % k], devices)?;
+    let mut rings =
+        ranks.rings(k, args.ring_order, islands).expect("k divides the ranks: every rank is in a ring");
     let wanted = args.ring_transport != Some(atoll_dist::Transport::Host);
-    let transport = ring.connect_devices(devices[0].as_mut(), wanted);
+    // (In the same order on every rank: joining a ring's link is collective.)
+    let transports: Vec<Result<&str, String>> = rings
+        .iter_mut()
+        .zip(devices.iter_mut())
+        .map(|(ring, device)| ring.connect_devices(device.as_mut(), wanted))
+        .collect();
     if ranks.is_root() {
-        match &transport {
+        match transports.iter().find(|t| t.is_err()).unwrap_or(&transports[0]) {
             Ok(name) => eprintln!("ring transport: {name}, device to device"),
             Err(why) => eprintln!("note: ring queues go through host memory: {why}"),
         }
-    }
-    if ranks.is_root() {
         let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
         eprintln!("partition: {kind}");
-        eprintln!("strategy: rings of {k} ranks ({} islands); parts {}", n / k, sizes.join(", "));
+        let islands = multi::islands_text(n / k * islands);
+        eprintln!("strategy: rings of {k} ranks ({islands}); parts {}", sizes.join(", "));
     }
-    Ok(Some((ring, partition)))
+    Ok(Some((rings, partition)))
+}
+
+/// Adds to this rank's device (holding `part`) the further wavefronts
+/// `--streams` asks for, as many as every rank fits: the islands of its
+/// rings. A collective; a rank that cannot open them fails every rank.
+fn ring_wavefronts(
+    ranks: &Ranks,
+    args: &RenderArgs,
+    scene: &Scene,
+    options: &RenderOptions,
+    part: &ScenePart,
+    devices: &mut Vec<Box<dyn Device>>,
+) -> Result<usize, CliError> {
+    let part_bytes = part_bytes(scene, part, &devices[0].byte_model());
+    let more = atoll_dist::placement::more_wavefronts_beside(
+        devices[0].as_ref(),
+        args.waves.streams(),
+        part_bytes,
+        options,
+        args.device.device_memory,
+    );
+    let (fewest, _) = ranks.extremes(more.as_ref().map_or(0, |m| m.len() as u64 + 1));
+    match more {
+        Err(e) => Err(CliError::Runtime(e.to_string())),
+        Ok(_) if fewest == 0 => Err(CliError::Runtime("another rank could not open its wavefronts".into())),
+        Ok(more) => {
+            devices.extend(more.into_iter().take(fewest as usize - 1));
+            Ok(fewest as usize)
+        }
+    }
 }
 
 /// This rank's rows of the device table, each led by the rank.

@@ -264,7 +264,7 @@ fn a_scene_too_big_for_a_rank_is_split_over_ranks() {
         mpirun(&dir, &[(2, &["--device", "cpu", "--threads", "1", "--device-memory", "5K"])], "split.exr");
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stdout}{stderr}");
-    assert!(stderr.contains("strategy: rings of 2 ranks (1 islands)"), "{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks (1 island)"), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "split.exr");
 
     // Three ranks cannot form rings of two; ranks must ask for the same rings.
