@@ -68,9 +68,10 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
         false => Ok(()),
     };
     together(ranks, more, "open more wavefronts")?;
-    let several = args.devices.as_ref().is_some_and(|d| d.0.len() > 1);
-    let ownership = match (ranks.is_root(), several, &args.ownership) {
-        // (Ranks with several devices: rank 0's own, written by `multi::setup`.)
+    // Ranks with several devices placing the scene themselves: rank 0's
+    // own view, written by `multi::place_on`.
+    let places_itself = args.devices.as_ref().is_some_and(|d| d.0.len() > 1) && ring.is_none();
+    let ownership = match (ranks.is_root(), places_itself, &args.ownership) {
         (true, false, Some(path)) => {
             multi::write_ownership(&scene, &options, ring.as_ref().map(|(_, p)| p), path)
         }
@@ -152,6 +153,13 @@ fn rank_devices(
     options: &mut RenderOptions,
 ) -> Result<RankDevices, CliError> {
     match &args.devices {
+        Some(DeviceList(specs)) if specs.len() > 1 && rings_of_ranks(args) => {
+            // Every device holds this rank's part of the rings (`rank_ring`).
+            set_waves_for_devices(args, specs, options);
+            let devices = multi::open_devices(specs, args.device.device_memory, args.threads)?;
+            let description = format!("{} devices", devices.len());
+            Ok(RankDevices { devices, layout: Layout::Replicate, description })
+        }
         Some(DeviceList(specs)) if specs.len() > 1 => {
             set_waves_for_devices(args, specs, options);
             // Rank 0 alone writes the ownership view.
@@ -194,14 +202,20 @@ fn add_wavefronts(
     Ok(())
 }
 
+/// Whether `--ring-ranks` asks for rings of ranks (of 2 or more).
+fn rings_of_ranks(args: &RenderArgs) -> bool {
+    args.ring_ranks.is_some_and(|k| k > 1)
+}
+
 /// The rings of ranks this rank belongs to and the partition of their
 /// parts, when `--ring-ranks` asks for rings or the scene does not fit the
 /// smallest rank's device (`None`: every rank holds the whole scene, or
-/// plans its own `--devices`). Rings of ranks need one device per rank
-/// (`--device`, or one listed in `--devices`); a GPU rank then adds the
-/// wavefronts `--streams` asks for (as many as every rank of the ring
-/// fits), each the member of a ring of its own over the same ranks
-/// (islands). Every rank calls it at the same point (collectives inside).
+/// plans its own `--devices`). Without `--ring-ranks`, rings of ranks need
+/// one device per rank (`--device`, or one listed in `--devices`). Every
+/// device of a rank holds the rank's part, and GPUs add the wavefronts
+/// `--streams` asks for; each of them is the member of a ring of its own
+/// over the same ranks (islands; as many as every rank has). Every rank
+/// calls it at the same point (collectives inside).
 fn rank_ring(
     ranks: &Ranks,
     args: &RenderArgs,
@@ -212,11 +226,12 @@ fn rank_ring(
     // What every rank must agree on, gathered first (collectives), so that
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
-    let alone = args.devices.as_ref().is_none_or(|d| d.0.len() == 1);
+    let alone = args.devices.as_ref().is_none_or(|d| d.0.len() == 1) || rings_of_ranks(args);
     // A device with memory of its own (a GPU) plans with the GPU byte model.
     let gpu = devices.iter().any(|d| d.free_memory().is_some());
+    // (Devices of one GPU share its copy of the part.)
     let budget = match alone {
-        true => scene_budget(&devices[..1], scene, args.device.device_memory, options, Sharing::Memory),
+        true => scene_budget(devices, scene, args.device.device_memory, options, Sharing::Scene),
         false => None,
     };
     let (smallest, _) = ranks.extremes(budget.unwrap_or(u64::MAX));
@@ -302,9 +317,10 @@ fn rank_ring(
     Ok(Some((rings, partition)))
 }
 
-/// Adds to this rank's device (holding `part`) the further wavefronts
-/// `--streams` asks for, as many as every rank fits: the islands of its
-/// rings. A collective; a rank that cannot open them fails every rank.
+/// Adds beside this rank's devices (each holding `part`) the further
+/// wavefronts `--streams` asks for, and keeps as many devices as every
+/// rank has: the islands of its rings. A collective; a rank that cannot
+/// open them fails every rank.
 fn ring_wavefronts(
     ranks: &Ranks,
     args: &RenderArgs,
@@ -313,20 +329,24 @@ fn ring_wavefronts(
     part: &ScenePart,
     devices: &mut Vec<Box<dyn Device>>,
 ) -> Result<usize, CliError> {
-    let part_bytes = part_bytes(scene, part, &devices[0].byte_model());
-    let more = atoll_dist::placement::more_wavefronts_beside(
-        devices[0].as_ref(),
-        args.waves.streams(),
-        part_bytes,
-        options,
-        args.device.device_memory,
-    );
-    let (fewest, _) = ranks.extremes(more.as_ref().map_or(0, |m| m.len() as u64 + 1));
+    let more: Result<Vec<Box<dyn Device>>, _> = devices.iter().try_fold(Vec::new(), |mut more, device| {
+        more.extend(atoll_dist::placement::more_wavefronts_beside(
+            device.as_ref(),
+            args.waves.streams(),
+            part_bytes(scene, part, &device.byte_model()),
+            options,
+            args.device.device_memory,
+        )?);
+        Ok::<_, atoll_render::DeviceError>(more)
+    });
+    let mine = more.as_ref().map_or(0, |m| (devices.len() + m.len()) as u64);
+    let (fewest, _) = ranks.extremes(mine);
     match more {
         Err(e) => Err(CliError::Runtime(e.to_string())),
         Ok(_) if fewest == 0 => Err(CliError::Runtime("another rank could not open its wavefronts".into())),
         Ok(more) => {
-            devices.extend(more.into_iter().take(fewest as usize - 1));
+            devices.extend(more);
+            devices.truncate(fewest as usize);
             Ok(fewest as usize)
         }
     }

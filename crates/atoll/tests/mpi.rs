@@ -240,6 +240,27 @@ fn rings_of_ranks_render_the_image_of_one_process() {
     assert_eq!(rows[0].rays, rows[1].rays, "{stdout}");
     assert_eq!(rows[2].rays, rows[3].rays, "{stdout}");
 
+    // Two ranks of two devices each: every device holds its rank's part,
+    // a member of a ring of its own (two islands, each on a communicator of
+    // its own, stepping at once); a rank with fewer devices sets how many.
+    let args = [&scene[..], &["--devices", "cpu:2", "--threads", "1", "--ring-ranks", "2"]].concat();
+    let out = mpirun(&dir, &[(2, &args)], "devices.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks (2 islands)"), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "devices.exr");
+    let rows = table(&stdout);
+    let places: Vec<(usize, usize, usize)> = rows.iter().map(|r| (r.rank, r.ring, r.member)).collect();
+    assert_eq!(places, [(0, 0, 0), (0, 1, 0), (1, 0, 1), (1, 1, 1)], "{stdout}");
+    assert!(rows.iter().all(|r| r.waves > 0), "{stdout}");
+    assert_eq!((&rows[0].rays, &rows[1].rays), (&rows[2].rays, &rows[3].rays), "{stdout}");
+    let one = [&scene[..], &["--devices", "cpu", "--threads", "1", "--ring-ranks", "2"]].concat();
+    let out = mpirun(&dir, &[(1, &args), (1, &one)], "fewer.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks (1 island)"), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "fewer.exr");
+
     // A ring of three, member 0 making and shading every queue, warmed up.
     let args = [
         &scene[..],
