@@ -1,6 +1,8 @@
 //! Processes started by `mpirun` rendering one frame together (the `mpi`
 //! feature): one process per node, or per GPU, each rendering on its own
-//! devices with its own copy of the scene. MPI (Open MPI on Debian) carries
+//! devices with its own copy of the scene. A program using atoll as a
+//! library hands it a communicator of its own instead of the world
+//! ([`Ranks::with_communicator`], then [`Ranks::render`]). MPI (Open MPI on Debian) carries
 //! all of it, with no protocol of our own: point-to-point messages hand out
 //! the waves from rank 0 ([`RankWaves`]), collectives decide together
 //! whether everybody is ready, and sum the films at the end.
@@ -14,7 +16,8 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use atoll_render::{Device, DeviceError, Film, ProcessLink, Queue, RayRecord};
+use atoll_render::{Device, DeviceError, Film, ProcessLink, Queue, RayRecord, RenderOptions};
+use atoll_scene::Scene;
 use bytemuck::Zeroable;
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
@@ -24,7 +27,8 @@ use mpi::traits::*;
 use mpi::Threading;
 
 use crate::handout::{Joined, Joining, Pace, Pacing, Speed, WaveHandout};
-use crate::render::DeviceReport;
+use crate::layout::Layout;
+use crate::render::{render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared};
 use crate::ring::{RingError, RingPeers, RingPlace};
 use crate::transport::read_for_sending;
 use crate::RingOrder;
@@ -46,32 +50,84 @@ pub enum MpiInitError {
     /// MPI was initialised already in this process.
     #[error("MPI was initialised already in this process")]
     AlreadyInitialised,
+    /// A caller's communicator was given before MPI was initialised.
+    #[error("MPI is not initialised: initialise it before handing atoll a communicator")]
+    NotInitialised,
     /// The library grants less than calls from any thread.
     #[error("the MPI library allows calls from {0} threads; atoll's device threads need Multiple")]
     Threading(String),
 }
 
-/// This process's place among the processes `mpirun` started. Dropping it
-/// finalises MPI.
+/// This process's place among the processes rendering together: all that
+/// `mpirun` started ([`Ranks::init`]), or those of a caller's communicator
+/// ([`Ranks::with_communicator`]).
 pub struct Ranks {
-    world: SimpleCommunicator,
+    /// The ranks' own communicator (MPI_COMM_WORLD, or a duplicate of the
+    /// caller's, so that atoll's messages never meet the caller's).
+    world: Arc<AnyThread>,
     /// This process's place among those of its node.
     local_rank: usize,
-    _universe: Universe,
+    /// When atoll initialised MPI: dropping it finalises MPI.
+    _universe: Option<Universe>,
 }
 
 impl Ranks {
-    /// Initialises MPI (once per process), asking for calls from any thread.
+    /// Initialises MPI (once per process), asking for calls from any
+    /// thread; every process `mpirun` started renders.
     pub fn init() -> Result<Ranks, MpiInitError> {
         let (universe, threading) =
             mpi::initialize_with_threading(Threading::Multiple).ok_or(MpiInitError::AlreadyInitialised)?;
         if threading < Threading::Multiple {
             return Err(MpiInitError::Threading(format!("{threading:?}")));
         }
-        let world = universe.world();
+        Ok(Ranks::over(universe.world(), Some(universe)))
+    }
+
+    /// The processes of `comm`, a communicator of a program that uses
+    /// atoll as a library and initialised MPI itself (with calls from any
+    /// thread): they render together, the others not at all. Every process
+    /// of `comm` calls it (it duplicates `comm`). The caller keeps MPI and
+    /// finalises it after dropping the ranks.
+    pub fn with_communicator(comm: &impl Communicator) -> Result<Ranks, MpiInitError> {
+        if !mpi::environment::is_initialized() {
+            return Err(MpiInitError::NotInitialised);
+        }
+        let threading = mpi::environment::threading_support();
+        if threading < Threading::Multiple {
+            return Err(MpiInitError::Threading(format!("{threading:?}")));
+        }
+        Ok(Ranks::over(comm.duplicate(), None))
+    }
+
+    fn over(comm: SimpleCommunicator, universe: Option<Universe>) -> Ranks {
         // The processes that share this one's memory: its node.
-        let local_rank = world.split_shared(world.rank()).rank() as usize;
-        Ok(Ranks { world, local_rank, _universe: universe })
+        let local_rank = comm.split_shared(comm.rank()).rank() as usize;
+        Ranks { world: Arc::new(AnyThread(comm)), local_rank, _universe: universe }
+    }
+
+    /// Renders one frame with every rank, each on its `devices` holding
+    /// the whole scene as `layout` places it on them (replicate or shared
+    /// scene memory; rings of ranks are planned by the caller, see
+    /// [`render_multi_with`]): rank 0 hands out the waves as devices free
+    /// up. Returns, on rank 0, every rank's film summed; elsewhere the
+    /// rank's own share. A collective; a rank that fails fails every rank.
+    pub fn render(
+        &self,
+        devices: &mut [Box<dyn Device>],
+        scene: &Arc<Scene>,
+        options: RenderOptions,
+        layout: &Layout,
+    ) -> Result<MultiOutput, DeviceError> {
+        let handout = self.waves();
+        let frame = MultiFrame {
+            layout,
+            transport: None,
+            warmup: false,
+            shared: Some(Shared { handout: &handout, rings: &[] }),
+        };
+        let mut out = render_multi_with(devices, scene, options, &frame, &mut |_, _| {})?;
+        self.sum_films(&mut out.film);
+        Ok(out)
     }
 
     /// This process's place among the processes of its node (which GPU
@@ -211,6 +267,7 @@ impl Ranks {
     /// The waves of the next frame, shared by every process.
     pub fn waves(&self) -> RankWaves {
         RankWaves {
+            comm: self.world.clone(),
             rank: self.rank(),
             size: self.size(),
             counter: Arc::new(Counter::default()),
@@ -225,7 +282,7 @@ impl Ranks {
     }
 }
 
-/// One rank's links to the other ranks of its ring (see [`Ranks::ring`]):
+/// One rank's links to the other ranks of its ring (see [`Ranks::rings`]):
 /// queues go to the next rank as MPI messages, each member polling for the
 /// previous one's while its own is on the way; the end-of-frame vote is an
 /// all-reduce over the ring's communicator.
@@ -462,6 +519,7 @@ fn bytemuck_floats(sums: &mut [glam::Vec3]) -> &mut [f32] {
 /// rank renders, so that near the end a rank too slow to finish another
 /// wave before the others finish the rest is told to stop ([`Pace`]).
 pub struct RankWaves {
+    comm: Arc<AnyThread>,
     rank: usize,
     size: usize,
     /// Rank 0: the waves, and who may take them.
@@ -524,8 +582,7 @@ impl RankWaves {
         if self.exhausted.load(Ordering::Acquire) {
             return None;
         }
-        let world = SimpleCommunicator::world();
-        let root = world.process_at_rank(0);
+        let root = self.comm.process_at_rank(0);
         let request = match self.speed() {
             (Some(speed), backlog) => [speed.seconds_per_wave, speed.workers as f64, backlog],
             (None, _) => [-1.0, 0.0, 0.0],
@@ -548,8 +605,7 @@ impl RankWaves {
 
 /// Rank 0's answering thread: one answer per request, until each of the
 /// other `ranks - 1` has been told that no wave is left for it.
-fn serve(counter: Arc<Counter>, ranks: usize) {
-    let world = SimpleCommunicator::world();
+fn serve(counter: Arc<Counter>, ranks: usize, world: Arc<AnyThread>) {
     let mut told_done = 0;
     while told_done + 1 < ranks {
         let Some(probed) = world.any_process().immediate_matched_probe_with_tag(TAKE) else {
@@ -572,7 +628,7 @@ fn serve(counter: Arc<Counter>, ranks: usize) {
 
 impl WaveHandout for RankWaves {
     fn join(&self, me: Joining) -> Result<Joined, DeviceError> {
-        let world = SimpleCommunicator::world();
+        let world = &self.comm;
         let sums = [(!me.ready) as u64, me.workers as u64];
         let mut summed = [0u64; 2];
         world.all_reduce_into(&sums[..], &mut summed[..], SystemOperation::sum());
@@ -605,12 +661,12 @@ impl WaveHandout for RankWaves {
         self.taken_here.store(0, Ordering::Relaxed);
         self.exhausted.store(false, Ordering::Relaxed);
         if self.rank == 0 && self.size > 1 {
-            let (counter, ranks) = (self.counter.clone(), self.size);
+            let (counter, ranks, comm) = (self.counter.clone(), self.size, self.comm.clone());
             *self.server.lock().unwrap_or_else(|p| p.into_inner()) =
-                Some(std::thread::spawn(move || serve(counter, ranks)));
+                Some(std::thread::spawn(move || serve(counter, ranks, comm)));
         }
         // Nobody asks before rank 0 has reset its counter and listens.
-        SimpleCommunicator::world().barrier();
+        self.comm.barrier();
         *self.started.lock().unwrap_or_else(|p| p.into_inner()) = Instant::now();
     }
 
@@ -648,7 +704,7 @@ impl WaveHandout for RankWaves {
         if let Some(server) = self.server.lock().unwrap_or_else(|p| p.into_inner()).take() {
             server.join().expect("the wave server panicked");
         }
-        sleeping_barrier(&SimpleCommunicator::world());
+        sleeping_barrier(&self.comm);
     }
 }
 
