@@ -112,7 +112,9 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     bar.finish_and_clear();
     let mut out = together(ranks, rendered, "render their share")?;
 
+    let summing = std::time::Instant::now();
     ranks.sum_films(&mut out.film);
+    tracing::info!("films summed over MPI in {:.4} s", summing.elapsed().as_secs_f64());
     let rows = ranks.gather_text(&rank_rows(rank, &out));
     let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
     let rays = ranks.sum(rays);
