@@ -22,6 +22,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use atoll_bvh::{ByteModel, ScenePart};
+use atoll_render::camera::CameraRays;
 use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::record::MaterialKind;
 use atoll_render::{
@@ -33,7 +34,7 @@ use glam::Vec3;
 
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu, Timer};
-use crate::params::{FrameParamsHost, FrameTables, SceneView};
+use crate::params::{FrameParams, FrameParamsHost, FrameTables, SceneView};
 use crate::queues::{queue_bytes, Queues};
 use crate::scene::{GpuScene, HEADROOM};
 use crate::trace::{DeviceQueueLength, SurfaceTables, TraceFeatures};
@@ -209,6 +210,18 @@ struct Resident {
     work: WorkFeed,
     /// Under the shared strategy: the per-chunk read counters.
     access: Option<AccessCounters>,
+    /// This device's own frame parameters once its camera moved
+    /// ([`Device::set_camera`]); until then the scene's, shared with the
+    /// other devices on the GPU.
+    moved_camera: Option<CudaSlice<FrameParams>>,
+}
+
+/// The frame parameters a device's kernels read ([`Resident::moved_camera`]).
+fn frame_params<'a>(
+    moved_camera: &'a Option<CudaSlice<FrameParams>>,
+    scene: &'a SceneOnGpu,
+) -> &'a CudaSlice<FrameParams> {
+    moved_camera.as_ref().unwrap_or(&scene.params.device)
 }
 
 /// Device time of the stages: timers are collected as stages are queued
@@ -508,6 +521,7 @@ impl CudaDevice {
             traced_shadows,
             work,
             access: None,
+            moved_camera: None,
         });
         Ok(stats)
     }
@@ -633,6 +647,22 @@ impl CudaDevice {
         self.busy.lock().unwrap_or_else(|p| p.into_inner()).reset()
     }
 
+    fn try_set_camera(&mut self, camera: &CameraRays) -> Result<(), CudaError> {
+        let gpu = self.gpu.clone();
+        let r = self.resident()?;
+        let mut params = r.scene.params.params;
+        params.set_camera(camera);
+        // Uploaded in stream order: later kernels read it, earlier ones the
+        // old block (freed in stream order too).
+        let block = gpu
+            .stream
+            .clone_htod(&[params])
+            .map_err(CudaError::driver(format!("{}: uploading the moved camera", gpu.label())))?;
+        r.moved_camera = Some(block);
+        r.frame = Arc::new(FrameContext { camera: camera.clone(), ..(*r.frame).clone() });
+        Ok(())
+    }
+
     fn try_queue_work(&mut self, wave: &Wave) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
         if self.wave_timer.lock().unwrap_or_else(|p| p.into_inner()).is_none() {
@@ -644,7 +674,9 @@ impl CudaDevice {
 
     fn try_refill(&mut self) -> Result<(), CudaError> {
         let gpu = self.gpu.clone();
-        self.with_resident(|r| r.work.refill(&gpu, &r.scene.params.device, &mut r.queues, BLOCK))
+        self.with_resident(|r| {
+            r.work.refill(&gpu, frame_params(&r.moved_camera, &r.scene), &mut r.queues, BLOCK)
+        })
     }
 
     fn try_trace_paths(&mut self) -> Result<(), CudaError> {
@@ -659,7 +691,8 @@ impl CudaDevice {
             let length = DeviceQueueLength { length: &q.path_count, traced: &mut r.traced_paths };
             // Hit attributes are written by the traversal kernel itself (the
             // `surface` stage folded in): one pass over the records fewer.
-            let surface = SurfaceTables { params: &r.scene.params.device, scene: &r.scene.scene_view };
+            let surface =
+                SurfaceTables { params: frame_params(&r.moved_camera, &r.scene), scene: &r.scene.scene_view };
             let features = r.trace_features;
             trace::trace_closest_queued(
                 &gpu,
@@ -685,7 +718,7 @@ impl CudaDevice {
             gpu.stream.memset_zeros(&mut q.shadow_count).map_err(CudaError::driver(context()))?;
             let mut launch = gpu.stream.launch_builder(&r.kernels.shade);
             launch
-                .arg(&r.scene.params.device)
+                .arg(frame_params(&r.moved_camera, &r.scene))
                 .arg(&q.paths)
                 .arg(&q.path_count)
                 .arg(&mut q.next)
@@ -716,7 +749,8 @@ impl CudaDevice {
             let q = &mut r.queues;
             let max = q.launch_len(Queue::Shadows);
             let length = DeviceQueueLength { length: &q.shadow_count, traced: &mut r.traced_shadows };
-            let tables = SurfaceTables { params: &r.scene.params.device, scene: &r.scene.scene_view };
+            let tables =
+                SurfaceTables { params: frame_params(&r.moved_camera, &r.scene), scene: &r.scene.scene_view };
             trace::trace_any_queued(
                 &gpu,
                 &r.scene.scene,
@@ -801,6 +835,10 @@ impl Device for CudaDevice {
 
     fn reset_frame(&mut self) -> Result<(), DeviceError> {
         self.stage("reset_frame", |d| d.try_reset_frame())
+    }
+
+    fn set_camera(&mut self, camera: &CameraRays) -> Result<(), DeviceError> {
+        self.stage("set_camera", |d| d.try_set_camera(camera))
     }
 
     fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {

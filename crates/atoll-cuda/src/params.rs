@@ -13,6 +13,7 @@
 
 use std::sync::Arc;
 
+use atoll_render::camera::CameraRays;
 use atoll_render::environment::EnvironmentSampler;
 #[cfg(test)]
 use atoll_render::light_bvh::LightNode;
@@ -300,14 +301,6 @@ pub struct FrameParams {
 impl FrameParams {
     /// The values of `frame` (table pointers left 0; table counts set).
     pub(crate) fn from_frame(frame: &FrameContext) -> Self {
-        let camera = &frame.camera;
-        let m = camera.camera_to_world();
-        let mut camera_to_world = [0.0; 12];
-        for r in 0..3 {
-            camera_to_world[r * 4..r * 4 + 4].copy_from_slice(&m.row(r).to_array());
-        }
-        let (window_min, window_max) = camera.window();
-        let (lens_radius, focal_distance) = camera.lens();
         let (integrator, max_depth, ao_max_distance) = match frame.options.integrator {
             IntegratorSettings::Path { max_depth } => (integrator_kind::PATH, max_depth, 0.0),
             IntegratorSettings::AmbientOcclusion { max_distance } => {
@@ -315,13 +308,7 @@ impl FrameParams {
             }
         };
         let lights = &frame.lights;
-        FrameParams {
-            camera_to_world,
-            window_min: window_min.to_array(),
-            window_max: window_max.to_array(),
-            raster_size: camera.raster_size().to_array(),
-            lens_radius,
-            focal_distance,
+        let mut params = FrameParams {
             resolution: frame.options.resolution.to_array(),
             seed: frame.options.seed,
             integrator,
@@ -339,7 +326,21 @@ impl FrameParams {
             light_node_count: lights.bvh.nodes.len() as u32,
             unbounded_count: lights.unbounded_lights().len() as u32,
             ..Zeroable::zeroed()
+        };
+        params.set_camera(&frame.camera);
+        params
+    }
+
+    /// Camera rays leave from `camera`.
+    pub(crate) fn set_camera(&mut self, camera: &CameraRays) {
+        let m = camera.camera_to_world();
+        for r in 0..3 {
+            self.camera_to_world[r * 4..r * 4 + 4].copy_from_slice(&m.row(r).to_array());
         }
+        let (window_min, window_max) = camera.window();
+        (self.window_min, self.window_max) = (window_min.to_array(), window_max.to_array());
+        self.raster_size = camera.raster_size().to_array();
+        (self.lens_radius, self.focal_distance) = camera.lens();
     }
 
     #[cfg(test)]

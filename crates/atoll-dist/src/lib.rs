@@ -49,7 +49,8 @@ pub use partition::{
     PartitionOptions, Plan, Strategy,
 };
 pub use render::{
-    render_multi, render_multi_warmed, render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared,
+    render_multi, render_multi_warmed, render_multi_with, DeviceReport, MultiFrame, MultiOutput, Session,
+    Shared,
 };
 pub use ring::{RingError, RingPeers, RingPlace};
 pub use shared::{SharedReport, SharedSpec};

@@ -15,6 +15,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use atoll_bvh::ScenePart;
+use atoll_render::camera::CameraRays;
 use atoll_render::device::{DeviceStats, PrepareStats};
 use atoll_render::integrator::warm_up_waves;
 use atoll_render::{Device, DeviceError, DirectRing, Film, FrameContext, RenderOptions, Wave};
@@ -261,23 +262,13 @@ pub fn render_multi_with(
     let alone = LocalHandout::default();
     let handout = shared.map_or(&alone as &dyn WaveHandout, |s| s.handout);
     let remote: &[&(dyn RingPeers + Sync)] = shared.map_or(&[], |s| s.rings);
-    // Rings, or devices replicating: what takes waves. A ring of processes
-    // counts once, at its member 0.
-    let islands = match (layout, remote.is_empty()) {
-        (_, false) => remote.iter().filter(|link| link.place().member == 0).count(),
-        (Layout::Replicate | Layout::Shared(_), true) => devices.len(),
-        (Layout::Ring { islands, .. }, true) => *islands,
+    // A ring of processes counts once, at its member 0.
+    let islands = match remote.is_empty() {
+        false => remote.iter().filter(|link| link.place().member == 0).count(),
+        true => workers(layout, devices.len()),
     };
     let frame = Arc::new(FrameContext::new(scene, options));
-    // Devices of different kinds (the CPU beside GPUs) take waves of the
-    // smallest kind's size: one GPU-sized wave kept a CPU busy longer than
-    // the GPUs took for the whole frame.
-    let smallest = devices.iter().map(|d| d.default_wave_size()).min().unwrap_or(u32::MAX);
-    let largest = devices.iter().map(|d| d.default_wave_size()).max().unwrap_or(u32::MAX);
-    let wave_size = match smallest < largest {
-        true => frame.options.wave_size.min(smallest),
-        false => frame.options.wave_size,
-    };
+    let wave_size = wave_size_for(devices, &frame.options);
     let warmup = warmup.then_some(WarmUp { workers: islands, wave_size });
     let ready = ready_frame(devices, scene, &frame, layout, transport, warmup, remote);
     let joined = handout.join(Joining {
@@ -310,22 +301,185 @@ pub fn render_multi_with(
     let render_seconds = start.elapsed().as_secs_f64();
     handout.end();
     let mut reports = reports?;
+    let film = finish_reports(devices, &mut reports, &direct, shape.ring, frame.options.spp)?;
+    for (report, prepare) in reports.iter_mut().zip(prepared) {
+        report.prepare = prepare;
+    }
+    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds, shared: shared_scene })
+}
 
-    let mut film = Film::new(frame.options.resolution);
-    for (d, ((device, report), prepare)) in devices.iter_mut().zip(&mut reports).zip(prepared).enumerate() {
+/// What takes waves on this process's devices under `layout`: each device
+/// replicating (or sharing scene memory), or each ring (island).
+fn workers(layout: &Layout, devices: usize) -> usize {
+    match layout {
+        Layout::Replicate | Layout::Shared(_) => devices,
+        Layout::Ring { islands, .. } => *islands,
+    }
+}
+
+/// The wave size of a frame on `devices`: devices of different kinds (the
+/// CPU beside GPUs) take waves of the smallest kind's size: one GPU-sized
+/// wave kept a CPU busy longer than the GPUs took for the whole frame.
+fn wave_size_for(devices: &[Box<dyn Device>], options: &RenderOptions) -> u32 {
+    let smallest = devices.iter().map(|d| d.default_wave_size()).min().unwrap_or(u32::MAX);
+    let largest = devices.iter().map(|d| d.default_wave_size()).max().unwrap_or(u32::MAX);
+    match smallest < largest {
+        true => options.wave_size.min(smallest),
+        false => options.wave_size,
+    }
+}
+
+/// After the waves: the first failure any device kept, or else the
+/// devices' films summed (as `spp` samples per pixel), with each report's
+/// counters and bytes sent filled in.
+fn finish_reports(
+    devices: &mut [Box<dyn Device>],
+    reports: &mut [DeviceReport],
+    direct: &[Box<dyn DirectRing>],
+    ring: usize,
+    spp: u32,
+) -> Result<Film, DeviceError> {
+    let mut film: Option<Film> = None;
+    for (d, (device, report)) in devices.iter_mut().zip(reports.iter_mut()).enumerate() {
         if let Some(e) = report.take_error() {
             return Err(e);
         }
-        film.merge(&device.film()?);
+        let mine = device.film()?;
+        match &mut film {
+            Some(film) => film.merge(&mine),
+            None => film = Some(mine),
+        }
         report.stats = device.stats()?;
-        if let Some(ring) = direct.get(d / shape.ring) {
+        if let Some(ring) = direct.get(d / ring) {
             // Counted where the records are sent: the host never learns the lengths.
             report.bytes_sent = ring.bytes_sent(device.as_mut())?;
         }
-        report.prepare = prepare;
     }
-    film.spp = frame.options.spp;
-    Ok(MultiOutput { film, devices: reports, prepare_seconds, render_seconds, shared: shared_scene })
+    let mut film = film.ok_or_else(|| DeviceError::Other {
+        device: "devices".into(),
+        message: "no devices rendered".into(),
+    })?;
+    film.spp = spp;
+    Ok(film)
+}
+
+/// Devices prepared once for many passes over one scene (an interactive
+/// view): each pass renders a range of samples of every pixel, adding to
+/// the devices' films; the camera may move between passes, the films then
+/// cleared. Samples `a..b` then `b..c` give the film one frame of `c`
+/// samples from 0 gives (a path's random numbers depend only on its pixel
+/// and sample). One process; any layout.
+pub struct Session<'d> {
+    devices: &'d mut [Box<dyn Device>],
+    frame: Arc<FrameContext>,
+    layout: Layout,
+    ready: Ready,
+    workers: usize,
+    wave_size: u32,
+    /// Samples per pixel in the films since they were last cleared.
+    samples: u32,
+}
+
+impl<'d> Session<'d> {
+    /// Prepares `devices` (placed by `layout`, ring queues moving by
+    /// `transport`) for passes over frames of `options` (its `spp` does
+    /// not matter: passes say which samples they render).
+    pub fn prepare(
+        devices: &'d mut [Box<dyn Device>],
+        scene: &Arc<Scene>,
+        options: RenderOptions,
+        layout: &Layout,
+        transport: Option<Transport>,
+    ) -> Result<Session<'d>, DeviceError> {
+        let frame = Arc::new(FrameContext::new(scene, options));
+        let ready = ready_frame(devices, scene, &frame, layout, transport, None, &[])?;
+        Ok(Session {
+            workers: workers(layout, devices.len()),
+            wave_size: wave_size_for(devices, &frame.options),
+            devices,
+            frame,
+            layout: layout.clone(),
+            ready,
+            samples: 0,
+        })
+    }
+
+    /// What preparing cost each device.
+    pub fn prepared(&self) -> &[PrepareStats] {
+        &self.ready.prepared
+    }
+
+    /// The frame's options (resolution, integrator, …).
+    pub fn options(&self) -> &RenderOptions {
+        &self.frame.options
+    }
+
+    /// Samples per pixel accumulated since the films were last cleared.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+
+    /// Renders `count` more samples of every pixel (samples
+    /// `self.samples()..+count`), adding to the films; per device, what it
+    /// did in this pass, and the pass's seconds.
+    pub fn render_samples(&mut self, count: u32) -> Result<(Vec<DeviceReport>, f64), DeviceError> {
+        let first = self.samples;
+        let cut =
+            RenderOptions { wave_size: self.wave_size, spp: count.max(1), ..self.frame.options.clone() };
+        let mut waves = work_units(&cut, self.workers);
+        for wave in &mut waves {
+            wave.sample += first;
+        }
+        let local = LocalHandout::default();
+        let stripes;
+        let handout: &dyn WaveHandout = match self.layout {
+            Layout::Shared(_) => {
+                let stripe_of = hardware_of(self.devices)?;
+                stripes = StripeHandout::new(&waves, cut.pixel_count(), &stripe_of);
+                &stripes
+            }
+            _ => &local,
+        };
+        handout.begin(waves.len(), pacing(&cut, &waves, self.workers, &[]));
+        let start = Instant::now();
+        let reports =
+            run_waves(self.devices, &waves, self.ready.shape, &self.ready.direct, handout, &mut |_, _| {});
+        let seconds = start.elapsed().as_secs_f64();
+        handout.end();
+        let mut reports = reports?;
+        if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
+            return Err(e);
+        }
+        self.samples = first + count.max(1);
+        Ok((reports, seconds))
+    }
+
+    /// The devices' films summed: `samples()` samples per pixel.
+    pub fn film(&mut self) -> Result<Film, DeviceError> {
+        let mut reports = vec![DeviceReport::default(); self.devices.len()];
+        finish_reports(self.devices, &mut reports, &[], self.ready.shape.ring, self.samples)
+    }
+
+    /// Clears the films for a new accumulation, the camera moved to
+    /// `camera` when given (from sample 0 again).
+    pub fn restart(&mut self, camera: Option<&CameraRays>) -> Result<(), DeviceError> {
+        for device in self.devices.iter_mut() {
+            if let Some(camera) = camera {
+                device.set_camera(camera)?;
+            }
+            device.reset_frame()?;
+        }
+        if let Some(camera) = camera {
+            self.frame = Arc::new(FrameContext { camera: camera.clone(), ..(*self.frame).clone() });
+        }
+        self.samples = 0;
+        Ok(())
+    }
+
+    /// The devices, for their names and memory figures.
+    pub fn devices(&self) -> &[Box<dyn Device>] {
+        self.devices
+    }
 }
 
 /// A frame's devices, prepared (and warmed up) and ready for its waves.

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use atoll_bvh::{ByteModel, ScenePart};
 use atoll_scene::Scene;
 
+use crate::camera::CameraRays;
 use crate::chunks::{Residency, SceneSharing};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave, DEFAULT_WAVE_SIZE};
@@ -104,6 +105,12 @@ pub trait Device: Send {
     /// the queues, which a finished frame leaves empty. Warm-up passes use
     /// it, so that the timed frame needs no second upload and BVH build.
     fn reset_frame(&mut self) -> Result<(), DeviceError>;
+
+    /// Points the prepared frame's camera elsewhere (an interactive view
+    /// moving): camera paths started later leave from `camera`. The scene
+    /// stays resident and the film keeps its sums ([`Device::reset_frame`]
+    /// clears them). Call it between frames, with nothing in flight.
+    fn set_camera(&mut self, camera: &CameraRays) -> Result<(), DeviceError>;
 
     /// Adds the camera paths of `wave` to this device's pending work, after
     /// what is already pending; [`Device::refill`] starts them as the path

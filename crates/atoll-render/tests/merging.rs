@@ -36,6 +36,9 @@ impl Device for Counting {
     fn reset_frame(&mut self) -> Result<(), DeviceError> {
         self.inner.reset_frame()
     }
+    fn set_camera(&mut self, camera: &atoll_render::camera::CameraRays) -> Result<(), DeviceError> {
+        self.inner.set_camera(camera)
+    }
     fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {
         self.inner.queue_work(wave)
     }

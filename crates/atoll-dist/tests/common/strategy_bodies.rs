@@ -19,7 +19,7 @@ use atoll_bvh::{ByteModel, ScenePart};
 use atoll_dist::chunk_placement::Replication;
 use atoll_dist::work::{partition_work_balanced, partition_work_measured};
 use atoll_dist::{
-    partition, render_multi, render_multi_warmed, Layout, MultiOutput, PartitionOptions, RingOrder,
+    partition, render_multi, render_multi_warmed, Layout, MultiOutput, PartitionOptions, RingOrder, Session,
     SharedSpec, Transport,
 };
 use atoll_render::device::DeviceStats;
@@ -74,6 +74,7 @@ macro_rules! strategy_tests {
             warmed_ring_renders_the_cold_frame
             a_ring_with_one_home_renders_the_same_image
             ring_over_instance_cost_parts_is_one_device
+            passes_of_a_session_add_up_to_one_frame
         );
     };
     // The attributes travel as one token tree: a list repeated inside the
@@ -333,6 +334,42 @@ pub fn islands_of_two_rings_of_two_are_one_device(kind: &Kind) {
     // Both islands generated pixels.
     let per_island = |i: usize| out.devices.iter().filter(|d| d.island == i).map(|d| d.waves).sum::<usize>();
     assert!(per_island(0) > 0 && per_island(1) > 0);
+}
+
+/// An interactive view's passes (prepared once, samples rendered a few at
+/// a time) add up to one frame of all their samples, replicating and on a
+/// ring; after the camera moves, the films start again and give the frame
+/// of the moved camera.
+pub fn passes_of_a_session_add_up_to_one_frame(kind: &Kind) {
+    let scene = cornell();
+    let opts = kind.options(&scene, 4);
+    let (reference, _) = kind.single(&scene, &opts);
+    let mut moved = (*scene).clone();
+    let camera = &mut moved.settings.camera;
+    camera.camera_to_world = glam::Mat4::from_rotation_y(0.2) * camera.camera_to_world;
+    let moved = Arc::new(moved);
+    let (moved_reference, _) = kind.single(&moved, &opts);
+    assert!(kind.same_image(&reference, &moved_reference, "moved").is_err(), "the camera moved");
+    let rays = atoll_render::camera::CameraRays::new(&moved.settings.camera, opts.resolution);
+    let p = partition(&scene, 2, &kind.byte_model(), &PartitionOptions::default()).unwrap();
+    let layouts = [Layout::Replicate, Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread }];
+    for layout in layouts {
+        let mut devices = (kind.devices)(2);
+        let mut session = Session::prepare(&mut devices, &scene, opts.clone(), &layout, None).unwrap();
+        for count in [1, 2, 1] {
+            session.render_samples(count).unwrap();
+        }
+        assert_eq!(session.samples(), 4);
+        let what = format!("{layout:?} passes of 1, 2 and 1 samples");
+        kind.assert_same_image(&reference, &session.film().unwrap(), &what);
+        session.restart(Some(&rays)).unwrap();
+        assert_eq!(session.samples(), 0);
+        assert!(session.film().unwrap().sum.iter().all(|p| *p == glam::Vec3::ZERO), "{what}: cleared");
+        for count in [3, 1] {
+            session.render_samples(count).unwrap();
+        }
+        kind.assert_same_image(&moved_reference, &session.film().unwrap(), &format!("{what}, camera moved"));
+    }
 }
 
 /// Three parts of `scene` (the ground scene) under the smallest budget

@@ -11,6 +11,7 @@ use atoll_scene::Scene;
 use glam::{Affine3A, Mat3A, Vec3};
 use rayon::prelude::*;
 
+use crate::camera::CameraRays;
 use crate::chunks::SceneSharing;
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
@@ -300,6 +301,13 @@ impl Device for CpuDevice {
             upload_seconds: 0.0,
             shared: None,
         })
+    }
+
+    fn set_camera(&mut self, camera: &CameraRays) -> Result<(), DeviceError> {
+        let frame = self.frame()?;
+        let moved = FrameContext { camera: camera.clone(), ..(**frame).clone() };
+        self.frame = Some(Arc::new(moved));
+        Ok(())
     }
 
     fn queue_work(&mut self, wave: &Wave) -> Result<(), DeviceError> {
