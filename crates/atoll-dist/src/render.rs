@@ -420,9 +420,8 @@ impl<'d> Session<'d> {
     }
 
     /// Renders `count` more samples of every pixel (samples
-    /// `self.samples()..+count`), adding to the films; per device, what it
-    /// did in this pass, and the pass's seconds.
-    pub fn render_samples(&mut self, count: u32) -> Result<(Vec<DeviceReport>, f64), DeviceError> {
+    /// `self.samples()..+count`), adding to the films; the pass's seconds.
+    pub fn render_samples(&mut self, count: u32) -> Result<f64, DeviceError> {
         let first = self.samples;
         let cut =
             RenderOptions { wave_size: self.wave_size, spp: count.max(1), ..self.frame.options.clone() };
@@ -451,7 +450,12 @@ impl<'d> Session<'d> {
             return Err(e);
         }
         self.samples = first + count.max(1);
-        Ok((reports, seconds))
+        Ok(seconds)
+    }
+
+    /// Each device's counters since the films were last cleared.
+    pub fn stats(&self) -> Result<Vec<DeviceStats>, DeviceError> {
+        self.devices.iter().map(|d| d.stats()).collect()
     }
 
     /// The devices' films summed: `samples()` samples per pixel.

@@ -11,6 +11,7 @@ mod preflight;
 #[cfg(feature = "mpi")]
 mod ranked;
 mod render;
+mod serve;
 mod streams;
 
 use std::process::ExitCode;
@@ -41,6 +42,8 @@ struct Cli {
 enum Command {
     /// Render a scene (the built-in Cornell box when none is given).
     Render(Box<render::RenderArgs>),
+    /// Render a scene progressively and watch it in a browser (127.0.0.1:8080 unless told otherwise).
+    Serve(Box<serve::ServeArgs>),
     /// Print counts, bounds, memory estimate and BVH statistics of a scene.
     Info(info::InfoArgs),
     /// Measure BVH build, traversal and path-tracing speed.
@@ -89,6 +92,7 @@ fn main() -> ExitCode {
     }
     let result = match cli.command {
         Some(Command::Render(args)) => render::run(*args),
+        Some(Command::Serve(args)) => serve::run(*args),
         Some(Command::Info(args)) => info::run(args),
         Some(Command::Bench(args)) => bench::run(args),
         Some(Command::Compare(args)) => compare::run(args),

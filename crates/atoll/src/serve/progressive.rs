@@ -1,0 +1,192 @@
+//! The render loop behind `atoll serve`: passes of samples on prepared
+//! devices ([`Session`]), as many samples a pass as fill about
+//! [`PASS_SECONDS`], one sample after every camera move so the view
+//! answers at once; a snapshot of the film for the viewers at most every
+//! [`SNAPSHOT_SECONDS`]. Viewers never block it: they read the latest
+//! snapshot when they like, and their commands wait for the next pass.
+
+use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use atoll_dist::Session;
+use atoll_render::camera::CameraRays;
+use glam::{UVec2, Vec3};
+use tokio::sync::watch;
+
+use super::view::{Move, Orbit};
+
+/// How long a pass aims to take: long enough that the pause between
+/// passes (threads joined, waves cut) costs little, short enough that
+/// commands are answered quickly.
+const PASS_SECONDS: f64 = 0.2;
+
+/// Most often the film is read back for viewers.
+const SNAPSHOT_SECONDS: f64 = 0.25;
+
+/// What viewers ask the render loop for.
+pub enum Command {
+    /// Move the camera (accumulation starts again).
+    Move(Move),
+    /// Put the camera back where the scene has it.
+    Reset,
+    /// Write the film as it is now to the output path, with the extension
+    /// given (`exr` or `png`); the path written, or why not.
+    Save { extension: &'static str, reply: std::sync::mpsc::Sender<Result<PathBuf, String>> },
+}
+
+/// One device's line in the viewers' table.
+#[derive(Clone, Debug, Default)]
+pub struct DeviceRow {
+    pub name: String,
+    /// Busy seconds since the accumulation started.
+    pub busy_seconds: f64,
+    pub scene_bytes: u64,
+    pub frame_bytes: u64,
+}
+
+/// What viewers see: the film's mean radiance and the figures beside it.
+#[derive(Clone, Debug, Default)]
+pub struct Snapshot {
+    /// Counts camera moves: viewers tell a restarted accumulation by it.
+    pub epoch: u64,
+    pub samples: u32,
+    pub target_samples: u32,
+    pub resolution: UVec2,
+    pub pixels: Arc<Vec<Vec3>>,
+    /// Camera samples per second over this accumulation's passes.
+    pub samples_per_second: f64,
+    pub devices: Vec<DeviceRow>,
+    /// A device failed: the loop has stopped.
+    pub error: Option<String>,
+}
+
+/// The loop's settings.
+pub struct Progressive {
+    /// Stop adding samples here (the frame's spp); moves start again.
+    pub target_samples: u32,
+    /// Where saves go (its extension replaced by the one asked for).
+    pub output: PathBuf,
+    pub orbit: Orbit,
+}
+
+/// Runs passes until every sender of `commands` is gone, publishing
+/// snapshots to `viewers`.
+pub fn run(
+    mut session: Session<'_>,
+    settings: Progressive,
+    commands: Receiver<Command>,
+    viewers: watch::Sender<Arc<Snapshot>>,
+) {
+    let Progressive { target_samples, output, orbit: home } = settings;
+    let resolution = session.options().resolution;
+    let prepared: Vec<(u64, u64)> =
+        session.prepared().iter().map(|p| (p.scene_bytes, p.frame_bytes)).collect();
+    let names: Vec<String> = session.devices().iter().map(|d| d.name()).collect();
+    let mut orbit = home.clone();
+    let mut epoch = 0u64;
+    let mut per_pass = 1u32;
+    let mut render_seconds = 0f64;
+    let mut last_snapshot: Option<Instant> = None;
+    let mut error: Option<String> = None;
+    loop {
+        // Waiting for commands only once there is nothing to render.
+        let idle = session.samples() >= target_samples || error.is_some();
+        let command = match idle {
+            true => match commands.recv_timeout(Duration::from_millis(100)) {
+                Ok(c) => Some(c),
+                Err(RecvTimeoutError::Timeout) => None,
+                Err(RecvTimeoutError::Disconnected) => return,
+            },
+            false => match commands.try_recv() {
+                Ok(c) => Some(c),
+                Err(std::sync::mpsc::TryRecvError::Empty) => None,
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => return,
+            },
+        };
+        let mut moved = None;
+        match command {
+            Some(Command::Move(step)) => moved = Some(orbit.moved(step)),
+            Some(Command::Reset) => moved = Some(home.clone()),
+            Some(Command::Save { extension, reply }) => {
+                let _ = reply.send(save(&mut session, &output, extension));
+            }
+            None => {}
+        }
+        if let (Some(next), None) = (moved, &error) {
+            orbit = next;
+            let rays = CameraRays::new(&orbit.camera(), resolution);
+            if let Err(e) = session.restart(Some(&rays)) {
+                error = Some(e.to_string());
+            }
+            epoch += 1;
+            per_pass = 1;
+            render_seconds = 0.0;
+            last_snapshot = None;
+        }
+        if session.samples() < target_samples && error.is_none() {
+            let count = per_pass.min(target_samples - session.samples());
+            match session.render_samples(count) {
+                Ok(seconds) => {
+                    render_seconds += seconds;
+                    // Aim the next pass at PASS_SECONDS, at most doubling.
+                    let fit = (count as f64 * PASS_SECONDS / seconds.max(1e-6)).floor() as u32;
+                    per_pass = fit.clamp(1, count.saturating_mul(2).max(1));
+                }
+                Err(e) => error = Some(e.to_string()),
+            }
+        }
+        let due = last_snapshot.is_none_or(|t| t.elapsed().as_secs_f64() >= SNAPSHOT_SECONDS);
+        let finished = session.samples() >= target_samples;
+        if due || (finished && viewers.borrow().samples != session.samples()) || error.is_some() {
+            let pixels = match session.film() {
+                Ok(film) => film.pixels(),
+                Err(e) => {
+                    error.get_or_insert(e.to_string());
+                    Vec::new()
+                }
+            };
+            let samples = session.samples();
+            let busy: Vec<f64> = match session.stats() {
+                Ok(stats) => stats.iter().map(|s| s.busy_seconds).collect(),
+                Err(e) => {
+                    error.get_or_insert(e.to_string());
+                    vec![0.0; names.len()]
+                }
+            };
+            let devices = names
+                .iter()
+                .zip(&busy)
+                .zip(&prepared)
+                .map(|((name, &busy_seconds), &(scene_bytes, frame_bytes))| DeviceRow {
+                    name: name.clone(),
+                    busy_seconds,
+                    scene_bytes,
+                    frame_bytes,
+                })
+                .collect();
+            let pixel_count = resolution.x as f64 * resolution.y as f64;
+            let snapshot = Snapshot {
+                epoch,
+                samples,
+                target_samples,
+                resolution,
+                pixels: Arc::new(pixels),
+                samples_per_second: pixel_count * samples as f64 / render_seconds.max(1e-9),
+                devices,
+                error: error.clone(),
+            };
+            viewers.send_replace(Arc::new(snapshot));
+            last_snapshot = Some(Instant::now());
+        }
+    }
+}
+
+/// Writes the film now: `output` with `extension`.
+fn save(session: &mut Session<'_>, output: &std::path::Path, extension: &str) -> Result<PathBuf, String> {
+    let path = output.with_extension(extension);
+    let film = session.film().map_err(|e| e.to_string())?;
+    film.write(&path).map_err(|e| e.to_string())?;
+    Ok(path)
+}
