@@ -127,19 +127,37 @@ async fn watch_render(socket: WebSocket, shared: Shared) {
     let mut display = Display::default();
     let mut redraw = true;
     let mut last_frame: Option<Instant> = None;
+    let mut shown_epoch = None;
     let intro = json!({ "type": "hello", "strategy": &*shared.strategy, "scene": &*shared.scene });
     if sink.send(Message::Text(intro.to_string().into())).await.is_err() {
         return;
     }
     loop {
         if redraw {
-            if let Some(wait) = last_frame
-                .and_then(|t| Duration::from_secs_f64(1.0 / MOST_FRAMES_PER_SECOND).checked_sub(t.elapsed()))
-            {
+            // A moved camera's first frame goes at once; others wait their turn.
+            let moved = shown_epoch != Some(snapshots.borrow().epoch);
+            let pace = Duration::from_secs_f64(1.0 / MOST_FRAMES_PER_SECOND);
+            if let Some(wait) = last_frame.and_then(|t| pace.checked_sub(t.elapsed())).filter(|_| !moved) {
                 tokio::time::sleep(wait).await;
             }
             let snapshot = snapshots.borrow_and_update().clone();
-            let encoded = tokio::task::spawn_blocking(move || frame_of(&snapshot, display)).await;
+            shown_epoch = Some(snapshot.epoch);
+            // Nothing to show before the first pass (or its failure).
+            if snapshot.target_samples == 0 && snapshot.error.is_none() {
+                redraw = false;
+                continue;
+            }
+            let encoded = tokio::task::spawn_blocking(move || {
+                let start = Instant::now();
+                let frame = frame_of(&snapshot, display);
+                let bytes = frame.1.as_ref().map_or(0, Vec::len);
+                tracing::debug!(
+                    "frame of {bytes} bytes encoded in {:.1} ms",
+                    start.elapsed().as_secs_f64() * 1e3
+                );
+                frame
+            })
+            .await;
             let Ok((figures, jpeg)) = encoded else { return };
             if sink.send(Message::Text(figures.to_string().into())).await.is_err() {
                 return;

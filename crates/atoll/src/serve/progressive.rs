@@ -25,6 +25,11 @@ const PASS_SECONDS: f64 = 0.2;
 /// Most often the film is read back for viewers.
 const SNAPSHOT_SECONDS: f64 = 0.25;
 
+/// Reading the film back stalls the passes (on a GPU, one film per
+/// wavefront comes over PCIe and is summed): snapshots are spaced so that
+/// they take at most this share of the time.
+const SNAPSHOT_SHARE: f64 = 0.02;
+
 /// What viewers ask the render loop for.
 pub enum Command {
     /// Move the camera (accumulation starts again).
@@ -55,7 +60,8 @@ pub struct Snapshot {
     pub target_samples: u32,
     pub resolution: UVec2,
     pub pixels: Arc<Vec<Vec3>>,
-    /// Camera samples per second over this accumulation's passes.
+    /// Camera samples per second since this accumulation started, by the
+    /// wall clock (snapshots and all) until its last pass.
     pub samples_per_second: f64,
     pub devices: Vec<DeviceRow>,
     /// A device failed: the loop has stopped.
@@ -87,8 +93,10 @@ pub fn run(
     let mut orbit = home.clone();
     let mut epoch = 0u64;
     let mut per_pass = 1u32;
-    let mut render_seconds = 0f64;
+    let mut started = Instant::now();
+    let mut last_pass_end = started;
     let mut last_snapshot: Option<Instant> = None;
+    let mut snapshot_seconds = 0f64;
     let mut error: Option<String> = None;
     loop {
         // Waiting for commands only once there is nothing to render.
@@ -122,14 +130,14 @@ pub fn run(
             }
             epoch += 1;
             per_pass = 1;
-            render_seconds = 0.0;
+            started = Instant::now();
             last_snapshot = None;
         }
         if session.samples() < target_samples && error.is_none() {
             let count = per_pass.min(target_samples - session.samples());
             match session.render_samples(count) {
                 Ok(seconds) => {
-                    render_seconds += seconds;
+                    last_pass_end = Instant::now();
                     // Aim the next pass at PASS_SECONDS, at most doubling.
                     let fit = (count as f64 * PASS_SECONDS / seconds.max(1e-6)).floor() as u32;
                     per_pass = fit.clamp(1, count.saturating_mul(2).max(1));
@@ -137,9 +145,11 @@ pub fn run(
                 Err(e) => error = Some(e.to_string()),
             }
         }
-        let due = last_snapshot.is_none_or(|t| t.elapsed().as_secs_f64() >= SNAPSHOT_SECONDS);
+        let interval = SNAPSHOT_SECONDS.max(snapshot_seconds / SNAPSHOT_SHARE);
+        let due = last_snapshot.is_none_or(|t| t.elapsed().as_secs_f64() >= interval);
         let finished = session.samples() >= target_samples;
         if due || (finished && viewers.borrow().samples != session.samples()) || error.is_some() {
+            let reading = Instant::now();
             let pixels = match session.film() {
                 Ok(film) => film.pixels(),
                 Err(e) => {
@@ -173,11 +183,13 @@ pub fn run(
                 target_samples,
                 resolution,
                 pixels: Arc::new(pixels),
-                samples_per_second: pixel_count * samples as f64 / render_seconds.max(1e-9),
+                samples_per_second: pixel_count * samples as f64
+                    / (last_pass_end - started).as_secs_f64().max(1e-9),
                 devices,
                 error: error.clone(),
             };
             viewers.send_replace(Arc::new(snapshot));
+            snapshot_seconds = reading.elapsed().as_secs_f64();
             last_snapshot = Some(Instant::now());
         }
     }
