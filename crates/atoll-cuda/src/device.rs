@@ -30,7 +30,6 @@ use atoll_render::{
 };
 use atoll_scene::Scene;
 use cudarc::driver::{CudaFunction, CudaSlice, DevicePtr, PushKernelArg};
-use glam::Vec3;
 
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu, Timer};
@@ -788,15 +787,14 @@ impl CudaDevice {
             .resident
             .as_ref()
             .ok_or_else(|| CudaError::Usage("CudaDevice::film before prepare()".into()))?;
-        let sums = self
-            .gpu
-            .stream
-            .clone_dtoh(&r.film)
-            .map_err(CudaError::driver(format!("{}: downloading the film", self.gpu.label())))?;
         let mut film = Film::new(r.frame.options.resolution);
-        for (pixel, rgb) in film.sum.iter_mut().zip(sums.chunks_exact(3)) {
-            *pixel = Vec3::new(rgb[0], rgb[1], rgb[2]);
-        }
+        // Straight into the film's sums (three f32 a pixel, no padding).
+        let sums: &mut [f32] = bytemuck::cast_slice_mut(&mut film.sum);
+        self.gpu
+            .stream
+            .memcpy_dtoh(&r.film, sums)
+            .map_err(CudaError::driver(format!("{}: downloading the film", self.gpu.label())))?;
+        self.gpu.synchronize()?;
         Ok(film)
     }
 

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use glam::{UVec2, Vec3};
+use rayon::prelude::*;
 
 /// Radiance sums over the samples taken so far (box filter: each sample
 /// lands in exactly the pixel it was generated for).
@@ -97,9 +98,8 @@ impl Film {
     /// Adds another film's sums (same resolution) — merging devices.
     pub fn merge(&mut self, other: &Film) {
         assert_eq!(self.resolution, other.resolution, "films of different sizes");
-        for (a, b) in self.sum.iter_mut().zip(&other.sum) {
-            *a += *b;
-        }
+        // In parallel: a 4K film is 25 million additions.
+        self.sum.par_iter_mut().zip(other.sum.par_iter()).for_each(|(a, b)| *a += *b);
     }
 
     /// Mean radiance per pixel (sum / spp).

@@ -28,7 +28,7 @@ const SNAPSHOT_SECONDS: f64 = 0.25;
 /// Reading the film back stalls the passes (on a GPU, one film per
 /// wavefront comes over PCIe and is summed): snapshots are spaced so that
 /// they take at most this share of the time.
-const SNAPSHOT_SHARE: f64 = 0.02;
+const SNAPSHOT_SHARE: f64 = 0.03;
 
 /// What viewers ask the render loop for.
 pub enum Command {
@@ -190,6 +190,7 @@ pub fn run(
             };
             viewers.send_replace(Arc::new(snapshot));
             snapshot_seconds = reading.elapsed().as_secs_f64();
+            tracing::debug!("film read for viewers in {:.1} ms", snapshot_seconds * 1e3);
             last_snapshot = Some(Instant::now());
         }
     }
