@@ -21,6 +21,11 @@ fi
 if ! dpkg -s $MPI_PACKAGES >/dev/null 2>&1; then
   DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $MPI_PACKAGES >/dev/null
 fi
+# Headless Chromium loads `atoll serve`'s page (crates/atoll/tests/serve.rs).
+if ! command -v chromium >/dev/null 2>&1; then
+  apt-get update -qq >/dev/null 2>&1 || true
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends chromium >/dev/null
+fi
 # mpirun refuses root unless told (CI runs as root).
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 if [ ! -d /usr/share/assimp/models ]; then
@@ -60,3 +65,5 @@ cargo clippy --workspace --all-targets --locked --features atoll/mpi -- -D warni
 # The binary without MPI too (what the README's render command builds).
 cargo clippy -p atoll --all-targets --locked -- -D warnings
 cargo test --workspace --locked --features atoll/mpi
+# The browser test (ignored where chromium may be missing).
+cargo test -p atoll --locked --features mpi --test serve -- --ignored

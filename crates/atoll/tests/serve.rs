@@ -1,7 +1,9 @@
 //! `atoll serve` against its own HTTP and WebSocket clients: a viewer
 //! watches the render converge to the image `atoll render` writes, a
 //! camera move starts the accumulation again, viewers come and go without
-//! touching the render, and tokens and addresses are checked.
+//! touching the render, and tokens and addresses are checked. One test
+//! loads the page in headless Chromium (ignored unless asked for:
+//! `scripts/test.sh` installs Debian's chromium and runs it).
 
 mod common;
 
@@ -252,4 +254,156 @@ fn listening_beyond_this_machine_needs_a_token() {
     assert!(stderr.contains("--bind 0.0.0.0: listening beyond this machine needs --token"), "{stderr}");
     let out = common::atoll(&dir, &["serve", "--token", "short"]);
     assert_eq!(out.status.code(), Some(2), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// One Chrome DevTools Protocol call on `socket` (to the page's session
+/// when given); its result. Events in between are skipped.
+async fn devtools(socket: &mut Socket, id: u64, method: &str, params: Value, session: Option<&str>) -> Value {
+    let mut call = serde_json::json!({ "id": id, "method": method, "params": params });
+    if let Some(session) = session {
+        call["sessionId"] = Value::from(session);
+    }
+    socket.send(Message::Text(call.to_string().into())).await.unwrap();
+    loop {
+        let message = tokio::time::timeout(Duration::from_secs(60), socket.next())
+            .await
+            .expect("Chromium answers")
+            .expect("Chromium stays up")
+            .unwrap();
+        let Message::Text(text) = message else { continue };
+        let answer: Value = serde_json::from_str(&text).unwrap();
+        if answer["id"] == id {
+            assert!(answer.get("error").is_none(), "{method}: {answer}");
+            return answer["result"].clone();
+        }
+    }
+}
+
+/// Headless Chromium, stopped when dropped, with the address of its
+/// DevTools WebSocket.
+struct Browser {
+    child: Child,
+    devtools: String,
+    _profile: tempfile::TempDir,
+}
+
+impl Drop for Browser {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn chromium() -> Browser {
+    let profile = tempfile::tempdir().unwrap();
+    let mut child = Command::new("chromium")
+        .args([
+            "--headless=new",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--no-first-run",
+            "--remote-debugging-port=0",
+        ])
+        // Only this machine: the page must need nothing from elsewhere.
+        .arg("--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1")
+        .arg(format!("--user-data-dir={}", profile.path().display()))
+        .arg("about:blank")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("chromium runs (Debian's chromium package)");
+    let stderr = child.stderr.take().unwrap();
+    let (lines, heard) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = lines.send(line);
+        }
+    });
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while let Ok(line) = heard.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
+        if let Some(at) = line.find("ws://") {
+            return Browser { child, devtools: line[at..].trim().to_owned(), _profile: profile };
+        }
+    }
+    panic!("chromium printed no DevTools address");
+}
+
+fn mean_rgb(image: &image::RgbImage) -> [f64; 3] {
+    let mut sum = [0f64; 3];
+    for p in image.pixels() {
+        for c in 0..3 {
+            sum[c] += p[c] as f64;
+        }
+    }
+    sum.map(|s| s / (image.width() * image.height()) as f64)
+}
+
+#[test]
+#[ignore = "needs chromium (scripts/test.sh installs it and runs this)"]
+fn the_page_in_a_browser_shows_the_rendered_image() {
+    use base64::Engine;
+    let dir = common::scratch("serve", "browser");
+    let frame = ["--device", "cpu", "--threads", "2", "--res", "96x64", "--spp", "16"];
+    let rendered = common::atoll(&dir, &[&["render", "-q", "-o", "rendered.png"], &frame[..]].concat());
+    assert!(rendered.status.success(), "{}", String::from_utf8_lossy(&rendered.stderr));
+    let server = serve(&dir, &frame);
+    let browser = chromium();
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    let canvas = runtime.block_on(async {
+        let (mut socket, _) = tokio_tungstenite::connect_async(&browser.devtools).await.unwrap();
+        let url = format!("http://{}/", server.address);
+        let target = devtools(&mut socket, 1, "Target.createTarget", serde_json::json!({ "url": url }), None).await;
+        let attached = devtools(
+            &mut socket,
+            2,
+            "Target.attachToTarget",
+            serde_json::json!({ "targetId": target["targetId"], "flatten": true }),
+            None,
+        )
+        .await;
+        let session = attached["sessionId"].as_str().unwrap().to_owned();
+        // Until the canvas shows the last sample (the page marks what it drew).
+        let started = Instant::now();
+        let mut id = 3;
+        loop {
+            let drawn = devtools(
+                &mut socket,
+                id,
+                "Runtime.evaluate",
+                serde_json::json!({ "expression": "document.body.dataset.drawn || ''", "returnByValue": true }),
+                Some(&session),
+            )
+            .await;
+            id += 1;
+            if drawn["result"]["value"] == "16" {
+                break;
+            }
+            assert!(started.elapsed() < Duration::from_secs(60), "the page drew no converged frame: {drawn}");
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        let url = devtools(
+            &mut socket,
+            id,
+            "Runtime.evaluate",
+            serde_json::json!({ "expression": "document.getElementById('image').toDataURL('image/png')", "returnByValue": true }),
+            Some(&session),
+        )
+        .await;
+        url["result"]["value"].as_str().unwrap().to_owned()
+    });
+    let png = base64::engine::general_purpose::STANDARD
+        .decode(canvas.strip_prefix("data:image/png;base64,").expect("a PNG data URL"))
+        .unwrap();
+    let shown = image::load_from_memory(&png).unwrap().to_rgb8();
+    let reference = image::open(dir.join("rendered.png")).unwrap().to_rgb8();
+    assert_eq!(shown.dimensions(), reference.dimensions());
+    // The page's image is a JPEG of the same film, shown as `atoll render`'s PNG maps it.
+    let (a, b) = (mean_rgb(&shown), mean_rgb(&reference));
+    for c in 0..3 {
+        assert!((a[c] - b[c]).abs() < 2.0, "channel means {a:?} on the page, {b:?} rendered");
+    }
+    let squared: f64 =
+        shown.as_raw().iter().zip(reference.as_raw()).map(|(&x, &y)| (x as f64 - y as f64).powi(2)).sum();
+    let rmse = (squared / shown.as_raw().len() as f64).sqrt();
+    assert!(rmse < 9.0, "per-pixel RMSE {rmse:.2} levels");
 }
