@@ -325,6 +325,8 @@ fn chromium() -> Browser {
             return Browser { child, devtools: line[at..].trim().to_owned(), _profile: profile };
         }
     }
+    let _ = child.kill();
+    let _ = child.wait();
     panic!("chromium printed no DevTools address");
 }
 
