@@ -339,16 +339,24 @@ fn finish_reports(
     ring: usize,
     spp: u32,
 ) -> Result<Film, DeviceError> {
+    if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
+        return Err(e);
+    }
+    // Read back at once (several GPUs, or a GPU's wavefronts, each a copy
+    // over PCIe), summed in device order: the same sums every time.
+    let films: Vec<Result<Film, DeviceError>> = std::thread::scope(|scope| {
+        let reading: Vec<_> = devices.iter_mut().map(|d| scope.spawn(move || d.film())).collect();
+        reading.into_iter().map(|h| h.join().expect("reading a film panicked")).collect()
+    });
     let mut film: Option<Film> = None;
-    for (d, (device, report)) in devices.iter_mut().zip(reports.iter_mut()).enumerate() {
-        if let Some(e) = report.take_error() {
-            return Err(e);
-        }
-        let mine = device.film()?;
+    for mine in films {
+        let mine = mine?;
         match &mut film {
             Some(film) => film.merge(&mine),
             None => film = Some(mine),
         }
+    }
+    for (d, (device, report)) in devices.iter_mut().zip(reports.iter_mut()).enumerate() {
         report.stats = device.stats()?;
         if let Some(ring) = direct.get(d / ring) {
             // Counted where the records are sent: the host never learns the lengths.

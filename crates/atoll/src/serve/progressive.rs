@@ -20,7 +20,7 @@ use super::view::{Move, Orbit};
 /// How long a pass aims to take: long enough that the pause between
 /// passes (threads joined, waves cut) costs little, short enough that
 /// commands are answered quickly.
-const PASS_SECONDS: f64 = 0.2;
+const PASS_SECONDS: f64 = 0.5;
 
 /// Most often the film is read back for viewers.
 const SNAPSHOT_SECONDS: f64 = 0.25;
