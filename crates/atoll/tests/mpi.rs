@@ -59,20 +59,10 @@ fn mpirun(dir: &Path, ranks: &[(usize, &[&str])], output: &str) -> Output {
         .expect("mpirun runs (Debian's openmpi-bin)")
 }
 
-fn read_exr(path: &Path) -> Vec<[f32; 3]> {
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| Vec::<[f32; 3]>::with_capacity(res.width() * res.height()),
-        |px: &mut Vec<[f32; 3]>, _pos, (r, g, b, _a): (f32, f32, f32, f32)| px.push([r, g, b]),
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    image.layer_data.channel_data.pixels
-}
-
 /// Every pixel equal up to the rounding of summing in another order (a
 /// wave rendered twice or never would double or zero its pixels).
 fn assert_same_pixels(dir: &Path, a: &str, b: &str) {
-    let (a, b) = (read_exr(&dir.join(a)), read_exr(&dir.join(b)));
+    let (a, b) = (common::read_exr(&dir.join(a)), common::read_exr(&dir.join(b)));
     assert_eq!(a.len(), b.len());
     let worst = a
         .iter()

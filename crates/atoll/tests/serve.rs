@@ -45,21 +45,30 @@ fn serve(dir: &Path, args: &[&str]) -> Server {
         .stdout(Stdio::null())
         .spawn()
         .expect("atoll runs");
-    let stderr = child.stderr.take().unwrap();
+    let said = first_line_with(&mut child, "serving http://", Duration::from_secs(120));
+    match said.as_deref().and_then(|l| l.strip_prefix("serving http://")) {
+        Some(rest) => Server { address: rest.split('/').next().unwrap().to_owned(), child },
+        None => panic!("atoll serve printed no address: {:?}", child.wait_with_output()),
+    }
+}
+
+/// The first line of `child`'s stderr containing `text`, within `patience`
+/// (the rest of its stderr is read and dropped, so that it never blocks).
+fn first_line_with(child: &mut Child, text: &str, patience: Duration) -> Option<String> {
+    let stderr = child.stderr.take()?;
     let (lines, heard) = mpsc::channel();
     std::thread::spawn(move || {
         for line in BufReader::new(stderr).lines().map_while(Result::ok) {
             let _ = lines.send(line);
         }
     });
-    let deadline = Instant::now() + Duration::from_secs(120);
+    let deadline = Instant::now() + patience;
     while let Ok(line) = heard.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
-        if let Some(rest) = line.strip_prefix("serving http://") {
-            let address = rest.split('/').next().unwrap().to_owned();
-            return Server { child, address };
+        if line.contains(text) {
+            return Some(line);
         }
     }
-    panic!("atoll serve printed no address: {:?}", child.wait_with_output());
+    None
 }
 
 /// One HTTP/1.1 request: the status and body.
@@ -125,16 +134,6 @@ fn mean_of_jpeg(bytes: &[u8]) -> f64 {
     image.as_raw().iter().map(|&b| b as f64).sum::<f64>() / image.as_raw().len() as f64
 }
 
-fn read_exr(path: &Path) -> Vec<[f32; 3]> {
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |res, _| Vec::<[f32; 3]>::with_capacity(res.width() * res.height()),
-        |px: &mut Vec<[f32; 3]>, _pos, (r, g, b, _a): (f32, f32, f32, f32)| px.push([r, g, b]),
-    )
-    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    image.layer_data.channel_data.pixels
-}
-
 #[test]
 fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
     let dir = common::scratch("serve", "viewer");
@@ -163,7 +162,8 @@ fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
         // Saved now, the film is the image `atoll render` writes.
         let (status, body) = http(&server.address, "POST", "/save?format=exr", &[]);
         assert_eq!(status, 200, "{body}");
-        let (saved, reference) = (read_exr(&dir.join("served.exr")), read_exr(&dir.join("rendered.exr")));
+        let (saved, reference) =
+            (common::read_exr(&dir.join("served.exr")), common::read_exr(&dir.join("rendered.exr")));
         assert_eq!(saved.len(), reference.len());
         for (a, b) in saved.iter().zip(&reference) {
             for c in 0..3 {
@@ -185,7 +185,11 @@ fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
         assert!(mean_of_jpeg(&frames.last().unwrap().1) != dark, "the view moved");
         let (status, body) = http(&server.address, "POST", "/save?format=exr", &[]);
         assert_eq!(status, 200, "{body}");
-        assert_ne!(read_exr(&dir.join("served.exr")), reference, "the saved film is the moved camera's");
+        assert_ne!(
+            common::read_exr(&dir.join("served.exr")),
+            reference,
+            "the saved film is the moved camera's"
+        );
 
         // A viewer that goes away leaves the render alone; a new one sees it.
         drop(viewer);
@@ -312,22 +316,15 @@ fn chromium() -> Browser {
         .stderr(Stdio::piped())
         .spawn()
         .expect("chromium runs (Debian's chromium package)");
-    let stderr = child.stderr.take().unwrap();
-    let (lines, heard) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-            let _ = lines.send(line);
-        }
-    });
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while let Ok(line) = heard.recv_timeout(deadline.saturating_duration_since(Instant::now())) {
-        if let Some(at) = line.find("ws://") {
-            return Browser { child, devtools: line[at..].trim().to_owned(), _profile: profile };
+    let said = first_line_with(&mut child, "ws://", Duration::from_secs(60));
+    match said.as_deref().and_then(|l| l.find("ws://").map(|at| l[at..].trim().to_owned())) {
+        Some(devtools) => Browser { child, devtools, _profile: profile },
+        None => {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("chromium printed no DevTools address");
         }
     }
-    let _ = child.kill();
-    let _ = child.wait();
-    panic!("chromium printed no DevTools address");
 }
 
 fn mean_rgb(image: &image::RgbImage) -> [f64; 3] {

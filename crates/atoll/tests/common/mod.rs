@@ -18,3 +18,14 @@ pub fn scratch(suite: &str, name: &str) -> PathBuf {
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }
+
+/// An EXR's RGB pixels, row by row.
+pub fn read_exr(path: &Path) -> Vec<[f32; 3]> {
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |res, _| Vec::<[f32; 3]>::with_capacity(res.width() * res.height()),
+        |px: &mut Vec<[f32; 3]>, _pos, (r, g, b, _a): (f32, f32, f32, f32)| px.push([r, g, b]),
+    )
+    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    image.layer_data.channel_data.pixels
+}
