@@ -35,11 +35,22 @@ pub fn ownership_view(
     owner: &(dyn Fn(u32, u32, u32) -> Option<usize> + Sync),
 ) -> Film {
     let frame = FrameContext::new(scene, options.clone());
-    let bvh = SceneBvh::build(scene);
+    ownership_view_of(scene, &frame, &SceneBvh::build(scene), owner)
+}
+
+/// [`ownership_view`] of `frame`'s camera and image over `bvh`, a BVH of
+/// the whole scene (kept by a caller drawing many views).
+pub fn ownership_view_of(
+    scene: &Scene,
+    frame: &FrameContext,
+    bvh: &SceneBvh,
+    owner: &(dyn Fn(u32, u32, u32) -> Option<usize> + Sync),
+) -> Film {
+    let options = &frame.options;
     let colours: Vec<Vec3> = (0..options.pixel_count())
         .into_par_iter()
         .map(|pixel| {
-            let r = camera_record(&frame, pixel, 0);
+            let r = camera_record(frame, pixel, 0);
             let ray = Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max };
             let Some(hit) = bvh.intersect(&ray) else { return Vec3::ZERO };
             let instance = &scene.instances[hit.instance as usize];

@@ -192,10 +192,18 @@ pub fn render(
     args: &MultiArgs,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, CliError> {
-    let (mut devices, layout) = place_on(devices, scene, &options, args)?;
+    let Placed { mut devices, layout, .. } = place_on(devices, scene, &options, args)?;
     let render = if args.warmup { render_multi_warmed } else { render_multi };
     render(&mut devices, scene, options, &layout, args.transport, progress)
         .map_err(|e| CliError::Runtime(e.to_string()))
+}
+
+/// Devices with the scene placed on them.
+pub struct Placed {
+    pub devices: Vec<Box<dyn Device>>,
+    pub layout: Layout,
+    /// A ring's parts, for the ownership view.
+    pub partition: Option<Partition>,
 }
 
 /// Places `scene` on `devices`, opened from the listed ones (atoll-dist
@@ -206,7 +214,7 @@ pub fn place_on(
     scene: &Arc<Scene>,
     options: &RenderOptions,
     args: &MultiArgs,
-) -> Result<(Vec<Box<dyn Device>>, Layout), CliError> {
+) -> Result<Placed, CliError> {
     let mut gpus: Vec<usize> =
         args.specs.iter().filter_map(|d| if let DeviceSpec::Cuda(i) = d { Some(*i) } else { None }).collect();
     gpus.sort_unstable();
@@ -259,7 +267,7 @@ pub fn place_on(
     for note in &placement.notes {
         eprintln!("note: {note}");
     }
-    Ok((devices, placement.layout))
+    Ok(Placed { devices, layout: placement.layout, partition: placement.partition.map(|(p, _)| p) })
 }
 
 /// One line saying what was chosen and why (islands as `layout` has

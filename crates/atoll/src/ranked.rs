@@ -170,7 +170,7 @@ fn rank_devices(
                 ..multi_args(args, specs)
             };
             let devices = multi::open_devices(specs, args.device.device_memory, args.threads)?;
-            let (devices, layout) = multi::place_on(devices, scene, options, &several)?;
+            let multi::Placed { devices, layout, .. } = multi::place_on(devices, scene, options, &several)?;
             let description = format!("{} devices", devices.len());
             Ok(RankDevices { devices, layout, description })
         }

@@ -7,6 +7,7 @@
 
 mod display;
 mod http;
+mod ownership;
 mod progressive;
 mod view;
 
@@ -14,7 +15,6 @@ use std::net::{IpAddr, Ipv4Addr, SocketAddr};
 use std::sync::{mpsc, Arc, Mutex};
 
 use atoll_dist::{Layout, Session};
-use atoll_render::Device;
 use atoll_scene::Scene;
 use clap::Args;
 use tokio::sync::watch;
@@ -58,8 +58,11 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
     let address = listener.local_addr().map_err(|e| CliError::Runtime(e.to_string()))?;
 
     let Frame { scene, mut options, output, .. } = load_frame(&args.render, None)?;
-    let (mut devices, layout, description) = open_for_serving(&args.render, &scene, &mut options)?;
+    let (multi::Placed { mut devices, layout, partition }, description) =
+        open_for_serving(&args.render, &scene, &mut options)?;
     let target_samples = options.spp;
+    let frame = atoll_render::FrameContext::new(&scene, options.clone());
+    let ownership = ownership::Ownership::new(scene.clone(), frame, partition);
     let session = Session::prepare(&mut devices, &scene, options, &layout, args.render.ring_transport)
         .map_err(|e| CliError::Runtime(format!("preparing the devices: {e}")))?;
     let orbit = Orbit::new(&scene.settings.camera, scene.world_bounds());
@@ -71,6 +74,7 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
         commands: Arc::new(Mutex::new(commands)),
         token: token.as_deref().map(Arc::from),
         strategy: Arc::from(description.as_str()),
+        ownership: Arc::new(ownership),
         scene: Arc::from(
             args.render.scene.as_ref().map_or("Cornell box".into(), |p| p.display().to_string()),
         ),
@@ -135,28 +139,26 @@ fn random_token() -> Result<String, CliError> {
     Ok(bytes.iter().map(|b| format!("{b:02x}")).collect())
 }
 
-/// Devices placed for serving, and a line saying how.
-type Placed = (Vec<Box<dyn Device>>, Layout, String);
-
-/// The devices `args` name, placed as `atoll render` would place them.
+/// The devices `args` name, placed as `atoll render` would place them,
+/// and a line saying how.
 fn open_for_serving(
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &mut atoll_render::RenderOptions,
-) -> Result<Placed, CliError> {
+) -> Result<(multi::Placed, String), CliError> {
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(args, specs, options);
         let devices = multi::open_devices(specs, args.device.device_memory, args.threads)?;
-        let (devices, layout) = multi::place_on(devices, scene, options, &multi_args(args, specs))?;
-        let line = layout_line(&layout, devices.len());
-        return Ok((devices, layout, line));
+        let placed = multi::place_on(devices, scene, options, &multi_args(args, specs))?;
+        let line = layout_line(&placed.layout, placed.devices.len());
+        return Ok((placed, line));
     }
     let selected = open_device(args, scene, options)?;
     let more = gpu_wavefronts(selected.device.as_ref(), args, scene, options)?;
     let line = format!("{}, {} wavefront(s)", selected.description, more.len() + 1);
     let mut devices = vec![selected.device];
     devices.extend(more);
-    Ok((devices, Layout::Replicate, line))
+    Ok((multi::Placed { devices, layout: Layout::Replicate, partition: None }, line))
 }
 
 fn layout_line(layout: &Layout, devices: usize) -> String {

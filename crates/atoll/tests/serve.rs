@@ -178,6 +178,20 @@ fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
         let (_, brighter) = next_frame(&mut viewer).await;
         assert!(mean_of_jpeg(&brighter) > dark * 1.3, "{} against {dark}", mean_of_jpeg(&brighter));
 
+        // The false-colour view: one device holds everything, one colour.
+        viewer.send(Message::Text(r#"{"type":"ownership","on":true}"#.into())).await.unwrap();
+        let (figures, owned) = next_frame(&mut viewer).await;
+        assert_eq!(figures["view"], "ownership");
+        let owned = image::load_from_memory(&owned).unwrap().to_rgb8();
+        let lit: Vec<&image::Rgb<u8>> = owned.pixels().filter(|p| p[0] > 40).collect();
+        assert!(lit.len() > owned.pixels().len() / 2, "the box fills the view");
+        // The first owner's red (linear 0.9, 0.2, 0.15: about 1.9 times the green in sRGB).
+        let reddish = lit.iter().filter(|p| p[0] as f32 > 1.5 * p[1].max(p[2]) as f32).count();
+        assert!(reddish * 100 >= lit.len() * 95, "{reddish} of {} lit pixels red", lit.len());
+        viewer.send(Message::Text(r#"{"type":"ownership","on":false}"#.into())).await.unwrap();
+        let (figures, _) = next_frame(&mut viewer).await;
+        assert_eq!(figures["view"], "render");
+
         // A move renders the frame again from the moved camera.
         viewer.send(Message::Text(r#"{"type":"display","exposure":0,"curve":"clip"}"#.into())).await.unwrap();
         viewer.send(Message::Text(r#"{"type":"move","yaw":0.3}"#.into())).await.unwrap();
@@ -226,6 +240,27 @@ fn a_move_starts_the_accumulation_again() {
         // Back to the scene's camera: a third accumulation.
         viewer.send(Message::Text(r#"{"type":"reset"}"#.into())).await.unwrap();
         frames_until(&mut viewer, |f| f["epoch"] == 2).await;
+    });
+}
+
+#[test]
+fn a_ring_shows_its_parts_in_their_colours() {
+    let dir = common::scratch("serve", "ring");
+    let args = ["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--res", "48x32", "--spp", "4"];
+    let server = serve(&dir, &args);
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    runtime.block_on(async {
+        let mut viewer = connect(&server.address, "").await.unwrap();
+        let hello = viewer.next().await.unwrap().unwrap();
+        assert!(hello.to_text().unwrap().contains("ring of 2"), "{hello}");
+        viewer.send(Message::Text(r#"{"type":"ownership","on":true}"#.into())).await.unwrap();
+        let frames = frames_until(&mut viewer, |f| f["view"] == "ownership").await;
+        let owned = image::load_from_memory(&frames.last().unwrap().1).unwrap().to_rgb8();
+        // The first part's red and the second's blue (linear 0.15, 0.45, 0.9).
+        let red = owned.pixels().filter(|p| p[0] as f32 > 1.5 * p[1].max(p[2]) as f32).count();
+        let blue = owned.pixels().filter(|p| p[2] as f32 > 1.3 * p[0].max(p[1]) as f32).count();
+        let all = owned.pixels().len();
+        assert!(red * 20 > all && blue * 20 > all, "{red} red and {blue} blue of {all} pixels");
     });
 }
 

@@ -22,6 +22,7 @@ use serde_json::{json, Value};
 use tokio::sync::watch;
 
 use super::display::{Display, ToneCurve};
+use super::ownership::Ownership;
 use super::progressive::{Command, Snapshot};
 use super::view::Move;
 
@@ -41,6 +42,8 @@ pub struct Shared {
     pub token: Option<Arc<str>>,
     /// One line about the devices and strategy, for the page.
     pub strategy: Arc<str>,
+    /// The false-colour view of who holds what.
+    pub ownership: Arc<Ownership>,
     pub scene: Arc<str>,
 }
 
@@ -124,7 +127,7 @@ async fn viewer(State(shared): State<Shared>, upgrade: WebSocketUpgrade) -> Resp
 async fn watch_render(socket: WebSocket, shared: Shared) {
     let (mut sink, mut incoming) = socket.split();
     let mut snapshots = shared.snapshots.clone();
-    let mut display = Display::default();
+    let mut view = View::default();
     let mut redraw = true;
     let mut last_frame: Option<Instant> = None;
     let mut shown_epoch = None;
@@ -147,9 +150,18 @@ async fn watch_render(socket: WebSocket, shared: Shared) {
                 redraw = false;
                 continue;
             }
+            // The ownership view is drawn once per camera.
+            let image = match view.ownership {
+                false => Image::Render(view.display),
+                true if view.ownership_epoch == Some(snapshot.epoch) => Image::None,
+                true => Image::Ownership(shared.ownership.clone()),
+            };
+            if view.ownership {
+                view.ownership_epoch = Some(snapshot.epoch);
+            }
             let encoded = tokio::task::spawn_blocking(move || {
                 let start = Instant::now();
-                let frame = frame_of(&snapshot, display);
+                let frame = frame_of(&snapshot, image);
                 let bytes = frame.1.as_ref().map_or(0, Vec::len);
                 tracing::debug!(
                     "frame of {bytes} bytes encoded in {:.1} ms",
@@ -180,19 +192,43 @@ async fn watch_render(socket: WebSocket, shared: Shared) {
             message = incoming.next() => {
                 let Some(Ok(message)) = message else { return };
                 if let Message::Text(text) = message {
-                    redraw |= act_on(&text, &mut display, &shared);
+                    redraw |= act_on(&text, &mut view, &shared);
                 }
             }
         }
     }
 }
 
-/// The figures of `snapshot` and its image as `display` shows it (none
-/// before the first samples).
-fn frame_of(snapshot: &Snapshot, display: Display) -> (Value, Option<Vec<u8>>) {
-    let jpeg = match snapshot.pixels.is_empty() {
-        true => None,
-        false => display.jpeg(&snapshot.pixels, snapshot.resolution).ok(),
+/// What one viewer asked to see.
+#[derive(Clone, Copy, Debug, Default)]
+struct View {
+    display: Display,
+    /// The false-colour ownership view instead of the render.
+    ownership: bool,
+    /// The camera (epoch) of the ownership view last sent.
+    ownership_epoch: Option<u64>,
+}
+
+/// The image a frame carries.
+enum Image {
+    /// The render, as the viewer's display settings show it.
+    Render(Display),
+    /// The ownership view from the snapshot's camera.
+    Ownership(Arc<Ownership>),
+    /// Figures only (the image sent last still stands).
+    None,
+}
+
+/// The figures of `snapshot` and its image (none before the first samples).
+fn frame_of(snapshot: &Snapshot, image: Image) -> (Value, Option<Vec<u8>>) {
+    let view = if matches!(image, Image::Render(_)) { "render" } else { "ownership" };
+    let jpeg = match image {
+        _ if snapshot.pixels.is_empty() => None,
+        Image::Render(display) => display.jpeg(&snapshot.pixels, snapshot.resolution).ok(),
+        Image::Ownership(ownership) => {
+            Display::default().jpeg(&ownership.view(&snapshot.camera), snapshot.resolution).ok()
+        }
+        Image::None => None,
     };
     let devices: Vec<Value> = snapshot
         .devices
@@ -208,6 +244,7 @@ fn frame_of(snapshot: &Snapshot, display: Display) -> (Value, Option<Vec<u8>>) {
         .collect();
     let figures = json!({
         "type": "frame",
+        "view": view,
         "epoch": snapshot.epoch,
         "samples": snapshot.samples,
         "target_samples": snapshot.target_samples,
@@ -224,15 +261,20 @@ fn frame_of(snapshot: &Snapshot, display: Display) -> (Value, Option<Vec<u8>>) {
 /// Applies a viewer's message; whether its own frame must be drawn again
 /// (display settings changed). Unknown or malformed messages are ignored:
 /// a viewer cannot stop the render.
-fn act_on(text: &str, display: &mut Display, shared: &Shared) -> bool {
+fn act_on(text: &str, view: &mut View, shared: &Shared) -> bool {
     let Ok(message) = serde_json::from_str::<Value>(text) else { return false };
     let number =
         |key: &str| message.get(key).and_then(Value::as_f64).filter(|v| v.is_finite()).unwrap_or(0.0) as f32;
     let command = match message.get("type").and_then(Value::as_str) {
         Some("display") => {
-            display.exposure_ev = number("exposure").clamp(-20.0, 20.0);
-            display.curve =
+            view.display.exposure_ev = number("exposure").clamp(-20.0, 20.0);
+            view.display.curve =
                 message.get("curve").and_then(Value::as_str).and_then(ToneCurve::parse).unwrap_or_default();
+            return true;
+        }
+        Some("ownership") => {
+            view.ownership = message.get("on").and_then(Value::as_bool).unwrap_or(false);
+            view.ownership_epoch = None;
             return true;
         }
         Some("move") => Command::Move(Move {

@@ -12,6 +12,7 @@ use std::time::{Duration, Instant};
 
 use atoll_dist::Session;
 use atoll_render::camera::CameraRays;
+use atoll_scene::Camera;
 use glam::{UVec2, Vec3};
 use tokio::sync::watch;
 
@@ -64,6 +65,8 @@ pub struct Snapshot {
     /// wall clock (snapshots and all) until its last pass.
     pub samples_per_second: f64,
     pub devices: Vec<DeviceRow>,
+    /// The camera these samples are from.
+    pub camera: Camera,
     /// A device failed: the loop has stopped.
     pub error: Option<String>,
 }
@@ -186,6 +189,7 @@ pub fn run(
                 samples_per_second: pixel_count * samples as f64
                     / (last_pass_end - started).as_secs_f64().max(1e-9),
                 devices,
+                camera: orbit.camera(),
                 error: error.clone(),
             };
             viewers.send_replace(Arc::new(snapshot));
