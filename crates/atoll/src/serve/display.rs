@@ -4,8 +4,8 @@
 
 use atoll_render::film::linear_to_srgb;
 use glam::{UVec2, Vec3};
-use image::codecs::jpeg::JpegEncoder;
-use image::ExtendedColorType;
+use jpeg_encoder::{ColorType, Encoder};
+use rayon::prelude::*;
 
 /// How radiance becomes display values in [0, 1].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -59,15 +59,15 @@ impl Display {
     }
 
     /// `pixels` (mean radiance, row-major) as a JPEG.
-    pub fn jpeg(&self, pixels: &[Vec3], resolution: UVec2) -> Result<Vec<u8>, image::ImageError> {
-        let rgb: Vec<u8> = pixels.iter().flat_map(|p| self.srgb8(*p)).collect();
+    pub fn jpeg(&self, pixels: &[Vec3], resolution: UVec2) -> Result<Vec<u8>, String> {
+        let too_big = || format!("{}x{}: JPEG frames end at 65535 pixels a side", resolution.x, resolution.y);
+        let width = u16::try_from(resolution.x).map_err(|_| too_big())?;
+        let height = u16::try_from(resolution.y).map_err(|_| too_big())?;
+        let rgb: Vec<u8> = pixels.par_iter().flat_map_iter(|p| self.srgb8(*p)).collect();
         let mut bytes = Vec::new();
-        JpegEncoder::new_with_quality(&mut bytes, QUALITY).encode(
-            &rgb,
-            resolution.x,
-            resolution.y,
-            ExtendedColorType::Rgb8,
-        )?;
+        Encoder::new(&mut bytes, QUALITY)
+            .encode(&rgb, width, height, ColorType::Rgb)
+            .map_err(|e| e.to_string())?;
         Ok(bytes)
     }
 }
