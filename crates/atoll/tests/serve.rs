@@ -158,6 +158,14 @@ fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
         assert_eq!(last["devices"][0]["name"], "cpu");
         assert_eq!(last["frame_bytes"].as_u64(), Some(jpeg.len() as u64));
         let dark = mean_of_jpeg(jpeg);
+        // Another viewer at the same time sees the same render.
+        let mut second = connect(&server.address, "").await.unwrap();
+        let (figures, _) = next_frame(&mut second).await;
+        assert_eq!(
+            (figures["epoch"].as_u64(), figures["samples"].as_u64()),
+            (Some(0), Some(12)),
+            "{figures}"
+        );
 
         // Saved now, the film is the image `atoll render` writes.
         let (status, body) = http(&server.address, "POST", "/save?format=exr", &[]);
@@ -177,6 +185,7 @@ fn a_viewer_watches_the_render_reach_the_rendered_image_and_moves_the_camera() {
         viewer.send(Message::Text(r#"{"type":"display","exposure":2,"curve":"clip"}"#.into())).await.unwrap();
         let (_, brighter) = next_frame(&mut viewer).await;
         assert!(mean_of_jpeg(&brighter) > dark * 1.3, "{} against {dark}", mean_of_jpeg(&brighter));
+        drop(second);
 
         // The false-colour view: one device holds everything, one colour.
         viewer.send(Message::Text(r#"{"type":"ownership","on":true}"#.into())).await.unwrap();

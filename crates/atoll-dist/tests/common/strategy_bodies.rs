@@ -337,9 +337,9 @@ pub fn islands_of_two_rings_of_two_are_one_device(kind: &Kind) {
 }
 
 /// An interactive view's passes (prepared once, samples rendered a few at
-/// a time) add up to one frame of all their samples, replicating and on a
-/// ring; after the camera moves, the films start again and give the frame
-/// of the moved camera.
+/// a time) add up to one frame of all their samples, replicating, on a
+/// ring and sharing scene memory; after the camera moves, the films start
+/// again and give the frame of the moved camera.
 pub fn passes_of_a_session_add_up_to_one_frame(kind: &Kind) {
     let scene = cornell();
     let opts = kind.options(&scene, 4);
@@ -352,7 +352,12 @@ pub fn passes_of_a_session_add_up_to_one_frame(kind: &Kind) {
     assert!(kind.same_image(&reference, &moved_reference, "moved").is_err(), "the camera moved");
     let rays = atoll_render::camera::CameraRays::new(&moved.settings.camera, opts.resolution);
     let p = partition(&scene, 2, &kind.byte_model(), &PartitionOptions::default()).unwrap();
-    let layouts = [Layout::Replicate, Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread }];
+    let mut layouts =
+        vec![Layout::Replicate, Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread }];
+    if on_hardware_of_their_own(kind, 2) {
+        let spec = SharedSpec { chunk_bytes: kind.shared_chunk, host_tier: false, ..Default::default() };
+        layouts.push(Layout::Shared(spec));
+    }
     for layout in layouts {
         let mut devices = (kind.devices)(2);
         let mut session = Session::prepare(&mut devices, &scene, opts.clone(), &layout, None).unwrap();
