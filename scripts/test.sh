@@ -66,4 +66,4 @@ cargo clippy --workspace --all-targets --locked --features atoll/mpi -- -D warni
 cargo clippy -p atoll --all-targets --locked -- -D warnings
 cargo test --workspace --locked --features atoll/mpi
 # The browser test (ignored where chromium may be missing).
-cargo test -p atoll --locked --features mpi --test serve -- --ignored
+cargo test --workspace --locked --features atoll/mpi --test serve -- --ignored
