@@ -79,14 +79,6 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
             args.render.scene.as_ref().map_or("Cornell box".into(), |p| p.display().to_string()),
         ),
     };
-    let query = token.as_ref().map_or(String::new(), |t| format!("?token={t}"));
-    eprintln!("serving http://{address}/{query}");
-    if address.ip().is_loopback() {
-        eprintln!(
-            "  from elsewhere: ssh -L {0}:localhost:{0} THIS-HOST, then http://localhost:{0}/{query}",
-            address.port()
-        );
-    }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -98,16 +90,38 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
         // Until interrupted; then the viewers' side goes, and with it the
         // commands' sender, which ends the render loop.
         runtime.block_on(async move {
+            // Caught from now on (before the address is printed, so that
+            // whoever reads it may interrupt at once): Ctrl-C or a stop.
+            let signal = |kind| {
+                tokio::signal::unix::signal(kind)
+                    .map_err(|e| CliError::Runtime(format!("catching signals: {e}")))
+            };
+            let mut interrupt = signal(tokio::signal::unix::SignalKind::interrupt())?;
+            let mut terminate = signal(tokio::signal::unix::SignalKind::terminate())?;
             let listener = tokio::net::TcpListener::from_std(listener)
                 .map_err(|e| CliError::Runtime(format!("listening on {address}: {e}")))?;
+            print_address(address, token.as_deref());
             axum::serve(listener, http::router(shared))
-                .with_graceful_shutdown(async {
-                    let _ = tokio::signal::ctrl_c().await;
+                .with_graceful_shutdown(async move {
+                    tokio::select! {
+                        _ = interrupt.recv() => {}
+                        _ = terminate.recv() => {}
+                    }
                 })
                 .await
                 .map_err(|e| CliError::Runtime(format!("serving: {e}")))
         })
     })
+}
+
+/// Where viewers go (and how, from another machine).
+fn print_address(address: SocketAddr, token: Option<&str>) {
+    let query = token.map_or(String::new(), |t| format!("?token={t}"));
+    eprintln!("serving http://{address}/{query}");
+    if address.ip().is_loopback() {
+        let port = address.port();
+        eprintln!("  from elsewhere: ssh -L {port}:localhost:{port} THIS-HOST, then http://localhost:{port}/{query}");
+    }
 }
 
 /// The token requests must carry: `--token`, a random one for `auto`;

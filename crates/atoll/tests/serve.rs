@@ -274,6 +274,21 @@ fn a_ring_shows_its_parts_in_their_colours() {
 }
 
 #[test]
+fn an_interrupt_stops_the_server_and_its_render() {
+    let dir = common::scratch("serve", "interrupt");
+    let mut server =
+        serve(&dir, &["--device", "cpu", "--threads", "1", "--res", "32x24", "--spp", "1000000"]);
+    // SAFETY: a signal to the child this test started (still running: not waited for).
+    assert_eq!(unsafe { libc::kill(server.child.id() as i32, libc::SIGINT) }, 0);
+    let asked = Instant::now();
+    while server.child.try_wait().unwrap().is_none() {
+        assert!(asked.elapsed() < Duration::from_secs(20), "still running 20 s after the interrupt");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(server.child.try_wait().unwrap().unwrap().success());
+}
+
+#[test]
 fn every_request_needs_the_token_when_there_is_one() {
     let dir = common::scratch("serve", "token");
     let server = serve(&dir, &[&["--token", "sesame-1234"], &FRAME[..]].concat());

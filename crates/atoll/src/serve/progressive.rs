@@ -6,7 +6,7 @@
 //! snapshot when they like, and their commands wait for the next pass.
 
 use std::path::PathBuf;
-use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, TryRecvError};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -102,28 +102,35 @@ pub fn run(
     let mut snapshot_seconds = 0f64;
     let mut error: Option<String> = None;
     loop {
-        // Waiting for commands only once there is nothing to render.
+        // Waiting for commands only once there is nothing to render; then
+        // every command that came (a drag sends many moves), in order.
         let idle = session.samples() >= target_samples || error.is_some();
-        let command = match idle {
+        let first = match idle {
             true => match commands.recv_timeout(Duration::from_millis(100)) {
                 Ok(c) => Some(c),
                 Err(RecvTimeoutError::Timeout) => None,
                 Err(RecvTimeoutError::Disconnected) => return,
             },
-            false => match commands.try_recv() {
-                Ok(c) => Some(c),
-                Err(std::sync::mpsc::TryRecvError::Empty) => None,
-                Err(std::sync::mpsc::TryRecvError::Disconnected) => return,
-            },
+            false => None,
         };
-        let mut moved = None;
-        match command {
-            Some(Command::Move(step)) => moved = Some(orbit.moved(step)),
-            Some(Command::Reset) => moved = Some(home.clone()),
-            Some(Command::Save { extension, reply }) => {
-                let _ = reply.send(save(&mut session, &output, extension));
+        let mut pending: Vec<Command> = first.into_iter().collect();
+        loop {
+            match commands.try_recv() {
+                Ok(command) => pending.push(command),
+                Err(TryRecvError::Empty) => break,
+                // The viewers' side is gone (the server stopped).
+                Err(TryRecvError::Disconnected) => return,
             }
-            None => {}
+        }
+        let mut moved = None;
+        for command in pending {
+            match command {
+                Command::Move(step) => moved = Some(moved.as_ref().unwrap_or(&orbit).moved(step)),
+                Command::Reset => moved = Some(home.clone()),
+                Command::Save { extension, reply } => {
+                    let _ = reply.send(save(&mut session, &output, extension));
+                }
+            }
         }
         if let (Some(next), None) = (moved, &error) {
             orbit = next;
@@ -151,7 +158,12 @@ pub fn run(
         let interval = SNAPSHOT_SECONDS.max(snapshot_seconds / SNAPSHOT_SHARE);
         let due = last_snapshot.is_none_or(|t| t.elapsed().as_secs_f64() >= interval);
         let finished = session.samples() >= target_samples;
-        if due || (finished && viewers.borrow().samples != session.samples()) || error.is_some() {
+        // Nothing new since the last snapshot: no read-back.
+        let shown = viewers.borrow();
+        let new = (shown.epoch, shown.samples, shown.error.is_some())
+            != (epoch, session.samples(), error.is_some());
+        drop(shown);
+        if new && (due || finished || error.is_some()) {
             let reading = Instant::now();
             let pixels = match session.film() {
                 Ok(film) => film.pixels(),
