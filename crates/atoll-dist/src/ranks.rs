@@ -335,11 +335,9 @@ impl RankRing {
         let mut all = [0u8; 2];
         let mine = [u8::from(!wanted), u8::from(transport.is_none())];
         self.comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
-        let Some(transport) = transport.filter(|_| all == [0, 0]) else {
-            return Err(match all[0] {
-                1 => "the host transport was asked for".into(),
-                _ => "not every rank of the ring has a GPU with NCCL".into(),
-            });
+        let agreed = transport_vote(all);
+        let Some(transport) = transport.filter(|_| agreed.is_ok()) else {
+            return Err(agreed.err().unwrap_or("this rank has no device transport").into());
         };
         let name = transport.name();
         // The id's length first (0: member 0 could not make one).
@@ -355,20 +353,14 @@ impl RankRing {
         let joined = transport.connect(device, &id, self.place.member, self.place.size);
         let mut all = 0u8;
         self.comm.all_reduce_into(&u8::from(joined.is_ok()), &mut all, SystemOperation::min());
-        match (joined, all) {
-            (Ok(link), 1) => {
-                self.link = Some(Mutex::new(link));
-                Ok(name)
-            }
-            (Err(e), _) => Err(e.to_string()),
-            (Ok(_), _) => Err("another rank of the ring could not join NCCL".into()),
-        }
+        let link = joined_together(joined.map_err(|e| e.to_string()), all == 1)?;
+        self.link = Some(Mutex::new(link));
+        Ok(name)
     }
 
     /// This member's successor and predecessor in the ring's communicator.
     fn neighbours(&self) -> (usize, usize) {
-        let RingPlace { size, member, .. } = self.place;
-        ((member + 1) % size, (member + size - 1) % size)
+        neighbours(self.place)
     }
 
     /// Tells the successor how many records come, and learns how many come
@@ -385,6 +377,35 @@ impl RankRing {
             sleep_until_done(sent);
         });
         theirs as usize
+    }
+}
+
+/// `place`'s successor and predecessor: every step, member m sends to the
+/// first and receives from the second.
+fn neighbours(place: RingPlace) -> (usize, usize) {
+    let RingPlace { size, member, .. } = place;
+    ((member + 1) % size, (member + size - 1) % size)
+}
+
+/// Whether a ring's members link their devices, from the largest of
+/// every member's [asked for the host transport, has no device
+/// transport]: only when no member says either; else why not.
+fn transport_vote(largest: [u8; 2]) -> Result<(), &'static str> {
+    match largest {
+        [0, 0] => Ok(()),
+        [1, _] => Err("the host transport was asked for"),
+        _ => Err("not every rank of the ring has a GPU with NCCL"),
+    }
+}
+
+/// A member's link once every member tried to join: kept only when all
+/// joined (`everyone`), so that no member steps over a link its
+/// neighbour lacks; this member's own failure is said first.
+fn joined_together<L>(mine: Result<L, String>, everyone: bool) -> Result<L, String> {
+    match (mine, everyone) {
+        (Ok(link), true) => Ok(link),
+        (Err(e), _) => Err(e),
+        (Ok(_), false) => Err("another rank of the ring could not join NCCL".into()),
     }
 }
 
@@ -711,4 +732,41 @@ impl WaveHandout for RankWaves {
 /// A barrier that sleeps between looks instead of spinning (see [`POLL`]).
 fn sleeping_barrier(world: &SimpleCommunicator) {
     sleep_until_done(world.immediate_barrier());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each member's send is the receive of the member after it, so every
+    /// step's messages pair up, in rings of any size; a ring of one talks
+    /// to itself.
+    #[test]
+    fn every_send_meets_its_receive() {
+        for size in 1..=5 {
+            let place = |member| RingPlace { size, member, island: 0, order: RingOrder::Spread };
+            for member in 0..size {
+                let (next, prev) = neighbours(place(member));
+                assert_eq!(neighbours(place(next)).1, member, "{member} of {size}");
+                assert_eq!(neighbours(place(prev)).0, member, "{member} of {size}");
+            }
+        }
+    }
+
+    /// Devices link only when every member can and wants to; the host
+    /// being asked for is said before a missing GPU.
+    #[test]
+    fn the_ring_links_devices_only_when_every_member_can() {
+        assert_eq!(transport_vote([0, 0]), Ok(()));
+        assert_eq!(transport_vote([1, 0]), Err("the host transport was asked for"));
+        assert_eq!(transport_vote([1, 1]), Err("the host transport was asked for"));
+        assert_eq!(transport_vote([0, 1]), Err("not every rank of the ring has a GPU with NCCL"));
+    }
+
+    #[test]
+    fn a_link_stands_only_when_every_member_joined() {
+        assert_eq!(joined_together(Ok(7), true), Ok(7));
+        assert_eq!(joined_together(Ok(7), false), Err("another rank of the ring could not join NCCL".into()));
+        assert_eq!(joined_together::<u8>(Err("mine".into()), false), Err("mine".into()));
+    }
 }
