@@ -342,8 +342,21 @@ fn finish_reports(
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
         return Err(e);
     }
-    // Read back at once (several GPUs, or a GPU's wavefronts, each a copy
-    // over PCIe), summed in device order: the same sums every time.
+    let film = summed_film(devices, spp)?;
+    for (d, (device, report)) in devices.iter_mut().zip(reports.iter_mut()).enumerate() {
+        report.stats = device.stats()?;
+        if let Some(ring) = direct.get(d / ring) {
+            // Counted where the records are sent: the host never learns the lengths.
+            report.bytes_sent = ring.bytes_sent(device.as_mut())?;
+        }
+    }
+    Ok(film)
+}
+
+/// The devices' films summed, as `spp` samples per pixel: read back at
+/// once (several GPUs, or a GPU's wavefronts, each a copy over PCIe),
+/// summed in device order (the same sums every time).
+fn summed_film(devices: &mut [Box<dyn Device>], spp: u32) -> Result<Film, DeviceError> {
     let films: Vec<Result<Film, DeviceError>> = std::thread::scope(|scope| {
         let reading: Vec<_> = devices.iter_mut().map(|d| scope.spawn(move || d.film())).collect();
         reading.into_iter().map(|h| h.join().expect("reading a film panicked")).collect()
@@ -354,13 +367,6 @@ fn finish_reports(
         match &mut film {
             Some(film) => film.merge(&mine),
             None => film = Some(mine),
-        }
-    }
-    for (d, (device, report)) in devices.iter_mut().zip(reports.iter_mut()).enumerate() {
-        report.stats = device.stats()?;
-        if let Some(ring) = direct.get(d / ring) {
-            // Counted where the records are sent: the host never learns the lengths.
-            report.bytes_sent = ring.bytes_sent(device.as_mut())?;
         }
     }
     let mut film = film.ok_or_else(|| DeviceError::Other {
@@ -386,6 +392,9 @@ pub struct Session<'d> {
     wave_size: u32,
     /// Samples per pixel in the films since they were last cleared.
     samples: u32,
+    /// Sharing scene memory: per device, its piece of hardware (devices
+    /// keep to their hardware's stripe of the image).
+    hardware: Vec<usize>,
 }
 
 impl<'d> Session<'d> {
@@ -402,6 +411,10 @@ impl<'d> Session<'d> {
         let frame = Arc::new(FrameContext::new(scene, options));
         let ready = ready_frame(devices, scene, &frame, layout, transport, None, &[])?;
         Ok(Session {
+            hardware: match layout {
+                Layout::Shared(_) => hardware_of(devices)?,
+                _ => Vec::new(),
+            },
             workers: workers(layout, devices.len()),
             wave_size: wave_size_for(devices, &frame.options),
             devices,
@@ -441,8 +454,7 @@ impl<'d> Session<'d> {
         let stripes;
         let handout: &dyn WaveHandout = match self.layout {
             Layout::Shared(_) => {
-                let stripe_of = hardware_of(self.devices)?;
-                stripes = StripeHandout::new(&waves, cut.pixel_count(), &stripe_of);
+                stripes = StripeHandout::new(&waves, cut.pixel_count(), &self.hardware);
                 &stripes
             }
             _ => &local,
@@ -468,8 +480,7 @@ impl<'d> Session<'d> {
 
     /// The devices' films summed: `samples()` samples per pixel.
     pub fn film(&mut self) -> Result<Film, DeviceError> {
-        let mut reports = vec![DeviceReport::default(); self.devices.len()];
-        finish_reports(self.devices, &mut reports, &[], self.ready.shape.ring, self.samples)
+        summed_film(self.devices, self.samples)
     }
 
     /// Clears the films for a new accumulation, the camera moved to
