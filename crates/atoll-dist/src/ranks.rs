@@ -31,6 +31,7 @@ use crate::layout::Layout;
 use crate::render::{render_multi_with, DeviceReport, MultiFrame, MultiOutput, Shared};
 use crate::ring::{RingError, RingPeers, RingPlace};
 use crate::transport::read_for_sending;
+use crate::vote::Vote;
 use crate::RingOrder;
 
 /// Tag of a request for a wave (rank ≠ 0 to rank 0).
@@ -236,31 +237,57 @@ impl Ranks {
         sleeping_barrier(&self.world);
     }
 
-    /// Collective: rings of `size` consecutive ranks (rank r is member
-    /// r mod `size` of ring r / `size`), `islands` of them over the same
-    /// ranks, one per wavefront each rank renders with (island k links
-    /// every member's k-th device); queues move between members as MPI
-    /// messages, each island on a communicator of its own. `None` for the
-    /// ranks past the last whole ring. Every rank must ask for the same
-    /// `islands`.
-    pub fn rings(&self, size: usize, order: RingOrder, islands: usize) -> Option<Vec<RankRing>> {
+    /// Collective: rings of `size` consecutive ranks, each rank holding
+    /// `per_rank` consecutive members (its devices; the ring is
+    /// `size * per_rank` long, and a queue visits a rank's members before
+    /// it goes on to the next rank's, as barney's two-level exchange
+    /// does). Rank r is the `r mod size`-th rank of ring `r / size`, its
+    /// device d member `(r mod size) * per_rank + d`. There are `islands`
+    /// rings over the same ranks, one per wavefront each device renders
+    /// with. Returned island by island, a rank's members in order: the
+    /// order of `Layout::Ring`'s devices. Queues move between members as
+    /// MPI messages, each island on a communicator of its own. `None` for
+    /// the ranks past the last whole ring. Every rank must ask for the
+    /// same rings.
+    pub fn rings(
+        &self,
+        size: usize,
+        per_rank: usize,
+        order: RingOrder,
+        islands: usize,
+    ) -> Option<Vec<RankRing>> {
         let rank = self.rank();
-        let ring = rank / size.max(1);
-        let whole = ring < self.size() / size.max(1);
+        let (size, per_rank, islands) = (size.max(1), per_rank.max(1), islands.max(1));
+        let ring = rank / size;
+        let whole = ring < self.size() / size;
         let color = if whole { Color::with_value(ring as i32) } else { Color::undefined() };
         let comm = self.world.split_by_color(color)?;
-        let islands = islands.max(1);
-        let rings = (0..islands)
-            .map(|k| RankRing {
-                // A communicator per island: the islands' steps reuse tags.
-                comm: AnyThread(comm.duplicate()),
-                place: RingPlace { size, member: rank % size, island: ring * islands + k, order },
-                steps: AtomicI32::new(0),
-                outgoing: Mutex::default(),
-                incoming: Mutex::default(),
-                link: None,
-            })
-            .collect();
+        let mut rings = Vec::with_capacity(islands * per_rank);
+        for k in 0..islands {
+            // A communicator per island: the islands' steps reuse tags.
+            let steps = Arc::new(AnyThread(comm.duplicate()));
+            let here = Arc::new(Vote::new(per_rank));
+            for d in 0..per_rank {
+                rings.push(RankRing {
+                    comm: steps.clone(),
+                    // (Collectives on one communicator must not overlap:
+                    // each member votes on its own.)
+                    votes: AnyThread(comm.duplicate()),
+                    here: here.clone(),
+                    per_rank,
+                    place: RingPlace {
+                        size: size * per_rank,
+                        member: (rank % size) * per_rank + d,
+                        island: ring * islands + k,
+                        order,
+                    },
+                    steps: AtomicI32::new(0),
+                    outgoing: Mutex::default(),
+                    incoming: Mutex::default(),
+                    link: None,
+                });
+            }
+        }
         Some(rings)
     }
 
@@ -282,14 +309,23 @@ impl Ranks {
     }
 }
 
-/// One rank's links to the other ranks of its ring (see [`Ranks::rings`]):
-/// queues go to the next rank as MPI messages, each member polling for the
-/// previous one's while its own is on the way; the end-of-frame vote is an
-/// all-reduce over the ring's communicator.
+/// One member's links to the other members of its ring of ranks (see
+/// [`Ranks::rings`]): queues go to the next member as MPI messages (or
+/// device to device, [`RankRing::connect_devices`]), each member polling
+/// for the previous one's while its own is on the way; the end-of-frame
+/// vote is taken among a rank's members, then all-reduced over the ranks.
 /// A ring is stepped by one device thread at a time, but islands step on
 /// threads of their own, so its state is behind locks.
 pub struct RankRing {
-    comm: AnyThread,
+    /// The island's communicator, shared by a rank's members: queues and
+    /// counts.
+    comm: Arc<AnyThread>,
+    /// This member's own duplicate of it: the end-of-frame votes.
+    votes: AnyThread,
+    /// The vote among this rank's members of the island, taken first.
+    here: Arc<Vote>,
+    /// Members per rank.
+    per_rank: usize,
     place: RingPlace,
     /// Steps taken: each one's messages carry its tag, so that a step's
     /// queue is never taken for another's.
@@ -324,25 +360,34 @@ impl std::ops::Deref for AnyThread {
 impl RankRing {
     /// Collective over the ring: where every member's device offers the
     /// same kind of process transport (NCCL between GPUs), member 0 makes
-    /// the link's id, the others receive it over the ring's communicator,
-    /// and all join it; queues then move device to device. Returns the
-    /// transport's name, or why not (queues then stay MPI messages through
-    /// the host).
-    /// Every member calls it, with `wanted` false where the host transport
+    /// the link's id, the other ranks receive it over the ring's
+    /// communicator, and every member joins it; queues then move device to
+    /// device. `members` are this rank's members of one island and
+    /// `devices` theirs, in order. Returns the transport's name, or why not
+    /// (queues then stay MPI messages through the host).
+    /// Every rank calls it, with `wanted` false where the host transport
     /// was asked for (then no member connects).
-    pub fn connect_devices(&mut self, device: &mut dyn Device, wanted: bool) -> Result<&'static str, String> {
-        let transport = device.process_transport().filter(|_| wanted);
+    pub fn connect_devices(
+        members: &mut [RankRing],
+        devices: &mut [Box<dyn Device>],
+        wanted: bool,
+    ) -> Result<&'static str, String> {
+        let Some(first) = members.first() else { return Err("no members on this rank".into()) };
+        let comm = first.comm.clone();
+        let transports: Vec<_> = devices.iter().map(|d| d.process_transport().filter(|_| wanted)).collect();
         let mut all = [0u8; 2];
-        let mine = [u8::from(!wanted), u8::from(transport.is_none())];
-        self.comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
+        let mine = [u8::from(!wanted), u8::from(transports.iter().any(Option::is_none))];
+        comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
         let agreed = transport_vote(all);
-        let Some(transport) = transport.filter(|_| agreed.is_ok()) else {
+        let transports: Option<Vec<_>> = transports.into_iter().collect();
+        let Some(transports) = transports.filter(|_| agreed.is_ok()) else {
             return Err(agreed.err().unwrap_or("this rank has no device transport").into());
         };
-        let name = transport.name();
+        let name = transports[0].name();
         // The id's length first (0: member 0 could not make one).
-        let root = self.comm.process_at_rank(0);
-        let mut id = if self.place.member == 0 { transport.new_id().unwrap_or_default() } else { Vec::new() };
+        let root = comm.process_at_rank(0);
+        let makes_id = members.iter().any(|m| m.place.member == 0);
+        let mut id = if makes_id { transports[0].new_id().unwrap_or_default() } else { Vec::new() };
         let mut len = id.len() as u64;
         root.broadcast_into(&mut len);
         if len == 0 {
@@ -350,33 +395,84 @@ impl RankRing {
         }
         id.resize(len as usize, 0);
         root.broadcast_into(&mut id[..]);
-        let joined = transport.connect(device, &id, self.place.member, self.place.size);
+        // A rank's members join at once: joining waits for every member.
+        let id = &id;
+        let joined: Vec<Result<Box<dyn ProcessLink>, String>> = std::thread::scope(|scope| {
+            let joining: Vec<_> = members
+                .iter()
+                .zip(devices.iter_mut())
+                .zip(&transports)
+                .map(|((member, device), transport)| {
+                    let RingPlace { member, size, .. } = member.place;
+                    scope.spawn(move || transport.connect(device.as_mut(), id, member, size))
+                })
+                .collect();
+            joining
+                .into_iter()
+                .map(|h| h.join().expect("joining NCCL panicked").map_err(|e| e.to_string()))
+                .collect()
+        });
         let mut all = 0u8;
-        self.comm.all_reduce_into(&u8::from(joined.is_ok()), &mut all, SystemOperation::min());
-        let link = joined_together(joined.map_err(|e| e.to_string()), all == 1)?;
-        self.link = Some(Mutex::new(link));
+        comm.all_reduce_into(&u8::from(joined.iter().all(Result::is_ok)), &mut all, SystemOperation::min());
+        let links: Result<Vec<_>, String> =
+            joined.into_iter().map(|link| joined_together(link, all == 1)).collect();
+        for (member, link) in members.iter_mut().zip(links?) {
+            member.link = Some(Mutex::new(link));
+        }
         Ok(name)
     }
 
-    /// This member's successor and predecessor in the ring's communicator.
-    fn neighbours(&self) -> (usize, usize) {
-        neighbours(self.place)
+    /// Where this member's step goes and comes from: the ranks (in the
+    /// ring's communicator) of its successor and predecessor, and the tag
+    /// of `step`'s messages to the successor and from the predecessor.
+    fn route(&self, step: i32) -> Route {
+        route(self.place, self.per_rank, step)
     }
 
     /// Tells the successor how many records come, and learns how many come
     /// from the predecessor.
-    fn swap_counts(&self, sending: usize, step: i32) -> usize {
-        let (next, prev) = self.neighbours();
-        let (next, prev) = (self.comm.process_at_rank(next as i32), self.comm.process_at_rank(prev as i32));
+    fn swap_counts(&self, sending: usize, route: &Route) -> usize {
+        let (next, prev) = (self.comm.process_at_rank(route.next), self.comm.process_at_rank(route.prev));
         let mine = sending as u64;
         let mut theirs = 0u64;
         mpi::request::scope(|scope| {
-            let sent = next.immediate_send_with_tag(scope, &mine, step);
-            let received = prev.immediate_receive_into_with_tag(scope, &mut theirs, step);
+            let sent = next.immediate_send_with_tag(scope, &mine, route.sent_tag);
+            let received = prev.immediate_receive_into_with_tag(scope, &mut theirs, route.received_tag);
             sleep_until_done(received);
             sleep_until_done(sent);
         });
         theirs as usize
+    }
+}
+
+/// A ring step's messages (see [`route`]).
+#[derive(Debug, PartialEq, Eq)]
+struct Route {
+    /// The successor's and predecessor's ranks in the ring's communicator.
+    next: i32,
+    prev: i32,
+    /// The successor's member index, and the predecessor's (the link's ranks).
+    next_member: usize,
+    prev_member: usize,
+    /// Tags of the message sent and of the one received.
+    sent_tag: i32,
+    received_tag: i32,
+}
+
+/// Step `step`'s route for the member at `place` of a ring holding
+/// `per_rank` members on each rank: a member's messages are tagged with
+/// the step and the receiver's place on its rank, so that a rank's
+/// members never take each other's.
+fn route(place: RingPlace, per_rank: usize, step: i32) -> Route {
+    let (next, prev) = neighbours(place);
+    let tag = |member: usize| step * per_rank as i32 + (member % per_rank) as i32;
+    Route {
+        next: (next / per_rank) as i32,
+        prev: (prev / per_rank) as i32,
+        next_member: next,
+        prev_member: prev,
+        sent_tag: tag(next),
+        received_tag: tag(place.member),
     }
 }
 
@@ -420,9 +516,11 @@ impl RingPeers for RankRing {
 
     fn any(&self, mine: bool) -> (bool, Duration) {
         let start = Instant::now();
-        let (mine, mut any) = (mine as u8, 0u8);
+        // This rank's members agree first, then each asks the others' (all
+        // of a rank's members carry the same vote).
+        let (mine, mut any) = (self.here.any(mine).0 as u8, 0u8);
         mpi::request::scope(|scope| {
-            let vote = self.comm.immediate_all_reduce_into(scope, &mine, &mut any, SystemOperation::max());
+            let vote = self.votes.immediate_all_reduce_into(scope, &mine, &mut any, SystemOperation::max());
             sleep_until_done(vote);
         });
         (any != 0, start.elapsed())
@@ -435,15 +533,17 @@ impl RingPeers for RankRing {
         report: &mut DeviceReport,
     ) -> Result<(), RingError> {
         let step = self.steps.load(Ordering::Relaxed);
-        self.steps.store((step + 1) % RING_TAGS, Ordering::Relaxed);
+        // (Every step's tags are the step's members' places: see `route`.)
+        self.steps.store((step + 1) % (RING_TAGS / self.per_rank as i32), Ordering::Relaxed);
+        let route = self.route(step);
         if let Some(link) = &self.link {
             let link = link.lock().unwrap_or_else(|p| p.into_inner());
             // A member whose device failed sends nothing but still steps.
             let sending = report.keep(device.queue_len(queue), 0);
             let waited = Instant::now();
-            let receiving = self.swap_counts(sending, step);
-            let (next, prev) = self.neighbours();
-            let exchanged = link.exchange(device, queue, (sending, next), (receiving, prev));
+            let receiving = self.swap_counts(sending, &route);
+            let exchanged =
+                link.exchange(device, queue, (sending, route.next_member), (receiving, route.prev_member));
             report.keep(exchanged, ());
             report.wait_seconds += waited.elapsed().as_secs_f64();
             report.bytes_sent += (sending * size_of::<RayRecord>()) as u64;
@@ -453,15 +553,14 @@ impl RingPeers for RankRing {
         let mut incoming = self.incoming.lock().unwrap_or_else(|p| p.into_inner());
         read_for_sending(device, queue, &mut outgoing, report);
         let bytes: &[u8] = if outgoing.is_empty() { &EMPTY_QUEUE } else { bytemuck::cast_slice(&outgoing) };
-        let RingPlace { size, member, .. } = self.place;
-        let next = self.comm.process_at_rank(((member + 1) % size) as i32);
-        let prev = self.comm.process_at_rank(((member + size - 1) % size) as i32);
+        let next = self.comm.process_at_rank(route.next);
+        let prev = self.comm.process_at_rank(route.prev);
         let waited = Instant::now();
         mpi::request::scope(|scope| {
-            let sent = next.immediate_send_with_tag(scope, bytes, step);
+            let sent = next.immediate_send_with_tag(scope, bytes, route.sent_tag);
             let mut backoff = Backoff::new();
             let (message, status) = loop {
-                if let Some(probed) = prev.immediate_matched_probe_with_tag(step) {
+                if let Some(probed) = prev.immediate_matched_probe_with_tag(route.received_tag) {
                     break probed;
                 }
                 backoff.wait();
@@ -749,6 +848,37 @@ mod tests {
                 let (next, prev) = neighbours(place(member));
                 assert_eq!(neighbours(place(next)).1, member, "{member} of {size}");
                 assert_eq!(neighbours(place(prev)).0, member, "{member} of {size}");
+            }
+        }
+    }
+
+    /// In rings of ranks holding several members each, a member's message
+    /// goes to the rank holding its successor, with the tag that member
+    /// waits for; a rank's members wait for different tags, and a queue
+    /// visits a rank's members before it crosses to the next rank.
+    #[test]
+    fn every_message_reaches_the_member_that_waits_for_it() {
+        for (ranks, per_rank) in [(1, 1), (2, 1), (1, 3), (2, 2), (3, 2), (2, 4)] {
+            let size = ranks * per_rank;
+            let place = |member| RingPlace { size, member, island: 0, order: RingOrder::Spread };
+            for step in [0, 1, RING_TAGS / per_rank as i32 - 1] {
+                for member in 0..size {
+                    let mine = route(place(member), per_rank, step);
+                    let theirs = route(place(mine.next_member), per_rank, step);
+                    assert_eq!(mine.next, (mine.next_member / per_rank) as i32);
+                    assert_eq!(theirs.prev_member, member);
+                    assert_eq!(theirs.prev, (member / per_rank) as i32, "{member} of {ranks}×{per_rank}");
+                    assert_eq!(theirs.received_tag, mine.sent_tag, "{member} of {ranks}×{per_rank}");
+                    assert!((0..RING_TAGS).contains(&mine.sent_tag));
+                    // Crossing ranks only from a rank's last member.
+                    let crosses = mine.next != (member / per_rank) as i32;
+                    assert_eq!(crosses, ranks > 1 && member % per_rank == per_rank - 1);
+                }
+                let on_rank_0: Vec<i32> =
+                    (0..per_rank).map(|m| route(place(m), per_rank, step).received_tag).collect();
+                let mut distinct = on_rank_0.clone();
+                distinct.dedup();
+                assert_eq!(distinct, on_rank_0);
             }
         }
     }

@@ -226,9 +226,9 @@ pub struct Shared<'a> {
     /// Hands out the frame's waves to every process.
     pub handout: &'a dyn WaveHandout,
     /// Set when this process's devices are members of rings whose other
-    /// members are other processes: per device, its ring's links (one
-    /// ring per device: islands). The layout is then a ring of one part,
-    /// this process's, shared by its devices.
+    /// members are other processes: per device, its ring's links. The
+    /// layout is then a ring of this process's parts, device `i * K + j`
+    /// (K parts) holding part j as a member of island i's ring.
     pub rings: &'a [&'a (dyn RingPeers + Sync)],
 }
 
@@ -565,13 +565,11 @@ fn ready_frame(
             message: "no devices to render on".into(),
         });
     }
-    if !remote.is_empty()
-        && (devices.len() != remote.len()
-            || !matches!(layout, Layout::Ring { parts, .. } if parts.len() == 1))
-    {
+    if !remote.is_empty() && (devices.len() != remote.len() || !matches!(layout, Layout::Ring { .. })) {
         return Err(DeviceError::Other {
             device: "devices".into(),
-            message: "members of rings of processes render one device per ring, all holding one part".into(),
+            message: "members of rings of processes render one device per member, each holding its part"
+                .into(),
         });
     }
     if let Some(needed) = layout.devices() {
@@ -596,7 +594,11 @@ fn ready_frame(
         Layout::Replicate | Layout::Shared(_) => (1, RingOrder::Spread),
         Layout::Ring { parts, order, .. } => (parts.len(), *order),
     };
-    let transport = if ring > 1 { choose_transport(devices, transport)? } else { Transport::Host };
+    // (Rings of processes link their members themselves.)
+    let transport = match ring > 1 && remote.is_empty() {
+        true => choose_transport(devices, transport)?,
+        false => Transport::Host,
+    };
     let shape = RunShape { ring, order, merge: frame.options.merge_waves };
     let direct = match transport {
         Transport::Peer => connect_rings(devices, ring)?,
@@ -605,7 +607,7 @@ fn ready_frame(
     for device in devices.iter_mut() {
         // A ring member waits for its neighbours between stages: time the
         // stages, not the waves, for its busy time.
-        device.time_stages(ring > 1);
+        device.time_stages(ring > 1 || !remote.is_empty());
     }
     let mut warmed = Vec::new();
     if let Some(WarmUp { workers, wave_size }) = warmup {
@@ -636,9 +638,9 @@ fn ready_frame(
         let per_wave = mine.iter().map(|w| w.pixel_count as u64).sum::<u64>() / mine.len().max(1) as u64;
         warmed = vec![(0u64, 0f64); workers];
         for (d, (report, device)) in reports.iter().zip(devices.iter()).enumerate() {
-            // (A process's devices in rings of processes take waves as
-            // workers 0, 1, …)
-            let worker = if remote.is_empty() { report.island } else { d };
+            // (A process's members of rings of processes take waves as
+            // workers 0, 1, … island by island.)
+            let worker = if remote.is_empty() { report.island } else { d / ring };
             if let Some((samples, seconds)) = warmed.get_mut(worker) {
                 *samples += report.waves as u64 * per_wave;
                 *seconds = seconds.max(device.stats()?.busy_seconds);

@@ -73,24 +73,19 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     let places_itself = args.devices.as_ref().is_some_and(|d| d.0.len() > 1) && ring.is_none();
     let ownership = match (ranks.is_root(), places_itself, &args.ownership) {
         (true, false, Some(path)) => {
-            multi::write_ownership(&scene, &options, ring.as_ref().map(|(_, p)| p), path)
+            multi::write_ownership(&scene, &options, ring.as_ref().map(|r| &r.partition), path)
         }
         _ => Ok(()),
     };
     together(ranks, ownership, "write the ownership view")?;
     let layout = match &ring {
-        Some((rings, partition)) => {
-            let place = rings[0].place();
-            Layout::Ring {
-                parts: vec![partition.parts[place.member].clone()],
-                islands: rings.len(),
-                order: place.order,
-            }
+        Some(RankRings { rings, parts, .. }) => {
+            Layout::Ring { parts: parts.clone(), islands: rings.len() / parts.len(), order: args.ring_order }
         }
         None => layout,
     };
     let links: Vec<&(dyn RingPeers + Sync)> = match &ring {
-        Some((rings, _)) => rings.iter().map(|r| r as &(dyn RingPeers + Sync)).collect(),
+        Some(RankRings { rings, .. }) => rings.iter().map(|r| r as &(dyn RingPeers + Sync)).collect(),
         None => Vec::new(),
     };
     if ranks.is_root() {
@@ -209,22 +204,34 @@ fn rings_of_ranks(args: &RenderArgs) -> bool {
     args.ring_ranks.is_some_and(|k| k > 1)
 }
 
+/// This rank's members of rings of ranks, and the parts they hold.
+struct RankRings {
+    /// Island by island, this rank's members of each (see [`Ranks::rings`]).
+    rings: Vec<RankRing>,
+    /// The rings' partition: every member's part.
+    partition: Partition,
+    /// The parts this rank's members hold, in member order.
+    parts: Vec<ScenePart>,
+}
+
 /// The rings of ranks this rank belongs to and the partition of their
 /// parts, when `--ring-ranks` asks for rings or the scene does not fit the
 /// smallest rank's device (`None`: every rank holds the whole scene, or
 /// plans its own `--devices`). Without `--ring-ranks`, rings of ranks need
-/// one device per rank (`--device`, or one listed in `--devices`). Every
-/// device of a rank holds the rank's part, and GPUs add the wavefronts
-/// `--streams` asks for; each of them is the member of a ring of its own
-/// over the same ranks (islands; as many as every rank has). Every rank
-/// calls it at the same point (collectives inside).
+/// one device per rank (`--device`, or one listed in `--devices`). With it,
+/// a rank's `--devices` split the rank's share of the scene (two-level
+/// rings: a queue visits a rank's devices, then the next rank's) in
+/// groups of `--ring-size` (default: the fewest that fit), its further
+/// groups and the wavefronts `--streams` adds to GPUs each the member of a
+/// ring of its own over the same ranks (islands; as many as every rank
+/// has). Every rank calls it at the same point (collectives inside).
 fn rank_ring(
     ranks: &Ranks,
     args: &RenderArgs,
     scene: &Arc<Scene>,
     options: &RenderOptions,
     devices: &mut Vec<Box<dyn Device>>,
-) -> Result<Option<(Vec<RankRing>, Partition)>, CliError> {
+) -> Result<Option<RankRings>, CliError> {
     // What every rank must agree on, gathered first (collectives), so that
     // every rank then plans the same rings. Ranks with `--devices` plan
     // their own: they only say so.
@@ -247,6 +254,9 @@ fn rank_ring(
     let whole = part_bytes(scene, &ScenePart::whole(scene), &model);
     let scenes = ranks.extremes(whole);
     let asked = ranks.extremes(args.ring_ranks.map_or(0, u64::from));
+    // Devices per rank, and the `--ring-size` every rank asked for.
+    let (fewest_devices, _) = ranks.extremes(devices.len() as u64);
+    let sizes = ranks.extremes(args.ring_size.unwrap_or(0) as u64);
 
     if scenes.0 != scenes.1 {
         return Err(CliError::Input(
@@ -255,6 +265,9 @@ fn rank_ring(
     }
     if asked.0 != asked.1 {
         return Err(CliError::Input("--ring-ranks differs between ranks: every rank needs the same".into()));
+    }
+    if sizes.0 != sizes.1 {
+        return Err(CliError::Input("--ring-size differs between ranks: every rank needs the same".into()));
     }
     let n = ranks.size();
     if planning_alone < n as u64 {
@@ -265,30 +278,34 @@ fn rank_ring(
         };
     }
     let budget = (smallest != u64::MAX).then_some(smallest);
-    let k = match (asked.0 as usize, budget) {
-        (0, None) => 1,
-        (0, Some(b)) if whole <= b => 1,
-        // The fewest parts that fit, made a divisor of the ranks.
-        (0, Some(b)) => min_parts(scene, &model, b, n)
-            .and_then(|k| (k..=n).find(|d| n.is_multiple_of(*d)))
-            .ok_or_else(|| {
-            CliError::Runtime(format!(
-                "the scene ({}) does not fit {n} ranks whose smallest device holds {}",
-                fmt_bytes(whole),
-                fmt_bytes(b)
-            ))
-        })?,
-        (k, _) if !n.is_multiple_of(k) => {
-            return Err(CliError::Input(format!("--ring-ranks {k}: must divide the {n} ranks")));
-        }
-        (k, _) => k,
+    // Rings of ranks use a rank's further devices only when asked.
+    let per_rank_devices = if rings_of_ranks(args) { fewest_devices as usize } else { 1 };
+    let fits = |most: usize| match budget {
+        None => Some(1),
+        Some(b) if whole <= b => Some(1),
+        Some(b) => min_parts(scene, &model, b, most),
     };
-    if k == 1 {
+    let shape = RingShape::choose(
+        n,
+        per_rank_devices,
+        (asked.0 as usize, sizes.0 as usize),
+        fits(n * per_rank_devices),
+    )
+    .map_err(|e| match (e, budget) {
+        (RingShapeError::Input(message), _) => CliError::Input(message),
+        (RingShapeError::DoesNotFit, b) => CliError::Runtime(format!(
+            "the scene ({}) does not fit {n} ranks whose smallest device holds {}",
+            fmt_bytes(whole),
+            fmt_bytes(b.unwrap_or(0))
+        )),
+    })?;
+    let RingShape { ranks: k, per_rank } = shape;
+    if k * per_rank == 1 {
         return Ok(None);
     }
     let (partition, kind) = atoll_dist::placement::partition_ring(
         scene,
-        k,
+        k * per_rank,
         &model,
         budget,
         options.resolution,
@@ -296,15 +313,18 @@ fn rank_ring(
         None,
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let islands = ring_wavefronts(ranks, args, scene, options, &partition.parts[ranks.rank() % k], devices)?;
-    let mut rings =
-        ranks.rings(k, args.ring_order, islands).expect("k divides the ranks: every rank is in a ring");
+    let first = ranks.rank() % k * per_rank;
+    let parts = partition.parts[first..first + per_rank].to_vec();
+    let islands = ring_wavefronts(ranks, args, scene, options, &parts, devices)?;
+    let mut rings = ranks
+        .rings(k, per_rank, args.ring_order, islands)
+        .expect("k divides the ranks: every rank is in a ring");
     let wanted = args.ring_transport != Some(atoll_dist::Transport::Host);
     // (In the same order on every rank: joining a ring's link is collective.)
     let transports: Vec<Result<&str, String>> = rings
-        .iter_mut()
-        .zip(devices.iter_mut())
-        .map(|(ring, device)| ring.connect_devices(device.as_mut(), wanted))
+        .chunks_mut(per_rank)
+        .zip(devices.chunks_mut(per_rank))
+        .map(|(members, devices)| RankRing::connect_devices(members, devices, wanted))
         .collect();
     if ranks.is_root() {
         match transports.iter().find(|t| t.is_err()).unwrap_or(&transports[0]) {
@@ -314,44 +334,140 @@ fn rank_ring(
         let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
         eprintln!("partition: {kind}");
         let islands = multi::islands_text(n / k * islands);
-        eprintln!("strategy: rings of {k} ranks ({islands}); parts {}", sizes.join(", "));
+        let members = match per_rank {
+            1 => String::new(),
+            d => format!(" × {d} devices"),
+        };
+        eprintln!("strategy: rings of {k} ranks{members} ({islands}); parts {}", sizes.join(", "));
     }
-    Ok(Some((rings, partition)))
+    Ok(Some(RankRings { rings, partition, parts }))
 }
 
-/// Adds beside this rank's devices (each holding `part`) the further
-/// wavefronts `--streams` asks for, and keeps as many devices as every
-/// rank has: the islands of its rings. A collective; a rank that cannot
-/// open them fails every rank.
+/// How rings of ranks are made: ranks per ring, and members (devices) per
+/// rank, each holding one part.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct RingShape {
+    ranks: usize,
+    per_rank: usize,
+}
+
+#[derive(Debug, PartialEq, Eq)]
+enum RingShapeError {
+    Input(String),
+    DoesNotFit,
+}
+
+impl RingShape {
+    /// The rings for `n` ranks with `devices` each (the fewest any rank
+    /// has), given `--ring-ranks` and `--ring-size` (`asked`, 0 where not
+    /// given) and the fewest parts that fit a device (`None`: none fits):
+    /// what was asked, else the fewest parts that fit, made a divisor of
+    /// the ranks, then of the devices (every rank of a ring in it, every
+    /// member of a rank holding one part).
+    fn choose(
+        n: usize,
+        devices: usize,
+        (asked_ranks, asked_size): (usize, usize),
+        fewest_parts: Option<usize>,
+    ) -> Result<RingShape, RingShapeError> {
+        if asked_ranks > 1 && !n.is_multiple_of(asked_ranks) {
+            return Err(RingShapeError::Input(format!(
+                "--ring-ranks {asked_ranks}: must divide the {n} ranks"
+            )));
+        }
+        if asked_size > devices {
+            return Err(RingShapeError::Input(format!(
+                "--ring-size {asked_size}: more than the {devices} devices of a rank"
+            )));
+        }
+        let ranks = match (asked_ranks, fewest_parts) {
+            (0, None) => return Err(RingShapeError::DoesNotFit),
+            (0, Some(fewest)) => {
+                (fewest.min(n)..=n).find(|k| n.is_multiple_of(*k)).ok_or(RingShapeError::DoesNotFit)?
+            }
+            (k, _) => k,
+        };
+        // Asked-for rings that do not fit fail when their parts are placed.
+        let per_rank = match (asked_size, fewest_parts) {
+            (0, None) => devices,
+            (0, Some(fewest)) => {
+                (1..=devices).find(|d| ranks * d >= fewest && devices.is_multiple_of(*d)).unwrap_or(devices)
+            }
+            (d, _) => d,
+        };
+        match ranks * per_rank >= fewest_parts.unwrap_or(usize::MAX) || asked_ranks > 0 {
+            true => Ok(RingShape { ranks, per_rank }),
+            false => Err(RingShapeError::DoesNotFit),
+        }
+    }
+}
+
+/// Groups this rank's devices (device i holding `parts[i mod D]`) into
+/// islands of D, adding beside each device the further wavefronts
+/// `--streams` asks for, island by island, and keeps as many islands as
+/// every rank has. A collective; a rank that cannot open them fails every
+/// rank. Returns the islands.
 fn ring_wavefronts(
     ranks: &Ranks,
     args: &RenderArgs,
     scene: &Scene,
     options: &RenderOptions,
-    part: &ScenePart,
+    parts: &[ScenePart],
     devices: &mut Vec<Box<dyn Device>>,
 ) -> Result<usize, CliError> {
-    let more: Result<Vec<Box<dyn Device>>, _> = devices.iter().try_fold(Vec::new(), |mut more, device| {
-        more.extend(atoll_dist::placement::more_wavefronts_beside(
-            device.as_ref(),
-            args.waves.streams(),
-            part_bytes(scene, part, &device.byte_model()),
-            options,
-            args.device.device_memory,
-        )?);
-        Ok::<_, atoll_render::DeviceError>(more)
-    });
-    let mine = more.as_ref().map_or(0, |m| (devices.len() + m.len()) as u64);
+    let per_rank = parts.len();
+    let more: Result<Vec<Vec<Box<dyn Device>>>, _> = devices
+        .iter()
+        .enumerate()
+        .map(|(i, device)| {
+            atoll_dist::placement::more_wavefronts_beside(
+                device.as_ref(),
+                args.waves.streams(),
+                part_bytes(scene, &parts[i % per_rank], &device.byte_model()),
+                options,
+                args.device.device_memory,
+            )
+        })
+        .collect();
+    let grouped = more.map(|more| islands_of(std::mem::take(devices), more, per_rank));
+    let mine = grouped.as_ref().map_or(0, |g| (g.len() / per_rank) as u64);
     let (fewest, _) = ranks.extremes(mine);
-    match more {
+    match grouped {
         Err(e) => Err(CliError::Runtime(e.to_string())),
         Ok(_) if fewest == 0 => Err(CliError::Runtime("another rank could not open its wavefronts".into())),
-        Ok(more) => {
-            devices.extend(more);
-            devices.truncate(fewest as usize);
+        Ok(mut grouped) => {
+            grouped.truncate(fewest as usize * per_rank);
+            *devices = grouped;
             Ok(fewest as usize)
         }
     }
+}
+
+/// `devices` in islands of `per_rank` (device i is member i mod
+/// `per_rank` of island i / `per_rank`), each device followed by its
+/// further wavefronts `more[i]` (islands of their own): island by island,
+/// as many as the device with fewest wavefronts of each group allows; the
+/// devices of an incomplete last group are left out.
+fn islands_of<T>(devices: Vec<T>, more: Vec<Vec<T>>, per_rank: usize) -> Vec<T> {
+    let mut out = Vec::new();
+    let mut pairs = devices.into_iter().zip(more).peekable();
+    while pairs.peek().is_some() {
+        let mut group: Vec<(T, Vec<T>)> = pairs.by_ref().take(per_rank).collect();
+        if group.len() < per_rank {
+            break;
+        }
+        let extra = group.iter().map(|(_, m)| m.len()).min().unwrap_or(0);
+        let mut columns: Vec<std::vec::IntoIter<T>> = Vec::with_capacity(per_rank);
+        for (device, mut more) in group.drain(..) {
+            more.truncate(extra);
+            out.push(device);
+            columns.push(more.into_iter());
+        }
+        for _ in 0..extra {
+            out.extend(columns.iter_mut().map(|c| c.next().expect("as many as `extra`")));
+        }
+    }
+    out
 }
 
 /// This rank's rows of the device table, each led by the rank.
@@ -408,4 +524,57 @@ fn byte_model(specs: &[DeviceSpec]) -> ByteModel {
     let cpu = specs.contains(&DeviceSpec::Cpu).then_some(ByteModel::CPU);
     let gpu = specs.iter().any(|s| s.ordinal().is_some()).then(atoll_cuda::scene::byte_model);
     widest_model(cpu.into_iter().chain(gpu))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn shape(ranks: usize, per_rank: usize) -> Result<RingShape, RingShapeError> {
+        Ok(RingShape { ranks, per_rank })
+    }
+
+    /// Rings take the fewest ranks whose parts fit, then the fewest of a
+    /// rank's devices; what was asked for is kept, and what cannot be is
+    /// refused.
+    #[test]
+    fn rings_of_ranks_take_the_fewest_members_that_fit() {
+        // A scene that fits one device: no ring.
+        assert_eq!(RingShape::choose(4, 2, (0, 0), Some(1)), shape(1, 1));
+        // Three parts over four ranks: rings of four (a divisor).
+        assert_eq!(RingShape::choose(4, 1, (0, 0), Some(3)), shape(4, 1));
+        // More parts than ranks: every rank, and its devices split its part.
+        assert_eq!(RingShape::choose(2, 4, (0, 0), Some(3)), shape(2, 2));
+        assert_eq!(RingShape::choose(2, 4, (0, 0), Some(5)), shape(2, 4));
+        // Asked for: rings of 2 ranks, each rank's part fitting one device
+        // (the other devices are islands), or split as asked.
+        assert_eq!(RingShape::choose(4, 2, (2, 0), Some(1)), shape(2, 1));
+        assert_eq!(RingShape::choose(4, 2, (2, 2), Some(1)), shape(2, 2));
+        assert_eq!(RingShape::choose(4, 2, (2, 0), Some(4)), shape(2, 2));
+        // Asked for and not fitting: left to fail where the parts go.
+        assert_eq!(RingShape::choose(2, 1, (1, 0), None), shape(1, 1));
+        // Refused.
+        assert_eq!(RingShape::choose(2, 2, (0, 0), None), Err(RingShapeError::DoesNotFit));
+        assert_eq!(RingShape::choose(2, 2, (0, 0), Some(5)), Err(RingShapeError::DoesNotFit));
+        assert!(
+            matches!(RingShape::choose(3, 1, (2, 0), Some(1)), Err(RingShapeError::Input(m)) if m.contains("must divide the 3 ranks"))
+        );
+        assert!(
+            matches!(RingShape::choose(2, 2, (2, 3), Some(1)), Err(RingShapeError::Input(m)) if m.contains("more than the 2 devices"))
+        );
+    }
+
+    /// Islands of a rank's devices: each group of `per_rank` devices, then
+    /// their wavefronts, one island of them at a time; uneven wavefronts
+    /// are cut to the fewest of their group, and a partial group is left out.
+    #[test]
+    fn wavefronts_form_islands_of_whole_groups() {
+        let more = |n: usize, of: &str| (1..=n).map(|k| format!("{of}.{k}")).collect::<Vec<_>>();
+        let devices = vec!["a".to_string(), "b".into(), "c".into(), "d".into(), "e".into()];
+        let wavefronts = vec![more(2, "a"), more(1, "b"), more(2, "c"), more(2, "d"), more(2, "e")];
+        let islands = islands_of(devices, wavefronts, 2);
+        assert_eq!(islands, ["a", "b", "a.1", "b.1", "c", "d", "c.1", "d.1", "c.2", "d.2"]);
+        let one = islands_of(vec![1, 2], vec![vec![10], vec![20, 21]], 1);
+        assert_eq!(one, [1, 10, 2, 20, 21]);
+    }
 }

@@ -124,7 +124,9 @@ pub struct RenderArgs {
     pub ring_order: RingOrder,
     /// Devices per ring with `--strategy ring` (the scene split into this
     /// many parts; the devices beyond form more islands). Default: the
-    /// fewest that fit `--device-memory`, or all devices without one.
+    /// fewest that fit `--device-memory`, or all devices without one. With
+    /// `--mpi --ring-ranks`: how many of a rank's devices split its share
+    /// (default: the fewest that fit).
     #[arg(long, requires = "devices")]
     pub ring_size: Option<usize>,
     /// How a ring's scene parts are made: auto (measured for rings of 2,
@@ -170,11 +172,15 @@ pub struct RenderArgs {
     /// Needs an atoll built with `--features mpi`.
     #[arg(long)]
     pub mpi: bool,
-    /// With --mpi and one device per rank: ranks per ring, each holding one
-    /// part of the scene, queues cycling between ranks as MPI messages (it
-    /// must divide the ranks; the rings share the waves). Default: 1 (every
-    /// rank holds the whole scene) when the scene fits the smallest rank's
-    /// device, else the fewest ranks whose parts fit.
+    /// With --mpi: ranks per ring, each holding one share of the scene,
+    /// queues cycling between ranks (over NCCL between GPUs, else as MPI
+    /// messages; it must divide the ranks; the rings share the waves). A
+    /// rank's `--devices` each hold its share, or split it (`--ring-size`,
+    /// or where a share would not fit one device): a queue then visits the
+    /// rank's devices before the next rank's. Devices beyond form more
+    /// rings. Default: 1 (every rank holds the whole scene) when the scene
+    /// fits the smallest rank's device, else the fewest ranks whose parts
+    /// fit (one device per rank).
     #[arg(long, requires = "mpi", value_parser = clap::value_parser!(u32).range(1..))]
     pub ring_ranks: Option<u32>,
 }

@@ -251,6 +251,29 @@ fn rings_of_ranks_render_the_image_of_one_process() {
     assert!(stderr.contains("strategy: rings of 2 ranks (1 island)"), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "fewer.exr");
 
+    // Two-level rings: each rank's share split over two of its four
+    // devices, a queue visiting both before it goes on to the other rank;
+    // its other two devices form a second ring (island).
+    let args =
+        [&scene[..], &["--devices", "cpu:4", "--threads", "1", "--ring-ranks", "2", "--ring-size", "2"]]
+            .concat();
+    let out = mpirun(&dir, &[(2, &args)], "two-level.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks × 2 devices (2 islands); parts "), "{stderr}");
+    assert_eq!(stderr.split("; parts ").nth(1).map(|p| p.split(", ").count()), Some(4), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "two-level.exr");
+    let rows = table(&stdout);
+    let places: Vec<(usize, usize, usize)> = rows.iter().map(|r| (r.rank, r.ring, r.member)).collect();
+    let expected = [(0, 0, 0), (0, 0, 1), (0, 1, 0), (0, 1, 1), (1, 0, 2), (1, 0, 3), (1, 1, 2), (1, 1, 3)];
+    assert_eq!(places, expected, "{stdout}");
+    assert!(rows.iter().all(|r| r.sent != "0 B"), "queues went between members: {stdout}");
+    // Every ray is traced by all four members of its ring.
+    for ring in 0..2 {
+        let rays: Vec<&(String, String)> = rows.iter().filter(|r| r.ring == ring).map(|r| &r.rays).collect();
+        assert!(rays.windows(2).all(|w| w[0] == w[1]), "{stdout}");
+    }
+
     // A ring of three, member 0 making and shading every queue, warmed up.
     let args = [
         &scene[..],
@@ -276,6 +299,14 @@ fn a_scene_too_big_for_a_rank_is_split_over_ranks() {
     let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
     assert!(out.status.success(), "{stdout}{stderr}");
     assert!(stderr.contains("strategy: rings of 2 ranks (1 island)"), "{stderr}");
+    assert_same_pixels(&dir, "alone.exr", "split.exr");
+
+    // A part per rank would not fit either: each rank's devices split its share.
+    let devices = ["--devices", "cpu:2", "--threads", "1", "--ring-ranks", "2", "--device-memory", "3K"];
+    let out = mpirun(&dir, &[(2, &devices)], "split.exr");
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
+    assert!(stderr.contains("strategy: rings of 2 ranks × 2 devices (1 island)"), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "split.exr");
 
     // Three ranks cannot form rings of two; ranks must ask for the same rings.
