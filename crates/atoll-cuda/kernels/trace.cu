@@ -129,34 +129,45 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
     const unsigned int n = trace_count(count, device_count, traced);                \
     const SurfaceArgs surface = {surface_params, surface_scene}
 
-// One extern "C" kernel per (query, loop, triangle test).
-#define TRACE_KERNELS(query, any, test, tri)                                                                      \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ww_##test(TRACE_ARGS) {          \
-        TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, LOOP_WHILE_WHILE>(v, records, hits, n, surface);                                                            \
-    }                                                                                                             \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_sp_##test(TRACE_ARGS) {          \
-        TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, LOOP_SPECULATIVE>(v, records, hits, n, surface);                                                             \
-    }                                                                                                             \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_pt_##test(TRACE_ARGS) {          \
-        TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, LOOP_WHILE_WHILE>(v, records, hits, n, work, surface);                                                \
-    }                                                                                                             \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptsp_##test(TRACE_ARGS) {        \
-        TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, LOOP_SPECULATIVE>(v, records, hits, n, work, surface);                                                 \
-    }                                                                                                             \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_cw_##test(TRACE_ARGS) {          \
-        TRACE_VIEW;                                                                                               \
-        trace_grid<tri, any, LOOP_WIDE>(v, records, hits, n, surface);                                            \
-    }                                                                                                             \
-    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_ptcw_##test(TRACE_ARGS) {        \
-        TRACE_VIEW;                                                                                               \
-        trace_persistent<tri, any, LOOP_WIDE>(v, records, hits, n, work, surface);                                \
+// One extern "C" kernel per (query, loop, triangle test). A module holds
+// the loops ATOLL_TRACE_LOOPS names (a bit per loop, in the order of
+// `TraversalVariant::ALL`: ww, pt, sp, ptsp, cw, ptcw; default all): a frame
+// traces with one, and each costs as much compile time as the others.
+#ifndef ATOLL_TRACE_LOOPS
+#define ATOLL_TRACE_LOOPS 0x3f
+#endif
+#define TRACE_GRID_KERNEL(query, any, test, tri, name, loop)                                         \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_##name##_##test(TRACE_ARGS) { \
+        TRACE_VIEW;                                                                                  \
+        trace_grid<tri, any, loop>(v, records, hits, n, surface);                                    \
     }
+#define TRACE_PERSISTENT_KERNEL(query, any, test, tri, name, loop)                                   \
+    extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_##name##_##test(TRACE_ARGS) { \
+        TRACE_VIEW;                                                                                  \
+        trace_persistent<tri, any, loop>(v, records, hits, n, work, surface);                        \
+    }
+// Both queries with both triangle tests, for one loop.
+#define TRACE_LOOP(kernel, name, loop)                          \
+    kernel(closest, false, exact, TRI_EXACT, name, loop)        \
+    kernel(closest, false, woop, TRI_WOOP, name, loop)          \
+    kernel(any, true, exact, TRI_EXACT, name, loop)             \
+    kernel(any, true, woop, TRI_WOOP, name, loop)
 
-TRACE_KERNELS(closest, false, exact, TRI_EXACT)
-TRACE_KERNELS(closest, false, woop, TRI_WOOP)
-TRACE_KERNELS(any, true, exact, TRI_EXACT)
-TRACE_KERNELS(any, true, woop, TRI_WOOP)
+#if ATOLL_TRACE_LOOPS & 1
+TRACE_LOOP(TRACE_GRID_KERNEL, ww, LOOP_WHILE_WHILE)
+#endif
+#if ATOLL_TRACE_LOOPS & 2
+TRACE_LOOP(TRACE_PERSISTENT_KERNEL, pt, LOOP_WHILE_WHILE)
+#endif
+#if ATOLL_TRACE_LOOPS & 4
+TRACE_LOOP(TRACE_GRID_KERNEL, sp, LOOP_SPECULATIVE)
+#endif
+#if ATOLL_TRACE_LOOPS & 8
+TRACE_LOOP(TRACE_PERSISTENT_KERNEL, ptsp, LOOP_SPECULATIVE)
+#endif
+#if ATOLL_TRACE_LOOPS & 16
+TRACE_LOOP(TRACE_GRID_KERNEL, cw, LOOP_WIDE)
+#endif
+#if ATOLL_TRACE_LOOPS & 32
+TRACE_LOOP(TRACE_PERSISTENT_KERNEL, ptcw, LOOP_WIDE)
+#endif

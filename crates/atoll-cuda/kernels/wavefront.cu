@@ -27,6 +27,17 @@
 #include "camera.cuh"
 #include "surface.cuh"
 
+// Which kernels a module holds: all (the default), or, for a frame's two
+// modules compiled at once (src/device.rs), the shading kernels alone
+// (ATOLL_WAVEFRONT_KERNELS=1, `surface` and `shade`, specialised to the
+// frame's features) or the queue bookkeeping alone (=2). The shading kernels
+// are most of the compile time, and the bookkeeping needs no specialising.
+#ifndef ATOLL_WAVEFRONT_KERNELS
+#define ATOLL_WAVEFRONT_KERNELS 0
+#endif
+#define WAVEFRONT_SHADING (ATOLL_WAVEFRONT_KERNELS != 2)
+#define WAVEFRONT_BOOKKEEPING (ATOLL_WAVEFRONT_KERNELS != 1)
+
 __device__ __forceinline__ unsigned int global_index() { return blockIdx.x * blockDim.x + threadIdx.x; }
 
 __device__ __forceinline__ unsigned int lane_id() {
@@ -58,6 +69,7 @@ __device__ __forceinline__ void film_add(float* film, unsigned int pixel, float3
     atomicAdd(px + 2, c.z);
 }
 
+#if WAVEFRONT_BOOKKEEPING
 // ---------------------------------------------------------------------------
 // generate (stages/generate.rs)
 // ---------------------------------------------------------------------------
@@ -133,6 +145,9 @@ extern "C" __global__ void refill_generate(const FrameParams* __restrict__ param
     }
 }
 
+#endif  // WAVEFRONT_BOOKKEEPING
+
+#if WAVEFRONT_SHADING
 // ---------------------------------------------------------------------------
 // surface (cpu.rs `write_hit`)
 // ---------------------------------------------------------------------------
@@ -362,6 +377,9 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
     }
 }
 
+#endif  // WAVEFRONT_SHADING
+
+#if WAVEFRONT_BOOKKEEPING
 // ---------------------------------------------------------------------------
 // resolve_shadows (cpu.rs `resolve_shadows`) and queue bookkeeping
 // ---------------------------------------------------------------------------
@@ -385,3 +403,4 @@ extern "C" __global__ void reset_queue_counts(unsigned int* next_count, unsigned
         *shadow_count = 0;
     }
 }
+#endif  // WAVEFRONT_BOOKKEEPING

@@ -93,10 +93,32 @@ struct Kernels {
 impl Kernels {
     fn load(gpu: &Gpu, frame: &FrameContext) -> Result<Self, CudaError> {
         Ok(Kernels {
-            shade: gpu.function_with(WAVEFRONT, "shade", &shade_features(frame))?,
-            resolve_shadows: gpu.function(WAVEFRONT, "resolve_shadows")?,
+            shade: gpu.function_with(WAVEFRONT, "shade", &shading_options(frame))?,
+            resolve_shadows: gpu.function_with(WAVEFRONT, "resolve_shadows", &bookkeeping_options())?,
         })
     }
+}
+
+/// The wavefront module of the shading kernels, specialised to `frame`.
+fn shading_options(frame: &FrameContext) -> Vec<String> {
+    let mut options = vec!["-DATOLL_WAVEFRONT_KERNELS=1".to_string()];
+    options.extend(shade_features(frame));
+    options
+}
+
+/// The wavefront module of the queue bookkeeping (the same for every frame).
+fn bookkeeping_options() -> Vec<String> {
+    vec!["-DATOLL_WAVEFRONT_KERNELS=2".to_string()]
+}
+
+/// Every kernel module a frame loads on a GPU (file, extra options), to be
+/// compiled at once ([`Gpu::compile_ahead`]) when preparing starts.
+fn frame_modules(frame: &FrameContext) -> Vec<(&'static str, Vec<String>)> {
+    let trace = TraceFeatures::of(frame).defines(trace::TraversalVariant::default());
+    let mut modules =
+        vec![(WAVEFRONT, shading_options(frame)), ("trace.cu", trace), (WAVEFRONT, bookkeeping_options())];
+    modules.extend(bvh::BUILD_FILES.iter().map(|&file| (file, Vec::new())));
+    modules
 }
 
 /// The `shade` kernel is specialised to the frame: material kinds no
@@ -453,8 +475,9 @@ impl CudaDevice {
         let params_bytes = FrameTables::build(frame).bytes() + std::mem::size_of::<SceneView>() as u64;
         let frame_bytes = queues_and_film_bytes(options) + params_bytes;
 
-        // Compile (or load from the cache) before the clock of the first wave starts.
-        let kernels = Kernels::load(&gpu, frame)?;
+        // Compiled (or loaded from the cache) while the scene goes up and
+        // its BVH is built, and before the clock of the first wave starts.
+        gpu.compile_ahead(frame_modules(frame));
         let start = Instant::now();
         let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
         gpu.synchronize()?;
@@ -468,6 +491,7 @@ impl CudaDevice {
         let scene_view =
             gpu.stream.clone_htod(&view).map_err(CudaError::driver("uploading the scene view"))?;
         let shared = Arc::new(SceneOnGpu::own(gpu_scene, bvh, params, scene_view));
+        let kernels = Kernels::load(&gpu, frame)?;
         let mut stats = self.make_resident(frame, shared, kernels, capacity)?;
         stats.scene_bytes = {
             let s = &self.resident()?.scene;
@@ -503,7 +527,7 @@ impl CudaDevice {
                 .map_err(CudaError::driver(format!("{}: allocating the {what} counter", gpu.label())))
         };
         let (traced_paths, traced_shadows) = (counter("traced paths")?, counter("traced shadows")?);
-        let work = WorkFeed::new(&gpu, WAVEFRONT)?;
+        let work = WorkFeed::new(&gpu, (WAVEFRONT, &bookkeeping_options()))?;
         gpu.synchronize()?;
         let stats = PrepareStats {
             frame_bytes: queues_and_film_bytes(options) + shared.params.bytes(),
@@ -559,6 +583,7 @@ impl CudaDevice {
                 scene_view,
                 window: Some(window),
             });
+            gpu.compile_ahead(frame_modules(frame));
             let kernels = Kernels::load(&gpu, frame)?;
             let mut stats = d.make_resident(frame, shared, kernels, frame.options.queue_capacity())?;
             let counts = gpu
@@ -615,7 +640,8 @@ impl CudaDevice {
             (w.base(*d), w.bytes(), w.chunk_bytes())
         };
         let counts = access.counts.device_ptr(&gpu.stream).0;
-        let module = gpu.module_with("trace.cu", &r.trace_features.defines())?;
+        let module =
+            gpu.module_with("trace.cu", &r.trace_features.defines(trace::TraversalVariant::default()))?;
         for (name, value) in [
             ("atoll_access_counts", counts),
             ("atoll_window_base", base),

@@ -349,6 +349,25 @@ impl Gpu {
         Ok(module)
     }
 
+    /// Starts compiling `modules` (kernel file, extra options as for
+    /// [`Gpu::module_with`]) at once, each on a thread of its own, and
+    /// returns: NVRTC compiles one program per thread, and a frame's
+    /// modules compiled one after the other took several times as long as
+    /// the longest of them. A later [`Gpu::module_with`] of one of them
+    /// waits for its compilation to finish; one that failed is compiled
+    /// again there, which reports the error.
+    pub(crate) fn compile_ahead(&self, modules: Vec<(&'static str, Vec<String>)>) {
+        for (file, extra) in modules {
+            let mut options = self.compile_options.clone();
+            options.extra.extend(extra);
+            std::thread::spawn(move || {
+                if let Err(e) = compile_once(file, &options) {
+                    tracing::debug!("compiling {file} ahead: {e}");
+                }
+            });
+        }
+    }
+
     /// Kernel `name` of kernel file `file` (an `extern "C" __global__` function).
     pub fn function(&self, file: &str, name: &str) -> Result<CudaFunction, CudaError> {
         self.function_with(file, name, &[])

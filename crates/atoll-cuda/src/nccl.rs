@@ -26,7 +26,23 @@ pub fn nccl_present() -> bool {
 
 /// Maps an NCCL failure to an error saying what was being done.
 pub(crate) fn nccl(what: &'static str) -> impl Fn(cudarc::nccl::result::NcclError) -> CudaError {
-    move |e| CudaError::Usage(format!("NCCL {what}: {e:?}"))
+    move |e| {
+        // NCCL's own account of the last failure (say, two ranks of one
+        // communicator on one GPU), where it has one.
+        // SAFETY: NCCL is loaded (an NCCL call just failed); a null
+        // communicator asks for the process's last error, a string NCCL
+        // owns and keeps.
+        let last = unsafe { sys::ncclGetLastError(std::ptr::null_mut()) };
+        let detail = match last.is_null() {
+            true => String::new(),
+            // SAFETY: non-null, NUL-terminated (as above).
+            false => unsafe { std::ffi::CStr::from_ptr(last) }.to_string_lossy().trim().to_string(),
+        };
+        match detail.is_empty() {
+            true => CudaError::Usage(format!("NCCL {what}: {:?}", e.0)),
+            false => CudaError::Usage(format!("NCCL {what}: {:?}: {detail}", e.0)),
+        }
+    }
 }
 
 /// The bytes of a communicator's unique id, as they travel between

@@ -54,9 +54,11 @@ impl TraceFeatures {
         }
     }
 
-    /// The NVRTC defines of the module.
-    pub(crate) fn defines(self) -> Vec<String> {
+    /// The NVRTC defines of the module holding `variant`'s kernels (a
+    /// module per variant: a frame compiles only the one it traces with).
+    pub(crate) fn defines(self, variant: TraversalVariant) -> Vec<String> {
         let mut defines = vec![
+            format!("-DATOLL_TRACE_LOOPS={}", variant.loop_bit()),
             format!("-DATOLL_TRACE_ALPHA={}", self.alpha as u32),
             format!("-DATOLL_WITH_TEXTURES={}", self.textures as u32),
         ];
@@ -101,6 +103,13 @@ impl TraversalVariant {
         TraversalVariant::Wide,
         TraversalVariant::PersistentWide,
     ];
+
+    /// The variant's bit in `ATOLL_TRACE_LOOPS` (kernels/trace.cu): its
+    /// place in [`TraversalVariant::ALL`].
+    fn loop_bit(self) -> u32 {
+        let place = Self::ALL.iter().position(|v| *v == self).expect("every variant is in ALL");
+        1 << place
+    }
 
     /// Short name (kernel suffix and report column).
     pub fn name(self) -> &'static str {
@@ -176,7 +185,7 @@ impl Tracer {
         let function = match self.kernels.iter().find(|(k, _)| *k == key) {
             Some((_, f)) => f.clone(),
             None => {
-                let f = gpu.function_with(FILE, name, &features.defines())?;
+                let f = gpu.function_with(FILE, name, &features.defines(variant))?;
                 self.kernels.push((key.clone(), f.clone()));
                 f
             }

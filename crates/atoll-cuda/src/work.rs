@@ -104,11 +104,11 @@ struct WorkKernels {
 }
 
 impl WorkKernels {
-    fn load(gpu: &Gpu, file: &str) -> Result<Self, CudaError> {
+    fn load(gpu: &Gpu, (file, extra): (&str, &[String])) -> Result<Self, CudaError> {
         Ok(WorkKernels {
-            push: gpu.function(file, "push_work")?,
-            claim: gpu.function(file, "refill_claim")?,
-            generate: gpu.function(file, "refill_generate")?,
+            push: gpu.function_with(file, "push_work", extra)?,
+            claim: gpu.function_with(file, "refill_claim", extra)?,
+            generate: gpu.function_with(file, "refill_generate", extra)?,
         })
     }
 }
@@ -147,8 +147,10 @@ pub(crate) const FEED_BYTES: u64 =
 
 impl WorkFeed {
     /// A feed whose kernels come from `file` (the wavefront kernels).
-    pub(crate) fn new(gpu: &Gpu, file: &str) -> Result<Self, CudaError> {
-        let kernels = WorkKernels::load(gpu, file)?;
+    /// The feed, its kernels from kernel file `module.0` compiled with the
+    /// options `module.1`.
+    pub(crate) fn new(gpu: &Gpu, module: (&str, &[String])) -> Result<Self, CudaError> {
+        let kernels = WorkKernels::load(gpu, module)?;
         let what = |w: &str| format!("{}: allocating the work {w}", gpu.label());
         let fifo = gpu.stream.alloc_zeros(1).map_err(CudaError::driver(what("FIFO")))?;
         let status = gpu.stream.alloc_zeros(1).map_err(CudaError::driver(what("status")))?;

@@ -133,3 +133,44 @@ fn compile_errors_carry_the_file_and_log() {
         other => panic!("expected a compile error, got {other:?}"),
     }
 }
+
+/// The modules a frame compiles hold only their kernels: the wavefront
+/// file's shading and bookkeeping halves, and one traversal loop of the
+/// trace file per module (its four kernels), so that a frame compiles only
+/// what it launches.
+#[test]
+fn frame_modules_hold_only_their_kernels() {
+    if !nvrtc_or_skip("frame modules") {
+        return;
+    }
+    let entries = |file: &str, define: &str| -> Vec<String> {
+        let mut options = CompileOptions::ptx(ARCH);
+        options.extra.push(define.into());
+        let compiled = compile_with_cache(file, &options, None).unwrap_or_else(|e| panic!("{file} {define}: {e}"));
+        let ptx = String::from_utf8(compiled.image).expect("PTX is text");
+        let mut names: Vec<String> = ptx
+            .lines()
+            .filter_map(|l| l.split(".entry ").nth(1))
+            .map(|rest| rest.trim_end_matches(['(', ' ']).to_string())
+            .collect();
+        names.sort();
+        names
+    };
+    assert_eq!(entries("wavefront.cu", "-DATOLL_WAVEFRONT_KERNELS=1"), ["shade", "surface"]);
+    assert_eq!(
+        entries("wavefront.cu", "-DATOLL_WAVEFRONT_KERNELS=2"),
+        ["push_work", "refill_claim", "refill_generate", "reset_queue_counts", "resolve_shadows"]
+    );
+    let mut all = Vec::new();
+    for (bit, name) in ["ww", "pt", "sp", "ptsp", "cw", "ptcw"].iter().enumerate() {
+        let mine = entries("trace.cu", &format!("-DATOLL_TRACE_LOOPS={}", 1 << bit));
+        let expected: Vec<String> = ["any", "closest"]
+            .iter()
+            .flat_map(|q| ["exact", "woop"].map(|t| format!("trace_{q}_{name}_{t}")))
+            .collect();
+        assert_eq!(mine, expected, "loop {name}");
+        all.extend(mine);
+    }
+    all.sort();
+    assert_eq!(entries("trace.cu", "-DATOLL_TRACE_LOOPS=63"), all, "every loop's kernels, once");
+}

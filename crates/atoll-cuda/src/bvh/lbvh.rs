@@ -12,7 +12,7 @@ use super::BuildOptions;
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu};
 
-const FILE: &str = "lbvh.cu";
+pub(super) const FILE: &str = "lbvh.cu";
 /// Threads per block of the build kernels (BUILD_THREADS in lbvh.cu).
 pub(crate) const THREADS: u32 = 256;
 /// Primitives per block of the box kernels (BUILD_THREADS * BOX_ITEMS).

@@ -42,6 +42,10 @@ use crate::trace::Tracer;
 use layout::{LEAF_FIRST_BITS, LINK_DONE, MAX_LEAF_PRIMS};
 use lbvh::{launch_err, BuildArrays, LbvhKernels, Phases, THREADS};
 
+/// The kernel files a BVH build on the GPU loads (compiled ahead with a
+/// frame's other modules, [`crate::gpu::Gpu::compile_ahead`]).
+pub(crate) const BUILD_FILES: [&str; 3] = [lbvh::FILE, sort::FILE, "treelet.cu"];
+
 /// How the GPU BVH is built.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BuildOptions {

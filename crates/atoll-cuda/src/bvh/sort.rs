@@ -20,7 +20,7 @@ const THREADS: u32 = 256;
 pub(crate) const SORT_TILE: u32 = 4096;
 /// Elements per scan tile (SCAN_TILE in sort.cu).
 pub(crate) const SCAN_TILE: u32 = 2048;
-const FILE: &str = "sort.cu";
+pub(super) const FILE: &str = "sort.cu";
 
 /// One radix pass: the 8 bits at `shift` of the key, or of the segment of
 /// the value (a primitive index) when `from_segment`.
