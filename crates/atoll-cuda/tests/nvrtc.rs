@@ -146,7 +146,8 @@ fn frame_modules_hold_only_their_kernels() {
     let entries = |file: &str, define: &str| -> Vec<String> {
         let mut options = CompileOptions::ptx(ARCH);
         options.extra.push(define.into());
-        let compiled = compile_with_cache(file, &options, None).unwrap_or_else(|e| panic!("{file} {define}: {e}"));
+        let compiled =
+            compile_with_cache(file, &options, None).unwrap_or_else(|e| panic!("{file} {define}: {e}"));
         let ptx = String::from_utf8(compiled.image).expect("PTX is text");
         let mut names: Vec<String> = ptx
             .lines()

@@ -1,6 +1,10 @@
 //! `atoll bench`: BVH build and traversal speed on a generated scene, and
-//! path-tracing speed on the Cornell box.
+//! path-tracing speed on the Cornell box; or traversal speed on any scene
+//! atoll loads (`atoll bench SCENE`), its rays written out for other ray
+//! tracers on request (`--export`, read by scripts/bench-embree.py and
+//! scripts/bench-mitsuba.py).
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use atoll_dist::Layout;
@@ -15,6 +19,22 @@ use crate::CliError;
 
 #[derive(Args)]
 pub struct BenchArgs {
+    /// Measure traversal on this scene (a file, or a built-in scene such as
+    /// `landscape:100`, as `atoll render` takes it) instead of the
+    /// generated one: primary rays through its camera, and from every
+    /// primary hit a shadow and a diffuse ray. The Cornell-box path-tracing
+    /// run is left out.
+    pub scene: Option<PathBuf>,
+    /// Primary rays, WxH. Default: the scene's film resolution (2048x2048
+    /// on the GPU for the generated scene).
+    #[arg(long, value_parser = crate::render::parse_resolution)]
+    pub res: Option<UVec2>,
+    /// Write the traversal scene's triangles (world space) and its three
+    /// ray batches to DIR as little-endian f32 (`triangles.f32`: N × 9;
+    /// `primary.f32`, `shadow.f32`, `diffuse.f32`: M × 7 of origin,
+    /// direction, t_max), for other ray tracers to trace the same rays.
+    #[arg(long, value_name = "DIR")]
+    pub export: Option<PathBuf>,
     /// Triangles in the generated traversal scene (at most 2^28: some
     /// 20 GiB with its BVH).
     #[arg(long, default_value_t = 2_000_000,
@@ -27,7 +47,9 @@ pub struct BenchArgs {
     #[arg(long)]
     pub no_traversal: bool,
     /// Trace the flattened scene (every triangle unique) instead of the
-    /// instanced one (on the CPU the flattened one is always used).
+    /// instanced one (on the CPU the generated scene is always flattened;
+    /// with SCENE, the scene's instances are expanded into world space, as
+    /// `--export` writes them).
     #[arg(long)]
     pub flat: bool,
     /// Path-tracing runs after an untimed 1-spp warm-up; the median is reported.
@@ -75,6 +97,9 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
     let selected = select(&args.device, None)?;
     if args.queue_copy {
         return queue_copies(&args, selected);
+    }
+    if let Some(path) = &args.scene {
+        return scene_traversal(&args, path, &selected);
     }
     if !args.no_traversal {
         step(
@@ -147,6 +172,57 @@ pub fn run(args: BenchArgs) -> Result<(), CliError> {
         runs.len(),
         selected.description
     );
+    Ok(())
+}
+
+/// Traversal speed on the scene at `path` (CPU or GPU, as selected), its
+/// rays first written out with `--export`.
+fn scene_traversal(
+    args: &BenchArgs,
+    path: &std::path::Path,
+    selected: &crate::device::Selected,
+) -> Result<(), CliError> {
+    let start = std::time::Instant::now();
+    let mut scene = crate::load::load_scene(Some(path))?;
+    if args.flat {
+        scene = atoll_scene::procedural::flatten(&scene);
+    }
+    let stats = scene.stats();
+    step(
+        args,
+        format_args!(
+            "{}: {} unique triangles, {} instanced, loaded in {:.2} s; traversal on {}",
+            path.display(),
+            stats.unique_triangles,
+            stats.instanced_triangles,
+            start.elapsed().as_secs_f64(),
+            selected.description
+        ),
+    );
+    let resolution = args.res.unwrap_or(scene.settings.film.resolution);
+    if let Some(dir) = &args.export {
+        let options = atoll_bvh::bench::BenchOptions { resolution: Some(resolution), ..Default::default() };
+        atoll_bvh::bench::export_bench_data(&scene, &options, dir)
+            .map_err(|e| CliError::Runtime(format!("{}: {e}", dir.display())))?;
+        step(args, format_args!("triangles and rays written to {}", dir.display()));
+    }
+    match &selected.gpu {
+        Some(gpu) => {
+            let options = atoll_cuda::bench::GpuBenchOptions {
+                resolution,
+                build_scenes: Vec::new(),
+                ..Default::default()
+            };
+            let report = atoll_cuda::bench::run(gpu, &scene, &options)
+                .map_err(|e| CliError::Runtime(e.to_string()))?;
+            println!("{report}");
+        }
+        None => {
+            let options =
+                atoll_bvh::bench::BenchOptions { resolution: Some(resolution), ..Default::default() };
+            println!("{}", atoll_bvh::bench::run_traversal_bench(&scene, &options));
+        }
+    }
     Ok(())
 }
 

@@ -185,7 +185,7 @@ pub struct RenderArgs {
     pub ring_ranks: Option<u32>,
 }
 
-fn parse_resolution(s: &str) -> Result<UVec2, String> {
+pub(crate) fn parse_resolution(s: &str) -> Result<UVec2, String> {
     let (w, h) = s.split_once(['x', 'X']).ok_or("expected WxH, e.g. 512x512")?;
     let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
     FilmSettings::check_resolution(parse(w)? as u64, parse(h)? as u64)

@@ -289,3 +289,43 @@ fn a_generated_scene_that_cannot_fit_is_refused_before_it_is_built() {
     );
     assert!(out.status.success(), "{}", stderr(&out));
 }
+
+/// `atoll bench SCENE` traces the scene's own rays and writes them out
+/// for other ray tracers: as many primary rays as `--res` asks, one shadow
+/// and one diffuse ray per primary hit, and every instanced triangle once;
+/// the report's hit counts are those rays'. A missing scene is an input
+/// error.
+#[test]
+fn bench_traces_a_scene_and_exports_its_rays() {
+    let dir = scratch("bench-scene");
+    let out =
+        atoll(&dir, &["bench", "landscape:1", "--device", "cpu", "--res", "40x30", "--export", "rays", "-q"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report = String::from_utf8_lossy(&out.stdout).into_owned();
+    let floats = |name: &str| std::fs::metadata(dir.join("rays").join(name)).unwrap().len() / 4;
+    assert_eq!(floats("primary.f32"), 40 * 30 * 7);
+    let row = |batch: &str| -> (u64, u64) {
+        let line =
+            report.lines().find(|l| l.starts_with(batch)).unwrap_or_else(|| panic!("{batch}: {report}"));
+        let fields: Vec<u64> = line.split_whitespace().skip(2).take(2).map(|f| f.parse().unwrap()).collect();
+        (fields[0], fields[1])
+    };
+    let (rays, primary_hits) = row("primary");
+    assert_eq!(rays, 40 * 30, "{report}");
+    assert!(primary_hits > 0 && primary_hits <= rays, "{report}");
+    for batch in ["shadow", "diffuse"] {
+        assert_eq!(row(batch).0, primary_hits, "{report}");
+        assert_eq!(floats(&format!("{batch}.f32")), primary_hits * 7);
+    }
+    let info = atoll(&dir, &["info", "landscape:1"]);
+    let info = String::from_utf8_lossy(&info.stdout).into_owned();
+    let instanced: u64 = info
+        .lines()
+        .find_map(|l| l.strip_prefix("triangles")?.split(" unique, ").nth(1)?.split(' ').next()?.parse().ok())
+        .unwrap_or_else(|| panic!("{info}"));
+    assert_eq!(floats("triangles.f32"), instanced * 9);
+
+    let out = atoll(&dir, &["bench", "missing.pbrt", "--device", "cpu"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("missing.pbrt"), "{}", stderr(&out));
+}
