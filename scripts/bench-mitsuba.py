@@ -12,10 +12,11 @@ Dr.Jit's kernel) and then the median of --runs traces:
   `coherent=True` for primary rays), a hit where t is finite;
 - shadow: `scene.ray_test` with each ray's t_max (occluded or not).
 
-Each timed trace is evaluated and the device synchronised inside the clock,
-so Dr.Jit's launch overhead counts: export at least a million rays per
-batch (atoll bench's --res) so that it stays small. Hit counts are printed
-to compare with atoll's report of the same rays.
+Two figures per batch: "kernels", the device time of the kernels the
+trace launched (Dr.Jit's kernel history, which times them with CUDA events,
+as `atoll bench` times its own), and "wall", around the whole call with the
+device synchronised (Dr.Jit's tracing and launch overhead included). Hit
+counts are printed to compare with atoll's report of the same rays.
 
     pip install mitsuba numpy      # on the GPU machine
     atoll bench landscape:100 --res 1920x1080 --export /tmp/rays --device cuda:0
@@ -46,6 +47,7 @@ def main() -> int:
     import mitsuba as mi
 
     mi.set_variant(args.variant)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
     triangles = load(args.dir / "triangles.f32", 9)
     n = len(triangles)
     start = time.perf_counter()
@@ -58,7 +60,7 @@ def main() -> int:
     dr.sync_thread()
     print(f"{n} triangles; mesh and scene (BVH) ready in {time.perf_counter() - start:.2f} s, {args.variant}")
 
-    print(f"{'batch':<8} {'rays':>9} {'hits':>9} {'Mrays/s':>9}")
+    print(f"{'batch':<8} {'rays':>9} {'hits':>9} {'kernels':>9} {'wall':>9}   (Mrays/s)")
     for name in ["primary", "shadow", "diffuse"]:
         path = args.dir / f"{name}.f32"
         if not path.exists():
@@ -85,15 +87,17 @@ def main() -> int:
             return result
 
         result = trace()
-        times = []
+        walls, kernels = [], []
         for _ in range(max(args.runs, 1)):
+            dr.kernel_history()  # (reading it clears it)
             begin = time.perf_counter()
             result = trace()
-            times.append(time.perf_counter() - begin)
+            walls.append(time.perf_counter() - begin)
+            kernels.append(sum(k.get("execution_time", 0.0) for k in dr.kernel_history()) * 1e-3)
         values = result.numpy()
         hits = int(values.sum()) if name == "shadow" else int(np.isfinite(values).sum())
-        mrays = len(rays) / statistics.median(times) / 1e6
-        print(f"{name:<8} {len(rays):>9} {hits:>9} {mrays:>9.1f}")
+        rate = lambda seconds: len(rays) / statistics.median(seconds) / 1e6
+        print(f"{name:<8} {len(rays):>9} {hits:>9} {rate(kernels):>9.1f} {rate(walls):>9.1f}")
     return 0
 
 
