@@ -445,9 +445,18 @@ mod tests {
         let names: Vec<&str> = TraversalVariant::ALL.iter().map(|v| v.name()).collect();
         assert_eq!(names, ["ww", "pt", "sp", "ptsp", "cw", "ptcw"]);
         let source = crate::compile::kernel_source(FILE).expect("trace.cu is registered");
+        // Each variant's kernels are made by the loop its `ATOLL_TRACE_LOOPS`
+        // bit selects, under its name, persistent or not as it says.
         for v in TraversalVariant::ALL {
-            assert!(source.contains(&format!("trace_##query##_{}_##test", v.name())), "{}", v.name());
+            let kind = if v.persistent() { "PERSISTENT" } else { "GRID" };
+            let made = format!(
+                "#if ATOLL_TRACE_LOOPS & {}\nTRACE_LOOP(TRACE_{kind}_KERNEL, {}, ",
+                v.loop_bit(),
+                v.name()
+            );
+            assert!(source.contains(&made), "{}: {made}", v.name());
         }
+        assert!(source.contains("trace_##query##_##name##_##test"));
         assert_eq!(TraversalVariant::ALL.iter().filter(|v| v.persistent()).count(), 3);
     }
 }
