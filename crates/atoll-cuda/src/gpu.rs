@@ -26,6 +26,16 @@ pub fn device_count() -> Result<usize, CudaError> {
 /// One compiled image, filled by the first caller asking for it.
 type CompiledSlot = Arc<Mutex<Option<Arc<Vec<u8>>>>>;
 
+/// The process's slot for `file` compiled with `options`, and whether this
+/// call made it (no one asked for that image before).
+fn compiled_slot(file: &str, options: &CompileOptions) -> (CompiledSlot, bool) {
+    static COMPILED: std::sync::OnceLock<Mutex<HashMap<String, CompiledSlot>>> = std::sync::OnceLock::new();
+    let key = format!("{file} {:?} {}", options.nvrtc_options(), options.extension());
+    let mut compiled = COMPILED.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
+    let made = !compiled.contains_key(&key);
+    (compiled.entry(key).or_default().clone(), made)
+}
+
 /// Kernel file `file` compiled with `options`, once per process: every
 /// opened [`Gpu`] (several per GPU with `--streams`, one per device of a
 /// ring) loads its own modules, but they all ask for the same images at
@@ -35,12 +45,7 @@ type CompiledSlot = Arc<Mutex<Option<Arc<Vec<u8>>>>>;
 /// for its image. Failures are not kept: a later caller tries again and
 /// gets its own error.
 fn compile_once(file: &str, options: &CompileOptions) -> Result<Arc<Vec<u8>>, CudaError> {
-    static COMPILED: std::sync::OnceLock<Mutex<HashMap<String, CompiledSlot>>> = std::sync::OnceLock::new();
-    let key = format!("{file} {:?} {}", options.nvrtc_options(), options.extension());
-    let slot = {
-        let mut compiled = COMPILED.get_or_init(Default::default).lock().unwrap_or_else(|p| p.into_inner());
-        compiled.entry(key).or_default().clone()
-    };
+    let (slot, _) = compiled_slot(file, options);
     let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
     if let Some(image) = slot.as_ref() {
         return Ok(image.clone());
@@ -355,11 +360,16 @@ impl Gpu {
     /// modules compiled one after the other took several times as long as
     /// the longest of them. A later [`Gpu::module_with`] of one of them
     /// waits for its compilation to finish; one that failed is compiled
-    /// again there, which reports the error.
+    /// again there, which reports the error. Modules the process asked for
+    /// before (another device's, an earlier frame's) start no thread.
     pub(crate) fn compile_ahead(&self, modules: Vec<(&'static str, Vec<String>)>) {
         for (file, extra) in modules {
             let mut options = self.compile_options.clone();
             options.extra.extend(extra);
+            // (Another device, or an earlier frame, already asked for it.)
+            if !compiled_slot(file, &options).1 {
+                continue;
+            }
             std::thread::spawn(move || {
                 if let Err(e) = compile_once(file, &options) {
                     tracing::debug!("compiling {file} ahead: {e}");
