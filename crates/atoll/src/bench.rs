@@ -33,6 +33,8 @@ pub struct BenchArgs {
     /// ray batches to DIR as little-endian f32 (`triangles.f32`: N × 9;
     /// `primary.f32`, `shadow.f32`, `diffuse.f32`: M × 7 of origin,
     /// direction, t_max), for other ray tracers to trace the same rays.
+    /// Instances are expanded (36 bytes a triangle), as with `--flat`:
+    /// refused up front where that would not fit the memory available.
     #[arg(long, value_name = "DIR")]
     pub export: Option<PathBuf>,
     /// Triangles in the generated traversal scene (at most 2^28: some
@@ -184,6 +186,9 @@ fn scene_traversal(
 ) -> Result<(), CliError> {
     let start = std::time::Instant::now();
     let mut scene = crate::load::load_scene(Some(path))?;
+    let expands = args.flat || args.export.is_some();
+    let available = atoll_render::device::host_memory_available();
+    check_expansion_fits(expands, path, scene.stats().instanced_triangles, available)?;
     if args.flat {
         scene = atoll_scene::procedural::flatten(&scene);
     }
@@ -224,6 +229,31 @@ fn scene_traversal(
         }
     }
     Ok(())
+}
+
+/// Expanding instances (`--flat`, `--export`) keeps every instanced
+/// triangle in world space in host memory: refused up front when that
+/// alone would take more than the memory `available` (`None`: unknown).
+fn check_expansion_fits(
+    expands: bool,
+    path: &std::path::Path,
+    instanced_triangles: u64,
+    available: Option<u64>,
+) -> Result<(), CliError> {
+    if !expands {
+        return Ok(());
+    }
+    // Three world-space vertices of three f32 each.
+    let needed = instanced_triangles.saturating_mul(36);
+    match available {
+        Some(free) if needed > free => Err(CliError::Runtime(format!(
+            "{}: expanding its {instanced_triangles} instanced triangles (--flat, --export) needs {}, more than the {} of memory available",
+            path.display(),
+            atoll_cuda::error::fmt_bytes(needed),
+            atoll_cuda::error::fmt_bytes(free)
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// GPU BVH build (on the traversal scene and a 10M-triangle one) and GPU
@@ -384,4 +414,22 @@ fn peer_copies() -> Result<(), CliError> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Expanding instances is refused when the world-space triangles alone
+    /// exceed the memory available, and only then.
+    #[test]
+    fn expanding_instances_is_refused_beyond_the_memory_available() {
+        let path = std::path::Path::new("big.pbrt");
+        assert!(check_expansion_fits(true, path, 1000, Some(36_000)).is_ok());
+        let refused = check_expansion_fits(true, path, 1001, Some(36_000));
+        let Err(CliError::Runtime(message)) = refused else { panic!("not refused: {refused:?}") };
+        assert!(message.starts_with("big.pbrt: expanding its 1001 instanced triangles"), "{message}");
+        assert!(check_expansion_fits(false, path, u64::MAX, Some(0)).is_ok(), "nothing expanded");
+        assert!(check_expansion_fits(true, path, u64::MAX, None).is_ok(), "memory unknown");
+    }
 }
