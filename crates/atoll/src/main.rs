@@ -38,19 +38,27 @@ struct Cli {
     max_generated_triangles: Option<u64>,
 }
 
+// Every subcommand reads negative numbers as values (`--spp -1` is then
+// refused by the argument's own range, naming it), not as unknown flags.
 #[derive(Subcommand)]
 enum Command {
     /// Render a scene (the built-in Cornell box when none is given).
+    #[command(allow_negative_numbers = true)]
     Render(Box<render::RenderArgs>),
     /// Render a scene progressively and watch it in a browser (127.0.0.1:8080 unless told otherwise).
+    #[command(allow_negative_numbers = true)]
     Serve(Box<serve::ServeArgs>),
     /// Print counts, bounds, memory estimate and BVH statistics of a scene.
+    #[command(allow_negative_numbers = true)]
     Info(info::InfoArgs),
     /// Measure BVH build, traversal and path-tracing speed.
+    #[command(allow_negative_numbers = true)]
     Bench(bench::BenchArgs),
     /// Compare two EXR renders: channel means and per-pixel relative errors.
+    #[command(allow_negative_numbers = true)]
     Compare(compare::CompareArgs),
     /// Generate a procedural benchmark scene: print its size or write it as PBRT-v4.
+    #[command(allow_negative_numbers = true)]
     Gen(gen::GenArgs),
 }
 

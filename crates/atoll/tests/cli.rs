@@ -329,3 +329,22 @@ fn bench_traces_a_scene_and_exports_its_rays() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("missing.pbrt"), "{}", stderr(&out));
 }
+
+/// A negative number is read as the value it is and refused by its
+/// argument's range, naming the argument, with exit code 2 (not taken for
+/// an unknown flag).
+#[test]
+fn negative_numbers_are_refused_by_their_argument() {
+    let dir = scratch("negative");
+    for (args, flag) in [
+        (&["render", "--spp", "-1"][..], "--spp"),
+        (&["render", "--max-depth", "-2"][..], "--max-depth"),
+        (&["bench", "--spp", "-3"][..], "--spp"),
+        (&["serve", "--spp", "-1"][..], "--spp"),
+    ] {
+        let out = atoll(&dir, args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+        let err = stderr(&out);
+        assert!(err.contains(&format!("invalid value '{}' for '{flag}", args[2])), "{args:?}: {err}");
+    }
+}
