@@ -26,6 +26,7 @@ pub enum GenScene {
     /// Terrain with instanced rocks, trees, glass and metal; growth g makes
     /// about g million instanced triangles. Without -o, prints its sizes only
     /// (render it without a file as the scene `landscape:GROWTH[:SEED]`).
+    #[command(allow_negative_numbers = true)]
     Landscape(LandscapeArgs),
 }
 
