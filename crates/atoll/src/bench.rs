@@ -205,9 +205,10 @@ fn scene_traversal(
         ),
     );
     let resolution = args.res.unwrap_or(scene.settings.film.resolution);
+    // The rays of the export and of the CPU measurement.
+    let cpu_options = atoll_bvh::bench::BenchOptions { resolution: Some(resolution), ..Default::default() };
     if let Some(dir) = &args.export {
-        let options = atoll_bvh::bench::BenchOptions { resolution: Some(resolution), ..Default::default() };
-        atoll_bvh::bench::export_bench_data(&scene, &options, dir)
+        atoll_bvh::bench::export_bench_data(&scene, &cpu_options, dir)
             .map_err(|e| CliError::Runtime(format!("{}: {e}", dir.display())))?;
         step(args, format_args!("triangles and rays written to {}", dir.display()));
     }
@@ -222,11 +223,7 @@ fn scene_traversal(
                 .map_err(|e| CliError::Runtime(e.to_string()))?;
             println!("{report}");
         }
-        None => {
-            let options =
-                atoll_bvh::bench::BenchOptions { resolution: Some(resolution), ..Default::default() };
-            println!("{}", atoll_bvh::bench::run_traversal_bench(&scene, &options));
-        }
+        None => println!("{}", atoll_bvh::bench::run_traversal_bench(&scene, &cpu_options)),
     }
     Ok(())
 }
