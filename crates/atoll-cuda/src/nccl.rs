@@ -11,7 +11,7 @@ use cudarc::driver::CudaSlice;
 use cudarc::nccl::safe::Id;
 use cudarc::nccl::{result, sys};
 
-use atoll_render::{Device, DeviceError, ProcessLink, ProcessTransport, Queue};
+use atoll_render::{Device, DeviceError, Film, ProcessLink, ProcessTransport, Queue};
 
 use crate::error::CudaError;
 use crate::gpu::Gpu;
@@ -64,6 +64,8 @@ pub fn new_id() -> Result<NcclIdBytes, CudaError> {
 pub struct NcclLink {
     comm: sys::ncclComm_t,
     gpu: Arc<Gpu>,
+    /// This process's rank in the communicator.
+    rank: usize,
 }
 
 // SAFETY: the communicator is used by one thread at a time (`&self` calls
@@ -83,6 +85,7 @@ impl NcclLink {
             return Err(CudaError::Usage("NCCL: libnccl.so.2 cannot be loaded".into()));
         }
         let bad = |what| CudaError::Usage(format!("NCCL: {what} out of range"));
+        let me = rank;
         let (rank, size) =
             (i32::try_from(rank).map_err(|_| bad("rank"))?, i32::try_from(size).map_err(|_| bad("size"))?);
         gpu.ctx
@@ -95,7 +98,7 @@ impl NcclLink {
             result::comm_init_rank(comm.as_mut_ptr(), size, id, rank).map_err(nccl("joining"))?;
             comm.assume_init()
         };
-        Ok(NcclLink { comm, gpu: gpu.clone() })
+        Ok(NcclLink { comm, gpu: gpu.clone(), rank: me })
     }
 
     /// Queues on the GPU's stream the send of `outgoing` (an address on
@@ -147,6 +150,47 @@ impl NcclLink {
     }
 }
 
+impl NcclLink {
+    /// Sums every process's `values` into those of the process at rank
+    /// `root`, on the GPUs (`ncclReduce`, in place on each GPU's copy);
+    /// the others' are left as they were. Collective, waited for.
+    pub fn sum_to_root(&self, values: &mut [f32], root: usize) -> Result<(), CudaError> {
+        use cudarc::driver::DevicePtrMut;
+        let stream = &self.gpu.stream;
+        let label = self.gpu.label();
+        let mut on_gpu = stream
+            .clone_htod(values)
+            .map_err(CudaError::driver(format!("{label}: uploading a film to sum")))?;
+        let root = i32::try_from(root).map_err(|_| CudaError::Usage("NCCL: root out of range".into()))?;
+        {
+            let (data, _sync) = on_gpu.device_ptr_mut(stream);
+            let data = data as *mut std::ffi::c_void;
+            // SAFETY: `values.len()` floats on this GPU, summed in place
+            // (send and receive buffers equal) on its stream, which the
+            // read-back below waits for.
+            unsafe {
+                result::reduce(
+                    data,
+                    data,
+                    values.len(),
+                    sys::ncclDataType_t::ncclFloat32,
+                    sys::ncclRedOp_t::ncclSum,
+                    root,
+                    self.comm,
+                    stream.cu_stream() as sys::cudaStream_t,
+                )
+            }
+            .map_err(nccl("film sum"))?;
+        }
+        if self.rank == root as usize {
+            stream
+                .memcpy_dtoh(&on_gpu, values)
+                .map_err(CudaError::driver(format!("{label}: reading the summed film back")))?;
+        }
+        self.gpu.synchronize()
+    }
+}
+
 impl Drop for NcclLink {
     fn drop(&mut self) {
         // SAFETY: the communicator is this link's own, used no more.
@@ -181,14 +225,14 @@ impl ProcessTransport for NcclTransport {
             message: "an NCCL id has 128 bytes".into(),
         })?;
         let link = NcclLink::connect(d.gpu(), id, rank, size).map_err(|e| e.into_device_error(&label))?;
-        Ok(Box::new(QueueLink(link)))
+        Ok(Box::new(DeviceLink(link)))
     }
 }
 
-/// A ring step's queues over an [`NcclLink`].
-struct QueueLink(NcclLink);
+/// A ring step's queues, or the ranks' films, over an [`NcclLink`].
+struct DeviceLink(NcclLink);
 
-impl ProcessLink for QueueLink {
+impl ProcessLink for DeviceLink {
     fn exchange(
         &self,
         device: &mut dyn Device,
@@ -199,6 +243,12 @@ impl ProcessLink for QueueLink {
         let d = cuda(device)?;
         let label = d.gpu().label();
         d.nccl_exchange(&self.0, queue, sending, receiving).map_err(|e| e.into_device_error(&label))
+    }
+
+    fn sum_film(&self, device: &mut dyn Device, film: &mut Film, root: usize) -> Result<(), DeviceError> {
+        let label = cuda(device)?.gpu().label();
+        let values: &mut [f32] = bytemuck::cast_slice_mut(&mut film.sum);
+        self.0.sum_to_root(values, root).map_err(|e| e.into_device_error(&label))
     }
 }
 

@@ -126,8 +126,12 @@ impl Ranks {
             warmup: false,
             shared: Some(Shared { handout: &handout, rings: &[] }),
         };
+        let films = match devices.first_mut() {
+            Some(first) => self.link_films(first.as_mut(), true).ok(),
+            None => None,
+        };
         let mut out = render_multi_with(devices, scene, options, &frame, &mut |_, _| {})?;
-        self.sum_films(&mut out.film);
+        self.sum_films(&mut out.film, films.as_ref().zip(devices.first_mut().map(|d| d.as_mut())))?;
         Ok(out)
     }
 
@@ -191,9 +195,35 @@ impl Ranks {
         self.world.process_at_rank(0).broadcast_into(bytes);
     }
 
+    /// Collective: links every rank's `device` (its first) for summing
+    /// films device to device, where every rank's offers the same process
+    /// transport (NCCL between GPUs) and `wanted` (false where films were
+    /// asked to go through the host); else why not, and films are summed
+    /// over MPI.
+    pub fn link_films(&self, device: &mut dyn Device, wanted: bool) -> Result<FilmLink, String> {
+        let joiners = vec![(device, self.rank(), self.size())];
+        let (name, mut links) = join_process_links(&self.world, joiners, self.is_root(), wanted)?;
+        Ok(FilmLink { name, link: links.pop().expect("one link per joining device") })
+    }
+
     /// Collective: every process's film summed into rank 0's (the others'
-    /// are left as they were).
-    pub fn sum_films(&self, film: &mut Film) {
+    /// are left as they were), over `link` through its device where given
+    /// (every rank must give one then), else over MPI.
+    pub fn sum_films<'d>(
+        &self,
+        film: &mut Film,
+        link: Option<(&FilmLink, &mut (dyn Device + 'd))>,
+    ) -> Result<(), DeviceError> {
+        match link {
+            Some((link, device)) => link.link.sum_film(device, film, 0),
+            None => {
+                self.sum_films_over_mpi(film);
+                Ok(())
+            }
+        }
+    }
+
+    fn sum_films_over_mpi(&self, film: &mut Film) {
         let root = self.world.process_at_rank(0);
         let mine: &mut [f32] = bytemuck_floats(&mut film.sum);
         if self.is_root() {
@@ -309,6 +339,20 @@ impl Ranks {
     }
 }
 
+/// The ranks' link for summing their films device to device
+/// ([`Ranks::link_films`]).
+pub struct FilmLink {
+    name: &'static str,
+    link: Box<dyn ProcessLink>,
+}
+
+impl FilmLink {
+    /// The transport's name (NCCL).
+    pub fn name(&self) -> &'static str {
+        self.name
+    }
+}
+
 /// One member's links to the other members of its ring of ranks (see
 /// [`Ranks::rings`]): queues go to the next member as MPI messages (or
 /// device to device, [`RankRing::connect_devices`]), each member polling
@@ -374,49 +418,14 @@ impl RankRing {
     ) -> Result<&'static str, String> {
         let Some(first) = members.first() else { return Err("no members on this rank".into()) };
         let comm = first.comm.clone();
-        let transports: Vec<_> = devices.iter().map(|d| d.process_transport().filter(|_| wanted)).collect();
-        let mut all = [0u8; 2];
-        let mine = [u8::from(!wanted), u8::from(transports.iter().any(Option::is_none))];
-        comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
-        let agreed = transport_vote(all);
-        let transports: Option<Vec<_>> = transports.into_iter().collect();
-        let Some(transports) = transports.filter(|_| agreed.is_ok()) else {
-            return Err(agreed.err().unwrap_or("this rank has no device transport").into());
-        };
-        let name = transports[0].name();
-        // The id's length first (0: member 0 could not make one).
-        let root = comm.process_at_rank(0);
         let makes_id = members.iter().any(|m| m.place.member == 0);
-        let mut id = if makes_id { transports[0].new_id().unwrap_or_default() } else { Vec::new() };
-        let mut len = id.len() as u64;
-        root.broadcast_into(&mut len);
-        if len == 0 {
-            return Err("the ring's first rank could not make an NCCL id".into());
-        }
-        id.resize(len as usize, 0);
-        root.broadcast_into(&mut id[..]);
-        // A rank's members join at once: joining waits for every member.
-        let id = &id;
-        let joined: Vec<Result<Box<dyn ProcessLink>, String>> = std::thread::scope(|scope| {
-            let joining: Vec<_> = members
-                .iter()
-                .zip(devices.iter_mut())
-                .zip(&transports)
-                .map(|((member, device), transport)| {
-                    let RingPlace { member, size, .. } = member.place;
-                    scope.spawn(move || transport.connect(device.as_mut(), id, member, size))
-                })
-                .collect();
-            joining
-                .into_iter()
-                .map(|h| h.join().expect("joining NCCL panicked").map_err(|e| e.to_string()))
-                .collect()
-        });
-        let mut all = 0u8;
-        comm.all_reduce_into(&u8::from(joined.iter().all(Result::is_ok)), &mut all, SystemOperation::min());
-        let links: Result<Vec<_>, String> =
-            joined.into_iter().map(|link| joined_together(link, all == 1)).collect();
-        for (member, link) in members.iter_mut().zip(links?) {
+        let joiners = members
+            .iter()
+            .zip(devices.iter_mut())
+            .map(|(m, d)| (d.as_mut(), m.place.member, m.place.size))
+            .collect();
+        let (name, links) = join_process_links(&comm, joiners, makes_id, wanted)?;
+        for (member, link) in members.iter_mut().zip(links) {
             member.link = Some(Mutex::new(link));
         }
         Ok(name)
@@ -483,6 +492,61 @@ fn neighbours(place: RingPlace) -> (usize, usize) {
     ((member + 1) % size, (member + size - 1) % size)
 }
 
+/// Collective over `comm`: where every process's joining devices offer
+/// the same kind of process transport (NCCL between GPUs), the process
+/// that `makes_id` (`comm`'s rank 0) makes the link's id, the others
+/// receive it over `comm`, and every device joins as its place of a link
+/// of the size given, a process's devices at once on threads of their own
+/// (joining waits for every member). Returns the transport's name and
+/// the links, or why not. Every process calls it, with `wanted` false
+/// where the host transport was asked for (then none connects).
+fn join_process_links<'b>(
+    comm: &SimpleCommunicator,
+    joiners: Vec<(&mut (dyn Device + 'b), usize, usize)>,
+    makes_id: bool,
+    wanted: bool,
+) -> Result<(&'static str, Vec<Box<dyn ProcessLink>>), String> {
+    let transports: Vec<_> = joiners.iter().map(|(d, ..)| d.process_transport().filter(|_| wanted)).collect();
+    let mut all = [0u8; 2];
+    let mine = [u8::from(!wanted), u8::from(transports.iter().any(Option::is_none))];
+    comm.all_reduce_into(&mine[..], &mut all[..], SystemOperation::max());
+    let agreed = transport_vote(all);
+    let transports: Option<Vec<_>> = transports.into_iter().collect();
+    let Some(transports) = transports.filter(|t| agreed.is_ok() && !t.is_empty()) else {
+        return Err(agreed.err().unwrap_or("this rank has no device transport").into());
+    };
+    let name = transports[0].name();
+    // The id's length first (0: the first process could not make one).
+    let root = comm.process_at_rank(0);
+    let mut id = if makes_id { transports[0].new_id().unwrap_or_default() } else { Vec::new() };
+    let mut len = id.len() as u64;
+    root.broadcast_into(&mut len);
+    if len == 0 {
+        return Err("the first rank could not make an NCCL id".into());
+    }
+    id.resize(len as usize, 0);
+    root.broadcast_into(&mut id[..]);
+    let id = &id;
+    let joined: Vec<Result<Box<dyn ProcessLink>, String>> = std::thread::scope(|scope| {
+        let joining: Vec<_> = joiners
+            .into_iter()
+            .zip(&transports)
+            .map(|((device, place, size), transport)| {
+                scope.spawn(move || transport.connect(device, id, place, size))
+            })
+            .collect();
+        joining
+            .into_iter()
+            .map(|h| h.join().expect("joining NCCL panicked").map_err(|e| e.to_string()))
+            .collect()
+    });
+    let mut all = 0u8;
+    comm.all_reduce_into(&u8::from(joined.iter().all(Result::is_ok)), &mut all, SystemOperation::min());
+    let links: Result<Vec<_>, String> =
+        joined.into_iter().map(|link| joined_together(link, all == 1)).collect();
+    Ok((name, links?))
+}
+
 /// Whether a ring's members link their devices, from the largest of
 /// every member's [asked for the host transport, has no device
 /// transport]: only when no member says either; else why not.
@@ -490,7 +554,7 @@ fn transport_vote(largest: [u8; 2]) -> Result<(), &'static str> {
     match largest {
         [0, 0] => Ok(()),
         [1, _] => Err("the host transport was asked for"),
-        _ => Err("not every rank of the ring has a GPU with NCCL"),
+        _ => Err("not every rank has a GPU with NCCL"),
     }
 }
 
@@ -890,7 +954,7 @@ mod tests {
         assert_eq!(transport_vote([0, 0]), Ok(()));
         assert_eq!(transport_vote([1, 0]), Err("the host transport was asked for"));
         assert_eq!(transport_vote([1, 1]), Err("the host transport was asked for"));
-        assert_eq!(transport_vote([0, 1]), Err("not every rank of the ring has a GPU with NCCL"));
+        assert_eq!(transport_vote([0, 1]), Err("not every rank has a GPU with NCCL"));
     }
 
     #[test]

@@ -16,6 +16,7 @@
 //! devices themselves.
 
 use crate::device::{Device, DeviceError, Queue};
+use crate::film::Film;
 
 /// A direct transport a device kind offers ([`Device::direct_transport`]).
 pub trait DirectTransport: Send + Sync {
@@ -89,7 +90,8 @@ pub trait ProcessTransport: Send + Sync {
     ) -> Result<Box<dyn ProcessLink>, DeviceError>;
 }
 
-/// One process's link into its ring ([`ProcessTransport::connect`]).
+/// One process's link into its ring, or into the ranks' film sum
+/// ([`ProcessTransport::connect`]).
 pub trait ProcessLink: Send {
     /// One ring step: the first `sending` records of `device`'s `queue` go
     /// to rank `next`, and `receiving` records from rank `prev` become the
@@ -102,4 +104,10 @@ pub trait ProcessLink: Send {
         sending: (usize, usize),
         receiving: (usize, usize),
     ) -> Result<(), DeviceError>;
+
+    /// Sums every process's `film` into the film of the process that is
+    /// rank `root` of the link, through `device` (the others' films are
+    /// left as they were). Collective: every process of the link calls it
+    /// at once, with films of one size.
+    fn sum_film(&self, device: &mut dyn Device, film: &mut Film, root: usize) -> Result<(), DeviceError>;
 }

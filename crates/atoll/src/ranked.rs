@@ -14,7 +14,7 @@ use atoll_bvh::{part_bytes, ByteModel, ScenePart};
 use atoll_cuda::error::fmt_bytes;
 use atoll_dist::placement::widest_model;
 use atoll_dist::placement::{scene_budget, Sharing};
-use atoll_dist::ranks::{RankRing, Ranks};
+use atoll_dist::ranks::{FilmLink, RankRing, Ranks};
 use atoll_dist::{
     min_parts, render_multi_with, Layout, MultiFrame, MultiOutput, Partition, RingPeers, Shared,
 };
@@ -68,6 +68,7 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
         false => Ok(()),
     };
     together(ranks, more, "open more wavefronts")?;
+    let films = link_films(ranks, &args, devices[0].as_mut());
     // Ranks with several devices placing the scene themselves: rank 0's
     // own view, written by `multi::place_on`.
     let places_itself = args.devices.as_ref().is_some_and(|d| d.0.len() > 1) && ring.is_none();
@@ -108,8 +109,10 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     let mut out = together(ranks, rendered, "render their share")?;
 
     let summing = std::time::Instant::now();
-    ranks.sum_films(&mut out.film);
-    tracing::info!("films summed over MPI in {:.4} s", summing.elapsed().as_secs_f64());
+    let summed = ranks.sum_films(&mut out.film, films.as_ref().map(|link| (link, devices[0].as_mut())));
+    together(ranks, summed.map_err(|e| CliError::Runtime(e.to_string())), "sum their films")?;
+    let over = films.as_ref().map_or("MPI", |link| link.name());
+    tracing::info!("films summed over {over} in {:.4} s", summing.elapsed().as_secs_f64());
     let rows = ranks.gather_text(&rank_rows(rank, &out));
     let rays: u64 = out.devices.iter().map(|d| d.stats.rays_traced + d.stats.shadow_rays_traced).sum();
     let rays = ranks.sum(rays);
@@ -134,6 +137,21 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     let on = format!("{} ranks ({devices_in_all} devices)", ranks.size());
     print_summary(&output, &options, &on, run);
     Ok(())
+}
+
+/// Collective: the ranks' link for summing films device to device, where
+/// every rank's first device offers one and `--film-transport` does not
+/// say host. Rank 0 says which way films go when its device could link.
+fn link_films(ranks: &Ranks, args: &RenderArgs, first: &mut dyn Device) -> Option<FilmLink> {
+    let could = first.process_transport().is_some();
+    let link = ranks.link_films(first, args.film_transport != Some(atoll_dist::Transport::Host));
+    if ranks.is_root() && could {
+        match &link {
+            Ok(link) => eprintln!("films: summed over {}, device to device", link.name()),
+            Err(why) => eprintln!("note: films are summed through host memory: {why}"),
+        }
+    }
+    link.ok()
 }
 
 /// This rank's devices, how they share the scene, and a line about them.

@@ -183,6 +183,11 @@ pub struct RenderArgs {
     /// fit (one device per rank).
     #[arg(long, requires = "mpi", value_parser = clap::value_parser!(u32).range(1..))]
     pub ring_ranks: Option<u32>,
+    /// With --mpi: how the ranks' films are summed on rank 0: peer (NCCL
+    /// between each rank's first GPU, the default where every rank has
+    /// one) or host (MPI through host memory).
+    #[arg(long, requires = "mpi", value_parser = crate::multi::parse_transport)]
+    pub film_transport: Option<Transport>,
 }
 
 pub(crate) fn parse_resolution(s: &str) -> Result<UVec2, String> {

@@ -123,9 +123,12 @@ fn ranks_render_the_image_of_one_process() {
     assert!(alone.status.success(), "{}", text(&alone.stderr));
 
     let out = mpirun(&dir, &[(3, &["--device", "cpu", "--threads", "1", "--wave-size", "256"])], "three.exr");
-    let stdout = text(&out.stdout);
-    assert!(out.status.success(), "{stdout}{}", text(&out.stderr));
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(out.status.success(), "{stdout}{stderr}");
     assert!(stdout.contains("on 3 ranks (3 devices)"), "{stdout}");
+    // CPU films are in host memory already: MPI sums them, and no line
+    // speaks of a device-to-device film sum.
+    assert!(!stderr.contains("films"), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "three.exr");
     let waves = waves_by_rank(&stdout, 3);
     assert!(waves.iter().all(|&w| w > 0), "every rank takes waves: {waves:?}\n{stdout}");
@@ -143,7 +146,20 @@ fn unequal_ranks_share_the_waves_and_warm_up_alone() {
         &dir,
         &[
             (1, &["--devices", "cpu:2", "--threads", "1", "--warmup"]),
-            (1, &["--device", "cpu", "--threads", "1", "--warmup", "--wave-size", "1000"]),
+            (
+                1,
+                &[
+                    "--device",
+                    "cpu",
+                    "--threads",
+                    "1",
+                    "--warmup",
+                    "--wave-size",
+                    "1000",
+                    "--film-transport",
+                    "host",
+                ],
+            ),
             (1, &["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--warmup"]),
         ],
         "mixed.exr",
@@ -215,7 +231,7 @@ fn rings_of_ranks_render_the_image_of_one_process() {
     assert!(out.status.success(), "{stdout}{stderr}");
     assert!(stderr.contains("strategy: rings of 2 ranks (2 islands)"), "{stderr}");
     // CPU ranks have no device-to-device transport: one line says so.
-    let notice = "note: ring queues go through host memory: not every rank of the ring has a GPU with NCCL";
+    let notice = "note: ring queues go through host memory: not every rank has a GPU with NCCL";
     assert_eq!(stderr.matches(notice).count(), 1, "{stderr}");
     assert!(stderr.contains("ownership view: own.png") && dir.join("own.png").exists(), "{stderr}");
     assert_same_pixels(&dir, "alone.exr", "rings.exr");
