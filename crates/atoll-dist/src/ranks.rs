@@ -492,6 +492,9 @@ fn neighbours(place: RingPlace) -> (usize, usize) {
     ((member + 1) % size, (member + size - 1) % size)
 }
 
+/// This process's links of one kind, one per joining device.
+type ProcessLinks = Vec<Box<dyn ProcessLink>>;
+
 /// Collective over `comm`: where every process's joining devices offer
 /// the same kind of process transport (NCCL between GPUs), the process
 /// that `makes_id` (`comm`'s rank 0) makes the link's id, the others
@@ -505,7 +508,7 @@ fn join_process_links<'b>(
     joiners: Vec<(&mut (dyn Device + 'b), usize, usize)>,
     makes_id: bool,
     wanted: bool,
-) -> Result<(&'static str, Vec<Box<dyn ProcessLink>>), String> {
+) -> Result<(&'static str, ProcessLinks), String> {
     let transports: Vec<_> = joiners.iter().map(|(d, ..)| d.process_transport().filter(|_| wanted)).collect();
     let mut all = [0u8; 2];
     let mine = [u8::from(!wanted), u8::from(transports.iter().any(Option::is_none))];
