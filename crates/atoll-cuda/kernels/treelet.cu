@@ -20,6 +20,10 @@
 #define TREELET_WARPS (TREELET_THREADS / 32)
 #define TREELET_LEAVES 7
 #define TREELET_SUBSETS (1 << TREELET_LEAVES)
+// Levels of the root's subtree fetched before the treelet is formed (the
+// root and three below it: the seven leaves mostly lie there).
+#define TREELET_TOP_LEVELS 4
+#define TREELET_TOP (1 << TREELET_TOP_LEVELS)
 
 /// The non-empty subsets of 7 leaves ordered by size; those of size k are
 /// at [SUBSET_START[k], SUBSET_START[k + 1]).
@@ -43,6 +47,13 @@ struct TreeletScratch {
     unsigned int inner_node[TREELET_LEAVES - 1];
     float4 lo[TREELET_LEAVES], hi[TREELET_LEAVES];  // w: subtree cost / packed count
     int leaves;
+    // The top of the root's subtree, fetched by the lanes level by level
+    // (heap order: slot 1 the root, slot s's children 2s and 2s + 1), so
+    // that forming the treelet rarely waits on memory.
+    unsigned int top_node[TREELET_TOP];
+    uint2 top_child[TREELET_TOP];
+    float4 top_lo[TREELET_TOP], top_hi[TREELET_TOP];
+    unsigned char leaf_slot[TREELET_LEAVES];  // 0: not in the top
 };
 
 /// Records the best split `best_left` (cost `children`) of subset `s`.
@@ -74,12 +85,46 @@ __device__ __forceinline__ void evaluate_subset(TreeletScratch& sh, unsigned int
     finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
 }
 
-/// Loads node `n`'s box (through L2: other warps wrote it in this launch).
-__device__ __forceinline__ void load_treelet_leaf(TreeletScratch& sh, int k, unsigned int n, const float4* node_lo,
-                                                  const float4* node_hi) {
+/// Fetches the top of the subtree under `root` into `sh.top_*`, one level
+/// per step, a lane per node (through L2: other warps wrote the nodes in
+/// this launch). Called by all 32 lanes.
+__device__ __forceinline__ void fetch_top(TreeletScratch& sh, unsigned int root, unsigned int P, const uint2* child,
+                                          const float4* node_lo, const float4* node_hi) {
+    const unsigned int lane = threadIdx.x & 31u;
+    for (int level = 0; level < TREELET_TOP_LEVELS; ++level) {
+        const unsigned int first = 1u << level;
+        if (lane < first) {
+            const unsigned int slot = first + lane;
+            unsigned int n = root;
+            if (level > 0) {
+                const unsigned int up = slot >> 1;
+                const unsigned int parent = sh.top_node[up];
+                n = parent < P ? ((slot & 1u) ? sh.top_child[up].y : sh.top_child[up].x) : BUILD_NONE;
+            }
+            sh.top_node[slot] = n;
+            if (n != BUILD_NONE && level > 0) {
+                sh.top_lo[slot] = __ldcg(node_lo + n);
+                sh.top_hi[slot] = __ldcg(node_hi + n);
+            }
+            if (n < P) sh.top_child[slot] = __ldcg(child + n);
+        }
+        __syncwarp();
+    }
+}
+
+/// Makes node `n` treelet leaf `k`: from the fetched top where it is there
+/// (`slot` not 0), else from memory.
+__device__ __forceinline__ void take_treelet_leaf(TreeletScratch& sh, int k, unsigned int n, unsigned int slot,
+                                                  const float4* node_lo, const float4* node_hi) {
     sh.leaf_node[k] = n;
-    sh.lo[k] = __ldcg(node_lo + n);
-    sh.hi[k] = __ldcg(node_hi + n);
+    sh.leaf_slot[k] = (unsigned char)slot;
+    if (slot != 0) {
+        sh.lo[k] = sh.top_lo[slot];
+        sh.hi[k] = sh.top_hi[slot];
+    } else {
+        sh.lo[k] = __ldcg(node_lo + n);
+        sh.hi[k] = __ldcg(node_hi + n);
+    }
 }
 
 /// Restructures the treelet rooted at `root`; called by all 32 lanes.
@@ -87,12 +132,13 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
                             unsigned int* parent, float4* node_lo, float4* node_hi, unsigned int max_leaf, float ci,
                             float ct) {
     const unsigned int lane = threadIdx.x & 31u;
+    fetch_top(sh, root, P, child, node_lo, node_hi);
     // Form the treelet: open the largest-area leaf until there are 7.
     if (lane == 0) {
-        const uint2 c = __ldcg(child + root);
+        const uint2 c = sh.top_child[1];
         sh.inner_node[0] = root;
-        load_treelet_leaf(sh, 0, c.x, node_lo, node_hi);
-        load_treelet_leaf(sh, 1, c.y, node_lo, node_hi);
+        take_treelet_leaf(sh, 0, c.x, 2, node_lo, node_hi);
+        take_treelet_leaf(sh, 1, c.y, 3, node_lo, node_hi);
         int leaves = 2, inner = 1;
         while (leaves < TREELET_LEAVES) {
             int best = -1;
@@ -106,11 +152,12 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
                 }
             }
             if (best < 0) break;
-            const unsigned int opened = sh.leaf_node[best];
-            const uint2 oc = __ldcg(child + opened);
+            const unsigned int opened = sh.leaf_node[best], slot = sh.leaf_slot[best];
+            const uint2 oc = slot != 0 ? sh.top_child[slot] : __ldcg(child + opened);
+            const unsigned int below = 2u * slot < TREELET_TOP ? 2u * slot : 0u;
             sh.inner_node[inner++] = opened;
-            load_treelet_leaf(sh, best, oc.x, node_lo, node_hi);
-            load_treelet_leaf(sh, leaves++, oc.y, node_lo, node_hi);
+            take_treelet_leaf(sh, best, oc.x, below, node_lo, node_hi);
+            take_treelet_leaf(sh, leaves++, oc.y, below ? below + 1u : 0u, node_lo, node_hi);
         }
         sh.leaves = leaves;
     }

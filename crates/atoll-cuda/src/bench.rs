@@ -42,6 +42,9 @@ pub struct GpuBenchOptions {
     pub build_scenes: Vec<usize>,
     /// Shadow-ray length as a fraction of the scene diagonal (as the CPU bench).
     pub shadow_fraction: f32,
+    /// The quality builds timed beside the plain LBVH, as (treelet rounds,
+    /// first round's gamma): the default's, or a sweep of them.
+    pub quality_builds: Vec<(u32, u32)>,
 }
 
 impl Default for GpuBenchOptions {
@@ -53,6 +56,10 @@ impl Default for GpuBenchOptions {
             tests: vec![TriangleTest::Exact, TriangleTest::Woop],
             build_scenes: vec![10_000_000],
             shadow_fraction: 0.05,
+            quality_builds: vec![(
+                BuildOptions::default().treelet_rounds,
+                BuildOptions::default().treelet_gamma,
+            )],
         }
     }
 }
@@ -61,7 +68,7 @@ impl Default for GpuBenchOptions {
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildRow {
     pub scene: String,
-    pub builder: &'static str,
+    pub builder: String,
     pub triangles: u32,
     pub instances: u32,
     /// Median device milliseconds per phase, and in total.
@@ -112,7 +119,7 @@ fn time_build(
     gpu: &Gpu,
     scene: &GpuScene,
     name: &str,
-    builder: &'static str,
+    builder: String,
     options: &BuildOptions,
     runs: usize,
     cpu_blas_sah: Option<f32>,
@@ -238,6 +245,20 @@ fn time_batch(
     Ok((count as f64 / (median(times) as f64 * 1e-3) / 1e6, hit_count))
 }
 
+/// The builds a benchmark times: the plain LBVH, then each of `quality`
+/// (treelet rounds, first gamma), named by them where not the default.
+fn builders(quality: &[(u32, u32)]) -> Vec<(String, BuildOptions)> {
+    let default = BuildOptions::default();
+    let named = |&(rounds, gamma): &(u32, u32)| {
+        let options = BuildOptions { treelet_rounds: rounds, treelet_gamma: gamma, ..default };
+        match (rounds, gamma) == (default.treelet_rounds, default.treelet_gamma) {
+            true => ("lbvh+treelet".to_string(), options),
+            false => (format!("treelet {rounds}:{gamma}"), options),
+        }
+    };
+    std::iter::once(("lbvh".to_string(), BuildOptions::lbvh())).chain(quality.iter().map(named)).collect()
+}
+
 /// Runs the benchmark on `scene` (and the build-only scenes of `opts`).
 pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuBenchReport, CudaError> {
     let tables = SceneTables::build(scene);
@@ -249,20 +270,28 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
     tracing::info!("CPU BVH built in {:.1} s", cpu_start.elapsed().as_secs_f64());
 
     let mut builds = Vec::new();
-    for (builder, options) in [("lbvh", BuildOptions::lbvh()), ("lbvh+treelet", BuildOptions::default())] {
-        builds.push(time_build(gpu, &gpu_scene, "bench", builder, &options, opts.runs, Some(cpu_sah))?);
+    let builders = builders(&opts.quality_builds);
+    for (builder, options) in &builders {
+        builds.push(time_build(
+            gpu,
+            &gpu_scene,
+            "bench",
+            builder.clone(),
+            options,
+            opts.runs,
+            Some(cpu_sah),
+        )?);
     }
     for &n in &opts.build_scenes {
         let big = atoll_scene::procedural::bench_scene_flat(n);
         let big_scene = GpuScene::upload_tables(gpu, SceneTables::build(&big))?;
-        for (builder, options) in [("lbvh", BuildOptions::lbvh()), ("lbvh+treelet", BuildOptions::default())]
-        {
+        for (builder, options) in &builders {
             builds.push(time_build(
                 gpu,
                 &big_scene,
                 &format!("flat {n}"),
-                builder,
-                &options,
+                builder.clone(),
+                options,
                 opts.runs,
                 None,
             )?);

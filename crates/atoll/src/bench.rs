@@ -72,6 +72,11 @@ pub struct BenchArgs {
     /// instead of everything else (needs a build with `--features mpi`).
     #[arg(long, conflicts_with_all = ["peer", "queue_copy"])]
     pub nccl_ranks: bool,
+    /// GPU quality builds timed beside the plain LBVH, as ROUNDS:GAMMA
+    /// pairs (treelet rounds; the first round's primitive threshold,
+    /// doubled each round), e.g. `3:7,2:14,1:7`. Default: the renderer's.
+    #[arg(long, value_delimiter = ',', value_parser = parse_treelets, value_name = "ROUNDS:GAMMA")]
+    pub treelets: Vec<(u32, u32)>,
     /// No progress lines on stderr (results only).
     #[arg(short, long)]
     pub quiet: bool,
@@ -253,6 +258,17 @@ fn check_expansion_fits(
     }
 }
 
+/// `--treelets`' ROUNDS:GAMMA (gamma at least 7: a treelet has 7 leaves).
+fn parse_treelets(s: &str) -> Result<(u32, u32), String> {
+    let (rounds, gamma) =
+        s.split_once(':').ok_or_else(|| format!("{s:?}: expected ROUNDS:GAMMA, e.g. 3:7"))?;
+    let number = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?}: {e}"));
+    match (number(rounds)?, number(gamma)?) {
+        (rounds @ 0..=16, gamma @ 7..) => Ok((rounds, gamma)),
+        _ => Err(format!("{s:?}: rounds must be 0 to 16 and gamma at least 7")),
+    }
+}
+
 /// GPU BVH build (on the traversal scene and a 10M-triangle one) and GPU
 /// traversal throughput per variant, on the instanced bench scene.
 fn gpu_traversal(args: &BenchArgs, gpu: &std::sync::Arc<atoll_cuda::Gpu>) -> Result<(), CliError> {
@@ -261,9 +277,14 @@ fn gpu_traversal(args: &BenchArgs, gpu: &std::sync::Arc<atoll_cuda::Gpu>) -> Res
     } else {
         atoll_scene::procedural::bench_scene(args.triangles)
     };
+    let defaults = atoll_cuda::bench::GpuBenchOptions::default();
     let options = atoll_cuda::bench::GpuBenchOptions {
         build_scenes: vec![10_000_000, 20_000_000],
-        ..Default::default()
+        quality_builds: match args.treelets.is_empty() {
+            true => defaults.quality_builds.clone(),
+            false => args.treelets.clone(),
+        },
+        ..defaults
     };
     let report =
         atoll_cuda::bench::run(gpu, &scene, &options).map_err(|e| CliError::Runtime(e.to_string()))?;
