@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 use atoll_render::{Device, DeviceError, Film, ProcessLink, Queue, RayRecord, RenderOptions};
 use atoll_scene::Scene;
 use bytemuck::Zeroable;
+use glam::UVec2;
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::Universe;
@@ -127,7 +128,7 @@ impl Ranks {
             shared: Some(Shared { handout: &handout, rings: &[] }),
         };
         let films = match devices.first_mut() {
-            Some(first) => self.link_films(first.as_mut(), true).ok(),
+            Some(first) => self.link_films(first.as_mut(), true, options.resolution).ok(),
             None => None,
         };
         let mut out = render_multi_with(devices, scene, options, &frame, &mut |_, _| {})?;
@@ -200,10 +201,24 @@ impl Ranks {
     /// transport (NCCL between GPUs) and `wanted` (false where films were
     /// asked to go through the host); else why not, and films are summed
     /// over MPI.
-    pub fn link_films(&self, device: &mut dyn Device, wanted: bool) -> Result<FilmLink, String> {
-        let joiners = vec![(device, self.rank(), self.size())];
+    /// The link's first sum, of a film of `resolution`, is done here: NCCL
+    /// makes its connections on a communicator's first collective, which
+    /// would otherwise fall in the frame.
+    pub fn link_films(
+        &self,
+        device: &mut dyn Device,
+        wanted: bool,
+        resolution: UVec2,
+    ) -> Result<FilmLink, String> {
+        let joiners = vec![(&mut *device, self.rank(), self.size())];
         let (name, mut links) = join_process_links(&self.world, joiners, self.is_root(), wanted)?;
-        Ok(FilmLink { name, link: links.pop().expect("one link per joining device") })
+        let link = FilmLink { name, link: links.pop().expect("one link per joining device") };
+        let mut blank = Film::new(resolution);
+        let warmed = link.link.sum_film(device, &mut blank, 0).map_err(|e| e.to_string());
+        let mut all = 0u8;
+        self.world.all_reduce_into(&u8::from(warmed.is_ok()), &mut all, SystemOperation::min());
+        joined_together(warmed, all == 1)?;
+        Ok(link)
     }
 
     /// Collective: every process's film summed into rank 0's (the others'

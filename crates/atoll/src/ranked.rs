@@ -20,6 +20,7 @@ use atoll_dist::{
 };
 use atoll_render::{Device, RenderOptions};
 use atoll_scene::Scene;
+use glam::UVec2;
 
 use crate::load::LoadReport;
 use crate::multi::{self, DeviceList, DeviceSpec};
@@ -68,7 +69,7 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
         false => Ok(()),
     };
     together(ranks, more, "open more wavefronts")?;
-    let films = link_films(ranks, &args, devices[0].as_mut());
+    let films = link_films(ranks, &args, devices[0].as_mut(), options.resolution);
     // Ranks with several devices placing the scene themselves: rank 0's
     // own view, written by `multi::place_on`.
     let places_itself = args.devices.as_ref().is_some_and(|d| d.0.len() > 1) && ring.is_none();
@@ -142,9 +143,14 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
 /// Collective: the ranks' link for summing films device to device, where
 /// every rank's first device offers one and `--film-transport` does not
 /// say host. Rank 0 says which way films go when its device could link.
-fn link_films(ranks: &Ranks, args: &RenderArgs, first: &mut dyn Device) -> Option<FilmLink> {
+fn link_films(
+    ranks: &Ranks,
+    args: &RenderArgs,
+    first: &mut dyn Device,
+    resolution: UVec2,
+) -> Option<FilmLink> {
     let could = first.process_transport().is_some();
-    let link = ranks.link_films(first, args.film_transport != Some(atoll_dist::Transport::Host));
+    let link = ranks.link_films(first, args.film_transport != Some(atoll_dist::Transport::Host), resolution);
     if ranks.is_root() && could {
         match &link {
             Ok(link) => eprintln!("films: summed over {}, device to device", link.name()),
