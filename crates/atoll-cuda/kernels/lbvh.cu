@@ -263,25 +263,13 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
                 unsigned int max_leaf, float ci, float ct) {
     const unsigned long long j = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
     if (j >= P) return;
-    const unsigned int p = values[j];
-    const float4 lo = prim_box[2ull * p], hi = prim_box[2ull * p + 1];
-    const float cost = __fmul_rn(ci, box_area(xyz(lo), xyz(hi)));
-    node_lo[P + j] = make_float4(lo.x, lo.y, lo.z, cost);
-    node_hi[P + j] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(1u | BUILD_LEAF_BIT));
+    fit_leaf(j, values, prim_box, P, node_lo, node_hi, ci);
     __threadfence();
     unsigned int n = parent[P + j];
     while (n != BUILD_NONE) {
         if (atomicAdd(counter + n, 1u) == 0) return;
         __threadfence();
-        const uint2 c = __ldcg(child + n);
-        const float4 llo = __ldcg(node_lo + c.x), lhi = __ldcg(node_hi + c.x);
-        const float4 rlo = __ldcg(node_lo + c.y), rhi = __ldcg(node_hi + c.y);
-        const float3 blo = min3f(xyz(llo), xyz(rlo)), bhi = max3f(xyz(lhi), xyz(rhi));
-        const unsigned int count = (__float_as_uint(lhi.w) & BUILD_COUNT_MASK) + (__float_as_uint(rhi.w) & BUILD_COUNT_MASK);
-        unsigned int packed;
-        const float node_cost = sah_node_cost(box_area(blo, bhi), count, __fadd_rn(llo.w, rlo.w), max_leaf, ci, ct, packed);
-        node_lo[n] = make_float4(blo.x, blo.y, blo.z, node_cost);
-        node_hi[n] = make_float4(bhi.x, bhi.y, bhi.z, __uint_as_float(packed));
+        fit_inner(n, child, node_lo, node_hi, max_leaf, ci, ct);
         __threadfence();
         n = __ldcg(parent + n);
     }

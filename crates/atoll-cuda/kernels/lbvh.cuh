@@ -100,3 +100,31 @@ __device__ __forceinline__ float sah_node_cost(float area, unsigned int count, f
     packed = count | (as_leaf ? BUILD_LEAF_BIT : 0u);
     return as_leaf ? leaf : split;
 }
+
+/// Writes primitive leaf `j` (the `j`th in Morton order) into the node
+/// arrays: its box, its cost as a leaf, one primitive.
+__device__ __forceinline__ void fit_leaf(unsigned long long j, const unsigned int* values, const float4* prim_box,
+                                         unsigned int P, float4* node_lo, float4* node_hi, float ci) {
+    const unsigned int p = values[j];
+    const float4 lo = prim_box[2ull * p], hi = prim_box[2ull * p + 1];
+    const float cost = __fmul_rn(ci, box_area(xyz(lo), xyz(hi)));
+    node_lo[P + j] = make_float4(lo.x, lo.y, lo.z, cost);
+    node_hi[P + j] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(1u | BUILD_LEAF_BIT));
+}
+
+/// Writes inner node `n`'s box, SAH cost and packed count from its
+/// children's (written by other threads: read through L2); returns the
+/// packed count.
+__device__ __forceinline__ unsigned int fit_inner(unsigned int n, const uint2* child, float4* node_lo, float4* node_hi,
+                                                  unsigned int max_leaf, float ci, float ct) {
+    const uint2 c = __ldcg(child + n);
+    const float4 llo = __ldcg(node_lo + c.x), lhi = __ldcg(node_hi + c.x);
+    const float4 rlo = __ldcg(node_lo + c.y), rhi = __ldcg(node_hi + c.y);
+    const float3 blo = min3f(xyz(llo), xyz(rlo)), bhi = max3f(xyz(lhi), xyz(rhi));
+    const unsigned int count = (__float_as_uint(lhi.w) & BUILD_COUNT_MASK) + (__float_as_uint(rhi.w) & BUILD_COUNT_MASK);
+    unsigned int packed;
+    const float node_cost = sah_node_cost(box_area(blo, bhi), count, __fadd_rn(llo.w, rlo.w), max_leaf, ci, ct, packed);
+    node_lo[n] = make_float4(blo.x, blo.y, blo.z, node_cost);
+    node_hi[n] = make_float4(bhi.x, bhi.y, bhi.z, __uint_as_float(packed));
+    return packed;
+}

@@ -53,7 +53,13 @@ struct TreeletScratch {
     unsigned int top_node[TREELET_TOP];
     uint2 top_child[TREELET_TOP];
     float4 top_lo[TREELET_TOP], top_hi[TREELET_TOP];
+    float top_area[TREELET_TOP];
+    float leaf_area[TREELET_LEAVES];
     unsigned char leaf_slot[TREELET_LEAVES];  // 0: not in the top
+    // The rebuilt inner nodes and their subsets (root first), whose boxes
+    // the lanes write at once.
+    unsigned int rebuilt_node[TREELET_LEAVES - 1];
+    unsigned char rebuilt_set[TREELET_LEAVES - 1];
 };
 
 /// Records the best split `best_left` (cost `children`) of subset `s`.
@@ -103,8 +109,10 @@ __device__ __forceinline__ void fetch_top(TreeletScratch& sh, unsigned int root,
             }
             sh.top_node[slot] = n;
             if (n != BUILD_NONE && level > 0) {
-                sh.top_lo[slot] = __ldcg(node_lo + n);
-                sh.top_hi[slot] = __ldcg(node_hi + n);
+                const float4 lo = __ldcg(node_lo + n), hi = __ldcg(node_hi + n);
+                sh.top_lo[slot] = lo;
+                sh.top_hi[slot] = hi;
+                sh.top_area[slot] = box_area(xyz(lo), xyz(hi));
             }
             if (n < P) sh.top_child[slot] = __ldcg(child + n);
         }
@@ -121,9 +129,12 @@ __device__ __forceinline__ void take_treelet_leaf(TreeletScratch& sh, int k, uns
     if (slot != 0) {
         sh.lo[k] = sh.top_lo[slot];
         sh.hi[k] = sh.top_hi[slot];
+        sh.leaf_area[k] = sh.top_area[slot];
     } else {
-        sh.lo[k] = __ldcg(node_lo + n);
-        sh.hi[k] = __ldcg(node_hi + n);
+        const float4 lo = __ldcg(node_lo + n), hi = __ldcg(node_hi + n);
+        sh.lo[k] = lo;
+        sh.hi[k] = hi;
+        sh.leaf_area[k] = box_area(xyz(lo), xyz(hi));
     }
 }
 
@@ -145,7 +156,7 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
             float best_area = -1.0f;
             for (int k = 0; k < leaves; ++k) {
                 if (sh.leaf_node[k] >= P) continue;
-                const float a = box_area(xyz(sh.lo[k]), xyz(sh.hi[k]));
+                const float a = sh.leaf_area[k];
                 if (a > best_area) {
                     best_area = a;
                     best = k;
@@ -181,10 +192,48 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     }
     __syncwarp();
 
-    // Optimal splits by increasing subset size: sizes 2..6 one subset per lane...
-    for (int size = 2; size < TREELET_LEAVES; ++size) {
+    // Optimal splits by increasing subset size: sizes 2..5 one subset per lane...
+    for (int size = 2; size < TREELET_LEAVES - 1; ++size) {
         for (unsigned int i = SUBSET_START[size] + lane; i < SUBSET_START[size + 1]; i += 32)
             evaluate_subset(sh, SUBSETS_BY_SIZE[i], max_leaf, ci, ct);
+        __syncwarp();
+    }
+    // ...size 6 (7 subsets of 31 partitions) four lanes per subset, each
+    // taking every fourth partition of evaluate_subset's order; ties go
+    // to the earliest in that order, as there...
+    {
+        const unsigned int group = lane >> 2, step = lane & 3u;
+        const bool in_use = group < 7;
+        const unsigned int s = in_use ? SUBSETS_BY_SIZE[SUBSET_START[TREELET_LEAVES - 1] + group] : 0u;
+        const unsigned int high = in_use ? 1u << (31 - __clz(s)) : 0u, rest = s ^ high;
+        float best = __int_as_float(0x7f800000);
+        unsigned int best_left = high;
+        int order = 0x7fffffff;  // the best partition's place in evaluate_subset's order
+        if (in_use) {
+            unsigned int q = (rest - 1u) & rest;
+            for (unsigned int k = 0; k < step; ++k) q = (q - 1u) & rest;
+            for (int at = (int)step; at < 31; at += 4) {
+                const unsigned int left = high | q;
+                const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
+                if (c < best) {
+                    best = c;
+                    best_left = left;
+                    order = at;
+                }
+                for (int k = 0; k < 4; ++k) q = (q - 1u) & rest;
+            }
+        }
+        for (int d = 1; d <= 2; d <<= 1) {
+            const float other = __shfl_xor_sync(0xffffffffu, best, d);
+            const unsigned int other_left = __shfl_xor_sync(0xffffffffu, best_left, d);
+            const int other_order = __shfl_xor_sync(0xffffffffu, order, d);
+            if (other < best || (other == best && other_order < order)) {
+                best = other;
+                best_left = other_left;
+                order = other_order;
+            }
+        }
+        if (in_use && step == 0) finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
         __syncwarp();
     }
     // ...and the whole treelet with its 63 partitions spread over the lanes.
@@ -212,15 +261,18 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     }
     __syncwarp();
 
-    // Rebuild the treelet's inner nodes (same node slots, root first) top-down.
+    // Rebuild the treelet's inner nodes (same node slots, root first)
+    // top-down: lane 0 links them, then a lane per node writes its box.
     if (lane == 0) {
         unsigned int stack_set[TREELET_LEAVES - 1], stack_node[TREELET_LEAVES - 1];
-        int sp = 0, next_inner = 1;
+        int sp = 0, next_inner = 1, rebuilt = 0;
         stack_set[sp] = TREELET_SUBSETS - 1;
         stack_node[sp++] = root;
         while (sp > 0) {
             --sp;
             const unsigned int s = stack_set[sp], n = stack_node[sp];
+            sh.rebuilt_set[rebuilt] = (unsigned char)s;
+            sh.rebuilt_node[rebuilt++] = n;
             const unsigned int sides[2] = {sh.partition[s], s ^ sh.partition[s]};
             unsigned int ids[2];
             for (int k = 0; k < 2; ++k) {
@@ -234,29 +286,41 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
                 parent[ids[k]] = n;
             }
             child[n] = make_uint2(ids[0], ids[1]);
-            const float inf = __int_as_float(0x7f800000);
-            float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
-            for (int k = 0; k < TREELET_LEAVES; ++k) {
-                if (!((s >> k) & 1u)) continue;
-                lo = min3f(lo, xyz(sh.lo[k]));
-                hi = max3f(hi, xyz(sh.hi[k]));
-            }
-            node_lo[n] = make_float4(lo.x, lo.y, lo.z, sh.cost[s]);
-            node_hi[n] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(sh.count[s] | (sh.as_leaf[s] ? BUILD_LEAF_BIT : 0u)));
         }
-        __threadfence();
     }
+    __syncwarp();
+    if (lane < TREELET_LEAVES - 1) {
+        const unsigned int s = sh.rebuilt_set[lane], n = sh.rebuilt_node[lane];
+        const float inf = __int_as_float(0x7f800000);
+        float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
+        for (int k = 0; k < TREELET_LEAVES; ++k) {
+            if (!((s >> k) & 1u)) continue;
+            lo = min3f(lo, xyz(sh.lo[k]));
+            hi = max3f(hi, xyz(sh.hi[k]));
+        }
+        node_lo[n] = make_float4(lo.x, lo.y, lo.z, sh.cost[s]);
+        node_hi[n] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(sh.count[s] | (sh.as_leaf[s] ? BUILD_LEAF_BIT : 0u)));
+    }
+    if (lane < TREELET_LEAVES - 1) __threadfence();
     __syncwarp();
 }
 
-// One round of treelet restructuring over every segment of the build.
-// `counter` must be zero at launch.
+// One round of treelet restructuring over every segment of the build;
+// with `fit_bounds` (the first round) it also does lbvh_bounds' work in
+// the same bottom-up pass: a node's box and cost are fitted from its
+// children's (already restructured: the result equals bounds, then the
+// round) before its treelet is. `counter` must be zero at launch.
 extern "C" __global__ void __launch_bounds__(TREELET_THREADS)
-    lbvh_treelet(unsigned int P, uint2* child, unsigned int* parent, float4* node_lo, float4* node_hi,
-                 unsigned int* counter, unsigned int gamma, unsigned int max_leaf, float ci, float ct) {
+    lbvh_treelet(const unsigned int* values, const float4* prim_box, unsigned int P, uint2* child,
+                 unsigned int* parent, float4* node_lo, float4* node_hi, unsigned int* counter, unsigned int gamma,
+                 unsigned int max_leaf, float ci, float ct, unsigned int fit_bounds) {
     __shared__ TreeletScratch scratch[TREELET_WARPS];
     TreeletScratch& sh = scratch[threadIdx.x >> 5];
     const unsigned long long j = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
+    if (fit_bounds && j < P) {
+        fit_leaf(j, values, prim_box, P, node_lo, node_hi, ci);
+        __threadfence();
+    }
     unsigned int node = j < P ? __ldcg(parent + P + j) : BUILD_NONE;
     bool active = node != BUILD_NONE;
     while (__any_sync(0xffffffffu, active)) {
@@ -266,7 +330,9 @@ extern "C" __global__ void __launch_bounds__(TREELET_THREADS)
                 active = false;  // the other child's thread goes on
             } else {
                 __threadfence();
-                process = (__float_as_uint(__ldcg(node_hi + node).w) & BUILD_COUNT_MASK) >= gamma;
+                const unsigned int packed = fit_bounds ? fit_inner(node, child, node_lo, node_hi, max_leaf, ci, ct)
+                                                       : __float_as_uint(__ldcg(node_hi + node).w);
+                process = (packed & BUILD_COUNT_MASK) >= gamma;
             }
         }
         for (unsigned int pending = __ballot_sync(0xffffffffu, process); pending; pending &= pending - 1) {

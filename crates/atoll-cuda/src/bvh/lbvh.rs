@@ -275,32 +275,38 @@ impl BuildArrays {
         unsafe { launch.launch(launch_1d(p, THREADS)) }.map_err(launch_err(gpu, "lbvh_karras"))?;
         phases.mark(gpu, "tree")?;
 
-        gpu.stream.memset_zeros(&mut self.kept).map_err(launch_err(gpu, "clearing counters"))?;
-        let mut launch = gpu.stream.launch_builder(&k.bounds);
-        launch
-            .arg(&self.values)
-            .arg(&self.prim_box)
-            .arg(&p)
-            .arg(&self.child)
-            .arg(&self.parent)
-            .arg(&mut self.kept)
-            .arg(&mut self.node_lo)
-            .arg(&mut self.node_hi)
-            .arg(&max_leaf)
-            .arg(&ci)
-            .arg(&ct);
-        // SAFETY: matches `lbvh_bounds(const unsigned* values, const float4* prim_box,
-        // unsigned P, const uint2* child, const unsigned* parent, unsigned* counter, float4*
-        // node_lo, float4* node_hi, unsigned max_leaf, float ci, float ct)`; counters zeroed
-        // just above; node arrays hold 2P float4; parent links stay within the tree.
-        unsafe { launch.launch(launch_1d(p, THREADS)) }.map_err(launch_err(gpu, "lbvh_bounds"))?;
+        // Treelet rounds fit the boxes in their first bottom-up pass.
+        if options.treelet_rounds == 0 {
+            gpu.stream.memset_zeros(&mut self.kept).map_err(launch_err(gpu, "clearing counters"))?;
+            let mut launch = gpu.stream.launch_builder(&k.bounds);
+            launch
+                .arg(&self.values)
+                .arg(&self.prim_box)
+                .arg(&p)
+                .arg(&self.child)
+                .arg(&self.parent)
+                .arg(&mut self.kept)
+                .arg(&mut self.node_lo)
+                .arg(&mut self.node_hi)
+                .arg(&max_leaf)
+                .arg(&ci)
+                .arg(&ct);
+            // SAFETY: matches `lbvh_bounds(const unsigned* values, const float4* prim_box,
+            // unsigned P, const uint2* child, const unsigned* parent, unsigned* counter, float4*
+            // node_lo, float4* node_hi, unsigned max_leaf, float ci, float ct)`; counters zeroed
+            // just above; node arrays hold 2P float4; parent links stay within the tree.
+            unsafe { launch.launch(launch_1d(p, THREADS)) }.map_err(launch_err(gpu, "lbvh_bounds"))?;
+        }
         phases.mark(gpu, "bounds")?;
 
         for round in 0..options.treelet_rounds {
             let gamma = options.gamma(round);
+            let fit_bounds = u32::from(round == 0);
             gpu.stream.memset_zeros(&mut self.kept).map_err(launch_err(gpu, "clearing counters"))?;
             let mut launch = gpu.stream.launch_builder(&k.treelet);
             launch
+                .arg(&self.values)
+                .arg(&self.prim_box)
                 .arg(&p)
                 .arg(&mut self.child)
                 .arg(&mut self.parent)
@@ -310,11 +316,13 @@ impl BuildArrays {
                 .arg(&gamma)
                 .arg(&max_leaf)
                 .arg(&ci)
-                .arg(&ct);
-            // SAFETY: matches `lbvh_treelet(unsigned P, uint2* child, unsigned* parent, float4*
-            // node_lo, float4* node_hi, unsigned* counter, unsigned gamma, unsigned max_leaf,
-            // float ci, float ct)`; counters zeroed above; treelets only rewire nodes below
-            // their root, within the arrays.
+                .arg(&ct)
+                .arg(&fit_bounds);
+            // SAFETY: matches `lbvh_treelet(const unsigned* values, const float4* prim_box,
+            // unsigned P, uint2* child, unsigned* parent, float4* node_lo, float4* node_hi,
+            // unsigned* counter, unsigned gamma, unsigned max_leaf, float ci, float ct, unsigned
+            // fit_bounds)`; counters zeroed above; node arrays hold 2P float4; treelets only
+            // rewire nodes below their root, within the arrays.
             unsafe { launch.launch(launch_1d(p, TREELET_THREADS)) }
                 .map_err(launch_err(gpu, "lbvh_treelet"))?;
         }
