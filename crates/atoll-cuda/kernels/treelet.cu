@@ -72,21 +72,27 @@ __device__ __forceinline__ void finish_subset(TreeletScratch& sh, unsigned int s
 }
 
 /// The cheapest split of subset `s` (at least 2 leaves): every partition
-/// once, by fixing its highest leaf on the left.
+/// once, by fixing its highest leaf on the left, its other leaves `q`
+/// taken in decreasing order; ties go to the first. The count is known, so
+/// the loop unrolls and the shared-memory reads of several partitions are
+/// in flight at once.
 __device__ __forceinline__ void evaluate_subset(TreeletScratch& sh, unsigned int s, unsigned int max_leaf, float ci,
                                                 float ct) {
     const unsigned int high = 1u << (31 - __clz(s));
     const unsigned int rest = s ^ high;
+    const int partitions = (1 << __popc(rest)) - 1;
     float best = __int_as_float(0x7f800000);
     unsigned int best_left = high;
-    for (unsigned int q = (rest - 1u) & rest;; q = (q - 1u) & rest) {
+    unsigned int q = (rest - 1u) & rest;
+#pragma unroll 4
+    for (int at = 0; at < partitions; ++at) {
         const unsigned int left = high | q;
         const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
         if (c < best) {
             best = c;
             best_left = left;
         }
-        if (q == 0) break;
+        q = (q - 1u) & rest;
     }
     finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
 }
@@ -144,34 +150,41 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
                             float ct) {
     const unsigned int lane = threadIdx.x & 31u;
     fetch_top(sh, root, P, child, node_lo, node_hi);
-    // Form the treelet: open the largest-area leaf until there are 7.
+    // Form the treelet: open the largest-area leaf until there are 7 (the
+    // lanes find it, ties to the first; lane 0 opens it).
     if (lane == 0) {
         const uint2 c = sh.top_child[1];
         sh.inner_node[0] = root;
         take_treelet_leaf(sh, 0, c.x, 2, node_lo, node_hi);
         take_treelet_leaf(sh, 1, c.y, 3, node_lo, node_hi);
-        int leaves = 2, inner = 1;
-        while (leaves < TREELET_LEAVES) {
-            int best = -1;
-            float best_area = -1.0f;
-            for (int k = 0; k < leaves; ++k) {
-                if (sh.leaf_node[k] >= P) continue;
-                const float a = sh.leaf_area[k];
-                if (a > best_area) {
-                    best_area = a;
-                    best = k;
-                }
+    }
+    __syncwarp();
+    int leaves = 2;
+    while (leaves < TREELET_LEAVES) {
+        float a = lane < (unsigned int)leaves && sh.leaf_node[lane] < P ? sh.leaf_area[lane] : -1.0f;
+        int best = (int)lane;
+        for (int d = 4; d >= 1; d >>= 1) {
+            const float other = __shfl_xor_sync(0xffffffffu, a, d);
+            const int other_best = __shfl_xor_sync(0xffffffffu, best, d);
+            if (other > a || (other == a && other_best < best)) {
+                a = other;
+                best = other_best;
             }
-            if (best < 0) break;
+        }
+        best = __shfl_sync(0xffffffffu, best, 0);
+        if (__shfl_sync(0xffffffffu, a, 0) < 0.0f) break;  // every leaf a primitive
+        if (lane == 0) {
             const unsigned int opened = sh.leaf_node[best], slot = sh.leaf_slot[best];
             const uint2 oc = slot != 0 ? sh.top_child[slot] : __ldcg(child + opened);
             const unsigned int below = 2u * slot < TREELET_TOP ? 2u * slot : 0u;
-            sh.inner_node[inner++] = opened;
+            sh.inner_node[leaves - 1] = opened;
             take_treelet_leaf(sh, best, oc.x, below, node_lo, node_hi);
-            take_treelet_leaf(sh, leaves++, oc.y, below ? below + 1u : 0u, node_lo, node_hi);
+            take_treelet_leaf(sh, leaves, oc.y, below ? below + 1u : 0u, node_lo, node_hi);
         }
-        sh.leaves = leaves;
+        __syncwarp();
+        ++leaves;
     }
+    if (lane == 0) sh.leaves = leaves;
     __syncwarp();
     if (sh.leaves < TREELET_LEAVES) return;  // fewer than 7 primitives (gamma < 7)
 
@@ -212,6 +225,7 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
         if (in_use) {
             unsigned int q = (rest - 1u) & rest;
             for (unsigned int k = 0; k < step; ++k) q = (q - 1u) & rest;
+#pragma unroll
             for (int at = (int)step; at < 31; at += 4) {
                 const unsigned int left = high | q;
                 const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);

@@ -160,6 +160,18 @@ pub struct GpuSceneBvh {
     pub(crate) wide: Mutex<Option<wide::WideBvh>>,
 }
 
+/// Room for `len` entries that the build's kernels write every one of
+/// (the BLAS's nodes and triangle records): not cleared first, which would
+/// cost a pass over memory that is all written again.
+fn written_in_full<T: DeviceRepr>(gpu: &Gpu, len: u64, what: &str) -> Result<CudaSlice<T>, CudaError> {
+    // SAFETY: device memory, not Rust memory: until the kernels write it,
+    // its contents are garbage values no one reads (the callers' kernels
+    // write all `len` entries: every kept node, and a permutation of the
+    // triangles, checked against the count).
+    unsafe { gpu.stream.alloc::<T>(len.max(1) as usize) }
+        .map_err(CudaError::driver(format!("{}: allocating {what} ({len} entries)", gpu.label())))
+}
+
 fn alloc<T: DeviceRepr + ValidAsZeroBits>(
     gpu: &Gpu,
     len: u64,
@@ -285,10 +297,10 @@ impl GpuSceneBvh {
                 )));
             }
             blas_node_count = nodes;
-            blas_nodes = alloc(gpu, nodes as u64, "BLAS nodes")?;
+            blas_nodes = written_in_full(gpu, nodes as u64, "BLAS nodes")?;
             a.emit_nodes(gpu, &k, &mut blas_nodes)?;
-            tris = alloc(gpu, p as u64, "triangle records")?;
-            tri_ids = alloc(gpu, p as u64, "triangle ids")?;
+            tris = written_in_full(gpu, p as u64, "triangle records")?;
+            tri_ids = written_in_full(gpu, p as u64, "triangle ids")?;
             let test_value = test.kernel_value();
             let mut launch = gpu.stream.launch_builder(&k.emit_triangles);
             launch
