@@ -24,6 +24,7 @@
 // root and three below it: the seven leaves mostly lie there).
 #define TREELET_TOP_LEVELS 4
 #define TREELET_TOP (1 << TREELET_TOP_LEVELS)
+static_assert(TREELET_TOP_LEVELS >= 2, "the root's children are taken from the fetched top");
 
 /// The non-empty subsets of 7 leaves ordered by size; those of size k are
 /// at [SUBSET_START[k], SUBSET_START[k + 1]).

@@ -76,6 +76,20 @@ pub enum CliError {
     Internal(String),
 }
 
+/// Output piped into a reader that stops early (`atoll info … | head`)
+/// ends the process as it ends Unix tools, by SIGPIPE, instead of a panic
+/// in `println!` (Rust ignores the signal, so writes fail instead). Not
+/// for the server or MPI and NCCL ranks: their sockets must see a peer
+/// that went away as an error to handle, not as the end of the process.
+fn end_quietly_when_stdout_closes() {
+    #[cfg(unix)]
+    // SAFETY: sets one signal's disposition back to the system default, at
+    // start-up; no handler of ours runs.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_env_filter(
@@ -97,6 +111,15 @@ fn main() -> ExitCode {
     }
     if let Some(triangles) = cli.max_generated_triangles {
         atoll_scene::input::set_max_generated_triangles(triangles);
+    }
+    let over_sockets = match &cli.command {
+        Some(Command::Serve(_)) => true,
+        Some(Command::Render(args)) => args.mpi,
+        Some(Command::Bench(args)) => args.nccl_ranks,
+        _ => false,
+    };
+    if !over_sockets {
+        end_quietly_when_stdout_closes();
     }
     let result = match cli.command {
         Some(Command::Render(args)) => render::run(*args),

@@ -58,6 +58,28 @@ fn info_reports_counts() {
     assert!(stdout.contains("SAH cost"), "{stdout}");
 }
 
+/// Output into a pipe whose reader is gone (`atoll info … | head -1`)
+/// ends atoll as it ends Unix tools, by SIGPIPE, with no panic message.
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::{Command, Stdio};
+    let dir = scratch("pipe");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_atoll"))
+        .args(["info", &shared("cbox/spec/scene.pbrt")])
+        .current_dir(&dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("atoll runs");
+    // The reader goes before atoll has loaded the scene and printed.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.signal(), Some(libc::SIGPIPE), "{:?}: {}", out.status, stderr(&out));
+    assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
+}
+
 /// Textures count in `atoll info`; an image that cannot be read is a
 /// warning with its line (the texture becomes a constant), not an error.
 #[test]
