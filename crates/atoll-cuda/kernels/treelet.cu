@@ -61,9 +61,6 @@ struct TreeletScratch {
     // the lanes write at once.
     unsigned int rebuilt_node[TREELET_LEAVES - 1];
     unsigned char rebuilt_set[TREELET_LEAVES - 1];
-    // Lane 0's stack while it links them (not in local memory).
-    unsigned int stack_node[TREELET_LEAVES - 1];
-    unsigned char stack_set[TREELET_LEAVES - 1];
 };
 
 /// Records the best split `best_left` (cost `children`) of subset `s`.
@@ -75,53 +72,30 @@ __device__ __forceinline__ void finish_subset(TreeletScratch& sh, unsigned int s
     sh.as_leaf[s] = (packed & BUILD_LEAF_BIT) ? 1 : 0;
 }
 
-/// The cheapest splits of `COUNT` subsets of `SIZE` leaves, the `COUNT`
-/// from `first` in SUBSETS_BY_SIZE, with `G` lanes per subset (`G` a power
-/// of two, `COUNT * G` at most 32). A split puts the subset's highest leaf
-/// on the left; its other leaves `q` are taken in decreasing order, lane
-/// `j` of a group taking the `j`th, `j + G`th, ... of them; ties go to the
-/// first in that order (as a single lane taking them all would find). The
-/// group's first lane records the result. Called by all 32 lanes.
-template <int SIZE, int G, int COUNT>
-__device__ __forceinline__ void evaluate_subsets(TreeletScratch& sh, unsigned int first, unsigned int lane,
-                                                 unsigned int max_leaf, float ci, float ct) {
-    static_assert((G & (G - 1)) == 0 && COUNT * G <= 32, "groups of a power of two lanes within the warp");
-    constexpr int PARTITIONS = (1 << (SIZE - 1)) - 1;
-    const unsigned int group = lane / G, step = lane % G;
-    const bool in_use = group < COUNT;
-    const unsigned int s = in_use ? SUBSETS_BY_SIZE[first + group] : 0u;
-    const unsigned int high = in_use ? 1u << (31 - __clz(s)) : 0u, rest = s ^ high;
+/// The cheapest split of subset `s` (at least 2 leaves): every partition
+/// once, by fixing its highest leaf on the left, its other leaves `q`
+/// taken in decreasing order; ties go to the first. The count is known, so
+/// the loop unrolls and the shared-memory reads of several partitions are
+/// in flight at once.
+__device__ __forceinline__ void evaluate_subset(TreeletScratch& sh, unsigned int s, unsigned int max_leaf, float ci,
+                                                float ct) {
+    const unsigned int high = 1u << (31 - __clz(s));
+    const unsigned int rest = s ^ high;
+    const int partitions = (1 << __popc(rest)) - 1;
     float best = __int_as_float(0x7f800000);
     unsigned int best_left = high;
-    int order = 0x7fffffff;  // the best split's place in the order above
-    if (in_use) {
-        unsigned int q = (rest - 1u) & rest;
-        for (unsigned int k = 0; k < step; ++k) q = (q - 1u) & rest;
-#pragma unroll
-        for (int at = (int)step; at < PARTITIONS; at += G) {
-            const unsigned int left = high | q;
-            const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
-            if (c < best) {
-                best = c;
-                best_left = left;
-                order = at;
-            }
-#pragma unroll
-            for (int k = 0; k < G; ++k) q = (q - 1u) & rest;
+    unsigned int q = (rest - 1u) & rest;
+#pragma unroll 4
+    for (int at = 0; at < partitions; ++at) {
+        const unsigned int left = high | q;
+        const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
+        if (c < best) {
+            best = c;
+            best_left = left;
         }
+        q = (q - 1u) & rest;
     }
-#pragma unroll
-    for (int d = 1; d < G; d <<= 1) {
-        const float other = __shfl_xor_sync(0xffffffffu, best, d);
-        const unsigned int other_left = __shfl_xor_sync(0xffffffffu, best_left, d);
-        const int other_order = __shfl_xor_sync(0xffffffffu, order, d);
-        if (other < best || (other == best && other_order < order)) {
-            best = other;
-            best_left = other_left;
-            order = other_order;
-        }
-    }
-    if (in_use && step == 0) finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
+    finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
 }
 
 /// Fetches the top of the subtree under `root` into `sh.top_*`, one level
@@ -232,24 +206,51 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     }
     __syncwarp();
 
-    // Optimal splits by increasing subset size (a size reads the smaller
-    // sizes' costs only): 21, 35, 35, 21 and 7 subsets of 2 to 6 leaves
-    // (1, 3, 7, 15 and 31 splits each), spread so that the lanes' work is
-    // about even: one lane a subset where the subsets fill the warp, a
-    // group of lanes a subset for the few left over...
-    evaluate_subsets<2, 1, 21>(sh, SUBSET_START[2], lane, max_leaf, ci, ct);
-    __syncwarp();
-    evaluate_subsets<3, 1, 32>(sh, SUBSET_START[3], lane, max_leaf, ci, ct);
-    evaluate_subsets<3, 8, 3>(sh, SUBSET_START[3] + 32, lane, max_leaf, ci, ct);
-    __syncwarp();
-    evaluate_subsets<4, 1, 32>(sh, SUBSET_START[4], lane, max_leaf, ci, ct);
-    evaluate_subsets<4, 8, 3>(sh, SUBSET_START[4] + 32, lane, max_leaf, ci, ct);
-    __syncwarp();
-    evaluate_subsets<5, 2, 16>(sh, SUBSET_START[5], lane, max_leaf, ci, ct);
-    evaluate_subsets<5, 4, 5>(sh, SUBSET_START[5] + 16, lane, max_leaf, ci, ct);
-    __syncwarp();
-    evaluate_subsets<6, 4, 7>(sh, SUBSET_START[6], lane, max_leaf, ci, ct);
-    __syncwarp();
+    // Optimal splits by increasing subset size: sizes 2..5 one subset per lane...
+    for (int size = 2; size < TREELET_LEAVES - 1; ++size) {
+        for (unsigned int i = SUBSET_START[size] + lane; i < SUBSET_START[size + 1]; i += 32)
+            evaluate_subset(sh, SUBSETS_BY_SIZE[i], max_leaf, ci, ct);
+        __syncwarp();
+    }
+    // ...size 6 (7 subsets of 31 partitions) four lanes per subset, each
+    // taking every fourth partition of evaluate_subset's order; ties go
+    // to the earliest in that order, as there...
+    {
+        const unsigned int group = lane >> 2, step = lane & 3u;
+        const bool in_use = group < 7;
+        const unsigned int s = in_use ? SUBSETS_BY_SIZE[SUBSET_START[TREELET_LEAVES - 1] + group] : 0u;
+        const unsigned int high = in_use ? 1u << (31 - __clz(s)) : 0u, rest = s ^ high;
+        float best = __int_as_float(0x7f800000);
+        unsigned int best_left = high;
+        int order = 0x7fffffff;  // the best partition's place in evaluate_subset's order
+        if (in_use) {
+            unsigned int q = (rest - 1u) & rest;
+            for (unsigned int k = 0; k < step; ++k) q = (q - 1u) & rest;
+#pragma unroll
+            for (int at = (int)step; at < 31; at += 4) {
+                const unsigned int left = high | q;
+                const float c = __fadd_rn(sh.cost[left], sh.cost[s ^ left]);
+                if (c < best) {
+                    best = c;
+                    best_left = left;
+                    order = at;
+                }
+                for (int k = 0; k < 4; ++k) q = (q - 1u) & rest;
+            }
+        }
+        for (int d = 1; d <= 2; d <<= 1) {
+            const float other = __shfl_xor_sync(0xffffffffu, best, d);
+            const unsigned int other_left = __shfl_xor_sync(0xffffffffu, best_left, d);
+            const int other_order = __shfl_xor_sync(0xffffffffu, order, d);
+            if (other < best || (other == best && other_order < order)) {
+                best = other;
+                best_left = other_left;
+                order = other_order;
+            }
+        }
+        if (in_use && step == 0) finish_subset(sh, s, best, best_left, max_leaf, ci, ct);
+        __syncwarp();
+    }
     // ...and the whole treelet with its 63 partitions spread over the lanes.
     {
         const unsigned int all = TREELET_SUBSETS - 1, high = 1u << (TREELET_LEAVES - 1);
@@ -278,10 +279,9 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     // Rebuild the treelet's inner nodes (same node slots, root first)
     // top-down: lane 0 links them, then a lane per node writes its box.
     if (lane == 0) {
-        unsigned char* stack_set = sh.stack_set;
-        unsigned int* stack_node = sh.stack_node;
+        unsigned int stack_set[TREELET_LEAVES - 1], stack_node[TREELET_LEAVES - 1];
         int sp = 0, next_inner = 1, rebuilt = 0;
-        stack_set[sp] = (unsigned char)(TREELET_SUBSETS - 1);
+        stack_set[sp] = TREELET_SUBSETS - 1;
         stack_node[sp++] = root;
         while (sp > 0) {
             --sp;
@@ -295,7 +295,7 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
                     ids[k] = sh.leaf_node[__ffs(sides[k]) - 1];
                 } else {
                     ids[k] = sh.inner_node[next_inner++];
-                    stack_set[sp] = (unsigned char)sides[k];
+                    stack_set[sp] = sides[k];
                     stack_node[sp++] = ids[k];
                 }
                 parent[ids[k]] = n;
