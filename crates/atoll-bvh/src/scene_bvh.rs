@@ -177,6 +177,7 @@ impl<L: BvhLayout> Blas<L> {
         let boxes: Vec<Aabb> = prims.par_iter().map(|p| Aabb::from_points(corners(p))).collect();
         let options = BuildOptions::TRIANGLES;
         let mut bvh2 = Bvh2::build(&boxes, &options);
+        atoll_scene::progress::built(boxes.len() as u64);
         bvh2.align_leaves(Tri4::LANES as u32);
         let padding = PrimId { mesh: u32::MAX, triangle: u32::MAX };
         let prims: Vec<PrimId> = bvh2

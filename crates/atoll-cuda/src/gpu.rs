@@ -511,7 +511,9 @@ impl<'g> Uploader<'g> {
             return gpu.stream.alloc_zeros(1).map_err(CudaError::driver(context()));
         }
         if std::mem::size_of_val(data) < STAGED_UPLOAD_BYTES {
-            return gpu.stream.clone_htod(data).map_err(CudaError::driver(context()));
+            let copy = gpu.stream.clone_htod(data).map_err(CudaError::driver(context()))?;
+            atoll_scene::progress::copied(std::mem::size_of_val(data) as u64);
+            return Ok(copy);
         }
         self.staged(data).map_err(CudaError::driver(context()))
     }
@@ -563,6 +565,7 @@ impl<'g> Uploader<'g> {
                     )
                 }?;
                 staging.done[b].record(&gpu.stream)?;
+                atoll_scene::progress::copied(chunk.len() as u64);
             }
         }
         gpu.stream.synchronize()?;

@@ -589,6 +589,7 @@ impl ChunkWindow {
                     "{}: writing to chunk {chunk} of a window",
                     gpu.label()
                 )))?;
+                atoll_scene::progress::copied(src.len() as u64);
                 used[g] = true;
             }
         }

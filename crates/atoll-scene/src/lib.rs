@@ -26,6 +26,7 @@ pub mod pbrt;
 pub mod ply;
 pub mod ply_write;
 pub mod procedural;
+pub mod progress;
 pub mod scene;
 pub mod texture;
 pub mod texture_scenes;

@@ -6,11 +6,12 @@ use std::sync::Arc;
 use atoll_dist::{RingOrder, Strategy, Transport};
 use atoll_render::integrator::render_warmed;
 use atoll_render::{render, RenderOptions};
+use atoll_scene::progress::Prepared;
 use atoll_scene::Scene;
 use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler};
 use clap::Args;
 use glam::UVec2;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
 use crate::load::{load_scene_reporting, LoadReport};
@@ -574,11 +575,37 @@ fn parse_strategy(s: &str) -> Result<Strategy, String> {
 
 pub(crate) fn progress_bar(quiet: bool) -> RenderProgress {
     let bar = if quiet { ProgressBar::hidden() } else { ProgressBar::new_spinner() };
+    let start = Prepared::now();
     bar.set_style(
-        ProgressStyle::with_template("{spinner} preparing [{elapsed_precise}]").expect("valid template"),
+        ProgressStyle::with_template("{spinner} preparing [{elapsed_precise}]{prepared}")
+            .expect("valid template")
+            .with_key("prepared", move |state: &ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ =
+                    w.write_str(&preparing_text(Prepared::now().since(start), state.elapsed().as_secs_f64()));
+            }),
     );
     bar.enable_steady_tick(std::time::Duration::from_millis(100));
     RenderProgress { bar, rendering: false }
+}
+
+/// What the preparing spinner adds after its time: the bytes copied to
+/// the devices and the triangles their BVHs were built over so far, with
+/// rates over `seconds` (nothing before there is anything).
+fn preparing_text(done: Prepared, seconds: f64) -> String {
+    let seconds = seconds.max(1e-3);
+    let mut parts = Vec::new();
+    if done.bytes_copied > 0 {
+        let gb = done.bytes_copied as f64 / 1e9;
+        parts.push(format!("copied {gb:.2} GB ({:.2} GB/s)", gb / seconds));
+    }
+    if done.triangles_built > 0 {
+        let m = done.triangles_built as f64 / 1e6;
+        parts.push(format!("BVH over {m:.1} M triangles ({:.1} M/s)", m / seconds));
+    }
+    match parts.is_empty() {
+        true => String::new(),
+        false => format!(" {}", parts.join(", ")),
+    }
 }
 
 /// A render's progress: a spinner while the devices prepare (uploads, BVH
@@ -676,6 +703,34 @@ fn parse_light_sampler(name: &str) -> Result<LightSampler, String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_preparing_line_gives_what_was_copied_and_built_with_rates() {
+        assert_eq!(preparing_text(Prepared::default(), 1.0), "");
+        let done = Prepared { bytes_copied: 3_000_000_000, triangles_built: 0 };
+        assert_eq!(preparing_text(done, 2.0), " copied 3.00 GB (1.50 GB/s)");
+        let done = Prepared { bytes_copied: 500_000_000, triangles_built: 12_000_000 };
+        assert_eq!(
+            preparing_text(done, 0.5),
+            " copied 0.50 GB (1.00 GB/s), BVH over 12.0 M triangles (24.0 M/s)"
+        );
+    }
+
+    /// A device's preparing counts the triangles its BVH is built over
+    /// (the spinner's source).
+    #[test]
+    fn preparing_a_cpu_device_counts_its_bvh_triangles() {
+        let scene = Arc::new(atoll_scene::cornell::builtin_cornell_box());
+        let triangles = scene.stats().unique_triangles;
+        let before = Prepared::now();
+        let options = RenderOptions::from_scene(&scene);
+        let mut device = atoll_render::CpuDevice::default();
+        let frame = Arc::new(atoll_render::FrameContext::new(&scene, options));
+        atoll_render::Device::prepare(&mut device, &scene, &atoll_bvh::ScenePart::whole(&scene), &frame)
+            .unwrap();
+        // (Other tests may build at once: at least this scene's.)
+        assert!(Prepared::now().since(before).triangles_built >= triangles);
+    }
 
     #[test]
     fn an_image_that_cannot_be_written_is_saved_elsewhere_and_said_where() {

@@ -290,6 +290,7 @@ impl GpuSceneBvh {
             // 2P float4 and seg_bounds 8 words per segment.
             unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_blas_boxes"))?;
             a.build_tree(gpu, &k, options.max_leaf, options, &mut phases)?;
+            atoll_scene::progress::built(p as u64);
             let (nodes, records) = a.collapse(gpu, &k, options.max_leaf, &mut phases)?;
             if records != p {
                 return Err(CudaError::Usage(format!(

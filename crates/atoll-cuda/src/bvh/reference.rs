@@ -465,6 +465,7 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
         })
         .collect();
     let (tree, blas) = build(&boxes, &plan.seg_start, options.max_leaf, options);
+    atoll_scene::progress::built(boxes.len() as u64);
     let tri_ids: Vec<u32> = blas.order.par_iter().map(|&j| triangle(tree.values[j as usize])).collect();
     let tris = tri_ids.par_iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
 
