@@ -45,6 +45,8 @@ pub struct GpuBenchOptions {
     /// The quality builds timed beside the plain LBVH, as (treelet rounds,
     /// first round's gamma): the default's, or a sweep of them.
     pub quality_builds: Vec<(u32, u32)>,
+    /// Time traversal too (else the builds only).
+    pub traversal: bool,
 }
 
 impl Default for GpuBenchOptions {
@@ -60,6 +62,7 @@ impl Default for GpuBenchOptions {
                 BuildOptions::default().treelet_rounds,
                 BuildOptions::default().treelet_gamma,
             )],
+            traversal: true,
         }
     }
 }
@@ -298,6 +301,10 @@ pub fn run(gpu: &Arc<Gpu>, scene: &Scene, opts: &GpuBenchOptions) -> Result<GpuB
         }
     }
 
+    if !opts.traversal {
+        let (device, resolution) = (gpu.name.clone(), opts.resolution);
+        return Ok(GpuBenchReport { device, scene_triangles, resolution, builds, batches: Vec::new() });
+    }
     let bench_opts = BenchOptions {
         resolution: Some(opts.resolution),
         shadow_fraction: opts.shadow_fraction,
