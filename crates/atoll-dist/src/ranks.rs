@@ -583,7 +583,7 @@ fn joined_together<L>(mine: Result<L, String>, everyone: bool) -> Result<L, Stri
     match (mine, everyone) {
         (Ok(link), true) => Ok(link),
         (Err(e), _) => Err(e),
-        (Ok(_), false) => Err("another rank of the ring could not join NCCL".into()),
+        (Ok(_), false) => Err("another rank could not join NCCL".into()),
     }
 }
 
@@ -978,7 +978,7 @@ mod tests {
     #[test]
     fn a_link_stands_only_when_every_member_joined() {
         assert_eq!(joined_together(Ok(7), true), Ok(7));
-        assert_eq!(joined_together(Ok(7), false), Err("another rank of the ring could not join NCCL".into()));
+        assert_eq!(joined_together(Ok(7), false), Err("another rank could not join NCCL".into()));
         assert_eq!(joined_together::<u8>(Err("mine".into()), false), Err("mine".into()));
     }
 }
