@@ -50,7 +50,9 @@ struct TreeletScratch {
     int leaves;
     // The top of the root's subtree, fetched by the lanes level by level
     // (heap order: slot 1 the root, slot s's children 2s and 2s + 1), so
-    // that forming the treelet rarely waits on memory.
+    // that forming the treelet seldom loads one node after another. (It
+    // measured neither faster nor slower than lane 0 loading them: the
+    // pass is bound by the instructions it issues, BENCHMARKS.md.)
     unsigned int top_node[TREELET_TOP];
     uint2 top_child[TREELET_TOP];
     float4 top_lo[TREELET_TOP], top_hi[TREELET_TOP];
@@ -74,9 +76,8 @@ __device__ __forceinline__ void finish_subset(TreeletScratch& sh, unsigned int s
 
 /// The cheapest split of subset `s` (at least 2 leaves): every partition
 /// once, by fixing its highest leaf on the left, its other leaves `q`
-/// taken in decreasing order; ties go to the first. The count is known, so
-/// the loop unrolls and the shared-memory reads of several partitions are
-/// in flight at once.
+/// taken in decreasing order; ties go to the first (the order the host
+/// reference and the size-6 lane groups below keep).
 __device__ __forceinline__ void evaluate_subset(TreeletScratch& sh, unsigned int s, unsigned int max_leaf, float ci,
                                                 float ct) {
     const unsigned int high = 1u << (31 - __clz(s));
