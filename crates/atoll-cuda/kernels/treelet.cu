@@ -20,6 +20,10 @@
 #define TREELET_WARPS (TREELET_THREADS / 32)
 #define TREELET_LEAVES 7
 #define TREELET_SUBSETS (1 << TREELET_LEAVES)
+#define TREELET_LOW_LEAVES 4
+#define TREELET_LOW_SUBSETS (1 << TREELET_LOW_LEAVES)
+#define TREELET_PARTS (TREELET_LOW_SUBSETS + (1 << (TREELET_LEAVES - TREELET_LOW_LEAVES)))
+static_assert(TREELET_PARTS <= 32, "a lane per half-subset box");
 // Levels of the root's subtree fetched before the treelet is formed (the
 // root and three below it: the seven leaves mostly lie there).
 #define TREELET_TOP_LEVELS 4
@@ -47,6 +51,11 @@ struct TreeletScratch {
     unsigned int leaf_node[TREELET_LEAVES];
     unsigned int inner_node[TREELET_LEAVES - 1];
     float4 lo[TREELET_LEAVES], hi[TREELET_LEAVES];  // w: subtree cost / packed count
+    // Boxes of the subsets of the low leaves (0..TREELET_LOW_LEAVES) at
+    // [0, TREELET_LOW_SUBSETS) and of the high ones after them (w of
+    // part_hi: the primitive count): every subset's box is the union of one
+    // of each, so it takes one union, not one per leaf.
+    float4 part_lo[TREELET_PARTS], part_hi[TREELET_PARTS];
     int leaves;
     // The top of the root's subtree, fetched by the lanes level by level
     // (heap order: slot 1 the root, slot s's children 2s and 2s + 1), so
@@ -64,6 +73,16 @@ struct TreeletScratch {
     unsigned int rebuilt_node[TREELET_LEAVES - 1];
     unsigned char rebuilt_set[TREELET_LEAVES - 1];
 };
+
+/// Box of subset `s` of the treelet's leaves from the half-subset boxes;
+/// returns its primitive count.
+__device__ __forceinline__ unsigned int subset_box(const TreeletScratch& sh, unsigned int s, float3& lo, float3& hi) {
+    const unsigned int low = s & (TREELET_LOW_SUBSETS - 1u), high = TREELET_LOW_SUBSETS + (s >> TREELET_LOW_LEAVES);
+    const float4 llo = sh.part_lo[low], lhi = sh.part_hi[low], hlo = sh.part_lo[high], hhi = sh.part_hi[high];
+    lo = min3f(xyz(llo), xyz(hlo));
+    hi = max3f(xyz(lhi), xyz(hhi));
+    return __float_as_uint(lhi.w) + __float_as_uint(hhi.w);
+}
 
 /// Records the best split `best_left` (cost `children`) of subset `s`.
 __device__ __forceinline__ void finish_subset(TreeletScratch& sh, unsigned int s, float children,
@@ -190,17 +209,27 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     __syncwarp();
     if (sh.leaves < TREELET_LEAVES) return;  // fewer than 7 primitives (gamma < 7)
 
-    // Boxes, areas and primitive counts of all subsets; costs of single leaves.
-    for (unsigned int s = lane + 1; s < TREELET_SUBSETS; s += 32) {
+    // Boxes, areas and primitive counts of all subsets (each the union of
+    // a low and a high part); costs of single leaves.
+    if (lane < TREELET_PARTS) {
+        const unsigned int part =
+            lane < TREELET_LOW_SUBSETS ? lane : (lane - TREELET_LOW_SUBSETS) << TREELET_LOW_LEAVES;
         const float inf = __int_as_float(0x7f800000);
         float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
         unsigned int count = 0;
         for (int k = 0; k < TREELET_LEAVES; ++k) {
-            if (!((s >> k) & 1u)) continue;
+            if (!((part >> k) & 1u)) continue;
             lo = min3f(lo, xyz(sh.lo[k]));
             hi = max3f(hi, xyz(sh.hi[k]));
             count += __float_as_uint(sh.hi[k].w) & BUILD_COUNT_MASK;
         }
+        sh.part_lo[lane] = make_float4(lo.x, lo.y, lo.z, 0.0f);
+        sh.part_hi[lane] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(count));
+    }
+    __syncwarp();
+    for (unsigned int s = lane + 1; s < TREELET_SUBSETS; s += 32) {
+        float3 lo, hi;
+        const unsigned int count = subset_box(sh, s, lo, hi);
         sh.area[s] = box_area(lo, hi);
         sh.count[s] = count;
         if (__popc(s) == 1) sh.cost[s] = sh.lo[__ffs(s) - 1].w;
@@ -307,13 +336,8 @@ __device__ void restructure(TreeletScratch& sh, unsigned int root, unsigned int 
     __syncwarp();
     if (lane < TREELET_LEAVES - 1) {
         const unsigned int s = sh.rebuilt_set[lane], n = sh.rebuilt_node[lane];
-        const float inf = __int_as_float(0x7f800000);
-        float3 lo = make_float3(inf, inf, inf), hi = make_float3(-inf, -inf, -inf);
-        for (int k = 0; k < TREELET_LEAVES; ++k) {
-            if (!((s >> k) & 1u)) continue;
-            lo = min3f(lo, xyz(sh.lo[k]));
-            hi = max3f(hi, xyz(sh.hi[k]));
-        }
+        float3 lo, hi;
+        subset_box(sh, s, lo, hi);
         node_lo[n] = make_float4(lo.x, lo.y, lo.z, sh.cost[s]);
         node_hi[n] = make_float4(hi.x, hi.y, hi.z, __uint_as_float(sh.count[s] | (sh.as_leaf[s] ? BUILD_LEAF_BIT : 0u)));
     }

@@ -193,6 +193,113 @@ fn upload<T: DeviceRepr + ValidAsZeroBits + Copy>(
     gpu.stream.clone_htod(data).map_err(CudaError::driver(format!("{}: uploading {what}", gpu.label())))
 }
 
+/// Most valid instances whose TLAS is built on the host: there the host
+/// build takes less time than the device build's launches and read-back
+/// (BENCHMARKS.md).
+const HOST_TLAS_MAX_INSTANCES: u32 = 16;
+
+/// A built TLAS on the device.
+struct DeviceTlas {
+    nodes: CudaSlice<GpuBvhNode>,
+    node_count: u32,
+    instances: CudaSlice<GpuTlasInstance>,
+    /// Root link, root box and root SAH cost (area-weighted).
+    root: (i32, Bounds, f32),
+    /// Device bytes the build allocated besides its outputs.
+    scratch_bytes: u64,
+}
+
+/// The TLAS built on the host (`reference::build_tlas`, the device build's
+/// twin) from the BLAS roots read back, and uploaded.
+fn tlas_on_host(
+    gpu: &Gpu,
+    scene: &GpuScene,
+    plan: &ScenePlan,
+    blas: &[(i32, Bounds, f32)],
+    options: &BuildOptions,
+) -> Result<DeviceTlas, CudaError> {
+    let roots: Vec<i32> = blas.iter().map(|r| r.0).collect();
+    let bounds: Vec<Bounds> = blas.iter().map(|r| r.1).collect();
+    let t = reference::build_tlas(plan, &scene.host_instances, &roots, &bounds, options);
+    Ok(DeviceTlas {
+        nodes: upload(gpu, &t.nodes, "TLAS nodes")?,
+        node_count: t.nodes.len() as u32,
+        instances: upload(gpu, &t.instances, "instance records")?,
+        root: (t.root, t.bounds, t.cost),
+        scratch_bytes: 0,
+    })
+}
+
+/// The TLAS built on the device over the instances' world boxes, from the
+/// BLAS build's root links and boxes (`a`).
+fn tlas_on_device(
+    gpu: &Gpu,
+    k: &LbvhKernels,
+    scene: &GpuScene,
+    plan: &ScenePlan,
+    a: &BuildArrays,
+    options: &BuildOptions,
+    tlas_phases: &mut Phases,
+) -> Result<DeviceTlas, CudaError> {
+    let v = plan.valid_instances.len() as u32;
+    let object_segment = upload(gpu, &plan.object_segment, "object segments")?;
+    let valid = upload(gpu, &plan.valid_instances, "valid instances")?;
+    let mut t = BuildArrays::new(gpu, &[0, v])?;
+    let (mut tlas_nodes, mut instances) = (alloc(gpu, 1, "TLAS nodes")?, alloc(gpu, 1, "instance records")?);
+    let mut tlas_node_count = 0;
+    if v > 0 {
+        t.init_seg_bounds(gpu, k)?;
+        let config = t.box_launch();
+        let mut launch = gpu.stream.launch_builder(&k.tlas_boxes);
+        launch
+            .arg(&valid)
+            .arg(&scene.instances)
+            .arg(&object_segment)
+            .arg(&a.root_box)
+            .arg(&t.seg_start)
+            .arg(&v)
+            .arg(&mut t.prim_box)
+            .arg(&mut t.seg_bounds);
+        // SAFETY: matches `lbvh_tlas_boxes(const unsigned* valid, const GpuInstance*
+        // instances, const unsigned* object_segment, const float4* seg_root_box, const
+        // unsigned* seg_start, unsigned P, float4* prim_box, unsigned* seg_bounds)`; valid
+        // instances index `instances` and name objects with a segment (ScenePlan), whose
+        // root box the BLAS build wrote.
+        unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_tlas_boxes"))?;
+        t.build_tree(gpu, k, 1, options, tlas_phases)?;
+        let (nodes, records) = t.collapse(gpu, k, 1, tlas_phases)?;
+        if records != v {
+            return Err(CudaError::Usage(format!("GPU BVH build: {records} TLAS leaves for {v} instances")));
+        }
+        tlas_node_count = nodes;
+        tlas_nodes = alloc(gpu, nodes as u64, "TLAS nodes")?;
+        t.emit_nodes(gpu, k, &mut tlas_nodes)?;
+        instances = alloc(gpu, v as u64, "instance records")?;
+        let mut launch = gpu.stream.launch_builder(&k.emit_instances);
+        launch
+            .arg(&v)
+            .arg(&t.child)
+            .arg(&t.leaf_size)
+            .arg(&t.tri_offset)
+            .arg(&t.values)
+            .arg(&valid)
+            .arg(&scene.instances)
+            .arg(&object_segment)
+            .arg(&a.root_link)
+            .arg(&mut instances);
+        // SAFETY: matches `lbvh_emit_instances(unsigned P, const uint2* child, const unsigned*
+        // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned* valid,
+        // const GpuInstance* instances, const unsigned* object_segment, const int*
+        // seg_root_link, TlasInstance* out)`; 2V threads, leaf offsets a permutation of 0..V.
+        unsafe { launch.launch(launch_1d(2 * v, THREADS)) }
+            .map_err(launch_err(gpu, "lbvh_emit_instances"))?;
+    }
+    let root = if v > 0 { download_roots(gpu, &t)?[0] } else { (LINK_DONE, ([0.0; 3], [0.0; 3]), 0.0) };
+    let scratch_bytes =
+        BuildArrays::bytes(v as u64, 1) + (object_segment.num_bytes() + valid.num_bytes()) as u64;
+    Ok(DeviceTlas { nodes: tlas_nodes, node_count: tlas_node_count, instances, root, scratch_bytes })
+}
+
 /// Per segment (root link, box with the root's SAH cost in `min.w`), read back.
 fn download_roots(gpu: &Gpu, a: &BuildArrays) -> Result<Vec<(i32, Bounds, f32)>, CudaError> {
     let err = || CudaError::driver(format!("{}: reading BVH roots", gpu.label()));
@@ -329,77 +436,25 @@ impl GpuSceneBvh {
         phases.mark(gpu, "layout")?;
         let blas = download_roots(gpu, &a)?;
 
-        // The TLAS over the valid instances' world boxes (the BLAS arrays stay
-        // alive: their root links and boxes are its input).
+        // The TLAS over the valid instances' world boxes: a few instances
+        // on the host (launches and a read-back would cost more than the
+        // build), more on the device (the BLAS arrays stay alive: their root
+        // links and boxes are its input).
         let mut tlas_phases = Phases::start(gpu)?;
-        let object_segment = upload(gpu, &plan.object_segment, "object segments")?;
-        let valid = upload(gpu, &plan.valid_instances, "valid instances")?;
-        let mut t = BuildArrays::new(gpu, &[0, v])?;
-        let (mut tlas_nodes, mut instances) =
-            (alloc(gpu, 1, "TLAS nodes")?, alloc(gpu, 1, "instance records")?);
-        let mut tlas_node_count = 0;
-        if v > 0 {
-            t.init_seg_bounds(gpu, &k)?;
-            let config = t.box_launch();
-            let mut launch = gpu.stream.launch_builder(&k.tlas_boxes);
-            launch
-                .arg(&valid)
-                .arg(&scene.instances)
-                .arg(&object_segment)
-                .arg(&a.root_box)
-                .arg(&t.seg_start)
-                .arg(&v)
-                .arg(&mut t.prim_box)
-                .arg(&mut t.seg_bounds);
-            // SAFETY: matches `lbvh_tlas_boxes(const unsigned* valid, const GpuInstance*
-            // instances, const unsigned* object_segment, const float4* seg_root_box, const
-            // unsigned* seg_start, unsigned P, float4* prim_box, unsigned* seg_bounds)`; valid
-            // instances index `instances` and name objects with a segment (ScenePlan), whose
-            // root box the BLAS build wrote.
-            unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_tlas_boxes"))?;
-            t.build_tree(gpu, &k, 1, options, &mut tlas_phases)?;
-            let (nodes, records) = t.collapse(gpu, &k, 1, &mut tlas_phases)?;
-            if records != v {
-                return Err(CudaError::Usage(format!(
-                    "GPU BVH build: {records} TLAS leaves for {v} instances"
-                )));
-            }
-            tlas_node_count = nodes;
-            tlas_nodes = alloc(gpu, nodes as u64, "TLAS nodes")?;
-            t.emit_nodes(gpu, &k, &mut tlas_nodes)?;
-            instances = alloc(gpu, v as u64, "instance records")?;
-            let mut launch = gpu.stream.launch_builder(&k.emit_instances);
-            launch
-                .arg(&v)
-                .arg(&t.child)
-                .arg(&t.leaf_size)
-                .arg(&t.tri_offset)
-                .arg(&t.values)
-                .arg(&valid)
-                .arg(&scene.instances)
-                .arg(&object_segment)
-                .arg(&a.root_link)
-                .arg(&mut instances);
-            // SAFETY: matches `lbvh_emit_instances(unsigned P, const uint2* child, const unsigned*
-            // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned* valid,
-            // const GpuInstance* instances, const unsigned* object_segment, const int*
-            // seg_root_link, TlasInstance* out)`; 2V threads, leaf offsets a permutation of 0..V.
-            unsafe { launch.launch(launch_1d(2 * v, THREADS)) }
-                .map_err(launch_err(gpu, "lbvh_emit_instances"))?;
-        }
+        let tlas = if v <= HOST_TLAS_MAX_INSTANCES {
+            tlas_on_host(gpu, scene, &plan, &blas, options)?
+        } else {
+            tlas_on_device(gpu, &k, scene, &plan, &a, options, &mut tlas_phases)?
+        };
         tlas_phases.mark(gpu, "tlas")?;
-        let tlas = if v > 0 { download_roots(gpu, &t)?[0] } else { (LINK_DONE, ([0.0; 3], [0.0; 3]), 0.0) };
         let build_bytes = BuildArrays::bytes(p as u64, plan.segments() as u64)
-            + BuildArrays::bytes(v as u64, 1)
-            + [blas_nodes.num_bytes(), tris.num_bytes(), tri_ids.num_bytes(), tlas_nodes.num_bytes()]
+            + tlas.scratch_bytes
+            + [blas_nodes.num_bytes(), tris.num_bytes(), tri_ids.num_bytes(), tlas.nodes.num_bytes()]
                 .iter()
                 .map(|&b| b as u64)
                 .sum::<u64>()
-            + (instances.num_bytes()
-                + seg_first_tri.num_bytes()
-                + object_segment.num_bytes()
-                + valid.num_bytes()) as u64;
-        drop((a, t));
+            + (tlas.instances.num_bytes() + seg_first_tri.num_bytes()) as u64;
+        drop(a);
 
         let mut stats = GpuBvhStats {
             phases: phases.finish()?,
@@ -407,7 +462,7 @@ impl GpuSceneBvh {
             blases: plan.segments(),
             instances: v,
             blas_nodes: blas_node_count,
-            tlas_nodes: tlas_node_count,
+            tlas_nodes: tlas.node_count,
             build_bytes,
             ..Default::default()
         };
@@ -422,18 +477,18 @@ impl GpuSceneBvh {
             })
             .sum();
         stats.blas_sah = (weighted / p.max(1) as f64) as f32;
-        stats.tlas_sah = if v > 0 { tlas.2 / area(&tlas.1).max(f32::MIN_POSITIVE) } else { 0.0 };
+        stats.tlas_sah = if v > 0 { tlas.root.2 / area(&tlas.root.1).max(f32::MIN_POSITIVE) } else { 0.0 };
         let bvh = GpuSceneBvh {
             blas_nodes,
-            tlas_nodes,
+            tlas_nodes: tlas.nodes,
             tris,
             tri_ids,
-            instances,
-            tlas_root: tlas.0,
+            instances: tlas.instances,
+            tlas_root: tlas.root.0,
             triangle_test: test,
             blas_roots: blas.iter().map(|r| r.0).collect(),
             blas_bounds: blas.iter().map(|r| r.1).collect(),
-            tlas_bounds: tlas.1,
+            tlas_bounds: tlas.root.1,
             plan,
             options: *options,
             stats,

@@ -20,6 +20,7 @@ use super::layout::{
 };
 use super::BuildOptions;
 use super::{box_area, Bounds};
+use crate::layout::GpuInstance;
 use crate::scene::SceneTables;
 
 /// Float to unsigned with the same order (the kernels' atomicMin/Max key).
@@ -444,6 +445,71 @@ pub(crate) fn instance_bounds(object_to_world: &[f32; 12], b: Bounds) -> Bounds 
     (lo, hi)
 }
 
+/// A TLAS built on the host: its nodes, instance records in leaf order,
+/// root link, root box and root SAH cost (area-weighted).
+pub(crate) struct HostTlas {
+    pub nodes: Vec<GpuBvhNode>,
+    pub instances: Vec<GpuTlasInstance>,
+    pub root: i32,
+    pub bounds: Bounds,
+    pub cost: f32,
+}
+
+/// The TLAS over `plan`'s valid instances, whose objects' BLASes have
+/// root links `blas_roots` and boxes `blas_bounds` (per segment), as the
+/// GPU builds it (`lbvh_tlas_boxes`, the build with one instance per leaf,
+/// `lbvh_emit_instances`).
+pub(crate) fn build_tlas(
+    plan: &ScenePlan,
+    instances: &[GpuInstance],
+    blas_roots: &[i32],
+    blas_bounds: &[Bounds],
+    options: &BuildOptions,
+) -> HostTlas {
+    let segment = |inst: &GpuInstance| plan.object_segment[inst.object as usize] as usize;
+    let boxes: Vec<Bounds> = plan
+        .valid_instances
+        .iter()
+        .map(|&i| {
+            let inst = &instances[i as usize];
+            instance_bounds(&inst.object_to_world, blas_bounds[segment(inst)])
+        })
+        .collect();
+    let (tree, tlas) = build(&boxes, &[0, boxes.len() as u32], 1, options);
+    let identity = |m: &[f32; 12]| (0..12).all(|k| m[k] == if k % 5 == 0 { 1.0 } else { 0.0 });
+    let records = tlas
+        .order
+        .iter()
+        .map(|&j| {
+            let id = plan.valid_instances[tree.values[j as usize] as usize];
+            let inst = &instances[id as usize];
+            GpuTlasInstance {
+                world_to_object: inst.world_to_object,
+                blas_root: blas_roots[segment(inst)],
+                instance: id,
+                identity: identity(&inst.object_to_world) as u32,
+                pad: 0,
+            }
+        })
+        .collect();
+    if boxes.is_empty() {
+        return HostTlas {
+            nodes: Vec::new(),
+            instances: records,
+            root: LINK_DONE,
+            bounds: ([0.0; 3], [0.0; 3]),
+            cost: 0.0,
+        };
+    }
+    HostTlas {
+        nodes: tlas.nodes,
+        instances: records,
+        root: tlas.roots[0],
+        bounds: tlas.root_bounds[0],
+        cost: tree.cost[tree.root(0) as usize],
+    }
+}
+
 /// The whole scene BVH built on the host exactly as the GPU builds it.
 pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
     let plan = ScenePlan::new(&t.objects, &t.instances);
@@ -469,45 +535,17 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
     let tri_ids: Vec<u32> = blas.order.par_iter().map(|&j| triangle(tree.values[j as usize])).collect();
     let tris = tri_ids.par_iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
 
-    let instance_boxes: Vec<Bounds> = plan
-        .valid_instances
-        .iter()
-        .map(|&i| {
-            let inst = &t.instances[i as usize];
-            instance_bounds(
-                &inst.object_to_world,
-                blas.root_bounds[plan.object_segment[inst.object as usize] as usize],
-            )
-        })
-        .collect();
-    let v = instance_boxes.len() as u32;
-    let (ttree, tlas) = build(&instance_boxes, &[0, v], 1, options);
-    let identity = |m: &[f32; 12]| (0..12).all(|k| m[k] == if k % 5 == 0 { 1.0 } else { 0.0 });
-    let instances = tlas
-        .order
-        .iter()
-        .map(|&j| {
-            let id = plan.valid_instances[ttree.values[j as usize] as usize];
-            let inst = &t.instances[id as usize];
-            GpuTlasInstance {
-                world_to_object: inst.world_to_object,
-                blas_root: blas.roots[plan.object_segment[inst.object as usize] as usize],
-                instance: id,
-                identity: identity(&inst.object_to_world) as u32,
-                pad: 0,
-            }
-        })
-        .collect();
+    let tlas = build_tlas(&plan, &t.instances, &blas.roots, &blas.root_bounds, options);
     HostSceneBvh {
         blas_nodes: blas.nodes,
         tlas_nodes: tlas.nodes,
         tris,
         tri_ids,
-        instances,
-        tlas_root: if v == 0 { LINK_DONE } else { tlas.roots[0] },
+        instances: tlas.instances,
+        tlas_root: tlas.root,
         blas_roots: blas.roots,
         blas_bounds: blas.root_bounds,
-        tlas_bounds: if v == 0 { ([0.0; 3], [0.0; 3]) } else { tlas.root_bounds[0] },
+        tlas_bounds: tlas.bounds,
         triangle_test: options.triangle_test,
     }
 }
