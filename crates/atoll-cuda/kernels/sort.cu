@@ -84,8 +84,10 @@ extern "C" __global__ void __launch_bounds__(SCAN_THREADS) scan_tile_sums(unsign
     if (threadIdx.x == 0) *grand_total = carry;
 }
 
-// Scan step 3: each tile scanned locally plus its offset, in place.
-extern "C" __global__ void __launch_bounds__(SCAN_THREADS) scan_downsweep(unsigned int* data, unsigned int n,
+// Scan step 3: each tile scanned locally plus its offset, from `in` to
+// `out` (which may be the same: a block reads its tile before writing it).
+extern "C" __global__ void __launch_bounds__(SCAN_THREADS) scan_downsweep(const unsigned int* in, unsigned int* out,
+                                                                         unsigned int n,
                                                                          const unsigned int* tile_sums) {
     // Each thread owns SCAN_ITEMS consecutive elements (staged through
     // shared memory so that global accesses stay coalesced).
@@ -93,7 +95,7 @@ extern "C" __global__ void __launch_bounds__(SCAN_THREADS) scan_downsweep(unsign
     const unsigned long long base = (unsigned long long)blockIdx.x * SCAN_TILE;
     for (unsigned int k = 0; k < SCAN_ITEMS; ++k) {
         const unsigned int j = k * SCAN_THREADS + threadIdx.x;
-        tile[j] = base + j < n ? data[base + j] : 0u;
+        tile[j] = base + j < n ? in[base + j] : 0u;
     }
     __syncthreads();
     unsigned int local[SCAN_ITEMS];
@@ -108,7 +110,7 @@ extern "C" __global__ void __launch_bounds__(SCAN_THREADS) scan_downsweep(unsign
     __syncthreads();
     for (unsigned int k = 0; k < SCAN_ITEMS; ++k) {
         const unsigned int j = k * SCAN_THREADS + threadIdx.x;
-        if (base + j < n) data[base + j] = tile[j];
+        if (base + j < n) out[base + j] = tile[j];
     }
 }
 
@@ -136,7 +138,9 @@ extern "C" __global__ void __launch_bounds__(SORT_THREADS)
         const bool valid = i < n;
         const unsigned int valid_mask = __ballot_sync(0xffffffffu, valid);
         if (valid) {
-            const unsigned int d = radix_digit(keys[i], values[i], shift, from_segment, seg_start, segments);
+            // Key passes leave the values unread.
+            const unsigned int d = from_segment ? radix_digit(0u, values[i], shift, 1u, seg_start, segments)
+                                                : radix_digit(keys[i], 0u, shift, 0u, seg_start, segments);
             // Warp-aggregated: sorted inputs put whole warps on one digit,
             // and one shared atomic per distinct digit avoids serialising them.
             const unsigned int peers = __match_any_sync(valid_mask, d);

@@ -31,17 +31,26 @@ fn scan_matches_the_host() {
     let mut rng = Rng(1);
     for n in [1u32, 2, 2047, 2048, 2049, 100_000, 3_000_001] {
         let data: Vec<u32> = (0..n).map(|_| rng.below(5)).collect();
-        let mut d = upload(&gpu, &data);
         let mut scratch = SortScratch::new(&gpu, 1, n).unwrap();
+        // In place, then from one buffer into another (the input kept).
+        let mut d = upload(&gpu, &data);
         k.scan_in_place(&gpu, &mut d, n, &mut scratch).unwrap();
-        let got = gpu.stream.clone_dtoh(&d).unwrap();
-        let total = gpu.stream.clone_dtoh(&scratch.total).unwrap()[0];
-        let mut sum = 0;
-        for (i, &x) in data.iter().enumerate() {
-            assert_eq!(got[i], sum, "n = {n}, i = {i}");
-            sum += x;
+        let in_place = gpu.stream.clone_dtoh(&d).unwrap();
+        let in_place_total = gpu.stream.clone_dtoh(&scratch.total).unwrap()[0];
+        let input = upload(&gpu, &data);
+        let mut output = upload(&gpu, &vec![7; n as usize]);
+        k.scan(&gpu, &input, &mut output, n, &mut scratch).unwrap();
+        assert_eq!(gpu.stream.clone_dtoh(&input).unwrap(), data, "n = {n}: the input changed");
+        let into = gpu.stream.clone_dtoh(&output).unwrap();
+        let into_total = gpu.stream.clone_dtoh(&scratch.total).unwrap()[0];
+        for (got, total) in [(in_place, in_place_total), (into, into_total)] {
+            let mut sum = 0;
+            for (i, &x) in data.iter().enumerate() {
+                assert_eq!(got[i], sum, "n = {n}, i = {i}");
+                sum += x;
+            }
+            assert_eq!(total, sum, "n = {n}");
         }
-        assert_eq!(total, sum, "n = {n}");
     }
 }
 

@@ -164,7 +164,7 @@ impl BuildArrays {
         // sort's scatter); child and parent karras (every slot: spare slots
         // and roots get BUILD_NONE); node_lo/hi bounds (spare slots are never
         // read: their child is BUILD_NONE); kept a memset; leaf_size mark;
-        // node_id and tri_offset copies; root_link/box emit_roots; counts copies.
+        // node_id and tri_offset the scans; root_link/box emit_roots; counts copies.
         Ok(BuildArrays {
             p,
             segments,
@@ -354,11 +354,9 @@ impl BuildArrays {
         // 2P threads, kept holds P entries and leaf_size 2P.
         unsafe { launch.launch(launch_1d(2 * p, THREADS)) }.map_err(launch_err(gpu, "lbvh_mark"))?;
         let copy_err = || CudaError::driver(format!("{}: copying build counts", gpu.label()));
-        gpu.stream.memcpy_dtod(&self.kept, &mut self.node_id).map_err(copy_err())?;
-        k.sort.scan_in_place(gpu, &mut self.node_id, p, &mut self.scratch)?;
+        k.sort.scan(gpu, &self.kept, &mut self.node_id, p, &mut self.scratch)?;
         gpu.stream.memcpy_dtod(&self.scratch.total, &mut self.counts.slice_mut(0..1)).map_err(copy_err())?;
-        gpu.stream.memcpy_dtod(&self.leaf_size, &mut self.tri_offset).map_err(copy_err())?;
-        k.sort.scan_in_place(gpu, &mut self.tri_offset, 2 * p, &mut self.scratch)?;
+        k.sort.scan(gpu, &self.leaf_size, &mut self.tri_offset, 2 * p, &mut self.scratch)?;
         gpu.stream.memcpy_dtod(&self.scratch.total, &mut self.counts.slice_mut(1..2)).map_err(copy_err())?;
         phases.mark(gpu, "collapse")?;
         let counts = gpu.stream.clone_dtoh(&self.counts).map_err(copy_err())?;

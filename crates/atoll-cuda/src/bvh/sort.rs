@@ -9,7 +9,8 @@
 //! order within a digit (stable). `reference_pass` is the same algorithm
 //! on the host, tested against a stable sort.
 
-use cudarc::driver::{CudaFunction, CudaSlice, LaunchConfig, PushKernelArg};
+use cudarc::driver::sys::CUdeviceptr;
+use cudarc::driver::{CudaFunction, CudaSlice, DevicePtr, DevicePtrMut, LaunchConfig, PushKernelArg};
 
 use crate::error::CudaError;
 use crate::gpu::Gpu;
@@ -40,6 +41,14 @@ pub fn morton_passes(segments: u32) -> Vec<SortPass> {
         shift += 8;
     }
     passes
+}
+
+/// A scan of `n` elements over buffers of `len` with scratch for `capacity`.
+fn check_scan_len(n: u32, len: usize, capacity: u32) -> Result<(), CudaError> {
+    if n > capacity || n as usize > len {
+        return Err(CudaError::Usage(format!("scan of {n} elements exceeds its buffers")));
+    }
+    Ok(())
 }
 
 fn radix_tiles(n: u32) -> u32 {
@@ -114,27 +123,46 @@ impl SortKernels {
         n: u32,
         scratch: &mut SortScratch,
     ) -> Result<(), CudaError> {
-        Self::scan_buffers(self, gpu, data, n, &mut scratch.tile_sums, &mut scratch.total, scratch.capacity)
+        check_scan_len(n, data.len(), scratch.capacity)?;
+        let (ptr, _write) = data.device_ptr_mut(&gpu.stream);
+        self.scan_pointers(gpu, ptr, ptr, n, &mut scratch.tile_sums, &mut scratch.total)
     }
 
-    fn scan_buffers(
+    /// Exclusive prefix sum of `input[..n]` into `output[..n]` (the input
+    /// stays); the total goes to `scratch.total[0]`.
+    pub fn scan(
         &self,
         gpu: &Gpu,
-        data: &mut CudaSlice<u32>,
+        input: &CudaSlice<u32>,
+        output: &mut CudaSlice<u32>,
+        n: u32,
+        scratch: &mut SortScratch,
+    ) -> Result<(), CudaError> {
+        check_scan_len(n, input.len().min(output.len()), scratch.capacity)?;
+        let (src, _read) = input.device_ptr(&gpu.stream);
+        let (dst, _write) = output.device_ptr_mut(&gpu.stream);
+        self.scan_pointers(gpu, src, dst, n, &mut scratch.tile_sums, &mut scratch.total)
+    }
+
+    /// The scan's three launches from `input` to `output` (the same
+    /// buffer for a scan in place: each block reads its tile before it
+    /// writes it), both of at least `n` elements.
+    fn scan_pointers(
+        &self,
+        gpu: &Gpu,
+        input: CUdeviceptr,
+        output: CUdeviceptr,
         n: u32,
         tile_sums: &mut CudaSlice<u32>,
         total: &mut CudaSlice<u32>,
-        capacity: u32,
     ) -> Result<(), CudaError> {
-        if n > capacity || n as usize > data.len() {
-            return Err(CudaError::Usage(format!("scan of {n} elements exceeds its buffers")));
-        }
         let tiles = n.div_ceil(SCAN_TILE).max(1);
         let err = |k: &str| CudaError::driver(format!("{}: launching {k}", gpu.label()));
         let mut launch = gpu.stream.launch_builder(&self.scan_reduce);
-        launch.arg(&*data).arg(&n).arg(&mut *tile_sums);
+        launch.arg(&input).arg(&n).arg(&mut *tile_sums);
         // SAFETY: matches `scan_reduce(const unsigned* in, unsigned n, unsigned* tile_sums)`;
-        // `data` holds n elements (checked), `tile_sums` ceil(capacity / SCAN_TILE) >= tiles.
+        // `input` holds n elements (the callers check), `tile_sums` ceil(capacity /
+        // SCAN_TILE) >= tiles.
         unsafe { launch.launch(grid(tiles, 0)) }.map_err(err("scan_reduce"))?;
         let mut launch = gpu.stream.launch_builder(&self.scan_tile_sums);
         launch.arg(&mut *tile_sums).arg(&tiles).arg(&mut *total);
@@ -142,9 +170,10 @@ impl SortKernels {
         // one block loops over the `tiles` entries; `total` holds one element.
         unsafe { launch.launch(grid(1, 0)) }.map_err(err("scan_tile_sums"))?;
         let mut launch = gpu.stream.launch_builder(&self.scan_downsweep);
-        launch.arg(&mut *data).arg(&n).arg(&*tile_sums);
-        // SAFETY: matches `scan_downsweep(unsigned* data, unsigned n, const unsigned* tile_sums)`;
-        // block b reads tile_sums[b] for b < tiles and data below n.
+        launch.arg(&input).arg(&output).arg(&n).arg(&*tile_sums);
+        // SAFETY: matches `scan_downsweep(const unsigned* in, unsigned* out, unsigned n, const
+        // unsigned* tile_sums)`; block b reads tile_sums[b] for b < tiles, and its own tile of
+        // `input` below n before writing the same elements of `output`.
         unsafe { launch.launch(grid(tiles, 0)) }.map_err(err("scan_downsweep"))?;
         Ok(())
     }
@@ -197,14 +226,11 @@ impl SortKernels {
             // unsigned segments, unsigned* hist, unsigned tiles)`; keys/values hold n pairs,
             // hist 256 * tiles entries (checked above), seg_start segments + 1.
             unsafe { launch.launch(grid(tiles, 0)) }.map_err(err("radix_histogram"))?;
-            self.scan_buffers(
-                gpu,
-                &mut scratch.hist,
-                hist_len,
-                &mut scratch.tile_sums,
-                &mut scratch.total,
-                scratch.capacity,
-            )?;
+            check_scan_len(hist_len, scratch.hist.len(), scratch.capacity)?;
+            {
+                let (hist, _write) = scratch.hist.device_ptr_mut(&gpu.stream);
+                self.scan_pointers(gpu, hist, hist, hist_len, &mut scratch.tile_sums, &mut scratch.total)?;
+            }
             let mut launch = gpu.stream.launch_builder(&self.scatter);
             launch
                 .arg(&*keys)
