@@ -10,6 +10,7 @@ use cudarc::nvrtc::Ptx;
 
 use crate::compile::{compile, CompileOptions, Output};
 use crate::error::{require_driver, require_nvrtc, CudaError};
+use crate::scene::rows::RowTable;
 
 /// Number of CUDA GPUs, `Err(NoDriver)` without a driver library. A driver
 /// that loads but finds no GPU (or is not initialisable) counts as 0.
@@ -515,25 +516,58 @@ impl<'g> Uploader<'g> {
             atoll_scene::progress::copied(std::mem::size_of_val(data) as u64);
             return Ok(copy);
         }
-        self.staged(data).map_err(CudaError::driver(context()))
-    }
-
-    /// Copies `data` to a new device buffer through the two page-locked
-    /// buffers: threads fill one while the copy engine drains the other.
-    fn staged<T: cudarc::driver::DeviceRepr + Copy>(
-        &mut self,
-        data: &[T],
-    ) -> Result<cudarc::driver::CudaSlice<T>, cudarc::driver::DriverError> {
-        use cudarc::driver::DevicePtrMut;
         use rayon::prelude::*;
-        let gpu = self.gpu;
-        // SAFETY: every byte is written by the copies below before the buffer
-        // is returned (they cover `data` whole, and the stream is synchronised).
-        let mut device = unsafe { gpu.stream.alloc::<T>(data.len()) }?;
         // SAFETY: `T` is plain device data (`DeviceRepr + Copy`): its bytes
         // are what the device reads.
         let bytes =
             unsafe { std::slice::from_raw_parts(data.as_ptr() as *const u8, std::mem::size_of_val(data)) };
+        self.staged(data.len(), STAGING_BYTES, &|offset, chunk: &mut [u8]| {
+            let source = &bytes[offset..offset + chunk.len()];
+            chunk
+                .par_chunks_mut(1 << 20)
+                .zip(source.par_chunks(1 << 20))
+                .for_each(|(h, c)| h.copy_from_slice(c));
+        })
+        .map_err(CudaError::driver(context()))
+    }
+
+    /// A table made row by row ([`RowTable`]): large ones written straight
+    /// into the staging buffers, a chunk of rows at a time.
+    pub(crate) fn upload_rows<W>(
+        &mut self,
+        table: &RowTable<W>,
+        what: &str,
+    ) -> Result<cudarc::driver::CudaSlice<W>, CudaError>
+    where
+        W: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + bytemuck::Pod + Send + Sync,
+    {
+        let row_bytes = table.words * std::mem::size_of::<W>();
+        if table.rows * row_bytes < STAGED_UPLOAD_BYTES {
+            return self.upload(&table.to_vec(), what);
+        }
+        let gpu = self.gpu;
+        let context = || format!("{}: uploading {what} ({} rows)", gpu.label(), table.rows);
+        self.staged(table.len(), STAGING_BYTES - STAGING_BYTES % row_bytes, &|offset, chunk: &mut [u8]| {
+            table.fill_par(offset / row_bytes, bytemuck::cast_slice_mut(chunk));
+        })
+        .map_err(CudaError::driver(context()))
+    }
+
+    /// A new device buffer of `len` elements whose bytes `fill(offset,
+    /// chunk)` writes, `chunk_bytes` at a time, into the two page-locked
+    /// buffers: threads fill one while the copy engine drains the other.
+    fn staged<T: cudarc::driver::DeviceRepr>(
+        &mut self,
+        len: usize,
+        chunk_bytes: usize,
+        fill: &(dyn Fn(usize, &mut [u8]) + Sync),
+    ) -> Result<cudarc::driver::CudaSlice<T>, cudarc::driver::DriverError> {
+        use cudarc::driver::DevicePtrMut;
+        let gpu = self.gpu;
+        // SAFETY: every byte is written by the copies below before the buffer
+        // is returned (they cover all `len` elements, and the stream is synchronised).
+        let mut device = unsafe { gpu.stream.alloc::<T>(len) }?;
+        let total = len * std::mem::size_of::<T>();
         let staging = match &mut self.staging {
             Some(staging) => staging,
             None => self.staging.insert(Staging {
@@ -546,26 +580,24 @@ impl<'g> Uploader<'g> {
         };
         {
             let (base, _written) = device.device_ptr_mut(&gpu.stream);
-            for (i, chunk) in bytes.chunks(STAGING_BYTES).enumerate() {
+            for (i, offset) in (0..total).step_by(chunk_bytes).enumerate() {
                 let b = i % 2;
                 // The copy that last read this buffer is over (no-op at first).
                 staging.done[b].synchronize()?;
-                let host = &mut staging.buffers[b].as_mut_slice()?[..chunk.len()];
-                host.par_chunks_mut(1 << 20)
-                    .zip(chunk.par_chunks(1 << 20))
-                    .for_each(|(h, c)| h.copy_from_slice(c));
-                // SAFETY: the destination lies inside `device` (offsets of
-                // `data`'s bytes), and `host` is not written again before
-                // `done[b]` says this copy is over.
+                let host = &mut staging.buffers[b].as_mut_slice()?[..chunk_bytes.min(total - offset)];
+                fill(offset, host);
+                // SAFETY: the destination lies inside `device` (bytes
+                // `offset..offset + host.len()` of `total`), and `host` is
+                // not written again before `done[b]` says this copy is over.
                 unsafe {
                     cudarc::driver::result::memcpy_htod_async(
-                        base + (i * STAGING_BYTES) as u64,
+                        base + offset as u64,
                         host,
                         gpu.stream.cu_stream(),
                     )
                 }?;
                 staging.done[b].record(&gpu.stream)?;
-                atoll_scene::progress::copied(chunk.len() as u64);
+                atoll_scene::progress::copied(host.len() as u64);
             }
         }
         gpu.stream.synchronize()?;

@@ -10,6 +10,8 @@
 //! through one mesh in several objects, so this costs nothing in practice.
 //! Meshes no object uses are not uploaded (no ray can reach them).
 
+pub(crate) mod rows;
+
 use std::sync::Arc;
 
 use atoll_bvh::{ByteModel, MeshRange, ScenePart};
@@ -21,6 +23,7 @@ use rayon::prelude::*;
 use crate::error::{fmt_bytes, CudaError};
 use crate::gpu::{Gpu, Uploader};
 use crate::layout::{image_format, mesh_flags, GpuImage, GpuInstance, GpuMesh, GpuObject};
+use rows::RowTable;
 
 /// The scene tables in host memory, exactly as they go to the device.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -179,11 +182,11 @@ impl SceneTables {
         let mut t = SceneTables::default();
         let Ok(()) = make_tables::<std::convert::Infallible>(scene, part, &mut |table| {
             match table {
-                Table::Vertices(v) => t.vertices = v,
-                Table::Normals(v) => t.normals = v,
-                Table::Uvs(v) => t.uvs = v,
-                Table::Triangles(v) => t.triangles = v,
-                Table::TriangleMesh(v) => t.triangle_mesh = v,
+                Table::Vertices(v) => t.vertices = v.to_vec(),
+                Table::Normals(v) => t.normals = v.to_vec(),
+                Table::Uvs(v) => t.uvs = v.to_vec(),
+                Table::Triangles(v) => t.triangles = v.to_vec(),
+                Table::TriangleMesh(v) => t.triangle_mesh = v.to_vec(),
                 Table::Meshes(v) => t.meshes = v,
                 Table::Objects(v) => t.objects = v,
                 Table::Instances(v) => t.instances = v,
@@ -272,16 +275,13 @@ impl TablePlan {
     }
 }
 
-/// Fewest entries one parallel task fills.
-const MIN_ENTRIES: usize = 1 << 14;
-
 /// One of a part's tables, as [`make_tables`] hands them out.
-pub(crate) enum Table {
-    Vertices(Vec<f32>),
-    Normals(Vec<f32>),
-    Uvs(Vec<f32>),
-    Triangles(Vec<u32>),
-    TriangleMesh(Vec<u32>),
+pub(crate) enum Table<'a> {
+    Vertices(RowTable<'a, f32>),
+    Normals(RowTable<'a, f32>),
+    Uvs(RowTable<'a, f32>),
+    Triangles(RowTable<'a, u32>),
+    TriangleMesh(RowTable<'a, u32>),
     Meshes(Vec<GpuMesh>),
     Objects(Vec<GpuObject>),
     Instances(Vec<GpuInstance>),
@@ -301,7 +301,7 @@ pub(crate) enum Table {
 pub(crate) fn make_tables<E>(
     scene: &Scene,
     part: &ScenePart,
-    sink: &mut dyn FnMut(Table) -> Result<(), E>,
+    sink: &mut dyn FnMut(Table<'_>) -> Result<(), E>,
 ) -> Result<(), E> {
     let counts = TableCounts::of_part(scene, part);
     let mut in_part = vec![false; scene.instances.len()];
@@ -318,13 +318,13 @@ pub(crate) fn make_tables<E>(
     let plan = TablePlan::of(scene, part);
     let vertices = counts.vertices as usize;
     let blocks = &plan.vertex_blocks;
-    sink(Table::Vertices(vertex_table(scene, blocks, vertices, |m| &m.positions, |v: Vec3| v.to_array())))?;
+    sink(Table::Vertices(vertex_table::<Vec3, 3>(scene, blocks, vertices, |m| &m.positions)))?;
     let normals = if counts.has_normals { vertices } else { 0 };
-    sink(Table::Normals(vertex_table(scene, blocks, normals, |m| &m.normals, |v: Vec3| v.to_array())))?;
+    sink(Table::Normals(vertex_table::<Vec3, 3>(scene, blocks, normals, |m| &m.normals)))?;
     let uvs = if counts.has_uvs { vertices } else { 0 };
-    sink(Table::Uvs(vertex_table(scene, blocks, uvs, |m| &m.uvs, |v: Vec2| v.to_array())))?;
-    sink(Table::Triangles(triangle_table(scene, &plan.meshes, counts.triangles as usize)))?;
-    sink(Table::TriangleMesh(triangle_mesh_table(&plan.meshes, counts.triangles as usize)))?;
+    sink(Table::Uvs(vertex_table::<Vec2, 2>(scene, blocks, uvs, |m| &m.uvs)))?;
+    sink(Table::Triangles(triangle_table(scene, &plan.meshes)))?;
+    sink(Table::TriangleMesh(triangle_mesh_table(&plan.meshes)))?;
     let mut images = Vec::with_capacity(counts.images as usize);
     let mut texels = Vec::with_capacity(counts.texel_words as usize);
     for image in &scene.textures.images {
@@ -336,75 +336,45 @@ pub(crate) fn make_tables<E>(
 }
 
 /// The vertex table of one attribute (`attr`, `N` words a vertex) over
-/// the vertices of `blocks`, in order, each block filled in parallel into
-/// its own slice; rows of meshes without the attribute stay zero, and a
-/// table of no `vertices` is empty.
-fn vertex_table<A: Copy + Sync, const N: usize>(
-    scene: &Scene,
-    blocks: &[atoll_scene::MeshId],
+/// the vertices of `blocks`, in order; rows of meshes without the
+/// attribute are zero, and a table of no `vertices` is empty.
+fn vertex_table<'a, A: bytemuck::Pod + Sync, const N: usize>(
+    scene: &'a Scene,
+    blocks: &'a [atoll_scene::MeshId],
     vertices: usize,
-    attr: impl Fn(&atoll_scene::TriangleMesh) -> &Vec<A> + Sync,
-    words: impl Fn(A) -> [f32; N] + Sync,
-) -> Vec<f32> {
-    // Zeroed allocations come from the OS as zero pages: filling them in
-    // parallel below is their one pass.
-    let mut table = vec![0.0; vertices * N];
-    if table.is_empty() {
-        return table;
+    attr: impl Fn(&atoll_scene::TriangleMesh) -> &Vec<A> + Sync + 'a,
+) -> RowTable<'a, f32> {
+    debug_assert_eq!(std::mem::size_of::<A>(), 4 * N);
+    if vertices == 0 {
+        return RowTable::new(0, N, |_, _| {});
     }
-    let mut rest = &mut table[..];
-    let mut jobs = Vec::with_capacity(blocks.len());
-    for &m in blocks {
-        let mesh = &scene.meshes[m as usize];
-        let (slice, after) = std::mem::take(&mut rest).split_at_mut(N * mesh.positions.len());
-        rest = after;
-        jobs.push((attr(mesh), slice));
-    }
-    jobs.into_par_iter().for_each(|(values, slice)| {
-        slice.par_chunks_mut(N).with_min_len(MIN_ENTRIES).zip(values).for_each(|(o, &v)| {
-            o.copy_from_slice(&words(v));
-        });
-    });
-    table
+    let counts = blocks.iter().map(|&m| scene.meshes[m as usize].positions.len());
+    RowTable::segments(counts, N, move |k, first, out| {
+        let values = attr(&scene.meshes[blocks[k] as usize]);
+        let have = values.len().saturating_sub(first).min(out.len() / N);
+        let (given, missing) = out.split_at_mut(have * N);
+        if have > 0 {
+            given.copy_from_slice(bytemuck::cast_slice(&values[first..first + have]));
+        }
+        missing.fill(0.0);
+    })
 }
 
-/// Every table mesh's triangles (absolute vertex indices), each mesh into
-/// its own slice, in parallel.
-fn triangle_table(scene: &Scene, meshes: &[GpuMesh], triangles: usize) -> Vec<u32> {
-    let mut table = vec![0; 3 * triangles];
-    let mut rest = &mut table[..];
-    let mut jobs = Vec::with_capacity(meshes.len());
-    for m in meshes {
-        let (slice, after) = std::mem::take(&mut rest).split_at_mut(3 * m.triangle_count as usize);
-        rest = after;
-        jobs.push((m, slice));
-    }
-    jobs.into_par_iter().for_each(|(m, slice)| {
-        let start = m.first_scene_triangle as usize;
-        let source = &scene.meshes[m.scene_mesh as usize].indices[start..start + m.triangle_count as usize];
-        slice
-            .par_chunks_mut(3)
-            .with_min_len(MIN_ENTRIES)
-            .zip(source)
-            .for_each(|(o, t)| o.copy_from_slice(&t.map(|i| m.first_vertex + i)));
-    });
-    table
+/// Every table mesh's triangles (absolute vertex indices).
+fn triangle_table<'a>(scene: &'a Scene, meshes: &'a [GpuMesh]) -> RowTable<'a, u32> {
+    RowTable::segments(meshes.iter().map(|m| m.triangle_count as usize), 3, move |k, first, out| {
+        let m = &meshes[k];
+        let start = m.first_scene_triangle as usize + first;
+        let source = &scene.meshes[m.scene_mesh as usize].indices[start..start + out.len() / 3];
+        for (o, t) in out.chunks_exact_mut(3).zip(source) {
+            o.copy_from_slice(&t.map(|i| m.first_vertex + i));
+        }
+    })
 }
 
-/// Each triangle's index into the table meshes, in parallel.
-fn triangle_mesh_table(meshes: &[GpuMesh], triangles: usize) -> Vec<u32> {
-    let mut table = vec![0; triangles];
-    let mut rest = &mut table[..];
-    let mut jobs = Vec::with_capacity(meshes.len());
-    for (index, m) in meshes.iter().enumerate() {
-        let (slice, after) = std::mem::take(&mut rest).split_at_mut(m.triangle_count as usize);
-        rest = after;
-        jobs.push((index as u32, slice));
-    }
-    jobs.into_par_iter().for_each(|(index, slice)| {
-        slice.par_iter_mut().with_min_len(MIN_ENTRIES).for_each(|o| *o = index);
-    });
-    table
+/// Each triangle's index into the table meshes.
+fn triangle_mesh_table(meshes: &[GpuMesh]) -> RowTable<'_, u32> {
+    RowTable::segments(meshes.iter().map(|m| m.triangle_count as usize), 1, |k, _, out| out.fill(k as u32))
 }
 
 /// Appends one image's texels in the device format to `texels`; its row.
@@ -576,11 +546,11 @@ impl GpuScene {
         let (mut images, mut texels) = (None, None);
         make_tables(scene, part, &mut |table| {
             match table {
-                Table::Vertices(v) => vertices = Some(up.upload(&v, "vertices")?),
-                Table::Normals(v) => normals = Some(up.upload(&v, "normals")?),
-                Table::Uvs(v) => uvs = Some(up.upload(&v, "uvs")?),
-                Table::Triangles(v) => triangles = Some(up.upload(&v, "triangles")?),
-                Table::TriangleMesh(v) => triangle_mesh = Some(up.upload(&v, "triangle meshes")?),
+                Table::Vertices(v) => vertices = Some(up.upload_rows(&v, "vertices")?),
+                Table::Normals(v) => normals = Some(up.upload_rows(&v, "normals")?),
+                Table::Uvs(v) => uvs = Some(up.upload_rows(&v, "uvs")?),
+                Table::Triangles(v) => triangles = Some(up.upload_rows(&v, "triangles")?),
+                Table::TriangleMesh(v) => triangle_mesh = Some(up.upload_rows(&v, "triangle meshes")?),
                 Table::Images(i, t) => {
                     images = Some(up.upload(&i, "images")?);
                     texels = Some(up.upload(&t, "texels")?);

@@ -169,3 +169,50 @@ fn large_uploads_through_page_locked_staging_arrive_whole() {
     assert_eq!(back.len(), data.len());
     assert!(back == data, "first difference at {:?}", back.iter().zip(&data).position(|(a, b)| a != b));
 }
+
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn large_tables_written_into_staging_equal_the_host_tables() {
+    let Some(gpu) = gpu_or_skip("staged tables") else { return };
+    // Over 64 MiB of vertices in three meshes, the middle one without
+    // normals and uvs: the tables are written chunk by chunk straight into
+    // the staging buffers, chunks ending inside meshes.
+    let mut scene = atoll_scene::Scene::default();
+    let material = scene.add_material(atoll_scene::Material::default_diffuse());
+    let mut meshes = Vec::new();
+    for (k, vertices) in [2_500_001usize, 3_000_000, 1_700_003].into_iter().enumerate() {
+        let f = |i: usize, c: f32| ((i * 7 + k) % 1009) as f32 * 0.01 + c;
+        let positions: Vec<glam::Vec3> =
+            (0..vertices).map(|i| glam::Vec3::new(f(i, 0.0), f(i, 0.5), k as f32)).collect();
+        let indices = (0..vertices as u32 - 2).map(|t| [t, t + 1, t + 2]).collect();
+        let with_attributes = k != 1;
+        let normals = if with_attributes {
+            positions.iter().map(|p| p.normalize_or_zero()).collect()
+        } else {
+            Vec::new()
+        };
+        let uvs = if with_attributes { positions.iter().map(|p| p.truncate()).collect() } else { Vec::new() };
+        let mesh = atoll_scene::TriangleMesh {
+            name: format!("m{k}"),
+            positions,
+            normals,
+            uvs,
+            indices,
+            material,
+            ..Default::default()
+        };
+        meshes.push(scene.add_mesh(mesh));
+    }
+    let object = scene.add_object(atoll_scene::Object { name: "all".into(), meshes });
+    scene.instances.push(atoll_scene::Instance { object, object_to_world: glam::Affine3A::IDENTITY });
+    let host = SceneTables::build(&scene);
+    assert!(host.vertices.len() * 4 > 64 << 20);
+    let tables = GpuScene::upload(&gpu, &scene, None, 0).unwrap();
+    let back = |s: &cudarc::driver::CudaSlice<f32>| gpu.stream.clone_dtoh(s).unwrap();
+    assert!(back(&tables.vertices) == host.vertices, "vertices differ");
+    assert!(back(&tables.normals) == host.normals, "normals differ");
+    assert!(back(&tables.uvs) == host.uvs, "uvs differ");
+    let back = |s: &cudarc::driver::CudaSlice<u32>| gpu.stream.clone_dtoh(s).unwrap();
+    assert!(back(&tables.triangles) == host.triangles, "triangles differ");
+    assert!(back(&tables.triangle_mesh) == host.triangle_mesh, "triangle meshes differ");
+}
