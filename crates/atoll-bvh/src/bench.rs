@@ -15,6 +15,7 @@ use std::io;
 use std::path::Path;
 use std::time::Instant;
 
+use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::Scene;
 use glam::{UVec2, Vec3};
 use rayon::prelude::*;
@@ -218,7 +219,7 @@ pub fn generate_rays<L: BvhLayout>(scene: &Scene, bvh: &SceneBvh<L>, opts: &Benc
     let hits: Vec<(u32, Ray, Hit)> = primary
         .par_iter()
         .enumerate()
-        .filter_map(|(i, r)| bvh.intersect(r).map(|h| (i as u32, *r, h)))
+        .filter_map(|(i, r)| bvh.intersect(r).map(|h| (tile_order_pixel(i as u32, resolution), *r, h)))
         .collect();
     let secondary = |dimension: u32, t_max: f32| -> Vec<Ray> {
         hits.par_iter()
@@ -241,6 +242,8 @@ pub fn generate_rays<L: BvhLayout>(scene: &Scene, bvh: &SceneBvh<L>, opts: &Benc
 
 /// One ray per pixel centre through pbrt's pinhole camera: the field of view
 /// spans the shorter image axis; camera space is +x right, +y up, +z forward.
+/// The rays come in the order the renderer makes camera paths in (8×4
+/// tiles, [`tile_order_pixel`]).
 fn camera_rays(scene: &Scene, resolution: UVec2) -> Vec<Ray> {
     let cam = &scene.settings.camera;
     let (w, h) = (resolution.x as f32, resolution.y as f32);
@@ -250,7 +253,8 @@ fn camera_rays(scene: &Scene, resolution: UVec2) -> Vec<Ray> {
     (0..resolution.x * resolution.y)
         .into_par_iter()
         .map(|i| {
-            let (px, py) = ((i % resolution.x) as f32 + 0.5, (i / resolution.x) as f32 + 0.5);
+            let pixel = tile_order_pixel(i, resolution);
+            let (px, py) = ((pixel % resolution.x) as f32 + 0.5, (pixel / resolution.x) as f32 + 0.5);
             let local = Vec3::new((2.0 * px - w) / short * tan, (h - 2.0 * py) / short * tan, 1.0);
             let direction = cam.camera_to_world.transform_vector3(local).normalize();
             Ray { origin, direction, t_max: f32::INFINITY }

@@ -90,6 +90,20 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
                    FLAG_SPECULAR, 0, 0u, 0u);
 }
 
+/// Mirrors `atoll_scene::camera::tile_order_pixel`: the pixel at place
+/// `ordinal` of the order camera paths are made in (8x4 tiles in bands).
+__device__ __forceinline__ unsigned int tile_order_pixel(unsigned int ordinal, unsigned int res_x,
+                                                         unsigned int res_y) {
+    const unsigned long long tile_w = 8, tile_h = 4, i = ordinal;
+    const unsigned long long y0 = i / (res_x * tile_h) * tile_h;
+    const unsigned long long h = min(tile_h, res_y - y0);
+    const unsigned long long j = i - y0 * res_x;
+    const unsigned long long x0 = j / (tile_w * h) * tile_w;
+    const unsigned long long w = min(tile_w, res_x - x0);
+    const unsigned long long k = j - x0 * h;
+    return (unsigned int)((y0 + k / w) * res_x + x0 + k % w);
+}
+
 /// Appends a wave to the work FIFO (one thread; src/work.rs `WorkFeed::push`).
 extern "C" __global__ void push_work(WorkFifo* __restrict__ fifo, unsigned int sample, unsigned int first_pixel,
                                      unsigned int count) {
@@ -130,7 +144,8 @@ extern "C" __global__ void refill_claim(WorkFifo* __restrict__ fifo, WorkStatus*
 }
 
 /// Writes the camera records `refill_claim` claimed: thread i takes the
-/// i-th new path over all claims. Mirrors `CpuDevice::refill`.
+/// i-th new path over all claims (the claims count places in tile order).
+/// Mirrors `CpuDevice::refill`.
 extern "C" __global__ void refill_generate(const FrameParams* __restrict__ params,
                                            const WorkFifo* __restrict__ fifo, RayRecord* __restrict__ paths) {
     unsigned int i = global_index();
@@ -138,7 +153,9 @@ extern "C" __global__ void refill_generate(const FrameParams* __restrict__ param
     for (unsigned int k = 0; k < claims; ++k) {
         const GpuWave c = fifo->claims[k];
         if (i < c.pixel_count) {
-            write_camera_record(*params, c.first_pixel + i, c.sample, paths + c.queue_offset + i);
+            const unsigned int pixel =
+                tile_order_pixel(c.first_pixel + i, params->resolution[0], params->resolution[1]);
+            write_camera_record(*params, pixel, c.sample, paths + c.queue_offset + i);
             return;
         }
         i -= c.pixel_count;

@@ -29,6 +29,7 @@ use atoll_render::rng::{pcg_hash, SampleStream};
 use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
+use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
     AreaEmission, CoatedDiffuseParams, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light,
     Material, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
@@ -411,12 +412,14 @@ fn refill_matches_camera_record() {
         let mut bad = Vec::new();
         for (i, g) in got.iter().enumerate() {
             let i = i as u32;
+            // Waves count places in tile order.
+            let pixel = |ordinal| tile_order_pixel(ordinal, frame.options.resolution);
             let expected = if i < queued {
                 RayRecord::zeroed()
             } else if i < queued + waves[0].2 {
-                camera_record(&frame, waves[0].1 + i - queued, waves[0].0)
+                camera_record(&frame, pixel(waves[0].1 + i - queued), waves[0].0)
             } else {
-                camera_record(&frame, waves[1].1 + i - queued - waves[0].2, waves[1].0)
+                camera_record(&frame, pixel(waves[1].1 + i - queued - waves[0].2), waves[1].0)
             };
             if let Err(e) = compare_records(&expected, g) {
                 bad.push(format!("record {i}: {e}"));

@@ -148,7 +148,9 @@ impl FrameContext {
     }
 }
 
-/// A batch of camera paths: one sample for a contiguous range of pixels.
+/// A batch of camera paths: one sample for a contiguous range of pixels
+/// in the order camera paths are made (`first_pixel` and `pixel_count`
+/// count places in that order: [`atoll_scene::camera::tile_order_pixel`]).
 /// Within a wave each pixel appears at most once, so film updates of a wave
 /// never collide and their order cannot change the image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -49,6 +49,28 @@ impl FilmSettings {
     }
 }
 
+/// Width and height of the tiles paths are generated in (a warp's 32).
+pub const PIXEL_TILE: [u32; 2] = [8, 4];
+
+/// The pixel (row-major index) at place `ordinal` of the order a frame's
+/// camera paths are made in: bands of [`PIXEL_TILE`] rows top to bottom,
+/// each cut into tiles left to right (the last band and the last tile of a
+/// band smaller where the frame does not divide), a tile's pixels row by
+/// row. 32 consecutive paths then cover an 8×4 tile rather than a strip of
+/// one row, so a warp's camera rays are coherent. A bijection of
+/// `0..x * y` for every resolution.
+pub fn tile_order_pixel(ordinal: u32, resolution: UVec2) -> u32 {
+    let [tile_w, tile_h] = PIXEL_TILE.map(u64::from);
+    let (res_x, res_y, i) = (u64::from(resolution.x), u64::from(resolution.y), u64::from(ordinal));
+    let y0 = i / (res_x * tile_h) * tile_h;
+    let h = tile_h.min(res_y - y0);
+    let j = i - y0 * res_x;
+    let x0 = j / (tile_w * h) * tile_w;
+    let w = tile_w.min(res_x - x0);
+    let k = j - x0 * h;
+    ((y0 + k / w) * res_x + x0 + k % w) as u32
+}
+
 impl Default for FilmSettings {
     fn default() -> Self {
         // pbrt-v4's defaults.
@@ -105,4 +127,43 @@ pub struct RenderSettings {
     pub integrator: IntegratorSettings,
     /// `Integrator "string lightsampler"`.
     pub light_sampler: LightSampler,
+}
+
+#[cfg(test)]
+mod tile_order_tests {
+    use super::*;
+
+    #[test]
+    fn tile_order_is_a_bijection_for_every_shape() {
+        for (x, y) in [(1, 1), (1, 7), (7, 1), (8, 4), (9, 5), (16, 8), (33, 17), (640, 360), (1921, 1081)] {
+            let res = UVec2::new(x, y);
+            let mut seen = vec![false; (x * y) as usize];
+            for i in 0..x * y {
+                let p = tile_order_pixel(i, res) as usize;
+                assert!(p < seen.len() && !seen[p], "{x}x{y}: ordinal {i} gives pixel {p} again or outside");
+                seen[p] = true;
+            }
+        }
+    }
+
+    #[test]
+    fn warps_cover_tiles() {
+        let res = UVec2::new(20, 9);
+        let at = |i| {
+            let p = tile_order_pixel(i, res);
+            (p % res.x, p / res.x)
+        };
+        // The first tile, row by row, then the next tile to its right.
+        assert_eq!(
+            (0..10).map(at).collect::<Vec<_>>()[..9],
+            [(0, 0), (1, 0), (2, 0), (3, 0), (4, 0), (5, 0), (6, 0), (7, 0), (0, 1)]
+        );
+        assert_eq!(at(31), (7, 3));
+        assert_eq!(at(32), (8, 0));
+        // The band's last tile is 4 wide; the last band is 1 row high.
+        assert_eq!(at(64), (16, 0));
+        assert_eq!(at(68), (16, 1));
+        assert_eq!(at(20 * 8), (0, 8));
+        assert_eq!(at(20 * 9 - 1), (19, 8));
+    }
 }

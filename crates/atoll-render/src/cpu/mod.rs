@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use atoll_bvh::{part_bytes, part_geometry_bytes, ByteModel, Hit, Ray, SceneBvh, ScenePart};
+use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::Scene;
 use glam::{Affine3A, Mat3A, Vec3};
 use rayon::prelude::*;
@@ -331,10 +332,12 @@ impl Device for CpuDevice {
             let n = (wave.pixel_count as usize).min(free) as u32;
             self.run(|| {
                 paths.par_extend(
-                    (wave.first_pixel..wave.first_pixel + n)
-                        .into_par_iter()
-                        .with_min_len(CHUNK)
-                        .map(|pixel| camera_record(&frame, pixel, wave.sample)),
+                    (wave.first_pixel..wave.first_pixel + n).into_par_iter().with_min_len(CHUNK).map(
+                        |ordinal| {
+                            let pixel = tile_order_pixel(ordinal, frame.options.resolution);
+                            camera_record(&frame, pixel, wave.sample)
+                        },
+                    ),
                 )
             });
             if n == wave.pixel_count {
