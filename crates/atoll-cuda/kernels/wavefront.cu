@@ -92,16 +92,19 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
 
 /// Mirrors `atoll_scene::camera::tile_order_pixel`: the pixel at place
 /// `ordinal` of the order camera paths are made in (8x4 tiles in bands).
+/// 32-bit arithmetic (64-bit division is a long software routine on the
+/// GPU): a frame has at most 2^28 pixels (`FilmSettings::MAX_PIXELS`), so
+/// `res_x * tile_h` and every index stay below 2^31.
 __device__ __forceinline__ unsigned int tile_order_pixel(unsigned int ordinal, unsigned int res_x,
                                                          unsigned int res_y) {
-    const unsigned long long tile_w = 8, tile_h = 4, i = ordinal;
-    const unsigned long long y0 = i / (res_x * tile_h) * tile_h;
-    const unsigned long long h = min(tile_h, res_y - y0);
-    const unsigned long long j = i - y0 * res_x;
-    const unsigned long long x0 = j / (tile_w * h) * tile_w;
-    const unsigned long long w = min(tile_w, res_x - x0);
-    const unsigned long long k = j - x0 * h;
-    return (unsigned int)((y0 + k / w) * res_x + x0 + k % w);
+    const unsigned int tile_w = 8, tile_h = 4;
+    const unsigned int y0 = ordinal / (res_x * tile_h) * tile_h;
+    const unsigned int h = min(tile_h, res_y - y0);
+    const unsigned int j = ordinal - y0 * res_x;
+    const unsigned int x0 = j / (tile_w * h) * tile_w;
+    const unsigned int w = min(tile_w, res_x - x0);
+    const unsigned int k = j - x0 * h;
+    return (y0 + k / w) * res_x + x0 + k % w;
 }
 
 /// Appends a wave to the work FIFO (one thread; src/work.rs `WorkFeed::push`).
