@@ -141,11 +141,16 @@ __device__ __forceinline__ bool intersect_exact(const TriRecord& tri, float3 o, 
 /// kernels): transform the ray into the triangle's frame, where the
 /// triangle is (0,0,0), (1,0,0), (0,1,0). Fewer operations than
 /// Möller–Trumbore; same conventions, but the floats differ slightly.
+/// With APPROX_DIVIDE the hit distance comes from the hardware reciprocal
+/// (`__fdividef`, within 2 ulp) instead of IEEE division, a sequence of
+/// instructions with a slow path: closest-hit traversal is faster with it,
+/// any-hit traversal faster without (BENCHMARKS.md).
+template <bool APPROX_DIVIDE>
 __device__ __forceinline__ bool intersect_woop(const TriRecord& tri, float3 o, float3 d, float t_max, float& t,
                                                float& u, float& v) {
     const float ow = tri.a.w + o.x * tri.a.x + o.y * tri.a.y + o.z * tri.a.z;
     const float dw = d.x * tri.a.x + d.y * tri.a.y + d.z * tri.a.z;
-    const float tt = -ow / dw;
+    const float tt = APPROX_DIVIDE ? __fdividef(-ow, dw) : -ow / dw;
     if (!(tt > 0.0f && tt < t_max)) return false;
     const float ou = tri.b.w + o.x * tri.b.x + o.y * tri.b.y + o.z * tri.b.z;
     const float du = d.x * tri.b.x + d.y * tri.b.y + d.z * tri.b.z;

@@ -122,7 +122,7 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
         const TriRecord tri = load_tri(v.tris, first + k);
         float t, u, w;
         bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
-                                    : intersect_woop(tri, ray.o, ray.d, h.t, t, u, w);
+                                    : intersect_woop<!ANY>(tri, ray.o, ray.d, h.t, t, u, w);
 #if ATOLL_TRACE_ALPHA
         // Alpha masks (texture.cuh): a cut-out candidate is no hit.
         if (hit && v.alpha_params) {

@@ -96,7 +96,8 @@ pub struct HostSceneBvh {
 }
 
 /// Woop's test on the host, as `intersect_woop` in bvh.cuh (with FMA
-/// contraction on the GPU the floats may differ in the last bits).
+/// contraction and, for closest hits, the approximate division on the GPU,
+/// the floats may differ in the last bits).
 #[cfg(test)]
 fn intersect_woop(r: &GpuTriRecord, o: Vec3A, d: Vec3A, t_max: f32) -> Option<(f32, f32, f32)> {
     let row =
