@@ -143,3 +143,53 @@ fn the_split_ground_partition_fits_the_cuda_byte_model() {
     let scene = strategy_bodies::ground_scene();
     strategy_bodies::split_ground_partition(&scene, &atoll_cuda::scene::byte_model());
 }
+
+/// `auto` on GPUs whose budget holds neither the whole scene nor room to
+/// build its BVH on one of them: sharing the scene's memory would need the
+/// host to build the BVH (slowly), so it rings instead; with room it
+/// replicates.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn auto_rings_a_scene_no_gpu_has_room_to_build() {
+    use atoll_dist::placement::{place, PlacementRequest};
+    use atoll_dist::{Plan, Strategy};
+    let scene = std::sync::Arc::new(atoll_scene::landscape::Landscape::new(16).build());
+    let mut options = CUDA.options(&scene, 1);
+    // Small queues, so that the scene decides what fits.
+    options.wave_size = 1 << 14;
+    let whole = atoll_bvh::ScenePart::whole(&scene);
+    let build = atoll_cuda::scene::part_plan(&scene, &whole).total();
+    let scene_bytes = atoll_bvh::part_bytes(&scene, &whole, &atoll_cuda::scene::byte_model());
+    let request = |budget: Option<u64>| PlacementRequest {
+        strategy: Strategy::Auto,
+        ring_size: None,
+        budget,
+        partitioning: Default::default(),
+        ring_order: RingOrder::Spread,
+        streams: 1,
+        shared: Default::default(),
+        may_add_wavefronts: vec![false; 2],
+    };
+    let devices = |budget: Option<u64>| -> Vec<Box<dyn Device>> {
+        let count = gpu_count();
+        (0..2)
+            .map(|i| {
+                let mut d = CudaDevice::new(i % count).unwrap();
+                if let Some(b) = budget {
+                    d = d.with_memory_budget(b);
+                }
+                Box::new(d) as Box<dyn Device>
+            })
+            .collect()
+    };
+    let placed = place(&mut devices(None), &scene, &options, &request(None)).unwrap();
+    assert_eq!(placed.plan, Plan::Replicate, "room for everything");
+    // A frame beside 65% of the scene: half of it fits, all of it does
+    // not, and building its BVH needs all of it and more.
+    let probe = devices(None).pop().unwrap();
+    let frame = probe.frame_bytes(&options) + probe.scene_wide_bytes(&scene);
+    let budget = frame + scene_bytes * 65 / 100;
+    assert!(budget < build, "the budget {budget} B leaves room to build ({build} B)");
+    let placed = place(&mut devices(Some(budget)), &scene, &options, &request(Some(budget))).unwrap();
+    assert_eq!(placed.plan, Plan::Ring { k: 2, islands: 1 }, "scene {scene_bytes} B, budget {budget} B");
+}
