@@ -26,7 +26,7 @@ use crate::layout::{Layout, RingOrder};
 use crate::replicate;
 use crate::ring::{ring_loop, run_members, RingLink, RingPeers};
 use crate::shared::{hardware_of, prepare_shared, SharedReport};
-use crate::stripes::StripeHandout;
+use crate::stripes::{cut_at_stripes, StripeHandout};
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
 
@@ -282,12 +282,14 @@ pub fn render_multi_with(
     // Every process cuts the same waves (only their sizes may differ from
     // what this process's devices would take alone).
     let cut = RenderOptions { wave_size: joined.wave_size, ..frame.options.clone() };
-    let waves = work_units(&cut, joined.workers);
+    let mut waves = work_units(&cut, joined.workers);
     // Devices sharing a scene's memory keep to their own region of the image.
     let stripes;
     let handout: &dyn WaveHandout = match (layout, shared) {
         (Layout::Shared(_), None) => {
-            stripes = StripeHandout::new(&waves, frame.options.pixel_count(), &hardware_of(devices)?);
+            let (pixels, hardware) = (frame.options.pixel_count(), hardware_of(devices)?);
+            waves = cut_at_stripes(&waves, pixels, &hardware);
+            stripes = StripeHandout::new(&waves, pixels, &hardware);
             &stripes
         }
         _ => handout,
@@ -454,6 +456,7 @@ impl<'d> Session<'d> {
         let stripes;
         let handout: &dyn WaveHandout = match self.layout {
             Layout::Shared(_) => {
+                waves = cut_at_stripes(&waves, cut.pixel_count(), &self.hardware);
                 stripes = StripeHandout::new(&waves, cut.pixel_count(), &self.hardware);
                 &stripes
             }

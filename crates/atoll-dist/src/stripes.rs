@@ -29,16 +29,50 @@ pub struct StripeHandout {
     taken: AtomicUsize,
 }
 
+/// The stripes `stripe_of` names (one per distinct value, numbered from 0).
+fn stripe_count(stripe_of: &[usize]) -> usize {
+    stripe_of.iter().max().map_or(1, |&s| s + 1)
+}
+
+/// The stripe (of `count` over `pixels` pixels) that pixel `pixel` lies in.
+fn stripe_of_pixel(pixel: u32, pixels: u32, count: usize) -> usize {
+    ((pixel as u64 * count as u64 / pixels.max(1) as u64) as usize).min(count - 1)
+}
+
+/// `waves` with every wave that spans a stripe boundary cut there, so
+/// that each stripe holds an equal share of every sample's pixels: a wave
+/// belongs to the stripe of its first pixel, and frames whose waves are
+/// large against a stripe would otherwise give one stripe much more work
+/// than another, leaving the last big waves of the busier one to finish
+/// while the other GPU waits (BENCHMARKS.md: short frames). Order is kept.
+pub fn cut_at_stripes(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Vec<Wave> {
+    let count = stripe_count(stripe_of);
+    // The first pixel of each stripe after the first.
+    let starts: Vec<u32> =
+        (1..count).map(|s| (s as u64 * pixels as u64).div_ceil(count as u64) as u32).collect();
+    let mut out = Vec::with_capacity(waves.len() + count);
+    for w in waves {
+        let end = w.first_pixel + w.pixel_count;
+        let mut first = w.first_pixel;
+        for &cut in starts.iter().filter(|&&c| c > w.first_pixel && c < end) {
+            out.push(Wave { sample: w.sample, first_pixel: first, pixel_count: cut - first });
+            first = cut;
+        }
+        out.push(Wave { sample: w.sample, first_pixel: first, pixel_count: end - first });
+    }
+    out
+}
+
 impl StripeHandout {
     /// `waves` of an image of `pixels` pixels dealt to stripes, worker
     /// `w` taking from stripe `stripe_of[w]` first (one stripe per
-    /// distinct value, numbered from 0).
+    /// distinct value, numbered from 0). Waves cut by [`cut_at_stripes`]
+    /// give every stripe the same pixels.
     pub fn new(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Self {
-        let count = stripe_of.iter().max().map_or(1, |&s| s + 1);
+        let count = stripe_count(stripe_of);
         let mut stripes = vec![VecDeque::new(); count];
         for (i, wave) in waves.iter().enumerate() {
-            let stripe = (wave.first_pixel as u64 * count as u64 / pixels.max(1) as u64) as usize;
-            stripes[stripe.min(count - 1)].push_back(i);
+            stripes[stripe_of_pixel(wave.first_pixel, pixels, count)].push_back(i);
         }
         StripeHandout {
             stripes: Mutex::new(stripes),
@@ -108,6 +142,43 @@ mod tests {
         assert_eq!(rest, vec![6, 7, 10, 11, 12, 13, 14, 15]);
         assert_eq!(h.next(1), None);
         assert_eq!(h.taken(), 16);
+    }
+
+    #[test]
+    fn cutting_at_stripes_gives_each_stripe_the_same_pixels_of_each_sample() {
+        // A frame of 1000 pixels in waves of 600 (600 + 400 per sample), as
+        // short frames on large GPUs cut it, over 2 and 3 stripes.
+        let w = waves(2, 600, 3)
+            .into_iter()
+            .map(|w| Wave { pixel_count: w.pixel_count.min(1000 - w.first_pixel), ..w })
+            .collect::<Vec<_>>();
+        for stripe_of in [vec![0, 1], vec![0, 1, 2, 0]] {
+            let count = stripe_count(&stripe_of);
+            let cut = cut_at_stripes(&w, 1000, &stripe_of);
+            let mut covered = vec![vec![0u32; 1000]; 3];
+            let mut per_stripe = vec![vec![0u32; count]; 3];
+            for c in &cut {
+                let stripe = stripe_of_pixel(c.first_pixel, 1000, count);
+                assert!(c.pixel_count > 0);
+                for p in c.first_pixel..c.first_pixel + c.pixel_count {
+                    covered[c.sample as usize][p as usize] += 1;
+                    assert_eq!(stripe_of_pixel(p, 1000, count), stripe, "{c:?} spans a stripe boundary");
+                }
+                per_stripe[c.sample as usize][stripe] += c.pixel_count;
+            }
+            assert!(covered.iter().flatten().all(|&n| n == 1), "every pixel of every sample once");
+            for shares in &per_stripe {
+                let (min, max) = (shares.iter().min().unwrap(), shares.iter().max().unwrap());
+                assert!(max - min <= 1, "{count} stripes: {shares:?}");
+            }
+            // Sample-major order is kept.
+            assert!(cut
+                .windows(2)
+                .all(|p| (p[0].sample, p[0].first_pixel) < (p[1].sample, p[1].first_pixel)));
+        }
+        // Waves inside one stripe are left as they are.
+        let small = waves(10, 100, 1);
+        assert_eq!(cut_at_stripes(&small, 1000, &[0, 1]), small);
     }
 
     #[test]
