@@ -114,7 +114,8 @@ __device__ __forceinline__ void init_traversal(Traversal& tr, int* stack, const 
 
 /// Tests triangle records `first .. first + count` of instance record `slot`
 /// against `ray`; returns whether one was hit (with ANY, stops at the first).
-template <int TRI, bool ANY>
+/// APPROX: Woop tests divide with the hardware reciprocal (`intersect_woop`).
+template <int TRI, bool ANY, bool APPROX = !ANY>
 __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const TraversalRay& ray, unsigned int slot,
                                                unsigned int first, unsigned int count, TraversalHit& h) {
     bool any = false;
@@ -122,7 +123,7 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
         const TriRecord tri = load_tri(v.tris, first + k);
         float t, u, w;
         bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
-                                    : intersect_woop<!ANY>(tri, ray.o, ray.d, h.t, t, u, w);
+                                    : intersect_woop<APPROX>(tri, ray.o, ray.d, h.t, t, u, w);
 #if ATOLL_TRACE_ALPHA
         // Alpha masks (texture.cuh): a cut-out candidate is no hit.
         if (hit && v.alpha_params) {

@@ -117,6 +117,13 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
         const uint2 hi_x = make_uint2(__float_as_uint(w3.z), __float_as_uint(w3.w));
         const uint2 hi_y = make_uint2(__float_as_uint(w4.x), __float_as_uint(w4.y));
         const uint2 hi_z = make_uint2(__float_as_uint(w4.z), __float_as_uint(w4.w));
+        // The planes a ray enters and leaves by, per axis (its direction's
+        // sign), chosen once per node: the same distances as taking the
+        // smaller and larger of both planes per child, with fewer instructions.
+        const bool px = ray.inv_d.x >= 0.0f, py = ray.inv_d.y >= 0.0f, pz = ray.inv_d.z >= 0.0f;
+        const uint2 nx = px ? lo_x : hi_x, fx = px ? hi_x : lo_x;
+        const uint2 ny = py ? lo_y : hi_y, fy = py ? hi_y : lo_y;
+        const uint2 nz = pz ? lo_z : hi_z, fz = pz ? hi_z : lo_z;
         // The box planes in ray distance, per axis: (origin + cell * q) * inv_d - o * inv_d.
         const float3 sx = make_float3(cell.x * ray.inv_d.x, cell.y * ray.inv_d.y, cell.z * ray.inv_d.z);
         const float3 ox = make_float3(fmaf(origin.x, ray.inv_d.x, -ray.o_inv_d.x),
@@ -132,11 +139,11 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
         for (unsigned int i = 0; i < 8; ++i) {
             const unsigned int m = byte8(meta, i);
             if (m == 0) continue;
-            const float x0 = fmaf((float)byte8(lo_x, i), sx.x, ox.x), x1 = fmaf((float)byte8(hi_x, i), sx.x, ox.x);
-            const float y0 = fmaf((float)byte8(lo_y, i), sx.y, ox.y), y1 = fmaf((float)byte8(hi_y, i), sx.y, ox.y);
-            const float z0 = fmaf((float)byte8(lo_z, i), sx.z, ox.z), z1 = fmaf((float)byte8(hi_z, i), sx.z, ox.z);
-            const float near = fmaxf(fmaxf(fminf(x0, x1), fminf(y0, y1)), fmaxf(fminf(z0, z1), 0.0f));
-            const float far = fminf(fminf(fmaxf(x0, x1), fmaxf(y0, y1)), fmaxf(z0, z1)) * BOX_ROBUST_SCALE;
+            const float x0 = fmaf((float)byte8(nx, i), sx.x, ox.x), x1 = fmaf((float)byte8(fx, i), sx.x, ox.x);
+            const float y0 = fmaf((float)byte8(ny, i), sx.y, ox.y), y1 = fmaf((float)byte8(fy, i), sx.y, ox.y);
+            const float z0 = fmaf((float)byte8(nz, i), sx.z, ox.z), z1 = fmaf((float)byte8(fz, i), sx.z, ox.z);
+            const float near = fmaxf(fmaxf(x0, y0), fmaxf(z0, 0.0f));
+            const float far = fminf(fminf(x1, y1), z1) * BOX_ROBUST_SCALE;
             if (!(near <= fminf(far, h.t))) continue;
             if ((imask >> i) & 1u) {
                 tr.push((int)(child_base + __popc(imask & ((1u << i) - 1u))), near);
@@ -151,7 +158,9 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
             const unsigned int i = __ffs(leaves) - 1u;
             leaves &= leaves - 1u;
             const unsigned int m = byte8(meta, i);
-            if (test_triangles<TRI, ANY>(v, ray, slot, prim_base + (m & 31u), __popc(m >> 5), h) && ANY) return h;
+            // IEEE division in Woop tests: the approximate one measured
+            // slower in this loop (BENCHMARKS.md).
+            if (test_triangles<TRI, ANY, false>(v, ray, slot, prim_base + (m & 31u), __popc(m >> 5), h) && ANY) return h;
         }
         tr.sort_from(base);
         node = tr.pop(h.t);
