@@ -229,7 +229,7 @@ fn count_first_sample(
     let waves = Wave::all(&RenderOptions { spp: 1, wave_size: per_wave, ..frame.options.clone() });
     let stripes: Vec<usize> = (0..devices.len()).collect();
     let waves = cut_at_stripes(&waves, pixels, &stripes);
-    let handout = StripeHandout::new(&waves, frame.options.pixel_count(), &stripes).without_stealing();
+    let handout = StripeHandout::new(&waves, pixels, &stripes).without_stealing();
     let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: false };
     let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {
