@@ -410,10 +410,10 @@ fn refill_matches_camera_record() {
         assert_eq!(download(&gpu, &fifo)[0].taken, started - waves[0].2);
         let got = records_of(download(&gpu, &paths));
         let mut bad = Vec::new();
+        // Waves count places in tile order.
+        let pixel = |ordinal| tile_order_pixel(ordinal, frame.options.resolution);
         for (i, g) in got.iter().enumerate() {
             let i = i as u32;
-            // Waves count places in tile order.
-            let pixel = |ordinal| tile_order_pixel(ordinal, frame.options.resolution);
             let expected = if i < queued {
                 RayRecord::zeroed()
             } else if i < queued + waves[0].2 {

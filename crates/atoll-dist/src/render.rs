@@ -26,7 +26,7 @@ use crate::layout::{Layout, RingOrder};
 use crate::replicate;
 use crate::ring::{ring_loop, run_members, RingLink, RingPeers};
 use crate::shared::{hardware_of, prepare_shared, SharedReport};
-use crate::stripes::{cut_at_stripes, StripeHandout};
+use crate::stripes::StripeHandout;
 use crate::transport::{choose_transport, connect_rings, Handover, Transport};
 use crate::vote::Vote;
 
@@ -288,8 +288,7 @@ pub fn render_multi_with(
     let handout: &dyn WaveHandout = match (layout, shared) {
         (Layout::Shared(_), None) => {
             let (pixels, hardware) = (frame.options.pixel_count(), hardware_of(devices)?);
-            waves = cut_at_stripes(&waves, pixels, &hardware);
-            stripes = StripeHandout::new(&waves, pixels, &hardware);
+            (waves, stripes) = StripeHandout::cut(&waves, pixels, &hardware);
             &stripes
         }
         _ => handout,
@@ -456,8 +455,7 @@ impl<'d> Session<'d> {
         let stripes;
         let handout: &dyn WaveHandout = match self.layout {
             Layout::Shared(_) => {
-                waves = cut_at_stripes(&waves, cut.pixel_count(), &self.hardware);
-                stripes = StripeHandout::new(&waves, cut.pixel_count(), &self.hardware);
+                (waves, stripes) = StripeHandout::cut(&waves, cut.pixel_count(), &self.hardware);
                 &stripes
             }
             _ => &local,

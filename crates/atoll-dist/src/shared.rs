@@ -24,7 +24,7 @@ use crate::chunk_placement::{
 use crate::layout::RingOrder;
 use crate::placement::host_memory_available;
 use crate::render::{run_waves, RunShape};
-use crate::stripes::{cut_at_stripes, StripeHandout};
+use crate::stripes::StripeHandout;
 
 /// Default chunk size: the paper's optimum for scenes under 30 GB.
 pub const DEFAULT_CHUNK_BYTES: u64 = 2 << 20;
@@ -228,8 +228,8 @@ fn count_first_sample(
     let per_wave = pixels.div_ceil(4 * devices.len().max(1) as u32).clamp(1, frame.options.wave_size.max(1));
     let waves = Wave::all(&RenderOptions { spp: 1, wave_size: per_wave, ..frame.options.clone() });
     let stripes: Vec<usize> = (0..devices.len()).collect();
-    let waves = cut_at_stripes(&waves, pixels, &stripes);
-    let handout = StripeHandout::new(&waves, pixels, &stripes).without_stealing();
+    let (waves, handout) = StripeHandout::cut(&waves, pixels, &stripes);
+    let handout = handout.without_stealing();
     let shape = RunShape { ring: 1, order: RingOrder::Spread, merge: false };
     let mut reports = run_waves(devices, &waves, shape, &[], &handout, &mut |_, _| {})?;
     if let Some(e) = reports.iter_mut().find_map(|r| r.take_error()) {

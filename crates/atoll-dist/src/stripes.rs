@@ -45,7 +45,7 @@ fn stripe_of_pixel(pixel: u32, pixels: u32, count: usize) -> usize {
 /// large against a stripe would otherwise give one stripe much more work
 /// than another, leaving the last big waves of the busier one to finish
 /// while the other GPU waits (BENCHMARKS.md: short frames). Order is kept.
-pub fn cut_at_stripes(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Vec<Wave> {
+fn cut_at_stripes(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Vec<Wave> {
     let count = stripe_count(stripe_of);
     // The first pixel of each stripe after the first.
     let starts: Vec<u32> =
@@ -64,11 +64,19 @@ pub fn cut_at_stripes(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Vec<W
 }
 
 impl StripeHandout {
-    /// `waves` of an image of `pixels` pixels dealt to stripes, worker
-    /// `w` taking from stripe `stripe_of[w]` first (one stripe per
-    /// distinct value, numbered from 0). Waves cut by [`cut_at_stripes`]
-    /// give every stripe the same pixels.
-    pub fn new(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Self {
+    /// `waves` of an image of `pixels` pixels cut at the stripes'
+    /// boundaries ([`cut_at_stripes`], so every stripe has the same
+    /// pixels), and the handout of the cut waves, whose indices it hands
+    /// out: worker `w` takes from stripe `stripe_of[w]` first (one stripe
+    /// per distinct value, numbered from 0).
+    pub fn cut(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> (Vec<Wave>, Self) {
+        let waves = cut_at_stripes(waves, pixels, stripe_of);
+        let handout = Self::new(&waves, pixels, stripe_of);
+        (waves, handout)
+    }
+
+    /// `waves` dealt to stripes as they are (each to the stripe of its first pixel).
+    fn new(waves: &[Wave], pixels: u32, stripe_of: &[usize]) -> Self {
         let count = stripe_count(stripe_of);
         let mut stripes = vec![VecDeque::new(); count];
         for (i, wave) in waves.iter().enumerate() {
