@@ -42,7 +42,8 @@ struct __align__(16) TlasInstance {
     unsigned int instance;
     /// 1 when object_to_world is the identity: the ray is used as is (as the CPU does).
     unsigned int identity;
-    unsigned int pad;
+    /// Where the BLAS's triangle records start: its leaf links count from here.
+    unsigned int tri_base;
 };
 
 // LINK_DONE: the bottom of every traversal stack and the root link of an
@@ -75,7 +76,7 @@ static_assert(__builtin_offsetof(TlasInstance, world_to_object) == 0 && sizeof(T
 static_assert(__builtin_offsetof(TlasInstance, blas_root) == 48 && sizeof(TlasInstance::blas_root) == 4, "TlasInstance.blas_root: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, instance) == 52 && sizeof(TlasInstance::instance) == 4, "TlasInstance.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, identity) == 56 && sizeof(TlasInstance::identity) == 4, "TlasInstance.identity: offset or size differs from Rust");
-static_assert(__builtin_offsetof(TlasInstance, pad) == 60 && sizeof(TlasInstance::pad) == 4, "TlasInstance.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TlasInstance, tri_base) == 60 && sizeof(TlasInstance::tri_base) == 4, "TlasInstance.tri_base: offset or size differs from Rust");
 #endif
 // END GENERATED bvh
 

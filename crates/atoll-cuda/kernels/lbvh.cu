@@ -441,7 +441,7 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
         r.blas_root = seg_root_link[object_segment[inst.object]];
         r.instance = id;
         r.identity = is_identity(inst.object_to_world) ? 1u : 0u;
-        r.pad = 0;
+        r.tri_base = 0;  // a BVH built whole: leaf links index all records
         out[position] = r;
     });
 }

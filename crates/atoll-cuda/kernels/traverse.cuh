@@ -25,12 +25,14 @@
 #endif
 
 /// The ray of instance record `s` in object space (`world` unchanged for an
-/// identity instance, kept in `ray`); returns the record's BLAS root.
+/// identity instance, kept in `ray`) and its BLAS's first record in
+/// `tri_base`; returns the record's BLAS root.
 __device__ __forceinline__ int instance_ray(const SceneBvhView& v, unsigned int s, const TraversalRay& world,
-                                            TraversalRay& ray) {
+                                            TraversalRay& ray, unsigned int& tri_base) {
     const float4* p = reinterpret_cast<const float4*>(v.instances + s);
     count_access(p);
     const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
+    tri_base = (unsigned int)meta.w;
     if (meta.z == 0) {
         const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
         const float3 o = world.o, d = world.d;
@@ -51,6 +53,7 @@ struct Traversal {
     const BvhNode* nodes;
     bool in_blas;
     unsigned int slot;   // TLAS instance record being traversed
+    unsigned int tri_base;  // its BLAS's first triangle record
     int sp;
     int* stack;
 
@@ -66,7 +69,7 @@ struct Traversal {
 
     /// Moves into instance record `s`; returns its BLAS root link.
     __device__ __forceinline__ int enter_instance(const SceneBvhView& v, unsigned int s) {
-        const int root = instance_ray(v, s, world, ray);
+        const int root = instance_ray(v, s, world, ray, tri_base);
         nodes = v.blas_nodes;
         in_blas = true;
         slot = s;
@@ -108,6 +111,7 @@ __device__ __forceinline__ void init_traversal(Traversal& tr, int* stack, const 
     tr.nodes = v.tlas_nodes;
     tr.in_blas = false;
     tr.slot = 0;
+    tr.tri_base = 0;
     tr.sp = 0;
     tr.stack[0] = LINK_DONE;
 }
@@ -148,7 +152,7 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
 /// Tests the triangles of BLAS leaf `leaf`.
 template <int TRI, bool ANY>
 __device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal& tr, int leaf, TraversalHit& h) {
-    return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, leaf_first(leaf), leaf_count(leaf), h);
+    return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, tr.tri_base + leaf_first(leaf), leaf_count(leaf), h);
 }
 
 /// While-while traversal of the ray (o, d) with hits in (0, t_max).

@@ -98,7 +98,8 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
             // An instance of a TLAS leaf: continue in its BLAS, in object space.
             slot = ~(unsigned int)node;
             tr.push(LINK_INSTANCE_END, __int_as_float(0xff800000));
-            node = instance_ray(v, slot, world, ray);
+            unsigned int tri_base;  // 0: the wide tree's leaves index all records
+            node = instance_ray(v, slot, world, ray, tri_base);
             in_blas = true;
             continue;
         }

@@ -5,9 +5,12 @@
 //!
 //! The scene is built once: on the first GPU the usual way (tables
 //! uploaded, BVH built there, its arrays copied to the host and freed)
-//! where that build fits it, else on the host by the reference build,
-//! which makes the same BVH bit for bit, only slower, so a scene larger
-//! than any one GPU still renders. The window is then filled from the host
+//! where that build fits it; else there in pieces (`bvh::pieces`: groups
+//! of BLASes built a piece at a time beside the scene's vertices and
+//! triangles, then put together and given a TLAS on the host), so a scene
+//! larger than any one GPU still renders; else, where not even a piece
+//! fits, on the host by the reference build, which makes the whole build's
+//! BVH bit for bit, only slower. The window is then filled from the host
 //! copies, and each GPU gets a [`GpuScene`] and [`GpuSceneBvh`] whose
 //! arrays are views into its range.
 //! Light and material tables (the paper's small structures) stay on
@@ -88,6 +91,7 @@ struct SceneMeta {
     triangle_test: crate::bvh::TriangleTest,
     blas_roots: Vec<i32>,
     blas_bounds: Vec<crate::bvh::Bounds>,
+    blas_tri_bases: Vec<u32>,
     tlas_bounds: crate::bvh::Bounds,
     plan: crate::bvh::ScenePlan,
     options: crate::bvh::BuildOptions,
@@ -152,6 +156,7 @@ unsafe fn views(
         triangle_test: meta.triangle_test,
         blas_roots: meta.blas_roots.clone(),
         blas_bounds: meta.blas_bounds.clone(),
+        blas_tri_bases: meta.blas_tri_bases.clone(),
         tlas_bounds: meta.tlas_bounds,
         plan: meta.plan.clone(),
         options: meta.options,
@@ -216,25 +221,32 @@ fn table_bytes<T: bytemuck::Pod>(v: Vec<T>) -> Vec<u8> {
     }
 }
 
+/// Refuses a layout whose host arrays (`needed` bytes) would not fit the
+/// host's available memory; `why` says why the host holds them.
+fn check_host_memory(needed: u64, why: &str) -> Result<(), CudaError> {
+    if let Some(available) = atoll_render::device::host_memory_available() {
+        if needed > available {
+            return Err(CudaError::Usage(format!(
+                "{why}, and on the host it needs {} with {} available",
+                crate::error::fmt_bytes(needed),
+                crate::error::fmt_bytes(available)
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// The scene laid out by the host: its tables and the reference build of
 /// its BVH (the GPU's build bit for bit), in [`TABLES`] order. For scenes
-/// whose build does not fit the leader; refused when it would not fit host
-/// memory either.
+/// whose build does not fit the leader, even in pieces; refused when it
+/// would not fit host memory either.
 fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError> {
     let options = BuildOptions::default();
     let plan = crate::scene::part_plan(scene, &ScenePart::whole(scene));
     // The build's arrays are the GPU build's; the tables are held twice
     // while each becomes bytes.
     let needed = plan.scene_tables + plan.bvh + plan.scene_tables.max(plan.bvh);
-    if let Some(available) = atoll_render::device::host_memory_available() {
-        if needed > available {
-            return Err(CudaError::Usage(format!(
-                "the scene's build fits no GPU, and on the host it needs {} with {} available",
-                crate::error::fmt_bytes(needed),
-                crate::error::fmt_bytes(available)
-            )));
-        }
-    }
+    check_host_memory(needed, "the scene's build fits no GPU")?;
     tracing::info!(
         "building the scene's BVH on the host: its GPU build ({}) fits no GPU",
         crate::error::fmt_bytes(plan.total())
@@ -242,9 +254,82 @@ fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError>
     let start = std::time::Instant::now();
     let t = SceneTables::build(scene);
     let bvh = reference::build_scene(&t, &options);
+    let plan = ScenePlan::new(&t.objects, &t.instances);
+    Ok(laid_from(scene, chunk_bytes, t, plan, bvh, options, start))
+}
+
+/// Device bytes of the tables a build in pieces keeps on the GPU while it
+/// builds: every vertex and triangle of the scene.
+fn piece_table_bytes(scene: &Scene) -> u64 {
+    let counts = TableCounts::of_part(scene, &ScenePart::whole(scene));
+    12 * (counts.vertices.max(1) + counts.triangles.max(1))
+}
+
+/// The fewest triangles a piece worth building on a GPU holds (below
+/// that, the host builds the BVH).
+const MIN_PIECE_TRIANGLES: u64 = 1 << 16;
+
+/// The most triangles of a piece built in `room` device bytes (beside the
+/// scene's tables), for a scene of `objects` objects; `None` when fewer
+/// than [`MIN_PIECE_TRIANGLES`] fit.
+fn piece_capacity(room: u64, objects: u64) -> Option<u32> {
+    // Segments: one per object, and one more per piece where objects are cut.
+    let segments = objects + 1024;
+    let fixed = crate::bvh::piece_bytes(0, segments);
+    let per_triangle = crate::bvh::piece_bytes(1 << 20, segments).saturating_sub(fixed).div_ceil(1 << 20);
+    // A tenth of the room is left for the allocator and the kernels.
+    let capacity = (room - room / 10).saturating_sub(fixed) / per_triangle.max(1);
+    (capacity >= MIN_PIECE_TRIANGLES)
+        .then(|| capacity.min(crate::bvh::pieces::MAX_PIECE_TRIANGLES as u64) as u32)
+}
+
+/// The scene laid out with its BVH built on `gpu` in pieces of as many
+/// triangles as `room` device bytes hold besides the scene's vertices and
+/// triangles, put together and finished (TLAS) on the host.
+fn laid_in_pieces(
+    gpu: &Arc<Gpu>,
+    room: u64,
+    scene: &Arc<Scene>,
+    chunk_bytes: u64,
+) -> Result<Laid, CudaError> {
+    let options = BuildOptions::default();
+    let whole = ScenePart::whole(scene);
+    let counts = TableCounts::of_part(scene, &whole);
+    // TLAS records: one per instance, and more where objects are cut into
+    // segments (bounded here by as many again).
+    let entries = counts.instances * 2;
+    let resident_bvh = counts.triangles * (48 + 4 + 64) + entries * 3 * 64;
+    let tables = crate::scene::part_plan(scene, &whole).scene_tables;
+    check_host_memory(tables + resident_bvh + tables.max(resident_bvh), "the scene's BVH fits no GPU whole")?;
+    let tables_on_device = piece_table_bytes(scene);
+    let beside_tables = room.min(gpu.free_memory()?).saturating_sub(tables_on_device);
+    let capacity = piece_capacity(beside_tables, scene.objects.len() as u64)
+        .ok_or_else(|| CudaError::Usage(format!("{}: no room to build the BVH in pieces", gpu.label())))?;
+    let start = std::time::Instant::now();
+    let t = SceneTables::build(scene);
+    let (plan, bvh) = crate::bvh::build_in_pieces(gpu, &t, capacity, &options)?;
+    tracing::info!(
+        "{}: built the scene's BVH in pieces of at most {capacity} triangles ({} BLASes) in {:.2} s",
+        gpu.label(),
+        plan.segments(),
+        start.elapsed().as_secs_f64()
+    );
+    Ok(laid_from(scene, chunk_bytes, t, plan, bvh, options, start))
+}
+
+/// The window's tables from the scene's host tables `t` and a BVH built
+/// for them (`plan`), started at `start`.
+fn laid_from(
+    scene: &Arc<Scene>,
+    chunk_bytes: u64,
+    t: SceneTables,
+    scene_plan: ScenePlan,
+    bvh: crate::bvh::HostSceneBvh,
+    options: BuildOptions,
+    start: std::time::Instant,
+) -> Laid {
     let wall_ms = start.elapsed().as_secs_f64() * 1e3;
     let counts = t.counts();
-    let scene_plan = ScenePlan::new(&t.objects, &t.instances);
     let mut stats = GpuBvhStats {
         wall_ms,
         triangles: scene_plan.primitives(),
@@ -294,15 +379,27 @@ fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError>
         host_instances,
         tlas_root: bvh.tlas_root,
         triangle_test: bvh.triangle_test,
-        blas_roots: bvh.blas_roots.clone(),
-        blas_bounds: bvh.blas_bounds.clone(),
+        blas_roots: bvh.blas_roots,
+        blas_bounds: bvh.blas_bounds,
+        blas_tri_bases: bvh.blas_tri_bases,
         tlas_bounds: bvh.tlas_bounds,
         plan: scene_plan,
         options,
         stats,
         scene_triangles: counts.triangles,
     };
-    Ok(Laid { scene: scene.clone(), chunk_bytes, tables, meta })
+    Laid { scene: scene.clone(), chunk_bytes, tables, meta }
+}
+
+/// Where the shared scene's BVH is built.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Builder {
+    /// On the leader, whole (as for one GPU).
+    Whole,
+    /// On the leader, in pieces within this many bytes.
+    Pieces(u64),
+    /// On the host (the reference build): slow.
+    Host,
 }
 
 /// Scene sharing between CUDA GPUs through a [`ChunkWindow`].
@@ -320,12 +417,20 @@ impl CudaSharing {
         Self { leader, leader_budget, laid: Mutex::new(None), window: Mutex::new(None) }
     }
 
-    /// Whether the whole scene's GPU build fits the leader (its free memory
-    /// and budget); if not, the host builds it.
-    fn leader_builds(&self, scene: &Scene) -> Result<bool, CudaError> {
+    /// Where the BVH is built: whole on the leader where that fits its
+    /// free memory and budget, else there in pieces where a piece fits
+    /// beside the scene's vertices and triangles, else on the host.
+    fn builder(&self, scene: &Scene) -> Result<Builder, CudaError> {
         let needed = crate::scene::part_plan(scene, &ScenePart::whole(scene)).total();
         let room = self.leader.free_memory()?.min(self.leader_budget.unwrap_or(u64::MAX));
-        Ok(needed <= room)
+        if needed <= room {
+            return Ok(Builder::Whole);
+        }
+        let beside_tables = room.saturating_sub(piece_table_bytes(scene));
+        Ok(match piece_capacity(beside_tables, scene.objects.len() as u64) {
+            Some(_) => Builder::Pieces(room),
+            None => Builder::Host,
+        })
     }
 }
 
@@ -378,7 +483,7 @@ impl SceneSharing for CudaSharing {
     }
 
     fn lays_out_slowly(&self, scene: &Scene) -> bool {
-        !self.leader_builds(scene).unwrap_or(false)
+        !matches!(self.builder(scene), Ok(Builder::Whole | Builder::Pieces(_)))
     }
 
     fn layout(
@@ -390,8 +495,10 @@ impl SceneSharing for CudaSharing {
         let gpu = &self.leader;
         let build = || -> Result<Laid, CudaError> {
             let chunk_bytes = ChunkWindow::chunk_bytes_for(std::slice::from_ref(gpu), chunk_bytes)?;
-            if !self.leader_builds(scene)? {
-                return laid_on_host(scene, chunk_bytes);
+            match self.builder(scene)? {
+                Builder::Whole => {}
+                Builder::Pieces(room) => return laid_in_pieces(gpu, room, scene, chunk_bytes),
+                Builder::Host => return laid_on_host(scene, chunk_bytes),
             }
             let whole = ScenePart::whole(scene);
             let gpu_scene = GpuScene::upload_part(gpu, scene, &whole, None, 0)?;
@@ -410,6 +517,7 @@ impl SceneSharing for CudaSharing {
                 triangle_test: bvh.triangle_test,
                 blas_roots: bvh.blas_roots.clone(),
                 blas_bounds: bvh.blas_bounds.clone(),
+                blas_tri_bases: bvh.blas_tri_bases.clone(),
                 tlas_bounds: bvh.tlas_bounds,
                 plan: bvh.plan.clone(),
                 options: bvh.options,

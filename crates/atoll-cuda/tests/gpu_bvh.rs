@@ -114,6 +114,7 @@ fn compare_with_reference(gpu_bvh: &HostSceneBvh, host: &HostSceneBvh) {
         first_difference("instances", &gpu_bvh.instances, &host.instances),
         first_difference("blas_roots", &gpu_bvh.blas_roots, &host.blas_roots),
         first_difference("blas_bounds", &gpu_bvh.blas_bounds, &host.blas_bounds),
+        first_difference("blas_tri_bases", &gpu_bvh.blas_tri_bases, &host.blas_tri_bases),
         (gpu_bvh.tlas_root != host.tlas_root)
             .then(|| format!("tlas_root {} vs {}", gpu_bvh.tlas_root, host.tlas_root)),
     ]
@@ -155,6 +156,32 @@ fn gpu_build_equals_the_host_reference_and_is_valid() {
                 (host_sah - s.blas_sah).abs() <= 1e-3 * host_sah,
                 "SAH {host_sah} vs tracked {}",
                 s.blas_sah
+            );
+        }
+    }
+}
+
+/// The build in pieces (shared scene memory's, for scenes no GPU builds
+/// whole) equals its host reference bit for bit, with objects whole and
+/// cut into segments, and is valid.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn gpu_build_in_pieces_equals_the_host_reference() {
+    let Some(gpu) = gpu_or_skip("build in pieces") else { return };
+    for (name, scene) in scenes() {
+        let tables = SceneTables::build(&scene);
+        let largest = tables.objects.iter().map(|o| o.triangle_count).max().unwrap();
+        let options = BuildOptions::default();
+        for capacity in [largest, largest / 5 + 1] {
+            let (plan, got) = atoll_cuda::bvh::build_in_pieces(&gpu, &tables, capacity, &options).unwrap();
+            got.check(&plan).unwrap_or_else(|e| panic!("{name}, pieces of {capacity}: {e}"));
+            let (host_plan, host) = reference::build_in_pieces(&tables, capacity, &options).unwrap();
+            assert_eq!(plan, host_plan);
+            compare_with_reference(&got, &host);
+            println!(
+                "{name}, pieces of {capacity}: {} BLASes, {} TLAS records",
+                plan.seg_object.len(),
+                got.instances.len()
             );
         }
     }

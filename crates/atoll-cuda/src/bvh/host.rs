@@ -19,22 +19,33 @@ use crate::layout::{GpuInstance, GpuObject};
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ScenePlan {
     /// First primitive of each segment (= BLAS), plus the total: objects
-    /// with triangles, in object order.
+    /// with triangles, in object order, each in one segment or, where a
+    /// plan caps segments ([`ScenePlan::split`]), in consecutive ones.
     pub seg_start: Vec<u32>,
     /// First global triangle of each segment.
     pub seg_first_tri: Vec<u32>,
     /// Object of each segment.
     pub seg_object: Vec<u32>,
-    /// Segment of each object, `BUILD_NONE` for objects without triangles.
+    /// First segment of each object, `BUILD_NONE` for objects without triangles.
     pub object_segment: Vec<u32>,
     /// Instances in the TLAS: those of this device's scene part whose object
     /// has triangles and whose `world_to_object` is finite (as
-    /// `atoll_bvh::SceneBvh` leaves out the rest).
+    /// `atoll_bvh::SceneBvh` leaves out the rest). Each has one TLAS
+    /// record per segment of its object.
     pub valid_instances: Vec<u32>,
 }
 
 impl ScenePlan {
+    /// One segment per object with triangles.
     pub fn new(objects: &[GpuObject], instances: &[GpuInstance]) -> Self {
+        Self::split(objects, instances, u32::MAX)
+    }
+
+    /// Objects with more than `max_segment` triangles in consecutive
+    /// segments of at most that many: a BVH built in pieces builds each
+    /// segment whole in one piece.
+    pub fn split(objects: &[GpuObject], instances: &[GpuInstance], max_segment: u32) -> Self {
+        let max_segment = max_segment.max(1);
         let mut plan = ScenePlan { seg_start: vec![0], ..Default::default() };
         for (o, object) in objects.iter().enumerate() {
             if object.triangle_count == 0 {
@@ -42,9 +53,14 @@ impl ScenePlan {
                 continue;
             }
             plan.object_segment.push(plan.seg_object.len() as u32);
-            plan.seg_object.push(o as u32);
-            plan.seg_first_tri.push(object.first_triangle);
-            plan.seg_start.push(plan.seg_start.last().unwrap() + object.triangle_count);
+            let mut done = 0;
+            while done < object.triangle_count {
+                let n = (object.triangle_count - done).min(max_segment);
+                plan.seg_object.push(o as u32);
+                plan.seg_first_tri.push(object.first_triangle + done);
+                plan.seg_start.push(plan.seg_start.last().unwrap() + n);
+                done += n;
+            }
         }
         plan.valid_instances = (0..instances.len() as u32)
             .filter(|&i| {
@@ -64,6 +80,26 @@ impl ScenePlan {
     /// BLAS primitives (triangles) over all segments.
     pub(crate) fn primitives(&self) -> u32 {
         *self.seg_start.last().unwrap_or(&0)
+    }
+
+    /// The segments of `object` (empty for one without triangles).
+    pub(crate) fn segments_of(&self, object: u32) -> std::ops::Range<usize> {
+        let first = self.object_segment[object as usize];
+        if first == BUILD_NONE {
+            return 0..0;
+        }
+        let first = first as usize;
+        let count = self.seg_object[first..].iter().take_while(|&&o| o == object).count();
+        first..first + count
+    }
+
+    /// The TLAS's entries: `(instance, segment)` for every segment of every
+    /// valid instance's object, in instance order.
+    pub(crate) fn tlas_entries(&self, instances: &[GpuInstance]) -> Vec<(u32, u32)> {
+        self.valid_instances
+            .iter()
+            .flat_map(|&i| self.segments_of(instances[i as usize].object).map(move |s| (i, s as u32)))
+            .collect()
     }
 }
 
@@ -87,9 +123,11 @@ pub struct HostSceneBvh {
     pub tri_ids: Vec<u32>,
     pub instances: Vec<GpuTlasInstance>,
     pub tlas_root: i32,
-    /// Root link and box of each BLAS (segment).
+    /// Root link, box and first triangle record of each BLAS (segment):
+    /// its leaf links count from that record (`GpuTlasInstance::tri_base`).
     pub blas_roots: Vec<i32>,
     pub blas_bounds: Vec<([f32; 3], [f32; 3])>,
+    pub blas_tri_bases: Vec<u32>,
     /// The TLAS root box.
     pub tlas_bounds: ([f32; 3], [f32; 3]),
     pub triangle_test: TriangleTest,
@@ -156,7 +194,8 @@ impl HostSceneBvh {
                         }
                     }
                     Some(slot) => {
-                        for k in first..first + count {
+                        let base = self.instances[slot as usize].tri_base;
+                        for k in base + first..base + first + count {
                             let r = &self.tris[k as usize];
                             let hit = match self.triangle_test {
                                 TriangleTest::Exact => TriAccel {
@@ -276,10 +315,10 @@ impl HostSceneBvh {
     /// segments' triangles. Returns the first problem found.
     pub fn check(&self, plan: &ScenePlan) -> Result<(), String> {
         let check_tree =
-            |nodes: &[GpuBvhNode], roots: &[i32], records: usize, what: &str| -> Result<(), String> {
+            |nodes: &[GpuBvhNode], roots: &[(i32, u32)], records: usize, what: &str| -> Result<(), String> {
                 let mut node_seen = vec![false; nodes.len()];
                 let mut record_seen = vec![false; records];
-                for &root in roots {
+                for &(root, base) in roots {
                     let mut todo = vec![root];
                     while let Some(link) = todo.pop() {
                         match Link::decode(link) {
@@ -317,7 +356,7 @@ impl HostSceneBvh {
                                 }
                             }
                             Link::Leaf { first, count } => {
-                                for r in first..first + count {
+                                for r in base + first..base + first + count {
                                     let seen = record_seen
                                         .get_mut(r as usize)
                                         .ok_or(format!("{what}: record {r} out of range"))?;
@@ -337,8 +376,13 @@ impl HostSceneBvh {
                 }
                 Ok(())
             };
-        check_tree(&self.blas_nodes, &self.blas_roots, self.tris.len(), "BLAS")?;
-        check_tree(&self.tlas_nodes, &[self.tlas_root], self.instances.len(), "TLAS")?;
+        if self.blas_tri_bases.len() != self.blas_roots.len() {
+            return Err("BLAS: not one record base per root".into());
+        }
+        let blas_roots: Vec<(i32, u32)> =
+            self.blas_roots.iter().copied().zip(self.blas_tri_bases.iter().copied()).collect();
+        check_tree(&self.blas_nodes, &blas_roots, self.tris.len(), "BLAS")?;
+        check_tree(&self.tlas_nodes, &[(self.tlas_root, 0)], self.instances.len(), "TLAS")?;
         let mut ids = self.tri_ids.clone();
         ids.sort_unstable();
         let mut expected: Vec<u32> = (0..plan.segments() as usize)
@@ -351,10 +395,27 @@ impl HostSceneBvh {
         if ids != expected {
             return Err("BLAS: triangle ids are not the segments' triangles".into());
         }
-        let mut instances: Vec<u32> = self.instances.iter().map(|i| i.instance).collect();
-        instances.sort_unstable();
-        if instances != plan.valid_instances {
+        // Each valid instance enters every segment of its object once.
+        let segment_of_root: std::collections::HashMap<(i32, u32), usize> =
+            blas_roots.iter().enumerate().map(|(s, &r)| (r, s)).collect();
+        let mut entered: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+        for record in &self.instances {
+            let s = segment_of_root
+                .get(&(record.blas_root, record.tri_base))
+                .ok_or(format!("TLAS: instance {} enters no BLAS's root", record.instance))?;
+            entered.entry(record.instance).or_default().push(*s);
+        }
+        if !entered.keys().copied().eq(plan.valid_instances.iter().copied()) {
             return Err("TLAS: instance records are not the valid instances".into());
+        }
+        for (instance, segments) in &mut entered {
+            segments.sort_unstable();
+            let object = plan.seg_object[segments[0]];
+            if !segments.iter().copied().eq(plan.segments_of(object)) {
+                return Err(format!(
+                    "TLAS: instance {instance} does not enter each segment of its object once"
+                ));
+            }
         }
         Ok(())
     }

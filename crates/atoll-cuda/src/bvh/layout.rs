@@ -100,7 +100,11 @@ pub struct GpuTlasInstance {
     pub instance: u32,
     /// 1 when `object_to_world` is the identity (rays are used unchanged).
     pub identity: u32,
-    pub pad: u32,
+    /// Where the BLAS's triangle records start: its leaf links count from
+    /// here, so each BLAS addresses `1 << LEAF_FIRST_BITS` records of its
+    /// own and a BVH built in pieces holds more than that in all (0 for a
+    /// BVH built whole).
+    pub tri_base: u32,
 }
 
 const _: () = {
@@ -153,7 +157,7 @@ impl GpuTriRecord {
 impl GpuTlasInstance {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(GpuTlasInstance { world_to_object, blas_root, instance, identity, pad })
+        field_layout!(GpuTlasInstance { world_to_object, blas_root, instance, identity, tri_base })
     }
 }
 

@@ -18,6 +18,7 @@
 mod host;
 pub(crate) mod layout;
 mod lbvh;
+pub(crate) mod pieces;
 pub mod reference;
 pub mod sort;
 // The test scenes only serve tests (this crate's, and its integration
@@ -37,7 +38,7 @@ pub use layout::{GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest};
 
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu};
-use crate::scene::GpuScene;
+use crate::scene::{GpuScene, SceneTables};
 use crate::trace::Tracer;
 use layout::{LEAF_FIRST_BITS, LINK_DONE, MAX_LEAF_PRIMS};
 use lbvh::{launch_err, BuildArrays, LbvhKernels, Phases, THREADS};
@@ -143,9 +144,11 @@ pub struct GpuSceneBvh {
     /// Where traversal starts (a node, a leaf, or `LINK_DONE` when empty).
     pub tlas_root: i32,
     pub triangle_test: TriangleTest,
-    /// Root link and box of each BLAS (host copies).
+    /// Root link, box and first triangle record of each BLAS (host copies;
+    /// see `GpuTlasInstance::tri_base`).
     pub blas_roots: Vec<i32>,
     pub blas_bounds: Vec<Bounds>,
+    pub blas_tri_bases: Vec<u32>,
     pub tlas_bounds: Bounds,
     pub plan: ScenePlan,
     pub options: BuildOptions,
@@ -220,7 +223,8 @@ fn tlas_on_host(
 ) -> Result<DeviceTlas, CudaError> {
     let roots: Vec<i32> = blas.iter().map(|r| r.0).collect();
     let bounds: Vec<Bounds> = blas.iter().map(|r| r.1).collect();
-    let t = reference::build_tlas(plan, &scene.host_instances, &roots, &bounds, options);
+    let bases = vec![0; roots.len()];
+    let t = reference::build_tlas(plan, &scene.host_instances, &roots, &bounds, &bases, options);
     Ok(DeviceTlas {
         nodes: upload(gpu, &t.nodes, "TLAS nodes")?,
         node_count: t.nodes.len() as u32,
@@ -347,6 +351,155 @@ pub(crate) fn estimate_bytes(triangles: u64, instances: u64) -> u64 {
     build_bytes(triangles, instances.min(triangles).max(1), instances)
 }
 
+/// The BLASes of a build on the device, with the build arrays they came
+/// from (the TLAS build reads their roots).
+struct DeviceBlases {
+    a: BuildArrays,
+    nodes: CudaSlice<GpuBvhNode>,
+    node_count: u32,
+    tris: CudaSlice<GpuTriRecord>,
+    tri_ids: CudaSlice<u32>,
+    seg_first_tri: CudaSlice<u32>,
+}
+
+/// Builds the BLASes of `plan`'s segments (triangles `plan.seg_first_tri`
+/// onwards of `triangles`, corners in `vertices`), all at once.
+fn device_blases(
+    gpu: &Gpu,
+    k: &LbvhKernels,
+    vertices: &CudaSlice<f32>,
+    triangles: &CudaSlice<u32>,
+    plan: &ScenePlan,
+    options: &BuildOptions,
+    phases: &mut Phases,
+) -> Result<DeviceBlases, CudaError> {
+    let p = plan.primitives();
+    let test = options.triangle_test;
+    let mut a = BuildArrays::new(gpu, &plan.seg_start)?;
+    let seg_first_tri = upload(gpu, &plan.seg_first_tri, "segment triangles")?;
+    let (mut blas_nodes, mut tris, mut tri_ids) =
+        (alloc(gpu, 1, "BLAS nodes")?, alloc(gpu, 1, "triangles")?, alloc(gpu, 1, "triangle ids")?);
+    let mut blas_node_count = 0;
+    if p > 0 {
+        a.init_seg_bounds(gpu, k)?;
+        let config = a.box_launch();
+        let mut launch = gpu.stream.launch_builder(&k.blas_boxes);
+        launch
+            .arg(vertices)
+            .arg(triangles)
+            .arg(&a.seg_start)
+            .arg(&seg_first_tri)
+            .arg(&a.segments)
+            .arg(&p)
+            .arg(&mut a.prim_box)
+            .arg(&mut a.seg_bounds);
+        // SAFETY: matches `lbvh_blas_boxes(const float* vertices, const unsigned* triangles,
+        // const unsigned* seg_start, const unsigned* seg_first_tri, unsigned segments,
+        // unsigned P, float4* prim_box, unsigned* seg_bounds)`; segments are triangle
+        // ranges of `triangles`, whose vertex indices address `vertices` (the callers'
+        // tables), prim_box holds 2P float4 and seg_bounds 8 words per segment.
+        unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_blas_boxes"))?;
+        a.build_tree(gpu, k, options.max_leaf, options, phases)?;
+        atoll_scene::progress::built(p as u64);
+        let (nodes, records) = a.collapse(gpu, k, options.max_leaf, phases)?;
+        if records != p {
+            return Err(CudaError::Usage(format!(
+                "GPU BVH build: {records} leaf triangles for {p} triangles"
+            )));
+        }
+        blas_node_count = nodes;
+        blas_nodes = written_in_full(gpu, nodes as u64, "BLAS nodes")?;
+        a.emit_nodes(gpu, k, &mut blas_nodes)?;
+        tris = written_in_full(gpu, p as u64, "triangle records")?;
+        tri_ids = written_in_full(gpu, p as u64, "triangle ids")?;
+        let test_value = test.kernel_value();
+        let mut launch = gpu.stream.launch_builder(&k.emit_triangles);
+        launch
+            .arg(&p)
+            .arg(&a.child)
+            .arg(&a.leaf_size)
+            .arg(&a.tri_offset)
+            .arg(&a.values)
+            .arg(&a.seg_start)
+            .arg(&seg_first_tri)
+            .arg(&a.segments)
+            .arg(vertices)
+            .arg(triangles)
+            .arg(&test_value)
+            .arg(&mut tris)
+            .arg(&mut tri_ids);
+        // SAFETY: matches `lbvh_emit_triangles(unsigned P, const uint2* child, const unsigned*
+        // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned*
+        // seg_start, const unsigned* seg_first_tri, unsigned segments, const float* vertices,
+        // const unsigned* triangles, int test, TriRecord* out_tris, unsigned* out_ids)`; 2P
+        // threads; leaf offsets are a permutation of 0..P (checked: `records == p`).
+        unsafe { launch.launch(launch_1d(2 * p, THREADS)) }
+            .map_err(launch_err(gpu, "lbvh_emit_triangles"))?;
+    }
+    phases.mark(gpu, "layout")?;
+    Ok(DeviceBlases { a, nodes: blas_nodes, node_count: blas_node_count, tris, tri_ids, seg_first_tri })
+}
+
+/// Device bytes [`blases_on_device`] allocates for `triangles` in
+/// `segments` (node arrays sized for one triangle per leaf).
+pub(crate) fn piece_bytes(triangles: u64, segments: u64) -> u64 {
+    BuildArrays::bytes(triangles, segments) + triangles.max(1) * (48 + 4 + 64) + 4 * (segments + 2)
+}
+
+/// The BLASes of a piece's plan (`pieces::piece_plan`), built on `gpu`
+/// from the scene's `vertices` and `triangles` (device tables the plan
+/// indexes) and downloaded: links and records from 0, as
+/// `reference::build_blases` makes them.
+fn blases_on_device(
+    gpu: &Gpu,
+    vertices: &CudaSlice<f32>,
+    triangles: &CudaSlice<u32>,
+    plan: &ScenePlan,
+    options: &BuildOptions,
+) -> Result<reference::HostBlases, CudaError> {
+    options.check()?;
+    let k = LbvhKernels::load(gpu)?;
+    let mut phases = Phases::start(gpu)?;
+    let b = device_blases(gpu, &k, vertices, triangles, plan, options, &mut phases)?;
+    let roots = download_roots(gpu, &b.a)?;
+    drop(b.a);
+    phases.finish()?;
+    let err = || CudaError::driver(format!("{}: downloading a piece of the BVH", gpu.label()));
+    let p = plan.primitives() as usize;
+    let mut nodes = gpu.stream.clone_dtoh(&b.nodes).map_err(err())?;
+    nodes.truncate(b.node_count as usize);
+    let mut tris = gpu.stream.clone_dtoh(&b.tris).map_err(err())?;
+    tris.truncate(p);
+    let mut tri_ids = gpu.stream.clone_dtoh(&b.tri_ids).map_err(err())?;
+    tri_ids.truncate(p);
+    Ok(reference::HostBlases {
+        nodes,
+        tris,
+        tri_ids,
+        tri_bases: vec![0; roots.len()],
+        bounds: roots.iter().map(|r| r.1).collect(),
+        roots: roots.iter().map(|r| r.0).collect(),
+    })
+}
+
+/// The scene BVH of `t` built on `gpu` in pieces of at most `capacity`
+/// triangles (`pieces`), as shared scene memory builds a scene whose whole
+/// build fits no GPU; with the plan it was built for (objects larger than
+/// `capacity` cut into segments). Needs room for `t`'s vertices and
+/// triangles and [`piece_bytes`] of a piece.
+pub fn build_in_pieces(
+    gpu: &Gpu,
+    t: &SceneTables,
+    capacity: u32,
+    options: &BuildOptions,
+) -> Result<(ScenePlan, HostSceneBvh), CudaError> {
+    let vertices = upload(gpu, &t.vertices, "vertices")?;
+    let triangles = upload(gpu, &t.triangles, "triangles")?;
+    pieces::build_in_pieces(t, options, capacity, |piece| {
+        blases_on_device(gpu, &vertices, &triangles, piece, options)
+    })
+}
+
 impl GpuSceneBvh {
     /// Builds with [`BuildOptions::default`].
     pub fn build(gpu: &Gpu, scene: &GpuScene) -> Result<GpuSceneBvh, CudaError> {
@@ -372,68 +525,8 @@ impl GpuSceneBvh {
         let test = options.triangle_test;
 
         // BLASes: all objects at once, one segment each.
-        let mut a = BuildArrays::new(gpu, &plan.seg_start)?;
-        let seg_first_tri = upload(gpu, &plan.seg_first_tri, "segment triangles")?;
-        let (mut blas_nodes, mut tris, mut tri_ids) =
-            (alloc(gpu, 1, "BLAS nodes")?, alloc(gpu, 1, "triangles")?, alloc(gpu, 1, "triangle ids")?);
-        let mut blas_node_count = 0;
-        if p > 0 {
-            a.init_seg_bounds(gpu, &k)?;
-            let config = a.box_launch();
-            let mut launch = gpu.stream.launch_builder(&k.blas_boxes);
-            launch
-                .arg(&scene.vertices)
-                .arg(&scene.triangles)
-                .arg(&a.seg_start)
-                .arg(&seg_first_tri)
-                .arg(&a.segments)
-                .arg(&p)
-                .arg(&mut a.prim_box)
-                .arg(&mut a.seg_bounds);
-            // SAFETY: matches `lbvh_blas_boxes(const float* vertices, const unsigned* triangles,
-            // const unsigned* seg_start, const unsigned* seg_first_tri, unsigned segments,
-            // unsigned P, float4* prim_box, unsigned* seg_bounds)`; segments are objects'
-            // triangle ranges within the uploaded tables (GpuScene's invariant), prim_box holds
-            // 2P float4 and seg_bounds 8 words per segment.
-            unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_blas_boxes"))?;
-            a.build_tree(gpu, &k, options.max_leaf, options, &mut phases)?;
-            atoll_scene::progress::built(p as u64);
-            let (nodes, records) = a.collapse(gpu, &k, options.max_leaf, &mut phases)?;
-            if records != p {
-                return Err(CudaError::Usage(format!(
-                    "GPU BVH build: {records} leaf triangles for {p} triangles"
-                )));
-            }
-            blas_node_count = nodes;
-            blas_nodes = written_in_full(gpu, nodes as u64, "BLAS nodes")?;
-            a.emit_nodes(gpu, &k, &mut blas_nodes)?;
-            tris = written_in_full(gpu, p as u64, "triangle records")?;
-            tri_ids = written_in_full(gpu, p as u64, "triangle ids")?;
-            let test_value = test.kernel_value();
-            let mut launch = gpu.stream.launch_builder(&k.emit_triangles);
-            launch
-                .arg(&p)
-                .arg(&a.child)
-                .arg(&a.leaf_size)
-                .arg(&a.tri_offset)
-                .arg(&a.values)
-                .arg(&a.seg_start)
-                .arg(&seg_first_tri)
-                .arg(&a.segments)
-                .arg(&scene.vertices)
-                .arg(&scene.triangles)
-                .arg(&test_value)
-                .arg(&mut tris)
-                .arg(&mut tri_ids);
-            // SAFETY: matches `lbvh_emit_triangles(unsigned P, const uint2* child, const unsigned*
-            // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned*
-            // seg_start, const unsigned* seg_first_tri, unsigned segments, const float* vertices,
-            // const unsigned* triangles, int test, TriRecord* out_tris, unsigned* out_ids)`; 2P
-            // threads; leaf offsets are a permutation of 0..P (checked: `records == p`).
-            unsafe { launch.launch(launch_1d(2 * p, THREADS)) }
-                .map_err(launch_err(gpu, "lbvh_emit_triangles"))?;
-        }
-        phases.mark(gpu, "layout")?;
+        let DeviceBlases { a, nodes: blas_nodes, node_count: blas_node_count, tris, tri_ids, seg_first_tri } =
+            device_blases(gpu, &k, &scene.vertices, &scene.triangles, &plan, options, &mut phases)?;
         let blas = download_roots(gpu, &a)?;
 
         // The TLAS over the valid instances' world boxes: a few instances
@@ -488,6 +581,7 @@ impl GpuSceneBvh {
             triangle_test: test,
             blas_roots: blas.iter().map(|r| r.0).collect(),
             blas_bounds: blas.iter().map(|r| r.1).collect(),
+            blas_tri_bases: vec![0; blas.len()],
             tlas_bounds: tlas.root.1,
             plan,
             options: *options,
@@ -536,6 +630,7 @@ impl GpuSceneBvh {
             tlas_root: self.tlas_root,
             blas_roots: self.blas_roots.clone(),
             blas_bounds: self.blas_bounds.clone(),
+            blas_tri_bases: self.blas_tri_bases.clone(),
             tlas_bounds: self.tlas_bounds,
             triangle_test: self.triangle_test,
         })

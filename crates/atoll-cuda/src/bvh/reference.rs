@@ -455,25 +455,23 @@ pub(crate) struct HostTlas {
     pub cost: f32,
 }
 
-/// The TLAS over `plan`'s valid instances, whose objects' BLASes have
-/// root links `blas_roots` and boxes `blas_bounds` (per segment), as the
-/// GPU builds it (`lbvh_tlas_boxes`, the build with one instance per leaf,
-/// `lbvh_emit_instances`).
+/// The TLAS over `plan`'s valid instances, one record per segment of each
+/// one's object (`ScenePlan::tlas_entries`), where segment `s`'s BLAS has
+/// root link `roots[s]`, box `bounds[s]` and first record `tri_bases[s]`; as the GPU builds it (`lbvh_tlas_boxes`, the build
+/// with one record per leaf, `lbvh_emit_instances`) where every object is
+/// one segment.
 pub(crate) fn build_tlas(
     plan: &ScenePlan,
     instances: &[GpuInstance],
-    blas_roots: &[i32],
-    blas_bounds: &[Bounds],
+    roots: &[i32],
+    bounds: &[Bounds],
+    tri_bases: &[u32],
     options: &BuildOptions,
 ) -> HostTlas {
-    let segment = |inst: &GpuInstance| plan.object_segment[inst.object as usize] as usize;
-    let boxes: Vec<Bounds> = plan
-        .valid_instances
-        .iter()
-        .map(|&i| {
-            let inst = &instances[i as usize];
-            instance_bounds(&inst.object_to_world, blas_bounds[segment(inst)])
-        })
+    let entries = plan.tlas_entries(instances);
+    let boxes: Vec<Bounds> = entries
+        .par_iter()
+        .map(|&(i, s)| instance_bounds(&instances[i as usize].object_to_world, bounds[s as usize]))
         .collect();
     let (tree, tlas) = build(&boxes, &[0, boxes.len() as u32], 1, options);
     let identity = |m: &[f32; 12]| (0..12).all(|k| m[k] == if k % 5 == 0 { 1.0 } else { 0.0 });
@@ -481,14 +479,14 @@ pub(crate) fn build_tlas(
         .order
         .iter()
         .map(|&j| {
-            let id = plan.valid_instances[tree.values[j as usize] as usize];
+            let (id, s) = entries[tree.values[j as usize] as usize];
             let inst = &instances[id as usize];
             GpuTlasInstance {
                 world_to_object: inst.world_to_object,
-                blas_root: blas_roots[segment(inst)],
+                blas_root: roots[s as usize],
                 instance: id,
                 identity: identity(&inst.object_to_world) as u32,
-                pad: 0,
+                tri_base: tri_bases[s as usize],
             }
         })
         .collect();
@@ -510,9 +508,23 @@ pub(crate) fn build_tlas(
     }
 }
 
-/// The whole scene BVH built on the host exactly as the GPU builds it.
-pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
-    let plan = ScenePlan::new(&t.objects, &t.instances);
+/// BLASes built on the host, or built in pieces and put together
+/// (`super::pieces`): nodes, triangle records and their global triangle
+/// ids, and per segment its root link, box and first record.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub(crate) struct HostBlases {
+    pub nodes: Vec<GpuBvhNode>,
+    pub tris: Vec<GpuTriRecord>,
+    pub tri_ids: Vec<u32>,
+    pub roots: Vec<i32>,
+    pub bounds: Vec<Bounds>,
+    pub tri_bases: Vec<u32>,
+}
+
+/// The BLASes of `plan`'s segments, whose `seg_first_tri` index `t`'s
+/// triangles, built on the host exactly as the GPU builds them (leaf links
+/// count from record 0).
+pub(crate) fn build_blases(t: &SceneTables, plan: &ScenePlan, options: &BuildOptions) -> HostBlases {
     let vertex = |i: u32| -> [f32; 3] { std::array::from_fn(|k| t.vertices[3 * i as usize + k]) };
     let triangle = |p: u32| {
         let s = segment_of(p, &plan.seg_start);
@@ -534,20 +546,53 @@ pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
     atoll_scene::progress::built(boxes.len() as u64);
     let tri_ids: Vec<u32> = blas.order.par_iter().map(|&j| triangle(tree.values[j as usize])).collect();
     let tris = tri_ids.par_iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
+    HostBlases {
+        nodes: blas.nodes,
+        tris,
+        tri_ids,
+        tri_bases: vec![0; blas.roots.len()],
+        roots: blas.roots,
+        bounds: blas.root_bounds,
+    }
+}
 
-    let tlas = build_tlas(&plan, &t.instances, &blas.roots, &blas.root_bounds, options);
+/// The whole scene BVH from its BLASes: the TLAS built here over them.
+pub(crate) fn with_tlas(
+    t: &SceneTables,
+    plan: &ScenePlan,
+    blas: HostBlases,
+    options: &BuildOptions,
+) -> HostSceneBvh {
+    let tlas = build_tlas(plan, &t.instances, &blas.roots, &blas.bounds, &blas.tri_bases, options);
     HostSceneBvh {
         blas_nodes: blas.nodes,
         tlas_nodes: tlas.nodes,
-        tris,
-        tri_ids,
+        tris: blas.tris,
+        tri_ids: blas.tri_ids,
         instances: tlas.instances,
         tlas_root: tlas.root,
         blas_roots: blas.roots,
-        blas_bounds: blas.root_bounds,
+        blas_bounds: blas.bounds,
+        blas_tri_bases: blas.tri_bases,
         tlas_bounds: tlas.bounds,
         triangle_test: options.triangle_test,
     }
+}
+
+/// The scene BVH built on the host in pieces of at most `capacity`
+/// triangles, exactly as `super::build_in_pieces` builds it on a GPU.
+pub fn build_in_pieces(
+    t: &SceneTables,
+    capacity: u32,
+    options: &BuildOptions,
+) -> Result<(ScenePlan, HostSceneBvh), crate::error::CudaError> {
+    super::pieces::build_in_pieces(t, options, capacity, |piece| Ok(build_blases(t, piece, options)))
+}
+
+/// The whole scene BVH built on the host exactly as the GPU builds it.
+pub fn build_scene(t: &SceneTables, options: &BuildOptions) -> HostSceneBvh {
+    let plan = ScenePlan::new(&t.objects, &t.instances);
+    with_tlas(t, &plan, build_blases(t, &plan, options), options)
 }
 
 #[cfg(test)]

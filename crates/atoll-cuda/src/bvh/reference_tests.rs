@@ -158,6 +158,7 @@ fn bounds_costs_and_collapse_are_consistent() {
             tri_ids: (0..n as u32).collect(),
             blas_roots: collapsed.roots.clone(),
             blas_bounds: collapsed.root_bounds.clone(),
+            blas_tri_bases: vec![0; collapsed.roots.len()],
             tlas_root: LINK_DONE,
             ..Default::default()
         };

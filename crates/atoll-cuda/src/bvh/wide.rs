@@ -116,11 +116,13 @@ impl WideBvh {
         let mut nodes = Vec::new();
         let root = if tlas.nodes.is_empty() { LINK_DONE } else { append(&mut nodes, &tlas, 0) };
 
-        // Each BLAS once (instances share them), its triangles in wide order.
-        let mut wide_roots: HashMap<i32, i32> = HashMap::from([(LINK_DONE, LINK_DONE)]);
+        // Each BLAS once (instances share them; a BLAS is its root link and
+        // first record), its triangles in wide order: the wide leaves index
+        // all records, so the instances' record bases become 0.
+        let mut wide_roots: HashMap<(i32, u32), i32> = HashMap::new();
         let (mut wide_tris, mut wide_ids) = (Vec::with_capacity(tris.len()), Vec::with_capacity(tris.len()));
-        for (&link, bounds) in bvh.blas_roots.iter().zip(&bvh.blas_bounds) {
-            if wide_roots.contains_key(&link) {
+        for ((&link, bounds), &base) in bvh.blas_roots.iter().zip(&bvh.blas_bounds).zip(&bvh.blas_tri_bases) {
+            if link == LINK_DONE || wide_roots.contains_key(&(link, base)) {
                 continue;
             }
             let wide = Cwbvh::from_bvh2(&binary_to_bvh2(&blas_nodes, link, bounds));
@@ -129,16 +131,18 @@ impl WideBvh {
             } else {
                 append(&mut nodes, &wide, wide_tris.len() as u32)
             };
-            wide_tris.extend(wide.prim_order.iter().map(|&i| tris[i as usize]));
-            wide_ids.extend(wide.prim_order.iter().map(|&i| tri_ids[i as usize]));
-            wide_roots.insert(link, wide_root);
+            wide_tris.extend(wide.prim_order.iter().map(|&i| tris[(base + i) as usize]));
+            wide_ids.extend(wide.prim_order.iter().map(|&i| tri_ids[(base + i) as usize]));
+            wide_roots.insert((link, base), wide_root);
         }
         let wide_instances: Vec<GpuTlasInstance> = tlas
             .prim_order
             .iter()
             .map(|&slot| {
                 let mut record = instances[slot as usize];
-                record.blas_root = wide_roots.get(&record.blas_root).copied().unwrap_or(LINK_DONE);
+                record.blas_root =
+                    wide_roots.get(&(record.blas_root, record.tri_base)).copied().unwrap_or(LINK_DONE);
+                record.tri_base = 0;
                 record
             })
             .collect();
