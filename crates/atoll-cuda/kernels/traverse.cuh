@@ -24,6 +24,13 @@
 #define ATOLL_TRACE_ALPHA 0
 #endif
 
+// BLAS leaf links counting from their instance record's tri_base (a BVH
+// built in pieces, src/bvh/pieces.rs; `-DATOLL_TRI_BASES=1`): elsewhere
+// every base is 0, and adding it measured a few percent slower.
+#ifndef ATOLL_TRI_BASES
+#define ATOLL_TRI_BASES 0
+#endif
+
 /// The ray of instance record `s` in object space (`world` unchanged for an
 /// identity instance, kept in `ray`) and its BLAS's first record in
 /// `tri_base`; returns the record's BLAS root.
@@ -152,7 +159,8 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
 /// Tests the triangles of BLAS leaf `leaf`.
 template <int TRI, bool ANY>
 __device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal& tr, int leaf, TraversalHit& h) {
-    return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, tr.tri_base + leaf_first(leaf), leaf_count(leaf), h);
+    const unsigned int base = ATOLL_TRI_BASES ? tr.tri_base : 0u;
+    return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, base + leaf_first(leaf), leaf_count(leaf), h);
 }
 
 /// While-while traversal of the ray (o, d) with hits in (0, t_max).

@@ -207,18 +207,30 @@ pub(crate) fn leak_views(scene: GpuScene, bvh: GpuSceneBvh) {
 struct Laid {
     scene: Arc<Scene>,
     chunk_bytes: u64,
-    tables: Vec<Vec<u8>>,
+    tables: Vec<Box<dyn TableBytes>>,
     meta: SceneMeta,
 }
 
-/// `v`'s bytes as a device table holds them: an empty table is one zeroed
-/// element on the device (`gpu::upload`), so it is here too.
-fn table_bytes<T: bytemuck::Pod>(v: Vec<T>) -> Vec<u8> {
-    if v.is_empty() {
-        vec![0; std::mem::size_of::<T>()]
-    } else {
-        bytemuck::cast_slice(&v).to_vec()
+/// A table on the host, read as the bytes the device holds. Tables stay
+/// in their own element type: turning a `Vec` into a `Vec<u8>` would copy
+/// it, doubling the host's peak for the largest table.
+trait TableBytes: Send {
+    fn bytes(&self) -> &[u8];
+}
+
+impl<T: bytemuck::Pod + Send> TableBytes for Vec<T> {
+    fn bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(self)
     }
+}
+
+/// `v` as a device table holds it: an empty table is one zeroed element on
+/// the device (`gpu::upload`), so it is here too.
+fn table_bytes<T: bytemuck::Pod + Send>(mut v: Vec<T>) -> Box<dyn TableBytes> {
+    if v.is_empty() {
+        v.push(T::zeroed());
+    }
+    Box::new(v)
 }
 
 /// Refuses a layout whose host arrays (`needed` bytes) would not fit the
@@ -243,9 +255,8 @@ fn check_host_memory(needed: u64, why: &str) -> Result<(), CudaError> {
 fn laid_on_host(scene: &Arc<Scene>, chunk_bytes: u64) -> Result<Laid, CudaError> {
     let options = BuildOptions::default();
     let plan = crate::scene::part_plan(scene, &ScenePart::whole(scene));
-    // The build's arrays are the GPU build's; the tables are held twice
-    // while each becomes bytes.
-    let needed = plan.scene_tables + plan.bvh + plan.scene_tables.max(plan.bvh);
+    // The build's arrays are the GPU build's.
+    let needed = plan.scene_tables + plan.bvh;
     check_host_memory(needed, "the scene's build fits no GPU")?;
     tracing::info!(
         "building the scene's BVH on the host: its GPU build ({}) fits no GPU",
@@ -300,7 +311,7 @@ fn laid_in_pieces(
     let entries = counts.instances * 2;
     let resident_bvh = counts.triangles * (48 + 4 + 64) + entries * 3 * 64;
     let tables = crate::scene::part_plan(scene, &whole).scene_tables;
-    check_host_memory(tables + resident_bvh + tables.max(resident_bvh), "the scene's BVH fits no GPU whole")?;
+    check_host_memory(tables + resident_bvh, "the scene's BVH fits no GPU whole")?;
     let tables_on_device = piece_table_bytes(scene);
     let beside_tables = room.min(gpu.free_memory()?).saturating_sub(tables_on_device);
     let capacity = piece_capacity(beside_tables, scene.objects.len() as u64)
@@ -371,7 +382,7 @@ fn laid_from(
         table_bytes(bvh.tri_ids),
     ];
     // What the device holds of the BVH, placeholders included (as `GpuSceneBvh::bytes`).
-    stats.bytes = tables[10..].iter().map(|t| t.len() as u64).sum();
+    stats.bytes = tables[10..].iter().map(|t| t.bytes().len() as u64).sum();
     let meta = SceneMeta {
         counts,
         host_meshes,
@@ -506,7 +517,7 @@ impl SceneSharing for CudaSharing {
             gpu.synchronize()?;
             let tables = table_spans(&gpu_scene, &bvh)
                 .iter()
-                .map(|&(ptr, bytes)| download(gpu, ptr, bytes))
+                .map(|&(ptr, bytes)| download(gpu, ptr, bytes).map(table_bytes))
                 .collect::<Result<Vec<_>, _>>()?;
             let meta = SceneMeta {
                 counts: gpu_scene.counts,
@@ -527,7 +538,8 @@ impl SceneSharing for CudaSharing {
             Ok(Laid { scene: scene.clone(), chunk_bytes, tables, meta })
         };
         let laid = build().map_err(|e| e.into_device_error(&gpu.label()))?;
-        let sizes = TABLES.iter().zip(&laid.tables).map(|(name, t)| (name.to_string(), t.len() as u64));
+        let sizes =
+            TABLES.iter().zip(&laid.tables).map(|(name, t)| (name.to_string(), t.bytes().len() as u64));
         let mut layout = ChunkLayout::new(laid.chunk_bytes, TABLE_ALIGN, sizes);
         // The window maps whole chunks: the last one's unused end counts
         // against the budgets as well.
@@ -569,7 +581,7 @@ impl SceneSharing for CudaSharing {
         let window =
             ChunkWindow::new(&gpus, layout.chunk_bytes, placement, &budgets).map_err(shared_error)?;
         for (table, bytes) in layout.tables.iter().zip(&laid.tables) {
-            window.write(table.offset, bytes).map_err(shared_error)?;
+            window.write(table.offset, bytes.bytes()).map_err(shared_error)?;
         }
         drop(laid.tables);
         let window = Arc::new(Mutex::new(window));
@@ -635,9 +647,9 @@ mod tests {
         assert_eq!(laid.tables.len(), TABLES.len());
         let whole = ScenePart::whole(&scene);
         let plan = crate::scene::part_plan(&scene, &whole);
-        let scene_table_bytes: u64 = laid.tables[..10].iter().map(|t| t.len() as u64).sum();
+        let scene_table_bytes: u64 = laid.tables[..10].iter().map(|t| t.bytes().len() as u64).sum();
         assert_eq!(scene_table_bytes, plan.scene_tables, "the device byte model's table sizes");
-        let bvh_bytes: u64 = laid.tables[10..].iter().map(|t| t.len() as u64).sum();
+        let bvh_bytes: u64 = laid.tables[10..].iter().map(|t| t.bytes().len() as u64).sum();
         assert!(bvh_bytes > 0 && bvh_bytes <= plan.bvh, "{bvh_bytes} BVH bytes against {}", plan.bvh);
         assert_eq!(bvh_bytes, laid.meta.stats.bytes);
         let triangles: u64 = scene.meshes.iter().map(|m| m.triangle_count() as u64).sum();
@@ -645,10 +657,10 @@ mod tests {
         assert_eq!(laid.meta.scene_triangles, triangles);
         // Every BLAS leaf's records and every TLAS instance are laid out.
         assert_eq!(
-            laid.tables[13].len(),
+            laid.tables[13].bytes().len(),
             triangles as usize * std::mem::size_of::<crate::bvh::GpuTriRecord>()
         );
-        assert_eq!(laid.tables[14].len(), triangles as usize * 4);
+        assert_eq!(laid.tables[14].bytes().len(), triangles as usize * 4);
         assert_eq!(laid.meta.stats.instances as usize, laid.meta.plan.valid_instances.len());
     }
 }

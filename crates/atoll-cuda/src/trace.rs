@@ -36,6 +36,10 @@ pub(crate) struct TraceFeatures {
     /// Reads of a shared scene are counted per chunk
     /// (`ATOLL_COUNT_ACCESSES`, kernels/access_count.cuh): the prepass.
     pub count_accesses: bool,
+    /// BLAS leaf links count from their instance record's `tri_base` (a
+    /// BVH built in pieces, `ATOLL_TRI_BASES`); set by the trace launch
+    /// from the BVH traced.
+    pub tri_bases: bool,
 }
 
 impl TraceFeatures {
@@ -51,7 +55,13 @@ impl TraceFeatures {
                 .any(|r| !r.is_empty())
                 || !frame.lights.emission_ops.is_empty(),
             count_accesses: false,
+            tri_bases: false,
         }
+    }
+
+    /// `self` with what tracing through `bvh` needs besides.
+    fn for_bvh(self, bvh: &GpuSceneBvh) -> Self {
+        TraceFeatures { tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0), ..self }
     }
 
     /// The NVRTC defines of the module holding `variant`'s kernels (a
@@ -62,9 +72,12 @@ impl TraceFeatures {
             format!("-DATOLL_TRACE_ALPHA={}", self.alpha as u32),
             format!("-DATOLL_WITH_TEXTURES={}", self.textures as u32),
         ];
-        // Only when counting: the other modules keep their cache keys.
+        // Only when set: the other modules keep their cache keys.
         if self.count_accesses {
             defines.push("-DATOLL_COUNT_ACCESSES=1".into());
+        }
+        if self.tri_bases {
+            defines.push("-DATOLL_TRI_BASES=1".into());
         }
         defines
     }
@@ -235,6 +248,7 @@ impl Tracer {
         }
         let query = if any { "any" } else { "closest" };
         let name = format!("trace_{query}_{}_{}", variant.name(), bvh.triangle_test.suffix());
+        let features = features.for_bvh(bvh);
         let (function, persistent_blocks) = self.kernel(gpu, variant, &name, features)?;
         let config = if variant.persistent() {
             gpu.stream
@@ -344,6 +358,7 @@ pub(crate) fn load_default_kernels(
     features: TraceFeatures,
 ) -> Result<(), CudaError> {
     let variant = TraversalVariant::default();
+    let features = features.for_bvh(bvh);
     with_tracer(gpu, bvh, |t| {
         for query in ["closest", "any"] {
             t.kernel(

@@ -175,3 +175,28 @@ fn frame_modules_hold_only_their_kernels() {
     all.sort();
     assert_eq!(entries("trace.cu", "-DATOLL_TRACE_LOOPS=63"), all, "every loop's kernels, once");
 }
+
+/// The trace module with every feature a frame or BVH may switch on
+/// (`TraceFeatures`: alpha masks, textures, access counting, record
+/// bases) compiles, every loop in it.
+#[test]
+fn trace_module_compiles_with_every_feature() {
+    if !nvrtc_or_skip("trace features") {
+        return;
+    }
+    let mut options = CompileOptions::ptx(ARCH);
+    options.extra.extend(
+        [
+            "-DATOLL_TRACE_LOOPS=63",
+            "-DATOLL_TRACE_ALPHA=1",
+            "-DATOLL_WITH_TEXTURES=1",
+            "-DATOLL_COUNT_ACCESSES=1",
+            "-DATOLL_TRI_BASES=1",
+            atoll_cuda::compile::LAYOUT_CHECK_OPTION,
+        ]
+        .map(String::from),
+    );
+    let compiled = compile_with_cache("trace.cu", &options, None).unwrap_or_else(|e| panic!("trace.cu: {e}"));
+    let ptx = String::from_utf8(compiled.image).expect("PTX is text");
+    assert_eq!(ptx.matches(".entry ").count(), 24, "six loops, two queries, two tests");
+}

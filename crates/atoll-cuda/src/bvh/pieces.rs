@@ -94,7 +94,16 @@ pub(crate) fn build_in_pieces(
 ) -> Result<(ScenePlan, HostSceneBvh), CudaError> {
     let capacity = capacity.clamp(1, MAX_PIECE_TRIANGLES);
     let plan = ScenePlan::split(&t.objects, &t.instances, capacity);
-    let mut all = HostBlases::default();
+    // Room for every piece up front: growing the arrays piece by piece
+    // would copy them, and hold both copies at once. Nodes are at most one
+    // per triangle; pages never written are never resident.
+    let p = plan.primitives() as usize;
+    let mut all = HostBlases {
+        nodes: Vec::with_capacity(p),
+        tris: Vec::with_capacity(p),
+        tri_ids: Vec::with_capacity(p),
+        ..Default::default()
+    };
     for segments in pieces(&plan, capacity) {
         let piece = build_piece(&piece_plan(&plan, segments))?;
         append(&mut all, piece).map_err(|e| CudaError::Usage(format!("building the BVH in pieces: {e}")))?;
