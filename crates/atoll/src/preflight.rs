@@ -68,7 +68,11 @@ impl Room {
     /// host's share for chunks as well. `None` where nothing bounds them.
     pub fn of_devices(devices: &[Box<dyn Device>], budget: Option<u64>, host_tier: bool) -> Option<Room> {
         if let [device] = devices {
-            return Room::of(device.as_ref(), budget);
+            // One GPU sharing its scene memory with the host keeps chunks
+            // there too: counted below.
+            if !(host_tier && device.free_memory().is_some()) {
+                return Room::of(device.as_ref(), budget);
+            }
         }
         let host = atoll_render::device::host_memory_available();
         let leaders: Vec<&dyn Device> = devices
