@@ -514,7 +514,9 @@ impl CudaDevice {
     ) -> Result<PrepareStats, CudaError> {
         let gpu = self.gpu.clone();
         let options = &frame.options;
-        let trace_features = TraceFeatures::of(frame);
+        // The BVH's own features too: the counting prepass sets its
+        // counters in the module these name, which must be the one traced with.
+        let trace_features = TraceFeatures::of(frame).for_bvh(&shared.bvh);
         trace::load_default_kernels(&gpu, &shared.bvh, trace_features)?;
         let queues = Queues::new(&gpu, capacity)?;
         let film = gpu

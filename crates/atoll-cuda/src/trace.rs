@@ -60,7 +60,7 @@ impl TraceFeatures {
     }
 
     /// `self` with what tracing through `bvh` needs besides.
-    fn for_bvh(self, bvh: &GpuSceneBvh) -> Self {
+    pub(crate) fn for_bvh(self, bvh: &GpuSceneBvh) -> Self {
         TraceFeatures { tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0), ..self }
     }
 
