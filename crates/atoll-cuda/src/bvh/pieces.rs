@@ -14,10 +14,9 @@
 
 use std::ops::Range;
 
-use super::host::{HostSceneBvh, ScenePlan};
+use super::host::ScenePlan;
 use super::layout::{LEAF_FIRST_BITS, LINK_DONE};
-use super::reference::{self, HostBlases};
-use super::BuildOptions;
+use super::reference::HostBlases;
 use crate::error::CudaError;
 use crate::scene::SceneTables;
 
@@ -80,18 +79,17 @@ fn append(all: &mut HostBlases, piece: HostBlases) -> Result<(), String> {
     Ok(())
 }
 
-/// The scene BVH of `t` built in pieces of at most `capacity` triangles:
+/// The BLASes of `t` built in pieces of at most `capacity` triangles:
 /// `build_piece` builds the BLASes of one piece's plan (as
-/// [`reference::build_blases`] does: links and records from 0), then the
-/// TLAS is built on the host. Returns the plan (objects cut at `capacity`)
-/// with the BVH; errors are `build_piece`'s, or the put-together BVH's
-/// index limits.
-pub(crate) fn build_in_pieces(
+/// [`reference::build_blases`] does: links and records from 0), and they
+/// are put together here (the TLAS over them: [`reference::with_tlas`]).
+/// Returns the plan (objects cut at `capacity`) with the BLASes; errors
+/// are `build_piece`'s, or the put-together BVH's index limits.
+pub(crate) fn build_blases_in_pieces(
     t: &SceneTables,
-    options: &BuildOptions,
     capacity: u32,
     mut build_piece: impl FnMut(&ScenePlan) -> Result<HostBlases, CudaError>,
-) -> Result<(ScenePlan, HostSceneBvh), CudaError> {
+) -> Result<(ScenePlan, HostBlases), CudaError> {
     let capacity = capacity.clamp(1, MAX_PIECE_TRIANGLES);
     let plan = ScenePlan::split(&t.objects, &t.instances, capacity);
     // Room for every piece up front: growing the arrays piece by piece
@@ -108,13 +106,13 @@ pub(crate) fn build_in_pieces(
         let piece = build_piece(&piece_plan(&plan, segments))?;
         append(&mut all, piece).map_err(|e| CudaError::Usage(format!("building the BVH in pieces: {e}")))?;
     }
-    let bvh = reference::with_tlas(t, &plan, all, options);
-    Ok((plan, bvh))
+    Ok((plan, all))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::{reference, BuildOptions, HostSceneBvh};
     use crate::bvh::testing::{brute_force, random_rays, random_scene};
     use atoll_scene::Scene;
 
@@ -124,7 +122,7 @@ mod tests {
         (scene, t)
     }
 
-    /// [`build_in_pieces`] with the reference build of each piece; also
+    /// [`build_blases_in_pieces`] with the reference build of each piece; also
     /// how many pieces were built.
     fn reference_pieces(
         t: &SceneTables,

@@ -586,7 +586,10 @@ pub fn build_in_pieces(
     capacity: u32,
     options: &BuildOptions,
 ) -> Result<(ScenePlan, HostSceneBvh), crate::error::CudaError> {
-    super::pieces::build_in_pieces(t, options, capacity, |piece| Ok(build_blases(t, piece, options)))
+    let (plan, blases) =
+        super::pieces::build_blases_in_pieces(t, capacity, |piece| Ok(build_blases(t, piece, options)))?;
+    let bvh = with_tlas(t, &plan, blases, options);
+    Ok((plan, bvh))
 }
 
 /// The whole scene BVH built on the host exactly as the GPU builds it.
