@@ -941,6 +941,10 @@ impl Device for CudaDevice {
         crate::scene::byte_model()
     }
 
+    fn shared_byte_model(&self) -> ByteModel {
+        crate::scene::shared_byte_model()
+    }
+
     fn scene_wide_bytes(&self, scene: &Scene) -> u64 {
         crate::scene::scene_wide_rows(scene)
     }

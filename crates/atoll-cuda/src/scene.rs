@@ -425,6 +425,25 @@ pub fn part_plan(scene: &Scene, part: &ScenePart) -> MemoryPlan {
     }
 }
 
+/// The GPU's resident memory per scene element where the BVH is built in
+/// pieces (shared scene memory, `crate::bvh::pieces`): the tables and the
+/// BVH's triangle records, ids and nodes (at most one per triangle), no
+/// build scratch; each instance its record and TLAS nodes, and as many
+/// again for objects cut into segments.
+pub fn shared_byte_model() -> ByteModel {
+    let node = std::mem::size_of::<crate::bvh::GpuBvhNode>() as u64;
+    let record = std::mem::size_of::<crate::bvh::GpuTriRecord>() as u64;
+    let tlas = std::mem::size_of::<crate::bvh::GpuTlasInstance>() as u64 + node;
+    ByteModel {
+        // The mesh index and triangle id, the record and a node.
+        per_triangle: 4 + 4 + record + node,
+        per_vertex: 0,
+        per_instance: std::mem::size_of::<GpuInstance>() as u64 + 2 * tlas,
+        per_object: (std::mem::size_of::<GpuObject>() + std::mem::size_of::<GpuMesh>()) as u64 + 64,
+        scratch_per_triangle: 0,
+    }
+}
+
 /// The GPU's memory use per scene element, for partitioning scenes over
 /// GPUs (`atoll_bvh::part_bytes`): derived from the same sizes the memory
 /// plan checks ([`TableCounts::bytes`], [`crate::bvh::build_bytes`]). The

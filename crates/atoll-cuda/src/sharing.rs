@@ -662,5 +662,11 @@ mod tests {
         );
         assert_eq!(laid.tables[14].bytes().len(), triangles as usize * 4);
         assert_eq!(laid.meta.stats.instances as usize, laid.meta.plan.valid_instances.len());
+        // The shared byte model (memory preflights of shared scenes) bounds
+        // what is laid out, below the model that charges a whole build.
+        let laid_bytes: u64 = laid.tables.iter().map(|t| t.bytes().len() as u64).sum();
+        let shared = atoll_bvh::part_bytes(&scene, &whole, &crate::scene::shared_byte_model());
+        let built = atoll_bvh::part_bytes(&scene, &whole, &crate::scene::byte_model());
+        assert!(laid_bytes <= shared && shared < built, "laid {laid_bytes}, shared model {shared}, build {built}");
     }
 }

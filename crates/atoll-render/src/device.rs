@@ -176,6 +176,14 @@ pub trait Device: Send {
         ByteModel::CPU
     }
 
+    /// What a scene costs this device held in shared chunks
+    /// ([`Device::scene_sharing`]): what stays resident, where its BVH may
+    /// be built a piece at a time rather than whole ([`Device::byte_model`]
+    /// where it is not).
+    fn shared_byte_model(&self) -> ByteModel {
+        self.byte_model()
+    }
+
     /// Bytes this device allocates for a frame of `options` besides the
     /// scene: queues, film, frame parameters, headroom.
     fn frame_bytes(&self, options: &RenderOptions) -> u64;

@@ -98,9 +98,14 @@ impl Room {
             limit.push_str(", host memory for chunks included");
         }
         let names: Vec<String> = devices.iter().map(|d| d.name()).collect();
+        let mut models: Vec<ByteModel> = devices.iter().map(|d| d.byte_model()).collect();
+        if host_tier {
+            // Shared scene memory holds only what stays resident.
+            models.extend(devices.iter().map(|d| d.shared_byte_model()));
+        }
         Some(Room {
             device: format!("the {} devices {}", devices.len(), names.join(", ")),
-            models: devices.iter().map(|d| d.byte_model()).collect(),
+            models,
             capacity,
             limit,
         })
