@@ -621,11 +621,15 @@ impl SceneSharing for CudaSharing {
             let options = device.frame_options().map_err(shared_error)?;
             budgets.push(device.chunk_budget(&options));
         }
-        window
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .replace(placement, &budgets)
-            .map_err(shared_error)?;
+        let mut window = window.lock().unwrap_or_else(|p| p.into_inner());
+        // With a host tier, chunks leaving a GPU go to the host first: a GPU
+        // filled to its budget has no room for the chunks coming in while it
+        // still holds those it gives up.
+        if let Some(step) = window.placement().via_host(placement) {
+            window.replace(&step, &budgets).map_err(shared_error)?;
+        }
+        window.replace(placement, &budgets).map_err(shared_error)?;
+        drop(window);
         for device in devices.iter_mut() {
             cuda(device.as_mut())?.clear_access_counts().map_err(shared_error)?;
         }

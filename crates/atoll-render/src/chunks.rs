@@ -120,6 +120,27 @@ impl Residency {
 }
 
 impl ChunkPlacement {
+    /// The step between `self` and `to` where host memory holds chunks too
+    /// ([`ChunkHome::Host`] in `to`): every chunk that leaves a device goes
+    /// to the host first, so that the devices' memory it held is free for
+    /// the chunks coming in (a device filled to its budget has no room to
+    /// take them in while still holding those it gives up). `None` where
+    /// `to` keeps nothing on the host or no chunk leaves a device.
+    pub fn via_host(&self, to: &ChunkPlacement) -> Option<ChunkPlacement> {
+        if self.homes.len() != to.homes.len() || !to.homes.contains(&ChunkHome::Host) {
+            return None;
+        }
+        let mut step = self.clone();
+        let mut moved = false;
+        for (home, &wanted) in step.homes.iter_mut().zip(&to.homes) {
+            if *home != ChunkHome::Host && *home != wanted {
+                *home = ChunkHome::Host;
+                moved = true;
+            }
+        }
+        moved.then_some(step)
+    }
+
     /// Chunk `c` on device `c mod devices` (the prepass's starting point).
     pub fn round_robin(chunks: usize, devices: usize) -> Self {
         let devices = devices.max(1);
@@ -203,6 +224,20 @@ pub trait SceneSharing: Send + Sync {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn chunks_leaving_a_device_go_to_the_host_first() {
+        use ChunkHome::{Device, Host, Replicated};
+        let from = ChunkPlacement { homes: vec![Device(0), Device(0), Host, Replicated, Device(1), Host] };
+        let to = ChunkPlacement { homes: vec![Device(0), Host, Device(0), Device(1), Device(1), Host] };
+        let step = from.via_host(&to).unwrap();
+        assert_eq!(step.homes, [Device(0), Host, Host, Host, Device(1), Host]);
+        // Without host chunks in the end, or with nothing leaving a device: no step.
+        let no_host = ChunkPlacement { homes: vec![Device(0), Device(1), Device(0), Device(1), Device(1), Device(0)] };
+        assert_eq!(from.via_host(&no_host), None);
+        assert_eq!(step.via_host(&to), None);
+        assert_eq!(to.via_host(&to), None);
+    }
 
     fn layout() -> ChunkLayout {
         ChunkLayout::new(100, 16, [("a".to_string(), 90), ("b".to_string(), 5), ("c".to_string(), 150)])
