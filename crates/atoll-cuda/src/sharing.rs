@@ -671,6 +671,9 @@ mod tests {
         let laid_bytes: u64 = laid.tables.iter().map(|t| t.bytes().len() as u64).sum();
         let shared = atoll_bvh::part_bytes(&scene, &whole, &crate::scene::shared_byte_model());
         let built = atoll_bvh::part_bytes(&scene, &whole, &crate::scene::byte_model());
-        assert!(laid_bytes <= shared && shared < built, "laid {laid_bytes}, shared model {shared}, build {built}");
+        assert!(
+            laid_bytes <= shared && shared < built,
+            "laid {laid_bytes}, shared model {shared}, build {built}"
+        );
     }
 }

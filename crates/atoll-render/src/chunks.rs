@@ -233,7 +233,8 @@ mod tests {
         let step = from.via_host(&to).unwrap();
         assert_eq!(step.homes, [Device(0), Host, Host, Host, Device(1), Host]);
         // Without host chunks in the end, or with nothing leaving a device: no step.
-        let no_host = ChunkPlacement { homes: vec![Device(0), Device(1), Device(0), Device(1), Device(1), Device(0)] };
+        let no_host =
+            ChunkPlacement { homes: vec![Device(0), Device(1), Device(0), Device(1), Device(1), Device(0)] };
         assert_eq!(from.via_host(&no_host), None);
         assert_eq!(step.via_host(&to), None);
         assert_eq!(to.via_host(&to), None);

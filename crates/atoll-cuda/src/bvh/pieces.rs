@@ -112,8 +112,8 @@ pub(crate) fn build_blases_in_pieces(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::{reference, BuildOptions, HostSceneBvh};
     use crate::bvh::testing::{brute_force, random_rays, random_scene};
+    use crate::bvh::{reference, BuildOptions, HostSceneBvh};
     use atoll_scene::Scene;
 
     fn scene() -> (Scene, SceneTables) {
