@@ -187,8 +187,8 @@ pub trait SceneSharing: Send + Sync {
     fn supports(&self, devices: &[Box<dyn Device>], scene: &Scene) -> Result<(), String>;
 
     /// Whether laying `scene` out takes the slow way (built on the host,
-    /// where no device has room to build it): `auto` then prefers a
-    /// strategy that starts sooner.
+    /// where no device has room to build it, not even in pieces): `auto`
+    /// then prefers a strategy that starts sooner.
     fn lays_out_slowly(&self, _scene: &Scene) -> bool {
         false
     }
