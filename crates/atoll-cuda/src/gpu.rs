@@ -480,10 +480,9 @@ pub fn upload<T: cudarc::driver::DeviceRepr + cudarc::driver::ValidAsZeroBits + 
 const STAGED_UPLOAD_BYTES: usize = 64 << 20;
 const STAGING_BYTES: usize = 64 << 20;
 
-/// Copies tables to one GPU (and, [`Uploader::download_into`], back), large
-/// ones through two page-locked buffers made at the first that needs them
-/// and kept for the rest (making page-locked memory costs more than copying
-/// through it).
+/// Copies tables to one GPU, large ones through two page-locked buffers
+/// made at the first that needs them and kept for the rest (making
+/// page-locked memory costs more than copying through it).
 pub struct Uploader<'g> {
     gpu: &'g Gpu,
     staging: Option<Staging>,
@@ -569,7 +568,16 @@ impl<'g> Uploader<'g> {
         // is returned (they cover all `len` elements, and the stream is synchronised).
         let mut device = unsafe { gpu.stream.alloc::<T>(len) }?;
         let total = len * std::mem::size_of::<T>();
-        let staging = self.staging()?;
+        let staging = match &mut self.staging {
+            Some(staging) => staging,
+            None => self.staging.insert(Staging {
+                // SAFETY: written before each copy reads them.
+                buffers: [unsafe { gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES) }?, unsafe {
+                    gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES)
+                }?],
+                done: [gpu.ctx.new_event(None)?, gpu.ctx.new_event(None)?],
+            }),
+        };
         {
             let (base, _written) = device.device_ptr_mut(&gpu.stream);
             for (i, offset) in (0..total).step_by(chunk_bytes).enumerate() {
@@ -594,90 +602,6 @@ impl<'g> Uploader<'g> {
         }
         gpu.stream.synchronize()?;
         Ok(device)
-    }
-
-    /// Appends the first `len` elements of `source` to `out`, through the
-    /// two page-locked buffers: threads copy one into `out` while the copy
-    /// engine fills the other (from the device into pageable memory, the
-    /// driver copies through a small staging buffer of its own, at a
-    /// fraction of the link's speed).
-    pub(crate) fn download_into<T: cudarc::driver::DeviceRepr + bytemuck::Pod + Send + Sync>(
-        &mut self,
-        source: &cudarc::driver::CudaSlice<T>,
-        len: usize,
-        out: &mut Vec<T>,
-        what: &str,
-    ) -> Result<(), CudaError> {
-        use cudarc::driver::DevicePtr;
-        use rayon::prelude::*;
-        let gpu = self.gpu;
-        let context = || format!("{}: downloading {what} ({len} entries)", gpu.label());
-        let size = std::mem::size_of::<T>();
-        let len = len.min(source.len());
-        let total = len * size;
-        let chunk_bytes = STAGING_BYTES - STAGING_BYTES % size;
-        let staging = self.staging().map_err(CudaError::driver(context()))?;
-        out.reserve(len);
-        let (base, _read) = source.device_ptr(&gpu.stream);
-        // Moves staged chunk `i` (bytes `offset..offset + n` of the table) into `out`.
-        let drain = |staging: &mut Staging, i: usize, out: &mut Vec<T>| -> Result<(), CudaError> {
-            let b = i % 2;
-            let offset = i * chunk_bytes;
-            let n = chunk_bytes.min(total - offset);
-            staging.done[b].synchronize().map_err(CudaError::driver(context()))?;
-            let host = &staging.buffers[b].as_slice().map_err(CudaError::driver(context()))?[..n];
-            let staged: &[T] = bytemuck::cast_slice(host);
-            let start = out.len();
-            out.spare_capacity_mut()[..staged.len()]
-                .par_chunks_mut(1 << 16)
-                .zip(staged.par_chunks(1 << 16))
-                .for_each(|(to, from)| to.iter_mut().zip(from).for_each(|(t, f)| {
-                    t.write(*f);
-                }));
-            // SAFETY: the `staged.len()` elements after `start` were written
-            // just above, within the capacity reserved for all `len`.
-            unsafe { out.set_len(start + staged.len()) };
-            atoll_scene::progress::copied(n as u64);
-            Ok(())
-        };
-        let chunks = total.div_ceil(chunk_bytes);
-        for i in 0..chunks {
-            let b = i % 2;
-            let offset = i * chunk_bytes;
-            let n = chunk_bytes.min(total - offset);
-            let host = &mut staging.buffers[b].as_mut_slice().map_err(CudaError::driver(context()))?[..n];
-            // SAFETY: the source lies inside `source` (bytes `offset..offset
-            // + n` of its first `len` elements), and `host` is not read
-            // before `done[b]` says this copy is over (`drain`), nor written
-            // again before it was read (the drain of chunk `i - 2` ran).
-            unsafe {
-                cudarc::driver::result::memcpy_dtoh_async(host, base + offset as u64, gpu.stream.cu_stream())
-            }
-            .map_err(CudaError::driver(context()))?;
-            staging.done[b].record(&gpu.stream).map_err(CudaError::driver(context()))?;
-            if i > 0 {
-                drain(staging, i - 1, out)?;
-            }
-        }
-        if chunks > 0 {
-            drain(staging, chunks - 1, out)?;
-        }
-        Ok(())
-    }
-
-    /// The two page-locked buffers, made at first use.
-    fn staging(&mut self) -> Result<&mut Staging, cudarc::driver::DriverError> {
-        let gpu = self.gpu;
-        if self.staging.is_none() {
-            self.staging = Some(Staging {
-                // SAFETY: written before each copy reads them.
-                buffers: [unsafe { gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES) }?, unsafe {
-                    gpu.ctx.alloc_pinned::<u8>(STAGING_BYTES)
-                }?],
-                done: [gpu.ctx.new_event(None)?, gpu.ctx.new_event(None)?],
-            });
-        }
-        Ok(self.staging.as_mut().expect("made above"))
     }
 }
 

@@ -448,17 +448,15 @@ pub(crate) fn piece_bytes(triangles: u64, segments: u64) -> u64 {
 
 /// The BLASes of a piece's plan (`pieces::piece_plan`), built on `gpu`
 /// from the scene's `vertices` and `triangles` (device tables the plan
-/// indexes) and appended to `all` (links and records from 0, as
-/// `reference::build_blases` makes them), downloaded through `staging`.
+/// indexes) and downloaded: links and records from 0, as
+/// `reference::build_blases` makes them.
 fn blases_on_device(
     gpu: &Gpu,
     vertices: &CudaSlice<f32>,
     triangles: &CudaSlice<u32>,
     plan: &ScenePlan,
     options: &BuildOptions,
-    staging: &mut crate::gpu::Uploader,
-    all: &mut reference::HostBlases,
-) -> Result<(), CudaError> {
+) -> Result<reference::HostBlases, CudaError> {
     options.check()?;
     let k = LbvhKernels::load(gpu)?;
     let start = Instant::now();
@@ -467,22 +465,32 @@ fn blases_on_device(
     let roots = download_roots(gpu, &b.a)?;
     let device_ms: f32 = phases.finish()?.iter().map(|(_, ms)| ms).sum();
     let built = start.elapsed().as_secs_f64();
+    let err = || CudaError::driver(format!("{}: downloading a piece of the BVH", gpu.label()));
     let p = plan.primitives() as usize;
-    staging.download_into(&b.nodes, b.node_count as usize, &mut all.nodes, "BVH nodes")?;
-    staging.download_into(&b.tris, p, &mut all.tris, "triangle records")?;
-    staging.download_into(&b.tri_ids, p, &mut all.tri_ids, "triangle ids")?;
+    let mut nodes = gpu.stream.clone_dtoh(&b.nodes).map_err(err())?;
+    nodes.truncate(b.node_count as usize);
+    let mut tris = gpu.stream.clone_dtoh(&b.tris).map_err(err())?;
+    tris.truncate(p);
+    let mut tri_ids = gpu.stream.clone_dtoh(&b.tri_ids).map_err(err())?;
+    tri_ids.truncate(p);
     // The piece's device memory back to the driver before the next piece.
     drop(b);
     gpu.synchronize()?;
     tracing::info!(
-        "{}: BVH piece of {p} triangles: built in {built:.2} s ({device_ms:.0} ms on the device), downloaded in {:.2} s",
+        "{}: BVH piece of {} triangles: built in {:.2} s ({device_ms:.0} ms on the device), downloaded in {:.2} s",
         gpu.label(),
+        plan.primitives(),
+        built,
         start.elapsed().as_secs_f64() - built
     );
-    all.tri_bases.extend(std::iter::repeat_n(0, roots.len()));
-    all.bounds.extend(roots.iter().map(|r| r.1));
-    all.roots.extend(roots.iter().map(|r| r.0));
-    Ok(())
+    Ok(reference::HostBlases {
+        nodes,
+        tris,
+        tri_ids,
+        tri_bases: vec![0; roots.len()],
+        bounds: roots.iter().map(|r| r.1).collect(),
+        roots: roots.iter().map(|r| r.0).collect(),
+    })
 }
 
 /// The scene BVH of `t` built on `gpu` in pieces of at most `capacity`
@@ -496,11 +504,10 @@ pub fn build_in_pieces(
     capacity: u32,
     options: &BuildOptions,
 ) -> Result<(ScenePlan, HostSceneBvh), CudaError> {
-    let mut staging = crate::gpu::Uploader::new(gpu);
-    let vertices = staging.upload(&t.vertices, "vertices")?;
-    let triangles = staging.upload(&t.triangles, "triangles")?;
-    let (plan, blases) = pieces::build_blases_in_pieces(t, capacity, |piece, all| {
-        blases_on_device(gpu, &vertices, &triangles, piece, options, &mut staging, all)
+    let vertices = upload(gpu, &t.vertices, "vertices")?;
+    let triangles = upload(gpu, &t.triangles, "triangles")?;
+    let (plan, blases) = pieces::build_blases_in_pieces(t, capacity, |piece| {
+        blases_on_device(gpu, &vertices, &triangles, piece, options)
     })?;
     drop((vertices, triangles));
     // Freed device memory goes back to the driver at a synchronisation:

@@ -54,43 +54,41 @@ pub(crate) fn piece_plan(plan: &ScenePlan, segments: Range<usize>) -> ScenePlan 
     }
 }
 
-/// Moves the piece that was just appended to `all` (its nodes from
-/// `nodes`, records from `records`, roots from `roots`; built alone: node
-/// links and records from 0) into place: its node links past the nodes
-/// before it, its BLASes' record base past the records before it.
-fn relocate(all: &mut HostBlases, nodes: usize, records: usize, roots: usize) -> Result<(), String> {
-    use rayon::prelude::*;
-    if all.nodes.len() as u64 >= LINK_DONE as u64 {
+/// Appends `piece` (built alone: node links and records from 0) to `all`,
+/// moving its node links past `all`'s nodes and its records past `all`'s
+/// records (as its BLASes' record base).
+fn append(all: &mut HostBlases, piece: HostBlases) -> Result<(), String> {
+    let node_offset = all.nodes.len() as u64;
+    if node_offset + piece.nodes.len() as u64 >= LINK_DONE as u64 {
         return Err(format!("a BVH of more than {LINK_DONE} nodes"));
     }
-    let tri_base =
-        u32::try_from(records).map_err(|_| format!("a BVH of more than {} triangle records", u32::MAX))?;
-    if u32::try_from(all.tris.len()).is_err() {
-        return Err(format!("a BVH of more than {} triangle records", u32::MAX));
-    }
-    let node_offset = nodes as i32;
+    let tri_base = u32::try_from(all.tris.len())
+        .map_err(|_| format!("a BVH of more than {} triangle records", u32::MAX))?;
+    let node_offset = node_offset as i32;
     let moved = |link: i32| if (0..LINK_DONE).contains(&link) { link + node_offset } else { link };
-    all.nodes[nodes..].par_iter_mut().for_each(|n| {
+    all.nodes.extend(piece.nodes.into_iter().map(|mut n| {
         n.links[0] = moved(n.links[0]);
         n.links[1] = moved(n.links[1]);
-    });
-    all.roots[roots..].iter_mut().for_each(|r| *r = moved(*r));
-    all.tri_bases[roots..].iter_mut().for_each(|b| *b += tri_base);
+        n
+    }));
+    all.tris.extend(piece.tris);
+    all.tri_ids.extend(piece.tri_ids);
+    all.roots.extend(piece.roots.into_iter().map(moved));
+    all.bounds.extend(piece.bounds);
+    all.tri_bases.extend(piece.tri_bases.into_iter().map(|b| b + tri_base));
     Ok(())
 }
 
 /// The BLASes of `t` built in pieces of at most `capacity` triangles:
 /// `build_piece` builds the BLASes of one piece's plan (as
-/// [`reference::build_blases`] does: links and records from 0) and appends
-/// them to the arrays it is given (straight from the device, no copy in
-/// between), and they are put in place here (the TLAS over them:
-/// [`reference::with_tlas`]).
+/// [`reference::build_blases`] does: links and records from 0), and they
+/// are put together here (the TLAS over them: [`reference::with_tlas`]).
 /// Returns the plan (objects cut at `capacity`) with the BLASes; errors
 /// are `build_piece`'s, or the put-together BVH's index limits.
 pub(crate) fn build_blases_in_pieces(
     t: &SceneTables,
     capacity: u32,
-    mut build_piece: impl FnMut(&ScenePlan, &mut HostBlases) -> Result<(), CudaError>,
+    mut build_piece: impl FnMut(&ScenePlan) -> Result<HostBlases, CudaError>,
 ) -> Result<(ScenePlan, HostBlases), CudaError> {
     let capacity = capacity.clamp(1, MAX_PIECE_TRIANGLES);
     let plan = ScenePlan::split(&t.objects, &t.instances, capacity);
@@ -105,10 +103,8 @@ pub(crate) fn build_blases_in_pieces(
         ..Default::default()
     };
     for segments in pieces(&plan, capacity) {
-        let (nodes, records, roots) = (all.nodes.len(), all.tris.len(), all.roots.len());
-        build_piece(&piece_plan(&plan, segments), &mut all)?;
-        relocate(&mut all, nodes, records, roots)
-            .map_err(|e| CudaError::Usage(format!("building the BVH in pieces: {e}")))?;
+        let piece = build_piece(&piece_plan(&plan, segments))?;
+        append(&mut all, piece).map_err(|e| CudaError::Usage(format!("building the BVH in pieces: {e}")))?;
     }
     Ok((plan, all))
 }

@@ -521,18 +521,6 @@ pub(crate) struct HostBlases {
     pub tri_bases: Vec<u32>,
 }
 
-impl HostBlases {
-    /// Appends `more`'s arrays to these, as they are.
-    pub(crate) fn append(&mut self, more: HostBlases) {
-        self.nodes.extend(more.nodes);
-        self.tris.extend(more.tris);
-        self.tri_ids.extend(more.tri_ids);
-        self.roots.extend(more.roots);
-        self.bounds.extend(more.bounds);
-        self.tri_bases.extend(more.tri_bases);
-    }
-}
-
 /// The BLASes of `plan`'s segments, whose `seg_first_tri` index `t`'s
 /// triangles, built on the host exactly as the GPU builds them (leaf links
 /// count from record 0).
@@ -598,10 +586,8 @@ pub fn build_in_pieces(
     capacity: u32,
     options: &BuildOptions,
 ) -> Result<(ScenePlan, HostSceneBvh), crate::error::CudaError> {
-    let (plan, blases) = super::pieces::build_blases_in_pieces(t, capacity, |piece, all| {
-        all.append(build_blases(t, piece, options));
-        Ok(())
-    })?;
+    let (plan, blases) =
+        super::pieces::build_blases_in_pieces(t, capacity, |piece| Ok(build_blases(t, piece, options)))?;
     let bvh = with_tlas(t, &plan, blases, options);
     Ok((plan, bvh))
 }
