@@ -643,6 +643,22 @@ mod tests {
     use crate::bvh::testing::random_scene;
 
     #[test]
+    fn pieces_fit_the_room_they_are_sized_for() {
+        assert_eq!(piece_capacity(0, 10), None);
+        assert_eq!(piece_capacity(1 << 20, 10), None, "a MiB holds no piece worth building");
+        for (room, objects) in [(256u64 << 20, 3u64), (3 << 30, 9), (80 << 30, 9), (80 << 30, 100_000)] {
+            let capacity = piece_capacity(room, objects).expect("room for a piece") as u64;
+            assert!(capacity >= MIN_PIECE_TRIANGLES);
+            assert!(capacity <= crate::bvh::pieces::MAX_PIECE_TRIANGLES as u64);
+            let bytes = crate::bvh::piece_bytes(capacity, objects + 1024);
+            assert!(bytes <= room - room / 10, "{room} B, {objects} objects: {capacity} triangles need {bytes} B");
+        }
+        // An H100's room holds some 200 M triangles a piece.
+        let h100 = piece_capacity(70 << 30, 9).unwrap();
+        assert!((150_000_000..=300_000_000).contains(&h100), "{h100}");
+    }
+
+    #[test]
     fn the_host_lays_out_the_tables_the_gpu_would_hold() {
         // Objects without instances and empty optional tables (no normals,
         // uvs or images) exercise the one-element placeholders.
