@@ -651,7 +651,10 @@ mod tests {
             assert!(capacity >= MIN_PIECE_TRIANGLES);
             assert!(capacity <= crate::bvh::pieces::MAX_PIECE_TRIANGLES as u64);
             let bytes = crate::bvh::piece_bytes(capacity, objects + 1024);
-            assert!(bytes <= room - room / 10, "{room} B, {objects} objects: {capacity} triangles need {bytes} B");
+            assert!(
+                bytes <= room - room / 10,
+                "{room} B, {objects} objects: {capacity} triangles need {bytes} B"
+            );
         }
         // An H100's room holds some 200 M triangles a piece.
         let h100 = piece_capacity(70 << 30, 9).unwrap();
