@@ -7,7 +7,10 @@
 //! children and their links (64 bytes), so one fetch decides which children
 //! a ray visits. A link `0 <= l < LINK_DONE` is a node index; `l < 0` a
 //! leaf of up to [`MAX_LEAF_PRIMS`] consecutive records:
-//! `!l = (first << 2) | (count - 1)`.
+//! `!l = (first << 2) | (count - 1)`. In a BLAS, `first` counts from the
+//! record base of the TLAS record that entered it
+//! ([`GpuTlasInstance::tri_base`]: 0 in a BVH built whole, each piece's
+//! first record in one built in pieces).
 
 use bytemuck::{Pod, Zeroable};
 
