@@ -497,7 +497,7 @@ fn blases_on_device(
 /// triangles (`pieces`), as shared scene memory builds a scene whose whole
 /// build fits no GPU; with the plan it was built for (objects larger than
 /// `capacity` cut into segments). Needs room for `t`'s vertices and
-/// triangles and [`piece_bytes`] of a piece.
+/// triangles and `piece_bytes` of a piece.
 pub fn build_in_pieces(
     gpu: &Gpu,
     t: &SceneTables,
