@@ -80,13 +80,24 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
     // MTL files are decoded the same way, so material names written with the
     // same 8-bit encoding still match.
     let libs: RefCell<Vec<(String, Option<String>)>> = RefCell::new(Vec::new());
+    // Where each material is defined (its `newmtl` line), for its warnings.
+    let material_lines: RefCell<HashMap<String, FileLoc>> = RefCell::new(HashMap::new());
     let loader = |mtl: &Path| {
-        let read =
-            crate::input::beside(dir, &mtl.to_string_lossy()).and_then(|path| crate::input::read(&path));
+        let (read, shown) = match crate::input::beside(dir, &mtl.to_string_lossy()) {
+            Ok(path) => (crate::input::read(&path), path.display().to_string()),
+            Err(e) => (Err(e), mtl.display().to_string()),
+        };
         let (result, why) = match read {
             Ok(b) => {
-                let result =
-                    mtl_for_tobj(&decode_text(&b).0).and_then(|t| tobj::load_mtl_buf(&mut t.as_bytes()));
+                let text = decode_text(&b).0;
+                let shown: std::sync::Arc<str> = shown.into();
+                for (i, line) in text.lines().enumerate() {
+                    if let Some(("newmtl", name)) = line.trim().split_once(char::is_whitespace) {
+                        let at = FileLoc::new(shown.clone(), i as u32 + 1, 1);
+                        material_lines.borrow_mut().entry(name.trim().to_string()).or_insert(at);
+                    }
+                }
+                let result = mtl_for_tobj(&text).and_then(|t| tobj::load_mtl_buf(&mut t.as_bytes()));
                 let why = result.as_ref().err().map(|e| e.to_string());
                 (result, why)
             }
@@ -136,8 +147,12 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
         // An unknown `usemtl` name leaves no material id: those share the default.
         let mat = model.mesh.material_id.and_then(|i| materials.get(i));
         let key = mat.and(model.mesh.material_id);
+        let defined = |mtl: &tobj::Material| material_lines.borrow().get(&mtl.name).cloned();
         let (material, alpha) = *ids.entry(key).or_insert_with(|| match mat {
-            Some(mtl) => add_mtl_material(mtl, &mut loaded, &mut images, dir, &whole, &mut w),
+            Some(mtl) => {
+                let at = defined(mtl).unwrap_or_else(|| whole.clone());
+                add_mtl_material(mtl, &mut loaded, &mut images, dir, &at, &mut w)
+            }
             None => (loaded.scene.add_material(Material::default_diffuse()), None),
         });
         let mut mesh = TriangleMesh {
@@ -147,7 +162,11 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
             uvs: m.texcoords.chunks_exact(2).map(|c| Vec2::new(c[0], c[1])).collect(),
             indices: m.indices.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
             material,
-            emission: mat.map(mtl_emission).transpose().map_err(|e| SceneError::at(&whole, e))?.flatten(),
+            emission: mat
+                .map(mtl_emission)
+                .transpose()
+                .map_err(|e| SceneError::at(&mat.and_then(defined).unwrap_or_else(|| whole.clone()), e))?
+                .flatten(),
             flip_normals: false,
             alpha,
         };

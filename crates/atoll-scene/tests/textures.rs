@@ -340,6 +340,8 @@ fn obj_map_kd_map_d_and_dissolve() {
     let w = warnings(&l);
     assert_eq!(w.len(), 1, "{w:#?}");
     assert!(w[0].contains("material 'chrome': map_Kd is ignored"), "{w:#?}");
+    // At the line that defines the material, in its library.
+    assert!(w[0].contains("m.mtl:11:1"), "{w:#?}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
