@@ -788,10 +788,13 @@ fn obj() -> Vec<Case> {
     let c = "OBJ";
     let mut cases = Vec::new();
     let png = || file("tex.png", t::png(4, 4));
-    let mut push = |name: String, obj: String, mtl: String, codes: &'static [i32]| {
+    // Errors name the file they are in: a material's, its library at the
+    // line that defines it.
+    let mut push = |name: String, obj: String, mtl: String, codes: &'static [i32], at: &str| {
         let case =
             Case::render(c, name, "model.obj", vec![file("model.obj", obj), file("model.mtl", mtl), png()]);
-        cases.push(case.codes(codes).says_on_failure("model.obj"));
+        let case = case.codes(codes).says_on_failure(at);
+        cases.push(if at == "model.mtl" { case.line_in("model.mtl") } else { case });
     };
     for (what, from, to, codes) in [
         ("coordinate 1e400", "v 1 1 0", "v 1 1e400 0", BAD_INPUT),
@@ -812,7 +815,7 @@ fn obj() -> Vec<Case> {
         ("unknown statement", "usemtl red", "frobnicate 1 2 3\nusemtl red", OK_OR_BAD),
         ("emissive", "usemtl red", "usemtl glow", OK),
     ] {
-        push(what.to_string(), t::OBJ.replacen(from, to, 1), t::MTL.to_string(), codes);
+        push(what.to_string(), t::OBJ.replacen(from, to, 1), t::MTL.to_string(), codes, "model.obj");
     }
     for (what, from, to, codes) in [
         ("Kd 1e400", "Kd 0.8 0.1 0.1", "Kd 1e400 0.1 0.1", OK_OR_BAD),
@@ -833,7 +836,8 @@ fn obj() -> Vec<Case> {
             t::OBJ.to_string()
         };
         let case_mtl = t::MTL.replacen(from, to, 1).replace('\u{1}', "\u{fffd}");
-        push(format!("mtl {what}"), emissive, case_mtl, codes);
+        let at = if what.starts_with("Ke") { "model.mtl" } else { "model.obj" };
+        push(format!("mtl {what}"), emissive, case_mtl, codes, at);
     }
     let obj = t::OBJ.as_bytes();
     for cut in (1..obj.len()).step_by(9) {
