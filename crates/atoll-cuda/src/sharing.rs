@@ -304,14 +304,10 @@ fn laid_in_pieces(
     chunk_bytes: u64,
 ) -> Result<Laid, CudaError> {
     let options = BuildOptions::default();
-    let whole = ScenePart::whole(scene);
-    let counts = TableCounts::of_part(scene, &whole);
-    // TLAS records: one per instance, and more where objects are cut into
-    // segments (bounded here by as many again).
-    let entries = counts.instances * 2;
-    let resident_bvh = counts.triangles * (48 + 4 + 64) + entries * 3 * 64;
-    let tables = crate::scene::part_plan(scene, &whole).scene_tables;
-    check_host_memory(tables + resident_bvh, "the scene's BVH fits no GPU whole")?;
+    // The host ends up holding what the GPUs will: the tables and the
+    // resident BVH, as the shared byte model charges them.
+    let needed = atoll_bvh::part_bytes(scene, &ScenePart::whole(scene), &crate::scene::shared_byte_model());
+    check_host_memory(needed, "the scene's BVH fits no GPU whole")?;
     let tables_on_device = piece_table_bytes(scene);
     let beside_tables = room.min(gpu.free_memory()?).saturating_sub(tables_on_device);
     let capacity = piece_capacity(beside_tables, scene.objects.len() as u64)
