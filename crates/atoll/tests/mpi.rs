@@ -24,11 +24,20 @@ fn text(bytes: &[u8]) -> String {
     String::from_utf8_lossy(bytes).into_owned()
 }
 
+/// The frame's arguments, unless `args` give their own samples per pixel.
+fn frame_unless_given(args: &[&str]) -> &'static [&'static str] {
+    if args.contains(&"--spp") {
+        &[]
+    } else {
+        &FRAME
+    }
+}
+
 /// `atoll render FRAME ARGS -o OUTPUT` once, without MPI.
 fn render_alone(dir: &Path, args: &[&str], output: &str) -> Output {
     Command::new(ATOLL)
         .arg("render")
-        .args(FRAME)
+        .args(frame_unless_given(args))
         .args(args)
         .args(["-q", "-o", output])
         .current_dir(dir)
@@ -47,8 +56,10 @@ fn mpirun(dir: &Path, ranks: &[(usize, &[&str])], output: &str) -> Output {
         if i > 0 {
             command.arg(":");
         }
-        let frame = if args.contains(&"--spp") { &[][..] } else { &FRAME[..] };
-        command.args(["-n", &n.to_string(), ATOLL, "render", "--mpi"]).args(frame).args(*args);
+        command
+            .args(["-n", &n.to_string(), ATOLL, "render", "--mpi"])
+            .args(frame_unless_given(args))
+            .args(*args);
         command.args(["-q", "-o", output]);
     }
     command
@@ -137,7 +148,12 @@ fn ranks_render_the_image_of_one_process() {
 #[test]
 fn unequal_ranks_share_the_waves_and_warm_up_alone() {
     let dir = scratch("unequal");
-    let alone = render_alone(&dir, &["--device", "cpu"], "alone.exr");
+    // Four times the samples of the other tests: a rank is refused waves
+    // when its warm-up speed says its next wave would outlast the others'
+    // rest of the frame, and three processes' warm-ups on CI's two cores
+    // can make one look several times slower than it is.
+    const LONGER_FRAME: [&str; 6] = ["--spp", "16", "--res", "64x48", "--max-depth", "5"];
+    let alone = render_alone(&dir, &[&LONGER_FRAME[..], &["--device", "cpu"]].concat(), "alone.exr");
     assert!(alone.status.success(), "{}", text(&alone.stderr));
 
     // Rank 0 renders on two CPU devices, rank 1 on one taking smaller
@@ -145,22 +161,33 @@ fn unequal_ranks_share_the_waves_and_warm_up_alone() {
     let out = mpirun(
         &dir,
         &[
-            (1, &["--devices", "cpu:2", "--threads", "1", "--warmup"]),
+            (1, &[&LONGER_FRAME[..], &["--devices", "cpu:2", "--threads", "1", "--warmup"]].concat()),
             (
                 1,
                 &[
-                    "--device",
-                    "cpu",
-                    "--threads",
-                    "1",
-                    "--warmup",
-                    "--wave-size",
-                    "1000",
-                    "--film-transport",
-                    "host",
-                ],
+                    &LONGER_FRAME[..],
+                    &[
+                        "--device",
+                        "cpu",
+                        "--threads",
+                        "1",
+                        "--warmup",
+                        "--wave-size",
+                        "1000",
+                        "--film-transport",
+                        "host",
+                    ],
+                ]
+                .concat(),
             ),
-            (1, &["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--warmup"]),
+            (
+                1,
+                &[
+                    &LONGER_FRAME[..],
+                    &["--devices", "cpu:2", "--strategy", "ring", "--threads", "1", "--warmup"],
+                ]
+                .concat(),
+            ),
         ],
         "mixed.exr",
     );
