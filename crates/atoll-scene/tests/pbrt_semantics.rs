@@ -369,26 +369,27 @@ fn light_sources() {
 }
 
 #[test]
-fn spheres_and_unsupported_shapes() {
+fn quadrics_and_unsupported_shapes() {
     let loaded = load_world(
         "",
-        "Translate 0 2 0\nShape \"sphere\" \"float radius\" 0.5\nShape \"disk\" \"float radius\" 2\nShape \"curve\"",
+        "Translate 0 2 0\nShape \"sphere\" \"float radius\" 0.5\nShape \"disk\" \"float radius\" 2\n\
+         Shape \"cylinder\" \"float zmax\" 3 \"float phimax\" 180\nShape \"curve\"",
     )
     .unwrap();
     let s = &loaded.scene;
-    assert_eq!(s.meshes.len(), 1);
-    let sphere = &s.meshes[0];
+    assert_eq!(s.meshes.len(), 3);
+    let [sphere, disk, cylinder] = [&s.meshes[0], &s.meshes[1], &s.meshes[2]];
     assert_eq!(sphere.triangle_count(), 64 * 32 * 2 - 2 * 64);
     assert!(sphere.positions.iter().all(|p| ((*p - Vec3::new(0.0, 2.0, 0.0)).length() - 0.5).abs() < 1e-5));
     assert_eq!(sphere.normals.len(), sphere.positions.len());
+    // The disk lies in the plane z = 0 (moved up y by 2), radius 2.
+    assert!(disk.positions.iter().all(|p| p.z == 0.0 && (p.y - 2.0).abs() <= 2.0 + 1e-5));
+    assert!(disk.positions.iter().any(|p| ((*p - Vec3::new(0.0, 2.0, 0.0)).length() - 2.0).abs() < 1e-5));
+    // Half a cylinder of radius 1 from z = -1 to 3, on the side of +y.
+    assert!(cylinder.positions.iter().all(|p| (-1.0..=3.0).contains(&p.z) && p.y >= 2.0 - 1e-6));
+    assert_eq!(cylinder.uvs.len(), cylinder.positions.len());
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(
-        w,
-        [
-            "test.pbrt:5:1: unsupported shape \"disk\" skipped",
-            "test.pbrt:6:1: unsupported shape \"curve\" skipped"
-        ]
-    );
+    assert_eq!(w, ["test.pbrt:7:1: unsupported shape \"curve\" skipped"]);
 }
 
 #[test]

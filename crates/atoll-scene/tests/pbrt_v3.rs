@@ -241,7 +241,7 @@ fn curves_are_skipped_once_then_counted() {
     let curve =
         "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 1 1 0 0 1 0] \"float width\" 0.1 \"string type\" \"flat\"";
     let tri = TRI.replace("\"point P\"", "\"point3 P\"");
-    let text = format!("WorldBegin\n{tri}\n{curve}\n{curve}\n{curve}\nShape \"disk\"\n");
+    let text = format!("WorldBegin\n{tri}\n{curve}\n{curve}\n{curve}\nShape \"hyperboloid\"\n");
     let loaded = load_str(&text, "c.pbrt", Path::new(".")).unwrap();
     assert_eq!(loaded.scene.meshes.len(), 1);
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
@@ -249,7 +249,7 @@ fn curves_are_skipped_once_then_counted() {
         w,
         [
             "c.pbrt:3:1: unsupported shape \"curve\" skipped",
-            "c.pbrt:6:1: unsupported shape \"disk\" skipped",
+            "c.pbrt:6:1: unsupported shape \"hyperboloid\" skipped",
             "c.pbrt:3:1: 3 unsupported \"curve\" shapes skipped in all (the first is here)"
         ]
     );

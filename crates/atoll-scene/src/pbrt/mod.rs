@@ -25,6 +25,7 @@ pub mod entities;
 pub mod params;
 pub mod parser;
 mod pending;
+pub mod quadrics;
 pub mod shapes;
 pub mod spectrum;
 pub mod subdivision;

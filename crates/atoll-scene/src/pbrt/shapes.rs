@@ -1,6 +1,8 @@
 //! `Shape` directives as triangle meshes in object space (before the CTM):
-//! `trianglemesh`, `plymesh` and `sphere` (tessellated). Other pbrt shapes are
-//! skipped with a warning. Checks follow pbrt-v4's `Triangle::CreateMesh`.
+//! `trianglemesh`, `plymesh`, `loopsubdiv`, `bilinearmesh`, and the
+//! quadrics `sphere`, `disk` and `cylinder` (tessellated,
+//! [`super::quadrics`]). Other pbrt shapes are skipped with a warning.
+//! Checks follow pbrt-v4's `Triangle::CreateMesh`.
 
 use std::path::Path;
 
@@ -10,6 +12,7 @@ use crate::error::{FileLoc, SceneError};
 use crate::ply;
 
 use super::params::ParamList;
+use super::quadrics;
 use super::WarningSink;
 
 /// A shape's triangles in object space.
@@ -24,10 +27,8 @@ pub struct ShapeMesh {
 }
 
 /// The shape types [`shape_mesh`] turns into triangles.
-pub const SUPPORTED: &[&str] = &["trianglemesh", "plymesh", "sphere", "loopsubdiv", "bilinearmesh"];
-
-/// Longitude and latitude steps of a tessellated sphere.
-pub const SPHERE_SEGMENTS: (u32, u32) = (64, 32);
+pub const SUPPORTED: &[&str] =
+    &["trianglemesh", "plymesh", "sphere", "disk", "cylinder", "loopsubdiv", "bilinearmesh"];
 
 /// Where a shape's triangles come from: made from the directive's
 /// parameters, or a PLY file read later ([`ShapeSource::mesh`]), in
@@ -94,18 +95,20 @@ fn made_mesh(
         "bilinearmesh" => bilinear(p, loc, w).map(Some),
         "sphere" => {
             let radius = p.float_or("radius", 1.0)?;
-            let zmin = p.float_or("zmin", -radius)?;
-            let zmax = p.float_or("zmax", radius)?;
+            let (zmin, zmax) = (p.float_or("zmin", -radius)?, p.float_or("zmax", radius)?);
             let phimax = p.float_or("phimax", 360.0)?;
-            if zmin > -radius || zmax < radius || phimax < 360.0 {
-                w.warn(
-                    loc,
-                    "sphere: partial spheres (zmin, zmax, phimax) are not supported; using the full sphere",
-                );
-            }
-            let (n_phi, n_theta) = SPHERE_SEGMENTS;
-            generate("sphere", Some(sphere_triangles(n_phi, n_theta)), loc)?;
-            Ok(Some(sphere(radius, n_phi, n_theta)))
+            quadric("sphere", quadrics::sphere(radius, zmin, zmax, phimax), loc)
+        }
+        "disk" => {
+            let (height, radius) = (p.float_or("height", 0.0)?, p.float_or("radius", 1.0)?);
+            let (inner, phimax) = (p.float_or("innerradius", 0.0)?, p.float_or("phimax", 360.0)?);
+            quadric("disk", quadrics::disk(height, radius, inner, phimax), loc)
+        }
+        "cylinder" => {
+            let radius = p.float_or("radius", 1.0)?;
+            let (zmin, zmax) = (p.float_or("zmin", -1.0)?, p.float_or("zmax", 1.0)?);
+            let phimax = p.float_or("phimax", 360.0)?;
+            quadric("cylinder", quadrics::cylinder(radius, zmin, zmax, phimax), loc)
         }
         _ => {
             p.mark_all_used();
@@ -113,6 +116,13 @@ fn made_mesh(
             Ok(None)
         }
     }
+}
+
+/// A tessellated quadric, its few thousand triangles drawn from the
+/// scene's budget (made first: they take less memory than the check).
+fn quadric(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<ShapeMesh>, SceneError> {
+    generate(what, Some(mesh.indices.len() as u64), loc)?;
+    Ok(Some(mesh))
 }
 
 /// Draws the `triangles` a shape is about to generate from the scene's
@@ -265,72 +275,4 @@ fn read_ply_mesh(
         indices: m.indices,
     };
     Ok((mesh, warning))
-}
-
-/// The triangles of [`sphere`]`(_, n_phi, n_theta)`: two per quad but one
-/// at each pole.
-pub fn sphere_triangles(n_phi: u32, n_theta: u32) -> u64 {
-    2 * n_phi as u64 * n_theta.saturating_sub(1) as u64
-}
-
-/// A UV sphere about the z axis (pbrt's sphere pole axis) with smooth normals
-/// and pbrt's (u, v) = (phi / 2pi, theta / pi). Triangles wind so that the
-/// geometric normal (see [`crate::TriangleMesh::geometric_normal`]) points out.
-pub fn sphere(radius: f32, n_phi: u32, n_theta: u32) -> ShapeMesh {
-    let mut m = ShapeMesh { name: "sphere".into(), ..Default::default() };
-    for i in 0..=n_theta {
-        let v = i as f32 / n_theta as f32;
-        let theta = v * std::f32::consts::PI;
-        for j in 0..=n_phi {
-            let u = j as f32 / n_phi as f32;
-            let phi = u * std::f32::consts::TAU;
-            // Exact poles and seam, so the mesh closes without cracks.
-            let n = if i == 0 {
-                Vec3::Z
-            } else if i == n_theta {
-                -Vec3::Z
-            } else if j == n_phi {
-                Vec3::new(theta.sin(), 0.0, theta.cos())
-            } else {
-                Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
-            };
-            m.positions.push(n * radius);
-            m.normals.push(if radius < 0.0 { -n } else { n });
-            m.uvs.push(Vec2::new(u, v));
-        }
-    }
-    let idx = |i: u32, j: u32| i * (n_phi + 1) + j;
-    for i in 0..n_theta {
-        for j in 0..n_phi {
-            let (a, b, c, d) = (idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1));
-            // Skip the triangle that collapses at each pole.
-            if i + 1 < n_theta {
-                m.indices.push([a, b, c]);
-            }
-            if i > 0 {
-                m.indices.push([a, c, d]);
-            }
-        }
-    }
-    m
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sphere_is_closed_and_faces_out() {
-        let s = sphere(2.0, 16, 8);
-        assert_eq!(s.indices.len(), 16 * 8 * 2 - 2 * 16);
-        assert_eq!(s.indices.len() as u64, sphere_triangles(16, 8));
-        for t in &s.indices {
-            let [p0, p1, p2] = t.map(|i| s.positions[i as usize]);
-            let n = (p0 - p2).cross(p1 - p2);
-            assert!(n.length() > 0.0);
-            assert!(n.dot(p0 + p1 + p2) > 0.0, "triangle {t:?} faces inwards");
-        }
-        assert!(s.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-5));
-        assert!(s.normals.iter().zip(&s.positions).all(|(n, p)| (*n * 2.0 - *p).length() < 1e-5));
-    }
 }
