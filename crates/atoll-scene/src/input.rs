@@ -27,6 +27,22 @@ pub fn allow_outside_paths(allow: bool) {
     OUTSIDE_PATHS.store(allow, Ordering::Relaxed);
 }
 
+/// Whether scenes may name files that cannot be read.
+static MISSING_FILES: AtomicBool = AtomicBool::new(false);
+
+/// Lets scenes loaded from now on name files (images, environment maps,
+/// spectra) that cannot be read, each replaced by a stand-in with a
+/// warning (`--allow-missing`). Without it such a file is an error, as in
+/// pbrt-v4. One load can say otherwise ([`LoadBudget::allowing_missing_files`]).
+pub fn allow_missing_files(allow: bool) {
+    MISSING_FILES.store(allow, Ordering::Relaxed);
+}
+
+/// Whether the scene load under way may name files that cannot be read.
+pub fn missing_files_allowed() -> bool {
+    on_budget(|b| b.missing_files_allowed)
+}
+
 /// The file `name` that a scene file in folder `base` names: `base/name`,
 /// refused (unless [`allow_outside_paths`]) when `name` is absolute, a
 /// `file:` URI, climbs out of `base` with `..`, or leads out of it through
@@ -114,7 +130,8 @@ pub fn max_generated_triangles() -> u64 {
     MAX_GENERATED_TRIANGLES.load(Ordering::Relaxed)
 }
 
-/// What one scene load may still read and generate. Shared (an `Arc` of
+/// What one scene load may still read and generate, and whether it may name
+/// files that cannot be read. Shared (an `Arc` of
 /// atomics) so that threads loading parts of one scene draw on one budget:
 /// give a worker the loader's [`current_budget`] through [`with_budget`].
 pub struct LoadBudget {
@@ -134,6 +151,8 @@ pub struct LoadBudget {
     phase_ends: [AtomicU64; 2],
     /// What the scene's sizes, known before its meshes are read, must pass.
     size_check: Option<SizeCheck>,
+    /// See [`allow_missing_files`].
+    missing_files_allowed: bool,
 }
 
 /// The phases of a load, in order, for loaders that read a scene's text
@@ -183,6 +202,7 @@ impl LoadBudget {
             started: std::time::Instant::now(),
             phase_ends: Default::default(),
             size_check: None,
+            missing_files_allowed: false,
         }
     }
 
@@ -220,10 +240,17 @@ impl LoadBudget {
         LoadBudget { max_files, ..self }
     }
 
+    /// The same budget, its load letting the scene name files that cannot
+    /// be read (or not).
+    pub fn allowing_missing_files(self, allow: bool) -> Self {
+        LoadBudget { missing_files_allowed: allow, ..self }
+    }
+
     /// A budget with the limits set now ([`max_scene_bytes`],
-    /// [`max_generated_triangles`]).
+    /// [`max_generated_triangles`], [`allow_missing_files`]).
     pub fn from_settings() -> Self {
         LoadBudget::new(max_scene_bytes(), max_generated_triangles())
+            .allowing_missing_files(MISSING_FILES.load(Ordering::Relaxed))
     }
 
     /// Bytes read so far.

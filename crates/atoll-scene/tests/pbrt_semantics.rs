@@ -7,7 +7,7 @@ use atoll_scene::{
     AreaEmission, CoatedDiffuseParams, IntegratorSettings, Light, Material, PrincipledParams, Rgb, Texture,
     TexturedParam,
 };
-use common::{assert_close, load_world, tri};
+use common::{allowing_missing, assert_close, load_world, tri};
 use glam::Vec3;
 
 const UNIT_TRI: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
@@ -338,7 +338,11 @@ fn light_sources() {
                  LightSource \"infinite\" \"string filename\" \"sky.exr\"\n\
                  AttributeBegin\nTranslate 0 4 0\nLightSource \"spot\" \"float coneangle\" 30 \"float conedelta\" 10 \"point3 to\" [0 -1 0] \"rgb I\" [2 2 2]\nAttributeEnd\n\
                  LightSource \"spot\" \"float power\" 100";
-    let loaded = load_world("", world).unwrap();
+    // Without --allow-missing, the missing map is an error where it is named.
+    let e = load_world("", world).unwrap_err().to_string();
+    assert!(e.starts_with("test.pbrt:13:1: light \"infinite\": ") && e.contains("sky.exr"), "{e}");
+    assert!(e.contains("--allow-missing"), "{e}");
+    let loaded = allowing_missing(|| load_world("", world)).unwrap();
     let l = &loaded.scene.lights;
     assert_eq!(l.len(), 7);
     assert_eq!(l[0], Light::Point { position: Vec3::new(1.0, 5.0, 0.0), intensity: Rgb::splat(3.0) });

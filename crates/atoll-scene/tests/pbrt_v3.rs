@@ -9,7 +9,7 @@ use atoll_scene::texture::srgb8_to_linear;
 use atoll_scene::{
     Channel, CoatedDiffuseParams, Light, Material, PrincipledParams, Rgb, TexInput, Texture, TexturedParam,
 };
-use common::assert_close;
+use common::{allowing_missing, assert_close};
 use std::path::Path;
 
 const TRI: &str = "Shape \"trianglemesh\" \"point P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]";
@@ -157,7 +157,9 @@ fn v3_textures_bind_to_the_mapped_materials() {
         + TRI
         + "\nMaterial \"plastic\" \"texture Kd\" \"raw\" \"texture bumpmap\" \"bump\"\n"
         + TRI;
-    let loaded = load_str(&text, "t.pbrt", &dir).unwrap();
+    // bump.png is missing: an error, unless allowed (it would be ignored anyway).
+    assert!(load_str(&text, "t.pbrt", &dir).unwrap_err().to_string().starts_with("t.pbrt:4:1: "));
+    let loaded = allowing_missing(|| load_str(&text, "t.pbrt", &dir)).unwrap();
     let s = &loaded.scene;
     let t = &s.textures;
     // One file, decoded once per encoding: sRGB by default (pbrt-v3's `gamma` for PNG), linear for "raw".
@@ -260,7 +262,8 @@ fn v3_lights() {
     let text = "WorldBegin\n\
         LightSource \"infinite\" \"string mapname\" \"sky.exr\" \"integer nsamples\" 4\n\
         LightSource \"distant\" \"blackbody L\" [5500 2] \"point from\" [0 1 0] \"point to\" [0 0 0]\n";
-    let loaded = load_str(text, "l.pbrt", Path::new(".")).unwrap();
+    assert!(load_str(text, "l.pbrt", Path::new(".")).unwrap_err().to_string().contains("sky.exr"));
+    let loaded = allowing_missing(|| load_str(text, "l.pbrt", Path::new("."))).unwrap();
     let l = &loaded.scene.lights;
     assert_eq!(l[0], Light::Infinite { radiance: Rgb::ONE });
     let Light::Distant { direction, radiance } = l[1] else { panic!("{:?}", l[1]) };
@@ -269,7 +272,7 @@ fn v3_lights() {
     let lum = 0.2126 * radiance.x + 0.7152 * radiance.y + 0.0722 * radiance.z;
     assert!((lum - 2.0).abs() < 0.05 && radiance.x > radiance.z, "{radiance}");
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    // A missing map: a warning naming it, constant white instead.
+    // A missing map allowed: a warning naming it, constant white instead.
     assert!(w[0].contains("sky.exr") && w[0].contains("using constant white"), "{w:#?}");
     assert!(!w.iter().any(|w| w.contains("unused parameter")), "{w:#?}");
 }

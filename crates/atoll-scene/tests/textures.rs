@@ -13,7 +13,7 @@ use atoll_scene::{
     load_any, AlphaMode, Channel, CoatedDiffuseParams, Material, MeshAlpha, Rgb, TexInput, Texels, Texture,
     TexturedParam, UvMapping, Wrap,
 };
-use common::{temp_dir, write};
+use common::{allowing_missing, temp_dir, write};
 
 const TRI: &str = "Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0] \"point2 uv\" [0 0 1 0 1 1]";
 
@@ -165,14 +165,31 @@ fn material_parameters_bind_textures() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// As in pbrt-v4, an image that cannot be read stops the load at the
+/// texture that names it (file, line and column), missing or corrupt.
+#[test]
+fn unreadable_images_are_errors_without_allow_missing() {
+    let dir = temp_dir("tex-missing");
+    write(&dir, "corrupt.png", b"not a png");
+    for (file, why) in [("nowhere.png", "nowhere.png"), ("corrupt.png", "corrupt.png")] {
+        let text =
+            format!("WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"{file}\"\n");
+        let e = load_str(&text, "t.pbrt", &dir).unwrap_err().to_string();
+        assert!(e.starts_with("t.pbrt:2:1: texture \"t\": ") && e.contains(why), "{e}");
+        assert!(e.contains("--allow-missing"), "{e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
     let dir = temp_dir("tex-bad");
     write(&dir, "corrupt.png", b"not a png");
-    let l = load(
-        &dir,
-        &format!(
-            "Texture \"missing\" \"spectrum\" \"imagemap\" \"string filename\" \"nowhere.png\"\n\
+    let l = allowing_missing(|| {
+        load(
+            &dir,
+            &format!(
+                "Texture \"missing\" \"spectrum\" \"imagemap\" \"string filename\" \"nowhere.png\"\n\
              Texture \"corrupt\" \"float\" \"imagemap\" \"string filename\" \"corrupt.png\"\n\
              Texture \"marble\" \"spectrum\" \"marble\" \"float scale\" 3\n\
              Texture \"sphere\" \"spectrum\" \"checkerboard\" \"string mapping\" \"spherical\"\n\
@@ -181,8 +198,9 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
              Material \"diffuse\" \"texture reflectance\" \"corrupt\"\n{TRI}\n\
              Texture \"missing\" \"spectrum\" \"constant\"\n\
              Material \"diffuse\" \"texture reflectance\" \"missing\"\n{TRI}"
-        ),
-    );
+            ),
+        )
+    });
     let w = warnings(&l);
     let at = |line: u32, text: &str| {
         assert!(
@@ -346,18 +364,19 @@ fn obj_map_kd_map_d_and_dissolve() {
 }
 
 /// An area light's `filename` scales its emission by the image (sRGB,
-/// clamped, times `scale`); a missing image warns and emits `scale`.
+/// clamped, times `scale`); a missing image is an error, or with
+/// `--allow-missing` warns and emits `scale`.
 #[test]
 fn area_light_images_bind_emission_textures() {
     let dir = temp_dir("tex-emission");
     png(&dir, "e.png");
-    let l = load(
-        &dir,
-        &format!(
-            "AttributeBegin\nAreaLightSource \"diffuse\" \"string filename\" \"e.png\" \"float scale\" 2\n{TRI}\nAttributeEnd\n\
-             AttributeBegin\nAreaLightSource \"diffuse\" \"string filename\" \"nope.png\" \"rgb L\" [1 1 1]\n{TRI}\nAttributeEnd\n{TRI}"
-        ),
+    let world = format!(
+        "AttributeBegin\nAreaLightSource \"diffuse\" \"string filename\" \"e.png\" \"float scale\" 2\n{TRI}\nAttributeEnd\n\
+         AttributeBegin\nAreaLightSource \"diffuse\" \"string filename\" \"nope.png\" \"rgb L\" [1 1 1]\n{TRI}\nAttributeEnd\n{TRI}"
     );
+    let e = load_str(&format!("WorldBegin\n{world}\n"), "t.pbrt", &dir).unwrap_err().to_string();
+    assert!(e.starts_with("t.pbrt:7:1: area light image: ") && e.contains("nope.png"), "{e}");
+    let l = allowing_missing(|| load(&dir, &world));
     let s = &l.scene;
     assert_eq!(s.meshes[0].emission.map(|e| e.radiance), Some(Rgb::splat(2.0)));
     let t = s.textures.emission_of(0).expect("first light is textured");

@@ -28,6 +28,11 @@ struct Cli {
     /// paths, `..`, `file://` URIs): for scenes from trusted sources only.
     #[arg(long, global = true)]
     allow_outside_paths: bool,
+    /// Render a scene whose images, environment maps or spectrum files
+    /// cannot be read, each replaced by a stand-in with a warning (pbrt-v4
+    /// and, without this, atoll stop with an error).
+    #[arg(long, global = true)]
+    allow_missing: bool,
     /// Most bytes all the files of one scene may have together, e.g. 512G
     /// (default 256G): stops scenes that read without end.
     #[arg(long, global = true, value_parser = device::parse_size, value_name = "SIZE")]
@@ -106,6 +111,7 @@ fn main() -> ExitCode {
     load::install_panic_hook();
     let cli = Cli::parse();
     atoll_scene::input::allow_outside_paths(cli.allow_outside_paths);
+    atoll_scene::input::allow_missing_files(cli.allow_missing);
     if let Some(bytes) = cli.max_scene_bytes {
         atoll_scene::input::set_max_scene_bytes(bytes);
     }

@@ -80,8 +80,9 @@ fn a_closed_stdout_ends_quietly() {
     assert!(!stderr(&out).contains("panicked"), "{}", stderr(&out));
 }
 
-/// Textures count in `atoll info`; an image that cannot be read is a
-/// warning with its line (the texture becomes a constant), not an error.
+/// Textures count in `atoll info`; an image that cannot be read is an
+/// error at its line (exit 2), as in pbrt-v4, and with `--allow-missing` a
+/// warning there (the texture becomes a constant).
 #[test]
 fn info_reports_textures_and_warns_about_unreadable_images() {
     let dir = scratch("info-textures");
@@ -94,6 +95,10 @@ fn info_reports_textures_and_warns_about_unreadable_images() {
                  Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0 0 1 0]\n";
     std::fs::write(dir.join("t.pbrt"), scene).unwrap();
     let out = atoll(&dir, &["info", "t.pbrt"]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let err = stderr(&out);
+    assert!(err.contains("t.pbrt:3:1: texture \"gone\": ") && err.contains("--allow-missing"), "{err}");
+    let out = atoll(&dir, &["info", "t.pbrt", "--allow-missing"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("textures           2 (1 images, 0.00 MiB)"), "{stdout}");

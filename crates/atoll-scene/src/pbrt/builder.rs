@@ -543,6 +543,7 @@ impl Builder {
                     match self.textures.emission_image(&file, &self.base_dir, &mut self.scene.textures) {
                         Ok(t) => self.gs.area_light_texture = Some(t),
                         Err(e) => {
+                            super::missing_file(&loc, "area light image", &e)?;
                             w.warn(&loc, format!("area light image: {e}; emitting \"scale\" uniformly"))
                         }
                     }

@@ -492,7 +492,10 @@ pub fn light(
                             light_to_world,
                         }));
                     }
-                    Err(e) => w.warn(loc, format!("{what}: {e}; using constant white instead")),
+                    Err(e) => {
+                        super::missing_file(loc, &what, &e)?;
+                        w.warn(loc, format!("{what}: {e}; using constant white instead"))
+                    }
                 }
             }
             let l = l.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);

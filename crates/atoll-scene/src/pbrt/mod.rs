@@ -81,6 +81,22 @@ fn read_scene_file(path: &Path) -> Result<Vec<u8>, ReadSceneError> {
     Ok(bytes)
 }
 
+/// A file the scene names at `loc` could not be had (`error`): an error
+/// naming `what` needs it, unless [`crate::input::allow_missing_files`],
+/// when the caller goes on with its stand-in and its warning. The error
+/// keeps `error` as its cause (a file too large to read did not fit; it is
+/// not wrong).
+pub(crate) fn missing_file<E>(loc: &FileLoc, what: &str, error: &E) -> Result<(), SceneError>
+where
+    E: std::error::Error + Clone + Send + Sync + 'static,
+{
+    if crate::input::missing_files_allowed() {
+        return Ok(());
+    }
+    let message = format!("{what}: {error} (--allow-missing renders without it)");
+    Err(SceneError::caused_by(loc, message, error.clone()))
+}
+
 /// Collects warnings and emits each with `tracing::warn!`.
 #[derive(Debug, Default)]
 pub struct WarningSink {

@@ -234,13 +234,15 @@ impl NamedTextures {
         let Some(file) = p.string("filename")? else {
             return Ok(Err("no \"string filename\" given".into()));
         };
-        let path = match crate::input::beside(base_dir, &file) {
-            Ok(path) => path,
-            Err(e) => return Ok(Err(e.to_string())),
-        };
-        let image = match self.images.load(store, &path, encoding) {
+        let image = crate::input::beside(base_dir, &file)
+            .map_err(ImageLoadError::io(Path::new(&file)))
+            .and_then(|path| self.images.load(store, &path, encoding));
+        let image = match image {
             Ok(id) => id,
-            Err(e) => return Ok(Err(e.to_string())),
+            Err(e) => {
+                super::missing_file(loc, what, &e)?;
+                return Ok(Err(e.to_string()));
+            }
         };
         let channel = match kind {
             TexKind::Float => crate::Channel::Average,

@@ -34,6 +34,15 @@ pub fn load_world(options: &str, world: &str) -> Result<LoadedScene, SceneError>
     load_str(&format!("{options}\nWorldBegin\n{world}\n"), "test.pbrt", Path::new("."))
 }
 
+/// Runs the scene load `load` letting the scene name files that cannot be
+/// read (`--allow-missing`), without touching the process-wide setting
+/// that other tests' loads read.
+#[allow(dead_code)]
+pub fn allowing_missing<T>(load: impl FnOnce() -> T) -> T {
+    let budget = atoll_scene::input::LoadBudget::from_settings().allowing_missing_files(true);
+    atoll_scene::input::with_budget(std::sync::Arc::new(budget), load)
+}
+
 /// A one-triangle mesh statement with the given vertices.
 pub fn tri(p: [[f32; 3]; 3]) -> String {
     let v: Vec<String> = p.iter().flatten().map(|x| x.to_string()).collect();

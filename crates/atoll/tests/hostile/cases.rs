@@ -88,6 +88,12 @@ impl Case {
         self
     }
 
+    /// The same command with `extra` arguments after the others.
+    fn and_args(mut self, extra: &[&str]) -> Case {
+        self.args.extend(args(extra));
+        self
+    }
+
     /// Fails with exit code 2, saying `text`.
     fn bad(self, text: impl Into<String>) -> Case {
         self.codes(BAD_INPUT).says(text)
@@ -499,7 +505,8 @@ fn hostile_paths() -> Vec<Case> {
                 cases.push(error(case).says(at(t::STATEMENT_LINE)));
             }
         }
-        // Images (textures, environment maps): a warning at the line, the render goes on.
+        // Images (textures, environment maps): errors at their line, or
+        // with --allow-missing a warning there, the render going on.
         for (what, statement) in [
             ("imagemap", format!(
                 "Texture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"{}\" Material \"diffuse\" \"texture reflectance\" \"t\" Shape \"sphere\"",
@@ -513,7 +520,14 @@ fn hostile_paths() -> Vec<Case> {
                 "scene.pbrt",
                 files(file("scene.pbrt", t::pbrt_with(&statement)), vec![]),
             );
-            cases.push(case.says(at(t::STATEMENT_LINE)).says(h.name));
+            cases.push(error(case).says(at(t::STATEMENT_LINE)));
+            let case = Case::render(
+                c,
+                format!("{what} {} allowed missing", h.label),
+                "scene.pbrt",
+                files(file("scene.pbrt", t::pbrt_with(&statement)), vec![]),
+            );
+            cases.push(case.and_args(&["--allow-missing"]).says(at(t::STATEMENT_LINE)).says(h.name));
         }
         // OBJ material libraries and their maps: warnings.
         let obj = t::OBJ.replace("model.mtl", h.name);
