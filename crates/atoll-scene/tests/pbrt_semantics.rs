@@ -547,3 +547,45 @@ fn the_texture_scene_loads_cleanly() {
     assert!(s.materials.iter().any(|m| matches!(m, Material::CoatedDiffuse(CoatedDiffuseParams { .. }))));
     assert!(s.materials.iter().any(|m| matches!(m, Material::Principled(PrincipledParams { .. }))));
 }
+
+/// A spectrum parameter naming a file reads it as pbrt-v4 does: (wavelength,
+/// value) pairs, here turned into RGB; a missing file is an error at the
+/// parameter unless allowed, a malformed one always.
+#[test]
+fn spectra_from_files() {
+    let dir = common::temp_dir("spd");
+    std::fs::create_dir_all(dir.join("spds")).unwrap();
+    common::write(&dir, "spds/eta.spd", "# a made-up metal\n400 1.0\n500 1.0\n550 2.0\n600 2.0\n700 3.0\n");
+    common::write(&dir, "bad.spd", "400 1.0\n300 2.0\n");
+    let load = |world: &str| {
+        atoll_scene::pbrt::load_str(&format!("WorldBegin\n{world}\n{}", tri(UNIT_TRI)), "s.pbrt", &dir)
+    };
+    let m = load("Material \"conductor\" \"spectrum eta\" \"spds/eta.spd\" \"spectrum k\" \"metal-Au-k\"")
+        .unwrap();
+    let Material::Conductor { eta, .. } = m.scene.materials[m.scene.meshes[0].material as usize] else {
+        panic!("{:?}", m.scene.materials)
+    };
+    // Band averages: red 600–700 nm, green 500–600, blue 400–500.
+    assert!((eta - Rgb::new(2.5, 1.75, 1.0)).abs().max_element() < 0.06, "{eta}");
+    assert!(m.warnings.is_empty(), "{:?}", m.warnings);
+
+    let e = load("Material \"conductor\" \"spectrum eta\" \"spds/gone.spd\"").unwrap_err().to_string();
+    assert!(e.starts_with("s.pbrt:2:") && e.contains("gone.spd") && e.contains("--allow-missing"), "{e}");
+    let allowed =
+        allowing_missing(|| load("Material \"conductor\" \"spectrum eta\" \"spds/gone.spd\"")).unwrap();
+    let w: Vec<String> = allowed.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(w.iter().any(|w| w.contains("gone.spd") && w.contains("using copper")), "{w:?}");
+
+    let e = allowing_missing(|| load("Material \"conductor\" \"spectrum k\" \"bad.spd\"")).unwrap_err();
+    assert!(e.to_string().contains("do not increase"), "{e}");
+
+    // Lights normalise a file's spectrum to luminance 1, as pbrt-v4 does.
+    common::write(&dir, "warm.spd", "400 0.5 500 1.0 600 2.0 700 3.0");
+    let l = load("LightSource \"point\" \"spectrum I\" \"warm.spd\"").unwrap();
+    let Light::Point { intensity, .. } = l.scene.lights[0] else { panic!() };
+    assert!(
+        (atoll_scene::luminance(intensity) - 1.0).abs() < 1e-4 && intensity.x > intensity.z,
+        "{intensity}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -32,7 +32,7 @@ use super::pending::{PendingShape, ShapePlace};
 use super::shapes::{self, ShapeSource};
 use super::textures::{NamedTextures, TexCtx};
 use super::tokenizer::Tokenizer;
-use super::{entities, transform, LoadedScene, WarningSink};
+use super::{entities, spectrum, transform, LoadedScene, WarningSink};
 
 /// Which material the graphics state refers to.
 #[derive(Clone, Debug)]
@@ -268,11 +268,13 @@ impl Builder {
         let warnings = &mut self.warnings;
         let seen = &mut self.v3_spellings_warned;
         // pbrt-v3 files use the same spellings millions of times: warn once each.
-        ParamList::new(raw, &mut |loc, msg| {
+        let mut p = ParamList::new(raw, &mut |loc, msg| {
             if seen.insert(msg.clone()) {
                 warnings.warn(loc, format!("{msg} (reported once)"));
             }
-        })
+        })?;
+        p.read_spectrum_strings(|param, name| read_spectrum_file(&self.base_dir, param, name))?;
+        Ok(p)
     }
 
     /// Warns about every parameter the directive did not look up.
@@ -543,7 +545,7 @@ impl Builder {
                     match self.textures.emission_image(&file, &self.base_dir, &mut self.scene.textures) {
                         Ok(t) => self.gs.area_light_texture = Some(t),
                         Err(e) => {
-                            super::missing_file(&loc, "area light image", &e)?;
+                            super::missing_file(&loc, "area light image", e.clone())?;
                             w.warn(&loc, format!("area light image: {e}; emitting \"scale\" uniformly"))
                         }
                     }
@@ -930,4 +932,23 @@ impl Builder {
         }
         Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list })
     }
+}
+
+/// The numbers of the spectrum file `name` that `param` names, if it names
+/// one ([`spectrum::names_a_file`]); `None` also for a file that cannot be
+/// read under `--allow-missing` (the parameter then falls back, warned).
+fn read_spectrum_file(base_dir: &Path, param: &Param, name: &str) -> Result<Option<Vec<f64>>, SceneError> {
+    if !spectrum::names_a_file(name) {
+        return Ok(None);
+    }
+    let what = format!("parameter \"{}\": spectrum file '{name}'", param.decl);
+    let text = crate::input::beside(base_dir, name).and_then(|path| crate::input::read(&path));
+    let text = match text {
+        Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+        Err(e) => {
+            super::missing_file(&param.loc, &what, e)?;
+            return Ok(None);
+        }
+    };
+    spectrum::parse_spd(&text).map(Some).map_err(|why| SceneError::at(&param.loc, format!("{what}: {why}")))
 }

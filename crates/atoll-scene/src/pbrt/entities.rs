@@ -493,7 +493,7 @@ pub fn light(
                         }));
                     }
                     Err(e) => {
-                        super::missing_file(loc, &what, &e)?;
+                        super::missing_file(loc, &what, e.clone())?;
                         w.warn(loc, format!("{what}: {e}; using constant white instead"))
                     }
                 }

@@ -86,15 +86,15 @@ fn read_scene_file(path: &Path) -> Result<Vec<u8>, ReadSceneError> {
 /// when the caller goes on with its stand-in and its warning. The error
 /// keeps `error` as its cause (a file too large to read did not fit; it is
 /// not wrong).
-pub(crate) fn missing_file<E>(loc: &FileLoc, what: &str, error: &E) -> Result<(), SceneError>
+pub(crate) fn missing_file<E>(loc: &FileLoc, what: &str, error: E) -> Result<(), SceneError>
 where
-    E: std::error::Error + Clone + Send + Sync + 'static,
+    E: std::error::Error + Send + Sync + 'static,
 {
     if crate::input::missing_files_allowed() {
         return Ok(());
     }
     let message = format!("{what}: {error} (--allow-missing renders without it)");
-    Err(SceneError::caused_by(loc, message, error.clone()))
+    Err(SceneError::caused_by(loc, message, error))
 }
 
 /// Collects warnings and emits each with `tracing::warn!`.

@@ -347,6 +347,25 @@ impl ParamList {
         Ok(self.float(name)?.map(FloatOrTexture::Value))
     }
 
+    /// Gives each `spectrum` parameter whose value is one string that
+    /// `read` turns into numbers those numbers instead (pbrt's spectrum
+    /// files, read once where the directive is).
+    pub fn read_spectrum_strings(
+        &mut self,
+        mut read: impl FnMut(&Param, &str) -> Result<Option<Vec<f64>>, SceneError>,
+    ) -> Result<(), SceneError> {
+        for p in &mut self.params {
+            let ParamValues::Strings(s) = &p.values else { continue };
+            if p.ty != ParamType::Spectrum || s.len() != 1 {
+                continue;
+            }
+            if let Some(numbers) = read(p, &s[0])? {
+                p.values = ParamValues::Numbers(numbers);
+            }
+        }
+        Ok(())
+    }
+
     /// A spectrum in any of its spellings: `rgb`, `spectrum` (named or pairs),
     /// `blackbody`, `texture`, or (where `allow_float`) a plain `float`.
     pub fn spectrum(&self, name: &str, allow_float: bool) -> Result<Option<SpectrumParam>, SceneError> {

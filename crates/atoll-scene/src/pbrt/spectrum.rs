@@ -45,6 +45,49 @@ pub fn named_illuminant(name: &str) -> Option<Vec3> {
     (name == "stdillum-D65").then_some(Vec3::ONE)
 }
 
+/// Whether `name` is a spectrum this module knows by name.
+pub fn is_named(name: &str) -> bool {
+    named_metal(name).is_some() || named_glass(name).is_some() || named_illuminant(name).is_some()
+}
+
+/// Whether a spectrum parameter's string names a file rather than one of
+/// pbrt-v4's named spectra: pbrt reads any name it does not know as a
+/// file, but atoll knows fewer names than pbrt, so only a string that
+/// looks like a path (pbrt's names have neither dots nor slashes) is read
+/// as one; other unknown names fall back to a default with a warning.
+pub fn names_a_file(name: &str) -> bool {
+    !is_named(name) && name.contains(['.', '/', '\\'])
+}
+
+/// The numbers of a pbrt spectrum file (`.spd`): (wavelength in nm, value)
+/// pairs separated by white space, `#` starting a comment to the end of
+/// the line, wavelengths increasing (pbrt-v4's `PiecewiseLinearSpectrum::Read`).
+pub fn parse_spd(text: &str) -> Result<Vec<f64>, String> {
+    let mut numbers = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let data = line.split('#').next().unwrap_or("");
+        for word in data.split_whitespace() {
+            let x: f64 = word.parse().map_err(|_| format!("line {}: \"{word}\" is not a number", i + 1))?;
+            if !x.is_finite() {
+                return Err(format!("line {}: {word} is not finite", i + 1));
+            }
+            numbers.push(x);
+        }
+    }
+    if numbers.is_empty() {
+        return Err("no (wavelength, value) pairs".into());
+    }
+    if numbers.len() % 2 != 0 {
+        return Err(format!("{} numbers: not (wavelength, value) pairs", numbers.len()));
+    }
+    if let Some(w) =
+        numbers.chunks_exact(2).map(|c| c[0]).collect::<Vec<_>>().windows(2).find(|w| w[1] <= w[0])
+    {
+        return Err(format!("wavelengths do not increase ({} then {})", w[0], w[1]));
+    }
+    Ok(numbers)
+}
+
 /// Value of a piecewise-linear spectrum at `lambda` (clamped at the ends).
 pub fn sampled_at(pairs: &[(f32, f32)], lambda: f32) -> f32 {
     match pairs {
@@ -122,6 +165,18 @@ mod tests {
         assert_eq!(sampled_at(&s, 600.0), 3.0);
         assert_eq!(sampled_at(&s, 800.0), 4.0);
         assert!((sampled_rgb(&[(300.0, 0.5), (800.0, 0.5)]) - Vec3::splat(0.5)).abs().max_element() < 1e-6);
+    }
+
+    #[test]
+    fn spectrum_files() {
+        let text = "# copper, k\n400 2.1  # violet\n500 2.5\n\n600 3.0 700 3.6\n";
+        assert_eq!(parse_spd(text).unwrap(), [400.0, 2.1, 500.0, 2.5, 600.0, 3.0, 700.0, 3.6]);
+        assert!(parse_spd("400 1 500").unwrap_err().contains("3 numbers"));
+        assert!(parse_spd("500 1 400 2").unwrap_err().contains("do not increase"));
+        assert!(parse_spd("400 x").unwrap_err().contains("line 1"));
+        assert!(parse_spd("# nothing\n").is_err());
+        assert!(names_a_file("spds/cu.spd") && names_a_file("k.spd"));
+        assert!(!names_a_file("metal-Cu-eta") && !names_a_file("metal-CuZn-eta"));
     }
 
     #[test]

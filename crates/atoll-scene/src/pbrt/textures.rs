@@ -240,7 +240,7 @@ impl NamedTextures {
         let image = match image {
             Ok(id) => id,
             Err(e) => {
-                super::missing_file(loc, what, &e)?;
+                super::missing_file(loc, what, e.clone())?;
                 return Ok(Err(e.to_string()));
             }
         };
