@@ -33,6 +33,24 @@ impl CameraRays {
         }
     }
 
+    /// The camera for a frame rendered with `options`: its image, or the
+    /// part of the scene's image its crop window covers (the window of
+    /// screen space that part spans; raster positions count from its corner).
+    pub fn for_options(camera: &Camera, options: &crate::RenderOptions) -> Self {
+        let Some([x0, x1, y0, y1]) = options.crop else { return CameraRays::new(camera, options.resolution) };
+        // The whole image's size (the crop is cut at its pixel boundaries).
+        let r = options.resolution.as_vec2();
+        let whole = Vec2::new(r.x / (x1 - x0), r.y / (y1 - y0)).round().as_uvec2();
+        let mut rays = CameraRays::new(camera, whole.max(glam::UVec2::ONE));
+        let (lo, hi) = (rays.window_min, rays.window_max);
+        let size = hi - lo;
+        // Raster y runs down from the window's top (its maximum y).
+        rays.window_min = Vec2::new(lo.x + x0 * size.x, hi.y - y1 * size.y);
+        rays.window_max = Vec2::new(lo.x + x1 * size.x, hi.y - y0 * size.y);
+        rays.resolution = r;
+        rays
+    }
+
     /// Camera space to world space.
     pub fn camera_to_world(&self) -> Mat4 {
         self.camera_to_world
@@ -71,5 +89,41 @@ impl CameraRays {
         let o = self.camera_to_world.transform_point3(origin);
         let d = self.camera_to_world.transform_vector3(dir).normalize();
         (o, d)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cropped frame's pixel traces the ray of the same pixel of the whole
+    /// image.
+    #[test]
+    fn a_crop_traces_the_whole_images_rays() {
+        let camera = Camera {
+            camera_to_world: Mat4::from_rotation_translation(
+                glam::Quat::from_rotation_y(0.3),
+                Vec3::new(1.0, 2.0, -3.0),
+            ),
+            fov_degrees: 40.0,
+            ..Camera::default()
+        };
+        let mut scene = atoll_scene::Scene::default();
+        scene.settings.camera = camera.clone();
+        scene.settings.film.resolution = glam::UVec2::new(64, 48);
+        let whole = crate::RenderOptions::from_scene(&scene);
+        scene.settings.film.crop_window = Some([0.25, 0.75, 0.5, 1.0]);
+        let cropped = crate::RenderOptions::from_scene(&scene);
+        assert_eq!(
+            (cropped.resolution, cropped.crop),
+            (glam::UVec2::new(32, 24), Some([0.25, 0.75, 0.5, 1.0]))
+        );
+        let (full, part) =
+            (CameraRays::for_options(&camera, &whole), CameraRays::for_options(&camera, &cropped));
+        for raster in [Vec2::new(0.5, 0.5), Vec2::new(31.9, 0.1), Vec2::new(10.25, 23.5)] {
+            let (o1, d1) = full.ray(raster + Vec2::new(16.0, 24.0), Vec2::ZERO);
+            let (o2, d2) = part.ray(raster, Vec2::ZERO);
+            assert!(o1.distance(o2) < 1e-5 && d1.distance(d2) < 1e-5, "{raster}: {d1} against {d2}");
+        }
     }
 }

@@ -102,6 +102,13 @@ impl Film {
         self.sum.par_iter_mut().zip(other.sum.par_iter()).for_each(|(a, b)| *a += *b);
     }
 
+    /// The film as a sensor of linear `response` records it (every pixel's
+    /// sum mapped through it): exposure and white balance.
+    pub fn responded(&self, response: glam::Mat3) -> Film {
+        let sum = self.sum.par_iter().map(|s| response * *s).collect();
+        Film { sum, ..*self }
+    }
+
     /// Mean radiance per pixel (sum / spp).
     pub fn pixels(&self) -> Vec<Vec3> {
         let scale = if self.spp > 0 { 1.0 / self.spp as f32 } else { 0.0 };

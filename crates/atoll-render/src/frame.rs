@@ -3,8 +3,8 @@
 
 use std::sync::Arc;
 
-use atoll_scene::{IntegratorSettings, LightSampler, Scene, TextureImage};
-use glam::{UVec2, Vec2};
+use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler, Scene, TextureImage};
+use glam::{Mat3, UVec2, Vec2};
 
 use crate::camera::CameraRays;
 use crate::lights::LightSet;
@@ -38,6 +38,14 @@ pub struct RenderOptions {
     /// queue). Either way each path's random numbers depend only on its
     /// pixel and sample; only the order of film additions changes.
     pub merge_waves: bool,
+    /// The part of the scene's image that `resolution` covers, as fractions
+    /// of it (x min, x max, y min, y max; y down): pbrt's crop window, cut
+    /// at pixel boundaries. `None`: the whole image.
+    pub crop: Option<[f32; 4]>,
+    /// What the film's sensor does to radiance (exposure, ISO, white
+    /// balance): applied to the image when it is written, not while
+    /// rendering, so devices and strategies never see it.
+    pub film_response: Mat3,
 }
 
 /// Paths in flight per wave on a CPU device (GPUs take more: the CUDA
@@ -48,8 +56,11 @@ impl RenderOptions {
     /// The scene's own settings.
     pub fn from_scene(scene: &Scene) -> Self {
         let s = &scene.settings;
+        let (resolution, crop) = image_of(&s.film);
         RenderOptions {
-            resolution: s.film.resolution,
+            resolution,
+            crop,
+            film_response: s.film.sensor.response(),
             spp: s.spp.max(1),
             integrator: s.integrator.clone(),
             seed: 0,
@@ -58,6 +69,12 @@ impl RenderOptions {
             wave_size: DEFAULT_WAVE_SIZE,
             merge_waves: true,
         }
+    }
+
+    /// Renders `film`'s image (its crop window of its resolution), keeping
+    /// everything else.
+    pub fn set_image(&mut self, film: &FilmSettings) {
+        (self.resolution, self.crop) = image_of(film);
     }
 
     pub fn pixel_count(&self) -> u32 {
@@ -69,6 +86,17 @@ impl RenderOptions {
     pub fn queue_capacity(&self) -> u32 {
         self.wave_size.min(self.pixel_count()).max(1)
     }
+}
+
+/// The pixels `film` renders and, where cropped, which part of its image
+/// they are.
+fn image_of(film: &FilmSettings) -> (UVec2, Option<[f32; 4]>) {
+    let (lo, hi) = film.pixel_bounds();
+    if film.crop_window.is_none() {
+        return (film.resolution, None);
+    }
+    let r = film.resolution.as_vec2();
+    (hi - lo, Some([lo.x as f32 / r.x, hi.x as f32 / r.x, lo.y as f32 / r.y, hi.y as f32 / r.y]))
 }
 
 /// Everything shading needs, identical on every device.
@@ -90,7 +118,7 @@ impl FrameContext {
         let materials: Vec<PackedMaterial> = scene.materials.iter().map(PackedMaterial::pack).collect();
         let kinds: Vec<_> = materials.iter().map(|m| m.kind).collect();
         FrameContext {
-            camera: CameraRays::new(&scene.settings.camera, options.resolution),
+            camera: CameraRays::for_options(&scene.settings.camera, &options),
             lights: LightSet::new(scene, options.light_sampler),
             textures: TextureTables::new(scene, &kinds),
             images: scene.textures.images.clone(),

@@ -506,6 +506,8 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
         light_sampler: Default::default(),
         wave_size: 1 << 16,
         merge_waves: true,
+        crop: None,
+        film_response: glam::Mat3::IDENTITY,
     };
     let film = render_with(&Arc::new(scene), options, None);
     assert_finite(&film);

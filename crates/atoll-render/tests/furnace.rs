@@ -56,6 +56,8 @@ fn options(spp: u32, max_depth: u32) -> RenderOptions {
         light_sampler: Default::default(),
         wave_size: 1 << 16,
         merge_waves: true,
+        crop: None,
+        film_response: glam::Mat3::IDENTITY,
     }
 }
 

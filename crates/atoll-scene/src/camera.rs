@@ -1,6 +1,6 @@
 //! Camera, film and the render settings a scene file carries.
 
-use glam::{Mat4, UVec2};
+use glam::{Mat3, Mat4, UVec2, Vec3};
 
 /// pbrt-style perspective camera. Camera space is left-handed: +x right,
 /// +y up, +z forward (pbrt-v4's convention).
@@ -28,12 +28,101 @@ pub struct FilmSettings {
     pub resolution: UVec2,
     /// Output file named by the scene (`Film "string filename"`).
     pub filename: Option<String>,
+    /// The part of the image rendered, pbrt's `cropwindow`: (x min, x max,
+    /// y min, y max) as fractions of the image, y down. `None`: all of it.
+    pub crop_window: Option<[f32; 4]>,
+    /// How the film turns radiance into pixel values.
+    pub sensor: Sensor,
+}
+
+/// pbrt-v4's pixel sensor for its default `cie1931` sensor: radiance times
+/// the imaging ratio (exposure time × ISO / 100), white balanced from a
+/// daylight illuminant of `white_balance` kelvin to the colour space's
+/// white (D65), and pbrt-v3's film `scale`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensor {
+    /// `iso` (100).
+    pub iso: f32,
+    /// The camera's `shutterclose` − `shutteropen` (1).
+    pub exposure_time: f32,
+    /// `whitebalance`; `None` (pbrt's 0) leaves colours as they are.
+    pub white_balance: Option<f32>,
+    /// pbrt-v3's `Film "float scale"` (1).
+    pub scale: f32,
+}
+
+impl Default for Sensor {
+    fn default() -> Self {
+        Sensor { iso: 100.0, exposure_time: 1.0, white_balance: None, scale: 1.0 }
+    }
+}
+
+/// Linear sRGB to CIE XYZ (D65 white).
+const XYZ_FROM_SRGB: Mat3 = Mat3::from_cols(
+    Vec3::new(0.412_456_4, 0.212_672_9, 0.019_333_9),
+    Vec3::new(0.357_576_1, 0.715_152_2, 0.119_192),
+    Vec3::new(0.180_437_5, 0.072_175, 0.950_304_1),
+);
+
+/// The Bradford cone response (LMS from XYZ), as pbrt-v4's white balance.
+const LMS_FROM_XYZ: Mat3 = Mat3::from_cols(
+    Vec3::new(0.8951, -0.7502, 0.0389),
+    Vec3::new(0.2664, 1.7135, -0.0685),
+    Vec3::new(-0.1614, 0.0367, 1.0296),
+);
+
+/// sRGB's white, D65, as a chromaticity.
+const D65_XY: [f32; 2] = [0.3127, 0.3290];
+
+/// The chromaticity of CIE daylight at `kelvin` (the daylight locus, defined
+/// from 4000 to 25000 K; clamped there).
+pub fn daylight_xy(kelvin: f32) -> [f32; 2] {
+    let t = kelvin.clamp(4000.0, 25000.0) as f64;
+    let x = if t <= 7000.0 {
+        -4.6070e9 / (t * t * t) + 2.9678e6 / (t * t) + 0.09911e3 / t + 0.244063
+    } else {
+        -2.0064e9 / (t * t * t) + 1.9018e6 / (t * t) + 0.24748e3 / t + 0.237040
+    };
+    let y = -3.0 * x * x + 2.870 * x - 0.275;
+    [x as f32, y as f32]
+}
+
+/// XYZ of the white of chromaticity `xy` at luminance 1.
+fn white_xyz([x, y]: [f32; 2]) -> Vec3 {
+    Vec3::new(x / y, 1.0, (1.0 - x - y) / y)
+}
+
+impl Sensor {
+    /// The linear map from rendered radiance (linear sRGB) to pixel values.
+    pub fn response(&self) -> Mat3 {
+        let ratio = self.exposure_time * self.iso / 100.0 * self.scale;
+        let balance = match self.white_balance {
+            None => Mat3::IDENTITY,
+            Some(kelvin) => {
+                let (src, dst) =
+                    (LMS_FROM_XYZ * white_xyz(daylight_xy(kelvin)), LMS_FROM_XYZ * white_xyz(D65_XY));
+                let lms = Mat3::from_diagonal(dst / src);
+                XYZ_FROM_SRGB.inverse() * LMS_FROM_XYZ.inverse() * lms * LMS_FROM_XYZ * XYZ_FROM_SRGB
+            }
+        };
+        balance * ratio
+    }
 }
 
 impl FilmSettings {
     /// Most pixels a frame may have: its film alone is 12 bytes a pixel,
     /// and every device keeps one (16384 × 16384 is 3 GiB).
     pub const MAX_PIXELS: u64 = 1 << 28;
+
+    /// The pixels the crop window covers, pbrt-v4's pixel bounds: from
+    /// (⌈x min · width⌉, ⌈y min · height⌉) up to, not including,
+    /// (⌈x max · width⌉, ⌈y max · height⌉); all of them without a crop.
+    pub fn pixel_bounds(&self) -> (UVec2, UVec2) {
+        let Some([x0, x1, y0, y1]) = self.crop_window else { return (UVec2::ZERO, self.resolution) };
+        let r = self.resolution.as_vec2();
+        let at = |fx: f32, fy: f32| UVec2::new((fx * r.x).ceil() as u32, (fy * r.y).ceil() as u32);
+        (at(x0, y0), at(x1, y1).min(self.resolution))
+    }
 
     /// Refuses a resolution of no pixels or of more than [`Self::MAX_PIXELS`].
     pub fn check_resolution(x: u64, y: u64) -> Result<UVec2, String> {
@@ -74,7 +163,12 @@ pub fn tile_order_pixel(ordinal: u32, resolution: UVec2) -> u32 {
 impl Default for FilmSettings {
     fn default() -> Self {
         // pbrt-v4's defaults.
-        FilmSettings { resolution: UVec2::new(1280, 720), filename: None }
+        FilmSettings {
+            resolution: UVec2::new(1280, 720),
+            filename: None,
+            crop_window: None,
+            sensor: Sensor::default(),
+        }
     }
 }
 
@@ -130,7 +224,7 @@ pub struct RenderSettings {
 }
 
 #[cfg(test)]
-mod tile_order_tests {
+mod tests {
     use super::*;
 
     #[test]
@@ -165,5 +259,41 @@ mod tile_order_tests {
         assert_eq!(at(68), (16, 1));
         assert_eq!(at(20 * 8), (0, 8));
         assert_eq!(at(20 * 9 - 1), (19, 8));
+    }
+
+    /// Linear sRGB of the white of chromaticity `xy` at luminance 1.
+    fn srgb_white(xy: [f32; 2]) -> Vec3 {
+        XYZ_FROM_SRGB.inverse() * white_xyz(xy)
+    }
+
+    #[test]
+    fn the_sensor_scales_by_exposure_and_iso_and_balances_whites() {
+        assert_eq!(Sensor::default().response(), Mat3::IDENTITY);
+        let bright = Sensor { iso: 400.0, exposure_time: 0.5, scale: 1.5, ..Default::default() };
+        assert!((bright.response() - Mat3::from_diagonal(Vec3::splat(3.0)))
+            .abs()
+            .to_cols_array()
+            .iter()
+            .all(|d| *d < 1e-6));
+        // D65 is sRGB's white: the daylight locus passes close to it.
+        let d65 = srgb_white(daylight_xy(6504.0));
+        assert!((d65 - Vec3::ONE).abs().max_element() < 0.01, "{d65}");
+        // Balanced for a warm daylight, its white comes out neutral.
+        for kelvin in [4500.0, 5000.0, 9000.0] {
+            let white = srgb_white(daylight_xy(kelvin));
+            let out = Sensor { white_balance: Some(kelvin), ..Default::default() }.response() * white;
+            assert!((out / out.y - Vec3::ONE).abs().max_element() < 1e-3, "{kelvin} K: {white} -> {out}");
+            assert!(white.x > 1.02 * white.z || kelvin > 6504.0, "{kelvin} K is warm: {white}");
+        }
+    }
+
+    #[test]
+    fn crop_windows_cover_pbrts_pixel_bounds() {
+        let film =
+            |crop| FilmSettings { resolution: UVec2::new(100, 50), crop_window: crop, ..Default::default() };
+        assert_eq!(film(None).pixel_bounds(), (UVec2::ZERO, UVec2::new(100, 50)));
+        // pbrt-v4: ⌈fraction × size⌉ at both ends.
+        let (lo, hi) = film(Some([0.255, 0.5, 0.1, 1.0])).pixel_bounds();
+        assert_eq!((lo, hi), (UVec2::new(26, 5), UVec2::new(50, 50)));
     }
 }

@@ -46,7 +46,7 @@ pub const SUN_FROM: Vec3 = Vec3::new(-1.0, 2.3, 1.75);
 pub fn default_settings() -> RenderSettings {
     RenderSettings {
         camera: Camera { fov_degrees: FOV_DEGREES, ..Default::default() },
-        film: crate::FilmSettings { resolution: RESOLUTION, filename: None },
+        film: crate::FilmSettings { resolution: RESOLUTION, ..Default::default() },
         spp: SPP,
         integrator: IntegratorSettings::Path { max_depth: MAX_DEPTH },
         light_sampler: Default::default(),

@@ -304,7 +304,9 @@ pub fn write_ownership(
         None => Some(0),
     };
     let film = atoll_dist::ownership::ownership_view(scene, options, &owner);
-    crate::render::write_image(&film, path)?;
+    // False colours: no sensor response.
+    let plain = RenderOptions { film_response: glam::Mat3::IDENTITY, ..options.clone() };
+    crate::render::write_image(&film, &plain, path)?;
     eprintln!("ownership view: {}", path.display());
     Ok(())
 }

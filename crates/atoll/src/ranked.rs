@@ -132,7 +132,7 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     if !ranks.is_root() {
         return Ok(());
     }
-    crate::render::write_image(&out.film, &output)?;
+    crate::render::write_image(&out.film, &options, &output)?;
     print!("rank  {}", multi::device_table_header());
     print!("{}", rows.concat());
     let on = format!("{} ranks ({devices_in_all} devices)", ranks.size());

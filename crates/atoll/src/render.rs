@@ -282,7 +282,7 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
         render(selected.device.as_mut(), &scene, options.clone(), &mut |done, total| bar.update(done, total))
             .map_err(|e| CliError::Runtime(format!("rendering failed: {e}")))?;
     bar.finish_and_clear();
-    write_image(&out.film, &output)?;
+    write_image(&out.film, &options, &output)?;
     let run = Run {
         load,
         prepare_seconds: out.prepare_seconds,
@@ -330,7 +330,7 @@ pub(crate) fn load_frame(args: &RenderArgs, size_check: Option<SizeCheck>) -> Re
         options.spp = spp;
     }
     if let Some(res) = args.res {
-        options.resolution = res;
+        options.set_image(&FilmSettings { resolution: res, ..scene.settings.film.clone() });
     }
     // A scene's own resolution gets the same limits as --res (loaders other
     // than PBRT's derive it, e.g. from a glTF camera's aspect ratio).
@@ -489,7 +489,7 @@ fn render_streams(
     )
     .map_err(|e| CliError::Runtime(e.to_string()))?;
     bar.finish_and_clear();
-    write_image(&out.film, output)?;
+    write_image(&out.film, &options, output)?;
     let on = format!("{description} x {} wavefronts", devices.len());
     print_summary(output, &options, &on, Run::of(&out, load));
     Ok(())
@@ -499,7 +499,19 @@ fn render_streams(
 /// (the folder removed or full since it was checked), the image is saved
 /// under another name ([`atoll_render::Film::write_fallback`]) and the error
 /// says where.
-pub(crate) fn write_image(film: &atoll_render::Film, output: &Path) -> Result<(), CliError> {
+/// Writes `film` as its sensor records it (`options.film_response`).
+pub(crate) fn write_image(
+    film: &atoll_render::Film,
+    options: &RenderOptions,
+    output: &Path,
+) -> Result<(), CliError> {
+    let responded;
+    let film = if options.film_response == glam::Mat3::IDENTITY {
+        film
+    } else {
+        responded = film.responded(options.film_response);
+        &responded
+    };
     let Err(e) = film.write(output) else { return Ok(()) };
     Err(CliError::Runtime(match film.write_fallback(output) {
         Ok(saved) => format!("{e}; the image was saved as {} instead", saved.display()),
@@ -655,7 +667,7 @@ fn render_on_devices(
             bar.update(done, total)
         })?;
     bar.finish_and_clear();
-    write_image(&out.film, output)?;
+    write_image(&out.film, &options, output)?;
     print!("{}", multi::device_table(&out));
     print!("{}", multi::shared_table(&out));
     let on = format!("{} devices", out.devices.len());
@@ -737,10 +749,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let mut film = atoll_render::Film::new(UVec2::new(2, 2));
         film.spp = 1;
-        assert!(write_image(&film, &dir.path().join("ok.png")).is_ok());
+        let options = RenderOptions::from_scene(&atoll_scene::cornell::builtin_cornell_box());
+        assert!(write_image(&film, &options, &dir.path().join("ok.png")).is_ok());
         // The folder went away during the render.
         let output = dir.path().join("gone").join("frame.png");
-        let Err(CliError::Runtime(message)) = write_image(&film, &output) else { panic!("no error") };
+        let Err(CliError::Runtime(message)) = write_image(&film, &options, &output) else {
+            panic!("no error")
+        };
         let saved = message.split("saved as ").nth(1).and_then(|s| s.strip_suffix(" instead")).unwrap();
         assert!(message.starts_with(&output.display().to_string()), "{message}");
         let saved = Path::new(saved);

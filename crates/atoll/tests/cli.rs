@@ -375,3 +375,45 @@ fn negative_numbers_are_refused_by_their_argument() {
         assert!(err.contains(&format!("invalid value '{}' for '{flag}", args[2])), "{args:?}: {err}");
     }
 }
+
+/// pbrt-v4's film parameters: a crop window renders that part of the image
+/// (pbrt's pixel bounds, written at their size), and the sensor's ISO
+/// scales what the pixels record.
+#[test]
+fn film_crop_windows_and_sensor_response() {
+    let dir = scratch("film");
+    let source = PathBuf::from(shared("cbox/diffuse/scene.pbrt"));
+    for entry in std::fs::read_dir(source.parent().unwrap()).unwrap() {
+        let path = entry.unwrap().path();
+        std::fs::copy(&path, dir.join(path.file_name().unwrap())).unwrap();
+    }
+    let text = std::fs::read_to_string(&source).unwrap();
+    let film_line = text.lines().find(|l| l.starts_with("Film")).unwrap();
+    let render = |name: &str, film: &str| {
+        std::fs::write(dir.join(format!("{name}.pbrt")), text.replace(film_line, film)).unwrap();
+        let (scene, image) = (format!("{name}.pbrt"), format!("{name}.exr"));
+        let out = atoll(&dir, &["render", &scene, "--spp", "64", "--device", "cpu", "-o", &image, "--quiet"]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        common::read_exr(&dir.join(image))
+    };
+    let size = "Film \"rgb\" \"integer xresolution\" 32 \"integer yresolution\" 32";
+    let whole = render("whole", size);
+    let crop = "\"float cropwindow\" [0.25 0.75 0.5 1]";
+    let part = render("part", &format!("{size} {crop}"));
+    let brighter = render("brighter", &format!("{size} {crop} \"float iso\" 200"));
+    assert_eq!(part.len(), 16 * 16, "the crop's pixels only");
+    // The same pixels and samples, recorded twice as brightly.
+    for (a, b) in part.iter().zip(&brighter) {
+        assert!((0..3).all(|c| (2.0 * a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1.0)), "{a:?} {b:?}");
+    }
+    // The crop shows what that part of the whole image shows (other
+    // samples: the means agree within noise).
+    let region: Vec<[f32; 3]> =
+        (16..32).flat_map(|y| (8..24).map(move |x| y * 32 + x)).map(|i| whole[i]).collect();
+    let mean = |px: &[[f32; 3]]| px.iter().map(|p| p[0] + p[1] + p[2]).sum::<f32>() / px.len() as f32;
+    let (a, b) = (mean(&region), mean(&part));
+    assert!((a - b).abs() < 0.05 * a, "the crop's mean {b} against its region's {a}");
+    // Its left column is the region's left column, not the image's.
+    let left = |px: &[[f32; 3]], stride: usize| (0..16).map(|y| px[y * stride][0]).sum::<f32>();
+    assert!((left(&part, 16) - left(&region, 16)).abs() < 0.2 * left(&region, 16));
+}

@@ -568,6 +568,7 @@ impl Builder {
                 self.scene.settings.film.resolution = crate::FilmSettings::check_resolution(x, y)
                     .map_err(|e| SceneError::at(&loc, format!("Film: {e}")))?;
                 self.scene.settings.film.filename = p.string("filename")?;
+                self.film_response(&p, &loc)?;
             }
             E::Sampler => {
                 if let Some(n) = p.int("pixelsamples")? {
@@ -764,6 +765,76 @@ impl Builder {
         }
         cam.lens_radius = p.float_or("lensradius", 0.0)?;
         cam.focal_distance = p.float_or("focaldistance", 1e6)?;
+        // The film's exposure; motion blur over it is not rendered.
+        let (open, close) = (p.float_or("shutteropen", 0.0)?, p.float_or("shutterclose", 1.0)?);
+        if close < open {
+            return Err(SceneError::at(
+                loc,
+                format!("Camera: \"shutterclose\" {close} is before \"shutteropen\" {open}"),
+            ));
+        }
+        self.scene.settings.film.sensor.exposure_time = close - open;
+        Ok(())
+    }
+
+    /// The `Film`'s crop window and pixel sensor (pbrt-v4's `RGBFilm` and
+    /// `PixelSensor` parameters; pbrt-v3's `scale`).
+    fn film_response(&mut self, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        let film = &mut self.scene.settings.film;
+        let bad = |msg: String| SceneError::at(loc, format!("Film: {msg}"));
+        let r = film.resolution.as_vec2();
+        film.crop_window = match (p.numbers("cropwindow", ParamType::Float), p.ints("pixelbounds")) {
+            (Some(c), _) if c.len() != 4 => {
+                return Err(bad(format!("\"cropwindow\" needs 4 values, got {}", c.len())))
+            }
+            (Some(c), _) => Some([c[0], c[1], c[2], c[3]].map(|v| v as f32)),
+            (None, Some(b)) if b.len() != 4 => {
+                return Err(bad(format!("\"pixelbounds\" needs 4 values, got {}", b.len())))
+            }
+            (None, Some(b)) => {
+                Some([b[0] as f32 / r.x, b[1] as f32 / r.x, b[2] as f32 / r.y, b[3] as f32 / r.y])
+            }
+            (None, None) => None,
+        };
+        if let Some([x0, x1, y0, y1]) = film.crop_window {
+            let inside = |a: f32, b: f32| (0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b) && a < b;
+            let (lo, hi) = film.pixel_bounds();
+            if !inside(x0, x1) || !inside(y0, y1) || lo.x >= hi.x || lo.y >= hi.y {
+                return Err(bad(format!(
+                    "the crop window [{x0} {x1} {y0} {y1}] covers no pixel of the image"
+                )));
+            }
+        }
+        let sensor = &mut film.sensor;
+        sensor.iso = p.float_or("iso", 100.0)?;
+        sensor.scale = p.float_or("scale", 1.0)?;
+        let kelvin = p.float_or("whitebalance", 0.0)?;
+        if !(sensor.iso > 0.0 && sensor.scale > 0.0 && kelvin >= 0.0) {
+            return Err(bad("\"iso\" and \"scale\" must be positive, \"whitebalance\" not negative".into()));
+        }
+        sensor.white_balance = (kelvin > 0.0).then_some(kelvin);
+        if let Some(name) = p.string("sensor")?.filter(|n| n != "cie1931") {
+            self.warnings.warn(loc, format!("Film: sensor \"{name}\" is not supported; using \"cie1931\""));
+        }
+        if !(4000.0..=25000.0).contains(&kelvin) && kelvin > 0.0 {
+            self.warnings.warn(
+                loc,
+                format!(
+                    "Film: white balance {kelvin} K is outside the daylight locus (4000 to 25000 K); clamped"
+                ),
+            );
+        }
+        if let Some(m) = p.float("maxcomponentvalue")?.filter(|m| m.is_finite()) {
+            self.warnings.warn(
+                loc,
+                format!(
+                    "Film: \"maxcomponentvalue\" {m} is not supported yet; bright samples are not clamped"
+                ),
+            );
+        }
+        // What only changes how pbrt stores its image.
+        p.find("savefp16", &[ParamType::Bool]);
+        p.find("diagonal", &[ParamType::Float]);
         Ok(())
     }
 
