@@ -377,7 +377,7 @@ fn quadrics_and_unsupported_shapes() {
     let loaded = load_world(
         "",
         "Translate 0 2 0\nShape \"sphere\" \"float radius\" 0.5\nShape \"disk\" \"float radius\" 2\n\
-         Shape \"cylinder\" \"float zmax\" 3 \"float phimax\" 180\nShape \"curve\"",
+         Shape \"cylinder\" \"float zmax\" 3 \"float phimax\" 180\nShape \"nurbs\"",
     )
     .unwrap();
     let s = &loaded.scene;
@@ -393,7 +393,7 @@ fn quadrics_and_unsupported_shapes() {
     assert!(cylinder.positions.iter().all(|p| (-1.0..=3.0).contains(&p.z) && p.y >= 2.0 - 1e-6));
     assert_eq!(cylinder.uvs.len(), cylinder.positions.len());
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(w, ["test.pbrt:7:1: unsupported shape \"curve\" skipped"]);
+    assert_eq!(w, ["test.pbrt:7:1: unsupported shape \"nurbs\" skipped"]);
 }
 
 #[test]

@@ -239,22 +239,19 @@ fn mix_materials_name_their_two_parts() {
 }
 
 #[test]
-fn curves_are_skipped_once_then_counted() {
+fn unsupported_shapes_are_skipped_once_then_counted_and_curves_made() {
     let curve =
         "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 1 1 0 0 1 0] \"float width\" 0.1 \"string type\" \"flat\"";
     let tri = TRI.replace("\"point P\"", "\"point3 P\"");
-    let text = format!("WorldBegin\n{tri}\n{curve}\n{curve}\n{curve}\nShape \"hyperboloid\"\n");
+    let odd = "Shape \"hyperboloid\"";
+    let text = format!("WorldBegin\n{tri}\n{odd}\n{odd}\n{odd}\n{curve}\n{curve}\n");
     let loaded = load_str(&text, "c.pbrt", Path::new(".")).unwrap();
-    assert_eq!(loaded.scene.meshes.len(), 1);
+    assert_eq!(loaded.scene.meshes.len(), 3, "the triangle and two curves");
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(
-        w,
-        [
-            "c.pbrt:3:1: unsupported shape \"curve\" skipped",
-            "c.pbrt:6:1: unsupported shape \"hyperboloid\" skipped",
-            "c.pbrt:3:1: 3 unsupported \"curve\" shapes skipped in all (the first is here)"
-        ]
-    );
+    assert_eq!(w.len(), 3, "{w:#?}");
+    assert_eq!(w[0], "c.pbrt:3:1: unsupported shape \"hyperboloid\" skipped");
+    assert!(w[1].starts_with("c.pbrt:6:1: curves are swept into triangles"), "{w:#?}");
+    assert_eq!(w[2], "c.pbrt:3:1: 3 unsupported \"hyperboloid\" shapes skipped in all (the first is here)");
 }
 
 #[test]

@@ -148,6 +148,8 @@ pub struct Builder {
     textures: NamedTextures,
     /// Whether bump, displacement and normal maps were warned about.
     warned_bump_maps: bool,
+    /// Whether the tessellation of curves was warned about.
+    warned_curves: bool,
     /// Unsupported shape types: how many were skipped, and where the first was.
     skipped_shapes: Vec<(String, u64, FileLoc)>,
     /// pbrt-v3 spellings already warned about.
@@ -182,6 +184,7 @@ impl Builder {
             warned_transform_begin: false,
             textures: NamedTextures::default(),
             warned_bump_maps: false,
+            warned_curves: false,
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
         }
@@ -501,6 +504,14 @@ impl Builder {
                 self.skip_shape(&name, &loc);
             }
             E::Shape => {
+                if name == "curve" && !self.warned_curves {
+                    self.warned_curves = true;
+                    w.warn(
+                        &loc,
+                        "curves are swept into triangles (flat and cylinder curves into tubes of 4 sides, \
+                         ribbons into strips); pbrt intersects them exactly (reported once)",
+                    );
+                }
                 if let Some(source) = shapes::shape_source(&name, &p, &loc, &self.base_dir, w)? {
                     let alpha = self.shape_alpha(&name, &p, &loc)?;
                     self.add_shape(source, alpha, &loc);

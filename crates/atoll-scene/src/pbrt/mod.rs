@@ -21,6 +21,7 @@
 
 mod ahead;
 pub mod builder;
+pub mod curves;
 pub mod entities;
 pub mod params;
 pub mod parser;

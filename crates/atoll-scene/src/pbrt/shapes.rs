@@ -1,7 +1,8 @@
 //! `Shape` directives as triangle meshes in object space (before the CTM):
-//! `trianglemesh`, `plymesh`, `loopsubdiv`, `bilinearmesh`, and the
-//! quadrics `sphere`, `disk` and `cylinder` (tessellated,
-//! [`super::quadrics`]). Other pbrt shapes are skipped with a warning.
+//! `trianglemesh`, `plymesh`, `loopsubdiv`, `bilinearmesh`, the quadrics
+//! `sphere`, `disk` and `cylinder` (tessellated, [`super::quadrics`]) and
+//! `curve` (swept into tubes and strips, [`super::curves`]). Other pbrt
+//! shapes are skipped with a warning.
 //! Checks follow pbrt-v4's `Triangle::CreateMesh`.
 
 use std::path::Path;
@@ -28,7 +29,7 @@ pub struct ShapeMesh {
 
 /// The shape types [`shape_mesh`] turns into triangles.
 pub const SUPPORTED: &[&str] =
-    &["trianglemesh", "plymesh", "sphere", "disk", "cylinder", "loopsubdiv", "bilinearmesh"];
+    &["trianglemesh", "plymesh", "sphere", "disk", "cylinder", "curve", "loopsubdiv", "bilinearmesh"];
 
 /// Where a shape's triangles come from: made from the directive's
 /// parameters, or a PLY file read later ([`ShapeSource::mesh`]), in
@@ -110,6 +111,7 @@ fn made_mesh(
             let phimax = p.float_or("phimax", 360.0)?;
             quadric("cylinder", quadrics::cylinder(radius, zmin, zmax, phimax), loc)
         }
+        "curve" => quadric("curve", super::curves::curve(p, loc)?, loc),
         _ => {
             p.mark_all_used();
             w.warn(loc, format!("unsupported shape \"{ty}\" skipped"));
@@ -118,8 +120,8 @@ fn made_mesh(
     }
 }
 
-/// A tessellated quadric, its few thousand triangles drawn from the
-/// scene's budget (made first: they take less memory than the check).
+/// A tessellated quadric or curve, its few thousand triangles at most drawn
+/// from the scene's budget (made first: they take less memory than the check).
 fn quadric(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<ShapeMesh>, SceneError> {
     generate(what, Some(mesh.indices.len() as u64), loc)?;
     Ok(Some(mesh))
