@@ -45,7 +45,7 @@ fn bezier_segments(
     let d = degree as usize;
     match (basis, degree) {
         ("bezier", 2 | 3) => {
-            if p.len() < d + 1 || (p.len() - 1) % d != 0 {
+            if p.len() < d + 1 || !(p.len() - 1).is_multiple_of(d) {
                 return bad(format!(
                     "a degree {d} Bézier curve needs {d}k + 1 points \"P\", got {}",
                     p.len()
