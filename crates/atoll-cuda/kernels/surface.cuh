@@ -89,7 +89,8 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
                 ProgramRange range;
                 range.start = c0.x;
                 range.len = c0.y;
-                amount = clampf(run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), nullptr).x, 0.0f, 1.0f);
+                amount = clampf(run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, nullptr).x,
+                                0.0f, 1.0f);
             }
 #endif
             unsigned int next;
@@ -116,7 +117,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         ProgramRange range;
         range.start = meta.y;
         range.len = meta.z;
-        run_program(p, range, uv, coeffs);
+        run_program(p, range, uv, position, coeffs);
         c0 = cw[0];
         c1 = cw[1];
     }

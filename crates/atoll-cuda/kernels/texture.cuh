@@ -36,6 +36,12 @@ inline constexpr unsigned int TEX_CHECKERBOARD = 2u;
 inline constexpr unsigned int TEX_SCALE = 3u;
 inline constexpr unsigned int TEX_MIX = 4u;
 inline constexpr unsigned int TEX_STORE = 5u;
+inline constexpr unsigned int TEX_PROJECT = 6u;
+inline constexpr unsigned int TEX_DATA = 7u;
+inline constexpr unsigned int TEX_PROJECTED = 16777216u;
+inline constexpr unsigned int PROJECT_SPHERICAL = 0u;
+inline constexpr unsigned int PROJECT_CYLINDRICAL = 1u;
+inline constexpr unsigned int PROJECT_PLANAR = 2u;
 inline constexpr unsigned int STORE_RGB = 0u;
 inline constexpr unsigned int STORE_FLOAT = 1u;
 inline constexpr unsigned int STORE_ROUGHNESS = 2u;
@@ -219,21 +225,52 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
     }
 }
 
+/// `texture::project`: (s, t) of the hit point `position` under the
+/// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops after).
+__device__ float2 project(const TexOp* ops, unsigned int k, float3 position) {
+    float q[3];
+#pragma unroll
+    for (int r = 0; r < 3; ++r) {
+        const TexOp& row = ops[k + r];
+        q[r] = row.f[0] * position.x + row.f[1] * position.y + row.f[2] * position.z + row.f[3];
+    }
+    const float pi = 3.14159265358979323846f, tau = 6.28318530717958647692f;
+    if (ops[k].a == PROJECT_SPHERICAL) {
+        const float3 d = normalize_or_zero3(make_float3(q[0], q[1], q[2]));
+        const float theta = acosf(clampf(d.z, -1.0f, 1.0f));
+        float phi = atan2f(d.y, d.x);
+        if (phi < 0.0f) phi += tau;
+        return make_float2(theta * (1.0f / pi), phi / tau);
+    }
+    if (ops[k].a == PROJECT_CYLINDRICAL) return make_float2((pi + atan2f(q[1], q[0])) / tau, q[2]);
+    return make_float2(q[0], q[1]);
+}
+
 /// `texture::run_program`: stores go into `coeffs` (may be null for alpha
-/// programs); returns the top of the stack.
-__device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange range, float2 uv,
+/// programs); returns the top of the stack. `position` is the hit point
+/// that 3D mappings (PROJECT ops) map.
+__device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange range, float2 uv, float3 position,
                                            unsigned short* coeffs) {
     float3 stack[TEXTURE_STACK];
     int sp = 0;
     const TexOp* ops = reinterpret_cast<const TexOp*>(p.texture_ops) + range.start;
     for (unsigned int k = 0; k < range.len; ++k) {
         const TexOp o = ops[k];
+        // A projected op pops its (s, t); others map the hit's uv.
+        float2 coords = uv;
+        if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD) && (o.b & TEX_PROJECTED)) {
+            --sp;
+            coords = make_float2(stack[sp].x, stack[sp].y);
+        }
         if (o.code == TEX_CONSTANT) {
             stack[sp++] = make_float3(o.f[0], o.f[1], o.f[2]);
+        } else if (o.code == TEX_PROJECT) {
+            const float2 st = project(ops, k, position);
+            stack[sp++] = make_float3(st.x, st.y, 0.0f);
         } else if (o.code == TEX_IMAGE) {
-            stack[sp++] = image_lookup(p, o, uv);
+            stack[sp++] = image_lookup(p, o, coords);
         } else if (o.code == TEX_CHECKERBOARD) {
-            const float2 st = apply_mapping(o, uv);
+            const float2 st = apply_mapping(o, coords);
             float parity = fmodf(floorf(st.x) + floorf(st.y), 2.0f);
             if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
             --sp;
@@ -291,7 +328,8 @@ __device__ __forceinline__ float3 emission_texture_value(const FrameParams& p, u
     ProgramRange range;
     range.start = t.start;
     range.len = t.len;
-    return run_program(p, range, uv, nullptr);
+    // An area light's image is looked up by uv: no 3D mapping needs the point.
+    return run_program(p, range, uv, make_float3(0.0f, 0.0f, 0.0f), nullptr);
 }
 
 /// `texture::alpha_hash`.
@@ -314,7 +352,8 @@ __device__ __noinline__ bool alpha_keeps(const FrameParams& p, const SceneView& 
     const unsigned int i0 = s.triangles[3ull * tri], i1 = s.triangles[3ull * tri + 1],
                        i2 = s.triangles[3ull * tri + 2];
     const float2 uv = hit_uv(s, mesh, i0, i1, i2, u, v);
-    const float alpha = run_program(p, ap.program, uv, nullptr).x;
+    // The point where traversal sees the hit (`SceneTextures::keeps`).
+    const float alpha = run_program(p, ap.program, uv, o + d * t, nullptr).x;
     if (ap.mode == ALPHA_CUTOFF) return alpha >= ap.cutoff;
     return alpha >= 1.0f || (alpha > 0.0f && alpha_hash(o, d, t) < alpha);
 }

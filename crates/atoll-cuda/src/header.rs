@@ -206,7 +206,9 @@ pub(crate) fn layout_asserts() -> String {
 /// Texture program op codes, store modes, alpha modes and the asserts of
 /// the program structs (`atoll_render::texture`).
 pub(crate) fn texture_constants() -> String {
-    use atoll_render::texture::{alpha_mode, op, store, AlphaProgram, ProgramRange, TexOp, TEXTURE_STACK};
+    use atoll_render::texture::{
+        alpha_mode, op, projection, store, AlphaProgram, ProgramRange, TexOp, PROJECTED, TEXTURE_STACK,
+    };
     let mut s = String::new();
     for (name, value) in [
         ("TEXTURE_STACK", TEXTURE_STACK as u32),
@@ -216,6 +218,12 @@ pub(crate) fn texture_constants() -> String {
         ("TEX_SCALE", op::SCALE),
         ("TEX_MIX", op::MIX),
         ("TEX_STORE", op::STORE),
+        ("TEX_PROJECT", op::PROJECT),
+        ("TEX_DATA", op::DATA),
+        ("TEX_PROJECTED", PROJECTED),
+        ("PROJECT_SPHERICAL", projection::SPHERICAL),
+        ("PROJECT_CYLINDRICAL", projection::CYLINDRICAL),
+        ("PROJECT_PLANAR", projection::PLANAR),
         ("STORE_RGB", store::RGB),
         ("STORE_FLOAT", store::FLOAT),
         ("STORE_ROUGHNESS", store::ROUGHNESS),

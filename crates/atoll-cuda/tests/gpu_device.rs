@@ -201,6 +201,34 @@ fn textures_and_alpha_cut_outs_match_the_cpu_device() {
     }
 }
 
+/// 3D texture mappings (pbrt's planar, spherical and cylindrical) give the
+/// GPU the same textured materials and mix choices as the CPU: both
+/// checkerboards of the cut-out scene (the ground's reflectance, the
+/// screen's mix amount) mapped from the hit point.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn projected_textures_match_the_cpu_device() {
+    use atoll_scene::texture_scenes::{cutout_scene, Screen};
+    use atoll_scene::{TexMapping, Texture};
+    let Some(gpu) = gpu_or_skip("projected textures") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let texture_from_world = glam::Affine3A::from_translation(Vec3::new(0.3, -0.2, 0.1));
+    let (vs, vt) = (Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.5, 0.5));
+    for mapping in [
+        TexMapping::Planar { texture_from_world, vs, vt, ds: 0.25, dt: 0.0 },
+        TexMapping::Spherical { texture_from_world },
+        TexMapping::Cylindrical { texture_from_world },
+    ] {
+        let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+        for t in &mut scene.textures.textures {
+            if let Texture::Checkerboard { mapping: m, .. } = t {
+                *m = mapping;
+            }
+        }
+        assert_renders_match(&mut cuda, &Arc::new(scene), &format!("{mapping:?}"));
+    }
+}
+
 /// Emission textures: light sampling and emitter hits on the GPU scale the
 /// light exactly as on the CPU (checkerboard emission, seen directly and
 /// lighting a floor).
@@ -212,7 +240,7 @@ fn emission_textures_match_the_cpu_device() {
     let Some(gpu) = gpu_or_skip("emission textures") else { return };
     let mut cuda = CudaDevice::on(gpu);
     let checker = Texture::Checkerboard {
-        mapping: UvMapping { su: 4.0, sv: 4.0, du: 0.0, dv: 0.0 },
+        mapping: UvMapping { su: 4.0, sv: 4.0, du: 0.0, dv: 0.0 }.into(),
         tex: [TexInput::Value(Rgb::new(0.2, 0.5, 1.0)), TexInput::Value(Rgb::splat(2.0))],
     };
     for (eye, target) in

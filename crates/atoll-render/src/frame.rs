@@ -153,7 +153,9 @@ impl FrameContext {
                 amount
             } else {
                 let ops = &self.textures.ops[program.start as usize..(program.start + program.len) as usize];
-                let value = run_program(ops, &self.images, uv(), &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
+                let position = glam::Vec3::from(r.position);
+                let value =
+                    run_program(ops, &self.images, uv(), position, &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
                 value.clamp(0.0, 1.0)
             };
             if u < amount {
@@ -245,7 +247,7 @@ mod tests {
         // A textured amount chooses by the texture at the hit: a checkerboard
         // of 0 and 1 picks the first material on even squares, the second on odd.
         let checker = scene.textures.add(atoll_scene::Texture::Checkerboard {
-            mapping: atoll_scene::UvMapping::default(),
+            mapping: atoll_scene::UvMapping::default().into(),
             tex: [atoll_scene::TexInput::Value(Rgb::ZERO), atoll_scene::TexInput::Value(Rgb::ONE)],
         });
         let textured = scene.add_material(Material::Mix { materials: [a, b], amount: 0.5 });

@@ -594,7 +594,16 @@ impl LightSet {
     fn texture_value(&self, t: &EmissionTexture, b: [f32; 3]) -> Rgb {
         let uv = t.uv[0] * b[0] + t.uv[1] * b[1] + t.uv[2] * b[2];
         let ops = &self.emission_ops[t.program.start as usize..(t.program.start + t.program.len) as usize];
-        texture::run_program(ops, &self.images, uv, &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS])
+        // An area light's image is looked up by uv (pbrt's `DiffuseAreaLight`):
+        // no 3D mapping needs the point.
+        let nowhere = glam::Vec3::ZERO;
+        texture::run_program(
+            ops,
+            &self.images,
+            uv,
+            nowhere,
+            &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS],
+        )
     }
 
     /// Solid-angle pdf (with selection) that [`LightSet::sample`] at `p`

@@ -20,8 +20,8 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, ImageId, Material, Scene, TexInput, Texture, TextureId, TextureImage, TexturedParam,
-    UvMapping, Wrap,
+    AlphaMode, Channel, ImageId, Material, Scene, TexInput, TexMapping, Texture, TextureId, TextureImage,
+    TexturedParam, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3, Vec3A};
@@ -51,7 +51,29 @@ pub mod op {
     pub const MIX: u32 = 4;
     /// Pop a value and store it into coefficients `a ..` as [`super::store`] `b` says.
     pub const STORE: u32 = 5;
+    /// Push `(s, t, 0)`, the hit point's coordinates under a 3D mapping:
+    /// `a` is the [`super::projection`] kind, `f` and the `f` of the two
+    /// [`DATA`] ops after it the three rows of its 3×4 matrix.
+    pub const PROJECT: u32 = 6;
+    /// Rows of a [`PROJECT`]'s matrix; nothing when run.
+    pub const DATA: u32 = 7;
 }
+
+/// The kinds of [`op::PROJECT`], pbrt-v4's 3D texture mappings of the hit
+/// point `p`: `q` is the matrix times `(p, 1)`.
+pub mod projection {
+    /// `(θ / π, φ / 2π)` of the direction to `q`.
+    pub const SPHERICAL: u32 = 0;
+    /// `((π + atan2(q.y, q.x)) / 2π, q.z)`.
+    pub const CYLINDRICAL: u32 = 1;
+    /// `(q.x, q.y)`: the rows hold the planar mapping's `vs`, `vt`, `ds`, `dt`.
+    pub const PLANAR: u32 = 2;
+}
+
+/// Set in `b` of an [`op::IMAGE`] or [`op::CHECKERBOARD`]: it pops its
+/// `(s, t)` from the stack (an [`op::PROJECT`]) instead of mapping the
+/// hit's `uv`.
+pub const PROJECTED: u32 = 1 << 24;
 
 /// How [`op::STORE`] writes a value into the material coefficients.
 pub mod store {
@@ -288,18 +310,20 @@ fn compile(
             if *image as usize >= textures.images.len() {
                 return Err(TextureCompileError::NoImage(*image));
             }
+            let (f, projected) = mapping_ops(mapping, out, depth)?;
             out.push(TexOp {
                 code: op::IMAGE,
                 a: *image,
-                b: *wrap as u32 | (*channel as u32) << 8 | (*invert as u32) << 16,
+                b: *wrap as u32 | (*channel as u32) << 8 | (*invert as u32) << 16 | projected,
                 c: scale.to_bits(),
-                f: mapping_words(mapping),
+                f,
             })
         }
         Texture::Checkerboard { mapping, tex } => {
             input(out, &tex[0], depth)?;
             input(out, &tex[1], depth + 1)?;
-            out.push(TexOp { code: op::CHECKERBOARD, f: mapping_words(mapping), ..Default::default() });
+            let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
+            out.push(TexOp { code: op::CHECKERBOARD, b: projected, f, ..Default::default() });
         }
         Texture::Scale { tex, scale } => {
             input(out, tex, depth)?;
@@ -320,8 +344,61 @@ fn constant(v: Vec3) -> TexOp {
     TexOp { code: op::CONSTANT, f: [v.x, v.y, v.z, 0.0], ..Default::default() }
 }
 
-fn mapping_words(m: &UvMapping) -> [f32; 4] {
-    [m.su, m.sv, m.du, m.dv]
+/// The uv mapping words of an op reading `mapping`, and its [`PROJECTED`]
+/// flag; a 3D mapping first appends its [`op::PROJECT`] (run at stack
+/// depth `depth`) to `out`, and the op then maps `(s, t)` unchanged.
+fn mapping_ops(
+    mapping: &TexMapping,
+    out: &mut Vec<TexOp>,
+    depth: usize,
+) -> Result<([f32; 4], u32), TextureCompileError> {
+    let (kind, rows) = match *mapping {
+        TexMapping::Uv(m) => return Ok(([m.su, m.sv, m.du, m.dv], 0)),
+        TexMapping::Spherical { texture_from_world } => (projection::SPHERICAL, rows_of(&texture_from_world)),
+        TexMapping::Cylindrical { texture_from_world } => {
+            (projection::CYLINDRICAL, rows_of(&texture_from_world))
+        }
+        TexMapping::Planar { texture_from_world, vs, vt, ds, dt } => {
+            // s = ds + vs · (M p + c): one affine row per coordinate.
+            let m = glam::Mat3::from(texture_from_world.matrix3);
+            let c = Vec3::from(texture_from_world.translation);
+            let row = |v: Vec3, d: f32| (m.transpose() * v).extend(d + v.dot(c)).to_array();
+            (projection::PLANAR, [row(vs, ds), row(vt, dt), [0.0; 4]])
+        }
+    };
+    if depth >= TEXTURE_STACK {
+        return Err(TextureCompileError::StackTooDeep);
+    }
+    out.push(TexOp { code: op::PROJECT, a: kind, f: rows[0], ..Default::default() });
+    out.extend(rows[1..].iter().map(|&f| TexOp { code: op::DATA, f, ..Default::default() }));
+    Ok(([1.0, 1.0, 0.0, 0.0], PROJECTED))
+}
+
+/// The three rows of an affine map as a 3×4 matrix.
+fn rows_of(a: &glam::Affine3A) -> [[f32; 4]; 3] {
+    let m = glam::Mat3::from(a.matrix3);
+    let c = Vec3::from(a.translation);
+    [0, 1, 2].map(|r| m.row(r).extend(c[r]).to_array())
+}
+
+/// `(s, t)` of the hit point `position` under the [`op::PROJECT`] at `ops[k]`.
+fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec2 {
+    let row = |i: usize| glam::Vec4::from_array(ops[k + i].f);
+    let p = position.extend(1.0);
+    let q = Vec3::new(row(0).dot(p), row(1).dot(p), row(2).dot(p));
+    match ops[k].a {
+        projection::SPHERICAL => {
+            let d = q.normalize_or_zero();
+            let theta = d.z.clamp(-1.0, 1.0).acos();
+            let phi = d.y.atan2(d.x);
+            let phi = if phi < 0.0 { phi + std::f32::consts::TAU } else { phi };
+            Vec2::new(theta * std::f32::consts::FRAC_1_PI, phi / std::f32::consts::TAU)
+        }
+        projection::CYLINDRICAL => {
+            Vec2::new((std::f32::consts::PI + q.y.atan2(q.x)) / std::f32::consts::TAU, q.z)
+        }
+        _ => Vec2::new(q.x, q.y),
+    }
 }
 
 /// Where a textured parameter goes in the coefficients of a material kind
@@ -381,28 +458,44 @@ pub fn hit_uv(uvs: Option<[Vec2; 3]>, b1: f32, b2: f32) -> Vec2 {
     }
 }
 
-/// Runs `ops` at `uv`: stores go into `coeffs`; returns what is left on
-/// top of the stack (an alpha program's alpha).
+/// Runs `ops` at a hit of texture coordinates `uv` and (for 3D mappings)
+/// point `position`: stores go into `coeffs`; returns what is left on top
+/// of the stack (an alpha program's alpha).
 pub fn run_program(
     ops: &[TexOp],
     images: &[Arc<TextureImage>],
     uv: Vec2,
+    position: Vec3,
     coeffs: &mut [f16; MATERIAL_COEFFS],
 ) -> Vec3 {
     let mut stack = [Vec3::ZERO; TEXTURE_STACK];
     let mut sp = 0usize;
-    for o in ops {
+    // An op's (s, t) before its own mapping: projected ones pop theirs.
+    let coords = |o: &TexOp, stack: &[Vec3], sp: &mut usize| {
+        if o.b & PROJECTED == 0 {
+            return uv;
+        }
+        *sp -= 1;
+        stack[*sp].truncate()
+    };
+    for (k, o) in ops.iter().enumerate() {
         match o.code {
             op::CONSTANT => {
                 stack[sp] = Vec3::new(o.f[0], o.f[1], o.f[2]);
                 sp += 1;
             }
+            op::PROJECT => {
+                stack[sp] = project(ops, k, position).extend(0.0);
+                sp += 1;
+            }
             op::IMAGE => {
-                stack[sp] = image_lookup(o, images, uv);
+                let st = coords(o, &stack, &mut sp);
+                stack[sp] = image_lookup(o, images, st);
                 sp += 1;
             }
             op::CHECKERBOARD => {
-                let st = apply_mapping(o.f, uv);
+                let st = coords(o, &stack, &mut sp);
+                let st = apply_mapping(o.f, st);
                 let even = (st.x.floor() + st.y.floor()).rem_euclid(2.0) == 0.0;
                 sp -= 1;
                 if even {
@@ -568,11 +661,12 @@ impl SceneTextures<'_> {
         hit_uv(uvs, b1, b2)
     }
 
-    /// Overwrites the textured coefficients of material `id` at `uv`.
-    pub fn apply(&self, id: u32, uv: Vec2, coeffs: &mut [f16; MATERIAL_COEFFS]) {
+    /// Overwrites the textured coefficients of material `id` at a hit of
+    /// texture coordinates `uv` and world-space point `position`.
+    pub fn apply(&self, id: u32, uv: Vec2, position: Vec3, coeffs: &mut [f16; MATERIAL_COEFFS]) {
         let range = self.tables.materials[id as usize];
         if !range.is_empty() {
-            run_program(self.ops(range), &self.scene.textures.images, uv, coeffs);
+            run_program(self.ops(range), &self.scene.textures.images, uv, position, coeffs);
         }
     }
 
@@ -590,7 +684,11 @@ impl HitFilter for SceneTextures<'_> {
         let Some(program) = self.tables.alpha_of(mesh) else { return true };
         let uv = self.uv(mesh, triangle, u, v);
         let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
-        let alpha = run_program(self.ops(program.program), &self.scene.textures.images, uv, &mut scratch).x;
+        // The point where traversal sees the hit: world space, except inside
+        // instances (object space there; pbrt's 3D mappings take the world's).
+        let position = Vec3::from(origin + dir * t);
+        let alpha =
+            run_program(self.ops(program.program), &self.scene.textures.images, uv, position, &mut scratch).x;
         alpha_keeps(program, alpha, origin, dir, t)
     }
 }
@@ -600,6 +698,57 @@ mod tests {
     use super::*;
     use crate::material_layout::diffuse;
     use atoll_scene::{MeshAlpha, TextureBinding};
+
+    /// (s, t) under a 3D mapping at `position`, through the ops it compiles to.
+    fn projected(mapping: TexMapping, position: Vec3) -> Vec2 {
+        let mut ops = Vec::new();
+        let (f, flag) = mapping_ops(&mapping, &mut ops, 0).unwrap();
+        assert_eq!((f, flag, ops.len()), ([1.0, 1.0, 0.0, 0.0], PROJECTED, 3));
+        assert_eq!(ops.iter().map(|o| o.code).collect::<Vec<_>>(), [op::PROJECT, op::DATA, op::DATA]);
+        project(&ops, 0, position)
+    }
+
+    /// pbrt-v4's spherical, cylindrical and planar mappings, in the
+    /// texture's space (`texture_from_world`, here a shift by -1 in x).
+    #[test]
+    fn projections_follow_pbrt() {
+        use std::f32::consts::PI;
+        let texture_from_world = glam::Affine3A::from_translation(Vec3::new(-1.0, 0.0, 0.0));
+        let close = |a: Vec2, b: Vec2| (a - b).abs().max_element() < 1e-6;
+        let sphere = |p: Vec3| projected(TexMapping::Spherical { texture_from_world }, p);
+        assert!(close(sphere(Vec3::new(1.0, 0.0, 2.0)), Vec2::new(0.0, 0.0)), "+z: θ = 0");
+        assert!(close(sphere(Vec3::new(3.0, 0.0, 0.0)), Vec2::new(0.5, 0.0)), "+x: θ = π/2, φ = 0");
+        assert!(close(sphere(Vec3::new(1.0, 5.0, 0.0)), Vec2::new(0.5, 0.25)), "+y: φ = π/2");
+        assert!(close(sphere(Vec3::new(1.0, -5.0, 0.0)), Vec2::new(0.5, 0.75)), "-y: φ = 3π/2");
+        let cylinder = |p: Vec3| projected(TexMapping::Cylindrical { texture_from_world }, p);
+        assert!(close(cylinder(Vec3::new(2.0, 0.0, 5.0)), Vec2::new(0.5, 5.0)), "+x: (π + 0) / 2π");
+        assert!(close(cylinder(Vec3::new(1.0, 1.0, -1.0)), Vec2::new((PI + PI / 2.0) / (2.0 * PI), -1.0)));
+        let planar = |p: Vec3| {
+            let (vs, vt) = (Vec3::new(0.0, 0.0, 2.0), Vec3::new(0.0, 1.0, 0.0));
+            projected(TexMapping::Planar { texture_from_world, vs, vt, ds: 0.25, dt: -1.0 }, p)
+        };
+        assert!(close(planar(Vec3::new(7.0, 3.0, 0.5)), Vec2::new(0.25 + 1.0, -1.0 + 3.0)));
+    }
+
+    /// A projected checkerboard takes its squares from the point, not the
+    /// surface's uv, and keeps its inputs' order on the stack.
+    #[test]
+    fn projected_checkerboards_read_the_point() {
+        let mut scene = Scene::default();
+        let texture_from_world = glam::Affine3A::IDENTITY;
+        let (vs, vt) = (Vec3::X, Vec3::Y);
+        scene.textures.add(Texture::Checkerboard {
+            mapping: TexMapping::Planar { texture_from_world, vs, vt, ds: 0.0, dt: 0.0 },
+            tex: [TexInput::Value(Rgb::splat(0.2)), TexInput::Value(Rgb::splat(0.8))],
+        });
+        let mut ops = Vec::new();
+        compile_texture(&scene, 0, &mut ops).unwrap();
+        let at =
+            |p: Vec3| run_program(&ops, &[], Vec2::new(0.5, 0.5), p, &mut [f16::ZERO; MATERIAL_COEFFS]).x;
+        assert_eq!(at(Vec3::new(0.5, 0.5, 9.0)), 0.2);
+        assert_eq!(at(Vec3::new(1.5, 0.5, 9.0)), 0.8);
+        assert_eq!(at(Vec3::new(-0.5, 0.5, 0.0)), 0.8);
+    }
 
     fn image(texels: Vec<[f32; 4]>, w: u32, h: u32) -> Arc<TextureImage> {
         Arc::new(TextureImage::from_linear("t", w, h, texels))
@@ -616,7 +765,7 @@ mod tests {
     }
 
     fn eval(ops: &[TexOp], images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
-        run_program(ops, images, uv, &mut [f16::ZERO; MATERIAL_COEFFS])
+        run_program(ops, images, uv, Vec3::ZERO, &mut [f16::ZERO; MATERIAL_COEFFS])
     }
 
     /// Texel centres return the texel; halfway between two, their mean;
@@ -678,7 +827,7 @@ mod tests {
             scale: TexInput::Value(Rgb::new(1.0, 0.5, 2.0)),
         });
         let checker = t.add(Texture::Checkerboard {
-            mapping: UvMapping { su: 2.0, sv: 2.0, du: 0.0, dv: 0.0 },
+            mapping: atoll_scene::UvMapping { su: 2.0, sv: 2.0, du: 0.0, dv: 0.0 }.into(),
             tex: [TexInput::Value(Rgb::splat(0.9)), TexInput::Texture(scaled)],
         });
         t.bind(TextureBinding {
@@ -712,7 +861,7 @@ mod tests {
         let st = SceneTextures { scene: &scene, tables: &tables };
         let coeffs_at = |id: u32, uv: Vec2| {
             let mut c = [f16::ZERO; MATERIAL_COEFFS];
-            st.apply(id, uv, &mut c);
+            st.apply(id, uv, Vec3::ZERO, &mut c);
             c.map(f16::to_f32)
         };
         let reflectance = diffuse::REFLECTANCE..diffuse::REFLECTANCE + 3;
@@ -902,7 +1051,7 @@ mod binding_tests {
             let tables = TextureTables::new(&scene, &[packed.kind]);
             assert!(!tables.materials[0].is_empty(), "{param:?} on {base:?} was dropped");
             let mut coeffs = packed.coeffs;
-            SceneTextures { scene: &scene, tables: &tables }.apply(m, Vec2::ZERO, &mut coeffs);
+            SceneTextures { scene: &scene, tables: &tables }.apply(m, Vec2::ZERO, Vec3::ZERO, &mut coeffs);
             assert_eq!(coeffs, PackedMaterial::pack(&expected).coeffs, "{param:?} on {base:?}");
         }
     }

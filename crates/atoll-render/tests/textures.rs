@@ -76,7 +76,7 @@ fn emission_textures_scale_light_sampling_and_emitter_hits() {
     let half = mean_of(&lit_floor(Some(Texture::Constant(Rgb::splat(0.5))), eye, target));
     assert!((half / plain - 0.5).abs() < 0.01, "half-scaled light: {half} vs {plain}");
     let checker = Texture::Checkerboard {
-        mapping: UvMapping { su: 16.0, sv: 16.0, du: 0.0, dv: 0.0 },
+        mapping: UvMapping { su: 16.0, sv: 16.0, du: 0.0, dv: 0.0 }.into(),
         tex: [TexInput::Value(Rgb::ZERO), TexInput::Value(Rgb::splat(2.0))],
     };
     let checkered = mean_of(&lit_floor(Some(checker.clone()), eye, target));

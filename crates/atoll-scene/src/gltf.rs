@@ -657,7 +657,7 @@ pub fn convert_material(m: &::gltf::Material) -> Material {
 
 /// An image texture node with no inversion.
 fn image_node(image: ImageId, mapping: UvMapping, wrap: Wrap, channel: Channel, scale: f32) -> Texture {
-    Texture::Image { image, mapping, wrap, channel, scale, invert: false }
+    Texture::Image { image, mapping: mapping.into(), wrap, channel, scale, invert: false }
 }
 
 fn wrap_mode(m: ::gltf::texture::WrappingMode) -> Wrap {

@@ -291,8 +291,12 @@ struct MapSpec {
 /// the whole line). The file name may contain spaces.
 fn parse_map(spec: &str) -> MapSpec {
     let mut words = spec.split_whitespace().peekable();
-    let mut m =
-        MapSpec { file: String::new(), mapping: UvMapping::default(), wrap: Wrap::Repeat, channel: None };
+    let mut m = MapSpec {
+        file: String::new(),
+        mapping: UvMapping::default(),
+        wrap: Wrap::Repeat,
+        channel: None,
+    };
     let mut rest: Vec<&str> = Vec::new();
     while let Some(word) = words.next() {
         if !rest.is_empty() || !word.starts_with('-') {
@@ -355,7 +359,14 @@ fn parse_map(spec: &str) -> MapSpec {
 impl MapSpec {
     /// The image texture reading `channel` of `image` with this map's options.
     fn texture(&self, image: crate::ImageId, channel: Channel) -> Texture {
-        Texture::Image { image, mapping: self.mapping, wrap: self.wrap, channel, scale: 1.0, invert: false }
+        Texture::Image {
+            image,
+            mapping: self.mapping.into(),
+            wrap: self.wrap,
+            channel,
+            scale: 1.0,
+            invert: false,
+        }
     }
 }
 

@@ -400,6 +400,35 @@ impl UvMapping {
     pub const FLIP_V: UvMapping = UvMapping { su: 1.0, sv: -1.0, du: 0.0, dv: 1.0 };
 }
 
+/// How a texture finds its (s, t) at a hit: pbrt-v4's 2D texture mappings.
+/// The 3D ones map the hit point `p` (world space) through
+/// `texture_from_world`, the inverse of the transform current at the
+/// `Texture` statement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TexMapping {
+    /// The surface's (u, v), scaled and offset.
+    Uv(UvMapping),
+    /// `(θ / π, φ / 2π)` of the direction to `q = texture_from_world(p)`
+    /// (θ from +z, φ about z from +x).
+    Spherical { texture_from_world: glam::Affine3A },
+    /// `((π + atan2(q.y, q.x)) / 2π, q.z)`.
+    Cylindrical { texture_from_world: glam::Affine3A },
+    /// `(ds + vs · q, dt + vt · q)`.
+    Planar { texture_from_world: glam::Affine3A, vs: glam::Vec3, vt: glam::Vec3, ds: f32, dt: f32 },
+}
+
+impl Default for TexMapping {
+    fn default() -> Self {
+        TexMapping::Uv(UvMapping::default())
+    }
+}
+
+impl From<UvMapping> for TexMapping {
+    fn from(m: UvMapping) -> Self {
+        TexMapping::Uv(m)
+    }
+}
+
 /// A texture input that is either a value or another texture (pbrt lets
 /// most texture parameters be either).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -416,7 +445,7 @@ pub enum Texture {
     /// `max(0, 1 - v)` when `invert` (pbrt-v4's order).
     Image {
         image: ImageId,
-        mapping: UvMapping,
+        mapping: TexMapping,
         wrap: Wrap,
         channel: Channel,
         scale: f32,
@@ -424,7 +453,7 @@ pub enum Texture {
     },
     /// `tex[0]` where `floor(s) + floor(t)` is even, else `tex[1]`.
     Checkerboard {
-        mapping: UvMapping,
+        mapping: TexMapping,
         tex: [TexInput; 2],
     },
     /// The product of both inputs.

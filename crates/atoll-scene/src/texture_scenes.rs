@@ -59,7 +59,7 @@ pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
     let red = scene.add_material(Material::Diffuse { reflectance: Rgb::new(0.3, 0.02, 0.02) });
     let screen_material = scene.add_material(Material::Mix { materials: [dark, red], amount: 0.5 });
     let squares = scene.textures.add(Texture::Checkerboard {
-        mapping: UvMapping { su: 0.5, sv: 0.5, du: 0.0, dv: 0.0 },
+        mapping: UvMapping { su: 0.5, sv: 0.5, du: 0.0, dv: 0.0 }.into(),
         tex: [crate::TexInput::Value(Rgb::ZERO), crate::TexInput::Value(Rgb::ONE)],
     });
     scene.textures.bind(TextureBinding {
@@ -69,7 +69,7 @@ pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
         remap_roughness: false,
     });
     let checker = scene.textures.add(Texture::Checkerboard {
-        mapping: UvMapping::default(),
+        mapping: UvMapping::default().into(),
         tex: [crate::TexInput::Value(Rgb::splat(0.8)), crate::TexInput::Value(Rgb::splat(0.6))],
     });
     scene.textures.bind(TextureBinding {
@@ -89,7 +89,7 @@ pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
             ));
             let mask = scene.textures.add(Texture::Image {
                 image,
-                mapping: UvMapping::default(),
+                mapping: UvMapping::default().into(),
                 wrap: Wrap::Repeat,
                 channel: Channel::Alpha,
                 scale: 1.0,

@@ -309,7 +309,7 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene) {
     let mapping = UvMapping { su: 2.0, sv: -4.0, du: 0.5, dv: 0.75 };
     let node = |channel: Channel, scale: f32| Texture::Image {
         image: 0,
-        mapping,
+        mapping: mapping.into(),
         wrap: Wrap::Mirror,
         channel,
         scale,

@@ -146,7 +146,7 @@ fn gltf_box_textured_in_three_packagings() {
         else {
             panic!("{rel}: {:?}", t.textures)
         };
-        assert_eq!((mapping, wrap, scale), (UvMapping::FLIP_V, wrap_u, 1.0), "{rel}");
+        assert_eq!((mapping, wrap, scale), (UvMapping::FLIP_V.into(), wrap_u, 1.0), "{rel}");
         assert!(s.meshes.iter().all(|m| m.alpha.is_none()), "{rel}: opaque");
         let w: Vec<&str> = l.warnings.iter().map(|w| w.message.as_str()).collect();
         let noted: &[&str] = match wrap_u {

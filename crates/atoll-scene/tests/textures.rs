@@ -10,8 +10,8 @@ use std::path::Path;
 use atoll_scene::pbrt::{load_str, LoadedScene};
 use atoll_scene::texture::srgb8_to_linear;
 use atoll_scene::{
-    load_any, AlphaMode, Channel, CoatedDiffuseParams, Material, MeshAlpha, Rgb, TexInput, Texels, Texture,
-    TexturedParam, UvMapping, Wrap,
+    load_any, AlphaMode, Channel, CoatedDiffuseParams, Material, MeshAlpha, Rgb, TexInput, TexMapping,
+    Texels, Texture, TexturedParam, UvMapping, Wrap,
 };
 use common::{allowing_missing, temp_dir, write};
 
@@ -66,7 +66,7 @@ fn texture_classes_with_values_and_nested_textures() {
         t.textures[0],
         Texture::Image {
             image: 0,
-            mapping,
+            mapping: mapping.into(),
             wrap: Wrap::Clamp,
             channel: Channel::Rgb,
             scale: 2.0,
@@ -85,7 +85,10 @@ fn texture_classes_with_values_and_nested_textures() {
     let mapping = UvMapping { su: 8.0, ..UvMapping::default() };
     assert_eq!(
         t.textures[4],
-        Texture::Checkerboard { mapping, tex: [TexInput::Texture(0), TexInput::Value(Rgb::Z)] }
+        Texture::Checkerboard {
+            mapping: mapping.into(),
+            tex: [TexInput::Texture(0), TexInput::Value(Rgb::Z)]
+        }
     );
     assert_eq!(t.textures[5], Texture::Scale { tex: TexInput::Texture(4), scale: TexInput::Texture(3) });
     // Two values fold into a constant.
@@ -212,18 +215,24 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
     at(2, "nowhere.png");
     at(3, "texture \"corrupt\": ");
     at(4, "texture \"marble\": class \"marble\" is not supported; using a constant");
-    at(5, "texture \"sphere\": the \"spherical\" mapping is not supported; using a constant");
     at(6, "texture \"cube\": 3D checkerboards are not supported; using a constant");
     at(7, "spectrum texture \"undefined\" is not defined before this line; \"reflectance\" uses its default");
     at(9, "\"corrupt\" is not a spectrum texture");
     at(11, "texture \"missing\" is defined again");
     assert!(w.iter().all(|w| w.ends_with("using a constant") || !w.contains("png")), "{w:#?}");
-    assert_eq!(w.len(), 8, "{w:#?}");
+    assert_eq!(w.len(), 7, "{w:#?}");
     let t = &l.scene.textures;
     assert!(t.images.is_empty());
     let grey = Texture::Constant(Rgb::splat(0.5));
     let one = Texture::Constant(Rgb::ONE);
-    assert_eq!(t.textures[..5], [grey.clone(), one.clone(), grey.clone(), grey, one]);
+    assert_eq!(t.textures[..3], [grey.clone(), one.clone(), grey]);
+    // The spherical mapping is pbrt-v4's, in the texture's space (here the world's).
+    let Texture::Checkerboard { mapping: TexMapping::Spherical { texture_from_world }, .. } = t.textures[3]
+    else {
+        panic!("{:?}", t.textures[3])
+    };
+    assert_eq!(texture_from_world, glam::Affine3A::IDENTITY);
+    assert_eq!(t.textures[4], one);
     assert!(bindings(&l, 0).is_empty() && bindings(&l, 1).is_empty());
     // The later definition is the one used after it.
     assert_eq!(bindings(&l, 2), [(TexturedParam::Reflectance, 5, false)]);
@@ -315,7 +324,7 @@ fn obj_map_kd_map_d_and_dissolve() {
         t.textures[0],
         Texture::Image {
             image: 0,
-            mapping: UvMapping::default(),
+            mapping: UvMapping::default().into(),
             wrap: Wrap::Repeat,
             channel: Channel::Rgb,
             scale: 1.0,
@@ -341,7 +350,7 @@ fn obj_map_kd_map_d_and_dissolve() {
     else {
         panic!("{:?}", t.textures[wall as usize])
     };
-    assert_eq!(m, mapping);
+    assert_eq!(m, mapping.into());
     let fence = s.meshes[1].alpha.unwrap();
     assert_eq!(fence.mode, AlphaMode::Cutoff(0.5));
     assert!(matches!(
@@ -458,4 +467,32 @@ fn mix_amount_textures_are_bound() {
     };
     assert_eq!(amount, 0.5);
     assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
+}
+
+/// pbrt-v4's planar mapping: `v1`, `v2`, `udelta`, `vdelta`, in the space
+/// of the transform current at the `Texture` statement.
+#[test]
+fn planar_mappings_take_the_textures_transform() {
+    let dir = temp_dir("tex-planar");
+    let l = load(
+        &dir,
+        "AttributeBegin\nTranslate 1 2 3\n\
+         Texture \"p\" \"float\" \"checkerboard\" \"string mapping\" \"planar\" \"vector3 v1\" [0 0 2] \"float udelta\" 0.5\n\
+         AttributeEnd\n\
+         Texture \"c\" \"float\" \"checkerboard\" \"string mapping\" \"cylindrical\"",
+    );
+    assert!(warnings(&l).is_empty(), "{:?}", warnings(&l));
+    let t = &l.scene.textures.textures;
+    let Texture::Checkerboard { mapping: TexMapping::Planar { texture_from_world, vs, vt, ds, dt }, .. } =
+        t[0]
+    else {
+        panic!("{:?}", t[0])
+    };
+    assert_eq!(texture_from_world, glam::Affine3A::from_translation(glam::Vec3::new(-1.0, -2.0, -3.0)));
+    assert_eq!((vs, vt, ds, dt), (glam::Vec3::new(0.0, 0.0, 2.0), glam::Vec3::Y, 0.5, 0.0));
+    let Texture::Checkerboard { mapping: TexMapping::Cylindrical { texture_from_world }, .. } = t[1] else {
+        panic!("{:?}", t[1])
+    };
+    assert_eq!(texture_from_world, glam::Affine3A::IDENTITY);
+    std::fs::remove_dir_all(&dir).ok();
 }

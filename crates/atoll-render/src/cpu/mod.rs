@@ -245,7 +245,7 @@ fn write_hit(
     let (material, packed) = frame.material_at(mesh.material, r, uv);
     packed.store(r);
     if !frame.textures.materials[material as usize].is_empty() {
-        textures.apply(material, uv(), &mut r.coeffs);
+        textures.apply(material, uv(), p, &mut r.coeffs);
     }
 }
 

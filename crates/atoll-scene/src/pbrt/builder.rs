@@ -30,7 +30,7 @@ use super::params::{Param, ParamList, ParamType};
 use super::parser::{Directive, EntityKind, Parser, RawParam, Statement};
 use super::pending::{PendingShape, ShapePlace};
 use super::shapes::{self, ShapeSource};
-use super::textures::{NamedTextures, TexCtx};
+use super::textures::{NamedTextures, TexCtx, TextureSite};
 use super::tokenizer::Tokenizer;
 use super::{entities, spectrum, transform, LoadedScene, WarningSink};
 
@@ -672,7 +672,8 @@ impl Builder {
         self.require_world("Texture", loc)?;
         let p = self.params(raw)?;
         let store = &mut self.scene.textures;
-        self.textures.define(name.clone(), ty, class, &p, &self.base_dir, store, loc, &mut self.warnings)?;
+        let site = TextureSite { base_dir: &self.base_dir, world_from_texture: self.gs.ctm };
+        self.textures.define(name.clone(), ty, class, &p, &site, store, loc, &mut self.warnings)?;
         self.warn_unused(&p, &format!("Texture \"{name}\""));
         Ok(())
     }

@@ -9,11 +9,13 @@
 //! | `scale` | `tex` (1) × `scale` (1); pbrt-v3: `tex1` × `tex2` |
 //! | `mix` | `tex1` (0), `tex2` (1), `amount` (0.5, a float texture) |
 //!
-//! `imagemap` and `checkerboard` take pbrt's `uv` mapping (`uscale`,
-//! `vscale`, `udelta`, `vdelta`). Other classes (`ptex`, `marble`, `fbm`,
-//! ...), the 3D mappings and 3D checkerboards are warned about and replaced
+//! `imagemap` and `checkerboard` take pbrt-v4's 2D mappings: `uv`
+//! (`uscale`, `vscale`, `udelta`, `vdelta`), and `spherical`,
+//! `cylindrical` and `planar` (`v1`, `v2`, `udelta`, `vdelta`) of the hit
+//! point in the space of the `Texture` statement. Other classes (`ptex`,
+//! `marble`, `fbm`, ...) and 3D checkerboards are warned about and replaced
 //! by a constant (0.5 grey, or 1 for float textures), as is an image that
-//! cannot be read (pbrt-v4 stops there; a warning loses less).
+//! cannot be read under `--allow-missing` (without it, an error as in pbrt-v4).
 //!
 //! Float and spectrum textures have separate namespaces, as in pbrt. A
 //! texture parameter names a texture defined earlier in the file (pbrt-v4
@@ -28,13 +30,20 @@ use std::path::Path;
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    ColorEncoding, ImageCache, ImageLoadError, Rgb, TexInput, Texture, TextureId, TexturedParam, Textures,
-    UvMapping, Wrap,
+    ColorEncoding, ImageCache, ImageLoadError, Rgb, TexInput, TexMapping, Texture, TextureId, TexturedParam,
+    Textures, UvMapping, Wrap,
 };
 
 use super::entities::reflectance_rgb;
 use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
 use super::WarningSink;
+
+/// Where a `Texture` statement is: the folder its files are named from,
+/// and the transform current there (3D mappings work in its space).
+pub struct TextureSite<'a> {
+    pub base_dir: &'a Path,
+    pub world_from_texture: glam::DMat4,
+}
 
 /// pbrt's two texture types.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,7 +91,7 @@ impl NamedTextures {
         ty: &str,
         class: &str,
         p: &ParamList,
-        base_dir: &Path,
+        site: &TextureSite,
         store: &mut Textures,
         loc: &FileLoc,
         w: &mut WarningSink,
@@ -99,7 +108,7 @@ impl NamedTextures {
             }
         };
         let what = format!("texture \"{name}\"");
-        let id = match self.make(kind, class, p, base_dir, store, &what, loc, w)? {
+        let id = match self.make(kind, class, p, site, store, &what, loc, w)? {
             Ok(texture) => store.add(texture),
             Err(reason) => {
                 p.mark_all_used();
@@ -126,7 +135,7 @@ impl NamedTextures {
         kind: TexKind,
         class: &str,
         p: &ParamList,
-        base_dir: &Path,
+        site: &TextureSite,
         store: &mut Textures,
         what: &str,
         loc: &FileLoc,
@@ -167,16 +176,13 @@ impl NamedTextures {
                     3 => return Ok(Err("3D checkerboards are not supported".into())),
                     d => return Ok(Err(format!("a {d}-dimensional checkerboard is not supported"))),
                 }
-                let mapping = match uv_mapping(p, what, loc, w)? {
-                    Ok(m) => m,
-                    Err(e) => return Ok(Err(e)),
-                };
+                let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
                 Texture::Checkerboard {
                     mapping,
                     tex: [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?],
                 }
             }
-            "imagemap" => return self.image(kind, p, base_dir, store, what, loc, w),
+            "imagemap" => return self.image(kind, p, site, store, what, loc, w),
             c if UNSUPPORTED.contains(&c) => return Ok(Err(format!("class \"{c}\" is not supported"))),
             c => return Ok(Err(format!("unknown texture class \"{c}\""))),
         }))
@@ -188,7 +194,7 @@ impl NamedTextures {
         &mut self,
         kind: TexKind,
         p: &ParamList,
-        base_dir: &Path,
+        site: &TextureSite,
         store: &mut Textures,
         what: &str,
         loc: &FileLoc,
@@ -227,14 +233,11 @@ impl NamedTextures {
             (None, Some(false)) => ColorEncoding::Linear,
             (None, _) => ColorEncoding::Srgb,
         };
-        let mapping = match uv_mapping(p, what, loc, w)? {
-            Ok(m) => m,
-            Err(e) => return Ok(Err(e)),
-        };
+        let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
         let Some(file) = p.string("filename")? else {
             return Ok(Err("no \"string filename\" given".into()));
         };
-        let image = crate::input::beside(base_dir, &file)
+        let image = crate::input::beside(site.base_dir, &file)
             .map_err(ImageLoadError::io(Path::new(&file)))
             .and_then(|path| self.images.load(store, &path, encoding));
         let image = match image {
@@ -264,7 +267,7 @@ impl NamedTextures {
         let image = self.images.load(store, &path, ColorEncoding::Srgb)?;
         Ok(store.add(Texture::Image {
             image,
-            mapping: UvMapping::default(),
+            mapping: UvMapping::default().into(),
             wrap: Wrap::Clamp,
             channel: crate::Channel::Rgb,
             scale: 1.0,
@@ -342,27 +345,56 @@ impl NamedTextures {
     }
 }
 
-/// pbrt's 2D texture mapping: the `uv` mapping, or why another cannot be had.
-fn uv_mapping(
+/// pbrt-v4's 2D texture mapping (`TextureMapping2D::Create`): `uv`
+/// (`uscale`, `vscale`, `udelta`, `vdelta`), or `spherical`, `cylindrical`
+/// or `planar` (`v1`, `v2`, `udelta`, `vdelta`) of the hit point in the
+/// texture's space, `world_from_texture` being the transform current at the
+/// `Texture` statement.
+fn tex_mapping(
     p: &ParamList,
+    world_from_texture: &glam::DMat4,
     what: &str,
     loc: &FileLoc,
     w: &mut WarningSink,
-) -> Result<Result<UvMapping, String>, SceneError> {
-    match p.string("mapping")?.as_deref() {
-        None | Some("uv") => {}
-        Some(m @ ("spherical" | "cylindrical" | "planar")) => {
-            return Ok(Err(format!("the \"{m}\" mapping is not supported")));
+) -> Result<TexMapping, SceneError> {
+    let texture_from_world = glam::Affine3A::from_mat4(world_from_texture.inverse().as_mat4());
+    let (du, dv) = (p.float_or("udelta", 0.0)?, p.float_or("vdelta", 0.0)?);
+    Ok(match p.string("mapping")?.as_deref() {
+        None | Some("uv") => TexMapping::Uv(UvMapping {
+            su: p.float_or("uscale", 1.0)?,
+            sv: p.float_or("vscale", 1.0)?,
+            du,
+            dv,
+        }),
+        Some("spherical") => TexMapping::Spherical { texture_from_world },
+        Some("cylindrical") => TexMapping::Cylindrical { texture_from_world },
+        Some("planar") => {
+            let axis = |name: &str, default: glam::Vec3| -> Result<glam::Vec3, SceneError> {
+                Ok(match p.numbers(name, ParamType::Vector3) {
+                    Some([x, y, z]) => glam::DVec3::new(*x, *y, *z).as_vec3(),
+                    Some(v) => {
+                        return Err(SceneError::at(
+                            loc,
+                            format!("{what}: \"{name}\" needs 3 values, got {}", v.len()),
+                        ))
+                    }
+                    None => default,
+                })
+            };
+            let (vs, vt) = (axis("v1", glam::Vec3::X)?, axis("v2", glam::Vec3::Y)?);
+            TexMapping::Planar { texture_from_world, vs, vt, ds: du, dt: dv }
         }
         // pbrt-v4 reports an unknown mapping and uses `uv`.
-        Some(m) => w.warn(loc, format!("{what}: unknown mapping \"{m}\"; using \"uv\"")),
-    }
-    Ok(Ok(UvMapping {
-        su: p.float_or("uscale", 1.0)?,
-        sv: p.float_or("vscale", 1.0)?,
-        du: p.float_or("udelta", 0.0)?,
-        dv: p.float_or("vdelta", 0.0)?,
-    }))
+        Some(m) => {
+            w.warn(loc, format!("{what}: unknown mapping \"{m}\"; using \"uv\""));
+            TexMapping::Uv(UvMapping {
+                su: p.float_or("uscale", 1.0)?,
+                sv: p.float_or("vscale", 1.0)?,
+                du,
+                dv,
+            })
+        }
+    })
 }
 
 /// Texture access while a material is made: looks up its texture-valued
