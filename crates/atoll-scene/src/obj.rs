@@ -291,12 +291,8 @@ struct MapSpec {
 /// the whole line). The file name may contain spaces.
 fn parse_map(spec: &str) -> MapSpec {
     let mut words = spec.split_whitespace().peekable();
-    let mut m = MapSpec {
-        file: String::new(),
-        mapping: UvMapping::default(),
-        wrap: Wrap::Repeat,
-        channel: None,
-    };
+    let mut m =
+        MapSpec { file: String::new(), mapping: UvMapping::default(), wrap: Wrap::Repeat, channel: None };
     let mut rest: Vec<&str> = Vec::new();
     while let Some(word) = words.next() {
         if !rest.is_empty() || !word.starts_with('-') {
