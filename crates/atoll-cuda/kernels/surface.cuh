@@ -11,6 +11,7 @@
 #include "lights.cuh"
 #include "rng.cuh"
 #include "texture.cuh"
+#include "bump.cuh"
 #include "spawn.cuh"
 
 // Textured material parameters and emission textures at hits: compiled in
@@ -120,6 +121,24 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         run_program(p, range, uv, position, coeffs);
         c0 = cw[0];
         c1 = cw[1];
+    }
+    // The chosen material's bump or normal map (GpuMaterial's bend word in
+    // meta.w: kind << 30 | start << 8 | len), as the CPU's write_hit.
+    if (ATOLL_WITH_TEXTURES && meta.x != MATERIAL_MIX && meta.w != 0u) {
+        ProgramRange range;
+        range.start = (meta.w >> 8) & 0x3fffffu;
+        range.len = meta.w & 0xffu;
+        float2 uv0 = make_float2(0.0f, 0.0f), uv1 = make_float2(1.0f, 0.0f), uv2 = make_float2(1.0f, 1.0f);
+        if (mesh.flags & MESH_HAS_UVS) {
+            uv0 = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
+            uv1 = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
+            uv2 = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
+        }
+        float3 dpdu, dpdv;
+        triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
+                          affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
+        ns = bent_normal(p, meta.w >> 30, range, position, hit_uv(s, mesh, i0, i1, i2, b1, b2), ng, ns, dpdu, dpdv,
+                         (mesh.flags & MESH_HAS_NORMALS) != 0u);
     }
     // The record's bytes [32, 128) are written as whole 16-byte words, three
     // full 32-byte sectors: field-by-field stores of the hit leave partial

@@ -42,6 +42,9 @@ inline constexpr unsigned int TEX_PROJECTED = 16777216u;
 inline constexpr unsigned int PROJECT_SPHERICAL = 0u;
 inline constexpr unsigned int PROJECT_CYLINDRICAL = 1u;
 inline constexpr unsigned int PROJECT_PLANAR = 2u;
+inline constexpr unsigned int BUMP_NONE = 0u;
+inline constexpr unsigned int BUMP_BUMP = 1u;
+inline constexpr unsigned int BUMP_NORMAL_MAP = 2u;
 inline constexpr unsigned int STORE_RGB = 0u;
 inline constexpr unsigned int STORE_FLOAT = 1u;
 inline constexpr unsigned int STORE_ROUGHNESS = 2u;
@@ -59,6 +62,7 @@ inline constexpr unsigned int CHANNEL_ALPHA = 2u;
 inline constexpr unsigned int CHANNEL_RED = 3u;
 inline constexpr unsigned int CHANNEL_GREEN = 4u;
 inline constexpr unsigned int CHANNEL_BLUE = 5u;
+inline constexpr float BUMP_STEP = 0.0005f;
 static_assert(sizeof(TexOp) == 32, "TexOp: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(TexOp, code) == 0 && sizeof(TexOp::code) == 4, "TexOp.code: offset or size differs from Rust");

@@ -28,6 +28,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("access_count.cuh", include_str!("../kernels/access_count.cuh")),
     ("bsdf.cuh", include_str!("../kernels/bsdf.cuh")),
     ("bvh.cuh", include_str!("../kernels/bvh.cuh")),
+    ("bump.cuh", include_str!("../kernels/bump.cuh")),
     ("camera.cuh", include_str!("../kernels/camera.cuh")),
     ("common.cuh", include_str!("../kernels/common.cuh")),
     ("environment.cuh", include_str!("../kernels/environment.cuh")),

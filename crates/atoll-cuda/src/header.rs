@@ -224,6 +224,9 @@ pub(crate) fn texture_constants() -> String {
         ("PROJECT_SPHERICAL", projection::SPHERICAL),
         ("PROJECT_CYLINDRICAL", projection::CYLINDRICAL),
         ("PROJECT_PLANAR", projection::PLANAR),
+        ("BUMP_NONE", atoll_render::bump::kind::NONE),
+        ("BUMP_BUMP", atoll_render::bump::kind::BUMP),
+        ("BUMP_NORMAL_MAP", atoll_render::bump::kind::NORMAL_MAP),
         ("STORE_RGB", store::RGB),
         ("STORE_FLOAT", store::FLOAT),
         ("STORE_ROUGHNESS", store::ROUGHNESS),
@@ -244,6 +247,7 @@ pub(crate) fn texture_constants() -> String {
     ] {
         s += &const_uint("unsigned int", name, value as u64);
     }
+    s += &const_float("BUMP_STEP", atoll_render::bump::BUMP_STEP);
     s += &assert_struct::<TexOp>("TexOp", field_layout!(TexOp { code, a, b, c, f }));
     s += &assert_struct::<ProgramRange>("ProgramRange", field_layout!(ProgramRange { start, len }));
     s + &assert_struct::<AlphaProgram>("AlphaProgram", field_layout!(AlphaProgram { program, mode, cutoff }))

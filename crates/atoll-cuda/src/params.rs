@@ -21,7 +21,7 @@ use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
 use atoll_render::material_layout;
 use atoll_render::record::MATERIAL_COEFFS;
-use atoll_render::texture::ProgramRange;
+use atoll_render::texture::{ProgramRange, ShadingNormalProgram};
 use atoll_render::FrameContext;
 use atoll_scene::{IntegratorSettings, LightSampler};
 use bytemuck::{Pod, Zeroable};
@@ -203,13 +203,36 @@ pub(crate) struct GpuMaterial {
     pub pad: [u32; 3],
 }
 
+/// A material's bump or normal map in one word: its kind in the top two
+/// bits, its program's start in the next 22, its length in the low 8 (0:
+/// none). A program that does not fit (none compiled so far comes near)
+/// is dropped with a warning: the GPU then shades without it.
+pub(crate) fn bend_word(bend: ShadingNormalProgram) -> u32 {
+    let ShadingNormalProgram { kind, program } = bend;
+    if kind == 0 {
+        return 0;
+    }
+    if program.len >= 1 << 8 || program.start >= 1 << 22 || kind >= 4 {
+        tracing::warn!(
+            "a bump or normal map program ({program:?}) is too long for the GPU's material words; ignored"
+        );
+        return 0;
+    }
+    kind << 30 | program.start << 8 | program.len
+}
+
 impl GpuMaterial {
     /// For a `mix`, `pad` holds its two material ids and the probability of
     /// the second (f32 bits), and its coefficients at `mix::AMOUNT_PROGRAM`
     /// the start and length of its amount's texture program (`mix_amount`); otherwise
-    /// `pad` holds the start and length of its texture program (`textures`):
-    /// see `write_surface`.
-    pub(crate) fn new(m: &PackedMaterial, textures: ProgramRange, mix_amount: ProgramRange) -> Self {
+    /// `pad` holds the start and length of its texture program (`textures`)
+    /// and its bump or normal map (`bend`, [`bend_word`]): see `write_surface`.
+    pub(crate) fn new(
+        m: &PackedMaterial,
+        textures: ProgramRange,
+        mix_amount: ProgramRange,
+        bend: ShadingNormalProgram,
+    ) -> Self {
         let mut coeffs = m.coeffs.map(|c| c.to_bits());
         let pad = match m.mix {
             Some(([a, b], amount)) => {
@@ -218,7 +241,7 @@ impl GpuMaterial {
                 coeffs[slot..slot + 4].copy_from_slice(bytemuck::cast_slice(&words));
                 [a, b, amount.to_bits()]
             }
-            None => [textures.start, textures.len, 0],
+            None => [textures.start, textures.len, bend_word(bend)],
         };
         GpuMaterial { coeffs, kind: m.kind as u32, pad }
     }
@@ -535,7 +558,8 @@ impl FrameTables {
                 .materials
                 .iter()
                 .zip(frame.textures.materials.iter().zip(&frame.textures.mix_amount))
-                .map(|(m, (t, amount))| GpuMaterial::new(m, *t, *amount))
+                .zip(&frame.textures.shading_normals)
+                .map(|((m, (t, amount)), bend)| GpuMaterial::new(m, *t, *amount, *bend))
                 .collect(),
             texture_ops: bytemuck::cast_slice(&frame.textures.ops)
                 .iter()

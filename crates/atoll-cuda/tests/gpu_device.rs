@@ -229,6 +229,20 @@ fn projected_textures_match_the_cpu_device() {
     }
 }
 
+/// Bump and normal maps bend the GPU's shading normals as the CPU's: a
+/// plane bump-mapped by a ramp, normal-mapped, and the tilted plane both
+/// stand for (`texture_scenes::bent_plane_scene`).
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn bump_and_normal_maps_match_the_cpu_device() {
+    use atoll_scene::texture_scenes::{bent_plane_scene, Bend};
+    let Some(gpu) = gpu_or_skip("bump and normal maps") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    for bend in [Bend::Tilted, Bend::Bump, Bend::NormalMap] {
+        assert_renders_match(&mut cuda, &Arc::new(bent_plane_scene(bend)), &format!("{bend:?}"));
+    }
+}
+
 /// Emission textures: light sampling and emitter hits on the GPU scale the
 /// light exactly as on the CPU (checkerboard emission, seen directly and
 /// lighting a floor).

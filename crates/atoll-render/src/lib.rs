@@ -2,6 +2,7 @@
 //! wavefront integrator and the `Device` trait with its CPU implementation.
 
 pub mod bsdf;
+pub mod bump;
 pub mod camera;
 pub mod chunks;
 pub mod cpu;

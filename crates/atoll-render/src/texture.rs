@@ -20,13 +20,14 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, ImageId, Material, Scene, TexInput, TexMapping, Texture, TextureId, TextureImage,
-    TexturedParam, Wrap,
+    AlphaMode, Channel, ImageId, Material, Scene, TexInput, TexMapping, Texture, TextureBinding, TextureId,
+    TextureImage, TexturedParam, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3, Vec3A};
 use half::f16;
 
+use crate::bump::kind as bump;
 use crate::material_layout::conductor;
 use crate::record::{MaterialKind, MATERIAL_COEFFS};
 use crate::rng::pcg_hash;
@@ -145,6 +146,17 @@ pub struct TextureTables {
     pub mix_amount: Vec<ProgramRange>,
     /// By scene mesh id; empty when no mesh has alpha.
     pub mesh_alpha: Vec<AlphaProgram>,
+    /// By material id: the program of its bump or normal map ([`crate::bump`]),
+    /// leaving the displacement or the tangent-space normal on the stack.
+    pub shading_normals: Vec<ShadingNormalProgram>,
+}
+
+/// A material's bump or normal map: its [`crate::bump::kind`] and program.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq, Eq)]
+pub struct ShadingNormalProgram {
+    pub kind: u32,
+    pub program: ProgramRange,
 }
 
 impl TextureTables {
@@ -156,6 +168,7 @@ impl TextureTables {
         let mut tables = TextureTables {
             materials: vec![ProgramRange::default(); kinds.len()],
             mix_amount: vec![ProgramRange::default(); kinds.len()],
+            shading_normals: vec![ShadingNormalProgram::default(); kinds.len()],
             ..Default::default()
         };
         for (id, kind) in kinds.iter().enumerate() {
@@ -176,8 +189,29 @@ impl TextureTables {
                 }
                 continue;
             }
+            let bends = |b: &&TextureBinding| {
+                matches!(b.param, TexturedParam::Displacement | TexturedParam::NormalMap)
+            };
+            if let Some(b) = textures.bindings_of(id as u32).find(bends) {
+                let start = tables.ops.len() as u32;
+                match compile(scene, b.texture, &mut tables.ops, 0, 0) {
+                    Ok(()) => {
+                        let kind =
+                            if b.param == TexturedParam::NormalMap { bump::NORMAL_MAP } else { bump::BUMP };
+                        let program = ProgramRange { start, len: tables.ops.len() as u32 - start };
+                        tables.shading_normals[id] = ShadingNormalProgram { kind, program };
+                    }
+                    Err(e) => {
+                        tables.ops.truncate(start as usize);
+                        tracing::warn!(
+                            "material {id}: texture for \"{}\": {e}; ignored",
+                            b.param.pbrt_name()
+                        );
+                    }
+                }
+            }
             let start = tables.ops.len() as u32;
-            for binding in textures.bindings_of(id as u32) {
+            for binding in textures.bindings_of(id as u32).filter(|b| !bends(b)) {
                 let targets = store_targets(*kind, binding.param, binding.remap_roughness);
                 if targets.is_empty() {
                     tracing::warn!(
@@ -659,6 +693,29 @@ impl SceneTextures<'_> {
         let uvs =
             (!mesh.uvs.is_empty()).then(|| mesh.indices[triangle as usize].map(|i| mesh.uvs[i as usize]));
         hit_uv(uvs, b1, b2)
+    }
+
+    /// The corner uvs of triangle `triangle` of scene mesh `mesh` (pbrt's
+    /// defaults where it has none).
+    pub fn corner_uvs(&self, mesh: u32, triangle: u32) -> [Vec2; 3] {
+        let mesh = &self.scene.meshes[mesh as usize];
+        match mesh.uvs.is_empty() {
+            true => [Vec2::ZERO, Vec2::X, Vec2::ONE],
+            false => mesh.indices[triangle as usize].map(|i| mesh.uvs[i as usize]),
+        }
+    }
+
+    /// The shading normal of `surface` with material `id`'s bump or normal
+    /// map; `surface.ns` where it has none.
+    pub fn shading_normal(&self, id: u32, surface: &crate::bump::SurfaceAt) -> Vec3 {
+        let bend = self.tables.shading_normals[id as usize];
+        if bend.kind == bump::NONE {
+            return surface.ns;
+        }
+        let ops = self.ops(bend.program);
+        crate::bump::bent_normal(bend.kind, surface, |uv, p| {
+            run_program(ops, &self.scene.textures.images, uv, p, &mut [f16::ZERO; MATERIAL_COEFFS])
+        })
     }
 
     /// Overwrites the textured coefficients of material `id` at a hit of

@@ -493,6 +493,12 @@ pub enum TexturedParam {
     Thickness,
     Albedo,
     G,
+    /// pbrt's bump map: a float texture of displacement along the shading
+    /// normal, which bends the normal (the surface stays where it is).
+    Displacement,
+    /// pbrt's normal map: an RGB image of tangent-space normals (`2 c - 1`
+    /// in the frame of the surface's dpdu and shading normal).
+    NormalMap,
     /// Principled weights (pbrt-v3 `disney` names in [`TexturedParam::pbrt_name`]).
     SpecularTint,
     Sheen,
@@ -513,6 +519,8 @@ impl TexturedParam {
             TexturedParam::VRoughness => "vroughness",
             TexturedParam::Metallic => "metallic",
             TexturedParam::Amount => "amount",
+            TexturedParam::Displacement => "displacement",
+            TexturedParam::NormalMap => "normalmap",
             TexturedParam::Eta => "eta",
             TexturedParam::K => "k",
             TexturedParam::Thickness => "thickness",

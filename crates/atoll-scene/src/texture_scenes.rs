@@ -155,3 +155,83 @@ pub fn textured_light_scene(emission: Option<Texture>, eye: Vec3, target: Vec3) 
     scene.settings.integrator = IntegratorSettings::Path { max_depth: 2 };
     scene
 }
+
+/// How [`bent_plane_scene`]'s plane gets its tilted normal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bend {
+    /// A flat plane bump-mapped by a ramp of displacement `d = u / 2`.
+    Bump,
+    /// A flat plane with a normal map of the same tilt.
+    NormalMap,
+    /// The plane itself tilted: the displaced surface the bump stands for.
+    Tilted,
+}
+
+/// The normal every [`Bend`] gives the plane: the surface `z = (x + 1) / 4`
+/// over x ∈ [-1, 1], on which `u = (x + 1) / 2`.
+pub fn bent_plane_normal() -> Vec3 {
+    Vec3::new(-0.25, 0.0, 1.0).normalize()
+}
+
+/// A 2×2 diffuse plane (reflectance 0.5) facing +z under a distant light
+/// from `(1, 0.5, 2)` (radiance 1), seen from above, its normal tilted by
+/// `bend`: every pixel on it is `0.5 / π · max(0, n · l)`, whichever way
+/// the tilt comes (direct light only).
+pub fn bent_plane_scene(bend: Bend) -> Scene {
+    let mut scene = Scene::default();
+    let material = scene.add_material(Material::Diffuse { reflectance: Rgb::splat(0.5) });
+    let mut plane = quad(-1.0, 1.0, -1.0, 1.0, 0.0, material);
+    plane.uvs = plane.positions.iter().map(|p| Vec2::new((p.x + 1.0) / 2.0, (p.y + 1.0) / 2.0)).collect();
+    let ramp = |texel: &dyn Fn(f32) -> [f32; 4]| {
+        // 64 texels across u, bilinear: exact for a linear ramp between texel centres.
+        let texels = (0..64).map(|i| texel((i as f32 + 0.5) / 64.0)).collect();
+        TextureImage::from_linear("ramp", 64, 1, texels)
+    };
+    let image = |scene: &mut Scene, image: TextureImage| {
+        let image = scene.textures.add_image(image);
+        scene.textures.add(Texture::Image {
+            image,
+            mapping: UvMapping::default().into(),
+            wrap: Wrap::Clamp,
+            channel: Channel::Rgb,
+            scale: 1.0,
+            invert: false,
+        })
+    };
+    let bound = |scene: &mut Scene, param, texture| {
+        scene.textures.bind(TextureBinding { material, param, texture, remap_roughness: false })
+    };
+    match bend {
+        Bend::Bump => {
+            let t = image(&mut scene, ramp(&|u| [u / 2.0; 4]));
+            bound(&mut scene, TexturedParam::Displacement, t);
+        }
+        Bend::NormalMap => {
+            let n = bent_plane_normal();
+            let c = (n + Vec3::ONE) / 2.0;
+            let t = image(&mut scene, ramp(&|_| [c.x, c.y, c.z, 1.0]));
+            bound(&mut scene, TexturedParam::NormalMap, t);
+        }
+        Bend::Tilted => {
+            for p in &mut plane.positions {
+                p.z = (p.x + 1.0) / 4.0;
+            }
+        }
+    }
+    let plane = scene.add_mesh(plane);
+    let object = scene.add_object(Object { name: "world".into(), meshes: vec![plane] });
+    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene
+        .lights
+        .push(Light::Distant { direction: -Vec3::new(1.0, 0.5, 2.0).normalize(), radiance: Rgb::ONE });
+    scene.settings.camera = Camera {
+        camera_to_world: crate::framing::look_at(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, Vec3::Y)
+            .unwrap_or(Mat4::IDENTITY),
+        fov_degrees: 20.0,
+        ..Camera::default()
+    };
+    scene.settings.film.resolution = glam::UVec2::new(16, 16);
+    scene.settings.spp = 1;
+    scene.settings.integrator = IntegratorSettings::Path { max_depth: 1 };
+    scene
+}

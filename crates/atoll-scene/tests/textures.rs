@@ -496,3 +496,35 @@ fn planar_mappings_take_the_textures_transform() {
     assert_eq!(texture_from_world, glam::Affine3A::IDENTITY);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A material's `displacement` texture (pbrt-v3's `bumpmap`) and its
+/// `normalmap` image (read linearly) bind to it; a missing normal map is an
+/// error unless allowed.
+#[test]
+fn bump_and_normal_maps_bind_to_their_materials() {
+    let dir = temp_dir("tex-bump");
+    png(&dir, "n.png");
+    let l = load(
+        &dir,
+        &format!(
+            "Texture \"d\" \"float\" \"checkerboard\"\n\
+             Material \"diffuse\" \"texture displacement\" \"d\"\n{TRI}\n\
+             Material \"conductor\" \"string normalmap\" \"n.png\"\n{TRI}"
+        ),
+    );
+    assert!(warnings(&l).is_empty(), "{:?}", warnings(&l));
+    let s = &l.scene;
+    let bound = |mesh: usize| -> Vec<(TexturedParam, u32)> {
+        s.textures.bindings_of(s.meshes[mesh].material).map(|b| (b.param, b.texture)).collect()
+    };
+    assert_eq!(bound(0), [(TexturedParam::Displacement, 0)]);
+    assert_eq!(bound(1), [(TexturedParam::NormalMap, 1)]);
+    // Linear: the texel's 8-bit value over 255, no sRGB curve.
+    assert_eq!(s.textures.images[0].texel(0, 0)[1], 128.0 / 255.0);
+    let world = format!("Material \"diffuse\" \"string normalmap\" \"gone.png\"\n{TRI}");
+    let e = load_str(&format!("WorldBegin\n{world}\n"), "t.pbrt", &dir).unwrap_err().to_string();
+    assert!(e.starts_with("t.pbrt:2:1: Material \"diffuse\": normal map: ") && e.contains("gone.png"), "{e}");
+    let l = allowing_missing(|| load(&dir, &world));
+    assert!(warnings(&l)[0].contains("the shading normal is not bent"), "{:?}", warnings(&l));
+    std::fs::remove_dir_all(&dir).ok();
+}

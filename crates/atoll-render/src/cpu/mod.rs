@@ -247,6 +247,14 @@ fn write_hit(
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, uv(), p, &mut r.coeffs);
     }
+    if frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE {
+        let world = corners.map(|c| to_world.transform_point3(c));
+        let (dpdu, dpdv) =
+            crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng);
+        let interpolated = !mesh.normals.is_empty();
+        let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
+        r.shading_normal = to_f16x3(textures.shading_normal(material, &surface));
+    }
 }
 
 /// The mesh data a hit's shading reads: its indices, and per corner its

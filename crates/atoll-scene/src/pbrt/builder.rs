@@ -146,8 +146,6 @@ pub struct Builder {
     warned_transform_begin: bool,
     /// Named float and spectrum textures, and the decoded images.
     textures: NamedTextures,
-    /// Whether bump, displacement and normal maps were warned about.
-    warned_bump_maps: bool,
     /// Whether the tessellation of curves was warned about.
     warned_curves: bool,
     /// Unsupported shape types: how many were skipped, and where the first was.
@@ -183,7 +181,6 @@ impl Builder {
             instance_uses: Vec::new(),
             warned_transform_begin: false,
             textures: NamedTextures::default(),
-            warned_bump_maps: false,
             warned_curves: false,
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
@@ -679,23 +676,61 @@ impl Builder {
     }
 
     /// A material of pbrt type `ty` with the bindings of its texture-valued
-    /// parameters. Bump, displacement and normal maps are warned about once
-    /// a scene and ignored.
+    /// parameters, its bump map (`displacement`, pbrt-v3's `bumpmap`) and
+    /// its normal map (`normalmap`, an image read linearly).
     fn material(&mut self, ty: &str, p: &ParamList, loc: &FileLoc) -> Result<MaterialSlot, SceneError> {
-        let bumps = [("bumpmap", ParamType::Texture), ("displacement", ParamType::Texture)]
-            .into_iter()
-            .chain([("displacement", ParamType::Float), ("normalmap", ParamType::String)]);
-        let mut found = false;
-        for (name, ty) in bumps {
-            found |= p.find(name, &[ty]).is_some();
-        }
-        if found && !self.warned_bump_maps {
-            self.warned_bump_maps = true;
-            self.warn(loc, "bump, displacement and normal maps are not supported; ignored (reported once)");
-        }
+        let what = format!("Material \"{ty}\"");
         let mut tex = TexCtx::new(&self.textures, &mut self.scene.textures);
         let material = entities::material(ty, p, loc, &mut self.warnings, &mut tex)?;
-        Ok(MaterialSlot { material, bindings: tex.bindings, id: None })
+        let mut bindings = tex.bindings;
+        let displacement = match p.find("displacement", &[ParamType::Texture]) {
+            Some(_) => tex_ctx_float(
+                &self.textures,
+                &mut self.scene.textures,
+                p,
+                "displacement",
+                &what,
+                loc,
+                &mut self.warnings,
+            )?,
+            None => tex_ctx_float(
+                &self.textures,
+                &mut self.scene.textures,
+                p,
+                "bumpmap",
+                &what,
+                loc,
+                &mut self.warnings,
+            )?,
+        };
+        // A constant displacement moves nothing pbrt's bump mapping sees.
+        p.find("displacement", &[ParamType::Float]);
+        let normal_map = match p.string("normalmap")? {
+            None => None,
+            Some(file) => match self.textures.normal_map(&file, &self.base_dir, &mut self.scene.textures) {
+                Ok(t) => Some(t),
+                Err(e) => {
+                    super::missing_file(loc, &format!("{what}: normal map"), e.clone())?;
+                    self.warnings
+                        .warn(loc, format!("{what}: normal map: {e}; the shading normal is not bent"));
+                    None
+                }
+            },
+        };
+        match (normal_map, displacement) {
+            (Some(t), other) => {
+                if other.is_some() {
+                    self.warnings.warn(
+                        loc,
+                        format!("{what}: both a normal map and a displacement; the normal map is used"),
+                    );
+                }
+                bindings.push((TexturedParam::NormalMap, t, false));
+            }
+            (None, Some(TexInput::Texture(t))) => bindings.push((TexturedParam::Displacement, t, false)),
+            (None, _) => {}
+        }
+        Ok(MaterialSlot { material, bindings, id: None })
     }
 
     /// A shape's `alpha` (pbrt-v4's `float alpha` or `texture alpha`): a
@@ -1034,4 +1069,17 @@ fn read_spectrum_file(base_dir: &Path, param: &Param, name: &str) -> Result<Opti
         }
     };
     spectrum::parse_spd(&text).map(Some).map_err(|why| SceneError::at(&param.loc, format!("{what}: {why}")))
+}
+
+/// A float texture parameter of a material (a value or a named texture).
+fn tex_ctx_float(
+    named: &NamedTextures,
+    store: &mut crate::Textures,
+    p: &ParamList,
+    name: &str,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<TexInput>, SceneError> {
+    TexCtx::new(named, store).float(p, name, what, loc, w)
 }

@@ -275,6 +275,26 @@ impl NamedTextures {
         }))
     }
 
+    /// A material's `normalmap`: the image read linearly (pbrt-v4 reads
+    /// normal maps so), repeated, through the scene's image cache.
+    pub fn normal_map(
+        &mut self,
+        file: &str,
+        base_dir: &Path,
+        store: &mut Textures,
+    ) -> Result<TextureId, ImageLoadError> {
+        let path = crate::input::beside(base_dir, file).map_err(ImageLoadError::io(Path::new(file)))?;
+        let image = self.images.load(store, &path, ColorEncoding::Linear)?;
+        Ok(store.add(Texture::Image {
+            image,
+            mapping: UvMapping::default().into(),
+            wrap: Wrap::Repeat,
+            channel: crate::Channel::Rgb,
+            scale: 1.0,
+            invert: false,
+        }))
+    }
+
     /// The texture called `name` of `kind`; `None` after a warning when
     /// there is none.
     fn lookup(

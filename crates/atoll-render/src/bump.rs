@@ -1,0 +1,180 @@
+//! Bump and normal maps: the shading normal bent by a material's
+//! displacement texture or normal-map image, as pbrt-v4's `BumpMap` and
+//! `NormalMap` bend it (the surface itself stays where it is). The CUDA
+//! port (`kernels/bump.cuh`) does the same arithmetic.
+//!
+//! Both work in the triangle's (u, v) parameterisation: its partial
+//! derivatives dp/du, dp/dv (pbrt's `Triangle` rules, a frame about the
+//! normal where the uvs are degenerate), turned into pbrt's shading
+//! partials where the mesh has normals. Departures from pbrt: the bump's
+//! finite-difference step is pbrt's fallback of 0.0005 in (u, v) (pbrt
+//! shrinks it with the pixel's footprint, from ray differentials atoll
+//! does not track), and the normal's own change over the surface (pbrt's
+//! `dndu`, `dndv` times the displacement) is left out.
+
+use glam::{Vec2, Vec3};
+
+/// How a material bends its shading normal ([`ShadingNormalProgram::kind`]).
+pub mod kind {
+    /// Not at all.
+    pub const NONE: u32 = 0;
+    /// A float texture of displacement along the normal (its first channel).
+    pub const BUMP: u32 = 1;
+    /// An RGB texture of tangent-space normals.
+    pub const NORMAL_MAP: u32 = 2;
+}
+
+/// pbrt's finite-difference step in (u, v) where the pixel's footprint is unknown.
+pub const BUMP_STEP: f32 = 0.0005;
+
+/// pbrt's `CoordinateSystem`: two unit vectors completing unit `v` to a frame.
+pub fn coordinate_system(v: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(v.z);
+    let a = -1.0 / (sign + v.z);
+    let b = v.x * v.y * a;
+    (Vec3::new(1.0 + sign * v.x * v.x * a, sign * b, -sign * v.x), Vec3::new(b, sign + v.y * v.y * a, -v.y))
+}
+
+/// A triangle's dp/du and dp/dv from its corners `p` and their `uv`s
+/// (pbrt's `Triangle::InteractionFromIntersection`); a frame about the unit
+/// normal `ng` where the uvs give none.
+pub fn triangle_partials(p: [Vec3; 3], uv: [Vec2; 3], ng: Vec3) -> (Vec3, Vec3) {
+    let (duv02, duv12) = (uv[0] - uv[2], uv[1] - uv[2]);
+    let (dp02, dp12) = (p[0] - p[2], p[1] - p[2]);
+    let det = duv02.x * duv12.y - duv02.y * duv12.x;
+    if det.abs() >= 1e-9 {
+        let inv = 1.0 / det;
+        let dpdu = (dp02 * duv12.y - dp12 * duv02.y) * inv;
+        let dpdv = (dp12 * duv02.x - dp02 * duv12.x) * inv;
+        if dpdu.cross(dpdv).length_squared() > 0.0 && dpdu.is_finite() && dpdv.is_finite() {
+            return (dpdu, dpdv);
+        }
+    }
+    coordinate_system(ng)
+}
+
+/// The surface at a hit, as bump and normal mapping see it.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceAt {
+    pub position: Vec3,
+    pub uv: Vec2,
+    /// Unit geometric normal, on the side of the shading normal.
+    pub ng: Vec3,
+    /// Unit shading normal.
+    pub ns: Vec3,
+    /// The triangle's partial derivatives ([`triangle_partials`]).
+    pub dpdu: Vec3,
+    pub dpdv: Vec3,
+    /// Whether the shading normal is the mesh's (interpolated normals):
+    /// pbrt's shading partials are then turned about it.
+    pub interpolated: bool,
+}
+
+impl SurfaceAt {
+    /// pbrt's shading dp/du, dp/dv: the triangle's where the shading normal
+    /// is the geometric one, else dp/du made perpendicular to it and its
+    /// cross product with the normal.
+    pub fn shading_partials(&self) -> (Vec3, Vec3) {
+        if !self.interpolated {
+            return (self.dpdu, self.dpdv);
+        }
+        let ts = self.ns.cross(self.dpdu);
+        if ts.length_squared() > 0.0 {
+            (ts.cross(self.ns), ts)
+        } else {
+            coordinate_system(self.ns)
+        }
+    }
+}
+
+/// The shading normal `surface` gets from a material that bends it by
+/// `kind`, its texture evaluated by `eval` at (uv, point); unchanged where
+/// the result is no direction. Faces the geometric normal's side (pbrt's
+/// `SetShadingGeometry`, orientation not authoritative).
+pub fn bent_normal(kind: u32, surface: &SurfaceAt, mut eval: impl FnMut(Vec2, Vec3) -> Vec3) -> Vec3 {
+    let (ss, ts) = surface.shading_partials();
+    let n = match kind {
+        kind::BUMP => {
+            let d = eval(surface.uv, surface.position).x;
+            let step = BUMP_STEP;
+            let du = eval(surface.uv + Vec2::new(step, 0.0), surface.position + ss * step).x;
+            let dv = eval(surface.uv + Vec2::new(0.0, step), surface.position + ts * step).x;
+            let dpdu = ss + surface.ns * ((du - d) / step);
+            let dpdv = ts + surface.ns * ((dv - d) / step);
+            dpdu.cross(dpdv).normalize_or_zero()
+        }
+        kind::NORMAL_MAP => {
+            let c = eval(surface.uv, surface.position);
+            let local = (c * 2.0 - Vec3::ONE).normalize_or_zero();
+            let x = ss.normalize_or_zero();
+            let y = surface.ns.cross(x);
+            (x * local.x + y * local.y + surface.ns * local.z).normalize_or_zero()
+        }
+        _ => Vec3::ZERO,
+    };
+    if n == Vec3::ZERO || !n.is_finite() {
+        return surface.ns;
+    }
+    if n.dot(surface.ng) < 0.0 {
+        -n
+    } else {
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flat(interpolated: bool) -> SurfaceAt {
+        SurfaceAt {
+            position: Vec3::new(0.3, 0.4, 0.0),
+            uv: Vec2::new(0.3, 0.4),
+            ng: Vec3::Z,
+            ns: Vec3::Z,
+            dpdu: Vec3::X,
+            dpdv: Vec3::Y,
+            interpolated,
+        }
+    }
+
+    #[test]
+    fn partials_follow_the_uvs() {
+        let p = [Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)];
+        let uv = [Vec2::ZERO, Vec2::X, Vec2::Y];
+        assert_eq!(triangle_partials(p, uv, Vec3::Z), (Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 4.0, 0.0)));
+        // Degenerate uvs: a frame about the normal.
+        let (a, b) = triangle_partials(p, [Vec2::ZERO; 3], Vec3::Z);
+        assert!(a.dot(Vec3::Z).abs() < 1e-6 && b.dot(Vec3::Z).abs() < 1e-6 && a.cross(b).length() > 0.99);
+    }
+
+    /// A height field d = a·u tilts the normal by atan(a) against +u, as the
+    /// surface z = a·u would; a constant one bends nothing.
+    #[test]
+    fn bumps_tilt_the_normal_as_the_displaced_surface() {
+        for interpolated in [false, true] {
+            let s = flat(interpolated);
+            let tilted = bent_normal(kind::BUMP, &s, |uv, _| Vec3::splat(0.5 * uv.x));
+            let expected = Vec3::new(-0.5, 0.0, 1.0).normalize();
+            assert!((tilted - expected).length() < 1e-3, "{tilted}");
+            assert_eq!(bent_normal(kind::BUMP, &s, |_, _| Vec3::splat(0.7)), Vec3::Z);
+        }
+        // Read at the point as well as the uv: the same slope from p.
+        let by_point = bent_normal(kind::BUMP, &flat(false), |_, p| Vec3::splat(0.5 * p.x));
+        assert!((by_point - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-3, "{by_point}");
+    }
+
+    #[test]
+    fn normal_maps_are_tangent_space_normals() {
+        let s = flat(true);
+        // (0.5, 0.5, 1) is the unbent normal; (1, 0.5, 0.5) points along +u.
+        assert!(
+            (bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 1.0)) - Vec3::Z).length() < 1e-6
+        );
+        let along_u = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(1.0, 0.5, 0.75));
+        assert!((along_u - Vec3::new(1.0, 0.0, 0.5).normalize()).length() < 1e-5, "{along_u}");
+        // Never below the surface: flipped to the geometric normal's side.
+        let under = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 0.0));
+        assert!(under.dot(Vec3::Z) >= 0.0, "{under}");
+    }
+}
