@@ -54,14 +54,14 @@ __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRa
     float3 n = zero3();
     if (kind == BUMP_BUMP) {
         const float step = BUMP_STEP;
-        const float d = run_program(p, range, uv, position, nullptr).x;
-        const float du = run_program(p, range, uv + make_float2(step, 0.0f), position + ss * step, nullptr).x;
-        const float dv = run_program(p, range, uv + make_float2(0.0f, step), position + ts * step, nullptr).x;
+        const float d = run_program(p, range, uv, position, ng, nullptr).x;
+        const float du = run_program(p, range, uv + make_float2(step, 0.0f), position + ss * step, ng, nullptr).x;
+        const float dv = run_program(p, range, uv + make_float2(0.0f, step), position + ts * step, ng, nullptr).x;
         const float3 pu = ss + ns * ((du - d) / step);
         const float3 pv = ts + ns * ((dv - d) / step);
         n = normalize_or_zero3(cross3(pu, pv));
     } else if (kind == BUMP_NORMAL_MAP) {
-        const float3 c = run_program(p, range, uv, position, nullptr);
+        const float3 c = run_program(p, range, uv, position, ng, nullptr);
         const float3 local = normalize_or_zero3(c * 2.0f - make_float3(1.0f, 1.0f, 1.0f));
         const float3 x = normalize_or_zero3(ss);
         const float3 y = cross3(ns, x);

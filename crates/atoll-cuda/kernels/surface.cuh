@@ -90,8 +90,12 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
                 ProgramRange range;
                 range.start = c0.x;
                 range.len = c0.y;
-                amount = clampf(run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, nullptr).x,
-                                0.0f, 1.0f);
+                // The normal as the CPU reads it back from the record (f16).
+                const float3 n16 = make_float3(f16_to_f32(f32_to_f16(ng.x)), f16_to_f32(f32_to_f16(ng.y)),
+                                               f16_to_f32(f32_to_f16(ng.z)));
+                amount = clampf(
+                    run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, n16, nullptr).x, 0.0f,
+                    1.0f);
             }
 #endif
             unsigned int next;
@@ -118,7 +122,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         ProgramRange range;
         range.start = meta.y;
         range.len = meta.z;
-        run_program(p, range, uv, position, coeffs);
+        run_program(p, range, uv, position, ng, coeffs);
         c0 = cw[0];
         c1 = cw[1];
     }

@@ -38,6 +38,7 @@ inline constexpr unsigned int TEX_MIX = 4u;
 inline constexpr unsigned int TEX_STORE = 5u;
 inline constexpr unsigned int TEX_PROJECT = 6u;
 inline constexpr unsigned int TEX_DATA = 7u;
+inline constexpr unsigned int TEX_FACING = 8u;
 inline constexpr unsigned int TEX_PROJECTED = 16777216u;
 inline constexpr unsigned int PROJECT_SPHERICAL = 0u;
 inline constexpr unsigned int PROJECT_CYLINDRICAL = 1u;
@@ -250,11 +251,11 @@ __device__ float2 project(const TexOp* ops, unsigned int k, float3 position) {
     return make_float2(q[0], q[1]);
 }
 
-/// `texture::run_program`: stores go into `coeffs` (may be null for alpha
-/// programs); returns the top of the stack. `position` is the hit point
-/// that 3D mappings (PROJECT ops) map.
+/// `texture::run_program` at the hit `TexPoint { uv, position, normal }`:
+/// stores go into `coeffs` (may be null for alpha programs); returns the
+/// top of the stack.
 __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange range, float2 uv, float3 position,
-                                           unsigned short* coeffs) {
+                                           float3 normal, unsigned short* coeffs) {
     float3 stack[TEXTURE_STACK];
     int sp = 0;
     const TexOp* ops = reinterpret_cast<const TexOp*>(p.texture_ops) + range.start;
@@ -268,6 +269,9 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
         }
         if (o.code == TEX_CONSTANT) {
             stack[sp++] = make_float3(o.f[0], o.f[1], o.f[2]);
+        } else if (o.code == TEX_FACING) {
+            const float a = fabsf(dot3(normal, make_float3(o.f[0], o.f[1], o.f[2])));
+            stack[sp++] = make_float3(a, a, a);
         } else if (o.code == TEX_PROJECT) {
             const float2 st = project(ops, k, position);
             stack[sp++] = make_float3(st.x, st.y, 0.0f);
@@ -333,7 +337,7 @@ __device__ __forceinline__ float3 emission_texture_value(const FrameParams& p, u
     range.start = t.start;
     range.len = t.len;
     // An area light's image is looked up by uv: no 3D mapping needs the point.
-    return run_program(p, range, uv, make_float3(0.0f, 0.0f, 0.0f), nullptr);
+    return run_program(p, range, uv, zero3(), zero3(), nullptr);
 }
 
 /// `texture::alpha_hash`.
@@ -356,8 +360,8 @@ __device__ __noinline__ bool alpha_keeps(const FrameParams& p, const SceneView& 
     const unsigned int i0 = s.triangles[3ull * tri], i1 = s.triangles[3ull * tri + 1],
                        i2 = s.triangles[3ull * tri + 2];
     const float2 uv = hit_uv(s, mesh, i0, i1, i2, u, v);
-    // The point where traversal sees the hit (`SceneTextures::keeps`).
-    const float alpha = run_program(p, ap.program, uv, o + d * t, nullptr).x;
+    // The point where traversal sees the hit, no normal (`SceneTextures::keeps`).
+    const float alpha = run_program(p, ap.program, uv, o + d * t, zero3(), nullptr).x;
     if (ap.mode == ALPHA_CUTOFF) return alpha >= ap.cutoff;
     return alpha >= 1.0f || (alpha > 0.0f && alpha_hash(o, d, t) < alpha);
 }

@@ -220,6 +220,7 @@ pub(crate) fn texture_constants() -> String {
         ("TEX_STORE", op::STORE),
         ("TEX_PROJECT", op::PROJECT),
         ("TEX_DATA", op::DATA),
+        ("TEX_FACING", op::FACING),
         ("TEX_PROJECTED", PROJECTED),
         ("PROJECT_SPHERICAL", projection::SPHERICAL),
         ("PROJECT_CYLINDRICAL", projection::CYLINDRICAL),

@@ -227,6 +227,16 @@ fn projected_textures_match_the_cpu_device() {
         }
         assert_renders_match(&mut cuda, &Arc::new(scene), &format!("{mapping:?}"));
     }
+    // directionmix: the screen faces +z, the ground too; a tilted direction
+    // gives both a share of each texture.
+    let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+    let facing = scene.textures.add(Texture::Facing { direction: Vec3::new(0.6, 0.0, 0.8) });
+    for t in &mut scene.textures.textures {
+        if let Texture::Checkerboard { tex, .. } = t {
+            *t = Texture::Mix { tex: *tex, amount: atoll_scene::TexInput::Texture(facing) };
+        }
+    }
+    assert_renders_match(&mut cuda, &Arc::new(scene), "directionmix");
 }
 
 /// Bump and normal maps bend the GPU's shading normals as the CPU's: a

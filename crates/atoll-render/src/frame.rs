@@ -12,7 +12,7 @@ use crate::material_coeffs::PackedMaterial;
 use crate::record::RayRecord;
 use crate::record::MATERIAL_COEFFS;
 use crate::rng::{BounceDim, SampleStream};
-use crate::texture::{run_program, TextureTables};
+use crate::texture::{run_program, TexPoint, TextureTables};
 
 /// Most nested `mix` materials a hit resolves.
 pub const MAX_MIX_DEPTH: u32 = 8;
@@ -153,9 +153,9 @@ impl FrameContext {
                 amount
             } else {
                 let ops = &self.textures.ops[program.start as usize..(program.start + program.len) as usize];
-                let position = glam::Vec3::from(r.position);
-                let value =
-                    run_program(ops, &self.images, uv(), position, &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
+                // The hit as written so far: its point and geometric normal.
+                let at = TexPoint { uv: uv(), position: r.position.into(), normal: r.geometric_normal() };
+                let value = run_program(ops, &self.images, at, &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
                 value.clamp(0.0, 1.0)
             };
             if u < amount {

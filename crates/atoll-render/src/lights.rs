@@ -596,14 +596,8 @@ impl LightSet {
         let ops = &self.emission_ops[t.program.start as usize..(t.program.start + t.program.len) as usize];
         // An area light's image is looked up by uv (pbrt's `DiffuseAreaLight`):
         // no 3D mapping needs the point.
-        let nowhere = glam::Vec3::ZERO;
-        texture::run_program(
-            ops,
-            &self.images,
-            uv,
-            nowhere,
-            &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS],
-        )
+        let at = texture::TexPoint::uv(uv);
+        texture::run_program(ops, &self.images, at, &mut [half::f16::ZERO; crate::record::MATERIAL_COEFFS])
     }
 
     /// Solid-angle pdf (with selection) that [`LightSet::sample`] at `p`

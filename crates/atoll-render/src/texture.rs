@@ -58,6 +58,25 @@ pub mod op {
     pub const PROJECT: u32 = 6;
     /// Rows of a [`PROJECT`]'s matrix; nothing when run.
     pub const DATA: u32 = 7;
+    /// Push `|n · f[0..3]|` (all three channels), `n` the hit's geometric
+    /// normal: pbrt's `directionmix` amount.
+    pub const FACING: u32 = 8;
+}
+
+/// Where a texture program runs: the hit's texture coordinates, its point
+/// (for 3D mappings) and its unit geometric normal (for `directionmix`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TexPoint {
+    pub uv: Vec2,
+    pub position: Vec3,
+    pub normal: Vec3,
+}
+
+impl TexPoint {
+    /// Texture coordinates alone (emission images, tests): no point, no normal.
+    pub fn uv(uv: Vec2) -> Self {
+        TexPoint { uv, ..Default::default() }
+    }
 }
 
 /// The kinds of [`op::PROJECT`], pbrt-v4's 3D texture mappings of the hit
@@ -340,6 +359,9 @@ fn compile(
     };
     match texture {
         Texture::Constant(v) => out.push(constant(*v)),
+        Texture::Facing { direction } => {
+            out.push(TexOp { code: op::FACING, f: direction.extend(0.0).to_array(), ..Default::default() })
+        }
         Texture::Image { image, mapping, wrap, channel, scale, invert } => {
             if *image as usize >= textures.images.len() {
                 return Err(TextureCompileError::NoImage(*image));
@@ -492,16 +514,15 @@ pub fn hit_uv(uvs: Option<[Vec2; 3]>, b1: f32, b2: f32) -> Vec2 {
     }
 }
 
-/// Runs `ops` at a hit of texture coordinates `uv` and (for 3D mappings)
-/// point `position`: stores go into `coeffs`; returns what is left on top
-/// of the stack (an alpha program's alpha).
+/// Runs `ops` at hit `at`: stores go into `coeffs`; returns what is left
+/// on top of the stack (an alpha program's alpha).
 pub fn run_program(
     ops: &[TexOp],
     images: &[Arc<TextureImage>],
-    uv: Vec2,
-    position: Vec3,
+    at: TexPoint,
     coeffs: &mut [f16; MATERIAL_COEFFS],
 ) -> Vec3 {
+    let TexPoint { uv, position, normal } = at;
     let mut stack = [Vec3::ZERO; TEXTURE_STACK];
     let mut sp = 0usize;
     // An op's (s, t) before its own mapping: projected ones pop theirs.
@@ -520,6 +541,10 @@ pub fn run_program(
             }
             op::PROJECT => {
                 stack[sp] = project(ops, k, position).extend(0.0);
+                sp += 1;
+            }
+            op::FACING => {
+                stack[sp] = Vec3::splat(normal.dot(Vec3::new(o.f[0], o.f[1], o.f[2])).abs());
                 sp += 1;
             }
             op::IMAGE => {
@@ -714,16 +739,16 @@ impl SceneTextures<'_> {
         }
         let ops = self.ops(bend.program);
         crate::bump::bent_normal(bend.kind, surface, |uv, p| {
-            run_program(ops, &self.scene.textures.images, uv, p, &mut [f16::ZERO; MATERIAL_COEFFS])
+            let at = TexPoint { uv, position: p, normal: surface.ng };
+            run_program(ops, &self.scene.textures.images, at, &mut [f16::ZERO; MATERIAL_COEFFS])
         })
     }
 
-    /// Overwrites the textured coefficients of material `id` at a hit of
-    /// texture coordinates `uv` and world-space point `position`.
-    pub fn apply(&self, id: u32, uv: Vec2, position: Vec3, coeffs: &mut [f16; MATERIAL_COEFFS]) {
+    /// Overwrites the textured coefficients of material `id` at hit `at`.
+    pub fn apply(&self, id: u32, at: TexPoint, coeffs: &mut [f16; MATERIAL_COEFFS]) {
         let range = self.tables.materials[id as usize];
         if !range.is_empty() {
-            run_program(self.ops(range), &self.scene.textures.images, uv, position, coeffs);
+            run_program(self.ops(range), &self.scene.textures.images, at, coeffs);
         }
     }
 
@@ -743,9 +768,9 @@ impl HitFilter for SceneTextures<'_> {
         let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
         // The point where traversal sees the hit: world space, except inside
         // instances (object space there; pbrt's 3D mappings take the world's).
-        let position = Vec3::from(origin + dir * t);
-        let alpha =
-            run_program(self.ops(program.program), &self.scene.textures.images, uv, position, &mut scratch).x;
+        // No normal: a `directionmix` in an alpha mask takes its second texture.
+        let at = TexPoint { uv, position: Vec3::from(origin + dir * t), normal: Vec3::ZERO };
+        let alpha = run_program(self.ops(program.program), &self.scene.textures.images, at, &mut scratch).x;
         alpha_keeps(program, alpha, origin, dir, t)
     }
 }
@@ -787,6 +812,28 @@ mod tests {
         assert!(close(planar(Vec3::new(7.0, 3.0, 0.5)), Vec2::new(0.25 + 1.0, -1.0 + 3.0)));
     }
 
+    /// `directionmix`: the facing amount `|n · dir|` mixes the second
+    /// texture into the first (a Mix over [tex2, tex1]).
+    #[test]
+    fn facing_reads_the_normal() {
+        let mut scene = Scene::default();
+        let facing = scene.textures.add(Texture::Facing { direction: Vec3::Z });
+        scene.textures.add(Texture::Mix {
+            tex: [TexInput::Value(Rgb::splat(0.2)), TexInput::Value(Rgb::splat(0.8))],
+            amount: TexInput::Texture(facing),
+        });
+        let mut ops = Vec::new();
+        compile_texture(&scene, 1, &mut ops).unwrap();
+        let at = |normal: Vec3| {
+            let at = TexPoint { normal, ..TexPoint::default() };
+            run_program(&ops, &[], at, &mut [f16::ZERO; MATERIAL_COEFFS]).x
+        };
+        assert_eq!(at(Vec3::Z), 0.8);
+        assert_eq!(at(-Vec3::Z), 0.8, "either side");
+        assert_eq!(at(Vec3::X), 0.2);
+        assert!((at(Vec3::new(0.6, 0.0, 0.8)) - (0.2 * 0.2 + 0.8 * 0.8)).abs() < 1e-6);
+    }
+
     /// A projected checkerboard takes its squares from the point, not the
     /// surface's uv, and keeps its inputs' order on the stack.
     #[test]
@@ -800,8 +847,15 @@ mod tests {
         });
         let mut ops = Vec::new();
         compile_texture(&scene, 0, &mut ops).unwrap();
-        let at =
-            |p: Vec3| run_program(&ops, &[], Vec2::new(0.5, 0.5), p, &mut [f16::ZERO; MATERIAL_COEFFS]).x;
+        let at = |p: Vec3| {
+            run_program(
+                &ops,
+                &[],
+                TexPoint { position: p, ..TexPoint::uv(Vec2::splat(0.5)) },
+                &mut [f16::ZERO; MATERIAL_COEFFS],
+            )
+            .x
+        };
         assert_eq!(at(Vec3::new(0.5, 0.5, 9.0)), 0.2);
         assert_eq!(at(Vec3::new(1.5, 0.5, 9.0)), 0.8);
         assert_eq!(at(Vec3::new(-0.5, 0.5, 0.0)), 0.8);
@@ -822,7 +876,7 @@ mod tests {
     }
 
     fn eval(ops: &[TexOp], images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
-        run_program(ops, images, uv, Vec3::ZERO, &mut [f16::ZERO; MATERIAL_COEFFS])
+        run_program(ops, images, TexPoint::uv(uv), &mut [f16::ZERO; MATERIAL_COEFFS])
     }
 
     /// Texel centres return the texel; halfway between two, their mean;
@@ -918,7 +972,7 @@ mod tests {
         let st = SceneTextures { scene: &scene, tables: &tables };
         let coeffs_at = |id: u32, uv: Vec2| {
             let mut c = [f16::ZERO; MATERIAL_COEFFS];
-            st.apply(id, uv, Vec3::ZERO, &mut c);
+            st.apply(id, TexPoint::uv(uv), &mut c);
             c.map(f16::to_f32)
         };
         let reflectance = diffuse::REFLECTANCE..diffuse::REFLECTANCE + 3;
@@ -1108,7 +1162,7 @@ mod binding_tests {
             let tables = TextureTables::new(&scene, &[packed.kind]);
             assert!(!tables.materials[0].is_empty(), "{param:?} on {base:?} was dropped");
             let mut coeffs = packed.coeffs;
-            SceneTextures { scene: &scene, tables: &tables }.apply(m, Vec2::ZERO, Vec3::ZERO, &mut coeffs);
+            SceneTextures { scene: &scene, tables: &tables }.apply(m, TexPoint::default(), &mut coeffs);
             assert_eq!(coeffs, PackedMaterial::pack(&expected).coeffs, "{param:?} on {base:?}");
         }
     }

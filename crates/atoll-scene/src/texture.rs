@@ -456,6 +456,11 @@ pub enum Texture {
         mapping: TexMapping,
         tex: [TexInput; 2],
     },
+    /// `|n · direction|` in all three channels, `n` the hit's geometric
+    /// normal: pbrt-v4's `directionmix` is a [`Texture::Mix`] by it.
+    Facing {
+        direction: glam::Vec3,
+    },
     /// The product of both inputs.
     Scale {
         tex: TexInput,

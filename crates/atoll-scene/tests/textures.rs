@@ -528,3 +528,28 @@ fn bump_and_normal_maps_bind_to_their_materials() {
     assert!(warnings(&l)[0].contains("the shading normal is not bent"), "{:?}", warnings(&l));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// pbrt-v4's `directionmix`: `tex1` where the normal is along `dir` (in the
+/// texture's space), `tex2` across it: a mix of [tex2, tex1] by `|n · dir|`.
+#[test]
+fn direction_mixes_mix_by_the_facing_amount() {
+    let dir = temp_dir("tex-dirmix");
+    let l = load(
+        &dir,
+        "AttributeBegin\nRotate 90 1 0 0\n\
+         Texture \"d\" \"spectrum\" \"directionmix\" \"rgb tex1\" [1 0 0] \"rgb tex2\" [0 0 1] \"vector3 dir\" [0 1 0]\n\
+         AttributeEnd",
+    );
+    assert!(warnings(&l).is_empty(), "{:?}", warnings(&l));
+    let t = &l.scene.textures.textures;
+    let Texture::Facing { direction } = t[0] else { panic!("{:?}", t[0]) };
+    assert!((direction - glam::Vec3::Z).length() < 1e-6, "Rotate 90 about x turns +y to +z: {direction}");
+    assert_eq!(
+        t[1],
+        Texture::Mix {
+            tex: [TexInput::Value(Rgb::new(0.0, 0.0, 1.0)), TexInput::Value(Rgb::new(1.0, 0.0, 0.0))],
+            amount: TexInput::Texture(0),
+        }
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

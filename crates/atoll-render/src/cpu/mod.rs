@@ -20,7 +20,7 @@ use crate::frame::{FrameContext, RenderOptions, Wave};
 use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
-use crate::texture::SceneTextures;
+use crate::texture::{SceneTextures, TexPoint};
 
 /// Records per rayon task: big enough to amortise scheduling.
 const CHUNK: usize = 256;
@@ -245,7 +245,7 @@ fn write_hit(
     let (material, packed) = frame.material_at(mesh.material, r, uv);
     packed.store(r);
     if !frame.textures.materials[material as usize].is_empty() {
-        textures.apply(material, uv(), p, &mut r.coeffs);
+        textures.apply(material, TexPoint { uv: uv(), position: p, normal: ng }, &mut r.coeffs);
     }
     if frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE {
         let world = corners.map(|c| to_world.transform_point3(c));

@@ -8,6 +8,7 @@
 //! | `constant` | `value` (1) |
 //! | `scale` | `tex` (1) × `scale` (1); pbrt-v3: `tex1` × `tex2` |
 //! | `mix` | `tex1` (0), `tex2` (1), `amount` (0.5, a float texture) |
+//! | `directionmix` | `tex1` (0), `tex2` (1), `dir` (0 1 0, in the texture's space): `tex1` times `\|n · dir\|`, `tex2` the rest |
 //!
 //! `imagemap` and `checkerboard` take pbrt-v4's 2D mappings: `uv`
 //! (`uscale`, `vscale`, `udelta`, `vdelta`), and `spherical`,
@@ -70,8 +71,7 @@ impl TexKind {
 }
 
 /// pbrt texture classes atoll has no texture for.
-const UNSUPPORTED: &[&str] =
-    &["ptex", "marble", "fbm", "wrinkled", "windy", "dots", "bilerp", "directionmix", "uv"];
+const UNSUPPORTED: &[&str] = &["ptex", "marble", "fbm", "wrinkled", "windy", "dots", "bilerp", "uv"];
 
 /// The named textures of a scene being loaded, and its image cache.
 #[derive(Debug, Default)]
@@ -169,6 +169,29 @@ impl NamedTextures {
                 tex: [input("tex1", kind, 0.0, w)?, input("tex2", kind, 1.0, w)?],
                 amount: input("amount", TexKind::Float, 0.5, w)?,
             },
+            // pbrt-v4: `|n · dir|` of `tex1` and the rest of `tex2`, `dir`
+            // in the texture's space.
+            "directionmix" => {
+                let dir = match p.numbers("dir", ParamType::Vector3) {
+                    None => glam::DVec3::Y,
+                    Some([x, y, z]) => glam::DVec3::new(*x, *y, *z),
+                    Some(v) => {
+                        return Err(SceneError::at(
+                            loc,
+                            format!("{what}: \"dir\" needs 3 values, got {}", v.len()),
+                        ))
+                    }
+                };
+                let direction = site.world_from_texture.transform_vector3(dir).normalize_or_zero().as_vec3();
+                if direction == glam::Vec3::ZERO {
+                    return Err(SceneError::at(loc, format!("{what}: \"dir\" is no direction")));
+                }
+                let facing = store.add(Texture::Facing { direction });
+                Texture::Mix {
+                    tex: [input("tex2", kind, 1.0, w)?, input("tex1", kind, 0.0, w)?],
+                    amount: TexInput::Texture(facing),
+                }
+            }
             "checkerboard" => {
                 p.find("aamode", &[ParamType::String]); // pbrt-v3's antialiasing choice
                 match p.int("dimension")?.unwrap_or(2) {
