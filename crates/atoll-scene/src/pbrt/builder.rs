@@ -682,27 +682,10 @@ impl Builder {
         let what = format!("Material \"{ty}\"");
         let mut tex = TexCtx::new(&self.textures, &mut self.scene.textures);
         let material = entities::material(ty, p, loc, &mut self.warnings, &mut tex)?;
+        let bump =
+            if p.find("displacement", &[ParamType::Texture]).is_some() { "displacement" } else { "bumpmap" };
+        let displacement = tex.float(p, bump, &what, loc, &mut self.warnings)?;
         let mut bindings = tex.bindings;
-        let displacement = match p.find("displacement", &[ParamType::Texture]) {
-            Some(_) => tex_ctx_float(
-                &self.textures,
-                &mut self.scene.textures,
-                p,
-                "displacement",
-                &what,
-                loc,
-                &mut self.warnings,
-            )?,
-            None => tex_ctx_float(
-                &self.textures,
-                &mut self.scene.textures,
-                p,
-                "bumpmap",
-                &what,
-                loc,
-                &mut self.warnings,
-            )?,
-        };
         // A constant displacement moves nothing pbrt's bump mapping sees.
         p.find("displacement", &[ParamType::Float]);
         let normal_map = match p.string("normalmap")? {
@@ -1069,17 +1052,4 @@ fn read_spectrum_file(base_dir: &Path, param: &Param, name: &str) -> Result<Opti
         }
     };
     spectrum::parse_spd(&text).map(Some).map_err(|why| SceneError::at(&param.loc, format!("{what}: {why}")))
-}
-
-/// A float texture parameter of a material (a value or a named texture).
-fn tex_ctx_float(
-    named: &NamedTextures,
-    store: &mut crate::Textures,
-    p: &ParamList,
-    name: &str,
-    what: &str,
-    loc: &FileLoc,
-    w: &mut WarningSink,
-) -> Result<Option<TexInput>, SceneError> {
-    TexCtx::new(named, store).float(p, name, what, loc, w)
 }

@@ -286,16 +286,7 @@ impl NamedTextures {
         base_dir: &Path,
         store: &mut Textures,
     ) -> Result<TextureId, ImageLoadError> {
-        let path = crate::input::beside(base_dir, file).map_err(ImageLoadError::io(Path::new(file)))?;
-        let image = self.images.load(store, &path, ColorEncoding::Srgb)?;
-        Ok(store.add(Texture::Image {
-            image,
-            mapping: UvMapping::default().into(),
-            wrap: Wrap::Clamp,
-            channel: crate::Channel::Rgb,
-            scale: 1.0,
-            invert: false,
-        }))
+        self.rgb_image(file, base_dir, store, ColorEncoding::Srgb, Wrap::Clamp)
     }
 
     /// A material's `normalmap`: the image read linearly (pbrt-v4 reads
@@ -306,12 +297,24 @@ impl NamedTextures {
         base_dir: &Path,
         store: &mut Textures,
     ) -> Result<TextureId, ImageLoadError> {
+        self.rgb_image(file, base_dir, store, ColorEncoding::Linear, Wrap::Repeat)
+    }
+
+    /// Image `file` as an RGB texture over the surface's uv.
+    fn rgb_image(
+        &mut self,
+        file: &str,
+        base_dir: &Path,
+        store: &mut Textures,
+        encoding: ColorEncoding,
+        wrap: Wrap,
+    ) -> Result<TextureId, ImageLoadError> {
         let path = crate::input::beside(base_dir, file).map_err(ImageLoadError::io(Path::new(file)))?;
-        let image = self.images.load(store, &path, ColorEncoding::Linear)?;
+        let image = self.images.load(store, &path, encoding)?;
         Ok(store.add(Texture::Image {
             image,
             mapping: UvMapping::default().into(),
-            wrap: Wrap::Repeat,
+            wrap,
             channel: crate::Channel::Rgb,
             scale: 1.0,
             invert: false,
