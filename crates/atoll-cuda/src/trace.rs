@@ -52,6 +52,7 @@ impl TraceFeatures {
                 .materials
                 .iter()
                 .chain(&frame.textures.mix_amount)
+                .chain(frame.textures.shading_normals.iter().map(|b| &b.program))
                 .any(|r| !r.is_empty())
                 || !frame.lights.emission_ops.is_empty(),
             count_accesses: false,
@@ -473,5 +474,21 @@ mod tests {
         }
         assert!(source.contains("trace_##query##_##name##_##test"));
         assert_eq!(TraversalVariant::ALL.iter().filter(|v| v.persistent()).count(), 3);
+    }
+
+    /// A frame whose only texture is a bump map still gets the texture
+    /// code in its closest-hit kernels (the bump is applied there).
+    #[test]
+    fn a_bump_map_alone_needs_the_texture_code() {
+        use atoll_scene::texture_scenes::{bent_plane_scene, Bend};
+        let features = |bend| {
+            let scene = bent_plane_scene(bend);
+            TraceFeatures::of(&atoll_render::FrameContext::new(
+                &scene,
+                atoll_render::RenderOptions::from_scene(&scene),
+            ))
+        };
+        assert!(!features(Bend::Tilted).textures);
+        assert!(features(Bend::Bump).textures && features(Bend::NormalMap).textures);
     }
 }
