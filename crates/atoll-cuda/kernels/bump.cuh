@@ -2,17 +2,16 @@
 // normal bent by a material's displacement texture or normal-map image.
 #pragma once
 
+#include "bsdf.cuh"
 #include "common.cuh"
 #include "params.cuh"
 #include "texture.cuh"
 
-/// `bump::coordinate_system`.
+/// `bump::coordinate_system`: the tangents of the BSDF's frame about `v`.
 __device__ __forceinline__ void coordinate_system(float3 v, float3* a_out, float3* b_out) {
-    const float sign = copysignf(1.0f, v.z);
-    const float a = -1.0f / (sign + v.z);
-    const float b = v.x * v.y * a;
-    *a_out = make_float3(1.0f + sign * v.x * v.x * a, sign * b, -sign * v.x);
-    *b_out = make_float3(b, sign + v.y * v.y * a, -v.y);
+    const Frame f = frame_from_z(v);
+    *a_out = f.x;
+    *b_out = f.y;
 }
 
 __device__ __forceinline__ bool finite3(float3 v) { return isfinite(v.x) && isfinite(v.y) && isfinite(v.z); }

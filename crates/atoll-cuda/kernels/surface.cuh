@@ -90,12 +90,8 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
                 ProgramRange range;
                 range.start = c0.x;
                 range.len = c0.y;
-                // The normal as the CPU reads it back from the record (f16).
-                const float3 n16 = make_float3(f16_to_f32(f32_to_f16(ng.x)), f16_to_f32(f32_to_f16(ng.y)),
-                                               f16_to_f32(f32_to_f16(ng.z)));
                 amount = clampf(
-                    run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, n16, nullptr).x, 0.0f,
-                    1.0f);
+                    run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, ng, nullptr).x, 0.0f, 1.0f);
             }
 #endif
             unsigned int next;

@@ -27,12 +27,11 @@ pub mod kind {
 /// pbrt's finite-difference step in (u, v) where the pixel's footprint is unknown.
 pub const BUMP_STEP: f32 = 0.0005;
 
-/// pbrt's `CoordinateSystem`: two unit vectors completing unit `v` to a frame.
-pub fn coordinate_system(v: Vec3) -> (Vec3, Vec3) {
-    let sign = 1.0f32.copysign(v.z);
-    let a = -1.0 / (sign + v.z);
-    let b = v.x * v.y * a;
-    (Vec3::new(1.0 + sign * v.x * v.x * a, sign * b, -sign * v.x), Vec3::new(b, sign + v.y * v.y * a, -v.y))
+/// pbrt's `CoordinateSystem`: two unit vectors completing unit `v` to a
+/// frame (the BSDF's frame, which is the same construction).
+fn coordinate_system(v: Vec3) -> (Vec3, Vec3) {
+    let frame = crate::bsdf::Frame::from_z(v);
+    (frame.x, frame.y)
 }
 
 /// A triangle's dp/du and dp/dv from its corners `p` and their `uv`s

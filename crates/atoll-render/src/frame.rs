@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler, Scene, TextureImage};
-use glam::{Mat3, UVec2, Vec2};
+use glam::{Mat3, UVec2};
 
 use crate::camera::CameraRays;
 use crate::lights::LightSet;
@@ -132,9 +132,9 @@ impl FrameContext {
     /// the vertex's [`BounceDim::MaterialChoice`] number (nested mixes reuse
     /// what is left of it, rescaled). The GPU's `write_surface` mirrors it.
     /// Returns the chosen material's id with it (its textures apply). A
-    /// mix whose amount is a texture evaluates it at the hit's `uv`
-    /// (computed only then).
-    pub fn material_at(&self, id: u32, r: &RayRecord, uv: impl Fn() -> Vec2) -> (u32, &PackedMaterial) {
+    /// mix whose amount is a texture evaluates it at the hit `at` (computed
+    /// only then).
+    pub fn material_at(&self, id: u32, r: &RayRecord, at: impl Fn() -> TexPoint) -> (u32, &PackedMaterial) {
         let mut id = id;
         let mut m = &self.materials[id as usize];
         if m.mix.is_none() {
@@ -153,9 +153,7 @@ impl FrameContext {
                 amount
             } else {
                 let ops = &self.textures.ops[program.start as usize..(program.start + program.len) as usize];
-                // The hit as written so far: its point and geometric normal.
-                let at = TexPoint { uv: uv(), position: r.position.into(), normal: r.geometric_normal() };
-                let value = run_program(ops, &self.images, at, &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
+                let value = run_program(ops, &self.images, at(), &mut [half::f16::ZERO; MATERIAL_COEFFS]).x;
                 value.clamp(0.0, 1.0)
             };
             if u < amount {
@@ -231,9 +229,10 @@ mod tests {
         for i in 0..n {
             let mut r = RayRecord::zeroed();
             (r.pixel, r.sample, r.depth) = (i, i % 7, (i % 3) as u16);
-            let chosen = frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[diffuse::REFLECTANCE].to_f32();
+            let chosen =
+                frame.material_at(abc, &r, TexPoint::default).1.coeffs[diffuse::REFLECTANCE].to_f32();
             assert_eq!(
-                frame.material_at(abc, &r, || Vec2::ZERO).1.coeffs[diffuse::REFLECTANCE].to_f32(),
+                frame.material_at(abc, &r, TexPoint::default).1.coeffs[diffuse::REFLECTANCE].to_f32(),
                 chosen,
                 "deterministic"
             );
@@ -261,12 +260,12 @@ mod tests {
         for i in 0..200 {
             let mut r = RayRecord::zeroed();
             (r.pixel, r.sample) = (i, 3);
-            assert_eq!(frame.material_at(textured, &r, || Vec2::new(0.5, 0.5)).0, a);
-            assert_eq!(frame.material_at(textured, &r, || Vec2::new(1.5, 0.5)).0, b);
+            assert_eq!(frame.material_at(textured, &r, || TexPoint::uv(glam::Vec2::new(0.5, 0.5))).0, a);
+            assert_eq!(frame.material_at(textured, &r, || TexPoint::uv(glam::Vec2::new(1.5, 0.5))).0, b);
         }
         // A plain material is itself.
         assert_eq!(
-            frame.material_at(a, &RayRecord::zeroed(), || Vec2::ZERO),
+            frame.material_at(a, &RayRecord::zeroed(), TexPoint::default),
             (a, &frame.materials[a as usize])
         );
     }

@@ -242,10 +242,11 @@ fn write_hit(
         if r.light != NO_LIGHT { frame.lights.emission_scale(r.light, hit.u, hit.v) } else { 0 };
     let textures = res.textures(frame);
     let uv = || textures.uv(hit.mesh, hit.triangle, hit.u, hit.v);
-    let (material, packed) = frame.material_at(mesh.material, r, uv);
+    let at = || TexPoint { uv: uv(), position: p, normal: ng };
+    let (material, packed) = frame.material_at(mesh.material, r, at);
     packed.store(r);
     if !frame.textures.materials[material as usize].is_empty() {
-        textures.apply(material, TexPoint { uv: uv(), position: p, normal: ng }, &mut r.coeffs);
+        textures.apply(material, at(), &mut r.coeffs);
     }
     if frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE {
         let world = corners.map(|c| to_world.transform_point3(c));
