@@ -98,20 +98,20 @@ fn made_mesh(
             let radius = p.float_or("radius", 1.0)?;
             let (zmin, zmax) = (p.float_or("zmin", -radius)?, p.float_or("zmax", radius)?);
             let phimax = p.float_or("phimax", 360.0)?;
-            quadric("sphere", quadrics::sphere(radius, zmin, zmax, phimax), loc)
+            tessellated("sphere", quadrics::sphere(radius, zmin, zmax, phimax), loc)
         }
         "disk" => {
             let (height, radius) = (p.float_or("height", 0.0)?, p.float_or("radius", 1.0)?);
             let (inner, phimax) = (p.float_or("innerradius", 0.0)?, p.float_or("phimax", 360.0)?);
-            quadric("disk", quadrics::disk(height, radius, inner, phimax), loc)
+            tessellated("disk", quadrics::disk(height, radius, inner, phimax), loc)
         }
         "cylinder" => {
             let radius = p.float_or("radius", 1.0)?;
             let (zmin, zmax) = (p.float_or("zmin", -1.0)?, p.float_or("zmax", 1.0)?);
             let phimax = p.float_or("phimax", 360.0)?;
-            quadric("cylinder", quadrics::cylinder(radius, zmin, zmax, phimax), loc)
+            tessellated("cylinder", quadrics::cylinder(radius, zmin, zmax, phimax), loc)
         }
-        "curve" => quadric("curve", super::curves::curve(p, loc)?, loc),
+        "curve" => tessellated("curve", super::curves::curve(p, loc)?, loc),
         _ => {
             p.mark_all_used();
             w.warn(loc, format!("unsupported shape \"{ty}\" skipped"));
@@ -122,7 +122,7 @@ fn made_mesh(
 
 /// A tessellated quadric or curve, its few thousand triangles at most drawn
 /// from the scene's budget (made first: they take less memory than the check).
-fn quadric(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<ShapeMesh>, SceneError> {
+fn tessellated(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<ShapeMesh>, SceneError> {
     generate(what, Some(mesh.indices.len() as u64), loc)?;
     Ok(Some(mesh))
 }
