@@ -7,6 +7,7 @@
 #include "common.cuh"
 #include "layout.cuh"
 #include "materials.cuh"
+#include "noise.cuh"
 #include "params.cuh"
 #include "rng.cuh"
 
@@ -39,10 +40,13 @@ inline constexpr unsigned int TEX_STORE = 5u;
 inline constexpr unsigned int TEX_PROJECT = 6u;
 inline constexpr unsigned int TEX_DATA = 7u;
 inline constexpr unsigned int TEX_FACING = 8u;
+inline constexpr unsigned int TEX_NOISE = 9u;
+inline constexpr unsigned int TEX_DOTS = 10u;
 inline constexpr unsigned int TEX_PROJECTED = 16777216u;
 inline constexpr unsigned int PROJECT_SPHERICAL = 0u;
 inline constexpr unsigned int PROJECT_CYLINDRICAL = 1u;
 inline constexpr unsigned int PROJECT_PLANAR = 2u;
+inline constexpr unsigned int PROJECT_POINT = 3u;
 inline constexpr unsigned int BUMP_NONE = 0u;
 inline constexpr unsigned int BUMP_BUMP = 1u;
 inline constexpr unsigned int BUMP_NORMAL_MAP = 2u;
@@ -230,9 +234,10 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
     }
 }
 
-/// `texture::project`: (s, t) of the hit point `position` under the
-/// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops after).
-__device__ float2 project(const TexOp* ops, unsigned int k, float3 position) {
+/// `texture::project`: (s, t, 0) of the hit point `position` under the
+/// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops
+/// after), or the point itself for PROJECT_POINT.
+__device__ float3 project(const TexOp* ops, unsigned int k, float3 position) {
     float q[3];
 #pragma unroll
     for (int r = 0; r < 3; ++r) {
@@ -245,10 +250,11 @@ __device__ float2 project(const TexOp* ops, unsigned int k, float3 position) {
         const float theta = acosf(clampf(d.z, -1.0f, 1.0f));
         float phi = atan2f(d.y, d.x);
         if (phi < 0.0f) phi += tau;
-        return make_float2(theta * (1.0f / pi), phi / tau);
+        return make_float3(theta * (1.0f / pi), phi / tau, 0.0f);
     }
-    if (ops[k].a == PROJECT_CYLINDRICAL) return make_float2((pi + atan2f(q[1], q[0])) / tau, q[2]);
-    return make_float2(q[0], q[1]);
+    if (ops[k].a == PROJECT_CYLINDRICAL) return make_float3((pi + atan2f(q[1], q[0])) / tau, q[2], 0.0f);
+    if (ops[k].a == PROJECT_POINT) return make_float3(q[0], q[1], q[2]);
+    return make_float3(q[0], q[1], 0.0f);
 }
 
 /// `texture::run_program` at the hit `TexPoint { uv, position, normal }`:
@@ -263,7 +269,7 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
         const TexOp o = ops[k];
         // A projected op pops its (s, t); others map the hit's uv.
         float2 coords = uv;
-        if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD) && (o.b & TEX_PROJECTED)) {
+        if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD || o.code == TEX_DOTS) && (o.b & TEX_PROJECTED)) {
             --sp;
             coords = make_float2(stack[sp].x, stack[sp].y);
         }
@@ -273,8 +279,13 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             const float a = fabsf(dot3(normal, make_float3(o.f[0], o.f[1], o.f[2])));
             stack[sp++] = make_float3(a, a, a);
         } else if (o.code == TEX_PROJECT) {
-            const float2 st = project(ops, k, position);
-            stack[sp++] = make_float3(st.x, st.y, 0.0f);
+            stack[sp++] = project(ops, k, position);
+        } else if (o.code == TEX_NOISE) {
+            stack[sp - 1] = noise_texture(o.a, stack[sp - 1], o.b, o.f[0], o.f[1], o.f[2]);
+        } else if (o.code == TEX_DOTS) {
+            const bool inside = inside_polka_dot(apply_mapping(o, coords));
+            --sp;
+            if (!inside) stack[sp - 1] = stack[sp];
         } else if (o.code == TEX_IMAGE) {
             stack[sp++] = image_lookup(p, o, coords);
         } else if (o.code == TEX_CHECKERBOARD) {

@@ -39,6 +39,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("light_bvh.cuh", include_str!("../kernels/light_bvh.cuh")),
     ("lights.cuh", include_str!("../kernels/lights.cuh")),
     ("materials.cuh", include_str!("../kernels/materials.cuh")),
+    ("noise.cuh", include_str!("../kernels/noise.cuh")),
     ("surface.cuh", include_str!("../kernels/surface.cuh")),
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("principled.cuh", include_str!("../kernels/principled.cuh")),

@@ -60,6 +60,7 @@ pub(crate) fn blocks() -> Vec<Block> {
         Block { file: "params.cuh", name: "params", generate: params_asserts },
         Block { file: "bvh.cuh", name: "bvh", generate: crate::bvh::layout::header_block },
         Block { file: "lbvh.cuh", name: "lbvh", generate: crate::bvh::layout::build_header_block },
+        Block { file: "noise.cuh", name: "noise", generate: noise_constants },
         Block { file: "texture.cuh", name: "texture", generate: texture_constants },
         Block { file: "layered.cuh", name: "layered", generate: layered_constants },
     ]
@@ -221,10 +222,13 @@ pub(crate) fn texture_constants() -> String {
         ("TEX_PROJECT", op::PROJECT),
         ("TEX_DATA", op::DATA),
         ("TEX_FACING", op::FACING),
+        ("TEX_NOISE", op::NOISE),
+        ("TEX_DOTS", op::DOTS),
         ("TEX_PROJECTED", PROJECTED),
         ("PROJECT_SPHERICAL", projection::SPHERICAL),
         ("PROJECT_CYLINDRICAL", projection::CYLINDRICAL),
         ("PROJECT_PLANAR", projection::PLANAR),
+        ("PROJECT_POINT", projection::POINT),
         ("BUMP_NONE", atoll_render::bump::kind::NONE),
         ("BUMP_BUMP", atoll_render::bump::kind::BUMP),
         ("BUMP_NORMAL_MAP", atoll_render::bump::kind::NORMAL_MAP),
@@ -252,6 +256,28 @@ pub(crate) fn texture_constants() -> String {
     s += &assert_struct::<TexOp>("TexOp", field_layout!(TexOp { code, a, b, c, f }));
     s += &assert_struct::<ProgramRange>("ProgramRange", field_layout!(ProgramRange { start, len }));
     s + &assert_struct::<AlphaProgram>("AlphaProgram", field_layout!(AlphaProgram { program, mode, cutoff }))
+}
+
+/// The noise kinds, the octave cap and Perlin's permutation table
+/// (`atoll_render::noise`).
+pub(crate) fn noise_constants() -> String {
+    use atoll_render::noise::{kind, MAX_OCTAVES, PERMUTATION};
+    let mut s = String::new();
+    for (name, value) in [
+        ("NOISE_FBM", kind::FBM),
+        ("NOISE_WRINKLED", kind::WRINKLED),
+        ("NOISE_WINDY", kind::WINDY),
+        ("NOISE_MARBLE", kind::MARBLE),
+        ("NOISE_MAX_OCTAVES", MAX_OCTAVES),
+    ] {
+        s += &const_uint("unsigned int", name, value as u64);
+    }
+    s += "__device__ const unsigned char NOISE_PERMUTATION[256] = {\n";
+    for row in PERMUTATION.chunks(16) {
+        let row: Vec<String> = row.iter().map(|v| v.to_string()).collect();
+        let _ = writeln!(s, "    {},", row.join(", "));
+    }
+    s + "};\n"
 }
 
 /// The layered BSDF's random-stream tags, seed rounding and smallest layer

@@ -239,6 +239,48 @@ fn projected_textures_match_the_cpu_device() {
     assert_renders_match(&mut cuda, &Arc::new(scene), "directionmix");
 }
 
+/// pbrt-v4's noise textures and polka dots give the GPU's hits the CPU's
+/// coefficients: the cut-out scene's checkerboards become dots, and mixes
+/// whose amount is each noise texture of the hit point.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn noise_textures_match_the_cpu_device() {
+    use atoll_scene::texture_scenes::{cutout_scene, Screen};
+    use atoll_scene::{Noise, TexInput, TexMapping, Texture};
+    let Some(gpu) = gpu_or_skip("noise textures") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let dots = |t: &Texture| match t {
+        Texture::Checkerboard { tex, .. } => Some(Texture::Dots {
+            mapping: TexMapping::Uv(atoll_scene::UvMapping { su: 6.0, sv: 6.0, du: 0.0, dv: 0.0 }),
+            tex: *tex,
+        }),
+        _ => None,
+    };
+    let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+    for t in &mut scene.textures.textures {
+        if let Some(d) = dots(t) {
+            *t = d;
+        }
+    }
+    assert_renders_match(&mut cuda, &Arc::new(scene), "dots");
+    let texture_from_world = glam::Affine3A::from_scale(Vec3::splat(3.0));
+    for noise in [
+        Noise::Fbm { octaves: 6, omega: 0.6 },
+        Noise::Wrinkled { octaves: 8, omega: 0.5 },
+        Noise::Windy,
+        Noise::Marble { octaves: 8, omega: 0.5, scale: 2.0, variation: 0.4 },
+    ] {
+        let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+        let amount = scene.textures.add(Texture::Noise { noise, texture_from_world });
+        for t in &mut scene.textures.textures {
+            if let Texture::Checkerboard { tex, .. } = t {
+                *t = Texture::Mix { tex: *tex, amount: TexInput::Texture(amount) };
+            }
+        }
+        assert_renders_match(&mut cuda, &Arc::new(scene), &format!("{noise:?}"));
+    }
+}
+
 /// Bump and normal maps bend the GPU's shading normals as the CPU's: a
 /// plane bump-mapped by a ramp, normal-mapped, and the tilted plane both
 /// stand for (`texture_scenes::bent_plane_scene`).

@@ -15,6 +15,7 @@ pub mod light_bvh;
 pub mod lights;
 pub mod material_coeffs;
 pub mod material_layout;
+pub mod noise;
 pub mod record;
 pub mod rng;
 pub mod sampling;

@@ -20,8 +20,8 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, ImageId, Material, Scene, TexInput, TexMapping, Texture, TextureBinding, TextureId,
-    TextureImage, TexturedParam, Wrap,
+    AlphaMode, Channel, ImageId, Material, Noise, Scene, TexInput, TexMapping, Texture, TextureBinding,
+    TextureId, TextureImage, TexturedParam, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3, Vec3A};
@@ -29,6 +29,7 @@ use half::f16;
 
 use crate::bump::kind as bump;
 use crate::material_layout::conductor;
+use crate::noise;
 use crate::record::{MaterialKind, MATERIAL_COEFFS};
 use crate::rng::pcg_hash;
 
@@ -61,6 +62,14 @@ pub mod op {
     /// Push `|n · f[0..3]|` (all three channels), `n` the hit's geometric
     /// normal: pbrt's `directionmix` amount.
     pub const FACING: u32 = 8;
+    /// Pop the texture-space point `q` (an [`op::PROJECT`] of kind
+    /// [`super::projection::POINT`]); push noise texture `a`
+    /// ([`crate::noise::kind`]) at it: `b` octaves, `f` = (omega, scale,
+    /// variation, 0).
+    pub const NOISE: u32 = 9;
+    /// Pop `second`, `first`; push `first` inside pbrt's polka dots of
+    /// (s, t), else `second`; `f` the uv mapping (as [`CHECKERBOARD`]).
+    pub const DOTS: u32 = 10;
 }
 
 /// Where a texture program runs: the hit's texture coordinates, its point
@@ -88,9 +97,11 @@ pub mod projection {
     pub const CYLINDRICAL: u32 = 1;
     /// `(q.x, q.y)`: the rows hold the planar mapping's `vs`, `vt`, `ds`, `dt`.
     pub const PLANAR: u32 = 2;
+    /// `q` itself, a point for the noise textures.
+    pub const POINT: u32 = 3;
 }
 
-/// Set in `b` of an [`op::IMAGE`] or [`op::CHECKERBOARD`]: it pops its
+/// Set in `b` of an [`op::IMAGE`], [`op::CHECKERBOARD`] or [`op::DOTS`]: it pops its
 /// `(s, t)` from the stack (an [`op::PROJECT`]) instead of mapping the
 /// hit's `uv`.
 pub const PROJECTED: u32 = 1 << 24;
@@ -381,6 +392,30 @@ fn compile(
             let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
             out.push(TexOp { code: op::CHECKERBOARD, b: projected, f, ..Default::default() });
         }
+        Texture::Dots { mapping, tex } => {
+            input(out, &tex[0], depth)?;
+            input(out, &tex[1], depth + 1)?;
+            let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
+            out.push(TexOp { code: op::DOTS, b: projected, f, ..Default::default() });
+        }
+        Texture::Noise { noise, texture_from_world } => {
+            project_ops(projection::POINT, rows_of(texture_from_world), out, depth)?;
+            let (kind, octaves, omega, scale, variation) = match *noise {
+                Noise::Fbm { octaves, omega } => (noise::kind::FBM, octaves, omega, 1.0, 0.0),
+                Noise::Wrinkled { octaves, omega } => (noise::kind::WRINKLED, octaves, omega, 1.0, 0.0),
+                Noise::Windy => (noise::kind::WINDY, 0, 0.5, 1.0, 0.0),
+                Noise::Marble { octaves, omega, scale, variation } => {
+                    (noise::kind::MARBLE, octaves, omega, scale, variation)
+                }
+            };
+            out.push(TexOp {
+                code: op::NOISE,
+                a: kind,
+                b: octaves,
+                f: [omega, scale, variation, 0.0],
+                ..Default::default()
+            });
+        }
         Texture::Scale { tex, scale } => {
             input(out, tex, depth)?;
             input(out, scale, depth + 1)?;
@@ -422,12 +457,24 @@ fn mapping_ops(
             (projection::PLANAR, [row(vs, ds), row(vt, dt), [0.0; 4]])
         }
     };
+    project_ops(kind, rows, out, depth)?;
+    Ok(([1.0, 1.0, 0.0, 0.0], PROJECTED))
+}
+
+/// Appends an [`op::PROJECT`] of `kind` with the matrix `rows` (run at
+/// stack depth `depth`, where it pushes one value) and its [`op::DATA`].
+fn project_ops(
+    kind: u32,
+    rows: [[f32; 4]; 3],
+    out: &mut Vec<TexOp>,
+    depth: usize,
+) -> Result<(), TextureCompileError> {
     if depth >= TEXTURE_STACK {
         return Err(TextureCompileError::StackTooDeep);
     }
     out.push(TexOp { code: op::PROJECT, a: kind, f: rows[0], ..Default::default() });
     out.extend(rows[1..].iter().map(|&f| TexOp { code: op::DATA, f, ..Default::default() }));
-    Ok(([1.0, 1.0, 0.0, 0.0], PROJECTED))
+    Ok(())
 }
 
 /// The three rows of an affine map as a 3×4 matrix.
@@ -437,8 +484,9 @@ fn rows_of(a: &glam::Affine3A) -> [[f32; 4]; 3] {
     [0, 1, 2].map(|r| m.row(r).extend(c[r]).to_array())
 }
 
-/// `(s, t)` of the hit point `position` under the [`op::PROJECT`] at `ops[k]`.
-fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec2 {
+/// What the [`op::PROJECT`] at `ops[k]` pushes for the hit point
+/// `position`: `(s, t, 0)`, or the point itself for [`projection::POINT`].
+fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec3 {
     let row = |i: usize| glam::Vec4::from_array(ops[k + i].f);
     let p = position.extend(1.0);
     let q = Vec3::new(row(0).dot(p), row(1).dot(p), row(2).dot(p));
@@ -448,12 +496,13 @@ fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec2 {
             let theta = d.z.clamp(-1.0, 1.0).acos();
             let phi = d.y.atan2(d.x);
             let phi = if phi < 0.0 { phi + std::f32::consts::TAU } else { phi };
-            Vec2::new(theta * std::f32::consts::FRAC_1_PI, phi / std::f32::consts::TAU)
+            Vec3::new(theta * std::f32::consts::FRAC_1_PI, phi / std::f32::consts::TAU, 0.0)
         }
         projection::CYLINDRICAL => {
-            Vec2::new((std::f32::consts::PI + q.y.atan2(q.x)) / std::f32::consts::TAU, q.z)
+            Vec3::new((std::f32::consts::PI + q.y.atan2(q.x)) / std::f32::consts::TAU, q.z, 0.0)
         }
-        _ => Vec2::new(q.x, q.y),
+        projection::POINT => q,
+        _ => Vec3::new(q.x, q.y, 0.0),
     }
 }
 
@@ -540,8 +589,20 @@ pub fn run_program(
                 sp += 1;
             }
             op::PROJECT => {
-                stack[sp] = project(ops, k, position).extend(0.0);
+                stack[sp] = project(ops, k, position);
                 sp += 1;
+            }
+            op::NOISE => {
+                let [omega, scale, variation, _] = o.f;
+                stack[sp - 1] = noise::evaluate(o.a, stack[sp - 1], o.b, omega, scale, variation);
+            }
+            op::DOTS => {
+                let st = coords(o, &stack, &mut sp);
+                let inside = noise::inside_polka_dot(apply_mapping(o.f, st));
+                sp -= 1;
+                if !inside {
+                    stack[sp - 1] = stack[sp];
+                }
             }
             op::FACING => {
                 stack[sp] = Vec3::splat(normal.dot(Vec3::new(o.f[0], o.f[1], o.f[2])).abs());
@@ -787,7 +848,7 @@ mod tests {
         let (f, flag) = mapping_ops(&mapping, &mut ops, 0).unwrap();
         assert_eq!((f, flag, ops.len()), ([1.0, 1.0, 0.0, 0.0], PROJECTED, 3));
         assert_eq!(ops.iter().map(|o| o.code).collect::<Vec<_>>(), [op::PROJECT, op::DATA, op::DATA]);
-        project(&ops, 0, position)
+        project(&ops, 0, position).truncate()
     }
 
     /// pbrt-v4's spherical, cylindrical and planar mappings, in the

@@ -40,8 +40,9 @@ pub use material::{CoatedDiffuseParams, Material, MaterialId, PrincipledParams};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{
-    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, TexInput, TexMapping,
-    Texels, Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping, Wrap,
+    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, Noise, TexInput,
+    TexMapping, Texels, Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping,
+    Wrap,
 };
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).

@@ -429,6 +429,23 @@ impl From<UvMapping> for TexMapping {
     }
 }
 
+/// Which of pbrt-v4's noise textures, with its parameters (`omega` is
+/// pbrt's `roughness`, the weight of each octave relative to the last).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Noise {
+    Fbm { octaves: u32, omega: f32 },
+    Wrinkled { octaves: u32, omega: f32 },
+    Windy,
+    Marble { octaves: u32, omega: f32, scale: f32, variation: f32 },
+}
+
+impl Noise {
+    /// Most octaves a noise texture sums: past this an octave's weight is
+    /// below 2^-32 of the first at pbrt's default roughness, and its
+    /// frequency runs towards overflow.
+    pub const MAX_OCTAVES: u32 = 32;
+}
+
 /// A texture input that is either a value or another texture (pbrt lets
 /// most texture parameters be either).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -460,6 +477,18 @@ pub enum Texture {
     /// normal: pbrt-v4's `directionmix` is a [`Texture::Mix`] by it.
     Facing {
         direction: glam::Vec3,
+    },
+    /// pbrt-v4's solid noise textures of the point `texture_from_world(p)`:
+    /// `fbm`, `wrinkled`, `windy` and `marble` (`atoll_render::noise`).
+    Noise {
+        noise: Noise,
+        texture_from_world: glam::Affine3A,
+    },
+    /// pbrt's polka dots: `tex[0]` inside the dots of the (s, t) plane,
+    /// `tex[1]` outside.
+    Dots {
+        mapping: TexMapping,
+        tex: [TexInput; 2],
     },
     /// The product of both inputs.
     Scale {

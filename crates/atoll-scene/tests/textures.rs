@@ -194,7 +194,7 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
             &format!(
                 "Texture \"missing\" \"spectrum\" \"imagemap\" \"string filename\" \"nowhere.png\"\n\
              Texture \"corrupt\" \"float\" \"imagemap\" \"string filename\" \"corrupt.png\"\n\
-             Texture \"marble\" \"spectrum\" \"marble\" \"float scale\" 3\n\
+             Texture \"ptexed\" \"spectrum\" \"ptex\" \"string filename\" \"x.ptx\"\n\
              Texture \"sphere\" \"spectrum\" \"checkerboard\" \"string mapping\" \"spherical\"\n\
              Texture \"cube\" \"float\" \"checkerboard\" \"integer dimension\" 3\n\
              Material \"diffuse\" \"texture reflectance\" \"undefined\"\n{TRI}\n\
@@ -214,7 +214,7 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
     at(2, "texture \"missing\": ");
     at(2, "nowhere.png");
     at(3, "texture \"corrupt\": ");
-    at(4, "texture \"marble\": class \"marble\" is not supported; using a constant");
+    at(4, "texture \"ptexed\": class \"ptex\" is not supported; using a constant");
     at(6, "texture \"cube\": 3D checkerboards are not supported; using a constant");
     at(7, "spectrum texture \"undefined\" is not defined before this line; \"reflectance\" uses its default");
     at(9, "\"corrupt\" is not a spectrum texture");
@@ -252,6 +252,10 @@ fn bad_texture_parameters_are_errors() {
             "t.pbrt:2:1: texture \"a\": unknown encoding \"log\"",
         ),
         ("Texture \"a\" \"normal\" \"constant\"", "t.pbrt:2:1: Texture \"a\": type must be \"float\" or \"spectrum\""),
+        (
+            "Texture \"a\" \"float\" \"fbm\" \"integer octaves\" -1",
+            "t.pbrt:2:1: texture \"a\": \"octaves\" must not be negative, found -1",
+        ),
     ] {
         let e = load_str(&format!("WorldBegin\n{world}\n"), "t.pbrt", &dir).unwrap_err();
         assert!(e.to_string().starts_with(message), "{e}");
@@ -551,5 +555,46 @@ fn direction_mixes_mix_by_the_facing_amount() {
             amount: TexInput::Texture(0),
         }
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn noise_textures_take_pbrts_parameters_and_defaults() {
+    use atoll_scene::Noise;
+    let dir = temp_dir("tex-noise");
+    let l = load(
+        &dir,
+        "Texture \"f\" \"float\" \"fbm\"\n\
+         Texture \"w\" \"float\" \"wrinkled\" \"integer octaves\" 4 \"float roughness\" 0.7\n\
+         AttributeBegin\nTranslate 1 2 3\n\
+         Texture \"wind\" \"float\" \"windy\"\n\
+         Texture \"m\" \"spectrum\" \"marble\" \"float scale\" 3 \"float variation\" 0.5\n\
+         AttributeEnd\n\
+         Texture \"d\" \"spectrum\" \"dots\" \"texture inside\" \"m\" \"float uscale\" 4\n\
+         Texture \"many\" \"float\" \"fbm\" \"integer octaves\" 100",
+    );
+    let w = warnings(&l);
+    assert_eq!(w.len(), 1, "{w:#?}");
+    assert!(w[0].starts_with("t.pbrt:10:1: texture \"many\": 100 octaves; summing the first 32"), "{w:#?}");
+    let t = &l.scene.textures.textures;
+    let identity = glam::Affine3A::IDENTITY;
+    let shifted = glam::Affine3A::from_translation(glam::Vec3::new(-1.0, -2.0, -3.0));
+    let noise = |i: usize| match t[i] {
+        Texture::Noise { noise, texture_from_world } => (noise, texture_from_world),
+        ref other => panic!("texture {i}: {other:?}"),
+    };
+    assert_eq!(noise(0), (Noise::Fbm { octaves: 8, omega: 0.5 }, identity));
+    assert_eq!(noise(1), (Noise::Wrinkled { octaves: 4, omega: 0.7 }, identity));
+    // The noise textures read the point in the space of their statement.
+    assert_eq!(noise(2), (Noise::Windy, shifted));
+    assert_eq!(noise(3), (Noise::Marble { octaves: 8, omega: 0.5, scale: 3.0, variation: 0.5 }, shifted));
+    assert_eq!(
+        t[4],
+        Texture::Dots {
+            mapping: TexMapping::Uv(UvMapping { su: 4.0, sv: 1.0, du: 0.0, dv: 0.0 }),
+            tex: [TexInput::Texture(3), TexInput::Value(Rgb::ZERO)],
+        }
+    );
+    assert_eq!(noise(5).0, Noise::Fbm { octaves: 32, omega: 0.5 });
     std::fs::remove_dir_all(&dir).ok();
 }

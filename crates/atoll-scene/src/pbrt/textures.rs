@@ -9,12 +9,18 @@
 //! | `scale` | `tex` (1) × `scale` (1); pbrt-v3: `tex1` × `tex2` |
 //! | `mix` | `tex1` (0), `tex2` (1), `amount` (0.5, a float texture) |
 //! | `directionmix` | `tex1` (0), `tex2` (1), `dir` (0 1 0, in the texture's space): `tex1` times `\|n · dir\|`, `tex2` the rest |
+//! | `fbm`, `wrinkled` | `octaves` (8, at most 32), `roughness` (0.5) |
+//! | `windy` | none |
+//! | `marble` | `octaves` (8), `roughness` (0.5), `scale` (1), `variation` (0.2) |
+//! | `dots` | `inside` (1), `outside` (0); 2D mappings |
 //!
-//! `imagemap` and `checkerboard` take pbrt-v4's 2D mappings: `uv`
+//! The noise textures (`fbm`, `wrinkled`, `windy`, `marble`) read the hit
+//! point in the space of the `Texture` statement. `imagemap`,
+//! `checkerboard` and `dots` take pbrt-v4's 2D mappings: `uv`
 //! (`uscale`, `vscale`, `udelta`, `vdelta`), and `spherical`,
 //! `cylindrical` and `planar` (`v1`, `v2`, `udelta`, `vdelta`) of the hit
 //! point in the space of the `Texture` statement. Other classes (`ptex`,
-//! `marble`, `fbm`, ...) and 3D checkerboards are warned about and replaced
+//! `bilerp`, ...) and 3D checkerboards are warned about and replaced
 //! by a constant (0.5 grey, or 1 for float textures), as is an image that
 //! cannot be read under `--allow-missing` (without it, an error as in pbrt-v4).
 //!
@@ -31,8 +37,8 @@ use std::path::Path;
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    ColorEncoding, ImageCache, ImageLoadError, Rgb, TexInput, TexMapping, Texture, TextureId, TexturedParam,
-    Textures, UvMapping, Wrap,
+    ColorEncoding, ImageCache, ImageLoadError, Noise, Rgb, TexInput, TexMapping, Texture, TextureId,
+    TexturedParam, Textures, UvMapping, Wrap,
 };
 
 use super::entities::reflectance_rgb;
@@ -71,7 +77,7 @@ impl TexKind {
 }
 
 /// pbrt texture classes atoll has no texture for.
-const UNSUPPORTED: &[&str] = &["ptex", "marble", "fbm", "wrinkled", "windy", "dots", "bilerp", "uv"];
+const UNSUPPORTED: &[&str] = &["ptex", "bilerp", "uv"];
 
 /// The named textures of a scene being loaded, and its image cache.
 #[derive(Debug, Default)]
@@ -203,6 +209,18 @@ impl NamedTextures {
                 Texture::Checkerboard {
                     mapping,
                     tex: [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?],
+                }
+            }
+            "fbm" | "wrinkled" | "windy" | "marble" => {
+                let texture_from_world =
+                    glam::Affine3A::from_mat4(site.world_from_texture.inverse().as_mat4());
+                Texture::Noise { noise: noise(class, p, what, loc, w)?, texture_from_world }
+            }
+            "dots" => {
+                let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
+                Texture::Dots {
+                    mapping,
+                    tex: [input("inside", kind, 1.0, w)?, input("outside", kind, 0.0, w)?],
                 }
             }
             "imagemap" => return self.image(kind, p, site, store, what, loc, w),
@@ -389,6 +407,41 @@ impl NamedTextures {
             },
         })
     }
+}
+
+/// The noise texture of `class` (`fbm`, `wrinkled`, `windy` or `marble`)
+/// with pbrt-v4's parameters and defaults.
+fn noise(
+    class: &str,
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Noise, SceneError> {
+    if class == "windy" {
+        return Ok(Noise::Windy);
+    }
+    let octaves = match p.int("octaves")?.unwrap_or(8) {
+        n if n < 0 => {
+            return Err(SceneError::at(loc, format!("{what}: \"octaves\" must not be negative, found {n}")))
+        }
+        n if n as u64 > Noise::MAX_OCTAVES as u64 => {
+            w.warn(loc, format!("{what}: {n} octaves; summing the first {}", Noise::MAX_OCTAVES));
+            Noise::MAX_OCTAVES
+        }
+        n => n as u32,
+    };
+    let omega = p.float_or("roughness", 0.5)?;
+    Ok(match class {
+        "fbm" => Noise::Fbm { octaves, omega },
+        "wrinkled" => Noise::Wrinkled { octaves, omega },
+        _ => Noise::Marble {
+            octaves,
+            omega,
+            scale: p.float_or("scale", 1.0)?,
+            variation: p.float_or("variation", 0.2)?,
+        },
+    })
 }
 
 /// pbrt-v4's 2D texture mapping (`TextureMapping2D::Create`): `uv`
