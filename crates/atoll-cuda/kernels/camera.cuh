@@ -26,3 +26,50 @@ __device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, 
     *origin_out = affine_point(p.camera_to_world, origin);
     *direction_out = normalize3(affine_vector(p.camera_to_world, dir));
 }
+
+/// Mirrors `FilterTable::sample_axis`: an offset along `axis` from the
+/// pixel's centre and its weight.
+__device__ __forceinline__ float filter_sample_axis(const FilterTable& f, unsigned int axis, float u, float* weight) {
+    float side = 1.0f;
+    if (u < 0.5f) {
+        side = -1.0f;
+        u = u * 2.0f;
+    } else {
+        u = u * 2.0f - 1.0f;
+    }
+    const float* ends = f.cdf + axis * FILTER_BINS;
+    unsigned int lo = 0, hi = FILTER_BINS - 1;
+    while (lo < hi) {
+        const unsigned int mid = (lo + hi) / 2;
+        if (ends[mid] <= u) {
+            lo = mid + 1;
+        } else {
+            hi = mid;
+        }
+    }
+    const float start = lo == 0 ? 0.0f : ends[lo - 1];
+    const float width = ends[lo] - start;
+    const float within = width > 0.0f ? fminf(__fdiv_rn(u - start, width), 1.0f) : 0.5f;
+    const float x = __fmul_rn((float)lo + within, __fdiv_rn(f.radius[axis], (float)FILTER_BINS));
+    *weight = (f.negative[axis] >> lo) & 1u ? -f.weight[axis] : f.weight[axis];
+    return side * x;
+}
+
+/// Mirrors `FilterTable::sample`: the raster position of a sample of the
+/// pixel whose corner is `pixel`, from uniform numbers `u`, and its weight.
+__device__ __forceinline__ float2 filter_sample(const FilterTable& f, float2 pixel, float2 u, float* weight) {
+    if (f.kind == FILTER_PIXEL) {
+        *weight = 1.0f;
+        return pixel + u;
+    }
+    if (f.kind == FILTER_BOX) {
+        *weight = 1.0f;
+        // Rounded products: no FMA, as the CPU computes it.
+        return make_float2(pixel.x + 0.5f + __fmul_rn(2.0f * u.x - 1.0f, f.radius[0]),
+                           pixel.y + 0.5f + __fmul_rn(2.0f * u.y - 1.0f, f.radius[1]));
+    }
+    float wx, wy;
+    const float x = filter_sample_axis(f, 0, u.x, &wx), y = filter_sample_axis(f, 1, u.y, &wy);
+    *weight = wx * wy;
+    return make_float2(pixel.x + 0.5f + x, pixel.y + 0.5f + y);
+}

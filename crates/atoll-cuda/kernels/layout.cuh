@@ -82,6 +82,7 @@ struct WorkFifo {
 
 // BEGIN GENERATED layout (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int HIT_NONE = 4294967295u;
+inline constexpr unsigned int FILTER_BINS = 32u;
 inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;

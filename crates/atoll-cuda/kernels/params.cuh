@@ -52,6 +52,17 @@ struct GpuEmissionTexture {
     unsigned int start, len;
 };
 
+/// Mirror of `filter::FilterTable`: the pixel filter's sampling tables
+/// (camera.cuh samples them).
+struct FilterTable {
+    unsigned int kind;
+    unsigned int negative[2];
+    unsigned int pad;
+    float radius[2];
+    float weight[2];
+    float cdf[2 * FILTER_BINS];
+};
+
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
 /// every device (`atoll_render::FrameContext` flattened).
 struct FrameParams {
@@ -105,6 +116,7 @@ struct FrameParams {
     const unsigned int* unbounded_lights;
     unsigned int light_node_count;
     unsigned int unbounded_count;
+    FilterTable filter;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -138,6 +150,18 @@ inline constexpr unsigned int LIGHT_SAMPLER_BVH = 1u;
 inline constexpr unsigned int LIGHT_NODE_LEAF = 1u;
 inline constexpr unsigned int LIGHT_NODE_TWO_SIDED = 2u;
 inline constexpr unsigned int NO_LIGHT_NODE = 4294967295u;
+inline constexpr unsigned int FILTER_PIXEL = 0u;
+inline constexpr unsigned int FILTER_BOX = 1u;
+inline constexpr unsigned int FILTER_TABULATED = 2u;
+static_assert(sizeof(FilterTable) == 288, "FilterTable: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(FilterTable, kind) == 0 && sizeof(FilterTable::kind) == 4, "FilterTable.kind: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FilterTable, negative) == 4 && sizeof(FilterTable::negative) == 8, "FilterTable.negative: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FilterTable, pad) == 12 && sizeof(FilterTable::pad) == 4, "FilterTable.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FilterTable, radius) == 16 && sizeof(FilterTable::radius) == 8, "FilterTable.radius: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FilterTable, weight) == 24 && sizeof(FilterTable::weight) == 8, "FilterTable.weight: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FilterTable, cdf) == 32 && sizeof(FilterTable::cdf) == 256, "FilterTable.cdf: offset or size differs from Rust");
+#endif
 static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
@@ -177,7 +201,7 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 272, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 560, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -215,6 +239,7 @@ static_assert(__builtin_offsetof(FrameParams, light_leaf) == 248 && sizeof(Frame
 static_assert(__builtin_offsetof(FrameParams, unbounded_lights) == 256 && sizeof(FrameParams::unbounded_lights) == 8, "FrameParams.unbounded_lights: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, light_node_count) == 264 && sizeof(FrameParams::light_node_count) == 4, "FrameParams.light_node_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, unbounded_count) == 268 && sizeof(FrameParams::unbounded_count) == 4, "FrameParams.unbounded_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, filter) == 272 && sizeof(FrameParams::filter) == 288, "FrameParams.filter: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -80,14 +80,15 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
                                                     RayRecord* dst) {
     const unsigned int res_x = p.resolution[0];
     const SampleStream rng = sample_stream(p.seed, pixel, sample);
-    // Box filter one pixel wide: a uniform jitter inside the pixel.
-    const float2 raster =
-        make_float2((float)(pixel % res_x) + stream_get(rng, 0), (float)(pixel / res_x) + stream_get(rng, 1));
+    // The pixel filter places the sample and weights it (`filter`).
+    float weight;
+    const float2 raster = filter_sample(p.filter, make_float2((float)(pixel % res_x), (float)(pixel / res_x)),
+                                        make_float2(stream_get(rng, 0), stream_get(rng, 1)), &weight);
     float3 origin, direction;
     camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
     // Emitters seen directly count in full, like after a specular bounce.
-    store_ray_half(dst, origin, f32_infinity(), direction, pixel, make_float3(1.0f, 1.0f, 1.0f), sample, 0.0f, 0,
-                   FLAG_SPECULAR, 0, 0u, 0u);
+    store_ray_half(dst, origin, f32_infinity(), direction, pixel, make_float3(weight, weight, weight), sample, 0.0f,
+                   0, FLAG_SPECULAR, 0, 0u, 0u);
 }
 
 /// Mirrors `atoll_scene::camera::tile_order_pixel`: the pixel at place
@@ -318,9 +319,10 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     float eta_scale = unpack_eta_scale(r.eta_scale);
     if (bs.transmission) eta_scale *= bs.eta * bs.eta;
     // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
-    // the throughput without the radiance scaling of refractions.
+    // the magnitude of the throughput without the radiance scaling of
+    // refractions (a pixel filter's negative lobes make some negative).
     if (params.russian_roulette && depth >= 1) {
-        const float m = max_element3(next_beta * eta_scale);
+        const float m = max_element3(abs3(next_beta * eta_scale));
         if (m < 1.0f) {
             const float q = fmaxf(1.0f - m, 0.0f);
             if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;

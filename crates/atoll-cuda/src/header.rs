@@ -19,6 +19,7 @@ use std::fmt::Write;
 use crate::layout::field_layout;
 
 use atoll_render::bsdf::microfacet::SMOOTH_ALPHA;
+use atoll_render::filter::{filter_kind, FilterTable, FILTER_BINS};
 use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::material_layout;
@@ -178,9 +179,12 @@ pub(crate) fn rng_constants() -> String {
     s
 }
 
-/// Mesh flags, `HIT_NONE` and the asserts of the scene-table structs.
+/// Mesh flags, `HIT_NONE`, the pixel filter's table size and the asserts
+/// of the scene-table structs.
 pub(crate) fn layout_asserts() -> String {
     let mut s = const_uint("unsigned int", "HIT_NONE", HIT_NONE as u64);
+    // The pixel filter's table size (params.cuh's `FilterTable` is made of it).
+    s += &const_uint("unsigned int", "FILTER_BINS", FILTER_BINS as u64);
     for (name, value) in [
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
@@ -311,9 +315,16 @@ pub(crate) fn params_asserts() -> String {
         ("LIGHT_NODE_LEAF", node_flags::LEAF),
         ("LIGHT_NODE_TWO_SIDED", node_flags::TWO_SIDED),
         ("NO_LIGHT_NODE", NO_NODE),
+        ("FILTER_PIXEL", filter_kind::PIXEL),
+        ("FILTER_BOX", filter_kind::BOX),
+        ("FILTER_TABULATED", filter_kind::TABULATED),
     ] {
         s += &const_uint("unsigned int", name, value as u64);
     }
+    s += &assert_struct::<FilterTable>(
+        "FilterTable",
+        field_layout!(FilterTable { kind, negative, pad, radius, weight, cdf }),
+    );
     s += &assert_struct::<GpuEmitter>("GpuEmitter", GpuEmitter::field_layout());
     s += &assert_struct::<GpuMaterial>("GpuMaterial", GpuMaterial::field_layout());
     s += &assert_struct::<LightNode>("LightNode", light_node_layout());

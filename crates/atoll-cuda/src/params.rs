@@ -15,6 +15,7 @@ use std::sync::Arc;
 
 use atoll_render::camera::CameraRays;
 use atoll_render::environment::EnvironmentSampler;
+use atoll_render::filter::FilterTable;
 #[cfg(test)]
 use atoll_render::light_bvh::LightNode;
 use atoll_render::lights::Emitter;
@@ -319,6 +320,8 @@ pub struct FrameParams {
     pub unbounded_lights: u64,
     pub light_node_count: u32,
     pub unbounded_count: u32,
+    /// The pixel filter's sampling tables (`atoll_render::filter`).
+    pub filter: FilterTable,
 }
 
 impl FrameParams {
@@ -348,6 +351,7 @@ impl FrameParams {
             },
             light_node_count: lights.bvh.nodes.len() as u32,
             unbounded_count: lights.unbounded_lights().len() as u32,
+            filter: frame.filter,
             ..Zeroable::zeroed()
         };
         params.set_camera(&frame.camera);
@@ -405,6 +409,7 @@ impl FrameParams {
             unbounded_lights,
             light_node_count,
             unbounded_count,
+            filter,
         })
     }
 }
@@ -488,7 +493,9 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 80);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<FrameParams>() == 272);
+    assert!(
+        std::mem::size_of::<FrameParams>() == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>()
+    );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 72);
 };

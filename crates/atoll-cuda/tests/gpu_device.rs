@@ -239,6 +239,30 @@ fn projected_textures_match_the_cpu_device() {
     assert_renders_match(&mut cuda, &Arc::new(scene), "directionmix");
 }
 
+/// Every pixel filter places and weights the GPU's camera samples as the
+/// CPU's: the cut-out scene under pbrt-v4's filters (Mitchell and Lanczos
+/// with their negative weights).
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn pixel_filters_match_the_cpu_device() {
+    use atoll_scene::texture_scenes::{cutout_scene, Screen};
+    use atoll_scene::PixelFilter;
+    let Some(gpu) = gpu_or_skip("pixel filters") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let radius = glam::Vec2::new(2.0, 1.5);
+    for filter in [
+        PixelFilter::Box { radius: glam::Vec2::new(1.0, 0.75) },
+        PixelFilter::PBRT_DEFAULT,
+        PixelFilter::Mitchell { radius, b: 1.0 / 3.0, c: 1.0 / 3.0 },
+        PixelFilter::LanczosSinc { radius, tau: 3.0 },
+        PixelFilter::Triangle { radius },
+    ] {
+        let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+        scene.settings.film.filter = filter;
+        assert_renders_match(&mut cuda, &Arc::new(scene), &format!("{filter:?}"));
+    }
+}
+
 /// pbrt-v4's noise textures and polka dots give the GPU's hits the CPU's
 /// coefficients: the cut-out scene's checkerboards become dots, and mixes
 /// whose amount is each noise texture of the hit point.

@@ -3,10 +3,11 @@
 
 use std::sync::Arc;
 
-use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler, Scene, TextureImage};
+use atoll_scene::{FilmSettings, IntegratorSettings, LightSampler, PixelFilter, Scene, TextureImage};
 use glam::{Mat3, UVec2};
 
 use crate::camera::CameraRays;
+use crate::filter::FilterTable;
 use crate::lights::LightSet;
 use crate::material_coeffs::PackedMaterial;
 use crate::record::RayRecord;
@@ -46,6 +47,8 @@ pub struct RenderOptions {
     /// balance): applied to the image when it is written, not while
     /// rendering, so devices and strategies never see it.
     pub film_response: Mat3,
+    /// How camera samples spread around their pixel ([`crate::filter`]).
+    pub filter: PixelFilter,
 }
 
 /// Paths in flight per wave on a CPU device (GPUs take more: the CUDA
@@ -61,6 +64,7 @@ impl RenderOptions {
             resolution,
             crop,
             film_response: s.film.sensor.response(),
+            filter: s.film.filter,
             spp: s.spp.max(1),
             integrator: s.integrator.clone(),
             seed: 0,
@@ -104,6 +108,8 @@ fn image_of(film: &FilmSettings) -> (UVec2, Option<[f32; 4]>) {
 pub struct FrameContext {
     pub options: RenderOptions,
     pub camera: CameraRays,
+    /// The pixel filter, prepared for sampling camera rays.
+    pub filter: FilterTable,
     pub lights: LightSet,
     /// Scene materials packed for the ray record, by material id.
     pub materials: Vec<PackedMaterial>,
@@ -119,6 +125,7 @@ impl FrameContext {
         let kinds: Vec<_> = materials.iter().map(|m| m.kind).collect();
         FrameContext {
             camera: CameraRays::for_options(&scene.settings.camera, &options),
+            filter: FilterTable::new(&options.filter),
             lights: LightSet::new(scene, options.light_sampler),
             textures: TextureTables::new(scene, &kinds),
             images: scene.textures.images.clone(),

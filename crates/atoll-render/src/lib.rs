@@ -9,6 +9,7 @@ pub mod cpu;
 pub mod device;
 pub mod environment;
 pub mod film;
+pub mod filter;
 pub mod frame;
 pub mod integrator;
 pub mod light_bvh;

@@ -508,6 +508,7 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
         merge_waves: true,
         crop: None,
         film_response: glam::Mat3::IDENTITY,
+        filter: atoll_scene::PixelFilter::PIXEL,
     };
     let film = render_with(&Arc::new(scene), options, None);
     assert_finite(&film);

@@ -66,3 +66,87 @@ pub fn uv_sphere(material: u32, rings: u32, segments: u32) -> atoll_scene::Trian
         ..Default::default()
     }
 }
+
+/// A pbrt scene: the plane z = 0 (uv (0,0)–(1,1) over x, y in [-10, 10])
+/// seen from above at `size`² pixels and `spp`, diffuse with the spectrum
+/// texture "reflectance" that `textures` defines, under a uniform white
+/// sky, so that every pixel converges to the filtered reflectance it sees
+/// (direct light only). `filter` is the `PixelFilter` statement.
+pub fn sky_lit_plane(size: u32, spp: u32, filter: &str, textures: &str) -> String {
+    format!(
+        r#"
+LookAt 0 0 4  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 40 ]
+Sampler "independent" "integer pixelsamples" [ {spp} ]
+Integrator "path" "integer maxdepth" [ 1 ]
+Film "rgb" "integer xresolution" [ {size} ] "integer yresolution" [ {size} ]
+{filter}
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+{textures}
+Material "diffuse" "texture reflectance" "reflectance"
+Shape "trianglemesh" "point3 P" [ -10 -10 0  10 -10 0  10 10 0  -10 10 0 ]
+  "integer indices" [ 0 1 2  0 2 3 ] "point2 uv" [ 0 0  1 0  1 1  0 1 ]
+"#
+    )
+}
+
+/// Renders the [`sky_lit_plane`] scene `source` and returns its film with
+/// what each pixel should converge to: `reflectance` (of a point of the
+/// plane) under the scene's pixel filter, integrated over a grid of
+/// offsets around the pixel's centre through the scene's own camera.
+pub fn render_against(
+    source: &str,
+    reflectance: &dyn Fn(glam::Vec3) -> glam::Vec3,
+) -> (Film, Vec<glam::Vec3>) {
+    use glam::{Vec2, Vec3};
+    let loaded = atoll_scene::pbrt::load_str(source, "plane.pbrt", std::path::Path::new(".")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let scene = Arc::new(loaded.scene);
+    let options = RenderOptions::from_scene(&scene);
+    let film = render_with(&scene, options.clone(), None);
+    // Filters with negative lobes may leave pixels below 0.
+    assert!(film.pixels().iter().all(|p| p.is_finite()));
+    let camera = atoll_render::camera::CameraRays::new(&scene.settings.camera, options.resolution);
+    let filter = options.filter;
+    let r = filter.radius();
+    // 16 points a pixel: edges within the filter's reach come out sharp.
+    let grid = (2.0 * r.max_element() * 16.0).ceil() as u32;
+    let offsets: Vec<(Vec2, f32)> = (0..grid * grid)
+        .map(|k| {
+            let t = (Vec2::new((k % grid) as f32, (k / grid) as f32) + 0.5) / grid as f32;
+            let o = (2.0 * t - 1.0) * r;
+            (o, filter.along(0, o.x) * filter.along(1, o.y))
+        })
+        .collect();
+    let total: f32 = offsets.iter().map(|(_, w)| w).sum();
+    let width = options.resolution.x;
+    let want = (0..options.pixel_count())
+        .map(|i| {
+            let centre = Vec2::new((i % width) as f32, (i / width) as f32) + 0.5;
+            let sum: Vec3 = offsets
+                .iter()
+                .map(|&(o, w)| {
+                    let (origin, d) = camera.ray(centre + o, Vec2::ZERO);
+                    w * reflectance(origin - d * (origin.z / d.z))
+                })
+                .sum();
+            sum / total
+        })
+        .collect();
+    (film, want)
+}
+
+/// Every pixel of `film` within `median` of `want` at the median and
+/// `p99` at the 99th percentile (largest channel error), and `want` not flat.
+pub fn assert_pixels_match(what: &str, film: &Film, want: &[glam::Vec3], median: f32, p99: f32) {
+    let mut errors: Vec<f32> =
+        film.pixels().iter().zip(want).map(|(got, want)| (*got - *want).abs().max_element()).collect();
+    let values: Vec<f32> = want.iter().map(|v| v.x).collect();
+    let mean = values.iter().sum::<f32>() / values.len() as f32;
+    let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f32>() / values.len() as f32).sqrt();
+    assert!(spread > 0.01, "{what}: the reflectance hardly varies over the image ({spread})");
+    errors.sort_by(f32::total_cmp);
+    let (m, p) = (errors[errors.len() / 2], errors[errors.len() * 99 / 100]);
+    assert!(m < median && p < p99, "{what}: pixel errors median {m}, p99 {p}");
+}

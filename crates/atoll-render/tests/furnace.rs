@@ -58,6 +58,7 @@ fn options(spp: u32, max_depth: u32) -> RenderOptions {
         merge_waves: true,
         crop: None,
         film_response: glam::Mat3::IDENTITY,
+        filter: atoll_scene::PixelFilter::PIXEL,
     }
 }
 

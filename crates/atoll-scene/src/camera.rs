@@ -33,6 +33,94 @@ pub struct FilmSettings {
     pub crop_window: Option<[f32; 4]>,
     /// How the film turns radiance into pixel values.
     pub sensor: Sensor,
+    /// How samples around a pixel make its value.
+    pub filter: PixelFilter,
+}
+
+/// pbrt-v4's pixel filters. Each is a product of one function per axis,
+/// nonzero within `radius` pixels of the pixel's centre; `Mitchell` and
+/// `LanczosSinc` have negative lobes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum PixelFilter {
+    /// 1 within the radius (0.5: the pixel's own square).
+    Box { radius: glam::Vec2 },
+    /// A Gaussian of standard deviation `sigma`, less its value at the
+    /// radius (radius 1.5, sigma 0.5).
+    Gaussian { radius: glam::Vec2, sigma: f32 },
+    /// Mitchell and Netravali's cubic of parameters B and C over the
+    /// radius (radius 2, B = C = 1/3).
+    Mitchell { radius: glam::Vec2, b: f32, c: f32 },
+    /// `sinc(x) sinc(x / tau)` within the radius (radius 4, tau 3).
+    LanczosSinc { radius: glam::Vec2, tau: f32 },
+    /// A tent falling to 0 at the radius (radius 2).
+    Triangle { radius: glam::Vec2 },
+}
+
+impl PixelFilter {
+    /// The pixel's own square: every sample lands in its pixel, weighted alike.
+    pub const PIXEL: PixelFilter = PixelFilter::Box { radius: glam::Vec2::splat(0.5) };
+
+    /// pbrt-v4's default filter (its `gaussian`).
+    pub const PBRT_DEFAULT: PixelFilter =
+        PixelFilter::Gaussian { radius: glam::Vec2::splat(1.5), sigma: 0.5 };
+
+    pub fn radius(&self) -> glam::Vec2 {
+        match *self {
+            PixelFilter::Box { radius }
+            | PixelFilter::Gaussian { radius, .. }
+            | PixelFilter::Mitchell { radius, .. }
+            | PixelFilter::LanczosSinc { radius, .. }
+            | PixelFilter::Triangle { radius } => radius,
+        }
+    }
+
+    /// The filter's factor along `axis` (0: x, 1: y) at offset `x` pixels
+    /// from the pixel's centre (pbrt-v4's definitions).
+    pub fn along(&self, axis: usize, x: f32) -> f32 {
+        let r = self.radius()[axis];
+        if x.abs() > r {
+            return 0.0;
+        }
+        match *self {
+            PixelFilter::Box { .. } => 1.0,
+            PixelFilter::Gaussian { sigma, .. } => (gaussian(x, sigma) - gaussian(r, sigma)).max(0.0),
+            PixelFilter::Mitchell { b, c, .. } => mitchell(2.0 * x / r, b, c),
+            PixelFilter::LanczosSinc { tau, .. } => sinc(x) * sinc(x / tau),
+            PixelFilter::Triangle { .. } => (r - x.abs()).max(0.0),
+        }
+    }
+}
+
+impl Default for PixelFilter {
+    fn default() -> Self {
+        PixelFilter::PIXEL
+    }
+}
+
+fn gaussian(x: f32, sigma: f32) -> f32 {
+    (-(x * x) / (2.0 * sigma * sigma)).exp() / (std::f32::consts::TAU * sigma * sigma).sqrt()
+}
+
+/// Mitchell and Netravali's cubic on [-2, 2].
+fn mitchell(x: f32, b: f32, c: f32) -> f32 {
+    let x = x.abs();
+    let (x2, x3) = (x * x, x * x * x);
+    if x <= 1.0 {
+        ((12.0 - 9.0 * b - 6.0 * c) * x3 + (-18.0 + 12.0 * b + 6.0 * c) * x2 + (6.0 - 2.0 * b)) / 6.0
+    } else if x <= 2.0 {
+        ((-b - 6.0 * c) * x3 + (6.0 * b + 30.0 * c) * x2 + (-12.0 * b - 48.0 * c) * x + (8.0 * b + 24.0 * c))
+            / 6.0
+    } else {
+        0.0
+    }
+}
+
+fn sinc(x: f32) -> f32 {
+    if x.abs() < 1e-5 {
+        return 1.0;
+    }
+    let px = std::f32::consts::PI * x;
+    px.sin() / px
 }
 
 /// pbrt-v4's pixel sensor for its default `cie1931` sensor: radiance times
@@ -162,12 +250,14 @@ pub fn tile_order_pixel(ordinal: u32, resolution: UVec2) -> u32 {
 
 impl Default for FilmSettings {
     fn default() -> Self {
-        // pbrt-v4's defaults.
+        // pbrt-v4's defaults, but for the filter: scenes from pbrt files get
+        // pbrt-v4's Gaussian (`PixelFilter::PBRT_DEFAULT`), others the pixel's square.
         FilmSettings {
             resolution: UVec2::new(1280, 720),
             filename: None,
             crop_window: None,
             sensor: Sensor::default(),
+            filter: PixelFilter::PIXEL,
         }
     }
 }

@@ -31,7 +31,9 @@ pub mod scene;
 pub mod texture;
 pub mod texture_scenes;
 
-pub use camera::{Camera, FilmSettings, IntegratorSettings, LightSampler, RenderSettings, Sensor};
+pub use camera::{
+    Camera, FilmSettings, IntegratorSettings, LightSampler, PixelFilter, RenderSettings, Sensor,
+};
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};

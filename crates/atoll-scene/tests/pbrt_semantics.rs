@@ -399,16 +399,69 @@ fn quadrics_and_unsupported_shapes() {
 #[test]
 fn unused_parameters_and_ignored_directives_warn() {
     let loaded = load_str_warnings(
-        "Camera \"perspective\" \"float fov\" 30 \"float fovv\" 2\nPixelFilter \"gaussian\"\nWorldBegin\n\
+        "Camera \"perspective\" \"float fov\" 30 \"float fovv\" 2\nPixelFilter \"gaussian\" \"float alpha\" 2\nWorldBegin\n\
          MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
     );
     let w: Vec<String> = loaded.iter().map(|w| w.to_string()).collect();
     assert_eq!(w[0], "u.pbrt:1:37: Camera \"perspective\": unused parameter \"float fovv\"");
-    assert!(w[1].starts_with("u.pbrt:2:1: pixel filter \"gaussian\" is not supported"), "{w:?}");
+    // pbrt-v3's Gaussian took `alpha`; pbrt-v4's takes `sigma`.
+    assert!(w[1].starts_with("u.pbrt:2:") && w[1].contains("unused parameter \"float alpha\""), "{w:?}");
     assert!(w[2].starts_with("u.pbrt:4:1: participating media are not supported"), "{w:?}");
     assert!(w[3].starts_with("u.pbrt:6:1: TransformBegin/End are deprecated"), "{w:?}");
     assert!(w[4].starts_with("u.pbrt:5:1: AttributeBegin has no AttributeEnd"), "{w:?}");
     assert_eq!(w.len(), 5);
+}
+
+#[test]
+fn pixel_filters_take_pbrt_v4s_defaults() {
+    use atoll_scene::PixelFilter;
+    let filter = |text: &str| {
+        let loaded = atoll_scene::pbrt::load_str(text, "f.pbrt", std::path::Path::new(".")).unwrap();
+        assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+        loaded.scene.settings.film.filter
+    };
+    let r = glam::Vec2::splat;
+    assert_eq!(
+        filter("WorldBegin"),
+        PixelFilter::Gaussian { radius: r(1.5), sigma: 0.5 },
+        "pbrt-v4's default"
+    );
+    assert_eq!(filter("PixelFilter \"box\"\nWorldBegin"), PixelFilter::PIXEL);
+    assert_eq!(
+        filter("PixelFilter \"gaussian\" \"float xradius\" 2 \"float sigma\" 0.7\nWorldBegin"),
+        PixelFilter::Gaussian { radius: glam::Vec2::new(2.0, 1.5), sigma: 0.7 }
+    );
+    assert_eq!(
+        filter("PixelFilter \"mitchell\" \"float B\" 0.5\nWorldBegin"),
+        PixelFilter::Mitchell { radius: r(2.0), b: 0.5, c: 1.0 / 3.0 }
+    );
+    assert_eq!(
+        filter("PixelFilter \"sinc\"\nWorldBegin"),
+        PixelFilter::LanczosSinc { radius: r(4.0), tau: 3.0 }
+    );
+    assert_eq!(filter("PixelFilter \"triangle\"\nWorldBegin"), PixelFilter::Triangle { radius: r(2.0) });
+    // Scenes not from pbrt files keep each sample in its pixel.
+    assert_eq!(atoll_scene::FilmSettings::default().filter, PixelFilter::PIXEL);
+    for (text, message) in [
+        ("PixelFilter \"blackman\"", "f.pbrt:1:1: PixelFilter: unknown filter \"blackman\""),
+        (
+            "PixelFilter \"box\" \"float xradius\" 0",
+            "f.pbrt:1:1: PixelFilter \"box\": radius (0, 0.5) must be in (0, 16]",
+        ),
+        (
+            "PixelFilter \"gaussian\" \"float sigma\" -1",
+            "f.pbrt:1:1: PixelFilter \"gaussian\": \"sigma\" must be positive",
+        ),
+        (
+            "PixelFilter \"mitchell\" \"float C\" 50",
+            "f.pbrt:1:1: PixelFilter \"mitchell\": its negative lobes cancel the rest",
+        ),
+    ] {
+        let text = format!("{text}\nWorldBegin");
+        let e =
+            atoll_scene::pbrt::load_str(&text, "f.pbrt", std::path::Path::new(".")).unwrap_err().to_string();
+        assert!(e.starts_with(message), "{e}");
+    }
 }
 
 fn load_str_warnings(text: &str) -> Vec<atoll_scene::Warning> {

@@ -11,8 +11,9 @@ use crate::rng::SampleStream;
 pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     let res: UVec2 = ctx.options.resolution;
     let rng = SampleStream::new(ctx.options.seed, pixel, sample);
-    // Box filter one pixel wide: a uniform jitter inside the pixel.
-    let raster = Vec2::new((pixel % res.x) as f32 + rng.get(0), (pixel / res.x) as f32 + rng.get(1));
+    // The pixel filter places the sample and weights it (`filter`).
+    let corner = Vec2::new((pixel % res.x) as f32, (pixel / res.x) as f32);
+    let (raster, weight) = ctx.filter.sample(corner, Vec2::new(rng.get(0), rng.get(1)));
     let (origin, direction) = ctx.camera.ray(raster, Vec2::new(rng.get(2), rng.get(3)));
     let mut r = RayRecord::zeroed();
     r.origin = origin.to_array();
@@ -20,7 +21,7 @@ pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     r.t_max = f32::INFINITY;
     r.pixel = pixel;
     r.sample = sample;
-    r.throughput = [1.0; 3];
+    r.throughput = [weight; 3];
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = flags::SPECULAR;
     r

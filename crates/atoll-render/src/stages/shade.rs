@@ -178,9 +178,10 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     }
     // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`),
     // on the throughput without the radiance scaling of refractions, which
-    // would otherwise end most paths inside glass.
+    // would otherwise end most paths inside glass. Its magnitude: a pixel
+    // filter's negative lobes make some throughputs negative.
     if ctx.options.russian_roulette && depth >= 1 {
-        let max = (beta * eta_scale).max_element();
+        let max = (beta * eta_scale).abs().max_element();
         if max < 1.0 {
             let q = (1.0 - max).max(0.0);
             if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {

@@ -158,8 +158,10 @@ impl Builder {
     /// A builder resolving relative file names against `base_dir`.
     pub fn new(base_dir: &Path) -> Self {
         let mut scene = Scene::default();
-        // pbrt-v4's default sampler takes 16 samples per pixel.
+        // pbrt-v4's default sampler takes 16 samples per pixel, its default
+        // filter is a Gaussian.
         scene.settings.spp = 16;
+        scene.settings.film.filter = crate::PixelFilter::PBRT_DEFAULT;
         Builder {
             base_dir: base_dir.to_path_buf(),
             scene,
@@ -590,21 +592,7 @@ impl Builder {
                 }
             }
             E::Integrator => self.integrator(&name, &p, &loc)?,
-            E::PixelFilter => {
-                if name == "box" {
-                    let rx = p.float_or("xradius", 0.5)?;
-                    let ry = p.float_or("yradius", 0.5)?;
-                    if rx != 0.5 || ry != 0.5 {
-                        self.warn(
-                            &loc,
-                            format!("box filter radius ({rx}, {ry}) is not supported; using 0.5"),
-                        );
-                    }
-                } else {
-                    p.mark_all_used();
-                    self.warn(&loc, format!("pixel filter \"{name}\" is not supported; using \"box\""));
-                }
-            }
+            E::PixelFilter => self.pixel_filter(&name, &p, &loc)?,
             E::Accelerator => p.mark_all_used(),
             E::MakeNamedMedium => {
                 p.mark_all_used();
@@ -804,6 +792,72 @@ impl Builder {
             ));
         }
         self.scene.settings.film.sensor.exposure_time = close - open;
+        Ok(())
+    }
+
+    /// `PixelFilter "name"`: pbrt-v4's filters with its default radii and
+    /// parameters; an unknown one is an error, as in pbrt-v4.
+    fn pixel_filter(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        use crate::PixelFilter as F;
+        let default_radius = match name {
+            "box" => 0.5,
+            "gaussian" => 1.5,
+            "mitchell" | "triangle" => 2.0,
+            "sinc" => 4.0,
+            _ => {
+                return Err(SceneError::at(
+                    loc,
+                    format!("PixelFilter: unknown filter \"{name}\" (expected box, gaussian, mitchell, sinc or triangle)"),
+                ))
+            }
+        };
+        let radius =
+            glam::Vec2::new(p.float_or("xradius", default_radius)?, p.float_or("yradius", default_radius)?);
+        // A sample lands at most this far from its pixel: more would be no
+        // pixel filter but a blur.
+        const MAX_RADIUS: f32 = 16.0;
+        if !(radius.min_element() > 0.0 && radius.max_element() <= MAX_RADIUS) {
+            return Err(SceneError::at(
+                loc,
+                format!(
+                    "PixelFilter \"{name}\": radius ({}, {}) must be in (0, {MAX_RADIUS}]",
+                    radius.x, radius.y
+                ),
+            ));
+        }
+        let positive = |what: &str, v: f32| {
+            if v > 0.0 && v.is_finite() {
+                Ok(v)
+            } else {
+                Err(SceneError::at(
+                    loc,
+                    format!("PixelFilter \"{name}\": \"{what}\" must be positive, found {v}"),
+                ))
+            }
+        };
+        let filter = match name {
+            "box" => F::Box { radius },
+            "gaussian" => F::Gaussian { radius, sigma: positive("sigma", p.float_or("sigma", 0.5)?)? },
+            "mitchell" => {
+                F::Mitchell { radius, b: p.float_or("B", 1.0 / 3.0)?, c: p.float_or("C", 1.0 / 3.0)? }
+            }
+            "sinc" => F::LanczosSinc { radius, tau: positive("tau", p.float_or("tau", 3.0)?)? },
+            _ => F::Triangle { radius },
+        };
+        // Negative lobes may not outweigh the rest: pixels are divided by
+        // the filter's integral.
+        for axis in 0..2 {
+            let (signed, magnitude) = (0..256)
+                .map(|i| filter.along(axis, (i as f32 + 0.5) / 256.0 * radius[axis]))
+                .fold((0.0, 0.0), |(s, m), v| (s + v, m + v.abs()));
+            if signed <= 0.1 * magnitude {
+                return Err(SceneError::at(
+                    loc,
+                    format!("PixelFilter \"{name}\": its negative lobes cancel the rest (integral {signed:.3} of magnitude {magnitude:.3} along an axis)"),
+                ));
+            }
+        }
+        self.scene.settings.film.filter = filter;
         Ok(())
     }
 
