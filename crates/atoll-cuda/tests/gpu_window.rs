@@ -18,6 +18,13 @@ use cudarc::driver::{LaunchConfig, PushKernelArg};
 use common::gpu_or_skip;
 use ChunkHome::{Device, Host, Replicated};
 
+/// Held by every test of this file: some measure the GPU's free memory,
+/// which another test allocating beside them would move.
+fn exclusive() -> std::sync::MutexGuard<'static, ()> {
+    static GPU_MEMORY: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    GPU_MEMORY.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 /// GPUs 0 and 1, or `None` after saying why the test is skipped.
 fn two_gpus(test: &str) -> Option<Vec<Arc<Gpu>>> {
     let first = gpu_or_skip(test)?;
@@ -111,6 +118,7 @@ fn check_contents(window: &ChunkWindow, gpus: &[Arc<Gpu>], expected: &[u8]) {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn one_gpu_reads_device_and_host_chunks() {
+    let _memory = exclusive();
     let Some(gpu) = gpu_or_skip("window on one GPU") else { return };
     let gpus = vec![gpu];
     let chunk = ChunkWindow::chunk_bytes_for(&gpus, 1).unwrap();
@@ -144,6 +152,7 @@ fn one_gpu_reads_device_and_host_chunks() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn one_gpu_replace_keeps_contents_and_base() {
+    let _memory = exclusive();
     let Some(gpu) = gpu_or_skip("window replace on one GPU") else { return };
     let gpus = vec![gpu];
     let mut window =
@@ -165,6 +174,7 @@ fn one_gpu_replace_keeps_contents_and_base() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn budgets_refuse_before_allocating() {
+    let _memory = exclusive();
     let Some(gpu) = gpu_or_skip("window budgets") else { return };
     let gpus = vec![gpu];
     let chunk = ChunkWindow::chunk_bytes_for(&gpus, 1).unwrap();
@@ -196,6 +206,7 @@ fn budgets_refuse_before_allocating() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn dropping_and_moving_chunks_frees_their_memory() {
+    let _memory = exclusive();
     let Some(gpu) = gpu_or_skip("window memory") else { return };
     let gpus = vec![gpu.clone()];
     const BYTES: u64 = 512 << 20;
@@ -219,6 +230,7 @@ fn dropping_and_moving_chunks_frees_their_memory() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn two_gpus_read_peer_replicated_and_host_chunks() {
+    let _memory = exclusive();
     let Some(gpus) = two_gpus("window on two GPUs") else { return };
     let p = placement(&[Replicated, Device(1), Device(0), Host, Device(1), Replicated]);
     let window = ChunkWindow::new(&gpus, 1, &p, &[]).unwrap();
@@ -249,6 +261,7 @@ fn two_gpus_read_peer_replicated_and_host_chunks() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn two_gpus_replace_keeps_contents() {
+    let _memory = exclusive();
     let Some(gpus) = two_gpus("window replace on two GPUs") else { return };
     let start = [Replicated, Device(1), Device(0), Host, Device(1), Replicated];
     let mut window = ChunkWindow::new(&gpus, 1, &placement(&start), &[]).unwrap();
@@ -336,6 +349,7 @@ fn random_read_rate(gpu: &Arc<Gpu>, base: u64, bytes: u64) -> f64 {
 #[test]
 #[ignore = "a measurement on a CUDA GPU: run it by name with --include-ignored --nocapture"]
 fn window_read_speed() {
+    let _memory = exclusive();
     let Some(first) = gpu_or_skip("window read speed") else { return };
     let count = device_count().unwrap_or(0);
     let gpus = if count >= 2 { vec![first, Gpu::open(1).unwrap()] } else { vec![first] };
@@ -416,6 +430,7 @@ impl Drop for MappedHost {
 #[test]
 #[ignore = "a measurement on a CUDA GPU: run it by name with --include-ignored --nocapture"]
 fn host_read_speed_by_size() {
+    let _memory = exclusive();
     let Some(gpu) = gpu_or_skip("host read speed") else { return };
     let gpus = vec![gpu.clone()];
     println!("{} ({}): dependent random 32-byte reads of host memory", gpu.name, gpu.label());

@@ -22,6 +22,7 @@ const CPU: Kind = Kind {
     part_budgets: true,
     shared_chunk: 512,
     shared_growth: 1,
+    distinct_memories: || usize::MAX,
 };
 
 strategy_bodies::strategy_tests!(CPU);

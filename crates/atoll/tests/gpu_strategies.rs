@@ -49,6 +49,7 @@ const CUDA: Kind = Kind {
     part_budgets: false,
     shared_chunk: 2 << 20,
     shared_growth: 16,
+    distinct_memories: gpu_count,
 };
 
 strategy_bodies::strategy_tests!(
@@ -112,6 +113,10 @@ fn replicate_and_ring_on_two_gpu_parts_are_one_gpu() {
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn more_wavefronts_share_their_gpus_chunks() {
+    if gpu_count() < 2 {
+        eprintln!("more wavefronts share their GPU's chunks: skipped, needs 2 GPUs");
+        return;
+    }
     let mut devices = gpus(2);
     let more: Vec<Box<dyn Device>> = devices
         .iter()
