@@ -212,6 +212,36 @@ fn materials() {
 }
 
 #[test]
+fn coated_conductors_are_their_conductor_with_a_warning() {
+    let world = format!(
+        "Material \"coatedconductor\" \"spectrum conductor.eta\" \"metal-Au-eta\" \"spectrum conductor.k\" \"metal-Au-k\" \
+         \"float conductor.roughness\" 0.25 \"float interface.roughness\" 0.1 \"float thickness\" 0.02 \
+         \"rgb albedo\" [0.5 0.5 0.5] \"integer maxdepth\" 4\n{t}\n\
+         Material \"coatedconductor\" \"rgb reflectance\" [0.5 0.5 0.5]\n{t}\n\
+         Material \"coatedconductor\"\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    let au = (Rgb::new(0.143119, 0.374957, 1.44248), Rgb::new(3.98316, 2.38572, 1.60322));
+    assert_eq!(*m[0], Material::Conductor { eta: au.0, k: au.1, alpha_x: 0.5, alpha_y: 0.5 });
+    let k = Material::conductor_k_from_reflectance(Rgb::splat(0.5));
+    assert_eq!(*m[1], Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.0, alpha_y: 0.0 });
+    // pbrt-v4's default conductor is smooth copper.
+    let cu = (Rgb::new(0.200438, 0.924033, 1.10221), Rgb::new(3.91295, 2.45285, 2.14219));
+    assert_eq!(*m[2], Material::Conductor { eta: cu.0, k: cu.1, alpha_x: 0.0, alpha_y: 0.0 });
+    // One warning each, naming what the image lacks; the coat's parameters
+    // are not reported again as unused.
+    let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(w.len(), 3, "{w:#?}");
+    assert!(
+        w.iter().all(|w| w.contains("rendered as its conductor; the dielectric coat over it is left out")),
+        "{w:#?}"
+    );
+}
+
+#[test]
 fn diffuse_transmission_and_thin_dielectric() {
     let world = format!(
         "Material \"diffusetransmission\" \"rgb reflectance\" [0.2 0.4 0.6] \"float scale\" 0.5\n{t}\n\

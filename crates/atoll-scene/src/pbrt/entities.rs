@@ -52,13 +52,14 @@ pub(super) fn alphas(
     p: &ParamList,
     what: &str,
     default: f32,
+    prefix: &str,
     loc: &FileLoc,
     w: &mut WarningSink,
     tex: &mut TexCtx,
 ) -> Result<(f32, f32), SceneError> {
-    let r = tex.float(p, "roughness", what, loc, w)?;
-    let u = tex.float(p, "uroughness", what, loc, w)?.or(r);
-    let v = tex.float(p, "vroughness", what, loc, w)?.or(r);
+    let r = tex.float(p, &format!("{prefix}roughness"), what, loc, w)?;
+    let u = tex.float(p, &format!("{prefix}uroughness"), what, loc, w)?.or(r);
+    let v = tex.float(p, &format!("{prefix}vroughness"), what, loc, w)?.or(r);
     let remap = p.bool_or("remaproughness", true)?;
     match (u, v) {
         (Some(TexInput::Texture(a)), Some(TexInput::Texture(b))) if a == b => {
@@ -129,10 +130,10 @@ pub fn material(
                 tex,
             )?,
         },
-        "conductor" => conductor(p, &what, 0.0, loc, w, tex)?,
+        "conductor" => conductor(p, &what, 0.0, "", loc, w, tex)?,
         "dielectric" => {
             let eta = dielectric_eta(p, &what, loc, w)?;
-            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w, tex)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, "", loc, w, tex)?;
             Material::Dielectric { eta, alpha_x, alpha_y }
         }
         "interface" | "" | "none" => Material::Interface,
@@ -150,6 +151,7 @@ pub fn material(
         }
         "thindielectric" => Material::ThinDielectric { eta: dielectric_eta(p, &what, loc, w)? },
         "coateddiffuse" => coated_diffuse(p, &what, "reflectance", (0.5, 0.0), loc, w, tex)?,
+        "coatedconductor" => coated_conductor(p, &what, loc, w, tex)?,
         _ => match super::v3::material(ty, p, loc, w, tex)? {
             Some(m) => m,
             None => {
@@ -162,19 +164,23 @@ pub fn material(
 }
 
 /// pbrt-v4's `conductor` (also pbrt-v3's `metal`, whose default roughness
-/// differs): `reflectance`, or `eta` and `k` (copper by default).
+/// differs): `reflectance`, or `eta` and `k` (copper by default). Its
+/// parameter names start with `prefix` (`coatedconductor`'s `conductor.`),
+/// but for `reflectance`.
 pub(super) fn conductor(
     p: &ParamList,
     what: &str,
     default_roughness: f32,
+    prefix: &str,
     loc: &FileLoc,
     w: &mut WarningSink,
     tex: &mut TexCtx,
 ) -> Result<Material, SceneError> {
-    let eta = p.spectrum("eta", true)?;
-    let k = p.spectrum("k", true)?;
+    let (eta_name, k_name) = (format!("{prefix}eta"), format!("{prefix}k"));
+    let eta = p.spectrum(&eta_name, true)?;
+    let k = p.spectrum(&k_name, true)?;
     let reflectance = p.has("reflectance");
-    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w, tex)?;
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, prefix, loc, w, tex)?;
     if reflectance && (eta.is_some() || k.is_some()) {
         return Err(SceneError::at(
             loc,
@@ -204,16 +210,52 @@ pub(super) fn conductor(
     // material keeps copper's value where a texture gives one.
     let is_texture = |sp: &Option<SpectrumParam>| matches!(sp, Some(SpectrumParam::Texture(_)));
     let eta = if is_texture(&eta) {
-        reflectance_param(p, "eta", TexturedParam::Eta, cu_eta, what, loc, w, tex)?
+        reflectance_param(p, &eta_name, TexturedParam::Eta, cu_eta, what, loc, w, tex)?
     } else {
-        metal(eta, cu_eta, "eta", w)
+        metal(eta, cu_eta, &eta_name, w)
     };
     let k = if is_texture(&k) {
-        reflectance_param(p, "k", TexturedParam::K, cu_k, what, loc, w, tex)?
+        reflectance_param(p, &k_name, TexturedParam::K, cu_k, what, loc, w, tex)?
     } else {
-        metal(k, cu_k, "k", w)
+        metal(k, cu_k, &k_name, w)
     };
     Ok(Material::Conductor { eta, k, alpha_x, alpha_y })
+}
+
+/// pbrt-v4's `coatedconductor`, as its conductor alone (`conductor.eta`,
+/// `conductor.k` or `reflectance`, `conductor.roughness`; copper, smooth):
+/// atoll's layered BSDF has no conductor base yet, so the dielectric coat
+/// (`interface.*`, `thickness`, `albedo`, `g`) is dropped with a warning:
+/// the image lacks the coat's gloss and the tint of its medium.
+fn coated_conductor(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
+    let material = conductor(p, what, 0.0, "conductor.", loc, w, tex)?;
+    for name in [
+        "interface.roughness",
+        "interface.uroughness",
+        "interface.vroughness",
+        "interface.eta",
+        "thickness",
+        "albedo",
+        "g",
+        "maxdepth",
+        "nsamples",
+    ] {
+        p.mark_used(name);
+    }
+    w.warn(
+        loc,
+        format!(
+            "{what}: \"coatedconductor\" is rendered as its conductor; the dielectric coat over it is left out \
+             (no coat reflection, no tint from its medium)"
+        ),
+    );
+    Ok(material)
 }
 
 /// pbrt-v4's `coateddiffuse` (defaults: `reflectance` 0.5, `roughness` 0,
@@ -233,7 +275,7 @@ pub(super) fn coated_diffuse(
 ) -> Result<Material, SceneError> {
     let default = Rgb::splat(default_reflectance);
     let reflectance = reflectance_param(p, base, TexturedParam::Reflectance, default, what, loc, w, tex)?;
-    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, loc, w, tex)?;
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, "", loc, w, tex)?;
     let eta = dielectric_eta(p, what, loc, w)?;
     // A textured medium parameter keeps its default here, bound per hit.
     let medium = |tex: &mut TexCtx, input: Option<TexInput>, param, default: Rgb| match input {

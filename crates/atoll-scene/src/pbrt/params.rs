@@ -227,6 +227,16 @@ impl ParamList {
         self.used.iter().for_each(|u| u.set(true));
     }
 
+    /// Marks every parameter called `name` used, whatever its type: for
+    /// parameters a warning already says are ignored.
+    pub fn mark_used(&self, name: &str) {
+        for (p, u) in self.params.iter().zip(&self.used) {
+            if p.name == name {
+                u.set(true);
+            }
+        }
+    }
+
     /// The first parameter called `name` with one of `types`, marked used.
     pub fn find(&self, name: &str, types: &[ParamType]) -> Option<&Param> {
         let i = self.params.iter().position(|p| p.name == name && types.contains(&p.ty))?;

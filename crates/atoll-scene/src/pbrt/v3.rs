@@ -93,7 +93,7 @@ pub fn material(
         "metal" => {
             // The copper defaults, eta/k spellings and roughness rules are pbrt-v4's
             // conductor's, except v3's default roughness of 0.01.
-            let conductor = super::entities::conductor(p, &what, 0.01, loc, w, tex)?;
+            let conductor = super::entities::conductor(p, &what, 0.01, "", loc, w, tex)?;
             (conductor, "read as \"conductor\"".to_string())
         }
         "glass" => {
@@ -101,7 +101,7 @@ pub fn material(
                 Some(i) => i,
                 None => super::entities::dielectric_eta(p, &what, loc, w)?,
             };
-            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, loc, w, tex)?;
+            let (alpha_x, alpha_y) = alphas(p, &what, 0.0, "", loc, w, tex)?;
             let tinted = [p.spectrum("Kr", true)?, p.spectrum("Kt", true)?].iter().flatten().count() > 0;
             let note = if tinted { " (\"Kr\"/\"Kt\" tints ignored)" } else { "" };
             (Material::Dielectric { eta, alpha_x, alpha_y }, format!("read as \"dielectric\"{note}"))
