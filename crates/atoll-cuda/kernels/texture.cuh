@@ -42,6 +42,8 @@ inline constexpr unsigned int TEX_DATA = 7u;
 inline constexpr unsigned int TEX_FACING = 8u;
 inline constexpr unsigned int TEX_NOISE = 9u;
 inline constexpr unsigned int TEX_DOTS = 10u;
+inline constexpr unsigned int TEX_SOLID_CHECKERBOARD = 11u;
+inline constexpr unsigned int TEX_BILERP = 12u;
 inline constexpr unsigned int TEX_PROJECTED = 16777216u;
 inline constexpr unsigned int PROJECT_SPHERICAL = 0u;
 inline constexpr unsigned int PROJECT_CYLINDRICAL = 1u;
@@ -269,7 +271,8 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
         const TexOp o = ops[k];
         // A projected op pops its (s, t); others map the hit's uv.
         float2 coords = uv;
-        if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD || o.code == TEX_DOTS) && (o.b & TEX_PROJECTED)) {
+        if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD || o.code == TEX_DOTS || o.code == TEX_BILERP) &&
+            (o.b & TEX_PROJECTED)) {
             --sp;
             coords = make_float2(stack[sp].x, stack[sp].y);
         }
@@ -282,6 +285,18 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             stack[sp++] = project(ops, k, position);
         } else if (o.code == TEX_NOISE) {
             stack[sp - 1] = noise_texture(o.a, stack[sp - 1], o.b, o.f[0], o.f[1], o.f[2]);
+        } else if (o.code == TEX_SOLID_CHECKERBOARD) {
+            sp -= 2;
+            const float3 q = stack[sp + 1];
+            float parity = fmodf(floorf(q.x) + floorf(q.y) + floorf(q.z), 2.0f);
+            if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
+            if (parity != 0.0f) stack[sp - 1] = stack[sp];
+        } else if (o.code == TEX_BILERP) {
+            const float2 st = apply_mapping(o, coords);
+            sp -= 3;
+            const float s = st.x, t = st.y;
+            stack[sp - 1] = ((1.0f - s) * (1.0f - t)) * stack[sp - 1] + (s * (1.0f - t)) * stack[sp] +
+                            ((1.0f - s) * t) * stack[sp + 1] + (s * t) * stack[sp + 2];
         } else if (o.code == TEX_DOTS) {
             const bool inside = inside_polka_dot(apply_mapping(o, coords));
             --sp;

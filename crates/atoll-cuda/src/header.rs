@@ -228,6 +228,8 @@ pub(crate) fn texture_constants() -> String {
         ("TEX_FACING", op::FACING),
         ("TEX_NOISE", op::NOISE),
         ("TEX_DOTS", op::DOTS),
+        ("TEX_SOLID_CHECKERBOARD", op::SOLID_CHECKERBOARD),
+        ("TEX_BILERP", op::BILERP),
         ("TEX_PROJECTED", PROJECTED),
         ("PROJECT_SPHERICAL", projection::SPHERICAL),
         ("PROJECT_CYLINDRICAL", projection::CYLINDRICAL),

@@ -263,12 +263,13 @@ fn pixel_filters_match_the_cpu_device() {
     }
 }
 
-/// pbrt-v4's noise textures and polka dots give the GPU's hits the CPU's
-/// coefficients: the cut-out scene's checkerboards become dots, and mixes
-/// whose amount is each noise texture of the hit point.
+/// pbrt-v4's procedural textures give the GPU's hits the CPU's
+/// coefficients: the cut-out scene's checkerboards become dots, 3D
+/// checkerboards and bilinear blends, and mixes whose amount is each noise
+/// texture of the hit point.
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
-fn noise_textures_match_the_cpu_device() {
+fn procedural_textures_match_the_cpu_device() {
     use atoll_scene::texture_scenes::{cutout_scene, Screen};
     use atoll_scene::{Noise, TexInput, TexMapping, Texture};
     let Some(gpu) = gpu_or_skip("noise textures") else { return };
@@ -288,6 +289,21 @@ fn noise_textures_match_the_cpu_device() {
     }
     assert_renders_match(&mut cuda, &Arc::new(scene), "dots");
     let texture_from_world = glam::Affine3A::from_scale(Vec3::splat(3.0));
+    // 3D checkerboards and bilinear blends in place of the checkerboards.
+    let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+    for t in &mut scene.textures.textures {
+        if let Texture::Checkerboard { tex, .. } = t {
+            *t = Texture::SolidCheckerboard { texture_from_world, tex: *tex };
+        }
+    }
+    assert_renders_match(&mut cuda, &Arc::new(scene), "solid checkerboard");
+    let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
+    for t in &mut scene.textures.textures {
+        if let Texture::Checkerboard { mapping, tex } = t {
+            *t = Texture::Bilerp { mapping: *mapping, corners: [tex[0], tex[1], tex[1], tex[0]] };
+        }
+    }
+    assert_renders_match(&mut cuda, &Arc::new(scene), "bilerp");
     for noise in [
         Noise::Fbm { octaves: 6, omega: 0.6 },
         Noise::Wrinkled { octaves: 8, omega: 0.5 },

@@ -70,6 +70,13 @@ pub mod op {
     /// Pop `second`, `first`; push `first` inside pbrt's polka dots of
     /// (s, t), else `second`; `f` the uv mapping (as [`CHECKERBOARD`]).
     pub const DOTS: u32 = 10;
+    /// Pop the texture-space point `q` (a [`super::projection::POINT`]),
+    /// `second`, `first`; push `first` where `floor(q.x) + floor(q.y) +
+    /// floor(q.z)` is even, else `second`.
+    pub const SOLID_CHECKERBOARD: u32 = 11;
+    /// Pop the corners v11, v01, v10, v00; push their bilinear blend at
+    /// (s, t); `f` the uv mapping (as [`CHECKERBOARD`]).
+    pub const BILERP: u32 = 12;
 }
 
 /// Where a texture program runs: the hit's texture coordinates, its point
@@ -101,7 +108,8 @@ pub mod projection {
     pub const POINT: u32 = 3;
 }
 
-/// Set in `b` of an [`op::IMAGE`], [`op::CHECKERBOARD`] or [`op::DOTS`]: it pops its
+/// Set in `b` of an [`op::IMAGE`], [`op::CHECKERBOARD`], [`op::DOTS`] or
+/// [`op::BILERP`]: it pops its
 /// `(s, t)` from the stack (an [`op::PROJECT`]) instead of mapping the
 /// hit's `uv`.
 pub const PROJECTED: u32 = 1 << 24;
@@ -398,6 +406,19 @@ fn compile(
             let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
             out.push(TexOp { code: op::DOTS, b: projected, f, ..Default::default() });
         }
+        Texture::SolidCheckerboard { texture_from_world, tex } => {
+            input(out, &tex[0], depth)?;
+            input(out, &tex[1], depth + 1)?;
+            project_ops(projection::POINT, rows_of(texture_from_world), out, depth + 2)?;
+            out.push(TexOp { code: op::SOLID_CHECKERBOARD, ..Default::default() });
+        }
+        Texture::Bilerp { mapping, corners } => {
+            for (i, corner) in corners.iter().enumerate() {
+                input(out, corner, depth + i)?;
+            }
+            let (f, projected) = mapping_ops(mapping, out, depth + 4)?;
+            out.push(TexOp { code: op::BILERP, b: projected, f, ..Default::default() });
+        }
         Texture::Noise { noise, texture_from_world } => {
             project_ops(projection::POINT, rows_of(texture_from_world), out, depth)?;
             let (kind, octaves, omega, scale, variation) = match *noise {
@@ -595,6 +616,22 @@ pub fn run_program(
             op::NOISE => {
                 let [omega, scale, variation, _] = o.f;
                 stack[sp - 1] = noise::evaluate(o.a, stack[sp - 1], o.b, omega, scale, variation);
+            }
+            op::SOLID_CHECKERBOARD => {
+                sp -= 2;
+                let q = stack[sp + 1];
+                let even = (q.x.floor() + q.y.floor() + q.z.floor()).rem_euclid(2.0) == 0.0;
+                if !even {
+                    stack[sp - 1] = stack[sp];
+                }
+            }
+            op::BILERP => {
+                let st = apply_mapping(o.f, coords(o, &stack, &mut sp));
+                sp -= 3;
+                let [v00, v10, v01, v11] = [stack[sp - 1], stack[sp], stack[sp + 1], stack[sp + 2]];
+                let (s, t) = (st.x, st.y);
+                stack[sp - 1] =
+                    (1.0 - s) * (1.0 - t) * v00 + s * (1.0 - t) * v10 + (1.0 - s) * t * v01 + s * t * v11;
             }
             op::DOTS => {
                 let st = coords(o, &stack, &mut sp);

@@ -484,6 +484,18 @@ pub enum Texture {
         noise: Noise,
         texture_from_world: glam::Affine3A,
     },
+    /// pbrt's 3D checkerboard: `tex[0]` where `floor(q.x) + floor(q.y) +
+    /// floor(q.z)` is even, `q = texture_from_world(p)`, else `tex[1]`.
+    SolidCheckerboard {
+        texture_from_world: glam::Affine3A,
+        tex: [TexInput; 2],
+    },
+    /// pbrt's `bilerp`: the bilinear blend of `corners` (v00, v10, v01,
+    /// v11) over (s, t).
+    Bilerp {
+        mapping: TexMapping,
+        corners: [TexInput; 4],
+    },
     /// pbrt's polka dots: `tex[0]` inside the dots of the (s, t) plane,
     /// `tex[1]` outside.
     Dots {

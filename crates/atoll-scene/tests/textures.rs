@@ -196,7 +196,7 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
              Texture \"corrupt\" \"float\" \"imagemap\" \"string filename\" \"corrupt.png\"\n\
              Texture \"ptexed\" \"spectrum\" \"ptex\" \"string filename\" \"x.ptx\"\n\
              Texture \"sphere\" \"spectrum\" \"checkerboard\" \"string mapping\" \"spherical\"\n\
-             Texture \"cube\" \"float\" \"checkerboard\" \"integer dimension\" 3\n\
+             Texture \"uvs\" \"float\" \"uv\"\n\
              Material \"diffuse\" \"texture reflectance\" \"undefined\"\n{TRI}\n\
              Material \"diffuse\" \"texture reflectance\" \"corrupt\"\n{TRI}\n\
              Texture \"missing\" \"spectrum\" \"constant\"\n\
@@ -215,7 +215,7 @@ fn unreadable_and_unsupported_textures_warn_and_fall_back_to_constants() {
     at(2, "nowhere.png");
     at(3, "texture \"corrupt\": ");
     at(4, "texture \"ptexed\": class \"ptex\" is not supported; using a constant");
-    at(6, "texture \"cube\": 3D checkerboards are not supported; using a constant");
+    at(6, "texture \"uvs\": class \"uv\" is not supported; using a constant");
     at(7, "spectrum texture \"undefined\" is not defined before this line; \"reflectance\" uses its default");
     at(9, "\"corrupt\" is not a spectrum texture");
     at(11, "texture \"missing\" is defined again");
@@ -252,6 +252,10 @@ fn bad_texture_parameters_are_errors() {
             "t.pbrt:2:1: texture \"a\": unknown encoding \"log\"",
         ),
         ("Texture \"a\" \"normal\" \"constant\"", "t.pbrt:2:1: Texture \"a\": type must be \"float\" or \"spectrum\""),
+        (
+            "Texture \"a\" \"float\" \"checkerboard\" \"integer dimension\" 4",
+            "t.pbrt:2:1: texture \"a\": \"dimension\" must be 2 or 3, found 4",
+        ),
         (
             "Texture \"a\" \"float\" \"fbm\" \"integer octaves\" -1",
             "t.pbrt:2:1: texture \"a\": \"octaves\" must not be negative, found -1",
@@ -596,5 +600,39 @@ fn noise_textures_take_pbrts_parameters_and_defaults() {
         }
     );
     assert_eq!(noise(5).0, Noise::Fbm { octaves: 32, omega: 0.5 });
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn bilerp_and_solid_checkerboards_take_pbrts_parameters() {
+    let dir = temp_dir("tex-bilerp");
+    let l = load(
+        &dir,
+        "Texture \"b\" \"spectrum\" \"bilerp\" \"rgb v00\" [1 0 0] \"rgb v11\" [0 0 1] \"float uscale\" 2\n\
+         Texture \"f\" \"float\" \"bilerp\"\n\
+         AttributeBegin\nScale 2 2 2\n\
+         Texture \"c\" \"float\" \"checkerboard\" \"integer dimension\" 3 \"float tex2\" 0.25\n\
+         AttributeEnd",
+    );
+    assert!(warnings(&l).is_empty(), "{:?}", warnings(&l));
+    let t = &l.scene.textures.textures;
+    let v = |r: f32, g: f32, b: f32| TexInput::Value(Rgb::new(r, g, b));
+    assert_eq!(
+        t[0],
+        Texture::Bilerp {
+            mapping: TexMapping::Uv(UvMapping { su: 2.0, sv: 1.0, du: 0.0, dv: 0.0 }),
+            // v00, v10, v01, v11 (pbrt's defaults 0, 0, 1, 1 where not given).
+            corners: [v(1.0, 0.0, 0.0), v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(0.0, 0.0, 1.0)],
+        }
+    );
+    let Texture::Bilerp { corners, .. } = t[1] else { panic!("{:?}", t[1]) };
+    assert_eq!(corners, [v(0.0, 0.0, 0.0), v(0.0, 0.0, 0.0), v(1.0, 1.0, 1.0), v(1.0, 1.0, 1.0)]);
+    assert_eq!(
+        t[2],
+        Texture::SolidCheckerboard {
+            texture_from_world: glam::Affine3A::from_scale(glam::Vec3::splat(0.5)),
+            tex: [v(1.0, 1.0, 1.0), v(0.25, 0.25, 0.25)],
+        }
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -4,7 +4,8 @@
 //! | class | parameters (default) |
 //! |---|---|
 //! | `imagemap` | `filename`, `wrap` (repeat), `scale` (1), `invert` (false), `encoding` (sRGB for 8-bit files; pbrt-v3: `bool gamma`); `filter`, `maxanisotropy`, `trilinear` ignored (atoll filters bilinearly) |
-//! | `checkerboard` | `tex1` (1), `tex2` (0); 2D only |
+//! | `checkerboard` | `tex1` (1), `tex2` (0); `dimension` 2 (a 2D mapping) or 3 (the point in the texture's space) |
+//! | `bilerp` | `v00` (0), `v01` (1), `v10` (0), `v11` (1) over a 2D mapping |
 //! | `constant` | `value` (1) |
 //! | `scale` | `tex` (1) × `scale` (1); pbrt-v3: `tex1` × `tex2` |
 //! | `mix` | `tex1` (0), `tex2` (1), `amount` (0.5, a float texture) |
@@ -20,7 +21,7 @@
 //! (`uscale`, `vscale`, `udelta`, `vdelta`), and `spherical`,
 //! `cylindrical` and `planar` (`v1`, `v2`, `udelta`, `vdelta`) of the hit
 //! point in the space of the `Texture` statement. Other classes (`ptex`,
-//! `bilerp`, ...) and 3D checkerboards are warned about and replaced
+//! `uv`) are warned about and replaced
 //! by a constant (0.5 grey, or 1 for float textures), as is an image that
 //! cannot be read under `--allow-missing` (without it, an error as in pbrt-v4).
 //!
@@ -77,7 +78,7 @@ impl TexKind {
 }
 
 /// pbrt texture classes atoll has no texture for.
-const UNSUPPORTED: &[&str] = &["ptex", "bilerp", "uv"];
+const UNSUPPORTED: &[&str] = &["ptex", "uv"];
 
 /// The named textures of a scene being loaded, and its image cache.
 #[derive(Debug, Default)]
@@ -200,22 +201,35 @@ impl NamedTextures {
             }
             "checkerboard" => {
                 p.find("aamode", &[ParamType::String]); // pbrt-v3's antialiasing choice
+                let tex = [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?];
                 match p.int("dimension")?.unwrap_or(2) {
-                    2 => {}
-                    3 => return Ok(Err("3D checkerboards are not supported".into())),
-                    d => return Ok(Err(format!("a {d}-dimensional checkerboard is not supported"))),
+                    2 => Texture::Checkerboard {
+                        mapping: tex_mapping(p, &site.world_from_texture, what, loc, w)?,
+                        tex,
+                    },
+                    3 => Texture::SolidCheckerboard { texture_from_world: texture_from_world(site), tex },
+                    d => {
+                        return Err(SceneError::at(
+                            loc,
+                            format!("{what}: \"dimension\" must be 2 or 3, found {d}"),
+                        ))
+                    }
                 }
+            }
+            "bilerp" => {
                 let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
-                Texture::Checkerboard {
-                    mapping,
-                    tex: [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?],
-                }
+                let corners = [
+                    input("v00", kind, 0.0, w)?,
+                    input("v10", kind, 0.0, w)?,
+                    input("v01", kind, 1.0, w)?,
+                    input("v11", kind, 1.0, w)?,
+                ];
+                Texture::Bilerp { mapping, corners }
             }
-            "fbm" | "wrinkled" | "windy" | "marble" => {
-                let texture_from_world =
-                    glam::Affine3A::from_mat4(site.world_from_texture.inverse().as_mat4());
-                Texture::Noise { noise: noise(class, p, what, loc, w)?, texture_from_world }
-            }
+            "fbm" | "wrinkled" | "windy" | "marble" => Texture::Noise {
+                noise: noise(class, p, what, loc, w)?,
+                texture_from_world: texture_from_world(site),
+            },
             "dots" => {
                 let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
                 Texture::Dots {
@@ -407,6 +421,11 @@ impl NamedTextures {
             },
         })
     }
+}
+
+/// The map from world space into the space of the `Texture` statement at `site`.
+fn texture_from_world(site: &TextureSite) -> glam::Affine3A {
+    glam::Affine3A::from_mat4(site.world_from_texture.inverse().as_mat4())
 }
 
 /// The noise texture of `class` (`fbm`, `wrinkled`, `windy` or `marble`)

@@ -1,11 +1,12 @@
-//! pbrt-v4's noise textures (`fbm`, `wrinkled`, `windy`, `marble`) and
-//! polka `dots` through the whole pipeline: a pbrt scene's `Texture`
-//! statements drive a diffuse plane's reflectance under a uniform white
-//! sky, where every pixel converges to the reflectance it sees. Each
-//! pixel is checked against the texture functions of `atoll_render::noise`
-//! averaged over the pixel's footprint on the plane (`common::render_against`),
-//! so the mapping, the texture's transform and the texture program are
-//! what is tested.
+//! pbrt-v4's procedural textures (`fbm`, `wrinkled`, `windy`, `marble`,
+//! polka `dots`, `bilerp`, 3D `checkerboard`) through the whole pipeline: a
+//! pbrt scene's `Texture` statements drive a diffuse plane's reflectance
+//! under a uniform white sky, where every pixel converges to the
+//! reflectance it sees. Each pixel is checked against the texture's
+//! function (`atoll_render::noise` for the noise) averaged over the
+//! pixel's footprint on the plane (`common::render_against`), so the
+//! mapping, the texture's transform and the texture program are what is
+//! tested.
 
 mod common;
 
@@ -69,6 +70,38 @@ fn marble_and_dots_drive_reflectance() {
             } else {
                 Vec3::new(0.1, 0.3, 0.8)
             }
+        },
+    );
+}
+
+#[test]
+fn bilerp_and_solid_checkerboards_drive_reflectance() {
+    // (s, t) = 4 uv - 1.5 spans about [0.2, 0.8] over the view.
+    check(
+        "bilerp",
+        "Texture \"reflectance\" \"spectrum\" \"bilerp\" \"float uscale\" 4 \"float vscale\" 4 \
+           \"float udelta\" -1.5 \"float vdelta\" -1.5 \"rgb v00\" [ 0.9 0.1 0.1 ] \"rgb v10\" [ 0.1 0.9 0.1 ] \
+           \"rgb v01\" [ 0.1 0.1 0.9 ] \"rgb v11\" [ 0.9 0.9 0.9 ]",
+        |p| {
+            let st = (Vec2::new(p.x, p.y) + 10.0) / 20.0 * 4.0 - 1.5;
+            let (s, t) = (st.x, st.y);
+            let corner = |r: f32, g: f32, b: f32| Vec3::new(r, g, b);
+            (1.0 - s) * (1.0 - t) * corner(0.9, 0.1, 0.1)
+                + s * (1.0 - t) * corner(0.1, 0.9, 0.1)
+                + (1.0 - s) * t * corner(0.1, 0.1, 0.9)
+                + s * t * corner(0.9, 0.9, 0.9)
+        },
+    );
+    // Cells of 0.4 units, the plane through the middle of a layer of them.
+    check(
+        "solid checkerboard",
+        "AttributeBegin\nTranslate 0 0 0.5\nScale 0.4 0.4 0.4\n\
+         Texture \"reflectance\" \"spectrum\" \"checkerboard\" \"integer dimension\" 3 \
+           \"rgb tex1\" [ 0.8 0.8 0.8 ] \"rgb tex2\" [ 0.2 0.2 0.2 ]\nAttributeEnd",
+        |p| {
+            let q = (p - Vec3::new(0.0, 0.0, 0.5)) / 0.4;
+            let even = (q.x.floor() + q.y.floor() + q.z.floor()).rem_euclid(2.0) == 0.0;
+            Vec3::splat(if even { 0.8 } else { 0.2 })
         },
     );
 }
