@@ -672,3 +672,20 @@ fn spectra_from_files() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn infinite_light_portals_are_warned_about() {
+    let portal = "\"point3 portal\" [ 0 0 0  1 0 0  1 1 0  0 1 0 ]";
+    let w = load_str_warnings(&format!("WorldBegin\nLightSource \"infinite\" {portal}"));
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(w[0].to_string().starts_with("u.pbrt:2:1: "), "{w:?}");
+    assert!(w[0].message.contains("the portal is not used"), "{w:?}");
+    let e = atoll_scene::pbrt::load_str(
+        "WorldBegin\nLightSource \"infinite\" \"point3 portal\" [ 0 0 0  1 0 0 ]",
+        "u.pbrt",
+        std::path::Path::new("."),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.starts_with("u.pbrt:2:1: ") && e.contains("needs 4 points"), "{e}");
+}

@@ -502,6 +502,22 @@ pub fn light(
                     1.0
                 }
             };
+            if let Some(portal) = p.numbers("portal", ParamType::Point3) {
+                let points = portal.len() / 3;
+                if points != 4 || portal.len() % 3 != 0 {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("{what}: \"portal\" needs 4 points (a rectangle), got {points}"),
+                    ));
+                }
+                w.warn(
+                    loc,
+                    format!(
+                        "{what}: the portal is not used: atoll samples the whole sky, and lets it shine in \
+                         outside the portal too (pbrt-v4 only through it); a closed room renders alike, noisier"
+                    ),
+                );
+            }
             // pbrt-v3 called the environment map "mapname".
             let filename = match p.string("filename")? {
                 Some(f) => Some(f),
