@@ -175,6 +175,12 @@ pub fn daylight_xy(kelvin: f32) -> [f32; 2] {
     [x as f32, y as f32]
 }
 
+/// Linear sRGB of CIE daylight at `kelvin`, at luminance 1 (pbrt-v4's
+/// named daylight illuminants, normalised as it normalises light spectra).
+pub fn daylight_rgb(kelvin: f32) -> Vec3 {
+    XYZ_FROM_SRGB.inverse() * white_xyz(daylight_xy(kelvin))
+}
+
 /// XYZ of the white of chromaticity `xy` at luminance 1.
 fn white_xyz([x, y]: [f32; 2]) -> Vec3 {
     Vec3::new(x / y, 1.0, (1.0 - x - y) / y)

@@ -40,9 +40,17 @@ pub fn named_glass(name: &str) -> Option<f32> {
 }
 
 /// Named illuminants: pbrt normalises light spectra to unit luminance, and
-/// D65 is the white point of sRGB, so it becomes RGB white.
+/// D65 is the white point of sRGB, so it becomes RGB white; A is a
+/// blackbody at 2856 K, D50 and ACES's D60 daylight at 5003 K and 6000 K.
+/// (The fluorescent `stdillum-F*` are tabulated spectra atoll lacks.)
 pub fn named_illuminant(name: &str) -> Option<Vec3> {
-    (name == "stdillum-D65").then_some(Vec3::ONE)
+    match name {
+        "stdillum-D65" => Some(Vec3::ONE),
+        "stdillum-A" => Some(blackbody_rgb(2856.0)),
+        "stdillum-D50" => Some(crate::camera::daylight_rgb(5003.0)),
+        "illum-acesD60" => Some(crate::camera::daylight_rgb(6000.0)),
+        _ => None,
+    }
 }
 
 /// Whether `name` is a spectrum this module knows by name.
@@ -177,6 +185,26 @@ mod tests {
         assert!(parse_spd("# nothing\n").is_err());
         assert!(names_a_file("spds/cu.spd") && names_a_file("k.spd"));
         assert!(!names_a_file("metal-Cu-eta") && !names_a_file("metal-CuZn-eta"));
+    }
+
+    #[test]
+    fn named_illuminants_have_unit_luminance_and_their_colour() {
+        let luminance = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        let [a, d50, d60, d65] = ["stdillum-A", "stdillum-D50", "illum-acesD60", "stdillum-D65"]
+            .map(|n| named_illuminant(n).unwrap());
+        for c in [a, d50, d60, d65] {
+            assert!((luminance(c) - 1.0).abs() < 2e-3, "{c}");
+        }
+        // Warmer the lower the temperature: red over blue falls from A to D65.
+        let warmth = |c: Vec3| c.x / c.z;
+        assert!(
+            warmth(a) > warmth(d50) && warmth(d50) > warmth(d60) && warmth(d60) > warmth(d65),
+            "{a} {d50} {d60}"
+        );
+        assert!(warmth(a) > 3.0, "{a}");
+        // The daylight locus at D65's temperature is sRGB's white.
+        assert!((crate::camera::daylight_rgb(6504.0) - Vec3::ONE).abs().max_element() < 0.01);
+        assert!(named_illuminant("stdillum-F1").is_none());
     }
 
     #[test]
