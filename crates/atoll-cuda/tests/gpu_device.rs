@@ -290,10 +290,13 @@ fn procedural_textures_match_the_cpu_device() {
     assert_renders_match(&mut cuda, &Arc::new(scene), "dots");
     let texture_from_world = glam::Affine3A::from_scale(Vec3::splat(3.0));
     // 3D checkerboards and bilinear blends in place of the checkerboards.
+    // The cells are shifted off the ground (z = 0) and the screen (z = 1):
+    // a surface lying on a cell boundary takes either cell by rounding.
+    let solid = texture_from_world * glam::Affine3A::from_translation(Vec3::new(0.0, 0.0, 0.15));
     let mut scene = cutout_scene(Screen::Strips, Vec3::new(0.0, 0.0, 3.0));
     for t in &mut scene.textures.textures {
         if let Texture::Checkerboard { tex, .. } = t {
-            *t = Texture::SolidCheckerboard { texture_from_world, tex: *tex };
+            *t = Texture::SolidCheckerboard { texture_from_world: solid, tex: *tex };
         }
     }
     assert_renders_match(&mut cuda, &Arc::new(scene), "solid checkerboard");
