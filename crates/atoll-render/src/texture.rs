@@ -370,6 +370,7 @@ fn compile(
     let textures = &scene.textures;
     let texture = textures.textures.get(id as usize).ok_or(TextureCompileError::NoTexture(id))?;
     let input = |out: &mut Vec<TexOp>, input: &TexInput, depth: usize| match *input {
+        TexInput::Value(_) if depth >= TEXTURE_STACK => Err(TextureCompileError::StackTooDeep),
         TexInput::Value(v) => {
             out.push(constant(v));
             Ok(())
@@ -930,6 +931,28 @@ mod tests {
         assert_eq!(at(-Vec3::Z), 0.8, "either side");
         assert_eq!(at(Vec3::X), 0.2);
         assert!((at(Vec3::new(0.6, 0.0, 0.8)) - (0.2 * 0.2 + 0.8 * 0.8)).abs() < 1e-6);
+    }
+
+    /// A tree whose values would push past the stack is refused when
+    /// compiled (not overflowing where it runs): each `bilerp` holds four
+    /// values, nested in the last corner of the next.
+    #[test]
+    fn values_past_the_stack_are_refused() {
+        let mut scene = Scene::default();
+        let corner = |v: f32| TexInput::Value(Rgb::splat(v));
+        let mapping = TexMapping::default();
+        let mut last = scene.textures.add(Texture::Constant(Rgb::ONE));
+        let mut results = Vec::new();
+        for _ in 0..3 {
+            last = scene.textures.add(Texture::Bilerp {
+                mapping,
+                corners: [corner(0.0), corner(0.5), corner(1.0), TexInput::Texture(last)],
+            });
+            results.push(compile_texture(&scene, last, &mut Vec::new()));
+        }
+        // Depths 4 and 7 fit eight values; a third level needs 10.
+        assert!(results[0].is_ok() && results[1].is_ok(), "{results:?}");
+        assert_eq!(results[2], Err(TextureCompileError::StackTooDeep));
     }
 
     /// A projected checkerboard takes its squares from the point, not the
