@@ -483,6 +483,10 @@ fn pixel_filters_take_pbrt_v4s_defaults() {
             "f.pbrt:1:1: PixelFilter \"gaussian\": \"sigma\" must be positive",
         ),
         (
+            "PixelFilter \"mitchell\" \"float B\" 3e38",
+            "f.pbrt:1:1: PixelFilter \"mitchell\": its negative lobes cancel the rest",
+        ),
+        (
             "PixelFilter \"mitchell\" \"float C\" 50",
             "f.pbrt:1:1: PixelFilter \"mitchell\": its negative lobes cancel the rest",
         ),

@@ -850,7 +850,8 @@ impl Builder {
             let (signed, magnitude) = (0..256)
                 .map(|i| filter.along(axis, (i as f32 + 0.5) / 256.0 * radius[axis]))
                 .fold((0.0, 0.0), |(s, m), v| (s + v, m + v.abs()));
-            if signed <= 0.1 * magnitude {
+            // (Written so that a NaN, from parameters too large to evaluate, fails too.)
+            if signed.partial_cmp(&(0.1 * magnitude)) != Some(std::cmp::Ordering::Greater) {
                 return Err(SceneError::at(
                     loc,
                     format!("PixelFilter \"{name}\": its negative lobes cancel the rest (integral {signed:.3} of magnitude {magnitude:.3} along an axis)"),
