@@ -389,7 +389,10 @@ impl Builder {
             S::Option(name, _) => self.warn(&loc, format!("Option \"{name}\" is not supported; ignored")),
             S::MediumInterface(inside, outside) => {
                 if !inside.is_empty() || !outside.is_empty() {
-                    self.warn(&loc, "participating media are not supported; MediumInterface ignored");
+                    self.warn(
+                        &loc,
+                        "participating media are not supported; MediumInterface ignored: surfaces are lit as in a vacuum",
+                    );
                 }
             }
             S::Texture { name, ty, class, params } => self.texture(name, &ty, &class, params, &loc)?,
@@ -596,7 +599,13 @@ impl Builder {
             E::Accelerator => p.mark_all_used(),
             E::MakeNamedMedium => {
                 p.mark_all_used();
-                self.warn(&loc, format!("participating media are not supported; medium \"{name}\" ignored"));
+                self.warn(
+                    &loc,
+                    format!(
+                        "participating media are not supported; medium \"{name}\" ignored: the image has no fog, \
+                         smoke or light scattered inside objects"
+                    ),
+                );
             }
             E::Attribute => unreachable!("handled above"),
         }

@@ -156,7 +156,12 @@ pub fn material(
             Some(m) => m,
             None => {
                 p.mark_all_used();
-                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5"));
+                let lacks = match ty {
+                    "measured" => "its measured reflection is lost",
+                    "subsurface" => "no light travels under its surface",
+                    _ => "its own look is lost",
+                };
+                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5 ({lacks})"));
                 Material::default_diffuse()
             }
         },
@@ -562,7 +567,7 @@ pub fn light(
         }
         _ => {
             p.mark_all_used();
-            w.warn(loc, format!("{what} is not supported; skipped"));
+            w.warn(loc, format!("{what} is not supported; skipped (its light is missing from the image)"));
             return Ok(None);
         }
     }))

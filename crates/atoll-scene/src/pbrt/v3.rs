@@ -117,7 +117,7 @@ pub fn material(
             let color = rgb("color", 0.5, w, tex)?;
             (
                 Material::Diffuse { reflectance: color },
-                "approximated by \"diffuse\" with its \"color\"".into(),
+                "approximated by \"diffuse\" with its \"color\" (no hair highlights)".into(),
             )
         }
         "fourier" => {
