@@ -236,6 +236,14 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
     }
 }
 
+/// `texture::odd_cell`: a checkerboard cell whose floored coordinates sum
+/// to `sum` takes the second input.
+__device__ __forceinline__ bool odd_cell(float sum) {
+    float parity = fmodf(sum, 2.0f);
+    if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
+    return parity != 0.0f;
+}
+
 /// `texture::project`: (s, t, 0) of the hit point `position` under the
 /// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops
 /// after), or the point itself for PROJECT_POINT.
@@ -288,9 +296,7 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
         } else if (o.code == TEX_SOLID_CHECKERBOARD) {
             sp -= 2;
             const float3 q = stack[sp + 1];
-            float parity = fmodf(floorf(q.x) + floorf(q.y) + floorf(q.z), 2.0f);
-            if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
-            if (parity != 0.0f) stack[sp - 1] = stack[sp];
+            if (odd_cell(floorf(q.x) + floorf(q.y) + floorf(q.z))) stack[sp - 1] = stack[sp];
         } else if (o.code == TEX_BILERP) {
             const float2 st = apply_mapping(o, coords);
             sp -= 3;
@@ -305,10 +311,8 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             stack[sp++] = image_lookup(p, o, coords);
         } else if (o.code == TEX_CHECKERBOARD) {
             const float2 st = apply_mapping(o, coords);
-            float parity = fmodf(floorf(st.x) + floorf(st.y), 2.0f);
-            if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
             --sp;
-            if (parity != 0.0f) stack[sp - 1] = stack[sp];
+            if (odd_cell(floorf(st.x) + floorf(st.y))) stack[sp - 1] = stack[sp];
         } else if (o.code == TEX_SCALE) {
             --sp;
             stack[sp - 1] = stack[sp - 1] * stack[sp];

@@ -395,17 +395,13 @@ fn compile(
                 f,
             })
         }
-        Texture::Checkerboard { mapping, tex } => {
+        // Two inputs chosen between by the (s, t) of a 2D mapping.
+        Texture::Checkerboard { mapping, tex } | Texture::Dots { mapping, tex } => {
+            let code = if matches!(texture, Texture::Dots { .. }) { op::DOTS } else { op::CHECKERBOARD };
             input(out, &tex[0], depth)?;
             input(out, &tex[1], depth + 1)?;
             let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
-            out.push(TexOp { code: op::CHECKERBOARD, b: projected, f, ..Default::default() });
-        }
-        Texture::Dots { mapping, tex } => {
-            input(out, &tex[0], depth)?;
-            input(out, &tex[1], depth + 1)?;
-            let (f, projected) = mapping_ops(mapping, out, depth + 2)?;
-            out.push(TexOp { code: op::DOTS, b: projected, f, ..Default::default() });
+            out.push(TexOp { code, b: projected, f, ..Default::default() });
         }
         Texture::SolidCheckerboard { texture_from_world, tex } => {
             input(out, &tex[0], depth)?;
@@ -621,8 +617,7 @@ pub fn run_program(
             op::SOLID_CHECKERBOARD => {
                 sp -= 2;
                 let q = stack[sp + 1];
-                let even = (q.x.floor() + q.y.floor() + q.z.floor()).rem_euclid(2.0) == 0.0;
-                if !even {
+                if odd_cell(q.x.floor() + q.y.floor() + q.z.floor()) {
                     stack[sp - 1] = stack[sp];
                 }
             }
@@ -654,11 +649,9 @@ pub fn run_program(
             op::CHECKERBOARD => {
                 let st = coords(o, &stack, &mut sp);
                 let st = apply_mapping(o.f, st);
-                let even = (st.x.floor() + st.y.floor()).rem_euclid(2.0) == 0.0;
                 sp -= 1;
-                if even {
-                    // Keep `first` (below `second`).
-                } else {
+                // An even cell keeps `first` (below `second`).
+                if odd_cell(st.x.floor() + st.y.floor()) {
                     stack[sp - 1] = stack[sp];
                 }
             }
@@ -706,6 +699,13 @@ fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFF
         }
         _ => {}
     }
+}
+
+/// Whether a checkerboard cell whose floored coordinates sum to `sum` is
+/// an odd one (it takes the second input).
+#[inline]
+fn odd_cell(sum: f32) -> bool {
+    sum.rem_euclid(2.0) != 0.0
 }
 
 #[inline]

@@ -203,10 +203,7 @@ impl NamedTextures {
                 p.find("aamode", &[ParamType::String]); // pbrt-v3's antialiasing choice
                 let tex = [input("tex1", kind, 1.0, w)?, input("tex2", kind, 0.0, w)?];
                 match p.int("dimension")?.unwrap_or(2) {
-                    2 => Texture::Checkerboard {
-                        mapping: tex_mapping(p, &site.world_from_texture, what, loc, w)?,
-                        tex,
-                    },
+                    2 => Texture::Checkerboard { mapping: tex_mapping(p, site, what, loc, w)?, tex },
                     3 => Texture::SolidCheckerboard { texture_from_world: texture_from_world(site), tex },
                     d => {
                         return Err(SceneError::at(
@@ -217,7 +214,7 @@ impl NamedTextures {
                 }
             }
             "bilerp" => {
-                let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
+                let mapping = tex_mapping(p, site, what, loc, w)?;
                 let corners = [
                     input("v00", kind, 0.0, w)?,
                     input("v10", kind, 0.0, w)?,
@@ -231,7 +228,7 @@ impl NamedTextures {
                 texture_from_world: texture_from_world(site),
             },
             "dots" => {
-                let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
+                let mapping = tex_mapping(p, site, what, loc, w)?;
                 Texture::Dots {
                     mapping,
                     tex: [input("inside", kind, 1.0, w)?, input("outside", kind, 0.0, w)?],
@@ -288,7 +285,7 @@ impl NamedTextures {
             (None, Some(false)) => ColorEncoding::Linear,
             (None, _) => ColorEncoding::Srgb,
         };
-        let mapping = tex_mapping(p, &site.world_from_texture, what, loc, w)?;
+        let mapping = tex_mapping(p, site, what, loc, w)?;
         let Some(file) = p.string("filename")? else {
             return Ok(Err("no \"string filename\" given".into()));
         };
@@ -466,16 +463,15 @@ fn noise(
 /// pbrt-v4's 2D texture mapping (`TextureMapping2D::Create`): `uv`
 /// (`uscale`, `vscale`, `udelta`, `vdelta`), or `spherical`, `cylindrical`
 /// or `planar` (`v1`, `v2`, `udelta`, `vdelta`) of the hit point in the
-/// texture's space, `world_from_texture` being the transform current at the
-/// `Texture` statement.
+/// texture's space (that of the `Texture` statement at `site`).
 fn tex_mapping(
     p: &ParamList,
-    world_from_texture: &glam::DMat4,
+    site: &TextureSite,
     what: &str,
     loc: &FileLoc,
     w: &mut WarningSink,
 ) -> Result<TexMapping, SceneError> {
-    let texture_from_world = glam::Affine3A::from_mat4(world_from_texture.inverse().as_mat4());
+    let texture_from_world = texture_from_world(site);
     let (du, dv) = (p.float_or("udelta", 0.0)?, p.float_or("vdelta", 0.0)?);
     Ok(match p.string("mapping")?.as_deref() {
         None | Some("uv") => TexMapping::Uv(UvMapping {
