@@ -20,6 +20,11 @@
 #ifndef ATOLL_WITH_PRINCIPLED
 #define ATOLL_WITH_PRINCIPLED 1
 #endif
+// The conductor base of the layered BSDF, apart from the coated kinds as a
+// whole: scenes with coated diffuse surfaces alone keep the narrower walks.
+#ifndef ATOLL_WITH_COATED_CONDUCTOR
+#define ATOLL_WITH_COATED_CONDUCTOR 1
+#endif
 
 #include "common.cuh"
 #include "materials.cuh"
@@ -236,8 +241,10 @@ __device__ __forceinline__ float3 tr_sample_wm(TrowbridgeReitz d, float3 w, floa
 /// Mirrors `bsdf::Bsdf`. `kind` is a `MATERIAL_*` constant; the fields used
 /// per kind: Diffuse `a` = reflectance; Conductor `a` = eta, `b` = k,
 /// alphas; Dielectric `eta`, alphas; CoatedDiffuse `a` = reflectance, `b` =
-/// albedo, `eta`, alphas and the layer fields; Principled `a` = base colour,
-/// `b` = (metallic, roughness, transmission), `eta`, `alpha_x` = specular,
+/// albedo, the coating's `eta` and alphas, and the layer fields;
+/// CoatedConductor as CoatedDiffuse but `a` = the conductor's eta, `p` =
+/// (its k, its alpha_x), `base_alpha_y`; Principled `a` = base colour, `b` =
+/// (metallic, roughness, transmission), `eta`, `alpha_x` = specular,
 /// `alpha_y` = specular tint, `p` = (sheen, sheen tint, clearcoat, clearcoat
 /// gloss). `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
 /// `bsdf_from_record`).
@@ -245,11 +252,13 @@ struct Bsdf {
     unsigned int kind;
     float3 a, b;
     float eta, alpha_x, alpha_y;
-    // Coated diffuse only (`layered::CoatedDiffuse`).
+    // Coated kinds only (`layered::Coated`).
     float thickness, g;
     unsigned int max_depth, n_samples;
-    // Principled only (`principled::Principled`).
+    // Principled and coated conductor only.
     float4 p;
+    // Coated conductor only.
+    float base_alpha_y;
 };
 
 /// Mirrors `bsdf::BsdfSample`.
@@ -288,6 +297,7 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     b.max_depth = 0u;
     b.n_samples = 0u;
     b.p = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+    b.base_alpha_y = 0.0f;
     if (r.material == MATERIAL_DIFFUSE) {
         b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_REFLECTANCE]);
     } else if (r.material == MATERIAL_CONDUCTOR) {
@@ -314,6 +324,19 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.g = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_G]);
         b.max_depth = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_MAX_DEPTH]);
         b.n_samples = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_N_SAMPLES]);
+    } else if (ATOLL_WITH_COATED && ATOLL_WITH_COATED_CONDUCTOR && r.material == MATERIAL_COATED_CONDUCTOR) {
+        b.a = load_f16x3(&r.coeffs[COEFF_COATED_CONDUCTOR_ETA]);
+        const float3 k = load_f16x3(&r.coeffs[COEFF_COATED_CONDUCTOR_K]);
+        b.p = make_float4(k.x, k.y, k.z, f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_CONDUCTOR_ALPHA_X]));
+        b.base_alpha_y = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_CONDUCTOR_ALPHA_Y]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_INTERFACE_ALPHA_X]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_INTERFACE_ALPHA_Y]);
+        b.eta = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_INTERFACE_ETA]);
+        b.thickness = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_THICKNESS]);
+        b.b = load_f16x3(&r.coeffs[COEFF_COATED_CONDUCTOR_ALBEDO]);
+        b.g = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_G]);
+        b.max_depth = COATED_CONDUCTOR_MAX_DEPTH;
+        b.n_samples = COATED_CONDUCTOR_N_SAMPLES;
     } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
         b.a = load_f16x3(&r.coeffs[COEFF_PRINCIPLED_BASE_COLOR]);
         b.b = make_float3(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_METALLIC]),
@@ -608,19 +631,24 @@ __device__ __forceinline__ BsdfSample diffuse_sample(float3 r, float3 wo, float2
     return make_bsdf_sample(r * FRAC_1_PI, wi, pdf, 1.0f, false, false);
 }
 
-// --- coated diffuse (bsdf/layered.rs, in layered.cuh) ---
+// --- coated diffuse and coated conductor (bsdf/layered.rs, in layered.cuh) ---
 
-/// Mirrors `layered::CoatedDiffuse`: the `Bsdf` fields of a coated diffuse
-/// kind, passed by value to the layered functions.
-struct CoatedDiffuse {
-    float3 reflectance, albedo;
+/// Mirrors `layered::Coated`: the `Bsdf` fields of a coated kind, passed by
+/// value to the layered functions. `conductor` picks the base: the
+/// Lambertian `base_a` (reflectance), or the conductor `base_a` (eta),
+/// `base_k`, `base_alpha_*` with its index relative to the outside.
+struct Coated {
+    float3 base_a, albedo;
     float eta, alpha_x, alpha_y, thickness, g;
     unsigned int max_depth, n_samples;
+    bool conductor;
+    float3 base_k;
+    float base_alpha_x, base_alpha_y;
 };
 
-__device__ __forceinline__ CoatedDiffuse coated_diffuse_of(const Bsdf& b) {
-    CoatedDiffuse c;
-    c.reflectance = b.a;
+__device__ __forceinline__ Coated coated_of(const Bsdf& b) {
+    Coated c;
+    c.base_a = b.a;
     c.albedo = b.b;
     c.eta = b.eta;
     c.alpha_x = b.alpha_x;
@@ -629,18 +657,29 @@ __device__ __forceinline__ CoatedDiffuse coated_diffuse_of(const Bsdf& b) {
     c.g = b.g;
     c.max_depth = b.max_depth;
     c.n_samples = b.n_samples;
+    c.conductor = ATOLL_WITH_COATED_CONDUCTOR && b.kind == MATERIAL_COATED_CONDUCTOR;
+    c.base_k = make_float3(b.p.x, b.p.y, b.p.z);
+    c.base_alpha_x = b.p.w;
+    c.base_alpha_y = b.base_alpha_y;
     return c;
+}
+
+__device__ __forceinline__ bool is_coated(unsigned int kind) {
+    return kind == MATERIAL_COATED_DIFFUSE || (ATOLL_WITH_COATED_CONDUCTOR && kind == MATERIAL_COATED_CONDUCTOR);
 }
 
 // Random walks with many live values: kept out of line (layered.cuh) so the
 // shade kernel's other materials keep their register budget.
-__device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, float3 wi);
-__device__ __noinline__ float coated_diffuse_pdf(CoatedDiffuse c, float3 wo, float3 wi);
-__device__ __noinline__ bool coated_diffuse_sample(CoatedDiffuse c, float3 wo, float uc, float2 u, BsdfSample* out);
+__device__ __noinline__ float3 coated_eval(Coated c, float3 wo, float3 wi);
+__device__ __noinline__ float coated_pdf(Coated c, float3 wo, float3 wi);
+__device__ __noinline__ bool coated_sample(Coated c, float3 wo, float uc, float2 u, BsdfSample* out);
 
-/// Mirrors `CoatedDiffuse::is_delta`.
-__device__ __forceinline__ bool coated_diffuse_is_delta(const Bsdf& b) {
-    return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y)) && is_zero3(b.a) && is_zero3(b.b);
+/// Mirrors `Coated::is_delta`.
+__device__ __forceinline__ bool coated_is_delta(const Bsdf& b) {
+    const bool base_is_delta = ATOLL_WITH_COATED_CONDUCTOR && b.kind == MATERIAL_COATED_CONDUCTOR
+                                   ? tr_effectively_smooth(trowbridge_reitz(b.p.w, b.base_alpha_y))
+                                   : is_zero3(b.a);
+    return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y)) && base_is_delta && is_zero3(b.b);
 }
 
 // --- principled (bsdf/principled.rs, in principled.cuh) ---
@@ -685,7 +724,7 @@ __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi)
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_eval(b.a, b.b, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return (same_hemisphere(wo, wi) ? b.a : b.b) * FRAC_1_PI;
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return zero3();
-    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_eval(coated_diffuse_of(b), wo, wi);
+    if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_eval(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_eval(principled_of(b), wo, wi);
     return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
@@ -696,7 +735,7 @@ __device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
     if (b.kind == MATERIAL_CONDUCTOR) return conductor_pdf(trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return diffuse_transmission_pdf(b.a, b.b, wo, wi);
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return 0.0f;
-    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_pdf(coated_diffuse_of(b), wo, wi);
+    if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_pdf(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_pdf(principled_of(b), wo, wi);
     return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
@@ -714,8 +753,8 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
         if (!diffuse_transmission_sample(b.a, b.b, wo, uc, u, &s)) return false;
     } else if (b.kind == MATERIAL_THIN_DIELECTRIC) {
         if (!thin_dielectric_sample(b.eta, wo, uc, &s)) return false;
-    } else if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) {
-        if (!coated_diffuse_sample(coated_diffuse_of(b), wo, uc, u, &s)) return false;
+    } else if (ATOLL_WITH_COATED && is_coated(b.kind)) {
+        if (!coated_sample(coated_of(b), wo, uc, u, &s)) return false;
     } else if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) {
         if (!principled_sample(principled_of(b), wo, uc, u, &s)) return false;
     } else {
@@ -735,7 +774,7 @@ __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
     if (b.kind == MATERIAL_CONDUCTOR) return tr_effectively_smooth(trowbridge_reitz(b.alpha_x, b.alpha_y));
     if (b.kind == MATERIAL_DIFFUSE_TRANSMISSION) return false;
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return true;
-    if (ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE) return coated_diffuse_is_delta(b);
+    if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_is_delta(b);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_is_delta(principled_of(b));
     return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
 }
@@ -743,7 +782,7 @@ __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
 /// Mirrors `Bsdf::sampled_pdf_is_proportional`: MIS at the next vertex must
 /// use `bsdf_pdf`, not the sample's density.
 __device__ __forceinline__ bool bsdf_sampled_pdf_is_proportional(const Bsdf& b) {
-    return ATOLL_WITH_COATED && b.kind == MATERIAL_COATED_DIFFUSE;
+    return ATOLL_WITH_COATED && is_coated(b.kind);
 }
 
 #include "layered.cuh"

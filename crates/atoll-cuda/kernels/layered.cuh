@@ -1,5 +1,6 @@
-// The coated diffuse BSDF: the mirror of `atoll_render::bsdf::layered`
-// (pbrt-v4's `LayeredBxDF<DielectricBxDF, DiffuseBxDF, true>`), same
+// The coated diffuse and coated conductor BSDFs: the mirror of
+// `atoll_render::bsdf::layered` (pbrt-v4's `LayeredBxDF<DielectricBxDF,
+// DiffuseBxDF | ConductorBxDF, true>`), same
 // operations in the same order, including the hashes that seed each
 // estimate's random walk, so CPU and GPU estimates agree. Included at the end
 // of bsdf.cuh, which declares the three estimates for its dispatch.
@@ -102,59 +103,76 @@ __device__ __forceinline__ bool layer_usable(const BsdfSample& s) {
     return !is_zero3(s.f) && s.pdf > 0.0f && s.wi.z != 0.0f;
 }
 
-/// Mirrors `CoatedDiffuse::coat_sample`: the coating's sample, if usable.
+/// Mirrors `Coated::coat_sample`: the coating's sample, if usable.
 __device__ __noinline__ bool coat_sample_with(float eta, float alpha_x, float alpha_y, float3 wo, float uc, float2 u,
                                               int mode, int lobes, BsdfSample* out) {
     return dielectric_sample_with(eta, trowbridge_reitz(alpha_x, alpha_y), wo, uc, u, mode, lobes, out) &&
            layer_usable(*out);
 }
 
-/// Mirrors `CoatedDiffuse::coat_eval`.
+/// Mirrors `Coated::coat_eval`.
 __device__ __noinline__ float3 coat_eval_with(float eta, float alpha_x, float alpha_y, float3 wo, float3 wi, int mode) {
     return dielectric_eval_with(eta, trowbridge_reitz(alpha_x, alpha_y), wo, wi, mode);
 }
 
-/// Mirrors `CoatedDiffuse::coat_pdf`.
+/// Mirrors `Coated::coat_pdf`.
 __device__ __noinline__ float coat_pdf_with(float eta, float alpha_x, float alpha_y, float3 wo, float3 wi, int lobes) {
     return dielectric_pdf_with(eta, trowbridge_reitz(alpha_x, alpha_y), wo, wi, lobes);
 }
 
-__device__ __forceinline__ bool coat_sample(const CoatedDiffuse& c, float3 wo, float uc, float2 u, int mode, int lobes,
+__device__ __forceinline__ bool coat_sample(const Coated& c, float3 wo, float uc, float2 u, int mode, int lobes,
                                             BsdfSample* out) {
     return coat_sample_with(c.eta, c.alpha_x, c.alpha_y, wo, uc, u, mode, lobes, out);
 }
-__device__ __forceinline__ float3 coat_eval(const CoatedDiffuse& c, float3 wo, float3 wi, int mode) {
+__device__ __forceinline__ float3 coat_eval(const Coated& c, float3 wo, float3 wi, int mode) {
     return coat_eval_with(c.eta, c.alpha_x, c.alpha_y, wo, wi, mode);
 }
-__device__ __forceinline__ float coat_pdf(const CoatedDiffuse& c, float3 wo, float3 wi, int lobes) {
+__device__ __forceinline__ float coat_pdf(const Coated& c, float3 wo, float3 wi, int lobes) {
     return coat_pdf_with(c.eta, c.alpha_x, c.alpha_y, wo, wi, lobes);
 }
 
-/// Mirrors `CoatedDiffuse::coat().effectively_smooth()`.
-__device__ __forceinline__ bool coat_is_smooth(const CoatedDiffuse& c) {
+/// Mirrors `Coated::coat().effectively_smooth()`.
+__device__ __forceinline__ bool coat_is_smooth(const Coated& c) {
     return tr_effectively_smooth(trowbridge_reitz(c.alpha_x, c.alpha_y));
 }
 
-/// Mirrors `usable(self.base().sample(..))`: `Bsdf::sample` of the diffuse
-/// base of `reflectance` (its grazing check and final filter included), if usable.
-__device__ __noinline__ bool base_sample(float3 reflectance, float3 wo, float2 u, BsdfSample* out) {
+/// The base's conductor distribution (`Coated::base`).
+__device__ __forceinline__ TrowbridgeReitz base_distribution(const Coated& c) {
+    return trowbridge_reitz(c.base_alpha_x, c.base_alpha_y);
+}
+
+/// Mirrors `Coated::base_is_specular`.
+__device__ __forceinline__ bool base_is_specular(const Coated& c) {
+    return ATOLL_WITH_COATED_CONDUCTOR && c.conductor && tr_effectively_smooth(base_distribution(c));
+}
+
+/// Mirrors `usable(self.base().sample(..))`: `Bsdf::sample` of the base (its
+/// grazing check and final filter included), if usable. A conductor's index
+/// is divided by the coating's, as `Coated::base` does.
+__device__ __noinline__ bool base_sample(const Coated& c, float3 wo, float2 u, BsdfSample* out) {
     if (wo.z == 0.0f) return false;
-    *out = diffuse_sample(reflectance, wo, u);
+    if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) {
+        if (!conductor_sample(c.base_a / c.eta, c.base_k / c.eta, base_distribution(c), wo, u, out)) return false;
+    } else {
+        *out = diffuse_sample(c.base_a, wo, u);
+    }
     return out->pdf > 0.0f && out->wi.z != 0.0f && is_finite3(out->f) && layer_usable(*out);
 }
 
-/// Mirrors `Bsdf::Diffuse` `eval`.
-__device__ __forceinline__ float3 base_eval(const CoatedDiffuse& c, float3 wo, float3 wi) {
-    return same_hemisphere(wo, wi) ? c.reflectance * FRAC_1_PI : zero3();
+/// Mirrors `Bsdf::eval` of the base.
+__device__ __noinline__ float3 base_eval(const Coated& c, float3 wo, float3 wi) {
+    if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) return conductor_eval(c.base_a / c.eta, c.base_k / c.eta, base_distribution(c), wo, wi);
+    return same_hemisphere(wo, wi) ? c.base_a * FRAC_1_PI : zero3();
 }
 
-/// Mirrors `Bsdf::Diffuse` `pdf`.
-__device__ __forceinline__ float base_pdf(float3 wo, float3 wi) {
+/// Mirrors `Bsdf::pdf` of the base.
+__device__ __noinline__ float base_pdf(const Coated& c, float3 wo, float3 wi) {
+    if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) return conductor_pdf(base_distribution(c), wo, wi);
     return same_hemisphere(wo, wi) ? cosine_hemisphere_pdf(fabsf(wi.z)) : 0.0f;
 }
 
-/// Mirrors `CoatedDiffuse::eval`.
-__device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, float3 wi) {
+/// Mirrors `Coated::eval`.
+__device__ __noinline__ float3 coated_eval(Coated c, float3 wo, float3 wi) {
     // Two-sided: mirror a query from below.
     if (wo.z < 0.0f) {
         wo = -wo;
@@ -164,6 +182,7 @@ __device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, f
     if (!same_hemisphere(wo, wi)) return zero3();
     const float thickness = fmaxf(c.thickness, FLT_MIN_POSITIVE);
     const bool coat_specular = coat_is_smooth(c);
+    const bool base_specular = base_is_specular(c);
     const bool scatters = !is_zero3(c.albedo);
     const unsigned int n = c.n_samples > 1u ? c.n_samples : 1u;
     float3 f = coat_eval(c, wo, wi, MODE_RADIANCE) * (float)n;
@@ -227,22 +246,24 @@ __device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, f
                 w = bs.wi;
             } else {
                 // At the base: next-event estimation along the presampled exit
-                // direction, then a diffuse bounce.
-                const float wt = coat_specular ? 1.0f : power_heuristic(wis.pdf, base_pdf(-w, -wis.wi));
-                f = f + beta * base_eval(c, -w, -wis.wi) * fabsf(wis.wi.z) * wt * layer_tr(thickness, wis.wi) *
-                            wis.f / wis.pdf;
+                // direction (none for a specular base), then a bounce.
+                if (!base_specular) {
+                    const float wt = coat_specular ? 1.0f : power_heuristic(wis.pdf, base_pdf(c, -w, -wis.wi));
+                    f = f + beta * base_eval(c, -w, -wis.wi) * fabsf(wis.wi.z) * wt * layer_tr(thickness, wis.wi) *
+                                wis.f / wis.pdf;
+                }
                 BsdfSample bs;
-                walk_next(rng);  // the lobe choice: the diffuse base has one lobe
+                walk_next(rng);  // the lobe choice: either base has one lobe
                 const float2 u = walk_next2(rng);
-                if (!base_sample(c.reflectance, -w, u, &bs)) break;
+                if (!base_sample(c, -w, u, &bs)) break;
                 beta = beta * bs.f * fabsf(bs.wi.z) / bs.pdf;
                 w = bs.wi;
                 if (!coat_specular) {
                     // The bounce's own direction, if it leaves towards wi.
                     const float3 f_exit = coat_eval(c, -w, wi, MODE_RADIANCE);
                     if (!is_zero3(f_exit)) {
-                        const float exit_pdf = coat_pdf(c, wi, -w, LOBES_TRANSMISSION);
-                        const float wt2 = power_heuristic(bs.pdf, exit_pdf);
+                        const float wt2 =
+                            base_specular ? 1.0f : power_heuristic(bs.pdf, coat_pdf(c, wi, -w, LOBES_TRANSMISSION));
                         f = f + beta * layer_tr(thickness, bs.wi) * f_exit * wt2;
                     }
                 }
@@ -252,8 +273,8 @@ __device__ __noinline__ float3 coated_diffuse_eval(CoatedDiffuse c, float3 wo, f
     return f / (float)n;
 }
 
-/// Mirrors `CoatedDiffuse::sample`; false for `None`.
-__device__ __noinline__ bool coated_diffuse_sample(CoatedDiffuse c, float3 wo, float uc, float2 u, BsdfSample* out) {
+/// Mirrors `Coated::sample`; false for `None`.
+__device__ __noinline__ bool coated_sample(Coated c, float3 wo, float uc, float2 u, BsdfSample* out) {
     const bool flip = wo.z < 0.0f;
     if (flip) wo = -wo;
     // Reflection at the coating ends the walk at once.
@@ -304,7 +325,7 @@ __device__ __noinline__ bool coated_diffuse_sample(CoatedDiffuse c, float3 wo, f
         const float uc2 = walk_next(rng);
         const float2 u2 = walk_next2(rng);
         const bool ok =
-            z == 0.0f ? base_sample(c.reflectance, -w, u2, &bs) : coat_sample(c, -w, uc2, u2, MODE_RADIANCE, LOBES_ALL, &bs);
+            z == 0.0f ? base_sample(c, -w, u2, &bs) : coat_sample(c, -w, uc2, u2, MODE_RADIANCE, LOBES_ALL, &bs);
         if (!ok) return false;
         specular_path = specular_path && bs.delta;
         w = bs.wi;
@@ -319,8 +340,8 @@ __device__ __noinline__ bool coated_diffuse_sample(CoatedDiffuse c, float3 wo, f
     return false;
 }
 
-/// Mirrors `CoatedDiffuse::pdf`.
-__device__ __noinline__ float coated_diffuse_pdf(CoatedDiffuse c, float3 wo, float3 wi) {
+/// Mirrors `Coated::pdf`.
+__device__ __noinline__ float coated_pdf(Coated c, float3 wo, float3 wi) {
     if (wo.z < 0.0f) {
         wo = -wo;
         wi = -wi;
@@ -341,16 +362,21 @@ __device__ __noinline__ float coated_diffuse_pdf(CoatedDiffuse c, float3 wo, flo
             const bool exited = coat_sample(c, wi, uc, walk_next2(rng), MODE_IMPORTANCE, LOBES_TRANSMISSION, &wis);
             if (!entered || !exited) continue;
             if (coat_specular) {
-                pdf_sum += base_pdf(-wos.wi, -wis.wi);
+                pdf_sum += base_pdf(c, -wos.wi, -wis.wi);
                 continue;
             }
             // Rough coating: MIS between sampling the base from the way in
-            // and the coating from the base's bounce.
+            // and the coating from the base's bounce (the only way for a
+            // specular base).
             BsdfSample rs;
-            walk_next(rng);  // the lobe choice: the diffuse base has one lobe
+            walk_next(rng);  // the lobe choice: either base has one lobe
             const float2 u = walk_next2(rng);
-            if (!base_sample(c.reflectance, -wos.wi, u, &rs)) continue;
-            const float r_pdf = base_pdf(-wos.wi, -wis.wi);
+            if (!base_sample(c, -wos.wi, u, &rs)) continue;
+            if (base_is_specular(c)) {
+                pdf_sum += coat_pdf(c, -rs.wi, wi, LOBES_ALL);
+                continue;
+            }
+            const float r_pdf = base_pdf(c, -wos.wi, -wis.wi);
             pdf_sum += power_heuristic(wis.pdf, r_pdf) * r_pdf;
             const float t_pdf = coat_pdf(c, -rs.wi, wi, LOBES_ALL);
             pdf_sum += power_heuristic(rs.pdf, t_pdf) * t_pdf;

@@ -127,15 +127,20 @@ fn frame_modules(frame: &FrameContext) -> Vec<(&'static str, Vec<String>)> {
 /// not lower every scene's occupancy (the Cornell box's shade kernel needs
 /// far fewer registers without them).
 fn shade_features(frame: &FrameContext) -> Vec<String> {
-    let has = |kind| frame.materials.iter().any(|m| m.kind == kind);
+    let has = |kinds: &[MaterialKind]| frame.materials.iter().any(|m| kinds.contains(&m.kind));
     let emission_textures = frame.lights.emission_ops.is_empty().then_some("ATOLL_WITH_EMISSION_TEXTURES");
-    [("ATOLL_WITH_COATED", MaterialKind::CoatedDiffuse), ("ATOLL_WITH_PRINCIPLED", MaterialKind::Principled)]
-        .into_iter()
-        .filter(|&(_, kind)| !has(kind))
-        .map(|(name, _)| name)
-        .chain(emission_textures)
-        .map(|name| format!("-D{name}=0"))
-        .collect()
+    let coated: &[MaterialKind] = &[MaterialKind::CoatedDiffuse, MaterialKind::CoatedConductor];
+    [
+        ("ATOLL_WITH_COATED", coated),
+        ("ATOLL_WITH_COATED_CONDUCTOR", &[MaterialKind::CoatedConductor]),
+        ("ATOLL_WITH_PRINCIPLED", &[MaterialKind::Principled]),
+    ]
+    .into_iter()
+    .filter(|&(_, kinds)| !has(kinds))
+    .map(|(name, _)| name)
+    .chain(emission_textures)
+    .map(|name| format!("-D{name}=0"))
+    .collect()
 }
 
 /// A frame's scene on one GPU: tables, BVH and frame parameters. Read-only

@@ -143,6 +143,7 @@ pub(crate) fn record_asserts() -> String {
         ("MATERIAL_MIX", MaterialKind::Mix),
         ("MATERIAL_COATED_DIFFUSE", MaterialKind::CoatedDiffuse),
         ("MATERIAL_PRINCIPLED", MaterialKind::Principled),
+        ("MATERIAL_COATED_CONDUCTOR", MaterialKind::CoatedConductor),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -150,7 +151,8 @@ pub(crate) fn record_asserts() -> String {
 }
 
 /// Each material kind's coefficient slots (`atoll_render::material_layout`)
-/// as `COEFF_<KIND>_<PARAMETER>`, e.g. `COEFF_CONDUCTOR_ALPHA_X`.
+/// as `COEFF_<KIND>_<PARAMETER>`, e.g. `COEFF_CONDUCTOR_ALPHA_X`, and the
+/// coated conductor's walk, which has no slots.
 pub(crate) fn material_layout_constants() -> String {
     let mut s = String::new();
     for layout in material_layout::LAYOUTS {
@@ -159,7 +161,9 @@ pub(crate) fn material_layout_constants() -> String {
             s += &const_uint("unsigned int", &name, slots.start as u64);
         }
     }
-    s
+    let (max_depth, n_samples) = atoll_scene::Material::COATED_CONDUCTOR_WALK;
+    s += &const_uint("unsigned int", "COATED_CONDUCTOR_MAX_DEPTH", max_depth as u64);
+    s + &const_uint("unsigned int", "COATED_CONDUCTOR_N_SAMPLES", n_samples as u64)
 }
 
 /// The random-number dimension layout of `rng`.

@@ -31,8 +31,8 @@ use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
 use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
-    AreaEmission, CoatedDiffuseParams, EnvLayout, EnvironmentImage, Instance, IntegratorSettings, Light,
-    Material, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage, Instance,
+    IntegratorSettings, Light, Material, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -768,29 +768,42 @@ fn bsdfs_match_value_by_value() {
     );
 }
 
-/// Coated diffuse surfaces (smooth and rough coatings, absorbing and
-/// scattering layers, several walks per estimate).
+/// Coated diffuse and coated conductor surfaces (smooth and rough coatings
+/// and conductors, absorbing and scattering layers, several walks per
+/// estimate).
 fn coated_materials() -> Vec<PackedMaterial> {
-    let coated =
-        |reflectance: Rgb, alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32, n_samples: u32| {
-            Material::CoatedDiffuse(CoatedDiffuseParams {
-                reflectance,
-                eta: 1.5,
-                alpha_x: alpha.0,
-                alpha_y: alpha.1,
-                thickness,
-                albedo,
-                g,
-                max_depth: 10,
-                n_samples,
-            })
-        };
+    let coating = |alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32, n_samples: u32| Coating {
+        eta: 1.5,
+        alpha_x: alpha.0,
+        alpha_y: alpha.1,
+        thickness,
+        albedo,
+        g,
+        max_depth: 10,
+        n_samples,
+    };
+    let diffuse = |reflectance: Rgb, coating: Coating| {
+        Material::CoatedDiffuse(CoatedDiffuseParams { reflectance, coating })
+    };
+    let conductor = |alpha: (f32, f32), coating: Coating| {
+        Material::CoatedConductor(CoatedConductorParams {
+            eta: Rgb::new(0.2, 0.92, 1.1),
+            k: Rgb::new(3.9, 2.45, 2.14),
+            alpha_x: alpha.0,
+            alpha_y: alpha.1,
+            coating,
+        })
+    };
     [
-        coated(Rgb::new(0.8, 0.4, 0.1), (0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1),
-        coated(Rgb::new(0.8, 0.4, 0.1), (0.3, 0.3), 0.01, Rgb::ZERO, 0.0, 1),
-        coated(Rgb::splat(0.7), (0.1, 0.5), 0.3, Rgb::new(0.9, 0.5, 0.2), 0.5, 2),
-        coated(Rgb::splat(0.9), (0.0, 0.0), 0.5, Rgb::splat(0.8), -0.3, 1),
-        coated(Rgb::ZERO, (0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1),
+        diffuse(Rgb::new(0.8, 0.4, 0.1), coating((0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1)),
+        diffuse(Rgb::new(0.8, 0.4, 0.1), coating((0.3, 0.3), 0.01, Rgb::ZERO, 0.0, 1)),
+        diffuse(Rgb::splat(0.7), coating((0.1, 0.5), 0.3, Rgb::new(0.9, 0.5, 0.2), 0.5, 2)),
+        diffuse(Rgb::splat(0.9), coating((0.0, 0.0), 0.5, Rgb::splat(0.8), -0.3, 1)),
+        diffuse(Rgb::ZERO, coating((0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1)),
+        conductor((0.0, 0.0), coating((0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1)),
+        conductor((0.0, 0.0), coating((0.3, 0.3), 0.01, Rgb::ZERO, 0.0, 1)),
+        conductor((0.2, 0.4), coating((0.0, 0.0), 0.01, Rgb::ZERO, 0.0, 1)),
+        conductor((0.3, 0.3), coating((0.1, 0.2), 0.3, Rgb::new(0.9, 0.5, 0.2), 0.5, 1)),
     ]
     .iter()
     .map(PackedMaterial::pack)
@@ -803,24 +816,24 @@ fn coated_materials() -> Vec<PackedMaterial> {
 /// `logf`, `sinf` or `cosf` decides a comparison: rare, but a walk has many.
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
-fn coated_diffuse_walks_match_value_by_value() {
+fn coated_walks_match_value_by_value() {
     let Some(gpu) = gpu() else { return };
     let cases = 10_000;
     let bad = bsdf_mismatches(&gpu, &coated_materials(), cases);
     assert!(
         bad.len() <= cases as usize / 500,
-        "{} of {cases} coated diffuse cases differ, first ones:\n{}",
+        "{} of {cases} coated cases differ, first ones:\n{}",
         bad.len(),
         bad[..bad.len().min(6)].join("\n")
     );
 }
 
-/// `shade` with coated diffuse hits: light sampling with the stochastic
+/// `shade` with coated hits: light sampling with the stochastic
 /// `eval`/`pdf`, and the next segment's MIS density taken from `pdf`
 /// (`bsdf_sampled_pdf_is_proportional`).
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
-fn shade_with_coated_diffuse_matches_the_cpu_stage() {
+fn shade_with_coated_materials_matches_the_cpu_stage() {
     shade_materials_matches_the_cpu_stage(&coated_materials());
 }
 

@@ -97,10 +97,17 @@ fn specialised_shade_kernels_keep_their_registers() {
     let plain = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let all = registers(&log, "shade");
-    eprintln!("shade registers: plain materials {plain}, every material {all}");
+    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
+    let no_coated_conductor = registers(&log, "shade");
+    eprintln!(
+        "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
+         {no_coated_conductor}"
+    );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
     assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
+    assert!(no_coated_conductor <= all, "leaving coated conductors out must not add registers");
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_PRINCIPLED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
 }

@@ -29,7 +29,7 @@ pub mod principled;
 mod thin;
 
 pub use fresnel::{fr_complex, fr_complex_rgb, fr_dielectric, reflect, refract};
-pub use layered::CoatedDiffuse;
+pub use layered::{Coated, CoatedBase};
 pub use microfacet::TrowbridgeReitz;
 pub use principled::Principled;
 
@@ -130,10 +130,10 @@ pub enum Bsdf {
         /// Index of refraction of the slab.
         eta: f32,
     },
-    /// A dielectric coating over a Lambertian base with a medium between
-    /// (pbrt-v4's `CoatedDiffuseBxDF`); `eval`, `pdf` and `sample` are
-    /// random-walk estimates ([`CoatedDiffuse`]).
-    CoatedDiffuse(CoatedDiffuse),
+    /// A dielectric coating over a Lambertian or conductor base with a
+    /// medium between (pbrt-v4's `CoatedDiffuseBxDF`, `CoatedConductorBxDF`);
+    /// `eval`, `pdf` and `sample` are random-walk estimates ([`Coated`]).
+    Coated(Coated),
     /// The Disney-principled BSDF: diffuse with retro-reflection and sheen,
     /// GGX specular, clearcoat and rough glass, lobes picked by weight
     /// ([`Principled`]).
@@ -179,7 +179,8 @@ impl Bsdf {
                 Some(Bsdf::DiffuseTransmission { reflectance, transmittance })
             }
             Material::ThinDielectric { eta } => Some(Bsdf::ThinDielectric { eta }),
-            Material::CoatedDiffuse(params) => Some(Bsdf::CoatedDiffuse(CoatedDiffuse(params))),
+            Material::CoatedDiffuse(params) => Some(Bsdf::Coated(Coated::diffuse(params))),
+            Material::CoatedConductor(params) => Some(Bsdf::Coated(Coated::conductor(params))),
             // A mix is one of its materials per hit (`FrameContext::material_at`).
             Material::Mix { .. } => None,
             Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),
@@ -210,7 +211,7 @@ impl Bsdf {
                 }
             }
             Bsdf::ThinDielectric { .. } => Rgb::ZERO,
-            Bsdf::CoatedDiffuse(c) => c.eval(wo, wi),
+            Bsdf::Coated(c) => c.eval(wo, wi),
             Bsdf::Principled(p) => p.eval(wo, wi),
         }
     }
@@ -241,7 +242,7 @@ impl Bsdf {
                 lobe / (pr + pt) * cosine_hemisphere_pdf(wi.z.abs())
             }
             Bsdf::ThinDielectric { .. } => 0.0,
-            Bsdf::CoatedDiffuse(c) => c.pdf(wo, wi),
+            Bsdf::Coated(c) => c.pdf(wo, wi),
             Bsdf::Principled(p) => p.pdf(wo, wi),
         }
     }
@@ -276,7 +277,7 @@ impl Bsdf {
                 thin::sample_diffuse_transmission(reflectance, transmittance, wo, uc, u)?
             }
             Bsdf::ThinDielectric { eta } => thin::sample_thin_dielectric(eta, wo, uc)?,
-            Bsdf::CoatedDiffuse(c) => c.sample(wo, uc, u)?,
+            Bsdf::Coated(c) => c.sample(wo, uc, u)?,
             Bsdf::Principled(p) => p.sample(wo, uc, u)?,
         };
         // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
@@ -300,7 +301,7 @@ impl Bsdf {
             }
             Bsdf::DiffuseTransmission { .. } => false,
             Bsdf::ThinDielectric { .. } => true,
-            Bsdf::CoatedDiffuse(c) => c.is_delta(),
+            Bsdf::Coated(c) => c.is_delta(),
             Bsdf::Principled(p) => p.is_delta(),
         }
     }
@@ -312,7 +313,7 @@ impl Bsdf {
     /// whose samples come from random walks whose density is not that of
     /// the direction they leave in.
     pub fn sampled_pdf_is_proportional(&self) -> bool {
-        matches!(self, Bsdf::CoatedDiffuse(_))
+        matches!(self, Bsdf::Coated(_))
     }
 }
 

@@ -1,12 +1,13 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::{CoatedDiffuseParams, Material, PrincipledParams, Rgb};
+use atoll_scene::{Coating, Material, PrincipledParams, Rgb};
 use half::f16;
 
-use crate::bsdf::{Bsdf, CoatedDiffuse, Principled};
+use crate::bsdf::{Bsdf, Coated, CoatedBase, Principled};
 use crate::material_layout::{
-    coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, principled, thin_dielectric,
+    coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, principled,
+    thin_dielectric,
 };
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
@@ -58,16 +59,30 @@ impl PackedMaterial {
                 MaterialKind::Mix
             }
             Material::CoatedDiffuse(p) => {
-                put3(&mut c, coated_diffuse::REFLECTANCE, p.reflectance);
-                c[coated_diffuse::ALPHA_X] = p.alpha_x;
-                c[coated_diffuse::ALPHA_Y] = p.alpha_y;
-                c[coated_diffuse::ETA] = p.eta;
-                c[coated_diffuse::THICKNESS] = p.thickness;
-                put3(&mut c, coated_diffuse::ALBEDO, p.albedo);
-                c[coated_diffuse::G] = p.g;
-                c[coated_diffuse::MAX_DEPTH] = p.max_depth.min(Material::COATED_MAX_COUNT) as f32;
-                c[coated_diffuse::N_SAMPLES] = p.n_samples.min(Material::COATED_MAX_COUNT) as f32;
+                use coated_diffuse as slot;
+                let coating = p.coating;
+                put3(&mut c, slot::REFLECTANCE, p.reflectance);
+                put_coating(
+                    &mut c,
+                    &coating,
+                    [slot::ALPHA_X, slot::ALPHA_Y, slot::ETA, slot::THICKNESS],
+                    slot::ALBEDO,
+                    slot::G,
+                );
+                c[slot::MAX_DEPTH] = coating.max_depth.min(Material::COATED_MAX_COUNT) as f32;
+                c[slot::N_SAMPLES] = coating.n_samples.min(Material::COATED_MAX_COUNT) as f32;
                 MaterialKind::CoatedDiffuse
+            }
+            Material::CoatedConductor(p) => {
+                use coated_conductor as slot;
+                put3(&mut c, slot::ETA, p.eta);
+                put3(&mut c, slot::K, p.k);
+                c[slot::CONDUCTOR_ALPHA_X] = p.alpha_x;
+                c[slot::CONDUCTOR_ALPHA_Y] = p.alpha_y;
+                let scalars =
+                    [slot::INTERFACE_ALPHA_X, slot::INTERFACE_ALPHA_Y, slot::INTERFACE_ETA, slot::THICKNESS];
+                put_coating(&mut c, &p.coating, scalars, slot::ALBEDO, slot::G);
+                MaterialKind::CoatedConductor
             }
             Material::Principled(p) => {
                 put3(&mut c, principled::BASE_COLOR, p.base_color);
@@ -115,17 +130,30 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             transmittance: r.coeff3(diffuse_transmission::TRANSMITTANCE),
         }),
         MaterialKind::ThinDielectric => Some(Bsdf::ThinDielectric { eta: r.coeff(thin_dielectric::ETA) }),
-        MaterialKind::CoatedDiffuse => Some(Bsdf::CoatedDiffuse(CoatedDiffuse(CoatedDiffuseParams {
-            reflectance: r.coeff3(coated_diffuse::REFLECTANCE),
-            alpha_x: r.coeff(coated_diffuse::ALPHA_X),
-            alpha_y: r.coeff(coated_diffuse::ALPHA_Y),
-            eta: r.coeff(coated_diffuse::ETA),
-            thickness: r.coeff(coated_diffuse::THICKNESS),
-            albedo: r.coeff3(coated_diffuse::ALBEDO),
-            g: r.coeff(coated_diffuse::G),
-            max_depth: r.coeff(coated_diffuse::MAX_DEPTH) as u32,
-            n_samples: r.coeff(coated_diffuse::N_SAMPLES) as u32,
-        }))),
+        MaterialKind::CoatedDiffuse => {
+            use coated_diffuse as slot;
+            let scalars = [slot::ALPHA_X, slot::ALPHA_Y, slot::ETA, slot::THICKNESS];
+            let walk = (r.coeff(slot::MAX_DEPTH) as u32, r.coeff(slot::N_SAMPLES) as u32);
+            let coating = coating_from_record(r, scalars, slot::ALBEDO, slot::G, walk);
+            Some(Bsdf::Coated(Coated {
+                coating,
+                base: CoatedBase::Diffuse { reflectance: r.coeff3(slot::REFLECTANCE) },
+            }))
+        }
+        MaterialKind::CoatedConductor => {
+            use coated_conductor as slot;
+            let scalars =
+                [slot::INTERFACE_ALPHA_X, slot::INTERFACE_ALPHA_Y, slot::INTERFACE_ETA, slot::THICKNESS];
+            let coating =
+                coating_from_record(r, scalars, slot::ALBEDO, slot::G, Material::COATED_CONDUCTOR_WALK);
+            let base = CoatedBase::Conductor {
+                eta: r.coeff3(slot::ETA),
+                k: r.coeff3(slot::K),
+                alpha_x: r.coeff(slot::CONDUCTOR_ALPHA_X),
+                alpha_y: r.coeff(slot::CONDUCTOR_ALPHA_Y),
+            };
+            Some(Bsdf::Coated(Coated { coating, base }))
+        }
         MaterialKind::Principled => Some(Bsdf::Principled(Principled(PrincipledParams {
             base_color: r.coeff3(principled::BASE_COLOR),
             metallic: r.coeff(principled::METALLIC),
@@ -147,10 +175,50 @@ fn put3(c: &mut [f32; MATERIAL_COEFFS], slot: usize, v: Rgb) {
     c[slot..slot + 3].copy_from_slice(&v.to_array());
 }
 
+/// Writes a coating's alphas, index and thickness into the slots
+/// `scalars` (in that order), its albedo and `g` into theirs; the walk's
+/// counts are the kind's own business.
+fn put_coating(
+    c: &mut [f32; MATERIAL_COEFFS],
+    coating: &Coating,
+    scalars: [usize; 4],
+    albedo: usize,
+    g: usize,
+) {
+    let [alpha_x, alpha_y, eta, thickness] = scalars;
+    c[alpha_x] = coating.alpha_x;
+    c[alpha_y] = coating.alpha_y;
+    c[eta] = coating.eta;
+    c[thickness] = coating.thickness;
+    put3(c, albedo, coating.albedo);
+    c[g] = coating.g;
+}
+
+/// The coating [`put_coating`] wrote, with the walk `(max_depth, n_samples)`.
+fn coating_from_record(
+    r: &RayRecord,
+    scalars: [usize; 4],
+    albedo: usize,
+    g: usize,
+    walk: (u32, u32),
+) -> Coating {
+    let [alpha_x, alpha_y, eta, thickness] = scalars.map(|slot| r.coeff(slot));
+    Coating {
+        eta,
+        alpha_x,
+        alpha_y,
+        thickness,
+        albedo: r.coeff3(albedo),
+        g: r.coeff(g),
+        max_depth: walk.0,
+        n_samples: walk.1,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use atoll_scene::Rgb;
+    use atoll_scene::{CoatedConductorParams, CoatedDiffuseParams, Rgb};
     use bytemuck::Zeroable;
 
     /// Counts beyond `COATED_MAX_COUNT` are clamped (f16 holds integers
@@ -160,14 +228,16 @@ mod tests {
         use coated_diffuse as slot;
         let m = Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::new(0.25, 0.5, 0.75),
-            eta: 1.25,
-            alpha_x: 0.125,
-            alpha_y: 0.375,
-            thickness: 2.0,
-            albedo: Rgb::new(0.5, 0.625, 0.875),
-            g: -0.25,
-            max_depth: 2048,
-            n_samples: 4000,
+            coating: Coating {
+                eta: 1.25,
+                alpha_x: 0.125,
+                alpha_y: 0.375,
+                thickness: 2.0,
+                albedo: Rgb::new(0.5, 0.625, 0.875),
+                g: -0.25,
+                max_depth: 2048,
+                n_samples: 4000,
+            },
         });
         let p = PackedMaterial::pack(&m);
         assert_eq!(p.kind, MaterialKind::CoatedDiffuse);
@@ -182,6 +252,16 @@ mod tests {
 
     #[test]
     fn round_trip_through_record() {
+        let coating = Coating {
+            eta: 1.5,
+            alpha_x: 0.25,
+            alpha_y: 0.5,
+            thickness: 0.125,
+            albedo: Rgb::new(0.5, 0.25, 0.0),
+            g: -0.5,
+            max_depth: 0,
+            n_samples: 0,
+        };
         let materials = [
             Material::Diffuse { reflectance: Rgb::new(0.725, 0.71, 0.68) },
             Material::Conductor {
@@ -198,14 +278,14 @@ mod tests {
             Material::ThinDielectric { eta: 1.25 },
             Material::CoatedDiffuse(CoatedDiffuseParams {
                 reflectance: Rgb::new(0.25, 0.5, 0.125),
-                eta: 1.5,
-                alpha_x: 0.25,
-                alpha_y: 0.5,
-                thickness: 0.125,
-                albedo: Rgb::new(0.5, 0.25, 0.0),
-                g: -0.5,
-                max_depth: 10,
-                n_samples: 3,
+                coating: Coating { max_depth: 10, n_samples: 3, ..coating },
+            }),
+            Material::CoatedConductor(CoatedConductorParams {
+                eta: Rgb::new(0.25, 0.5, 1.5),
+                k: Rgb::new(3.5, 2.5, 2.0),
+                alpha_x: 0.0625,
+                alpha_y: 0.125,
+                coating: Coating { max_depth: 10, n_samples: 1, ..coating },
             }),
             Material::Principled(PrincipledParams {
                 base_color: Rgb::new(0.25, 0.5, 0.75),
@@ -235,7 +315,13 @@ mod tests {
                     Material::DiffuseTransmission { reflectance, transmittance }
                 }
                 Bsdf::ThinDielectric { eta } => Material::ThinDielectric { eta },
-                Bsdf::CoatedDiffuse(c) => Material::CoatedDiffuse(c.0),
+                Bsdf::Coated(Coated { coating, base: CoatedBase::Diffuse { reflectance } }) => {
+                    Material::CoatedDiffuse(CoatedDiffuseParams { reflectance, coating })
+                }
+                Bsdf::Coated(Coated {
+                    coating,
+                    base: CoatedBase::Conductor { eta, k, alpha_x, alpha_y },
+                }) => Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }),
                 Bsdf::Principled(p) => Material::Principled(p.0),
             };
             // f16 keeps ~3 significant digits.
@@ -258,6 +344,7 @@ mod tests {
                 (Material::DiffuseTransmission { .. }, Material::DiffuseTransmission { .. })
                 | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. })
                 | (Material::CoatedDiffuse(_), Material::CoatedDiffuse(_))
+                | (Material::CoatedConductor(_), Material::CoatedConductor(_))
                 | (Material::Principled(_), Material::Principled(_)) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }

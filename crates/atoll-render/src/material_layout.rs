@@ -109,6 +109,23 @@ layouts! {
         /// As [`MAX_DEPTH`].
         N_SAMPLES: 12,
     }
+    /// [`MaterialKind::CoatedConductor`]: every coefficient is used, so
+    /// its walk is fixed (`Material::COATED_CONDUCTOR_WALK`).
+    /// The conductor's index comes first and `K` lies as far from `ETA` as
+    /// in [`conductor`]: a textured `reflectance` stores both the same way.
+    CoatedConductor => coated_conductor {
+        /// Relative to the outside, as the scene gives it.
+        ETA: 0..3,
+        K: 3..6,
+        CONDUCTOR_ALPHA_X: 6,
+        CONDUCTOR_ALPHA_Y: 7,
+        INTERFACE_ALPHA_X: 8,
+        INTERFACE_ALPHA_Y: 9,
+        INTERFACE_ETA: 10,
+        THICKNESS: 11,
+        ALBEDO: 12..15,
+        G: 15,
+    }
     /// [`MaterialKind::Principled`].
     /// Base colour, metallic and roughness come first: per-hit textures
     /// overwrite them in place.
@@ -150,5 +167,12 @@ mod tests {
         for kind in kinds {
             assert_eq!(LAYOUTS.iter().filter(|l| l.kind == kind).count(), 1, "{kind:?}");
         }
+    }
+
+    /// A textured conductor `reflectance` writes eta at the slot it is given
+    /// and k at the conductor's distance from it, for both conductor kinds.
+    #[test]
+    fn conductor_indices_lie_alike() {
+        assert_eq!(coated_conductor::K - coated_conductor::ETA, conductor::K - conductor::ETA);
     }
 }

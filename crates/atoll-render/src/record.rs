@@ -56,6 +56,7 @@ pub enum MaterialKind {
     Mix = 6,
     CoatedDiffuse = 7,
     Principled = 8,
+    CoatedConductor = 9,
 }
 
 impl MaterialKind {
@@ -69,6 +70,7 @@ impl MaterialKind {
             6 => MaterialKind::Mix,
             7 => MaterialKind::CoatedDiffuse,
             8 => MaterialKind::Principled,
+            9 => MaterialKind::CoatedConductor,
             _ => MaterialKind::None,
         }
     }

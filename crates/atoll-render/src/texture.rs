@@ -528,7 +528,8 @@ fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec3 {
 /// ([`crate::material_layout`]): `(first coefficient, store mode)` per store.
 pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
     use crate::material_layout::{
-        coated_diffuse as coated, conductor, dielectric, diffuse, diffuse_transmission, principled,
+        coated_conductor as cc, coated_diffuse as coated, conductor, dielectric, diffuse,
+        diffuse_transmission, principled,
     };
     use MaterialKind as K;
     use TexturedParam as P;
@@ -554,6 +555,20 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::CoatedDiffuse, P::Thickness) => to(&[coated::THICKNESS], store::FLOAT),
         (K::CoatedDiffuse, P::Albedo) => to(&[coated::ALBEDO], store::RGB),
         (K::CoatedDiffuse, P::G) => to(&[coated::G], store::FLOAT),
+        (K::CoatedConductor, P::Reflectance) => to(&[cc::ETA], store::CONDUCTOR_REFLECTANCE),
+        (K::CoatedConductor, P::Eta) => to(&[cc::ETA], store::RGB),
+        (K::CoatedConductor, P::K) => to(&[cc::K], store::RGB),
+        (K::CoatedConductor, P::ConductorRoughness) => {
+            to(&[cc::CONDUCTOR_ALPHA_X, cc::CONDUCTOR_ALPHA_Y], roughness)
+        }
+        (K::CoatedConductor, P::ConductorURoughness) => to(&[cc::CONDUCTOR_ALPHA_X], roughness),
+        (K::CoatedConductor, P::ConductorVRoughness) => to(&[cc::CONDUCTOR_ALPHA_Y], roughness),
+        (K::CoatedConductor, P::Roughness) => to(&[cc::INTERFACE_ALPHA_X, cc::INTERFACE_ALPHA_Y], roughness),
+        (K::CoatedConductor, P::URoughness) => to(&[cc::INTERFACE_ALPHA_X], roughness),
+        (K::CoatedConductor, P::VRoughness) => to(&[cc::INTERFACE_ALPHA_Y], roughness),
+        (K::CoatedConductor, P::Thickness) => to(&[cc::THICKNESS], store::FLOAT),
+        (K::CoatedConductor, P::Albedo) => to(&[cc::ALBEDO], store::RGB),
+        (K::CoatedConductor, P::G) => to(&[cc::G], store::FLOAT),
         // Base colour, metallic, and perceptual roughness (never remapped:
         // the principled BSDF squares it itself).
         (K::Principled, P::Reflectance) => to(&[principled::BASE_COLOR], store::RGB),
@@ -1151,7 +1166,9 @@ mod tests {
 mod binding_tests {
     use super::*;
     use crate::material_coeffs::PackedMaterial;
-    use atoll_scene::{CoatedDiffuseParams, PrincipledParams, Rgb, TextureBinding};
+    use atoll_scene::{
+        CoatedConductorParams, CoatedDiffuseParams, Coating, PrincipledParams, Rgb, TextureBinding,
+    };
 
     /// A parameter bound to a constant texture of value `v` packs like the
     /// material with that parameter set to `v`: every store target is the
@@ -1171,16 +1188,14 @@ mod binding_tests {
             transmission: 0.0,
             eta: 1.5,
         });
-        let coated = Material::CoatedDiffuse(CoatedDiffuseParams {
-            reflectance: Rgb::splat(0.5),
-            eta: 1.5,
+        let coating = Coating::PBRT_DEFAULT;
+        let coated = Material::CoatedDiffuse(CoatedDiffuseParams { reflectance: Rgb::splat(0.5), coating });
+        let coated_metal = Material::CoatedConductor(CoatedConductorParams {
+            eta: Rgb::ONE,
+            k: Rgb::ONE,
             alpha_x: 0.0,
             alpha_y: 0.0,
-            thickness: 0.01,
-            albedo: Rgb::ZERO,
-            g: 0.0,
-            max_depth: 10,
-            n_samples: 1,
+            coating,
         });
         let v = Rgb::new(0.25, 0.375, 0.625);
         let s = v.x;
@@ -1202,10 +1217,10 @@ mod binding_tests {
         }
         // The same for materials whose parameters are a struct.
         macro_rules! params_field {
-            ($m:expr, $variant:ident, $field:ident, $value:expr) => {
+            ($m:expr, $variant:ident, $($field:ident).+, $value:expr) => {
                 set(&$m, &|m| {
                     if let Material::$variant(p) = m {
-                        p.$field = $value;
+                        p.$($field).+ = $value;
                     }
                 })
             };
@@ -1226,9 +1241,42 @@ mod binding_tests {
                 Material::DiffuseTransmission { reflectance: Rgb::ONE, transmittance: v },
             ),
             (coated.clone(), P::Reflectance, v, params_field!(coated, CoatedDiffuse, reflectance, v)),
-            (coated.clone(), P::Albedo, v, params_field!(coated, CoatedDiffuse, albedo, v)),
-            (coated.clone(), P::Thickness, Rgb::splat(s), params_field!(coated, CoatedDiffuse, thickness, s)),
-            (coated.clone(), P::G, Rgb::splat(s), params_field!(coated, CoatedDiffuse, g, s)),
+            (coated.clone(), P::Albedo, v, params_field!(coated, CoatedDiffuse, coating.albedo, v)),
+            (
+                coated.clone(),
+                P::Thickness,
+                Rgb::splat(s),
+                params_field!(coated, CoatedDiffuse, coating.thickness, s),
+            ),
+            (coated.clone(), P::G, Rgb::splat(s), params_field!(coated, CoatedDiffuse, coating.g, s)),
+            (coated_metal.clone(), P::Eta, v, params_field!(coated_metal, CoatedConductor, eta, v)),
+            (coated_metal.clone(), P::K, v, params_field!(coated_metal, CoatedConductor, k, v)),
+            (coated_metal.clone(), P::Reflectance, v, {
+                let m = params_field!(coated_metal, CoatedConductor, eta, Rgb::ONE);
+                params_field!(m, CoatedConductor, k, Material::conductor_k_from_reflectance(v))
+            }),
+            (coated_metal.clone(), P::ConductorURoughness, Rgb::splat(s), {
+                params_field!(coated_metal, CoatedConductor, alpha_x, s)
+            }),
+            (coated_metal.clone(), P::ConductorRoughness, Rgb::splat(s), {
+                let m = params_field!(coated_metal, CoatedConductor, alpha_x, s);
+                params_field!(m, CoatedConductor, alpha_y, s)
+            }),
+            (coated_metal.clone(), P::VRoughness, Rgb::splat(s), {
+                params_field!(coated_metal, CoatedConductor, coating.alpha_y, s)
+            }),
+            (
+                coated_metal.clone(),
+                P::Albedo,
+                v,
+                params_field!(coated_metal, CoatedConductor, coating.albedo, v),
+            ),
+            (
+                coated_metal.clone(),
+                P::G,
+                Rgb::splat(s),
+                params_field!(coated_metal, CoatedConductor, coating.g, s),
+            ),
             (principled.clone(), P::Reflectance, v, params_field!(principled, Principled, base_color, v)),
             (
                 principled.clone(),

@@ -38,7 +38,9 @@ pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light};
 pub use load::{load_any, LoadedScene};
-pub use material::{CoatedDiffuseParams, Material, MaterialId, PrincipledParams};
+pub use material::{
+    CoatedConductorParams, CoatedDiffuseParams, Coating, Material, MaterialId, PrincipledParams,
+};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{

@@ -38,6 +38,9 @@ pub enum Material {
     /// between the layers is followed by a random walk of at most
     /// `max_depth` events, `n_samples` walks per evaluation.
     CoatedDiffuse(CoatedDiffuseParams),
+    /// pbrt-v4's `coatedconductor`: the same coating and medium over a
+    /// conductor (smooth or GGX-rough) instead of a Lambertian base.
+    CoatedConductor(CoatedConductorParams),
     /// A Disney-principled surface (Burley 2012/2015, as pbrt-v3's `disney`
     /// material; glTF's metallic-roughness maps onto it): Burley diffuse
     /// with retro-reflection and sheen, a GGX specular lobe whose
@@ -50,12 +53,11 @@ pub enum Material {
     Principled(PrincipledParams),
 }
 
-/// The parameters of a [`Material::CoatedDiffuse`] surface, shared with
-/// the renderer's layered BSDF.
+/// The dielectric coating of a layered surface ([`Material::CoatedDiffuse`],
+/// [`Material::CoatedConductor`]) and the medium under it, shared with the
+/// renderer's layered BSDF.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CoatedDiffuseParams {
-    /// Lambertian reflectance of the base.
-    pub reflectance: Rgb,
+pub struct Coating {
     /// Relative index of refraction of the coating (inside / outside).
     pub eta: f32,
     /// GGX roughness of the coating along local x.
@@ -72,6 +74,44 @@ pub struct CoatedDiffuseParams {
     pub max_depth: u32,
     /// Random walks averaged per estimate.
     pub n_samples: u32,
+}
+
+impl Coating {
+    /// pbrt-v4's defaults for both coated materials: a smooth coating of
+    /// index 1.5 over an absorbing medium of thickness 0.01, walks of at most
+    /// 10 events, one walk per estimate.
+    pub const PBRT_DEFAULT: Coating = Coating {
+        eta: 1.5,
+        alpha_x: 0.0,
+        alpha_y: 0.0,
+        thickness: 0.01,
+        albedo: Rgb::ZERO,
+        g: 0.0,
+        max_depth: 10,
+        n_samples: 1,
+    };
+}
+
+/// The parameters of a [`Material::CoatedDiffuse`] surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoatedDiffuseParams {
+    /// Lambertian reflectance of the base.
+    pub reflectance: Rgb,
+    pub coating: Coating,
+}
+
+/// The parameters of a [`Material::CoatedConductor`] surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CoatedConductorParams {
+    /// The conductor's complex index of refraction `eta + i k` relative to
+    /// the outside (pbrt's `conductor.eta`, `conductor.k`); the layered BSDF
+    /// divides it by the coating's index, as pbrt-v4 does.
+    pub eta: Rgb,
+    pub k: Rgb,
+    /// The conductor's GGX roughness.
+    pub alpha_x: f32,
+    pub alpha_y: f32,
+    pub coating: Coating,
 }
 
 /// The parameters of a [`Material::Principled`] surface, shared with the
@@ -98,6 +138,13 @@ impl Material {
     /// Largest `max_depth` and `n_samples` of a [`Material::CoatedDiffuse`]:
     /// hits carry them as f16 integers, exact up to 2048.
     pub const COATED_MAX_COUNT: u32 = 2048;
+
+    /// The walk of every [`Material::CoatedConductor`] (`max_depth`,
+    /// `n_samples`): pbrt-v4's defaults. Its hits fill all sixteen of a
+    /// record's coefficients with the conductor, the coating and the
+    /// medium, leaving no room for the counts; the loader warns when a
+    /// scene asks for others.
+    pub const COATED_CONDUCTOR_WALK: (u32, u32) = (10, 1);
 
     /// The material pbrt uses when none was given: diffuse 0.5 grey.
     pub fn default_diffuse() -> Self {

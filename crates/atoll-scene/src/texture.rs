@@ -527,6 +527,12 @@ pub enum TexturedParam {
     Roughness,
     URoughness,
     VRoughness,
+    /// A coated conductor's conductor roughnesses (`conductor.roughness`
+    /// and the like; its coating's are [`TexturedParam::Roughness`] and
+    /// the like).
+    ConductorRoughness,
+    ConductorURoughness,
+    ConductorVRoughness,
     /// Principled metalness.
     Metallic,
     /// A `mix` material's probability of its second material (read as a
@@ -535,7 +541,7 @@ pub enum TexturedParam {
     /// Conductor's complex index of refraction (spectrum textures).
     Eta,
     K,
-    /// Coated diffuse: the medium's thickness, albedo and asymmetry `g`.
+    /// Coated materials: the medium's thickness, albedo and asymmetry `g`.
     Thickness,
     Albedo,
     G,
@@ -563,6 +569,9 @@ impl TexturedParam {
             TexturedParam::Roughness => "roughness",
             TexturedParam::URoughness => "uroughness",
             TexturedParam::VRoughness => "vroughness",
+            TexturedParam::ConductorRoughness => "conductor.roughness",
+            TexturedParam::ConductorURoughness => "conductor.uroughness",
+            TexturedParam::ConductorVRoughness => "conductor.vroughness",
             TexturedParam::Metallic => "metallic",
             TexturedParam::Amount => "amount",
             TexturedParam::Displacement => "displacement",

@@ -4,8 +4,8 @@
 mod common;
 
 use atoll_scene::{
-    AreaEmission, CoatedDiffuseParams, IntegratorSettings, Light, Material, PrincipledParams, Rgb, Texture,
-    TexturedParam,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, IntegratorSettings, Light, Material,
+    PrincipledParams, Rgb, Texture, TexturedParam,
 };
 use common::{allowing_missing, assert_close, load_world, tri};
 use glam::Vec3;
@@ -212,36 +212,6 @@ fn materials() {
 }
 
 #[test]
-fn coated_conductors_are_their_conductor_with_a_warning() {
-    let world = format!(
-        "Material \"coatedconductor\" \"spectrum conductor.eta\" \"metal-Au-eta\" \"spectrum conductor.k\" \"metal-Au-k\" \
-         \"float conductor.roughness\" 0.25 \"float interface.roughness\" 0.1 \"float thickness\" 0.02 \
-         \"rgb albedo\" [0.5 0.5 0.5] \"integer maxdepth\" 4\n{t}\n\
-         Material \"coatedconductor\" \"rgb reflectance\" [0.5 0.5 0.5]\n{t}\n\
-         Material \"coatedconductor\"\n{t}",
-        t = tri(UNIT_TRI)
-    );
-    let loaded = load_world("", &world).unwrap();
-    let s = &loaded.scene;
-    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
-    let au = (Rgb::new(0.143119, 0.374957, 1.44248), Rgb::new(3.98316, 2.38572, 1.60322));
-    assert_eq!(*m[0], Material::Conductor { eta: au.0, k: au.1, alpha_x: 0.5, alpha_y: 0.5 });
-    let k = Material::conductor_k_from_reflectance(Rgb::splat(0.5));
-    assert_eq!(*m[1], Material::Conductor { eta: Rgb::ONE, k, alpha_x: 0.0, alpha_y: 0.0 });
-    // pbrt-v4's default conductor is smooth copper.
-    let cu = (Rgb::new(0.200438, 0.924033, 1.10221), Rgb::new(3.91295, 2.45285, 2.14219));
-    assert_eq!(*m[2], Material::Conductor { eta: cu.0, k: cu.1, alpha_x: 0.0, alpha_y: 0.0 });
-    // One warning each, naming what the image lacks; the coat's parameters
-    // are not reported again as unused.
-    let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(w.len(), 3, "{w:#?}");
-    assert!(
-        w.iter().all(|w| w.contains("rendered as its conductor; the dielectric coat over it is left out")),
-        "{w:#?}"
-    );
-}
-
-#[test]
 fn diffuse_transmission_and_thin_dielectric() {
     let world = format!(
         "Material \"diffusetransmission\" \"rgb reflectance\" [0.2 0.4 0.6] \"float scale\" 0.5\n{t}\n\
@@ -286,34 +256,36 @@ fn coated_diffuse() {
     let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
     let defaults = Material::CoatedDiffuse(CoatedDiffuseParams {
         reflectance: Rgb::splat(0.5),
-        eta: 1.5,
-        alpha_x: 0.0,
-        alpha_y: 0.0,
-        thickness: 0.01,
-        albedo: Rgb::ZERO,
-        g: 0.0,
-        max_depth: 10,
-        n_samples: 1,
+        coating: Coating {
+            eta: 1.5,
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+            thickness: 0.01,
+            albedo: Rgb::ZERO,
+            g: 0.0,
+            max_depth: 10,
+            n_samples: 1,
+        },
     });
     assert_eq!(*m[0], defaults);
     assert_eq!(
         *m[1],
         Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::new(0.2, 0.4, 0.6),
-            eta: 1.33,
-            alpha_x: 0.3,
-            alpha_y: 0.5,
-            thickness: 0.5,
-            albedo: Rgb::new(0.9, 0.8, 0.7),
-            g: -0.3,
-            max_depth: 32,
-            n_samples: 4,
+            coating: Coating {
+                eta: 1.33,
+                alpha_x: 0.3,
+                alpha_y: 0.5,
+                thickness: 0.5,
+                albedo: Rgb::new(0.9, 0.8, 0.7),
+                g: -0.3,
+                max_depth: 32,
+                n_samples: 4,
+            },
         })
     );
-    let Material::CoatedDiffuse(CoatedDiffuseParams { alpha_x, alpha_y, .. }) = *m[2] else {
-        panic!("{:?}", m[2])
-    };
-    assert_eq!((alpha_x, alpha_y), (0.2, 0.2));
+    let Material::CoatedDiffuse(CoatedDiffuseParams { coating, .. }) = *m[2] else { panic!("{:?}", m[2]) };
+    assert_eq!((coating.alpha_x, coating.alpha_y), (0.2, 0.2));
 
     // The error is at the parameter (column 26, after `Material "coateddiffuse" `).
     for bad in ["\"integer nsamples\" 0", "\"integer maxdepth\" -1", "\"integer maxdepth\" 5000"] {
@@ -322,6 +294,56 @@ fn coated_diffuse() {
             .to_string();
         assert!(e.starts_with("test.pbrt:3:26: ") && e.contains("must be between"), "{e}");
     }
+}
+
+/// pbrt-v4's `coatedconductor`: copper under a smooth coating by default;
+/// `conductor.*` and `interface.*` parameters each reach their own layer;
+/// `reflectance` gives the conductor's index as for `conductor`; walks
+/// other than pbrt's default are warned about, at the statement.
+#[test]
+fn coated_conductor() {
+    let world = format!(
+        "Material \"coatedconductor\"\n{t}\n\
+         Material \"coatedconductor\" \"spectrum conductor.eta\" \"metal-Au-eta\" \"spectrum conductor.k\" \"metal-Au-k\" \
+         \"float conductor.uroughness\" 0.09 \"float conductor.vroughness\" 0.25 \"float interface.roughness\" 0.16 \
+         \"float interface.eta\" 1.33 \"float thickness\" 0.5 \"rgb albedo\" [0.9 0.8 0.7] \"float g\" -0.3\n{t}\n\
+         Material \"coatedconductor\" \"rgb reflectance\" [0.5 0.5 0.5] \"integer maxdepth\" 20\n{t}\n\
+         Material \"conductor\"\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<&Material> = s.meshes.iter().map(|mesh| &s.materials[mesh.material as usize]).collect();
+    let Material::CoatedConductor(copper) = *m[0] else { panic!("{:?}", m[0]) };
+    let Material::Conductor { eta, k, .. } = *m[3] else { panic!("{:?}", m[3]) };
+    assert_eq!((copper.eta, copper.k), (eta, k));
+    assert_eq!((copper.alpha_x, copper.alpha_y), (0.0, 0.0));
+    assert_eq!(copper.coating, Coating::PBRT_DEFAULT);
+    assert_eq!(
+        *m[1],
+        Material::CoatedConductor(CoatedConductorParams {
+            eta: Rgb::new(0.143119, 0.374957, 1.44248),
+            k: Rgb::new(3.98316, 2.38572, 1.60322),
+            alpha_x: 0.3,
+            alpha_y: 0.5,
+            coating: Coating {
+                eta: 1.33,
+                alpha_x: 0.4,
+                alpha_y: 0.4,
+                thickness: 0.5,
+                albedo: Rgb::new(0.9, 0.8, 0.7),
+                g: -0.3,
+                ..Coating::PBRT_DEFAULT
+            },
+        })
+    );
+    let Material::CoatedConductor(from_reflectance) = *m[2] else { panic!("{:?}", m[2]) };
+    assert_eq!(from_reflectance.eta, Rgb::ONE);
+    assert_eq!(from_reflectance.k, Material::conductor_k_from_reflectance(Rgb::splat(0.5)));
+    assert_eq!((from_reflectance.coating.max_depth, from_reflectance.coating.n_samples), (10, 1));
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    let warning = loaded.warnings[0].to_string();
+    assert!(warning.starts_with("test.pbrt:7:") && warning.contains("\"maxdepth\" 20"), "{warning}");
 }
 
 #[test]

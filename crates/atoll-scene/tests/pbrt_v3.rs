@@ -7,7 +7,8 @@ mod common;
 use atoll_scene::pbrt::load_str;
 use atoll_scene::texture::srgb8_to_linear;
 use atoll_scene::{
-    Channel, CoatedDiffuseParams, Light, Material, PrincipledParams, Rgb, TexInput, Texture, TexturedParam,
+    Channel, CoatedDiffuseParams, Coating, Light, Material, PrincipledParams, Rgb, TexInput, Texture,
+    TexturedParam,
 };
 use common::{allowing_missing, assert_close};
 use std::path::Path;
@@ -56,14 +57,11 @@ fn every_v3_material_maps_with_one_warning_naming_its_line() {
     let coated = |r: [f32; 3], ax: f32, ay: f32| {
         Material::CoatedDiffuse(CoatedDiffuseParams {
             reflectance: Rgb::from(r),
-            eta: 1.5,
-            alpha_x: Material::roughness_to_alpha(ax),
-            alpha_y: Material::roughness_to_alpha(ay),
-            thickness: 0.01,
-            albedo: Rgb::ZERO,
-            g: 0.0,
-            max_depth: 10,
-            n_samples: 1,
+            coating: Coating {
+                alpha_x: Material::roughness_to_alpha(ax),
+                alpha_y: Material::roughness_to_alpha(ay),
+                ..Coating::PBRT_DEFAULT
+            },
         })
     };
     assert_eq!(*m[1], coated([0.4, 0.4, 0.4], 0.1, 0.1));

@@ -428,12 +428,12 @@ fn coated_diffuse_medium_textures_are_bound() {
     let mut bound: Vec<TexturedParam> = bindings(&l, 0).into_iter().map(|(p, _, _)| p).collect();
     bound.sort_by_key(|p| *p as u32);
     assert_eq!(bound, [TexturedParam::Thickness, TexturedParam::Albedo, TexturedParam::G]);
-    let Material::CoatedDiffuse(CoatedDiffuseParams { thickness, albedo, g, .. }) =
+    let Material::CoatedDiffuse(CoatedDiffuseParams { coating: c, .. }) =
         l.scene.materials[l.scene.meshes[0].material as usize]
     else {
         panic!()
     };
-    assert_eq!((thickness, albedo, g), (0.01, Rgb::ZERO, 0.0));
+    assert_eq!((c.thickness, c.albedo, c.g), (0.01, Rgb::ZERO, 0.0));
     assert!(l.warnings.is_empty(), "{:?}", warnings(&l));
 }
 

@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use atoll_scene::landscape::{Landscape, LandscapeEstimate};
-use atoll_scene::{IntegratorSettings, Light, Material, Scene, TriangleMesh};
+use atoll_scene::{CoatedDiffuseParams, Coating, IntegratorSettings, Light, Material, Scene, TriangleMesh};
 use clap::{Args, Subcommand};
 use glam::{Affine3A, Mat4, Vec3};
 
@@ -203,6 +203,17 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" false")
     };
     let rgb = |c: Vec3| format!("[ {} {} {} ]", c.x, c.y, c.z);
+    let medium = |c: &Coating| {
+        format!(
+            "\"float thickness\" [ {} ] \"rgb albedo\" {} \"float g\" [ {} ] \"integer maxdepth\" [ {} ] \
+             \"integer nsamples\" [ {} ]",
+            c.thickness,
+            rgb(c.albedo),
+            c.g,
+            c.max_depth,
+            c.n_samples
+        )
+    };
     match m {
         Material::Diffuse { reflectance } => {
             writeln!(out, "\"string type\" \"diffuse\" \"rgb reflectance\" {}", rgb(*reflectance))
@@ -229,19 +240,28 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         Material::ThinDielectric { eta } => {
             writeln!(out, "\"string type\" \"thindielectric\" \"float eta\" [ {eta} ]")
         }
-        Material::CoatedDiffuse(c) => writeln!(
+        Material::CoatedDiffuse(CoatedDiffuseParams { reflectance, coating: c }) => writeln!(
             out,
-            "\"string type\" \"coateddiffuse\" \"rgb reflectance\" {} {} \"float eta\" [ {} ] \
-             \"float thickness\" [ {} ] \"rgb albedo\" {} \"float g\" [ {} ] \
-             \"integer maxdepth\" [ {} ] \"integer nsamples\" [ {} ]",
-            rgb(c.reflectance),
+            "\"string type\" \"coateddiffuse\" \"rgb reflectance\" {} {} \"float eta\" [ {} ] {}",
+            rgb(*reflectance),
             rough(c.alpha_x, c.alpha_y),
             c.eta,
-            c.thickness,
-            rgb(c.albedo),
-            c.g,
-            c.max_depth,
-            c.n_samples
+            medium(c),
+        ),
+        Material::CoatedConductor(p) => writeln!(
+            out,
+            "\"string type\" \"coatedconductor\" \"rgb conductor.eta\" {} \"rgb conductor.k\" {} \
+             \"float conductor.uroughness\" [ {} ] \"float conductor.vroughness\" [ {} ] \
+             \"float interface.uroughness\" [ {} ] \"float interface.vroughness\" [ {} ] \
+             \"bool remaproughness\" false \"float interface.eta\" [ {} ] {}",
+            rgb(p.eta),
+            rgb(p.k),
+            p.alpha_x,
+            p.alpha_y,
+            p.coating.alpha_x,
+            p.coating.alpha_y,
+            p.coating.eta,
+            medium(&p.coating),
         ),
         // pbrt-v4 has no principled material: pbrt-v3's `disney` (which
         // atoll reads in either version) with its parameters, plus atoll's
@@ -425,7 +445,7 @@ fn write_geometry(scene: &Scene, out: &mut impl Write) -> io::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use atoll_scene::{CoatedDiffuseParams, PrincipledParams};
+    use atoll_scene::{CoatedConductorParams, PrincipledParams};
 
     /// Writes `scene`, reads it back with atoll's PBRT loader (no warnings
     /// allowed: every parameter written must be understood).
@@ -514,10 +534,9 @@ mod tests {
     }
 
     #[test]
-    fn coated_diffuse_round_trips() {
+    fn coated_materials_round_trip() {
         let mut scene = atoll_scene::cornell::builtin_cornell_box();
-        scene.materials[0] = Material::CoatedDiffuse(CoatedDiffuseParams {
-            reflectance: Vec3::new(0.2, 0.4, 0.6),
+        let coating = Coating {
             eta: 1.33,
             alpha_x: 0.1,
             alpha_y: 0.35,
@@ -526,10 +545,21 @@ mod tests {
             g: -0.4,
             max_depth: 17,
             n_samples: 3,
+        };
+        scene.materials[0] =
+            Material::CoatedDiffuse(CoatedDiffuseParams { reflectance: Vec3::new(0.2, 0.4, 0.6), coating });
+        let (max_depth, n_samples) = Material::COATED_CONDUCTOR_WALK;
+        scene.materials[1] = Material::CoatedConductor(CoatedConductorParams {
+            eta: Vec3::new(0.2, 0.9, 1.1),
+            k: Vec3::new(3.9, 2.5, 2.1),
+            alpha_x: 0.05,
+            alpha_y: 0.15,
+            coating: Coating { max_depth, n_samples, ..coating },
         });
         let back = round_trip(&scene);
         assert_equal(&scene, &back);
         assert!(back.materials.contains(&scene.materials[0]));
+        assert!(back.materials.contains(&scene.materials[1]));
     }
 
     /// pbrt-v4 has no principled material: it is written as pbrt-v3's

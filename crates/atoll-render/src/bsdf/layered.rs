@@ -1,5 +1,6 @@
-//! pbrt-v4's `CoatedDiffuseBxDF` (`LayeredBxDF<DielectricBxDF, DiffuseBxDF,
-//! true>`): a dielectric coating over a Lambertian base, with an optional
+//! pbrt-v4's `CoatedDiffuseBxDF` and `CoatedConductorBxDF`
+//! (`LayeredBxDF<DielectricBxDF, DiffuseBxDF | ConductorBxDF, true>`): a
+//! dielectric coating over a Lambertian or conductor base, with an optional
 //! homogeneous medium between them, evaluated by following light through
 //! the layers with a random walk (Guo et al. 2018, "Position-free Monte Carlo
 //! simulation for arbitrary layered BSDFs", in pbrt's form).
@@ -27,12 +28,12 @@
 //!
 //! Two departures from pbrt's code, both fixes: `eval`'s MIS weights for
 //! leaving through the coating compare densities of the same variable (see
-//! [`CoatedDiffuse::eval`]; pbrt's make its `f` disagree with its
+//! [`Coated::eval`]; pbrt's make its `f` disagree with its
 //! `Sample_f` under rough coatings), and `sample` carries the walk's weight
 //! rather than its `f` and density separately, which underflow f32 on long
-//! walks (see [`CoatedDiffuse::sample`]).
+//! walks (see [`Coated::sample`]).
 
-use atoll_scene::{CoatedDiffuseParams, Rgb};
+use atoll_scene::{CoatedConductorParams, CoatedDiffuseParams, Coating, Rgb};
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
@@ -42,21 +43,45 @@ use super::{same_hemisphere, Bsdf, BsdfSample};
 use crate::rng::pcg_hash;
 use crate::sampling::{henyey_greenstein, power_heuristic, sample_exponential, sample_henyey_greenstein};
 
-/// A coated diffuse surface: its [`CoatedDiffuseParams`] (fields through
-/// `Deref`).
+/// A coated surface: its [`Coating`] (fields through `Deref`) over a base.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CoatedDiffuse(pub CoatedDiffuseParams);
+pub struct Coated {
+    pub coating: Coating,
+    pub base: CoatedBase,
+}
 
-impl std::ops::Deref for CoatedDiffuse {
-    type Target = CoatedDiffuseParams;
-    fn deref(&self) -> &CoatedDiffuseParams {
-        &self.0
+/// What lies under a [`Coated`] surface's coating.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum CoatedBase {
+    /// Lambertian (pbrt's `coateddiffuse`).
+    Diffuse { reflectance: Rgb },
+    /// A conductor whose index `eta + i k` is relative to the outside, as a
+    /// scene gives it (pbrt's `coatedconductor`); [`Coated::base`] makes it
+    /// relative to the coating.
+    Conductor { eta: Rgb, k: Rgb, alpha_x: f32, alpha_y: f32 },
+}
+
+impl Coated {
+    pub fn diffuse(p: CoatedDiffuseParams) -> Self {
+        Coated { coating: p.coating, base: CoatedBase::Diffuse { reflectance: p.reflectance } }
+    }
+
+    pub fn conductor(p: CoatedConductorParams) -> Self {
+        let CoatedConductorParams { eta, k, alpha_x, alpha_y, coating } = p;
+        Coated { coating, base: CoatedBase::Conductor { eta, k, alpha_x, alpha_y } }
     }
 }
 
-impl std::ops::DerefMut for CoatedDiffuse {
-    fn deref_mut(&mut self) -> &mut CoatedDiffuseParams {
-        &mut self.0
+impl std::ops::Deref for Coated {
+    type Target = Coating;
+    fn deref(&self) -> &Coating {
+        &self.coating
+    }
+}
+
+impl std::ops::DerefMut for Coated {
+    fn deref_mut(&mut self) -> &mut Coating {
+        &mut self.coating
     }
 }
 
@@ -131,13 +156,31 @@ fn usable(s: Option<BsdfSample>) -> Option<BsdfSample> {
     s.filter(|s| s.f != Rgb::ZERO && s.pdf > 0.0 && s.wi.z != 0.0)
 }
 
-impl CoatedDiffuse {
+impl Coated {
     fn coat(&self) -> TrowbridgeReitz {
         TrowbridgeReitz::new(self.alpha_x, self.alpha_y)
     }
 
+    /// The base's BSDF inside the coating: pbrt-v4 divides a conductor's
+    /// index by the coating's.
     fn base(&self) -> Bsdf {
-        Bsdf::Diffuse { reflectance: self.reflectance }
+        match self.base {
+            CoatedBase::Diffuse { reflectance } => Bsdf::Diffuse { reflectance },
+            CoatedBase::Conductor { eta, k, alpha_x, alpha_y } => {
+                Bsdf::Conductor { eta: eta / self.eta, k: k / self.eta, alpha_x, alpha_y }
+            }
+        }
+    }
+
+    /// The base reflects only specularly (a smooth conductor): walks take
+    /// no next-event estimates there, as pbrt's `IsSpecular` tests.
+    fn base_is_specular(&self) -> bool {
+        match self.base {
+            CoatedBase::Diffuse { .. } => false,
+            CoatedBase::Conductor { alpha_x, alpha_y, .. } => {
+                TrowbridgeReitz::new(alpha_x, alpha_y).effectively_smooth()
+            }
+        }
     }
 
     /// pbrt clamps the thickness away from zero so the layer boundaries differ.
@@ -151,9 +194,14 @@ impl CoatedDiffuse {
     }
 
     /// pbrt's flags: specular only when the coating is smooth and nothing
-    /// below it scatters diffusely (a black base in an absorbing medium).
+    /// below it scatters diffusely or glossily (a black diffuse base or a
+    /// smooth conductor, in an absorbing medium).
     pub fn is_delta(&self) -> bool {
-        self.coat().effectively_smooth() && self.reflectance == Rgb::ZERO && !self.scatters()
+        let base_is_delta = match self.base {
+            CoatedBase::Diffuse { reflectance } => reflectance == Rgb::ZERO,
+            CoatedBase::Conductor { .. } => self.base_is_specular(),
+        };
+        self.coat().effectively_smooth() && base_is_delta && !self.scatters()
     }
 
     /// The coating's BSDF in `mode`.
@@ -193,6 +241,7 @@ impl CoatedDiffuse {
         let thickness = self.thickness();
         let coat_specular = self.coat().effectively_smooth();
         let base = self.base();
+        let base_specular = self.base_is_specular();
         let n = self.n_samples.max(1);
         let mut f = self.coat_eval(wo, wi, Mode::Radiance) * n as f32;
         let mut rng = WalkRng::new(TAG_EVAL, &[wo, wi], &[]);
@@ -269,11 +318,19 @@ impl CoatedDiffuse {
                     w = bs.wi;
                 } else {
                     // At the base: next-event estimation along the presampled
-                    // exit direction, then a diffuse bounce.
-                    let wt =
-                        if coat_specular { 1.0 } else { power_heuristic(wis.pdf, base.pdf(-w, -wis.wi)) };
-                    f += beta * base.eval(-w, -wis.wi) * wis.wi.z.abs() * wt * tr(thickness, wis.wi) * wis.f
-                        / wis.pdf;
+                    // exit direction (a specular base reflects no other
+                    // direction), then a bounce.
+                    if !base_specular {
+                        let wt =
+                            if coat_specular { 1.0 } else { power_heuristic(wis.pdf, base.pdf(-w, -wis.wi)) };
+                        f += beta
+                            * base.eval(-w, -wis.wi)
+                            * wis.wi.z.abs()
+                            * wt
+                            * tr(thickness, wis.wi)
+                            * wis.f
+                            / wis.pdf;
+                    }
                     let uc = rng.next();
                     let u = rng.next2();
                     let Some(bs) = usable(base.sample(-w, uc, u)) else {
@@ -285,9 +342,13 @@ impl CoatedDiffuse {
                         // The bounce's own direction, if it leaves towards wi.
                         let f_exit = self.coat_eval(-w, wi, Mode::Radiance);
                         if f_exit != Rgb::ZERO {
-                            // The density of sampling -w as `wis` (see above).
-                            let exit_pdf = self.coat_pdf(wi, -w, Lobes::Transmission);
-                            let wt = power_heuristic(bs.pdf, exit_pdf);
+                            // The density of sampling -w as `wis` (see above);
+                            // a specular bounce is the only way there.
+                            let wt = if base_specular {
+                                1.0
+                            } else {
+                                power_heuristic(bs.pdf, self.coat_pdf(wi, -w, Lobes::Transmission))
+                            };
                             f += beta * tr(thickness, bs.wi) * f_exit * wt;
                         }
                     }
@@ -411,9 +472,14 @@ impl CoatedDiffuse {
                     continue;
                 }
                 // Rough coating: MIS between sampling the base from the way
-                // in and the coating from the base's bounce.
+                // in and the coating from the base's bounce (the only way
+                // for a specular base).
                 let uc = rng.next();
                 let Some(rs) = usable(base.sample(-wos.wi, uc, rng.next2())) else { continue };
+                if self.base_is_specular() {
+                    pdf_sum += self.coat_pdf(-rs.wi, wi, Lobes::All);
+                    continue;
+                }
                 let r_pdf = base.pdf(-wos.wi, -wis.wi);
                 pdf_sum += power_heuristic(wis.pdf, r_pdf) * r_pdf;
                 let t_pdf = self.coat_pdf(-rs.wi, wi, Lobes::All);

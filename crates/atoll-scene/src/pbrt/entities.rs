@@ -6,7 +6,10 @@
 use glam::{DMat4, DVec3, Vec3};
 
 use crate::error::{FileLoc, SceneError};
-use crate::{AreaEmission, CoatedDiffuseParams, Light, Material, Rgb, TexInput, TexturedParam};
+use crate::{
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, Light, Material, Rgb, TexInput,
+    TexturedParam,
+};
 
 use super::params::{ParamList, ParamType, SpectrumParam};
 use super::spectrum;
@@ -61,12 +64,22 @@ pub(super) fn alphas(
     let u = tex.float(p, &format!("{prefix}uroughness"), what, loc, w)?.or(r);
     let v = tex.float(p, &format!("{prefix}vroughness"), what, loc, w)?.or(r);
     let remap = p.bool_or("remaproughness", true)?;
+    // A coated conductor's two surfaces have roughnesses of their own.
+    let [both, along_u, along_v] = if prefix == "conductor." {
+        [
+            TexturedParam::ConductorRoughness,
+            TexturedParam::ConductorURoughness,
+            TexturedParam::ConductorVRoughness,
+        ]
+    } else {
+        [TexturedParam::Roughness, TexturedParam::URoughness, TexturedParam::VRoughness]
+    };
     match (u, v) {
         (Some(TexInput::Texture(a)), Some(TexInput::Texture(b))) if a == b => {
-            tex.bindings.push((TexturedParam::Roughness, a, remap))
+            tex.bindings.push((both, a, remap))
         }
         _ => {
-            for (input, param) in [(u, TexturedParam::URoughness), (v, TexturedParam::VRoughness)] {
+            for (input, param) in [(u, along_u), (v, along_v)] {
                 if let Some(TexInput::Texture(t)) = input {
                     tex.bindings.push((param, t, remap));
                 }
@@ -227,11 +240,11 @@ pub(super) fn conductor(
     Ok(Material::Conductor { eta, k, alpha_x, alpha_y })
 }
 
-/// pbrt-v4's `coatedconductor`, as its conductor alone (`conductor.eta`,
-/// `conductor.k` or `reflectance`, `conductor.roughness`; copper, smooth):
-/// atoll's layered BSDF has no conductor base yet, so the dielectric coat
-/// (`interface.*`, `thickness`, `albedo`, `g`) is dropped with a warning:
-/// the image lacks the coat's gloss and the tint of its medium.
+/// pbrt-v4's `coatedconductor` (defaults: `interface.roughness` 0,
+/// `interface.eta` 1.5, `thickness` 0.01, `albedo` 0, `g` 0, and the
+/// conductor's: copper, `conductor.roughness` 0). Its walk is pbrt's
+/// default (`Material::COATED_CONDUCTOR_WALK`): other `maxdepth` or
+/// `nsamples` values are warned about and not used.
 fn coated_conductor(
     p: &ParamList,
     what: &str,
@@ -239,28 +252,25 @@ fn coated_conductor(
     w: &mut WarningSink,
     tex: &mut TexCtx,
 ) -> Result<Material, SceneError> {
-    let material = conductor(p, what, 0.0, "conductor.", loc, w, tex)?;
-    for name in [
-        "interface.roughness",
-        "interface.uroughness",
-        "interface.vroughness",
-        "interface.eta",
-        "thickness",
-        "albedo",
-        "g",
-        "maxdepth",
-        "nsamples",
-    ] {
-        p.mark_used(name);
+    let Material::Conductor { eta, k, alpha_x, alpha_y } =
+        conductor(p, what, 0.0, "conductor.", loc, w, tex)?
+    else {
+        unreachable!("conductor() makes conductors")
+    };
+    let mut coating = coating(p, what, "interface.", 0.0, loc, w, tex)?;
+    let (max_depth, n_samples) = Material::COATED_CONDUCTOR_WALK;
+    if (coating.max_depth, coating.n_samples) != (max_depth, n_samples) {
+        w.warn(
+            loc,
+            format!(
+                "{what}: \"maxdepth\" {} and \"nsamples\" {} are not supported for \"coatedconductor\"; \
+                 its layers are followed with {max_depth} and {n_samples} (noise and energy of long walks differ)",
+                coating.max_depth, coating.n_samples
+            ),
+        );
+        (coating.max_depth, coating.n_samples) = (max_depth, n_samples);
     }
-    w.warn(
-        loc,
-        format!(
-            "{what}: \"coatedconductor\" is rendered as its conductor; the dielectric coat over it is left out \
-             (no coat reflection, no tint from its medium)"
-        ),
-    );
-    Ok(material)
+    Ok(Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }))
 }
 
 /// pbrt-v4's `coateddiffuse` (defaults: `reflectance` 0.5, `roughness` 0,
@@ -280,21 +290,41 @@ pub(super) fn coated_diffuse(
 ) -> Result<Material, SceneError> {
     let default = Rgb::splat(default_reflectance);
     let reflectance = reflectance_param(p, base, TexturedParam::Reflectance, default, what, loc, w, tex)?;
-    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, "", loc, w, tex)?;
-    let eta = dielectric_eta(p, what, loc, w)?;
+    let coating = coating(p, what, "", default_roughness, loc, w, tex)?;
+    Ok(Material::CoatedDiffuse(CoatedDiffuseParams { reflectance, coating }))
+}
+
+/// The coating and medium of pbrt-v4's coated materials: the coating's
+/// roughness and index named with `prefix` (`coatedconductor`'s
+/// `interface.`), `thickness`, `albedo`, `g`, `maxdepth` and `nsamples`
+/// (defaults: [`Coating::PBRT_DEFAULT`], roughness `default_roughness`).
+fn coating(
+    p: &ParamList,
+    what: &str,
+    prefix: &str,
+    default_roughness: f32,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Coating, SceneError> {
+    let default = Coating::PBRT_DEFAULT;
+    let (alpha_x, alpha_y) = alphas(p, what, default_roughness, prefix, loc, w, tex)?;
+    let eta = named_dielectric_eta(p, &format!("{prefix}eta"), what, loc, w)?;
+    // pbrt-v4 reads an index of 0 as 1 (no interface).
+    let eta = if eta == 0.0 { 1.0 } else { eta };
     // A textured medium parameter keeps its default here, bound per hit.
     let medium = |tex: &mut TexCtx, input: Option<TexInput>, param, default: Rgb| match input {
         Some(input) => tex.value_or_bind(input, param, default),
         None => default,
     };
     let thickness = tex.float(p, "thickness", what, loc, w)?;
-    let thickness = medium(tex, thickness, TexturedParam::Thickness, Rgb::splat(0.01)).x;
+    let thickness = medium(tex, thickness, TexturedParam::Thickness, Rgb::splat(default.thickness)).x;
     let albedo = tex.spectrum(p, "albedo", what, loc, w)?;
-    let albedo = medium(tex, albedo, TexturedParam::Albedo, Rgb::ZERO);
+    let albedo = medium(tex, albedo, TexturedParam::Albedo, default.albedo);
     let g = tex.float(p, "g", what, loc, w)?;
-    let g = medium(tex, g, TexturedParam::G, Rgb::ZERO).x;
-    let count = |name: &str, default: i64, min: i64| -> Result<u32, SceneError> {
-        let v = p.int(name)?.unwrap_or(default);
+    let g = medium(tex, g, TexturedParam::G, Rgb::splat(default.g)).x;
+    let count = |name: &str, default: u32, min: i64| -> Result<u32, SceneError> {
+        let v = p.int(name)?.unwrap_or(default as i64);
         let max = Material::COATED_MAX_COUNT as i64;
         if (min..=max).contains(&v) {
             return Ok(v as u32);
@@ -302,18 +332,9 @@ pub(super) fn coated_diffuse(
         let at = p.find(name, &[ParamType::Integer]).map_or(loc, |q| &q.loc);
         Err(SceneError::at(at, format!("{what}: \"{name}\" must be between {min} and {max}, found {v}")))
     };
-    let (max_depth, n_samples) = (count("maxdepth", 10, 0)?, count("nsamples", 1, 1)?);
-    Ok(Material::CoatedDiffuse(CoatedDiffuseParams {
-        reflectance,
-        eta,
-        alpha_x,
-        alpha_y,
-        thickness,
-        albedo,
-        g,
-        max_depth,
-        n_samples,
-    }))
+    let (max_depth, n_samples) =
+        (count("maxdepth", default.max_depth, 0)?, count("nsamples", default.n_samples, 1)?);
+    Ok(Coating { eta, alpha_x, alpha_y, thickness, albedo, g, max_depth, n_samples })
 }
 
 /// A dielectric's `eta` in any of its spellings (default 1.5).
@@ -323,20 +344,35 @@ pub(super) fn dielectric_eta(
     loc: &FileLoc,
     w: &mut WarningSink,
 ) -> Result<f32, SceneError> {
-    Ok(match p.spectrum("eta", true)? {
+    named_dielectric_eta(p, "eta", what, loc, w)
+}
+
+/// A dielectric index given as `name` (`coatedconductor`'s
+/// `interface.eta`), in any of its spellings (default 1.5).
+fn named_dielectric_eta(
+    p: &ParamList,
+    name: &str,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<f32, SceneError> {
+    Ok(match p.spectrum(name, true)? {
         None => 1.5,
         Some(SpectrumParam::Constant(e)) => e,
         Some(SpectrumParam::Named(n)) => spectrum::named_glass(&n).unwrap_or_else(|| {
-            w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"eta\"; using 1.5"));
+            w.warn(loc, format!("{what}: unknown named spectrum \"{n}\" for \"{name}\"; using 1.5"));
             1.5
         }),
         Some(SpectrumParam::Sampled(s)) => {
             // pbrt disperses light with a varying eta; we take its value mid-spectrum.
-            w.warn(loc, format!("{what}: spectrally varying \"eta\" is approximated by its value at 550 nm"));
+            w.warn(
+                loc,
+                format!("{what}: spectrally varying \"{name}\" is approximated by its value at 550 nm"),
+            );
             spectrum::sampled_at(&s, 550.0)
         }
         Some(other) => {
-            w.warn(loc, format!("{what}: \"eta\" given as {other:?} is not supported; using 1.5"));
+            w.warn(loc, format!("{what}: \"{name}\" given as {other:?} is not supported; using 1.5"));
             1.5
         }
     })
