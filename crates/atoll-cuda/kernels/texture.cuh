@@ -56,6 +56,8 @@ inline constexpr unsigned int STORE_RGB = 0u;
 inline constexpr unsigned int STORE_FLOAT = 1u;
 inline constexpr unsigned int STORE_ROUGHNESS = 2u;
 inline constexpr unsigned int STORE_CONDUCTOR_REFLECTANCE = 3u;
+inline constexpr unsigned int STORE_ASYMMETRY = 4u;
+inline constexpr unsigned int STORE_ALBEDO = 5u;
 inline constexpr unsigned int ALPHA_NONE = 0u;
 inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
 inline constexpr unsigned int ALPHA_CUTOFF = 2u;
@@ -216,8 +218,13 @@ __device__ __forceinline__ float conductor_k(float r) {
 
 /// `texture::store_value` into f16 coefficients.
 __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigned int how, unsigned short* coeffs) {
+    if (how == STORE_ASYMMETRY) {
+        coeffs[slot] = f32_to_f16(clampf(v.x, -1.0f, 1.0f));
+        return;
+    }
     v = max0(v);
-    if (how == STORE_RGB) {
+    if (how == STORE_ALBEDO) v = make_float3(fminf(v.x, 1.0f), fminf(v.y, 1.0f), fminf(v.z, 1.0f));
+    if (how == STORE_RGB || how == STORE_ALBEDO) {
         coeffs[slot] = f32_to_f16(v.x);
         coeffs[slot + 1] = f32_to_f16(v.y);
         coeffs[slot + 2] = f32_to_f16(v.z);

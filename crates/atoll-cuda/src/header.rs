@@ -246,6 +246,8 @@ pub(crate) fn texture_constants() -> String {
         ("STORE_FLOAT", store::FLOAT),
         ("STORE_ROUGHNESS", store::ROUGHNESS),
         ("STORE_CONDUCTOR_REFLECTANCE", store::CONDUCTOR_REFLECTANCE),
+        ("STORE_ASYMMETRY", store::ASYMMETRY),
+        ("STORE_ALBEDO", store::ALBEDO),
         ("ALPHA_NONE", alpha_mode::NONE),
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),

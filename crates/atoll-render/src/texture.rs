@@ -126,6 +126,12 @@ pub mod store {
     /// that gives reflectance `x` at normal incidence (pbrt-v4's conductor
     /// `reflectance`).
     pub const CONDUCTOR_REFLECTANCE: u32 = 3;
+    /// One coefficient: the first channel clamped to [-1, 1] (a phase
+    /// function's asymmetry `g`, negative for back-scattering media).
+    pub const ASYMMETRY: u32 = 4;
+    /// Three coefficients: the colour clamped to [0, 1] (a medium's
+    /// single-scattering albedo, as pbrt-v4 clamps it).
+    pub const ALBEDO: u32 = 5;
 }
 
 /// One instruction of a texture program (32 bytes; the GPU reads the same bytes).
@@ -553,8 +559,8 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::CoatedDiffuse, P::URoughness) => to(&[coated::ALPHA_X], roughness),
         (K::CoatedDiffuse, P::VRoughness) => to(&[coated::ALPHA_Y], roughness),
         (K::CoatedDiffuse, P::Thickness) => to(&[coated::THICKNESS], store::FLOAT),
-        (K::CoatedDiffuse, P::Albedo) => to(&[coated::ALBEDO], store::RGB),
-        (K::CoatedDiffuse, P::G) => to(&[coated::G], store::FLOAT),
+        (K::CoatedDiffuse, P::Albedo) => to(&[coated::ALBEDO], store::ALBEDO),
+        (K::CoatedDiffuse, P::G) => to(&[coated::G], store::ASYMMETRY),
         (K::CoatedConductor, P::Reflectance) => to(&[cc::ETA], store::CONDUCTOR_REFLECTANCE),
         (K::CoatedConductor, P::Eta) => to(&[cc::ETA], store::RGB),
         (K::CoatedConductor, P::K) => to(&[cc::K], store::RGB),
@@ -567,8 +573,8 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::CoatedConductor, P::URoughness) => to(&[cc::INTERFACE_ALPHA_X], roughness),
         (K::CoatedConductor, P::VRoughness) => to(&[cc::INTERFACE_ALPHA_Y], roughness),
         (K::CoatedConductor, P::Thickness) => to(&[cc::THICKNESS], store::FLOAT),
-        (K::CoatedConductor, P::Albedo) => to(&[cc::ALBEDO], store::RGB),
-        (K::CoatedConductor, P::G) => to(&[cc::G], store::FLOAT),
+        (K::CoatedConductor, P::Albedo) => to(&[cc::ALBEDO], store::ALBEDO),
+        (K::CoatedConductor, P::G) => to(&[cc::G], store::ASYMMETRY),
         // Base colour, metallic, and perceptual roughness (never remapped:
         // the principled BSDF squares it itself).
         (K::Principled, P::Reflectance) => to(&[principled::BASE_COLOR], store::RGB),
@@ -694,9 +700,14 @@ pub fn run_program(
 }
 
 fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFFS]) {
+    if how == store::ASYMMETRY {
+        coeffs[slot] = f16::from_f32(v.x.clamp(-1.0, 1.0));
+        return;
+    }
     let v = v.max(Vec3::ZERO);
+    let v = if how == store::ALBEDO { v.min(Vec3::ONE) } else { v };
     match how {
-        store::RGB => {
+        store::RGB | store::ALBEDO => {
             for (i, c) in v.to_array().into_iter().enumerate() {
                 coeffs[slot + i] = f16::from_f32(c);
             }
@@ -1249,6 +1260,15 @@ mod binding_tests {
                 params_field!(coated, CoatedDiffuse, coating.thickness, s),
             ),
             (coated.clone(), P::G, Rgb::splat(s), params_field!(coated, CoatedDiffuse, coating.g, s)),
+            // Back-scattering media keep their sign; pbrt's clamps hold.
+            (coated.clone(), P::G, Rgb::splat(-0.5), params_field!(coated, CoatedDiffuse, coating.g, -0.5)),
+            (coated.clone(), P::G, Rgb::splat(-3.0), params_field!(coated, CoatedDiffuse, coating.g, -1.0)),
+            (
+                coated.clone(),
+                P::Albedo,
+                Rgb::new(0.5, 1.5, -2.0),
+                params_field!(coated, CoatedDiffuse, coating.albedo, Rgb::new(0.5, 1.0, 0.0)),
+            ),
             (coated_metal.clone(), P::Eta, v, params_field!(coated_metal, CoatedConductor, eta, v)),
             (coated_metal.clone(), P::K, v, params_field!(coated_metal, CoatedConductor, k, v)),
             (coated_metal.clone(), P::Reflectance, v, {

@@ -319,10 +319,12 @@ fn coating(
     };
     let thickness = tex.float(p, "thickness", what, loc, w)?;
     let thickness = medium(tex, thickness, TexturedParam::Thickness, Rgb::splat(default.thickness)).x;
+    // pbrt-v4 clamps the albedo to [0, 1] and `g` to [-1, 1] (textured
+    // values are clamped where they are evaluated).
     let albedo = tex.spectrum(p, "albedo", what, loc, w)?;
-    let albedo = medium(tex, albedo, TexturedParam::Albedo, default.albedo);
+    let albedo = medium(tex, albedo, TexturedParam::Albedo, default.albedo).clamp(Rgb::ZERO, Rgb::ONE);
     let g = tex.float(p, "g", what, loc, w)?;
-    let g = medium(tex, g, TexturedParam::G, Rgb::splat(default.g)).x;
+    let g = medium(tex, g, TexturedParam::G, Rgb::splat(default.g)).x.clamp(-1.0, 1.0);
     let count = |name: &str, default: u32, min: i64| -> Result<u32, SceneError> {
         let v = p.int(name)?.unwrap_or(default as i64);
         let max = Material::COATED_MAX_COUNT as i64;
