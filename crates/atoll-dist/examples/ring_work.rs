@@ -180,15 +180,15 @@ fn main() {
     let proxy = atoll_dist::work::estimate_work(&scene, res);
     println!("proxy work points: {}", proxy.len());
     for c in chunks.clone() {
-        let p = partition_interleaved(&scene, 2, c, &proxy, &[], &model, &options).unwrap();
+        let p = partition_interleaved(&scene, 2, c, &proxy, &model, &options).unwrap();
         partitions.push((format!("proxy{c}"), p));
     }
     for c in chunks {
         if std::env::var("NO_PLAIN").is_err() {
-            let p = partition_interleaved(&scene, 2, c, &[], &[], &model, &options).unwrap();
+            let p = partition_interleaved(&scene, 2, c, &[], &model, &options).unwrap();
             partitions.push((format!("chunks{c}"), p));
         }
-        let p = partition_interleaved(&scene, 2, c, &work, &[], &model, &options).unwrap();
+        let p = partition_interleaved(&scene, 2, c, &work, &model, &options).unwrap();
         partitions.push((format!("work{c}"), p));
     }
 

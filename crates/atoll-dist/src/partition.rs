@@ -101,9 +101,6 @@ pub enum PartitionError {
     /// Measuring the frame's work (a low-resolution render) failed.
     #[error("measuring the frame's ray work: {0}")]
     Measure(String),
-    /// Shares of the work that are not one positive number per part.
-    #[error("part shares {0} must be one positive number per part")]
-    Shares(String),
     /// A piece that cannot be split further needs more than a device holds.
     #[error("{what} needs {}, more than the budget of {} per device", Bytes(*.needed), Bytes(*.budget))]
     PieceTooBig {

@@ -16,7 +16,7 @@ use crate::partition::{
 };
 use crate::shared::SharedSpec;
 use crate::spatial::partition_spatial;
-use crate::work::{partition_work_balanced, partition_work_measured, partition_work_measured_shares};
+use crate::work::{partition_work_balanced, partition_work_measured};
 use crate::{Layout, Partition, RingOrder};
 
 /// How a ring's parts are made.
@@ -86,66 +86,6 @@ pub fn partition_ring(
         Partitioning::Auto if measuring_is_cheap(scene) => measured().or_else(|_| memory()),
         Partitioning::Auto => memory(),
     }
-}
-
-/// Shares of the work for the parts of a ring whose members, given
-/// `shares` (empty: equal), were busy `busy` seconds each: a member's time
-/// per unit of share is taken as its own, so the new shares even the
-/// times out (`share × mean / busy`, normalised). A share changes by at
-/// most [`MAX_SHARE_CHANGE`] at a time, so that one noisy measurement
-/// cannot empty a part; a member with no time measured keeps its share.
-pub fn rebalanced_shares(shares: &[f64], busy: &[f64]) -> Vec<f64> {
-    let parts = busy.len();
-    let before = match shares.len() == parts {
-        true => shares.to_vec(),
-        false => vec![1.0 / parts as f64; parts],
-    };
-    let mean = busy.iter().sum::<f64>() / parts.max(1) as f64;
-    let scaled: Vec<f64> = before
-        .iter()
-        .zip(busy)
-        .map(|(share, b)| {
-            let ratio = if *b > 0.0 && mean > 0.0 { mean / b } else { 1.0 };
-            share * ratio.clamp(1.0 / MAX_SHARE_CHANGE, MAX_SHARE_CHANGE)
-        })
-        .collect();
-    let sum: f64 = scaled.iter().sum();
-    scaled.iter().map(|v| v / sum).collect()
-}
-
-/// Most a part's share grows or shrinks in one [`rebalanced_shares`].
-pub const MAX_SHARE_CHANGE: f64 = 2.0;
-
-/// The ring of `layout` over the same devices and islands, its parts cut
-/// again as measured-work chunks with the work `shares` of its members
-/// ([`rebalanced_shares`]; [`crate::spatial::partition_interleaved`]).
-/// The devices may hold their old parts still: the budget is what they
-/// have free besides, so a tight fit may be refused (keep the old layout then).
-pub fn rebalance_ring(
-    devices: &[Box<dyn Device>],
-    scene: &Arc<Scene>,
-    options: &RenderOptions,
-    budget: Option<u64>,
-    layout: &Layout,
-    shares: &[f64],
-) -> Result<(Layout, Partition), PlacementError> {
-    let Layout::Ring { parts, islands, order } = layout else {
-        return Err(PlacementError::Request("only a ring's parts can be rebalanced".into()));
-    };
-    if shares.len() != parts.len() {
-        return Err(PlacementError::Request(format!(
-            "{} shares for a ring of {}",
-            shares.len(),
-            parts.len()
-        )));
-    }
-    let model = widest_model(devices.iter().map(|d| d.byte_model()));
-    let budget = scene_budget(devices, scene, budget, options, Sharing::Memory);
-    let partition_options = PartitionOptions { budget, ..Default::default() };
-    let partition =
-        partition_work_measured_shares(scene, options.resolution, shares, &model, &partition_options)?;
-    let layout = Layout::Ring { parts: partition.parts.clone(), islands: *islands, order: *order };
-    Ok((layout, partition))
 }
 
 /// Most unique triangles a scene may have for `auto` to measure its
@@ -515,30 +455,4 @@ pub fn more_wavefronts_beside(
         }
     }
     Ok(more)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::rebalanced_shares;
-
-    /// Shares move work from the busier member to the other in proportion,
-    /// stay positive and sum to one; equal times keep them.
-    #[test]
-    fn rebalanced_shares_even_out_busy_times() {
-        assert_eq!(rebalanced_shares(&[], &[0.2, 0.2]), vec![0.5, 0.5]);
-        // Member 1 took 1.5× member 0's time for the same share.
-        let s = rebalanced_shares(&[], &[0.142, 0.211]);
-        assert!((s[0] - 0.211 / 0.353).abs() < 1e-9 && (s[0] + s[1] - 1.0).abs() < 1e-12, "{s:?}");
-        // From unequal shares: times per share are the members' own.
-        let s = rebalanced_shares(&[0.6, 0.4], &[0.3, 0.1]);
-        let speed = [0.6 / 0.3, 0.4 / 0.1];
-        assert!((s[0] - speed[0] / (speed[0] + speed[1])).abs() < 1e-9, "{s:?}");
-        // Against a member 100× faster, the other's share doubles at most
-        // before the shares are normalised again.
-        let s = rebalanced_shares(&[], &[1.0, 0.01]);
-        let (slow, fast) = (0.5 * 0.505, 0.5 * 2.0);
-        assert!((s[0] - slow / (slow + fast)).abs() < 1e-9, "{s:?}");
-        // Unmeasured members keep their share.
-        assert_eq!(rebalanced_shares(&[], &[0.0, 0.0, f64::NAN]), vec![1.0 / 3.0; 3]);
-    }
 }

@@ -113,7 +113,7 @@ pub fn partition_spatial(
     model: &ByteModel,
     options: &PartitionOptions,
 ) -> Result<Partition, PartitionError> {
-    partition_interleaved(scene, parts, 1, &[], &[], model, options)
+    partition_interleaved(scene, parts, 1, &[], model, options)
 }
 
 /// Splits `scene` into `parts` parts of `chunks_per_part` compact chunks
@@ -122,24 +122,17 @@ pub fn partition_spatial(
 /// `c mod parts`). With `work` (points where rays are expected to do their
 /// work, e.g. hits of a prepass), chunks hold equal shares of bytes and
 /// work together, so that where the work gathers chunks are small and
-/// every part gets some. `shares` (one per part; empty: equal) gives each
-/// part that fraction of the weight instead, split evenly over its chunks:
-/// how a ring is rebalanced when its members' measured times differ
-/// ([`crate::placement::rebalanced_shares`]). Errors when a part exceeds `options.budget`.
+/// every part gets some. Errors when a part exceeds `options.budget`.
 pub fn partition_interleaved(
     scene: &Scene,
     parts: usize,
     chunks_per_part: usize,
     work: &[Vec3],
-    shares: &[f64],
     model: &ByteModel,
     options: &PartitionOptions,
 ) -> Result<Partition, PartitionError> {
     if parts == 0 {
         return Err(PartitionError::NoParts(parts));
-    }
-    if !shares.is_empty() && (shares.len() != parts || !shares.iter().all(|s| s.is_finite() && *s > 0.0)) {
-        return Err(PartitionError::Shares(format!("{shares:?}")));
     }
     let chunks = parts * chunks_per_part.max(1);
     let (lo, hi) = scene.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ONE));
@@ -213,26 +206,15 @@ pub fn partition_interleaved(
         }
     }
     // Chunk c takes the cells whose cumulative weight is in [c, c + 1) /
-    // chunks of the total (with shares: its part's share over its chunks);
-    // chunks are dealt out to the parts in turn.
+    // chunks of the total; chunks are dealt out to the parts in turn.
     let total: u64 = histogram.iter().sum();
-    let sum: f64 = shares.iter().sum();
-    let chunk_ends: Vec<f64> = (0..chunks)
-        .scan(0.0, |end, c| {
-            *end += shares.get(c % parts).map_or(0.0, |s| s / sum) / chunks_per_part.max(1) as f64;
-            Some(*end)
-        })
-        .collect();
     let mut part_of_cell = vec![0u32; grid.cells()];
     let mut running = 0u64;
     for (c, w) in histogram.iter().enumerate() {
         // The cell goes to the chunk its middle falls in.
         let middle = running + w / 2;
-        let chunk = match shares.is_empty() {
-            true => ((middle as u128 * chunks as u128) / total.max(1) as u128) as usize,
-            false => chunk_ends.partition_point(|&end| end <= middle as f64 / total.max(1) as f64),
-        };
-        part_of_cell[c] = (chunk.min(chunks - 1) % parts) as u32;
+        let chunk = ((middle as u128 * chunks as u128) / total.max(1) as u128).min(chunks as u128 - 1);
+        part_of_cell[c] = (chunk % parts as u128) as u32;
         running += w;
     }
     let part_of = |p: Vec3| part_of_cell[grid.cell_of(p)] as usize;
@@ -434,7 +416,7 @@ mod tests {
         let model = ByteModel::CPU;
         let none = PartitionOptions::default();
         for (k, chunks) in [(2, 2), (3, 4)] {
-            let p = partition_interleaved(&scene, k, chunks, &[], &[], &model, &none).unwrap();
+            let p = partition_interleaved(&scene, k, chunks, &[], &model, &none).unwrap();
             assert_eq!(p.parts.len(), k);
             assert_exactly_once(&scene, &p);
             let (min, max) = (p.bytes.iter().min().unwrap(), p.bytes.iter().max().unwrap());
@@ -449,11 +431,11 @@ mod tests {
         let work: Vec<Vec3> = (0..1000)
             .map(|i| lo + (corner - lo) * Vec3::new((i % 32) as f32 / 32.0, 0.5, (i / 32) as f32 / 32.0))
             .collect();
-        let slabs = partition_interleaved(&scene, 2, 1, &[], &[], &model, &none).unwrap();
+        let slabs = partition_interleaved(&scene, 2, 1, &[], &model, &none).unwrap();
         let near = instances_within(&scene, &slabs, lo, corner);
         assert!(near.iter().sum::<usize>() > 20, "{near:?}");
         assert_eq!(near.iter().filter(|&&n| n > 0).count(), 1, "{near:?}");
-        let balanced = partition_interleaved(&scene, 2, 2, &work, &[], &model, &none).unwrap();
+        let balanced = partition_interleaved(&scene, 2, 2, &work, &model, &none).unwrap();
         let near = instances_within(&scene, &balanced, lo, corner);
         assert!(near.iter().all(|&n| n > 0), "{near:?}");
     }

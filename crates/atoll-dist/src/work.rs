@@ -62,7 +62,7 @@ pub fn partition_work_balanced(
     options: &PartitionOptions,
 ) -> Result<Partition, PartitionError> {
     let work = if parts > 1 { estimate_work(scene, resolution) } else { Vec::new() };
-    partition_interleaved(scene, parts, CHUNKS_PER_PART, &work, &[], model, options)
+    partition_interleaved(scene, parts, CHUNKS_PER_PART, &work, model, options)
 }
 
 /// The scene's proxy: boxes and a BVH over them.
@@ -152,20 +152,7 @@ pub fn partition_work_measured(
         true => measure_work(scene, resolution).map_err(|e| PartitionError::Measure(e.to_string()))?,
         false => Vec::new(),
     };
-    Ok((partition_interleaved(scene, parts, CHUNKS_PER_PART, &work, &[], model, options)?, work.len()))
-}
-
-/// [`partition_work_measured`] with the work `shares` of the parts (see
-/// [`partition_interleaved`]), the work measured once more.
-pub fn partition_work_measured_shares(
-    scene: &Arc<Scene>,
-    resolution: UVec2,
-    shares: &[f64],
-    model: &ByteModel,
-    options: &PartitionOptions,
-) -> Result<Partition, PartitionError> {
-    let work = measure_work(scene, resolution).map_err(|e| PartitionError::Measure(e.to_string()))?;
-    partition_interleaved(scene, shares.len(), CHUNKS_PER_PART, &work, shares, model, options)
+    Ok((partition_interleaved(scene, parts, CHUNKS_PER_PART, &work, model, options)?, work.len()))
 }
 
 /// Points where a frame of `scene` seen at `resolution` does its work,
@@ -243,44 +230,5 @@ mod tests {
             partition_work_measured(&scene, 2, resolution, &ByteModel::CPU, &PartitionOptions::default())
                 .unwrap();
         assert_eq!((p.parts.len(), used), (2, points.len()));
-    }
-
-    /// Shares move the parts' weight: the part given 70% of the weight
-    /// holds more of the scene's triangles than with 30%, every instance
-    /// is still placed once, and shares that are not one positive number
-    /// per part are refused.
-    #[test]
-    fn shares_move_the_parts_weight() {
-        let scene = Arc::new(atoll_scene::landscape::Landscape::new(2).build());
-        let resolution = UVec2::new(320, 180);
-        let cut = |shares: &[f64]| {
-            partition_work_measured_shares(
-                &scene,
-                resolution,
-                shares,
-                &ByteModel::CPU,
-                &PartitionOptions::default(),
-            )
-        };
-        let (heavy, light) = (cut(&[0.7, 0.3]).unwrap(), cut(&[0.3, 0.7]).unwrap());
-        assert!(
-            heavy.bytes[0] > light.bytes[0] && heavy.bytes[1] < light.bytes[1],
-            "{:?} {:?}",
-            heavy.bytes,
-            light.bytes
-        );
-        for p in [&heavy, &light] {
-            let mut instances: Vec<u32> = p.parts.iter().flat_map(|part| part.instances.clone()).collect();
-            instances.sort_unstable();
-            let whole: Vec<u32> =
-                instances.iter().copied().collect::<std::collections::BTreeSet<_>>().into_iter().collect();
-            assert_eq!(whole.len(), scene.instances.len(), "every instance is placed");
-        }
-        for bad in [&[0.5, 0.0][..], &[0.5, f64::NAN]] {
-            assert!(matches!(cut(bad), Err(PartitionError::Shares(_))), "{bad:?}");
-        }
-        let one_share =
-            partition_interleaved(&scene, 2, 2, &[], &[1.0], &ByteModel::CPU, &PartitionOptions::default());
-        assert!(matches!(one_share, Err(PartitionError::Shares(_))));
     }
 }

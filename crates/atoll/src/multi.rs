@@ -169,9 +169,6 @@ pub struct MultiArgs<'a> {
     pub transport: Option<Transport>,
     /// How a ring's scene parts are made.
     pub partitioning: Partitioning,
-    /// Cut a ring's parts again by its members' busy times in a short
-    /// calibration frame ([`balance_ring`]).
-    pub balance_ring: bool,
     /// Wavefronts per GPU (`--streams`): when replicating, per GPU listed
     /// once; on a ring, copies of the ring as more islands.
     pub streams: usize,
@@ -195,65 +192,10 @@ pub fn render(
     args: &MultiArgs,
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<MultiOutput, CliError> {
-    let Placed { mut devices, mut layout, .. } = place_on(devices, scene, &options, args)?;
-    if args.balance_ring {
-        layout = balance_ring(&mut devices, scene, &options, args, layout)?;
-    }
+    let Placed { mut devices, layout, .. } = place_on(devices, scene, &options, args)?;
     let render = if args.warmup { render_multi_warmed } else { render_multi };
     render(&mut devices, scene, options, &layout, args.transport, progress)
         .map_err(|e| CliError::Runtime(e.to_string()))
-}
-
-/// Samples per pixel of `--balance-ring`'s calibration frame (fewer if the
-/// frame has fewer).
-pub const CALIBRATION_SPP: u32 = 4;
-
-/// `--balance-ring`: renders [`CALIBRATION_SPP`] samples per pixel on
-/// `layout`'s ring, sums each member's busy time over the islands, and
-/// returns the ring with its parts cut again by the shares that even those
-/// times out ([`atoll_dist::placement::rebalance_ring`]); the layout as it
-/// was when it is no ring or the new parts do not fit.
-fn balance_ring(
-    devices: &mut [Box<dyn Device>],
-    scene: &Arc<Scene>,
-    options: &RenderOptions,
-    args: &MultiArgs,
-    layout: Layout,
-) -> Result<Layout, CliError> {
-    let Layout::Ring { parts, .. } = &layout else {
-        eprintln!("note: --balance-ring: the scene is not on a ring; nothing to balance");
-        return Ok(layout);
-    };
-    let k = parts.len();
-    let calibration = RenderOptions { spp: options.spp.min(CALIBRATION_SPP), ..options.clone() };
-    let start = std::time::Instant::now();
-    let out = render_multi_warmed(devices, scene, calibration, &layout, args.transport, &mut |_, _| {})
-        .map_err(|e| CliError::Runtime(e.to_string()))?;
-    let mut busy = vec![0.0; k];
-    for report in &out.devices {
-        busy[report.member] += report.stats.busy_seconds;
-    }
-    let shares = atoll_dist::placement::rebalanced_shares(&[], &busy);
-    let text =
-        |v: &[f64], digits: usize| v.iter().map(|x| format!("{x:.digits$}")).collect::<Vec<_>>().join(" / ");
-    match atoll_dist::placement::rebalance_ring(devices, scene, options, args.budget, &layout, &shares) {
-        Ok((balanced, partition)) => {
-            let sizes: Vec<String> = partition.bytes.iter().map(|&b| fmt_bytes(b)).collect();
-            eprintln!(
-                "partition: measured-work chunks rebalanced (members busy {} s in {:.2} s of calibration; \
-                 shares {}; parts {})",
-                text(&busy, 3),
-                start.elapsed().as_secs_f64(),
-                text(&shares, 3),
-                sizes.join(", ")
-            );
-            Ok(balanced)
-        }
-        Err(e) => {
-            eprintln!("note: --balance-ring: keeping the parts ({e})");
-            Ok(layout)
-        }
-    }
 }
 
 /// Devices with the scene placed on them.

@@ -141,11 +141,6 @@ pub struct RenderArgs {
     /// compact region per part).
     #[arg(long = "partition", default_value = "auto", value_parser = parse_partitioning, requires = "placement")]
     pub partitioning: Partitioning,
-    /// Before the frame, render a short calibration frame on the ring,
-    /// then cut its parts again as measured-work chunks whose shares even
-    /// out the members' busy times (rings of one process).
-    #[arg(long, requires = "devices")]
-    pub balance_ring: bool,
     /// Also write a false-colour image of which device holds which surface.
     #[arg(long, value_name = "IMAGE", requires = "placement")]
     pub ownership: Option<PathBuf>,
@@ -689,7 +684,6 @@ pub(crate) fn multi_args<'a>(args: &'a RenderArgs, specs: &'a [DeviceSpec]) -> M
         ownership: args.ownership.as_deref(),
         transport: args.ring_transport,
         partitioning: args.partitioning,
-        balance_ring: args.balance_ring,
         streams: args.waves.streams(),
         warmup: args.warmup,
         ring_order: args.ring_order,

@@ -87,18 +87,6 @@ fn a_budget_that_splits_the_scene_gives_rings_and_the_same_image() {
     let stderr = text(&out.stderr);
     assert!(stderr.contains("strategy: ring of 2 (2 islands)") && stderr.contains("ring order"), "{stderr}");
     assert_same_as_single(&dir, "sized.exr");
-
-    // Parts cut again after a calibration frame, by the members' busy
-    // times: the same image. (A scene that is no ring has nothing to balance.)
-    let out = render(&dir, &["--devices", "cpu:2", "--strategy", "ring", "--balance-ring"], "balanced.exr");
-    let stderr = text(&out.stderr);
-    assert!(
-        out.status.success() && stderr.contains("measured-work chunks rebalanced (members busy"),
-        "{stderr}"
-    );
-    assert_same_as_single(&dir, "balanced.exr");
-    let out = render(&dir, &["--devices", "cpu:2", "--balance-ring"], "replicated.exr");
-    assert!(text(&out.stderr).contains("not on a ring; nothing to balance"), "{}", text(&out.stderr));
 }
 
 #[test]
