@@ -9,7 +9,7 @@
 
 // The material kinds this module shades: all of them, unless the device
 // compiles a shade kernel specialised to a scene's kinds (`-DATOLL_WITH_COATED=0`
-// and the like; src/device.rs `ShadeFeatures`). Coated diffuse's random
+// and the like; src/device.rs `ShadeFeatures`). The coated materials' random
 // walks and the principled lobes cost the shade kernel about a hundred
 // registers, and so occupancy, even in scenes none of whose hits take them.
 // A kind compiled out is read from a record as no surface at all (the device

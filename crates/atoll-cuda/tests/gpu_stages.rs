@@ -772,15 +772,8 @@ fn bsdfs_match_value_by_value() {
 /// and conductors, absorbing and scattering layers, several walks per
 /// estimate).
 fn coated_materials() -> Vec<PackedMaterial> {
-    let coating = |alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32, n_samples: u32| Coating {
-        eta: 1.5,
-        alpha_x: alpha.0,
-        alpha_y: alpha.1,
-        thickness,
-        albedo,
-        g,
-        max_depth: 10,
-        n_samples,
+    let coating = |(alpha_x, alpha_y): (f32, f32), thickness: f32, albedo: Rgb, g: f32, n_samples: u32| {
+        Coating { alpha_x, alpha_y, thickness, albedo, g, n_samples, ..Coating::PBRT_DEFAULT }
     };
     let diffuse = |reflectance: Rgb, coating: Coating| {
         Material::CoatedDiffuse(CoatedDiffuseParams { reflectance, coating })

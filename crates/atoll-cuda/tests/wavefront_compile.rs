@@ -82,7 +82,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
     words[at + 1].parse().unwrap()
 }
 
-/// The shade kernel a scene without coated-diffuse or principled
+/// The shade kernel a scene without coated or principled
 /// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
 /// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,

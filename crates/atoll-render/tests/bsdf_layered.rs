@@ -52,17 +52,10 @@ impl Rng {
     }
 }
 
-fn coating(alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32) -> Coating {
-    Coating {
-        eta: 1.5,
-        alpha_x: alpha.0,
-        alpha_y: alpha.1,
-        thickness,
-        albedo,
-        g,
-        max_depth: 10,
-        n_samples: 1,
-    }
+/// pbrt's default coating (index 1.5, walks of 10 events) with these
+/// roughnesses and medium.
+fn coating((alpha_x, alpha_y): (f32, f32), thickness: f32, albedo: Rgb, g: f32) -> Coating {
+    Coating { alpha_x, alpha_y, thickness, albedo, g, ..Coating::PBRT_DEFAULT }
 }
 
 fn coated(reflectance: Rgb, alpha: (f32, f32), thickness: f32, albedo: Rgb, g: f32) -> Coated {
