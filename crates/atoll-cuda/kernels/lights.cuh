@@ -9,6 +9,7 @@
 #include "record.cuh"
 #include "sampling.cuh"
 #include "environment.cuh"
+#include "portal.cuh"
 #include "texture.cuh"
 #include "spawn.cuh"
 #include "light_bvh.cuh"
@@ -128,6 +129,54 @@ __device__ __forceinline__ float smooth_step(float x, float a, float b) {
     return t * t * (3.0f - 2.0f * t);
 }
 
+/// Mirrors `LightSet::environment_radiance`.
+__device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3 origin,
+                                                             float3 w) {
+    const GpuEmitter& e = p.emitters[index];
+    if (e.kind != EMITTER_ENVIRONMENT && e.kind != EMITTER_INFINITE) return zero3();
+    if (e.portal != 0u && !portal_passes(portal_of(p, e), origin, w)) return zero3();
+    return e.kind == EMITTER_ENVIRONMENT ? env_radiance(p, e, w) : load3(e.radiance);
+}
+
+/// Mirrors `LightSet::environment_direction_pdf`.
+__device__ __forceinline__ float light_environment_direction_pdf(const FrameParams& p, const GpuEmitter& e,
+                                                                 float3 from, float3 w) {
+    if (e.kind != EMITTER_ENVIRONMENT && e.kind != EMITTER_INFINITE) return 0.0f;
+    const float own = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
+    if (e.portal == 0u) return own;
+    return 0.5f * own + 0.5f * portal_pdf(portal_of(p, e), from, w);
+}
+
+/// Mirrors `LightSet::pdf_environment`.
+__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, float3 from, unsigned int index,
+                                                       float3 w) {
+    return light_selection_pmf(p, from, index) * light_environment_direction_pdf(p, p.emitters[index], from, w);
+}
+
+/// Mirrors `LightSet::sample_through_portal` for emitter `index` (`e`),
+/// which has a portal.
+__device__ __forceinline__ bool light_sample_through_portal(const FrameParams& p, unsigned int index,
+                                                            const GpuEmitter& e, float3 pos, float2 u, float3* wi,
+                                                            float3* radiance, float* pdf) {
+    // Mirrors `portal::split_strategy`.
+    const bool through_portal = u.x >= 0.5f;
+    u.x = through_portal ? u.x * 2.0f - 1.0f : u.x * 2.0f;
+    if (through_portal) {
+        float portal_density;
+        if (!portal_sample(portal_of(p, e), pos, u, wi, &portal_density)) return false;
+    } else if (e.kind == EMITTER_ENVIRONMENT) {
+        float3 unused_radiance;
+        float unused_pdf;
+        if (!env_sample(p, e, u, wi, &unused_radiance, &unused_pdf)) return false;
+    } else {
+        *wi = sample_uniform_sphere(u);
+    }
+    *pdf = light_environment_direction_pdf(p, e, pos, *wi);
+    if (!(*pdf > 0.0f)) return false;
+    *radiance = light_environment_radiance(p, index, pos, *wi);
+    return true;
+}
+
 /// Mirrors `LightSet::sample`: incident light at `pos` with selection number
 /// `u_select` and position numbers `u`. False for Rust's `None`.
 __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, float u_select, float2 u,
@@ -171,6 +220,14 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->radiance = load3(e.radiance);
         out->pdf = pmf;
         out->delta = true;
+        return true;
+    }
+    if ((e.kind == EMITTER_ENVIRONMENT || e.kind == EMITTER_INFINITE) && e.portal != 0u) {
+        float dir_pdf;
+        if (!light_sample_through_portal(p, index, e, pos, u, &out->wi, &out->radiance, &dir_pdf)) return false;
+        out->distance = f32_infinity();
+        out->pdf = pmf * dir_pdf;
+        out->delta = false;
         return true;
     }
     if (e.kind == EMITTER_ENVIRONMENT) {
@@ -239,17 +296,4 @@ __device__ __forceinline__ float light_pdf_triangle(const FrameParams& p, float3
     return light_selection_pmf(p, from, index) * distance * distance / (c * e.area);
 }
 
-/// Mirrors `LightSet::environment_radiance`.
-__device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3 w) {
-    const GpuEmitter& e = p.emitters[index];
-    if (e.kind == EMITTER_ENVIRONMENT) return env_radiance(p, e, w);
-    return e.kind == EMITTER_INFINITE ? load3(e.radiance) : zero3();
-}
 
-/// Mirrors `LightSet::pdf_environment`.
-__device__ __forceinline__ float light_pdf_environment(const FrameParams& p, float3 from, unsigned int index,
-                                                       float3 w) {
-    const GpuEmitter& e = p.emitters[index];
-    const float direction_pdf = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
-    return light_selection_pmf(p, from, index) * direction_pdf;
-}

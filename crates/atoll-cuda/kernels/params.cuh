@@ -20,6 +20,9 @@ struct GpuEmitter {
     float normal[3];
     float radiance[3];
     float error;
+    // Infinite and environment emitters: 1 + their portal's offset in
+    // `environment_tables` (portal.cuh), 0 for none.
+    unsigned int portal;
 };
 
 /// Mirror of `atoll_render::light_bvh::LightNode` (80 bytes).
@@ -162,7 +165,7 @@ static_assert(__builtin_offsetof(FilterTable, radius) == 16 && sizeof(FilterTabl
 static_assert(__builtin_offsetof(FilterTable, weight) == 24 && sizeof(FilterTable::weight) == 8, "FilterTable.weight: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FilterTable, cdf) == 32 && sizeof(FilterTable::cdf) == 256, "FilterTable.cdf: offset or size differs from Rust");
 #endif
-static_assert(sizeof(GpuEmitter) == 80, "GpuEmitter: size differs from Rust");
+static_assert(sizeof(GpuEmitter) == 84, "GpuEmitter: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuEmitter, kind) == 0 && sizeof(GpuEmitter::kind) == 4, "GpuEmitter.kind: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, two_sided) == 4 && sizeof(GpuEmitter::two_sided) == 4, "GpuEmitter.two_sided: offset or size differs from Rust");
@@ -172,6 +175,7 @@ static_assert(__builtin_offsetof(GpuEmitter, p) == 16 && sizeof(GpuEmitter::p) =
 static_assert(__builtin_offsetof(GpuEmitter, normal) == 52 && sizeof(GpuEmitter::normal) == 12, "GpuEmitter.normal: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, radiance) == 64 && sizeof(GpuEmitter::radiance) == 12, "GpuEmitter.radiance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmitter, error) == 76 && sizeof(GpuEmitter::error) == 4, "GpuEmitter.error: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuEmitter, portal) == 80 && sizeof(GpuEmitter::portal) == 4, "GpuEmitter.portal: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuMaterial) == 48, "GpuMaterial: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

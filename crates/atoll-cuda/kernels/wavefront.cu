@@ -255,7 +255,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     if (!(r.flags & FLAG_HIT)) {
         for (unsigned int k = 0; k < params.infinite_count; ++k) {
             const unsigned int i = params.infinite_lights[k];
-            const float3 le = light_environment_radiance(params, i, dir);
+            const float3 le = light_environment_radiance(params, i, from, dir);
             const float w =
                 specular ? 1.0f : power_heuristic(r.bsdf_pdf, light_pdf_environment(params, from, i, dir));
             out.emitted = out.emitted + beta * le * w;

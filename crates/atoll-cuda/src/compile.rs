@@ -46,6 +46,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),
     ("peer.cu", include_str!("../kernels/peer.cu")),
+    ("portal.cuh", include_str!("../kernels/portal.cuh")),
     ("sampling.cuh", include_str!("../kernels/sampling.cuh")),
     ("spawn.cuh", include_str!("../kernels/spawn.cuh")),
     ("selftest.cu", include_str!("../kernels/selftest.cu")),

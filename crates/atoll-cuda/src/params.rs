@@ -21,6 +21,7 @@ use atoll_render::light_bvh::LightNode;
 use atoll_render::lights::Emitter;
 use atoll_render::material_coeffs::PackedMaterial;
 use atoll_render::material_layout;
+use atoll_render::portal::PortalFrame;
 use atoll_render::record::MATERIAL_COEFFS;
 use atoll_render::texture::{ProgramRange, ShadingNormalProgram};
 use atoll_render::FrameContext;
@@ -121,6 +122,23 @@ pub(crate) struct GpuEmitter {
     pub radiance: [f32; 3],
     /// Triangles: the corners' error bound along the normal (`Emitter::Triangle::corner_error`).
     pub error: f32,
+    /// Infinite and environment emitters with a portal: 1 + the offset of
+    /// its [`portal_words`] in [`FrameParams::environment_tables`]; 0: none.
+    pub portal: u32,
+}
+
+/// Floats of a portal in the environment tables (`kernels/portal.cuh`).
+pub(crate) const PORTAL_WORDS: usize = 22;
+
+/// A portal's floats for the kernels: its corner, far corner, two edges,
+/// frame x, y, z (three each) and area, as `atoll_render::portal::PortalFrame`.
+pub(crate) fn portal_words(f: &PortalFrame) -> [f32; PORTAL_WORDS] {
+    let mut w = [0.0; PORTAL_WORDS];
+    for (k, v) in [f.corner, f.far_corner, f.edge_u, f.edge_v, f.x, f.y, f.z].iter().enumerate() {
+        w[3 * k..3 * k + 3].copy_from_slice(&v.to_array());
+    }
+    w[21] = f.area;
+    w
 }
 
 impl GpuEmitter {
@@ -138,7 +156,7 @@ impl GpuEmitter {
                 g.p[..3].copy_from_slice(&direction.to_array());
                 g.radiance = radiance.to_array();
             }
-            Emitter::Infinite { radiance } => {
+            Emitter::Infinite { radiance, .. } => {
                 g.kind = emitter_kind::INFINITE;
                 g.radiance = radiance.to_array();
             }
@@ -188,7 +206,7 @@ impl GpuEmitter {
 
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, error })
+        field_layout!(GpuEmitter { kind, two_sided, area, table, p, normal, radiance, error, portal })
     }
 }
 
@@ -491,7 +509,7 @@ unsafe impl ValidAsZeroBits for GpuEmissionTexture {}
 unsafe impl ValidAsZeroBits for SceneView {}
 
 const _: () = {
-    assert!(std::mem::size_of::<GpuEmitter>() == 80);
+    assert!(std::mem::size_of::<GpuEmitter>() == 84);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
     assert!(
         std::mem::size_of::<FrameParams>() == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>()
@@ -525,6 +543,13 @@ pub(crate) struct FrameTables {
     pub unbounded_lights: Vec<u32>,
 }
 
+/// Appends `portal`'s words to `tables`; the emitter's `portal` field for it.
+fn push_portal(tables: &mut Vec<f32>, portal: &PortalFrame) -> u32 {
+    let offset = tables.len() as u32;
+    tables.extend(portal_words(portal));
+    offset + 1
+}
+
 impl FrameTables {
     pub(crate) fn build(frame: &FrameContext) -> Self {
         let lights = &frame.lights;
@@ -536,9 +561,17 @@ impl FrameTables {
             .emitters
             .iter()
             .map(|e| match *e {
-                Emitter::Environment { index } => {
+                Emitter::Environment { index, portal } => {
                     let env = &lights.environments[index as usize];
-                    GpuEmitter::environment(env, env.tables(&mut environment_tables))
+                    let mut g = GpuEmitter::environment(env, env.tables(&mut environment_tables));
+                    g.portal = portal
+                        .map_or(0, |k| push_portal(&mut environment_tables, &lights.portals[k as usize]));
+                    g
+                }
+                Emitter::Infinite { portal: Some(k), .. } => {
+                    let mut g = GpuEmitter::new(e);
+                    g.portal = push_portal(&mut environment_tables, &lights.portals[k as usize]);
+                    g
                 }
                 Emitter::Triangle { texture: Some(t), .. } => {
                     let mut g = GpuEmitter::new(e);

@@ -175,6 +175,7 @@ fn environment_light(layout: EnvLayout) -> Light {
         image: Arc::new(EnvironmentImage::new(w, h, pixels, layout)),
         scale: Rgb::new(1.0, 0.8, 1.2),
         light_to_world: glam::Mat3::from_rotation_x(0.3) * glam::Mat3::from_rotation_z(0.2),
+        portal: None,
     }
 }
 
@@ -185,9 +186,26 @@ fn test_frame(integrator: IntegratorSettings, lens: bool) -> (Scene, FrameContex
         .lights
         .push(Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::new(1.0, 2.0, 0.5) });
     scene.lights.push(Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) });
-    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
+    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3), portal: None });
     scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(2.0), 35.0, 10.0));
     scene.lights.push(environment_light(EnvLayout::EqualArea));
+    // Portals in the box's open front (facing out, -z): a constant sky and
+    // an image seen only through them.
+    let window = |x0: f32, x1: f32| {
+        let corners = [
+            Vec3::new(x0, 0.2, -1.0),
+            Vec3::new(x0, 1.6, -1.0),
+            Vec3::new(x1, 1.6, -1.0),
+            Vec3::new(x1, 0.2, -1.0),
+        ];
+        Some(atoll_scene::Portal::new(corners).unwrap())
+    };
+    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.3, 0.2, 0.1), portal: window(0.5, -0.5) });
+    let Light::Environment { image, scale, light_to_world, .. } = environment_light(EnvLayout::LatLong)
+    else {
+        unreachable!()
+    };
+    scene.lights.push(Light::Environment { image, scale, light_to_world, portal: window(0.9, 0.1) });
     if lens {
         scene.settings.camera.lens_radius = 0.05;
         scene.settings.camera.focal_distance = 3.5;
@@ -923,7 +941,7 @@ fn light_sampling_and_lookup_match() {
     scene.lights.extend([
         Light::Point { position: Vec3::new(0.2, 1.5, 0.1), intensity: Rgb::splat(3.0) },
         Light::Distant { direction: Vec3::new(0.3, -1.0, 0.2), radiance: Rgb::splat(0.7) },
-        Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) },
+        Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3), portal: None },
         // Aimed down into the sampled region, its falloff band crossing it.
         Light::spot(Vec3::new(0.0, 1.8, 0.0), -Vec3::Y, Rgb::new(4.0, 3.0, 2.0), 25.0, 10.0),
         environment_light(EnvLayout::LatLong),

@@ -17,6 +17,7 @@ pub mod lights;
 pub mod material_coeffs;
 pub mod material_layout;
 pub mod noise;
+pub mod portal;
 pub mod record;
 pub mod rng;
 pub mod sampling;

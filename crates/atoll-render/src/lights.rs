@@ -6,7 +6,7 @@
 //! replicated on every device, so any device can do next-event estimation
 //! and MIS for any path.
 
-use atoll_scene::{luminance, Light, LightSampler, Rgb, Scene};
+use atoll_scene::{luminance, Light, LightSampler, Portal, Rgb, Scene};
 use glam::{Vec2, Vec3};
 
 use std::sync::Arc;
@@ -15,6 +15,7 @@ use atoll_scene::TextureImage;
 
 use crate::environment::EnvironmentSampler;
 use crate::light_bvh::{LightBounds, LightBvh};
+use crate::portal::{split_strategy, PortalFrame};
 use crate::record::{pack_rgb9e5, unpack_rgb9e5};
 use crate::sampling::{sample_uniform_sphere, sample_uniform_triangle, UNIFORM_SPHERE_PDF};
 use crate::spawn;
@@ -32,12 +33,16 @@ pub enum Emitter {
         direction: Vec3,
         radiance: Rgb,
     },
+    /// With a `portal` of [`LightSet::portals`], only through it.
     Infinite {
         radiance: Rgb,
+        portal: Option<u32>,
     },
-    /// Image-based environment `index` of [`LightSet::environments`].
+    /// Image-based environment `index` of [`LightSet::environments`]; with
+    /// a `portal`, only through it.
     Environment {
         index: u32,
+        portal: Option<u32>,
     },
     /// `direction` is the cone's unit axis; see [`Light::Spot`].
     Spot {
@@ -112,6 +117,8 @@ pub struct LightSet {
     infinite: Vec<u32>,
     /// The image-based environments, by [`Emitter::Environment`] index.
     pub environments: Vec<EnvironmentSampler>,
+    /// The infinite lights' portals, by their emitters' `portal` index.
+    pub portals: Vec<PortalFrame>,
     /// Programs of emission textures ([`EmissionTexture::program`]).
     pub emission_ops: Vec<TexOp>,
     /// The scene's texture images (shared), which those programs read.
@@ -195,20 +202,24 @@ impl LightSet {
         let mut set = LightSet { sampler, ..Default::default() };
         let mut triangle_base = Vec::new();
         for light in &scene.lights {
-            set.emitters.push(match *light {
+            let emitter = match *light {
                 Light::Point { position, intensity } => Emitter::Point { position, intensity },
                 Light::Distant { direction, radiance } => {
                     Emitter::Distant { direction: direction.normalize(), radiance }
                 }
-                Light::Infinite { radiance } => Emitter::Infinite { radiance },
+                Light::Infinite { radiance, portal } => {
+                    Emitter::Infinite { radiance, portal: set.add_portal(portal) }
+                }
                 Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                     Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end }
                 }
-                Light::Environment { ref image, scale, light_to_world } => {
+                Light::Environment { ref image, scale, light_to_world, portal } => {
                     set.environments.push(EnvironmentSampler::new(image.clone(), scale, light_to_world));
-                    Emitter::Environment { index: set.environments.len() as u32 - 1 }
+                    let index = set.environments.len() as u32 - 1;
+                    Emitter::Environment { index, portal: set.add_portal(portal) }
                 }
-            });
+            };
+            set.emitters.push(emitter);
         }
         // Emission texture programs per textured emissive mesh.
         let mut mesh_programs = std::collections::HashMap::new();
@@ -287,10 +298,10 @@ impl LightSet {
                 Emitter::Distant { radiance, .. } => {
                     std::f32::consts::PI * scene_radius * scene_radius * luminance(radiance)
                 }
-                Emitter::Infinite { radiance } => {
+                Emitter::Infinite { radiance, .. } => {
                     4.0 * std::f32::consts::PI.powi(2) * scene_radius * scene_radius * luminance(radiance)
                 }
-                Emitter::Environment { index } => {
+                Emitter::Environment { index, .. } => {
                     4.0 * std::f32::consts::PI.powi(2)
                         * scene_radius
                         * scene_radius
@@ -488,7 +499,17 @@ impl LightSet {
                 delta: true,
                 target: AT_INFINITY,
             }),
-            Emitter::Environment { index } => {
+            Emitter::Infinite { portal: Some(_), .. } | Emitter::Environment { portal: Some(_), .. } => {
+                self.sample_through_portal(p, index, u).map(|(wi, radiance, pdf)| LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance,
+                    pdf: pmf * pdf,
+                    delta: false,
+                    target: AT_INFINITY,
+                })
+            }
+            Emitter::Environment { index, portal: None } => {
                 let (wi, radiance, pdf) = self.environments[index as usize].sample(u)?;
                 Some(LightSample {
                     wi,
@@ -517,7 +538,7 @@ impl LightSet {
                     target: point_target(position),
                 })
             }
-            Emitter::Infinite { radiance } => Some(LightSample {
+            Emitter::Infinite { radiance, portal: None } => Some(LightSample {
                 wi: sample_uniform_sphere(u),
                 distance: f32::INFINITY,
                 radiance,
@@ -618,23 +639,66 @@ impl LightSet {
         }
     }
 
-    /// Radiance of infinite light `index` along a ray leaving the scene in direction `w`.
-    pub fn environment_radiance(&self, index: u32, w: Vec3) -> Rgb {
-        match self.emitters[index as usize] {
-            Emitter::Infinite { radiance } => radiance,
-            Emitter::Environment { index } => self.environments[index as usize].radiance(w),
-            _ => Rgb::ZERO,
+    /// Radiance of infinite light `index` along a ray leaving the scene
+    /// from `origin` in the unit direction `w` (through its portal, if it
+    /// has one).
+    pub fn environment_radiance(&self, index: u32, origin: Vec3, w: Vec3) -> Rgb {
+        let (radiance, portal) = match self.emitters[index as usize] {
+            Emitter::Infinite { radiance, portal } => (radiance, portal),
+            Emitter::Environment { index, portal } => (self.environments[index as usize].radiance(w), portal),
+            _ => return Rgb::ZERO,
+        };
+        match portal {
+            Some(k) if !self.portals[k as usize].passes(origin, w) => Rgb::ZERO,
+            _ => radiance,
         }
     }
 
     /// Solid-angle pdf (with selection) that light sampling at `p` picks
     /// direction `w` from infinite light `index`.
     pub fn pdf_environment(&self, p: Vec3, index: u32, w: Vec3) -> f32 {
-        let direction_pdf = match self.emitters[index as usize] {
-            Emitter::Environment { index } => self.environments[index as usize].pdf(w),
-            _ => UNIFORM_SPHERE_PDF,
+        self.selection_pmf(p, index) * self.environment_direction_pdf(p, index, w)
+    }
+
+    /// The density of infinite light `index`'s direction sampling at `p`:
+    /// its own (the image's, or uniform), or with a portal the even
+    /// mixture of that and the portal's ([`crate::portal`]).
+    fn environment_direction_pdf(&self, p: Vec3, index: u32, w: Vec3) -> f32 {
+        let (own, portal) = match self.emitters[index as usize] {
+            Emitter::Environment { index, portal } => (self.environments[index as usize].pdf(w), portal),
+            Emitter::Infinite { portal, .. } => (UNIFORM_SPHERE_PDF, portal),
+            _ => return 0.0,
         };
-        self.selection_pmf(p, index) * direction_pdf
+        match portal {
+            Some(k) => 0.5 * own + 0.5 * self.portals[k as usize].pdf(p, w),
+            None => own,
+        }
+    }
+
+    /// A direction from `p` for infinite light `index`, which has a portal:
+    /// by the light's own sampling or towards a point of the portal
+    /// ([`crate::portal::split_strategy`]); its radiance (zero unless
+    /// through the portal) and the mixture's density.
+    fn sample_through_portal(&self, p: Vec3, index: u32, u: Vec2) -> Option<(Vec3, Rgb, f32)> {
+        let (through_portal, u) = split_strategy(u);
+        let wi = match self.emitters[index as usize] {
+            Emitter::Infinite { portal: Some(k), .. } | Emitter::Environment { portal: Some(k), .. }
+                if through_portal =>
+            {
+                self.portals[k as usize].sample(p, u)?.0
+            }
+            Emitter::Environment { index, .. } => self.environments[index as usize].sample(u)?.0,
+            _ => sample_uniform_sphere(u),
+        };
+        let pdf = self.environment_direction_pdf(p, index, wi);
+        (pdf > 0.0).then(|| (wi, self.environment_radiance(index, p, wi), pdf))
+    }
+
+    /// Adds `portal` to [`Self::portals`]; its index.
+    fn add_portal(&mut self, portal: Option<Portal>) -> Option<u32> {
+        let portal = portal?;
+        self.portals.push(PortalFrame::new(&portal));
+        Some(self.portals.len() as u32 - 1)
     }
 }
 

@@ -578,7 +578,7 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
         fov_degrees: 50.0,
         ..Camera::default()
     };
-    scene.lights.push(Light::Infinite { radiance: Rgb::ONE });
+    scene.lights.push(Light::Infinite { radiance: Rgb::ONE, portal: None });
     let options = RenderOptions {
         resolution: UVec2::new(24, 24),
         spp: 48,

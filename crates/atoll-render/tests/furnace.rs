@@ -73,7 +73,7 @@ fn white_sphere_under_uniform_sky_is_invisible() {
         Vec3::new(0.0, 0.0, -3.0),
         Vec3::ZERO,
     );
-    scene.lights.push(Light::Infinite { radiance: Rgb::ONE });
+    scene.lights.push(Light::Infinite { radiance: Rgb::ONE, portal: None });
     let film = render_with(&Arc::new(scene), options(64, 8), None);
     assert_finite(&film);
     let pixels = film.pixels();
@@ -101,6 +101,7 @@ fn white_sphere_under_a_uniform_environment_image_is_invisible() {
             image: Arc::new(image),
             scale: Rgb::splat(2.0),
             light_to_world: glam::Mat3::from_rotation_x(0.4),
+            portal: None,
         });
         let film = render_with(&Arc::new(scene), options(64, 8), None);
         assert_finite(&film);
@@ -184,7 +185,7 @@ fn white_principled_spheres_under_uniform_sky() {
     ] {
         let mut scene =
             scene_with(vec![sphere(0)], vec![material.clone()], Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO);
-        scene.lights.push(Light::Infinite { radiance: Rgb::ONE });
+        scene.lights.push(Light::Infinite { radiance: Rgb::ONE, portal: None });
         let film = render_with(&Arc::new(scene), options(64, 16), None);
         assert_finite(&film);
         let pixels = film.pixels();

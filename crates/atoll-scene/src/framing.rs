@@ -85,7 +85,7 @@ pub fn framing_camera(bounds: Option<(Vec3, Vec3)>) -> Camera {
 /// The default sky and sun (see the module docs).
 pub fn default_lights() -> Vec<Light> {
     vec![
-        Light::Infinite { radiance: Rgb::splat(SKY_RADIANCE) },
+        Light::Infinite { radiance: Rgb::splat(SKY_RADIANCE), portal: None },
         Light::Distant { direction: -SUN_FROM.normalize(), radiance: Rgb::splat(SUN_RADIANCE) },
     ]
 }

@@ -353,7 +353,7 @@ impl Landscape {
         let to_sun = Vec3::new(-0.75, 0.6, 0.2).normalize();
         scene.lights = vec![
             Light::Distant { direction: -to_sun, radiance: Rgb::new(3.0, 2.8, 2.45) },
-            Light::Infinite { radiance: Rgb::new(0.28, 0.38, 0.55) },
+            Light::Infinite { radiance: Rgb::new(0.28, 0.38, 0.55), portal: None },
         ];
     }
 }

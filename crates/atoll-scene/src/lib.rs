@@ -36,7 +36,7 @@ pub use camera::{
 };
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
-pub use light::{AreaEmission, Light};
+pub use light::{AreaEmission, Light, Portal};
 pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, Material, MaterialId, PrincipledParams,

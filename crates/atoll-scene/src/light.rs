@@ -40,16 +40,48 @@ pub enum Light {
     /// Directional light: radiance `radiance` arriving along `direction`
     /// (the direction light travels, normalised).
     Distant { direction: Vec3, radiance: Rgb },
-    /// Constant environment light of radiance `radiance` from every direction.
-    Infinite { radiance: Rgb },
+    /// Constant environment light of radiance `radiance` from every
+    /// direction (with a `portal`: only through it).
+    Infinite { radiance: Rgb, portal: Option<Portal> },
     /// pbrt-v4's spot light: intensity `intensity` (W/sr) along the unit
     /// axis `direction`, scaled by `smoothstep(cos_falloff_end,
     /// cos_falloff_start, cos θ)` away from it (full inside the inner cone,
     /// none outside the outer one).
     Spot { position: Vec3, direction: Vec3, intensity: Rgb, cos_falloff_start: f32, cos_falloff_end: f32 },
     /// An image-based environment: radiance `scale × image(d)` from world
-    /// direction `light_to_world × d` (a rotation; `d` in the image's space).
-    Environment { image: Arc<EnvironmentImage>, scale: Rgb, light_to_world: Mat3 },
+    /// direction `light_to_world × d` (a rotation; `d` in the image's space);
+    /// with a `portal`, only through it.
+    Environment { image: Arc<EnvironmentImage>, scale: Rgb, light_to_world: Mat3, portal: Option<Portal> },
+}
+
+/// pbrt-v4's infinite-light `portal`: a rectangle in world space (corners
+/// in order) through which alone its environment shines: a ray sees the
+/// environment only if it leaves through the rectangle, from its back
+/// (the side its frame's z faces away from; pbrt's `PortalImageInfiniteLight`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Portal {
+    pub corners: [Vec3; 4],
+}
+
+impl Portal {
+    /// The portal with these corners, if they make a rectangle (pbrt's
+    /// test: opposite edges parallel and adjacent edges perpendicular,
+    /// within 0.001 in their cosines).
+    pub fn new(corners: [Vec3; 4]) -> Result<Portal, String> {
+        let [p0, p1, p2, p3] = corners.map(|c| c.as_dvec3());
+        let edges = [p1 - p0, p2 - p1, p2 - p3, p3 - p0];
+        if edges.iter().any(|e| e.length() == 0.0 || !e.is_finite()) {
+            return Err("the portal has corners that coincide".into());
+        }
+        let [p01, p12, p32, p03] = edges.map(|e| e.normalize());
+        let parallel = (p01.dot(p32) - 1.0).abs() <= 1e-3 && (p12.dot(p03) - 1.0).abs() <= 1e-3;
+        let perpendicular =
+            [p01.dot(p12), p12.dot(p32), p32.dot(p03), p03.dot(p01)].iter().all(|c| c.abs() <= 1e-3);
+        if !(parallel && perpendicular) {
+            return Err("the portal is not a planar rectangle (corners in order)".into());
+        }
+        Ok(Portal { corners })
+    }
 }
 
 impl Light {

@@ -404,8 +404,8 @@ fn light_sources() {
     assert_eq!(radiance, Rgb::splat(2.0));
     let Light::Distant { direction, .. } = l[2] else { panic!() };
     assert_close(direction, -Vec3::Y, 1e-6);
-    assert_eq!(l[3], Light::Infinite { radiance: Rgb::ONE });
-    assert_eq!(l[4], Light::Infinite { radiance: Rgb::ONE });
+    assert_eq!(l[3], Light::Infinite { radiance: Rgb::ONE, portal: None });
+    assert_eq!(l[4], Light::Infinite { radiance: Rgb::ONE, portal: None });
     let msgs: Vec<_> = loaded.warnings.iter().map(|w| w.message.as_str()).collect();
     assert!(msgs.iter().any(|m| m.contains("sky.exr") && m.contains("using constant white")), "{msgs:?}");
     // Spot: from (0,0,0) to (0,-1,0) under Translate 0 4 0; cone 30 degrees, falloff from 20.
@@ -542,7 +542,7 @@ fn infinite_light_with_an_image() {
     exr::prelude::write_rgb_file(dir.join("sky.exr"), 8, 4, |x, _| (x as f32, 1.0, 2.0)).unwrap();
     let text = "WorldBegin\nAttributeBegin\nRotate 90 1 0 0\nLightSource \"infinite\" \"string filename\" \"sky.exr\" \"float scale\" 3\nAttributeEnd\n";
     let loaded = atoll_scene::pbrt::load_str(text, "env.pbrt", &dir).unwrap();
-    let Light::Environment { image, scale, light_to_world } = &loaded.scene.lights[0] else {
+    let Light::Environment { image, scale, light_to_world, .. } = &loaded.scene.lights[0] else {
         panic!("{:?}", loaded.scene.lights)
     };
     assert_eq!((image.width, image.height, image.layout), (8, 4, atoll_scene::EnvLayout::LatLong));
@@ -574,7 +574,9 @@ LightSource "infinite" "string filename" "sky.exr" "float illuminance" 10
 "#;
     let loaded = atoll_scene::pbrt::load_str(text, "env.pbrt", &dir).unwrap();
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
-    let Light::Infinite { radiance } = loaded.scene.lights[0] else { panic!("{:?}", loaded.scene.lights) };
+    let Light::Infinite { radiance, portal: None } = loaded.scene.lights[0] else {
+        panic!("{:?}", loaded.scene.lights)
+    };
     // 0.5 * 2 * 10 / (π * 0.5): illuminance 2 × 10 with the scale.
     assert_close(radiance, Vec3::splat(20.0 / std::f32::consts::PI), 1e-5);
     let Light::Environment { image, scale, .. } = &loaded.scene.lights[1] else { panic!() };
@@ -699,19 +701,35 @@ fn spectra_from_files() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// pbrt-v4's infinite-light `portal`: four corners in the light's space
+/// (here moved by the CTM), a rectangle; other point counts and shapes
+/// are `file:line` errors.
 #[test]
-fn infinite_light_portals_are_warned_about() {
+fn infinite_light_portals_are_read() {
+    let load = |text: &str| atoll_scene::pbrt::load_str(text, "u.pbrt", std::path::Path::new("."));
     let portal = "\"point3 portal\" [ 0 0 0  1 0 0  1 1 0  0 1 0 ]";
-    let w = load_str_warnings(&format!("WorldBegin\nLightSource \"infinite\" {portal}"));
-    assert_eq!(w.len(), 1, "{w:?}");
-    assert!(w[0].to_string().starts_with("u.pbrt:2:1: "), "{w:?}");
-    assert!(w[0].message.contains("the portal is not used"), "{w:?}");
-    let e = atoll_scene::pbrt::load_str(
-        "WorldBegin\nLightSource \"infinite\" \"point3 portal\" [ 0 0 0  1 0 0 ]",
-        "u.pbrt",
-        std::path::Path::new("."),
-    )
-    .unwrap_err()
-    .to_string();
-    assert!(e.starts_with("u.pbrt:2:1: ") && e.contains("needs 4 points"), "{e}");
+    let loaded = load(&format!("WorldBegin\nTranslate 0 0 5\nLightSource \"infinite\" {portal}")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let Light::Infinite { portal: Some(p), .. } = loaded.scene.lights[0] else {
+        panic!("{:?}", loaded.scene.lights)
+    };
+    assert_eq!(
+        p.corners,
+        [
+            Vec3::new(0.0, 0.0, 5.0),
+            Vec3::new(1.0, 0.0, 5.0),
+            Vec3::new(1.0, 1.0, 5.0),
+            Vec3::new(0.0, 1.0, 5.0)
+        ]
+    );
+    for (bad, why) in [
+        ("[ 0 0 0  1 0 0 ]", "needs 4 points"),
+        ("[ 0 0 0  1 0 0  1.5 1 0  0 1 0 ]", "not a planar rectangle"),
+        ("[ 0 0 0  0 0 0  0 0 0  0 0 0 ]", "coincide"),
+    ] {
+        let e = load(&format!("WorldBegin\nLightSource \"infinite\" \"point3 portal\" {bad}"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("u.pbrt:2:1: ") && e.contains(why), "{e}");
+    }
 }

@@ -260,7 +260,7 @@ fn v3_lights() {
     assert!(load_str(text, "l.pbrt", Path::new(".")).unwrap_err().to_string().contains("sky.exr"));
     let loaded = allowing_missing(|| load_str(text, "l.pbrt", Path::new("."))).unwrap();
     let l = &loaded.scene.lights;
-    assert_eq!(l[0], Light::Infinite { radiance: Rgb::ONE });
+    assert_eq!(l[0], Light::Infinite { radiance: Rgb::ONE, portal: None });
     let Light::Distant { direction, radiance } = l[1] else { panic!("{:?}", l[1]) };
     assert_close(direction, -glam::Vec3::Y, 1e-6);
     // v3's (temperature, scale) blackbody: the colour of 5500 K at luminance 2.

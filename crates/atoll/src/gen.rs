@@ -362,10 +362,10 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
                 v(*direction),
                 v(*radiance)
             )?,
-            Light::Infinite { radiance } => {
-                writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(*radiance))?
+            Light::Infinite { radiance, portal } => {
+                writeln!(out, "LightSource \"infinite\" \"rgb L\" {}{}", v(*radiance), portal_text(portal))?
             }
-            Light::Environment { image, scale, .. } => {
+            Light::Environment { image, scale, portal, .. } => {
                 // The image itself is not written out: its mean stands in.
                 let mean = image.pixels.iter().copied().sum::<Vec3>() / image.pixels.len().max(1) as f32;
                 writeln!(
@@ -373,7 +373,12 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
                     "# environment image ({}x{}) written as its mean radiance",
                     image.width, image.height
                 )?;
-                writeln!(out, "LightSource \"infinite\" \"rgb L\" {}", v(mean * *scale))?
+                writeln!(
+                    out,
+                    "LightSource \"infinite\" \"rgb L\" {}{}",
+                    v(mean * *scale),
+                    portal_text(portal)
+                )?
             }
             Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let cone_angle = cos_falloff_end.clamp(-1.0, 1.0).acos().to_degrees();
@@ -440,6 +445,14 @@ fn write_geometry(scene: &Scene, out: &mut impl Write) -> io::Result<()> {
         writeln!(out, " ObjectInstance \"{}\"", names[inst.object as usize])?;
     }
     writeln!(out, "AttributeEnd")
+}
+
+/// An infinite light's `portal` parameter (world-space corners: lights are
+/// written outside any transform), or nothing.
+fn portal_text(portal: &Option<atoll_scene::Portal>) -> String {
+    let Some(p) = portal else { return String::new() };
+    let corners: Vec<String> = p.corners.iter().map(|c| format!("{} {} {}", c.x, c.y, c.z)).collect();
+    format!(" \"point3 portal\" [ {} ]", corners.join("  "))
 }
 
 #[cfg(test)]
@@ -524,6 +537,22 @@ mod tests {
         // Materials keep their ids too: the landscape's meshes use them in id order.
         assert_eq!(scene.materials, back.materials);
         assert!(scene.meshes.iter().zip(&back.meshes).all(|(m, n)| m.material == n.material));
+    }
+
+    /// A portal is written in world space and read back the same.
+    #[test]
+    fn infinite_light_portals_round_trip() {
+        let mut scene = atoll_scene::cornell::builtin_cornell_box();
+        let corners = [
+            Vec3::new(0.5, 0.25, -1.0),
+            Vec3::new(0.5, 1.5, -1.0),
+            Vec3::new(-0.5, 1.5, -1.0),
+            Vec3::new(-0.5, 0.25, -1.0),
+        ];
+        let portal = Some(atoll_scene::Portal::new(corners).unwrap());
+        scene.lights.push(Light::Infinite { radiance: Vec3::splat(0.5), portal });
+        let back = round_trip(&scene);
+        assert!(back.lights.contains(&scene.lights[0]), "{:?}", back.lights);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use super::*;
 fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
     let mut scene = atoll_scene::cornell::builtin_cornell_box();
     scene.lights.push(Light::Point { position: Vec3::new(0.1, 0.5, 0.2), intensity: Rgb::splat(2.0) });
-    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3) });
+    scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3), portal: None });
     scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(3.0), 40.0, 5.0));
     let pixels = (0..12).map(|i| Rgb::new(i as f32, 1.0, 0.5)).collect();
     scene.lights.push(Light::Environment {
@@ -23,6 +23,7 @@ fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
         )),
         scale: Rgb::splat(2.0),
         light_to_world: glam::Mat3::from_rotation_y(0.5),
+        portal: None,
     });
     let mut options = RenderOptions::from_scene(&scene);
     options.resolution = glam::UVec2::new(64, 48);
@@ -93,12 +94,14 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!(&g.p[..3], &position.to_array());
                 assert_eq!(g.radiance, intensity.to_array());
             }
-            Emitter::Infinite { radiance } => {
+            Emitter::Infinite { radiance, portal } => {
                 assert_eq!(g.kind, emitter_kind::INFINITE);
                 assert_eq!(g.radiance, radiance.to_array());
+                assert_eq!(portal, None);
+                assert_eq!(g.portal, 0);
             }
             Emitter::Distant { .. } => unreachable!("no distant light in this scene"),
-            Emitter::Environment { index } => {
+            Emitter::Environment { index, .. } => {
                 let env = &lights.environments[index as usize];
                 assert_eq!(g.kind, emitter_kind::ENVIRONMENT);
                 assert_eq!(g.p, env.light_to_world.to_cols_array());
@@ -149,4 +152,35 @@ fn empty_frame_tables_still_have_a_distribution() {
     assert_eq!(t.light_cdf, [1.0], "one entry: select() never reads it without emitters");
     let p = FrameParams::from_frame(&frame);
     assert_eq!((p.light_count, p.infinite_count, p.triangle_key_count), (0, 0, 0));
+}
+
+/// An infinite light's portal travels in the environment tables: the
+/// emitter names its words, which are the light set's portal frame.
+#[test]
+fn portals_travel_in_the_environment_tables() {
+    let mut scene = atoll_scene::cornell::builtin_cornell_box();
+    let corners = [
+        Vec3::new(0.5, 0.2, -1.0),
+        Vec3::new(0.5, 1.6, -1.0),
+        Vec3::new(-0.5, 1.6, -1.0),
+        Vec3::new(-0.5, 0.2, -1.0),
+    ];
+    let portal = Some(atoll_scene::Portal::new(corners).unwrap());
+    scene.lights.push(Light::Infinite { radiance: Rgb::splat(0.5), portal });
+    let frame = FrameContext::new(&scene, RenderOptions::from_scene(&scene));
+    let t = FrameTables::build(&frame);
+    let (g, e) = t
+        .emitters
+        .iter()
+        .zip(&frame.lights.emitters)
+        .find(|(g, _)| g.kind == emitter_kind::INFINITE)
+        .unwrap();
+    let Emitter::Infinite { portal: Some(k), .. } = *e else { panic!("{e:?}") };
+    assert!(g.portal > 0);
+    let at = g.portal as usize - 1;
+    assert_eq!(
+        &t.environment_tables[at..at + PORTAL_WORDS],
+        &portal_words(&frame.lights.portals[k as usize])
+    );
+    assert_eq!(frame.lights.portals[k as usize].z, -Vec3::Z, "the frame faces out of the box");
 }

@@ -100,7 +100,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     let from = r.origin();
     if !r.has(flags::HIT) {
         for &i in lights.infinite_lights() {
-            let le = lights.environment_radiance(i, dir);
+            let le = lights.environment_radiance(i, from, dir);
             let w = if specular {
                 1.0
             } else {

@@ -7,8 +7,8 @@ use glam::{DMat4, DVec3, Vec3};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, Light, Material, Rgb, TexInput,
-    TexturedParam,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, Light, Material, Portal, Rgb,
+    TexInput, TexturedParam,
 };
 
 use super::params::{ParamList, ParamType, SpectrumParam};
@@ -545,22 +545,28 @@ pub fn light(
                     1.0
                 }
             };
-            if let Some(portal) = p.numbers("portal", ParamType::Point3) {
-                let points = portal.len() / 3;
-                if points != 4 || portal.len() % 3 != 0 {
+            // The portal's corners are in the light's space, as pbrt-v4 reads them.
+            let portal = match p.numbers("portal", ParamType::Point3) {
+                None => None,
+                Some(points) if points.len() != 12 => {
                     return Err(SceneError::at(
                         loc,
-                        format!("{what}: \"portal\" needs 4 points (a rectangle), got {points}"),
+                        format!("{what}: \"portal\" needs 4 points (a rectangle), got {}", points.len() / 3),
                     ));
                 }
-                w.warn(
-                    loc,
-                    format!(
-                        "{what}: the portal is not used: atoll samples the whole sky, and lets it shine in \
-                         outside the portal too (pbrt-v4 only through it); a closed room renders alike, noisier"
-                    ),
-                );
-            }
+                Some(points) => {
+                    let corner = |i: usize| {
+                        ctm.transform_point3(glam::DVec3::new(
+                            points[3 * i],
+                            points[3 * i + 1],
+                            points[3 * i + 2],
+                        ))
+                        .as_vec3()
+                    };
+                    let portal = Portal::new([0, 1, 2, 3].map(corner));
+                    Some(portal.map_err(|e| SceneError::at(loc, format!("{what}: {e}")))?)
+                }
+            };
             // pbrt-v3 called the environment map "mapname".
             let filename = match p.string("filename")? {
                 Some(f) => Some(f),
@@ -591,6 +597,7 @@ pub fn light(
                             image: std::sync::Arc::new(image),
                             scale: Rgb::splat(scale),
                             light_to_world,
+                            portal,
                         }));
                     }
                     Err(e) => {
@@ -601,7 +608,7 @@ pub fn light(
             }
             let l = l.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
             let k_e = std::f64::consts::PI * crate::luminance(l) as f64;
-            Light::Infinite { radiance: l * scale * normalise(k_e) }
+            Light::Infinite { radiance: l * scale * normalise(k_e), portal }
         }
         _ => {
             p.mark_all_used();
