@@ -23,6 +23,7 @@ mod ahead;
 pub mod builder;
 pub mod curves;
 pub mod entities;
+mod fluorescent;
 pub mod params;
 pub mod parser;
 mod pending;

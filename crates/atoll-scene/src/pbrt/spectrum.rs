@@ -41,16 +41,33 @@ pub fn named_glass(name: &str) -> Option<f32> {
 
 /// Named illuminants: pbrt normalises light spectra to unit luminance, and
 /// D65 is the white point of sRGB, so it becomes RGB white; A is a
-/// blackbody at 2856 K, D50 and ACES's D60 daylight at 5003 K and 6000 K.
-/// (The fluorescent `stdillum-F*` are tabulated spectra atoll lacks.)
+/// blackbody at 2856 K, D50 and ACES's D60 daylight at 5003 K and 6000 K;
+/// `stdillum-F1` to `-F12` the CIE fluorescent tables.
 pub fn named_illuminant(name: &str) -> Option<Vec3> {
     match name {
         "stdillum-D65" => Some(Vec3::ONE),
         "stdillum-A" => Some(blackbody_rgb(2856.0)),
         "stdillum-D50" => Some(crate::camera::daylight_rgb(5003.0)),
         "illum-acesD60" => Some(crate::camera::daylight_rgb(6000.0)),
-        _ => None,
+        _ => {
+            let n: usize = name.strip_prefix("stdillum-F")?.parse().ok()?;
+            let table = super::fluorescent::FLUORESCENT.get(n.checked_sub(1)?)?;
+            Some(emission_rgb(|l| tabulated(table, l)))
+        }
     }
+}
+
+/// A fluorescent table's value at `nm`, linear between its samples and
+/// zero outside them (pbrt's piecewise-linear spectra).
+fn tabulated(table: &[f32], nm: f64) -> f64 {
+    use super::fluorescent::{FIRST_NM, STEP_NM};
+    let x = (nm - FIRST_NM) / STEP_NM;
+    let i = x.floor();
+    if i < 0.0 || i as usize + 1 >= table.len() {
+        return if x == (table.len() - 1) as f64 { table[table.len() - 1] as f64 } else { 0.0 };
+    }
+    let (a, b) = (table[i as usize] as f64, table[i as usize + 1] as f64);
+    a + (x - i) * (b - a)
 }
 
 /// Whether `name` is a spectrum this module knows by name.
@@ -126,13 +143,23 @@ pub fn sampled_rgb(pairs: &[(f32, f32)]) -> Vec3 {
 
 /// Linear-sRGB colour of a blackbody at `kelvin`, normalised to luminance 1
 /// (pbrt-v4 divides light spectra by their luminance, so only the colour of a
-/// blackbody matters; `scale` sets the brightness). Integrates Planck's law
-/// against the analytic CIE 1931 fit of Wyman, Sloan and Shirley (2013).
+/// blackbody matters; `scale` sets the brightness).
 pub fn blackbody_rgb(kelvin: f32) -> Vec3 {
     if kelvin <= 0.0 {
         return Vec3::ZERO;
     }
     let t = kelvin as f64;
+    // Planck's law up to a constant factor (removed by the normalisation).
+    emission_rgb(|l| {
+        let lm = l * 1e-9;
+        1.0 / (lm.powi(5) * ((0.014387769 / (lm * t)).exp() - 1.0))
+    })
+}
+
+/// Linear-sRGB colour of the emission spectrum `spd` (of the wavelength in
+/// nm), normalised to luminance 1: integrated against the analytic CIE 1931
+/// fit of Wyman, Sloan and Shirley (2013) from 360 to 830 nm.
+fn emission_rgb(spd: impl Fn(f64) -> f64) -> Vec3 {
     let g = |x: f64, mu: f64, s1: f64, s2: f64| {
         let s = if x < mu { s1 } else { s2 };
         (-(x - mu) * (x - mu) / (2.0 * s * s)).exp()
@@ -140,9 +167,7 @@ pub fn blackbody_rgb(kelvin: f32) -> Vec3 {
     let (mut x, mut y, mut z) = (0.0, 0.0, 0.0);
     for i in 0..=470 {
         let l = 360.0 + i as f64;
-        // Planck's law up to a constant factor (removed by the normalisation).
-        let lm = l * 1e-9;
-        let b = 1.0 / (lm.powi(5) * ((0.014387769 / (lm * t)).exp() - 1.0));
+        let b = spd(l);
         x += b
             * (1.056 * g(l, 599.8, 37.9, 31.0) + 0.362 * g(l, 442.0, 16.0, 26.7)
                 - 0.065 * g(l, 501.1, 20.4, 26.2));
@@ -204,7 +229,43 @@ mod tests {
         assert!(warmth(a) > 3.0, "{a}");
         // The daylight locus at D65's temperature is sRGB's white.
         assert!((crate::camera::daylight_rgb(6504.0) - Vec3::ONE).abs().max_element() < 0.01);
-        assert!(named_illuminant("stdillum-F1").is_none());
+        assert!(named_illuminant("stdillum-F0").is_none() && named_illuminant("stdillum-F13").is_none());
+    }
+
+    /// The fluorescent illuminants have unit luminance and, back in CIE
+    /// 1931 xy, the chromaticities the CIE publishes for them (CIE 15:2004,
+    /// table T.8), within the analytic colour-matching fit's error.
+    #[test]
+    fn fluorescent_illuminants_have_their_chromaticities() {
+        let published = [
+            (0.3131, 0.3373),
+            (0.3721, 0.3751),
+            (0.4091, 0.3941),
+            (0.4402, 0.4031),
+            (0.3138, 0.3452),
+            (0.3779, 0.3882),
+            (0.3129, 0.3292),
+            (0.3458, 0.3586),
+            (0.3741, 0.3727),
+            (0.3458, 0.3588),
+            (0.3805, 0.3769),
+            (0.4370, 0.4042),
+        ];
+        for (i, (x, y)) in published.into_iter().enumerate() {
+            let c = named_illuminant(&format!("stdillum-F{}", i + 1)).unwrap();
+            let xyz = Vec3::new(
+                Vec3::new(0.4124, 0.3576, 0.1805).dot(c),
+                Vec3::new(0.2126, 0.7152, 0.0722).dot(c),
+                Vec3::new(0.0193, 0.1192, 0.9505).dot(c),
+            );
+            assert!((xyz.y - 1.0).abs() < 2e-3, "F{}: {c}", i + 1);
+            let (cx, cy) = (xyz.x / xyz.element_sum(), xyz.y / xyz.element_sum());
+            assert!(
+                (cx - x).abs() < 0.004 && (cy - y).abs() < 0.004,
+                "F{}: ({cx}, {cy}) against ({x}, {y})",
+                i + 1
+            );
+        }
     }
 
     #[test]
