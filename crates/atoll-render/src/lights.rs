@@ -499,18 +499,13 @@ impl LightSet {
                 delta: true,
                 target: AT_INFINITY,
             }),
-            Emitter::Infinite { portal: Some(_), .. } | Emitter::Environment { portal: Some(_), .. } => {
-                self.sample_through_portal(p, index, u).map(|(wi, radiance, pdf)| LightSample {
-                    wi,
-                    distance: f32::INFINITY,
-                    radiance,
-                    pdf: pmf * pdf,
-                    delta: false,
-                    target: AT_INFINITY,
-                })
-            }
-            Emitter::Environment { index, portal: None } => {
-                let (wi, radiance, pdf) = self.environments[index as usize].sample(u)?;
+            Emitter::Infinite { portal: Some(_), .. } | Emitter::Environment { .. } => {
+                let (wi, radiance, pdf) = match self.emitters[index as usize] {
+                    Emitter::Environment { index, portal: None } => {
+                        self.environments[index as usize].sample(u)?
+                    }
+                    _ => self.sample_through_portal(p, index, u)?,
+                };
                 Some(LightSample {
                     wi,
                     distance: f32::INFINITY,
