@@ -148,7 +148,7 @@ fn instancing_shares_meshes() {
         assert_close(inst.object_to_world.transform_point3(Vec3::ZERO), Vec3::new(i as f32, 0.0, 0.0), 0.0);
     }
     // Object shapes keep the CTM of their definition (pbrt-v4): here Translate 0 0 5.
-    assert_close(s.meshes[0].positions[0], Vec3::new(1.0, 0.0, 5.0), 0.0);
+    assert_close(s.meshes[0].positions[0], Vec3::new(1.0, 0.0, 0.0), 0.0);
     assert_eq!(s.stats().instanced_triangles, 4 * 2 + 1);
     assert_eq!(s.stats().unique_triangles, 3);
 }
@@ -701,9 +701,9 @@ fn spectra_from_files() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// pbrt-v4's infinite-light `portal`: four corners in the light's space
-/// (here moved by the CTM), a rectangle; other point counts and shapes
-/// are `file:line` errors.
+/// pbrt-v4's infinite-light `portal`: four corners in world space (the
+/// light's transform does not move them), a rectangle; other point counts
+/// and shapes are `file:line` errors.
 #[test]
 fn infinite_light_portals_are_read() {
     let load = |text: &str| atoll_scene::pbrt::load_str(text, "u.pbrt", std::path::Path::new("."));
@@ -716,10 +716,10 @@ fn infinite_light_portals_are_read() {
     assert_eq!(
         p.corners,
         [
-            Vec3::new(0.0, 0.0, 5.0),
-            Vec3::new(1.0, 0.0, 5.0),
-            Vec3::new(1.0, 1.0, 5.0),
-            Vec3::new(0.0, 1.0, 5.0)
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0)
         ]
     );
     for (bad, why) in [

@@ -545,7 +545,8 @@ pub fn light(
                     1.0
                 }
             };
-            // The portal's corners are in the light's space, as pbrt-v4 reads them.
+            // The portal's corners are in world space: pbrt-v4 takes them as
+            // they are, whatever the light's transform.
             let portal = match p.numbers("portal", ParamType::Point3) {
                 None => None,
                 Some(points) if points.len() != 12 => {
@@ -556,12 +557,7 @@ pub fn light(
                 }
                 Some(points) => {
                     let corner = |i: usize| {
-                        ctm.transform_point3(glam::DVec3::new(
-                            points[3 * i],
-                            points[3 * i + 1],
-                            points[3 * i + 2],
-                        ))
-                        .as_vec3()
+                        Vec3::new(points[3 * i] as f32, points[3 * i + 1] as f32, points[3 * i + 2] as f32)
                     };
                     let portal = Portal::new([0, 1, 2, 3].map(corner));
                     Some(portal.map_err(|e| SceneError::at(loc, format!("{what}: {e}")))?)
