@@ -148,7 +148,7 @@ fn instancing_shares_meshes() {
         assert_close(inst.object_to_world.transform_point3(Vec3::ZERO), Vec3::new(i as f32, 0.0, 0.0), 0.0);
     }
     // Object shapes keep the CTM of their definition (pbrt-v4): here Translate 0 0 5.
-    assert_close(s.meshes[0].positions[0], Vec3::new(1.0, 0.0, 0.0), 0.0);
+    assert_close(s.meshes[0].positions[0], Vec3::new(1.0, 0.0, 5.0), 0.0);
     assert_eq!(s.stats().instanced_triangles, 4 * 2 + 1);
     assert_eq!(s.stats().unique_triangles, 3);
 }
