@@ -1,8 +1,8 @@
 //! BSDFs with pbrt-v4 semantics for the scene's materials: Lambertian
 //! diffuse, conductor (smooth mirror or anisotropic GGX), dielectric
 //! (smooth or rough, reflection and transmission), diffuse transmission,
-//! thin dielectric, coated diffuse (a stochastic layered BSDF) and the
-//! Disney-principled BSDF, in RGB.
+//! thin dielectric, coated diffuse (a stochastic layered BSDF), the
+//! Disney-principled BSDF and hair fibres, in RGB.
 //!
 //! Conventions (pbrt's):
 //! - Everything works in the local shading frame ([`Frame`]): the shading
@@ -23,12 +23,14 @@
 mod conductor;
 mod dielectric;
 pub mod fresnel;
+pub mod hair;
 pub mod layered;
 pub mod microfacet;
 pub mod principled;
 mod thin;
 
 pub use fresnel::{fr_complex, fr_complex_rgb, fr_dielectric, reflect, refract};
+pub use hair::Hair;
 pub use layered::{Coated, CoatedBase};
 pub use microfacet::TrowbridgeReitz;
 pub use principled::Principled;
@@ -62,6 +64,18 @@ impl Frame {
         let x = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
         let y = Vec3::new(b, sign + n.y * n.y * a, -n.y);
         Frame { x, y, z: n }
+    }
+
+    /// Basis with `z` the unit normal and `x` the direction of `x_hint` in
+    /// the plane normal to it (pbrt's `Frame::FromXZ` after making the two
+    /// orthogonal): a hair's frame, whose x is its axis. `from_z` when the
+    /// hint is (nearly) zero or along the normal.
+    pub fn from_xz(x_hint: Vec3, z: Vec3) -> Frame {
+        let x = (x_hint - z * x_hint.dot(z)).normalize_or_zero();
+        if x == Vec3::ZERO || !x.is_finite() {
+            return Frame::from_z(z);
+        }
+        Frame { x, y: z.cross(x), z }
     }
 
     /// World-space vector to local coordinates (components along x, y, z).
@@ -138,6 +152,9 @@ pub enum Bsdf {
     /// GGX specular, clearcoat and rough glass, lobes picked by weight
     /// ([`Principled`]).
     Principled(Principled),
+    /// A hair fibre (pbrt-v4's `HairBxDF`, [`Hair`]), in a frame whose x is
+    /// the fibre's axis ([`Frame::from_xz`]). It scatters to both sides.
+    Hair(Hair),
 }
 
 /// The result of [`Bsdf::sample`].
@@ -184,6 +201,7 @@ impl Bsdf {
             // A mix is one of its materials per hit (`FrameContext::material_at`).
             Material::Mix { .. } => None,
             Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),
+            Material::Hair(params) => Some(Bsdf::Hair(Hair::new(&params))),
         }
     }
 
@@ -213,6 +231,7 @@ impl Bsdf {
             Bsdf::ThinDielectric { .. } => Rgb::ZERO,
             Bsdf::Coated(c) => c.eval(wo, wi),
             Bsdf::Principled(p) => p.eval(wo, wi),
+            Bsdf::Hair(h) => h.eval(wo, wi),
         }
     }
 
@@ -244,6 +263,7 @@ impl Bsdf {
             Bsdf::ThinDielectric { .. } => 0.0,
             Bsdf::Coated(c) => c.pdf(wo, wi),
             Bsdf::Principled(p) => p.pdf(wo, wi),
+            Bsdf::Hair(h) => h.pdf(wo, wi),
         }
     }
 
@@ -279,6 +299,7 @@ impl Bsdf {
             Bsdf::ThinDielectric { eta } => thin::sample_thin_dielectric(eta, wo, uc)?,
             Bsdf::Coated(c) => c.sample(wo, uc, u)?,
             Bsdf::Principled(p) => p.sample(wo, uc, u)?,
+            Bsdf::Hair(h) => h.sample(wo, uc, u)?,
         };
         // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
         if s.pdf > 0.0 && s.wi.z != 0.0 && s.f.is_finite() {
@@ -303,6 +324,7 @@ impl Bsdf {
             Bsdf::ThinDielectric { .. } => true,
             Bsdf::Coated(c) => c.is_delta(),
             Bsdf::Principled(p) => p.is_delta(),
+            Bsdf::Hair(_) => false,
         }
     }
 

@@ -1,12 +1,13 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::{Coating, Material, PrincipledParams, Rgb};
+use atoll_scene::{Coating, HairParams, Material, PrincipledParams, Rgb};
+use glam::Vec3;
 use half::f16;
 
-use crate::bsdf::{Bsdf, Coated, CoatedBase, Principled};
+use crate::bsdf::{Bsdf, Coated, CoatedBase, Frame, Hair, Principled};
 use crate::material_layout::{
-    coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, principled,
+    coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, hair, principled,
     thin_dielectric,
 };
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
@@ -98,6 +99,14 @@ impl PackedMaterial {
                 c[principled::ETA] = p.eta;
                 MaterialKind::Principled
             }
+            Material::Hair(p) => {
+                put3(&mut c, hair::SIGMA_A, p.sigma_a);
+                c[hair::ETA] = p.eta;
+                c[hair::BETA_M] = p.beta_m;
+                c[hair::BETA_N] = p.beta_n;
+                c[hair::ALPHA] = p.alpha;
+                MaterialKind::Hair
+            }
         };
         PackedMaterial { kind, coeffs: c.map(f16::from_f32), mix }
     }
@@ -167,6 +176,35 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             transmission: r.coeff(principled::TRANSMISSION),
             eta: r.coeff(principled::ETA),
         }))),
+        MaterialKind::Hair => Some(Bsdf::Hair(Hair::new(&HairParams {
+            sigma_a: r.coeff3(hair::SIGMA_A),
+            eta: r.coeff(hair::ETA),
+            beta_m: r.coeff(hair::BETA_M),
+            beta_n: r.coeff(hair::BETA_N),
+            alpha: r.coeff(hair::ALPHA),
+        }))),
+    }
+}
+
+/// The local shading frame of a record's hit: about the shading normal,
+/// and for hair with x along the fibre's axis.
+pub fn shading_frame(r: &RayRecord) -> Frame {
+    let n = r.shading_normal().normalize_or_zero();
+    if r.material_kind() == MaterialKind::Hair {
+        Frame::from_xz(r.coeff3(hair::AXIS), n)
+    } else {
+        Frame::from_z(n)
+    }
+}
+
+/// Writes the fibre's axis into a hair hit's coefficients (nothing for
+/// other kinds): the surface's `dpdu`, normalised.
+pub fn store_hair_axis(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dpdu: Vec3) {
+    if kind == MaterialKind::Hair {
+        let axis = dpdu.normalize_or_zero();
+        for (slot, v) in coeffs[hair::AXIS..hair::AXIS + 3].iter_mut().zip(axis.to_array()) {
+            *slot = f16::from_f32(v);
+        }
     }
 }
 
@@ -300,6 +338,13 @@ mod tests {
                 transmission: 0.75,
                 eta: 1.5,
             }),
+            Material::Hair(HairParams {
+                sigma_a: Rgb::new(0.25, 0.5, 1.25),
+                eta: 1.5,
+                beta_m: 0.25,
+                beta_n: 0.375,
+                alpha: 2.0,
+            }),
         ];
         for m in &materials {
             let mut r = RayRecord::zeroed();
@@ -323,6 +368,7 @@ mod tests {
                     base: CoatedBase::Conductor { eta, k, alpha_x, alpha_y },
                 }) => Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }),
                 Bsdf::Principled(p) => Material::Principled(p.0),
+                Bsdf::Hair(h) => Material::Hair(h.params),
             };
             // f16 keeps ~3 significant digits.
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
@@ -345,7 +391,8 @@ mod tests {
                 | (Material::ThinDielectric { .. }, Material::ThinDielectric { .. })
                 | (Material::CoatedDiffuse(_), Material::CoatedDiffuse(_))
                 | (Material::CoatedConductor(_), Material::CoatedConductor(_))
-                | (Material::Principled(_), Material::Principled(_)) => assert_eq!(m, &back),
+                | (Material::Principled(_), Material::Principled(_))
+                | (Material::Hair(_), Material::Hair(_)) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }
         }

@@ -143,6 +143,19 @@ layouts! {
         TRANSMISSION: 11,
         ETA: 12,
     }
+    /// [`MaterialKind::Hair`].
+    Hair => hair {
+        SIGMA_A: 0..3,
+        ETA: 3,
+        BETA_M: 4,
+        BETA_N: 5,
+        /// Degrees.
+        ALPHA: 6,
+        /// The fibre's axis at the hit (the surface's `dpdu`, unit length):
+        /// not a material parameter, written with the hit, since the hair
+        /// BSDF's frame turns about it.
+        AXIS: 7..10,
+    }
 }
 
 #[cfg(test)]

@@ -57,6 +57,7 @@ pub enum MaterialKind {
     CoatedDiffuse = 7,
     Principled = 8,
     CoatedConductor = 9,
+    Hair = 10,
 }
 
 impl MaterialKind {
@@ -71,6 +72,7 @@ impl MaterialKind {
             7 => MaterialKind::CoatedDiffuse,
             8 => MaterialKind::Principled,
             9 => MaterialKind::CoatedConductor,
+            10 => MaterialKind::Hair,
             _ => MaterialKind::None,
         }
     }

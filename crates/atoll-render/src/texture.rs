@@ -167,6 +167,11 @@ pub mod alpha_mode {
     pub const STOCHASTIC: u32 = 1;
     /// Kept where alpha ≥ the cutoff (glTF `MASK`).
     pub const CUTOFF: u32 = 2;
+    /// The bits above that name the texture's test.
+    pub const TEXTURE_MASK: u32 = 0xff;
+    /// A flag beside the texture's test: hits on a triangle's back face
+    /// (`TriangleMesh::transparent_back_faces`) are not kept.
+    pub const BACK_FACES_PASS: u32 = 1 << 8;
 }
 
 /// A mesh's alpha test (16 bytes, mirrored by the GPU).
@@ -286,26 +291,30 @@ impl TextureTables {
             }
             tables.materials[id] = ProgramRange { start, len: tables.ops.len() as u32 - start };
         }
-        if scene.meshes.iter().any(|m| m.alpha.is_some()) {
+        if scene.meshes.iter().any(|m| m.filters_hits()) {
             tables.mesh_alpha = scene
                 .meshes
                 .iter()
                 .enumerate()
                 .map(|(id, mesh)| {
-                    let Some(alpha) = mesh.alpha else { return AlphaProgram::default() };
+                    let back = if mesh.transparent_back_faces { alpha_mode::BACK_FACES_PASS } else { 0 };
+                    let solid = AlphaProgram { mode: back, ..Default::default() };
+                    let Some(alpha) = mesh.alpha else { return solid };
                     let start = tables.ops.len() as u32;
                     let mut program = Vec::new();
                     if let Err(e) = compile(scene, alpha.texture, &mut program, 0, 0) {
                         tracing::warn!("mesh {id} ({}): alpha texture: {e}; the mesh is solid", mesh.name);
-                        return AlphaProgram::default();
+                        return solid;
                     }
                     tables.ops.append(&mut program);
                     let program = ProgramRange { start, len: tables.ops.len() as u32 - start };
                     match alpha.mode {
                         AlphaMode::Stochastic => {
-                            AlphaProgram { program, mode: alpha_mode::STOCHASTIC, cutoff: 0.0 }
+                            AlphaProgram { program, mode: alpha_mode::STOCHASTIC | back, cutoff: 0.0 }
                         }
-                        AlphaMode::Cutoff(c) => AlphaProgram { program, mode: alpha_mode::CUTOFF, cutoff: c },
+                        AlphaMode::Cutoff(c) => {
+                            AlphaProgram { program, mode: alpha_mode::CUTOFF | back, cutoff: c }
+                        }
                     }
                 })
                 .collect();
@@ -819,7 +828,7 @@ pub fn alpha_hash(origin: Vec3A, dir: Vec3A, t: f32) -> f32 {
 /// Whether an alpha value keeps a hit.
 #[inline]
 pub fn alpha_keeps(program: &AlphaProgram, alpha: f32, origin: Vec3A, dir: Vec3A, t: f32) -> bool {
-    match program.mode {
+    match program.mode & alpha_mode::TEXTURE_MASK {
         alpha_mode::CUTOFF => alpha >= program.cutoff,
         alpha_mode::STOCHASTIC => {
             // pbrt-v4's rule: alpha >= 1 always hits, <= 0 never.
@@ -889,6 +898,16 @@ impl HitFilter for SceneTextures<'_> {
 
     fn keeps(&self, mesh: u32, triangle: u32, u: f32, v: f32, t: f32, origin: Vec3A, dir: Vec3A) -> bool {
         let Some(program) = self.tables.alpha_of(mesh) else { return true };
+        if program.mode & alpha_mode::BACK_FACES_PASS != 0 {
+            let m = &self.scene.meshes[mesh as usize];
+            let [p0, p1, p2] = m.indices[triangle as usize].map(|i| Vec3A::from(m.positions[i as usize]));
+            if (p0 - p2).cross(p1 - p2).dot(dir) > 0.0 {
+                return false;
+            }
+            if program.mode & alpha_mode::TEXTURE_MASK == alpha_mode::NONE {
+                return true;
+            }
+        }
         let uv = self.uv(mesh, triangle, u, v);
         let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
         // The point where traversal sees the hit: world space, except inside
@@ -1138,6 +1157,42 @@ mod tests {
         let k = Material::conductor_k_from_reflectance(Rgb::splat(0.25)).x;
         assert!((metal[conductor::K] - k).abs() < 1e-2 * k, "{metal:?}");
         assert!(!tables.has_alpha());
+    }
+
+    /// A mesh with transparent back faces keeps only hits from the front
+    /// (against its winding normal), before its alpha test if it has one.
+    #[test]
+    fn back_faces_pass_where_asked() {
+        let mut scene = Scene::default();
+        let material = scene.add_material(Material::default_diffuse());
+        let half = scene.textures.add(Texture::Constant(Rgb::splat(0.5)));
+        // Wound so that the winding normal is +z.
+        let triangle = |alpha| atoll_scene::TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            indices: vec![[0, 1, 2]],
+            material,
+            alpha,
+            transparent_back_faces: true,
+            ..Default::default()
+        };
+        let plain = scene.add_mesh(triangle(None));
+        let cut = scene.add_mesh(triangle(Some(MeshAlpha { texture: half, mode: AlphaMode::Stochastic })));
+        let solid =
+            scene.add_mesh(atoll_scene::TriangleMesh { transparent_back_faces: false, ..triangle(None) });
+        let tables = TextureTables::new(&scene, &[MaterialKind::Diffuse]);
+        let st = SceneTextures { scene: &scene, tables: &tables };
+        assert!(st.filters(plain) && st.filters(cut) && !st.filters(solid));
+        let from_front = Vec3A::new(0.2, 0.2, 1.0);
+        let from_back = Vec3A::new(0.2, 0.2, -1.0);
+        assert!(st.keeps(plain, 0, 0.2, 0.2, 1.0, from_front, -Vec3A::Z));
+        assert!(!st.keeps(plain, 0, 0.2, 0.2, 1.0, from_back, Vec3A::Z));
+        let n = 4_000;
+        let kept = |o: Vec3A, d: Vec3A| {
+            (0..n).filter(|&i| st.keeps(cut, 0, 0.2, 0.2, 1.0, o + Vec3A::X * (i as f32 * 1e-4), d)).count()
+        };
+        assert_eq!(kept(from_back, Vec3A::Z), 0, "back faces pass before the alpha test");
+        let share = kept(from_front, -Vec3A::Z) as f64 / n as f64;
+        assert!((share - 0.5).abs() < 0.05, "front hits keep alpha's share: {share}");
     }
 
     /// Stochastic alpha keeps a share `alpha` of hits, decided by the ray.

@@ -11,8 +11,8 @@
 //! and `Bsdf::eval` for the same direction (all cases are rough, so a delta
 //! sample is an error too).
 
-use atoll_render::bsdf::{Bsdf, Principled};
-use atoll_scene::{PrincipledParams, Rgb};
+use atoll_render::bsdf::{Bsdf, Hair, Principled};
+use atoll_scene::{HairParams, PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
 use std::f64::consts::PI;
 
@@ -313,6 +313,17 @@ fn all_cases() -> Vec<Case> {
         }
     }
     principled_cases(&mut cases);
+    // Hair scatters over the whole sphere; its frame's x is the fibre.
+    for (beta_m, beta_n) in [(0.3, 0.3), (0.15, 0.6)] {
+        let params = HairParams { sigma_a: Rgb::new(0.3, 0.6, 1.2), eta: 1.55, beta_m, beta_n, alpha: 2.0 };
+        for (&(t, p), below) in angles.iter().zip([false, true, false]) {
+            cases.push(Case {
+                name: format!("hair β=({beta_m}, {beta_n}) wo θ={t} below={below}"),
+                bsdf: Bsdf::Hair(Hair::new(&params)),
+                wo: wo_at(t, p, below),
+            });
+        }
+    }
     cases
 }
 
@@ -552,6 +563,11 @@ fn chi2_principled_clearcoat_and_sheen() {
 fn chi2_principled_glass_and_everything() {
     run_family("principled glass");
     run_family("principled everything");
+}
+
+#[test]
+fn chi2_hair() {
+    run_family("hair");
 }
 
 /// The test must be able to fail: samples from one BSDF checked against the

@@ -323,6 +323,7 @@ impl<'a> Loader<'a> {
             emission,
             flip_normals: false,
             alpha,
+            transparent_back_faces: false,
         };
         mesh.validate().map_err(|m| SceneError::caused_by(&loc, format!("{what}: {m}"), m))?;
         Ok(Some(mesh))

@@ -39,7 +39,7 @@ pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, Light, Portal};
 pub use load::{load_any, LoadedScene};
 pub use material::{
-    CoatedConductorParams, CoatedDiffuseParams, Coating, Material, MaterialId, PrincipledParams,
+    CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, PrincipledParams,
 };
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};

@@ -51,6 +51,10 @@ pub enum Material {
     /// is perceptual (GGX alpha = roughness²); every weight is in [0, 1].
     /// No subsurface scattering, no thin-surface mode.
     Principled(PrincipledParams),
+    /// pbrt-v4's `hair`: a dielectric fibre with an absorbing interior and
+    /// tilted cuticle scales (`HairBxDF`, Chiang et al. 2016). Its axis is
+    /// the surface's `dpdu` at the hit, as for pbrt's curves.
+    Hair(HairParams),
 }
 
 /// The dielectric coating of a layered surface ([`Material::CoatedDiffuse`],
@@ -132,6 +136,61 @@ pub struct PrincipledParams {
     pub transmission: f32,
     /// Relative index of refraction of the glass part (inside / outside).
     pub eta: f32,
+}
+
+/// The parameters of a [`Material::Hair`] fibre, shared with the
+/// renderer's hair BSDF.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HairParams {
+    /// Absorption coefficient of the fibre's interior, per unit of its
+    /// diameter (pbrt's `sigma_a`, or the one its `reflectance` or melanin
+    /// concentrations give).
+    pub sigma_a: Rgb,
+    /// Index of refraction of the fibre.
+    pub eta: f32,
+    /// Longitudinal roughness, in [0.01, 1] (pbrt clamps it so).
+    pub beta_m: f32,
+    /// Azimuthal roughness, in [0.01, 1].
+    pub beta_n: f32,
+    /// Tilt of the cuticle's scales, in degrees.
+    pub alpha: f32,
+}
+
+impl HairParams {
+    /// pbrt-v4's defaults: brown hair (eumelanin 1.3), index 1.55, both
+    /// roughnesses 0.3, scales tilted by 2°.
+    pub fn pbrt_default() -> HairParams {
+        HairParams {
+            sigma_a: HairParams::sigma_a_from_concentration(1.3, 0.0),
+            eta: 1.55,
+            beta_m: 0.3,
+            beta_n: 0.3,
+            alpha: 2.0,
+        }
+    }
+
+    /// The absorption of a fibre holding these concentrations of eumelanin
+    /// (brown-black) and pheomelanin (red-yellow): pbrt-v4's
+    /// `SigmaAFromConcentration`, with its RGB absorption per unit
+    /// concentration of each pigment (d'Eon et al. 2011).
+    pub fn sigma_a_from_concentration(eumelanin: f32, pheomelanin: f32) -> Rgb {
+        let eumelanin_sigma_a = Rgb::new(0.419, 0.697, 1.37);
+        let pheomelanin_sigma_a = Rgb::new(0.187, 0.4, 1.05);
+        eumelanin_sigma_a * eumelanin.max(0.0) + pheomelanin_sigma_a * pheomelanin.max(0.0)
+    }
+
+    /// The absorption that gives hair of azimuthal roughness `beta_n` about
+    /// the colour `c` after multiple scattering: pbrt-v4's
+    /// `SigmaAFromReflectance` (Chiang et al. 2016's fit), per channel.
+    pub fn sigma_a_from_reflectance(c: Rgb, beta_n: f32) -> Rgb {
+        let b = beta_n;
+        let fit =
+            5.969 - 0.215 * b + 2.532 * b * b - 10.73 * b.powi(3) + 5.574 * b.powi(4) + 0.245 * b.powi(5);
+        // A black channel absorbs as a reflectance of 1e-6 does: T is about 1e-5
+        // per crossing, where log(0) would make an infinity that f16 keeps.
+        let channel = |c: f32| (c.clamp(1e-6, 1.0).ln() / fit).powi(2);
+        Rgb::new(channel(c.x), channel(c.y), channel(c.z))
+    }
 }
 
 impl Material {

@@ -43,9 +43,22 @@ pub struct TriangleMesh {
     /// Alpha mask cutting holes into the surface (pbrt's shape `alpha`,
     /// glTF `MASK`, OBJ `map_d`); needs `uvs` unless the texture is constant.
     pub alpha: Option<crate::MeshAlpha>,
+    /// Rays meeting a triangle from behind (along its winding normal
+    /// `cross(p1 - p0, p2 - p0)` in object space) pass through it. A
+    /// curve swept into a closed tube is one surface, as pbrt's curves
+    /// are: light that leaves a fibre through its surface (hair's
+    /// transmission, a shadow ray towards a light behind it) is not caught
+    /// by the tube's far wall.
+    pub transparent_back_faces: bool,
 }
 
 impl TriangleMesh {
+    /// Whether traversal must ask about each candidate hit on this mesh
+    /// (an alpha mask, or back faces that let rays through).
+    pub fn filters_hits(&self) -> bool {
+        self.alpha.is_some() || self.transparent_back_faces
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.indices.len()
     }

@@ -169,6 +169,7 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
                 .flatten(),
             flip_normals: false,
             alpha,
+            transparent_back_faces: false,
         };
         // Faces mixing vertices with and without normals (or uvs) leave them partial: drop them.
         if mesh.normals.len() != mesh.positions.len() {

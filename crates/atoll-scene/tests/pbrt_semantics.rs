@@ -4,8 +4,8 @@
 mod common;
 
 use atoll_scene::{
-    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, IntegratorSettings, Light, Material,
-    PrincipledParams, Rgb, Texture, TexturedParam,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, IntegratorSettings, Light,
+    Material, PrincipledParams, Rgb, Texture, TexturedParam,
 };
 use common::{allowing_missing, assert_close, load_world, tri};
 use glam::Vec3;
@@ -182,7 +182,7 @@ fn materials() {
          Material \"conductor\" \"rgb reflectance\" [0.5 0.5 0.5]\n{t}\n\
          Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n{t}\n\
          Material \"interface\"\n{t}\nMaterial \"\"\n{t}\n\
-         Material \"hair\" \"float eumelanin\" 1\n{t}\n\
+         Material \"subsurface\"\n{t}\n\
          NamedMaterial \"gold\"\n{t}\n\
          MakeNamedMaterial \"late\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]\n\
          AttributeBegin\nMaterial \"dielectric\"\nAttributeEnd\n{t}",
@@ -205,7 +205,7 @@ fn materials() {
     assert_eq!(*m[7], Material::Conductor { eta: au.0, k: au.1, alpha_x: 0.5, alpha_y: 0.5 });
     // AttributeEnd restored the named material.
     assert_eq!(s.meshes[8].material, s.meshes[7].material);
-    assert!(loaded.warnings.iter().any(|w| w.message.contains("material \"hair\" is not supported")));
+    assert!(loaded.warnings.iter().any(|w| w.message.contains("material \"subsurface\" is not supported")));
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
     // Materials are stored once however many shapes use them.
     assert_eq!(s.materials.len(), 8);
@@ -344,6 +344,55 @@ fn coated_conductor() {
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
     let warning = loaded.warnings[0].to_string();
     assert!(warning.starts_with("test.pbrt:7:") && warning.contains("\"maxdepth\" 20"), "{warning}");
+}
+
+/// pbrt-v4's `hair`: its defaults, and the absorption from `sigma_a`,
+/// `reflectance` (or `color`) or the melanin concentrations, in that order
+/// of precedence; roughnesses clamped to [0.01, 1]; textures refused.
+#[test]
+fn hair() {
+    let world = format!(
+        "Texture \"t\" \"float\" \"constant\" \"float value\" 0.5\n\
+         Material \"hair\"\n{t}\n\
+         Material \"hair\" \"rgb sigma_a\" [0.1 0.2 0.3] \"float eta\" 1.4 \"float beta_m\" 0.2 \"float beta_n\" 2 \
+         \"float alpha\" 3\n{t}\n\
+         Material \"hair\" \"rgb reflectance\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
+         Material \"hair\" \"rgb color\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
+         Material \"hair\" \"float eumelanin\" 0.3 \"float pheomelanin\" 2 \"rgb sigma_a\" [1 1 1]\n{t}\n\
+         Material \"hair\" \"float pheomelanin\" 2 \"texture beta_m\" \"t\" \"float beta_n\" 0.001\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let m: Vec<Material> = s.meshes.iter().map(|mesh| s.materials[mesh.material as usize].clone()).collect();
+    let default = HairParams::pbrt_default();
+    assert_eq!(m[0], Material::Hair(default));
+    assert_eq!(default.sigma_a, Rgb::new(0.419, 0.697, 1.37) * 1.3);
+    assert_eq!(
+        m[1],
+        Material::Hair(HairParams {
+            sigma_a: Rgb::new(0.1, 0.2, 0.3),
+            eta: 1.4,
+            beta_m: 0.2,
+            beta_n: 1.0,
+            alpha: 3.0
+        })
+    );
+    let from_colour = HairParams::sigma_a_from_reflectance(Rgb::new(0.3, 0.2, 0.1), 0.5);
+    assert_eq!(m[2], Material::Hair(HairParams { sigma_a: from_colour, beta_n: 0.5, ..default }));
+    assert_eq!(m[3], m[2], "pbrt-v3's \"color\" is \"reflectance\"");
+    // pbrt's fit, at beta_n 0.5: sigma_a = (ln c / 5.50928)².
+    assert!((from_colour.x - (0.3f32.ln() / 5.50928).powi(2)).abs() < 1e-4, "{from_colour}");
+    // sigma_a wins over the concentrations (with a warning).
+    let Material::Hair(given) = m[4] else { panic!("{:?}", m[4]) };
+    assert_eq!(given.sigma_a, Rgb::ONE);
+    let Material::Hair(red) = m[5] else { panic!("{:?}", m[5]) };
+    assert_eq!(red.sigma_a, Rgb::new(0.187, 0.4, 1.05) * 2.0);
+    assert_eq!((red.beta_m, red.beta_n), (0.3, 0.01), "a texture keeps the default; clamped to 0.01");
+    let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings[0].contains("\"sigma_a\" is used"), "{warnings:?}");
+    assert!(warnings[1].contains("texture \"t\" for \"beta_m\""), "{warnings:?}");
 }
 
 #[test]

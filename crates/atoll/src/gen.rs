@@ -286,6 +286,16 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
             p.transmission,
             p.eta
         ),
+        Material::Hair(h) => writeln!(
+            out,
+            "\"string type\" \"hair\" \"rgb sigma_a\" {} \"float eta\" [ {} ] \"float beta_m\" [ {} ] \
+             \"float beta_n\" [ {} ] \"float alpha\" [ {} ]",
+            rgb(h.sigma_a),
+            h.eta,
+            h.beta_m,
+            h.beta_n,
+            h.alpha
+        ),
         // Materials are written in id order, so a mix's parts come first
         // whenever they have smaller ids (as loaders make them).
         Material::Mix { materials: [a, b], amount } => writeln!(

@@ -17,7 +17,8 @@ use crate::chunks::SceneSharing;
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
-use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
+use crate::material_coeffs::store_hair_axis;
+use crate::record::{flags, to_f16x3, MaterialKind, RayRecord, NO_LIGHT};
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
 use crate::texture::{SceneTextures, TexPoint};
@@ -248,13 +249,17 @@ fn write_hit(
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, at(), &mut r.coeffs);
     }
-    if frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE {
+    let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;
+    if bends || packed.kind == MaterialKind::Hair {
         let world = corners.map(|c| to_world.transform_point3(c));
         let (dpdu, dpdv) =
             crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng);
-        let interpolated = !mesh.normals.is_empty();
-        let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
-        r.shading_normal = to_f16x3(textures.shading_normal(material, &surface));
+        store_hair_axis(packed.kind, &mut r.coeffs, dpdu);
+        if bends {
+            let interpolated = !mesh.normals.is_empty();
+            let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
+            r.shading_normal = to_f16x3(textures.shading_normal(material, &surface));
+        }
     }
 }
 

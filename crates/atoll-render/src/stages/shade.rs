@@ -7,7 +7,7 @@ use glam::{Vec2, Vec3};
 
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
-use crate::material_coeffs::bsdf_from_record;
+use crate::material_coeffs::{bsdf_from_record, shading_frame};
 use crate::record::{flags, pack_eta_scale, RayRecord, NO_LIGHT};
 use crate::rng::{BounceDim, SampleStream};
 use crate::sampling::{power_heuristic, sample_cosine_hemisphere};
@@ -135,7 +135,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     if depth >= max_depth {
         return out;
     }
-    let frame = Frame::from_z(r.shading_normal().normalize_or_zero());
+    let frame = shading_frame(r);
     let wo = frame.to_local(-dir);
     if wo.z == 0.0 {
         return out;

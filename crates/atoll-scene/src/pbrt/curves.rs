@@ -153,7 +153,10 @@ fn sweep_segments(
     normals: &[Vec3],
     pieces: u32,
 ) -> ShapeMesh {
-    let mut m = ShapeMesh { name: "curve".into(), ..Default::default() };
+    // A tube is one surface, as pbrt's curve is: light leaving through it
+    // must not stop at its far wall.
+    let tube = sweep == Sweep::Tube;
+    let mut m = ShapeMesh { name: "curve".into(), transparent_back_faces: tube, ..Default::default() };
     let rings = segments.len() as u32 * pieces + 1;
     // A frame carried along the curve with the least twist (a tube's sides
     // do not spin about it from one ring to the next).
@@ -220,6 +223,23 @@ mod tests {
 
     fn line(n: usize) -> Vec<Vec3> {
         (0..n).map(|i| Vec3::new(0.0, 0.0, i as f32)).collect()
+    }
+
+    /// Tubes are wound outwards (their back faces are their inside) and
+    /// say so; ribbons are two-sided surfaces.
+    #[test]
+    fn tubes_are_wound_outwards() {
+        let curve =
+            [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, -1.0, 1.0), Vec3::new(3.0, 0.0, 0.0)];
+        let m = sweep_segments(&[curve], Sweep::Tube, (0.2, 0.1), &[], 8);
+        assert!(m.transparent_back_faces);
+        for t in &m.indices {
+            let [p0, p1, p2] = t.map(|i| m.positions[i as usize]);
+            let outward: Vec3 = t.iter().map(|&i| m.normals[i as usize]).sum();
+            assert!((p0 - p2).cross(p1 - p2).dot(outward) > 0.0, "{t:?}");
+        }
+        let normals = [Vec3::Z, Vec3::Z];
+        assert!(!sweep_segments(&[curve], Sweep::Ribbon, (0.2, 0.1), &normals, 8).transparent_back_faces);
     }
 
     #[test]

@@ -7,11 +7,11 @@ use glam::{DMat4, DVec3, Vec3};
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, Light, Material, Portal, Rgb,
-    TexInput, TexturedParam,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Light, Material, Portal,
+    Rgb, TexInput, TexturedParam,
 };
 
-use super::params::{ParamList, ParamType, SpectrumParam};
+use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
 use super::spectrum;
 use super::textures::TexCtx;
 use super::transform;
@@ -165,6 +165,7 @@ pub fn material(
         "thindielectric" => Material::ThinDielectric { eta: dielectric_eta(p, &what, loc, w)? },
         "coateddiffuse" => coated_diffuse(p, &what, "reflectance", (0.5, 0.0), loc, w, tex)?,
         "coatedconductor" => coated_conductor(p, &what, loc, w, tex)?,
+        "hair" => hair(p, &what, loc, w)?,
         _ => match super::v3::material(ty, p, loc, w, tex)? {
             Some(m) => m,
             None => {
@@ -271,6 +272,58 @@ fn coated_conductor(
         (coating.max_depth, coating.n_samples) = (max_depth, n_samples);
     }
     Ok(Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }))
+}
+
+/// pbrt-v4's `hair` (pbrt-v3's reads the same): the fibre's absorption
+/// from `sigma_a`, else `reflectance` (pbrt-v3's `color`), else the melanin
+/// concentrations `eumelanin` and `pheomelanin`, else eumelanin 1.3
+/// (brown); `eta` 1.55, `beta_m` and `beta_n` 0.3 (clamped to [0.01, 1]),
+/// `alpha` 2 degrees. Every parameter must be a constant: a texture is
+/// warned about and the default used.
+fn hair(p: &ParamList, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result<Material, SceneError> {
+    let default = HairParams::pbrt_default();
+    let constant = |name: &str, fallback: f32, w: &mut WarningSink| -> Result<Option<f32>, SceneError> {
+        Ok(match p.float_or_texture(name)? {
+            Some(FloatOrTexture::Value(v)) => Some(v),
+            Some(FloatOrTexture::Texture(t)) => {
+                w.warn(
+                    loc,
+                    format!("{what}: texture \"{t}\" for \"{name}\" is not supported; using {fallback}"),
+                );
+                Some(fallback)
+            }
+            None => None,
+        })
+    };
+    let eta = constant("eta", default.eta, w)?.unwrap_or(default.eta);
+    let beta_m = constant("beta_m", default.beta_m, w)?.unwrap_or(default.beta_m).clamp(0.01, 1.0);
+    let beta_n = constant("beta_n", default.beta_n, w)?.unwrap_or(default.beta_n).clamp(0.01, 1.0);
+    let alpha = constant("alpha", default.alpha, w)?.unwrap_or(default.alpha);
+    let eumelanin = constant("eumelanin", 1.3, w)?;
+    let pheomelanin = constant("pheomelanin", 0.0, w)?;
+    let colour = |name: &str, w: &mut WarningSink| -> Result<Option<Rgb>, SceneError> {
+        Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, what, loc, w)))
+    };
+    let sigma_a = colour("sigma_a", w)?;
+    let reflectance = match colour("reflectance", w)? {
+        Some(c) => Some(c),
+        None => colour("color", w)?,
+    };
+    let melanin = eumelanin.is_some() || pheomelanin.is_some();
+    let given = [sigma_a.is_some(), reflectance.is_some(), melanin];
+    if given.iter().filter(|&&g| g).count() > 1 {
+        let used = if sigma_a.is_some() { "\"sigma_a\"" } else { "\"reflectance\"" };
+        w.warn(loc, format!("{what}: more than one of \"sigma_a\", \"reflectance\" and the melanin concentrations; {used} is used, as in pbrt-v4"));
+    }
+    let sigma_a = match (sigma_a, reflectance) {
+        (Some(s), _) => s,
+        (None, Some(c)) => HairParams::sigma_a_from_reflectance(c, beta_n),
+        (None, None) if melanin => {
+            HairParams::sigma_a_from_concentration(eumelanin.unwrap_or(0.0), pheomelanin.unwrap_or(0.0))
+        }
+        (None, None) => default.sigma_a,
+    };
+    Ok(Material::Hair(HairParams { sigma_a, eta, beta_m, beta_n, alpha }))
 }
 
 /// pbrt-v4's `coateddiffuse` (defaults: `reflectance` 0.5, `roughness` 0,

@@ -25,6 +25,9 @@ pub struct ShapeMesh {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
+    /// [`crate::TriangleMesh::transparent_back_faces`], for a swept tube
+    /// wound outwards.
+    pub transparent_back_faces: bool,
 }
 
 /// The shape types [`shape_mesh`] turns into triangles.
@@ -189,7 +192,7 @@ fn triangle_mesh(p: &ParamList, loc: &FileLoc, w: &mut WarningSink) -> Result<Sh
         w.warn(loc, format!("trianglemesh: {} \"uv\"s for {n} vertices; discarding them", uvs.len()));
         uvs.clear();
     }
-    Ok(ShapeMesh { name: "trianglemesh".into(), positions, normals, uvs, indices })
+    Ok(ShapeMesh { name: "trianglemesh".into(), positions, normals, uvs, indices, ..Default::default() })
 }
 
 /// `bilinearmesh`: `P`, `indices` (four per patch; all of `P` as one patch
@@ -275,6 +278,7 @@ fn read_ply_mesh(
         normals: m.normals,
         uvs: m.uvs,
         indices: m.indices,
+        transparent_back_faces: false,
     };
     Ok((mesh, warning))
 }

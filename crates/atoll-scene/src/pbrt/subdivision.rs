@@ -46,7 +46,7 @@ pub fn loop_subdivide(positions: &[Vec3], indices: &[[u32; 3]], levels: u32) -> 
     let topo = Topology::new(p.len(), &faces);
     let limit: Vec<Vec3> = (0..p.len()).map(|v| topo.limit(&p, v)).collect();
     let normals = vertex_normals(&limit, &faces);
-    ShapeMesh { name: "loopsubdiv".into(), positions: limit, normals, uvs: Vec::new(), indices: faces }
+    ShapeMesh { name: "loopsubdiv".into(), positions: limit, normals, indices: faces, ..Default::default() }
 }
 
 /// Edges (sorted vertex pairs) with the vertices opposite them, and each

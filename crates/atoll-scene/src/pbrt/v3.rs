@@ -12,12 +12,13 @@
 //! | `glass` | `Dielectric` | `eta` or `index` (1.5), `uroughness`/`vroughness` (0); `Kr`/`Kt` tints ignored |
 //! | `mirror` | smooth `Conductor` | reflectance `Kr` (0.9) |
 //! | `disney` | `Principled`, without a warning unless something is dropped ([`disney`]) | all but `scatterdistance`, `thin` (with `flatness`, `difftrans`) and `anisotropic` |
-//! | `hair` | `Diffuse` | `color` (0.5) |
 //! | `fourier` | `Diffuse` 0.5 | the measured BSDF file is ignored |
+//!
+//! `hair` is read as pbrt-v4's (the same parameters, `color` for `reflectance`).
 //!
 //! `mix` names two named materials ([`mix_parts`]); the builder makes a `Material::Mix` of them.
 //!
-//! Textures given for the colours above (`Kd`, `Kr`, `color`, and the
+//! Textures given for the colours above (`Kd`, `Kr`, and the
 //! roughnesses) are bound to the mapped material's `Reflectance` (and
 //! `Transmittance`, roughness); `translucent`'s products become `Scale`
 //! textures. Bump maps are ignored (the builder warns once).
@@ -113,13 +114,6 @@ pub fn material(
             (m, "read as a smooth \"conductor\" with reflectance \"Kr\"".to_string())
         }
         "disney" => return disney(p, &what, loc, w, tex).map(Some),
-        "hair" => {
-            let color = rgb("color", 0.5, w, tex)?;
-            (
-                Material::Diffuse { reflectance: color },
-                "approximated by \"diffuse\" with its \"color\" (no hair highlights)".into(),
-            )
-        }
         "fourier" => {
             (Material::default_diffuse(), "approximated by diffuse 0.5 (measured BSDF ignored)".into())
         }
@@ -127,8 +121,7 @@ pub fn material(
     };
     // One warning covers every parameter the mapping does not use.
     p.mark_all_used();
-    let version = if matches!(ty, "hair") { "" } else { "pbrt-v3 " };
-    w.warn(loc, format!("{version}material \"{ty}\" is not supported; {how}"));
+    w.warn(loc, format!("pbrt-v3 material \"{ty}\" is not supported; {how}"));
     Ok(Some(material))
 }
 
