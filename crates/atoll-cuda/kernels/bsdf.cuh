@@ -25,6 +25,9 @@
 #ifndef ATOLL_WITH_COATED_CONDUCTOR
 #define ATOLL_WITH_COATED_CONDUCTOR 1
 #endif
+#ifndef ATOLL_WITH_HAIR
+#define ATOLL_WITH_HAIR 1
+#endif
 
 #include "common.cuh"
 #include "materials.cuh"
@@ -53,6 +56,18 @@ __device__ __forceinline__ Frame frame_from_z(float3 n) {
 }
 
 /// Mirrors `Frame::to_local`.
+/// Mirrors `Frame::from_xz`: `z` the unit normal, `x` along `x_hint` in
+/// the plane normal to it (a hair's frame, x its axis).
+__device__ __forceinline__ Frame frame_from_xz(float3 x_hint, float3 z) {
+    const float3 x = normalize_or_zero3(x_hint - z * dot3(x_hint, z));
+    if (is_zero3(x) || !is_finite3(x)) return frame_from_z(z);
+    Frame f;
+    f.x = x;
+    f.y = cross3(z, x);
+    f.z = z;
+    return f;
+}
+
 __device__ __forceinline__ float3 frame_to_local(const Frame& f, float3 v) {
     return make_float3(dot3(v, f.x), dot3(v, f.y), dot3(v, f.z));
 }
@@ -246,7 +261,8 @@ __device__ __forceinline__ float3 tr_sample_wm(TrowbridgeReitz d, float3 w, floa
 /// (its k, its alpha_x), `base_alpha_y`; Principled `a` = base colour, `b` =
 /// (metallic, roughness, transmission), `eta`, `alpha_x` = specular,
 /// `alpha_y` = specular tint, `p` = (sheen, sheen tint, clearcoat, clearcoat
-/// gloss). `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
+/// gloss); Hair `a` = sigma_a, `eta`, `alpha_x` = beta_m, `alpha_y` =
+/// beta_n, `g` = the scales' tilt in degrees. `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
 /// `bsdf_from_record`).
 struct Bsdf {
     unsigned int kind;
@@ -337,6 +353,12 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.g = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_G]);
         b.max_depth = COATED_CONDUCTOR_MAX_DEPTH;
         b.n_samples = COATED_CONDUCTOR_N_SAMPLES;
+    } else if (ATOLL_WITH_HAIR && r.material == MATERIAL_HAIR) {
+        b.a = load_f16x3(&r.coeffs[COEFF_HAIR_SIGMA_A]);
+        b.eta = f16_to_f32(r.coeffs[COEFF_HAIR_ETA]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_M]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_N]);
+        b.g = f16_to_f32(r.coeffs[COEFF_HAIR_ALPHA]);
     } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
         b.a = load_f16x3(&r.coeffs[COEFF_PRINCIPLED_BASE_COLOR]);
         b.b = make_float3(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_METALLIC]),
@@ -716,7 +738,69 @@ __device__ __noinline__ float principled_pdf(Principled p, float3 wo, float3 wi)
 __device__ __noinline__ bool principled_sample(Principled p, float3 wo, float uc, float2 u, BsdfSample* out);
 __device__ __noinline__ bool principled_is_delta(Principled p);
 
+// --- hair (bsdf/hair.rs, in hair.cuh) ---
+
+/// Mirrors `hair::P_MAX`.
+inline constexpr int HAIR_P_MAX = 3;
+__device__ __forceinline__ float hair_safe_sqrt(float x) { return sqrtf(fmaxf(x, 0.0f)); }
+
+/// `x^n` by repeated multiplication (Rust's `powi`).
+__device__ __forceinline__ float hair_powi(float x, int n) {
+    float r = 1.0f;
+    for (int i = 0; i < n; ++i) r *= x;
+    return r;
+}
+
+/// Mirrors `hair::Hair`: the parameters and the per-lobe constants.
+struct Hair {
+    float3 sigma_a;
+    float eta;
+    float v[HAIR_P_MAX + 1];
+    float s;
+    float sin_2k_alpha[3], cos_2k_alpha[3];
+};
+
+/// Mirrors `Hair::new` (`a` = sigma_a, `alpha_x` = beta_m, `alpha_y` =
+/// beta_n, `g` = alpha in degrees; `bsdf_from_record`).
+__device__ __forceinline__ Hair hair_of(const Bsdf& b) {
+    Hair h;
+    h.sigma_a = b.a;
+    h.eta = b.eta;
+    const float bm = b.alpha_x;
+    const float v0 = hair_powi(0.726f * bm + 0.812f * bm * bm + 3.7f * hair_powi(bm, 20), 2);
+    h.v[0] = v0;
+    h.v[1] = 0.25f * v0;
+    h.v[2] = 4.0f * v0;
+    h.v[3] = 4.0f * v0;
+    const float bn = b.alpha_y;
+    const float sqrt_pi_over_8 = 0.62665707f;
+    h.s = sqrt_pi_over_8 * (0.265f * bn + 1.194f * bn * bn + 5.372f * hair_powi(bn, 22));
+    h.sin_2k_alpha[0] = sinf(b.g * (PI / 180.0f));
+    h.cos_2k_alpha[0] = hair_safe_sqrt(1.0f - h.sin_2k_alpha[0] * h.sin_2k_alpha[0]);
+    for (int i = 1; i < 3; ++i) {
+        h.sin_2k_alpha[i] = 2.0f * h.cos_2k_alpha[i - 1] * h.sin_2k_alpha[i - 1];
+        h.cos_2k_alpha[i] =
+            h.cos_2k_alpha[i - 1] * h.cos_2k_alpha[i - 1] - h.sin_2k_alpha[i - 1] * h.sin_2k_alpha[i - 1];
+    }
+    return h;
+}
+
+// Three lobes and a remainder, each with Bessel and logistic terms: kept
+// out of line (hair.cuh) so the shade kernel's other materials keep their
+// register budget.
+__device__ __noinline__ float3 hair_eval(Hair h, float3 wo, float3 wi);
+__device__ __noinline__ float hair_pdf(Hair h, float3 wo, float3 wi);
+__device__ __noinline__ bool hair_sample(Hair h, float3 wo, float uc, float2 u, BsdfSample* out);
+
 // --- dispatch (bsdf.rs `impl Bsdf`) ---
+
+/// Mirrors `material_coeffs::shading_frame`: about the shading normal, and
+/// for hair with x along the fibre's axis.
+__device__ __forceinline__ Frame shading_frame(const RayRecord& r) {
+    const float3 n = normalize_or_zero3(load_f16x3(r.shading_normal));
+    if (ATOLL_WITH_HAIR && r.material == MATERIAL_HAIR) return frame_from_xz(load_f16x3(&r.coeffs[COEFF_HAIR_AXIS]), n);
+    return frame_from_z(n);
+}
 
 /// Mirrors `Bsdf::eval`. `b.kind` must not be `MATERIAL_NONE`.
 __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi) {
@@ -726,6 +810,7 @@ __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi)
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return zero3();
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_eval(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_eval(principled_of(b), wo, wi);
+    if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return hair_eval(hair_of(b), wo, wi);
     return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -737,6 +822,7 @@ __device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return 0.0f;
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_pdf(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_pdf(principled_of(b), wo, wi);
+    if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return hair_pdf(hair_of(b), wo, wi);
     return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -757,6 +843,8 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
         if (!coated_sample(coated_of(b), wo, uc, u, &s)) return false;
     } else if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) {
         if (!principled_sample(principled_of(b), wo, uc, u, &s)) return false;
+    } else if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) {
+        if (!hair_sample(hair_of(b), wo, uc, u, &s)) return false;
     } else {
         if (!dielectric_sample(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, uc, u, &s)) return false;
     }
@@ -776,6 +864,7 @@ __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
     if (b.kind == MATERIAL_THIN_DIELECTRIC) return true;
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_is_delta(b);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_is_delta(principled_of(b));
+    if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return false;
     return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
 }
 
@@ -787,3 +876,4 @@ __device__ __forceinline__ bool bsdf_sampled_pdf_is_proportional(const Bsdf& b) 
 
 #include "layered.cuh"
 #include "principled.cuh"
+#include "hair.cuh"

@@ -47,6 +47,12 @@ inline constexpr unsigned int COEFF_PRINCIPLED_CLEARCOAT = 9u;
 inline constexpr unsigned int COEFF_PRINCIPLED_CLEARCOAT_GLOSS = 10u;
 inline constexpr unsigned int COEFF_PRINCIPLED_TRANSMISSION = 11u;
 inline constexpr unsigned int COEFF_PRINCIPLED_ETA = 12u;
+inline constexpr unsigned int COEFF_HAIR_SIGMA_A = 0u;
+inline constexpr unsigned int COEFF_HAIR_ETA = 3u;
+inline constexpr unsigned int COEFF_HAIR_BETA_M = 4u;
+inline constexpr unsigned int COEFF_HAIR_BETA_N = 5u;
+inline constexpr unsigned int COEFF_HAIR_ALPHA = 6u;
+inline constexpr unsigned int COEFF_HAIR_AXIS = 7u;
 inline constexpr unsigned int COATED_CONDUCTOR_MAX_DEPTH = 10u;
 inline constexpr unsigned int COATED_CONDUCTOR_N_SAMPLES = 1u;
 // END GENERATED materials

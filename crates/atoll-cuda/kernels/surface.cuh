@@ -123,11 +123,10 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         c1 = cw[1];
     }
     // The chosen material's bump or normal map (GpuMaterial's bend word in
-    // meta.w: kind << 30 | start << 8 | len), as the CPU's write_hit.
-    if (ATOLL_WITH_TEXTURES && meta.x != MATERIAL_MIX && meta.w != 0u) {
-        ProgramRange range;
-        range.start = (meta.w >> 8) & 0x3fffffu;
-        range.len = meta.w & 0xffu;
+    // meta.w: kind << 30 | start << 8 | len), and a hair fibre's axis, as
+    // the CPU's write_hit: both need the surface's partial derivatives.
+    const bool bends = ATOLL_WITH_TEXTURES && meta.x != MATERIAL_MIX && meta.w != 0u;
+    if (bends || meta.x == MATERIAL_HAIR) {
         float2 uv0 = make_float2(0.0f, 0.0f), uv1 = make_float2(1.0f, 0.0f), uv2 = make_float2(1.0f, 1.0f);
         if (mesh.flags & MESH_HAS_UVS) {
             uv0 = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
@@ -137,8 +136,24 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         float3 dpdu, dpdv;
         triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
                           affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
-        ns = bent_normal(p, meta.w >> 30, range, position, hit_uv(s, mesh, i0, i1, i2, b1, b2), ng, ns, dpdu, dpdv,
-                         (mesh.flags & MESH_HAS_NORMALS) != 0u);
+        if (meta.x == MATERIAL_HAIR) {
+            // material_coeffs::store_hair_axis.
+            uint4 cw[2] = {c0, c1};
+            unsigned short* coeffs = reinterpret_cast<unsigned short*>(cw);
+            const float3 axis = normalize_or_zero3(dpdu);
+            coeffs[COEFF_HAIR_AXIS] = f32_to_f16(axis.x);
+            coeffs[COEFF_HAIR_AXIS + 1] = f32_to_f16(axis.y);
+            coeffs[COEFF_HAIR_AXIS + 2] = f32_to_f16(axis.z);
+            c0 = cw[0];
+            c1 = cw[1];
+        }
+        if (bends) {
+            ProgramRange range;
+            range.start = (meta.w >> 8) & 0x3fffffu;
+            range.len = meta.w & 0xffu;
+            ns = bent_normal(p, meta.w >> 30, range, position, hit_uv(s, mesh, i0, i1, i2, b1, b2), ng, ns, dpdu,
+                             dpdv, (mesh.flags & MESH_HAS_NORMALS) != 0u);
+        }
     }
     // The record's bytes [32, 128) are written as whole 16-byte words, three
     // full 32-byte sectors: field-by-field stores of the hit leave partial

@@ -284,7 +284,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     }
     const unsigned int depth = r.depth;
     if (depth >= params.max_depth) return;
-    const Frame frame = frame_from_z(normalize_or_zero3(load_f16x3(r.shading_normal)));
+    const Frame frame = shading_frame(r);
     const float3 wo = frame_to_local(frame, -dir);
     if (wo.z == 0.0f) return;
     const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);

@@ -43,6 +43,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("surface.cuh", include_str!("../kernels/surface.cuh")),
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("principled.cuh", include_str!("../kernels/principled.cuh")),
+    ("hair.cuh", include_str!("../kernels/hair.cuh")),
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),
     ("peer.cu", include_str!("../kernels/peer.cu")),

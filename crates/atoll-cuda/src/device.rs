@@ -134,6 +134,7 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
         ("ATOLL_WITH_COATED", coated),
         ("ATOLL_WITH_COATED_CONDUCTOR", &[MaterialKind::CoatedConductor]),
         ("ATOLL_WITH_PRINCIPLED", &[MaterialKind::Principled]),
+        ("ATOLL_WITH_HAIR", &[MaterialKind::Hair]),
     ]
     .into_iter()
     .filter(|&(_, kinds)| !has(kinds))

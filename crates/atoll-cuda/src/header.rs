@@ -144,6 +144,7 @@ pub(crate) fn record_asserts() -> String {
         ("MATERIAL_COATED_DIFFUSE", MaterialKind::CoatedDiffuse),
         ("MATERIAL_PRINCIPLED", MaterialKind::Principled),
         ("MATERIAL_COATED_CONDUCTOR", MaterialKind::CoatedConductor),
+        ("MATERIAL_HAIR", MaterialKind::Hair),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -251,6 +252,8 @@ pub(crate) fn texture_constants() -> String {
         ("ALPHA_NONE", alpha_mode::NONE),
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),
+        ("ALPHA_TEXTURE_MASK", alpha_mode::TEXTURE_MASK),
+        ("ALPHA_BACK_FACES_PASS", alpha_mode::BACK_FACES_PASS),
         ("WRAP_REPEAT", atoll_scene::Wrap::Repeat as u32),
         ("WRAP_CLAMP", atoll_scene::Wrap::Clamp as u32),
         ("WRAP_BLACK", atoll_scene::Wrap::Black as u32),

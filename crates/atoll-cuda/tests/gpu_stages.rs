@@ -23,16 +23,17 @@ use atoll_cuda::params::{FrameParamsHost, SceneView};
 use atoll_cuda::scene::{GpuScene, SceneTables};
 use atoll_cuda::work::{WorkFifo, WorkStatus};
 use atoll_render::lights::Emitter;
-use atoll_render::material_coeffs::{bsdf_from_record, PackedMaterial};
-use atoll_render::record::{flags, NO_LIGHT};
+use atoll_render::material_coeffs::{bsdf_from_record, store_hair_axis, PackedMaterial};
+use atoll_render::record::{flags, MaterialKind, NO_LIGHT};
 use atoll_render::rng::{pcg_hash, SampleStream};
 use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::stages::{generate::camera_record, shade::shade};
 use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOptions};
 use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
-    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage, Instance,
-    IntegratorSettings, Light, Material, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
+    AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage,
+    HairParams, Instance, IntegratorSettings, Light, Material, Object, PrincipledParams, Rgb, Scene,
+    TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -543,6 +544,8 @@ fn surface_scene() -> Scene {
         alpha_y: 0.2,
     });
     let glass = scene.add_material(Material::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 });
+    // Its hits carry the surface's dpdu as the fibre's axis.
+    let hair = scene.add_material(Material::Hair(HairParams::pbrt_default()));
     let tent = TriangleMesh {
         name: "tent".into(),
         positions: vec![
@@ -570,7 +573,7 @@ fn surface_scene() -> Scene {
         name: "flipped".into(),
         positions: vec![Vec3::new(-0.2, 0.5, -0.2), Vec3::new(0.2, 0.5, -0.2), Vec3::new(0.0, 0.5, 0.2)],
         indices: vec![[0, 1, 2]],
-        material: glass,
+        material: hair,
         flip_normals: true,
         ..Default::default()
     });
@@ -662,7 +665,7 @@ fn surface_matches_write_hit() {
     // SAFETY: the arguments match `surface`; `paths` and `hits` hold `n` entries.
     unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
     let got = records_of(download(&gpu, &paths));
-    let (mut compared, mut emissive, mut with_normals) = (0, 0, 0);
+    let (mut compared, mut emissive, mut with_normals, mut hair) = (0, 0, 0, 0);
     let mut bad = Vec::new();
     for (i, (c, g)) in cpu_hits.iter().zip(&got).enumerate() {
         // A tie between two BVH builds could pick another triangle: compare
@@ -673,14 +676,15 @@ fn surface_matches_write_hit() {
         compared += 1;
         emissive += (c.light != NO_LIGHT) as u32;
         with_normals += (c.shading_normal != c.geometric_normal) as u32;
+        hair += (c.material_kind() == MaterialKind::Hair) as u32;
         if let Err(e) = compare_records(c, g) {
             bad.push(format!("ray {i}: {e}"));
         }
     }
     assert!(compared >= rays.len() * 95 / 100, "only {compared} of {} rays comparable", rays.len());
     assert!(
-        emissive > 0 && with_normals > 0,
-        "the rays must hit lights ({emissive}) and smooth meshes ({with_normals})"
+        emissive > 0 && with_normals > 0 && hair > 0,
+        "the rays must hit lights ({emissive}), smooth meshes ({with_normals}) and hair ({hair})"
     );
     assert_no_mismatches("surface", &bad);
 }
@@ -857,7 +861,10 @@ fn shade_materials_matches_the_cpu_stage(materials: &[PackedMaterial]) {
     let params = FrameParamsHost::new(&gpu, &frame).unwrap();
     let mut paths = synthetic_paths(&frame, 3000);
     for (i, r) in paths.iter_mut().enumerate().filter(|(_, r)| r.has(flags::HIT)) {
-        materials[i % materials.len()].store(r);
+        let m = &materials[i % materials.len()];
+        m.store(r);
+        // Hair turns its frame about an axis the hit carries.
+        store_hair_axis(m.kind, &mut r.coeffs, unit(i as u32, 17));
     }
     let cpu = shade_on_cpu(&frame, &paths);
     let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
@@ -929,6 +936,46 @@ fn principled_bsdfs_match_value_by_value() {
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_principled_matches_the_cpu_stage() {
     shade_materials_matches_the_cpu_stage(&principled_materials());
+}
+
+/// Hair fibres: smooth and rough, light and dark, tilted scales or none.
+fn hair_materials() -> Vec<PackedMaterial> {
+    let hair = |sigma_a: Rgb, beta_m: f32, beta_n: f32, alpha: f32| {
+        Material::Hair(HairParams { sigma_a, eta: 1.55, beta_m, beta_n, alpha })
+    };
+    [
+        Material::Hair(HairParams::pbrt_default()),
+        hair(Rgb::ZERO, 0.3, 0.3, 2.0),
+        hair(Rgb::new(0.1, 0.4, 1.2), 0.05, 0.2, 0.0),
+        hair(Rgb::new(3.0, 5.0, 8.0), 0.8, 0.9, 5.0),
+    ]
+    .iter()
+    .map(PackedMaterial::pack)
+    .collect()
+}
+
+/// The hair BSDF's `eval`, `pdf` and `sample` on the GPU (`hair.cuh`)
+/// agree with the CPU's value by value.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn hair_bsdfs_match_value_by_value() {
+    let Some(gpu) = gpu() else { return };
+    let cases = 12_000;
+    let bad = bsdf_mismatches(&gpu, &hair_materials(), cases);
+    assert!(
+        bad.len() <= 3,
+        "{} of {cases} hair cases differ, first ones:\n{}",
+        bad.len(),
+        bad[..bad.len().min(6)].join("\n")
+    );
+}
+
+/// `shade` with hair hits: the frame about the stored axis, light sampling
+/// and sampled directions to both sides of the surface.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn shade_with_hair_matches_the_cpu_stage() {
+    shade_materials_matches_the_cpu_stage(&hair_materials());
 }
 
 #[test]

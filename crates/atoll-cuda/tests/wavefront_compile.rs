@@ -82,7 +82,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
     words[at + 1].parse().unwrap()
 }
 
-/// The shade kernel a scene without coated or principled
+/// The shade kernel a scene without coated, principled or hair
 /// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
 /// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,
@@ -92,16 +92,23 @@ fn specialised_shade_kernels_keep_their_registers() {
     if !nvrtc_or_skip() {
         return;
     }
-    let none = ["-DATOLL_WITH_COATED=0", "-DATOLL_WITH_PRINCIPLED=0", "-DATOLL_WITH_EMISSION_TEXTURES=0"];
+    let none = [
+        "-DATOLL_WITH_COATED=0",
+        "-DATOLL_WITH_PRINCIPLED=0",
+        "-DATOLL_WITH_HAIR=0",
+        "-DATOLL_WITH_EMISSION_TEXTURES=0",
+    ];
     let (_, log) = compile("wavefront.cu", &none);
     let plain = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let all = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
     let no_coated_conductor = registers(&log, "shade");
+    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_HAIR=0"]);
+    let no_hair = registers(&log, "shade");
     eprintln!(
         "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}"
+         {no_coated_conductor}, all but hair {no_hair}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
     assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
@@ -109,6 +116,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_PRINCIPLED=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_HAIR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
 }
 
