@@ -69,8 +69,9 @@ __device__ __forceinline__ float hair_trimmed_logistic(float x, float s) {
 /// Mirrors `hair::sample_trimmed_logistic`.
 __device__ __forceinline__ float hair_sample_trimmed_logistic(float u, float s) {
     const float lo = hair_logistic_cdf(-PI, s), hi = hair_logistic_cdf(PI, s);
-    u = lo + u * (hi - lo);
-    return clampf(-s * logf(1.0f / u - 1.0f), -PI, PI);
+    const float span = hi - lo;
+    const float below = lo + u * span, above = lo + (1.0f - u) * span;
+    return clampf(s * logf(below / above), -PI, PI);
 }
 
 /// Mirrors `hair::np`.

@@ -124,11 +124,15 @@ fn trimmed_logistic(x: f32, s: f32) -> f32 {
     logistic(x, s) / (logistic_cdf(PI, s) - logistic_cdf(-PI, s))
 }
 
-/// Inverts [`trimmed_logistic`]'s distribution at `u`.
+/// Inverts [`trimmed_logistic`]'s distribution at `u`: `s ln(c / (1 - c))`
+/// for the logistic's CDF value `c`. `c` and `1 - c` are each made from the
+/// end they are near (the logistic is symmetric, `1 - cdf(π) = cdf(-π)`),
+/// where pbrt's `1 / c - 1` loses digits as `u` nears 1.
 fn sample_trimmed_logistic(u: f32, s: f32) -> f32 {
     let (lo, hi) = (logistic_cdf(-PI, s), logistic_cdf(PI, s));
-    let u = lo + u * (hi - lo);
-    (-s * (1.0 / u - 1.0).ln()).clamp(-PI, PI)
+    let span = hi - lo;
+    let (below, above) = (lo + u * span, lo + (1.0 - u) * span);
+    (s * (below / above).ln()).clamp(-PI, PI)
 }
 
 /// The azimuthal scattering function of lobe `p` at azimuth difference `phi`.
