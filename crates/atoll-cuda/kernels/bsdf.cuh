@@ -658,7 +658,8 @@ __device__ __forceinline__ BsdfSample diffuse_sample(float3 r, float3 wo, float2
 /// Mirrors `layered::Coated`: the `Bsdf` fields of a coated kind, passed by
 /// value to the layered functions. `conductor` picks the base: the
 /// Lambertian `base_a` (reflectance), or the conductor `base_a` (eta),
-/// `base_k`, `base_alpha_*` with its index relative to the outside.
+/// `base_k`, `base_alpha_*` with its index relative to the coating (divided
+/// once here, where `Coated::base` divides at every use).
 struct Coated {
     float3 base_a, albedo;
     float eta, alpha_x, alpha_y, thickness, g;
@@ -681,6 +682,10 @@ __device__ __forceinline__ Coated coated_of(const Bsdf& b) {
     c.n_samples = b.n_samples;
     c.conductor = ATOLL_WITH_COATED_CONDUCTOR && b.kind == MATERIAL_COATED_CONDUCTOR;
     c.base_k = make_float3(b.p.x, b.p.y, b.p.z);
+    if (c.conductor) {
+        c.base_a = c.base_a / c.eta;
+        c.base_k = c.base_k / c.eta;
+    }
     c.base_alpha_x = b.p.w;
     c.base_alpha_y = b.base_alpha_y;
     return c;

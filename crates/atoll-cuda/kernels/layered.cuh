@@ -148,11 +148,11 @@ __device__ __forceinline__ bool base_is_specular(const Coated& c) {
 
 /// Mirrors `usable(self.base().sample(..))`: `Bsdf::sample` of the base (its
 /// grazing check and final filter included), if usable. A conductor's index
-/// is divided by the coating's, as `Coated::base` does.
+/// is already relative to the coating's (`coated_of`), as `Coated::base` makes it.
 __device__ __noinline__ bool base_sample(const Coated& c, float3 wo, float2 u, BsdfSample* out) {
     if (wo.z == 0.0f) return false;
     if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) {
-        if (!conductor_sample(c.base_a / c.eta, c.base_k / c.eta, base_distribution(c), wo, u, out)) return false;
+        if (!conductor_sample(c.base_a, c.base_k, base_distribution(c), wo, u, out)) return false;
     } else {
         *out = diffuse_sample(c.base_a, wo, u);
     }
@@ -161,7 +161,7 @@ __device__ __noinline__ bool base_sample(const Coated& c, float3 wo, float2 u, B
 
 /// Mirrors `Bsdf::eval` of the base.
 __device__ __noinline__ float3 base_eval(const Coated& c, float3 wo, float3 wi) {
-    if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) return conductor_eval(c.base_a / c.eta, c.base_k / c.eta, base_distribution(c), wo, wi);
+    if (ATOLL_WITH_COATED_CONDUCTOR && c.conductor) return conductor_eval(c.base_a, c.base_k, base_distribution(c), wo, wi);
     return same_hemisphere(wo, wi) ? c.base_a * FRAC_1_PI : zero3();
 }
 

@@ -1,6 +1,7 @@
-//! pbrt-v4's `curve` shape as triangles: each cubic segment is cut into
-//! 2^`splitdepth` pieces (pbrt splits it as many times before intersecting
-//! the pieces exactly), and the pieces are swept into
+//! pbrt-v4's `curve` shape as triangles: each cubic segment is cut into as
+//! few pieces as keep their chords within an eighth of the curve's width of
+//! it ([`pieces_for`]), at most 2^`splitdepth` (pbrt splits it as many times
+//! before intersecting the pieces exactly), and the pieces are swept into
 //! - a tube of [`TUBE_SIDES`] sides for `cylinder` and `flat` curves (pbrt
 //!   turns a flat curve to face each ray; a tube shows the same width from
 //!   every side), with normals pointing away from the curve;
@@ -140,10 +141,31 @@ pub fn curve(p: &ParamList, loc: &FileLoc) -> Result<ShapeMesh, SceneError> {
     Ok(sweep_segments(&segments, sweep, (w0, w1), &normals, pieces))
 }
 
-/// The triangles a curve of `segments` gets when each is cut into `pieces`.
-pub fn triangles_of(segments: usize, ribbon: bool, pieces: u32) -> u64 {
+/// The triangles a curve gets when its segments are cut into `pieces` in all.
+#[cfg(test)]
+fn triangles_of(pieces: u32, ribbon: bool) -> u64 {
     let per_piece = if ribbon { 2 } else { 2 * TUBE_SIDES as u64 };
-    segments as u64 * pieces as u64 * per_piece
+    pieces as u64 * per_piece
+}
+
+/// Pieces a cubic segment `c` of width `width` is cut into: as few as keep
+/// each piece's chord within `width / 8` of the curve (a four-sided tube
+/// departs from the round fibre by about that much already), at most
+/// `max_pieces`. A chord over a parameter interval `1 / n` departs from the
+/// curve by at most `max |B''| / (8 n²)`, and `|B''| ≤ 6 max_i |P_i -
+/// 2 P_i+1 + P_i+2|`. Hair strands are short, nearly straight segments: a
+/// piece or two each instead of `max_pieces`.
+fn pieces_for(c: &[Vec3; 4], width: f32, max_pieces: u32) -> u32 {
+    let bend = (c[0] - 2.0 * c[1] + c[2]).length().max((c[1] - 2.0 * c[2] + c[3]).length());
+    if width <= 0.0 {
+        return max_pieces;
+    }
+    let n = (6.0 * bend / width).sqrt().ceil();
+    if n.is_finite() {
+        (n as u32).clamp(1, max_pieces)
+    } else {
+        max_pieces
+    }
 }
 
 fn sweep_segments(
@@ -151,26 +173,34 @@ fn sweep_segments(
     sweep: Sweep,
     (w0, w1): (f32, f32),
     normals: &[Vec3],
-    pieces: u32,
+    max_pieces: u32,
 ) -> ShapeMesh {
     // A tube is one surface, as pbrt's curve is: light leaving through it
     // must not stop at its far wall.
     let tube = sweep == Sweep::Tube;
     let mut m = ShapeMesh { name: "curve".into(), transparent_back_faces: tube, ..Default::default() };
-    let rings = segments.len() as u32 * pieces + 1;
+    // The rings' (segment, t): each segment's pieces, then the curve's end.
+    let width_at = |u: f32| w0 + (w1 - w0) * u;
+    let count = segments.len() as f32;
+    let mut at: Vec<(usize, f32)> = Vec::new();
+    for (s, c) in segments.iter().enumerate() {
+        let width = 0.5 * (width_at(s as f32 / count) + width_at((s + 1) as f32 / count));
+        let n = pieces_for(c, width, max_pieces);
+        at.extend((0..n).map(|k| (s, k as f32 / n as f32)));
+    }
+    at.push((segments.len() - 1, 1.0));
+    let rings = at.len() as u32;
     // A frame carried along the curve with the least twist (a tube's sides
     // do not spin about it from one ring to the next).
     let mut side = Vec3::ZERO;
     let cross_count = if sweep == Sweep::Tube { TUBE_SIDES + 1 } else { 2 };
-    for ring in 0..rings {
-        // The last ring ends the last segment (t = 1).
-        let s = (ring / pieces).min(segments.len() as u32 - 1);
-        let t = (ring - s * pieces) as f32 / pieces as f32;
-        let (s, c) = (s as usize, &segments[s as usize]);
-        let u = ring as f32 / (rings - 1) as f32;
+    for &(s, t) in &at {
+        let c = &segments[s];
+        // u runs along the whole curve, a segment's share each.
+        let u = (s as f32 + t) / count;
         let (center, tangent) = (bezier_point(c, t), bezier_tangent(c, t).normalize_or_zero());
         let tangent = if tangent == Vec3::ZERO { (c[3] - c[0]).normalize_or(Vec3::Z) } else { tangent };
-        let radius = 0.5 * (w0 + (w1 - w0) * u);
+        let radius = 0.5 * width_at(u);
         match sweep {
             Sweep::Tube => {
                 side = if side == Vec3::ZERO { perpendicular(tangent) } else { side };
@@ -246,7 +276,7 @@ mod tests {
     fn a_straight_cylinder_curve_is_a_tube_of_its_width() {
         let seg = bezier_segments(&line(4), "bezier", 3, &FileLoc::whole_file("c")).unwrap();
         let m = sweep_segments(&seg, Sweep::Tube, (0.2, 0.2), &[], 8);
-        assert_eq!(m.indices.len() as u64, triangles_of(1, false, 8));
+        assert_eq!(m.indices.len() as u64, triangles_of(1, false), "a straight segment is one piece");
         for (p, n) in m.positions.iter().zip(&m.normals) {
             assert!((p.truncate().length() - 0.1).abs() < 1e-5, "{p}");
             assert!(
@@ -262,6 +292,35 @@ mod tests {
         // Tapering: width0 at the start, width1 at the end.
         let m = sweep_segments(&seg, Sweep::Tube, (0.2, 0.0), &[], 2);
         assert!(m.positions.iter().filter(|p| p.z > 3.0 - 1e-5).all(|p| p.truncate().length() < 1e-6));
+    }
+
+    /// A bent segment gets as many pieces as keep the swept centre line
+    /// within an eighth of the width of the curve, and no more than asked.
+    #[test]
+    fn bent_segments_get_pieces_by_their_bend_and_width() {
+        let c = [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::new(2.0, -1.0, 0.0), Vec3::new(3.0, 0.0, 0.0)];
+        for (width, max) in [(0.02, 64), (0.1, 64), (0.5, 64), (0.02, 8)] {
+            let n = pieces_for(&c, width, max);
+            assert!(n <= max && n >= 1);
+            let m = sweep_segments(&[c], Sweep::Ribbon, (width, width), &[Vec3::Z, Vec3::Z], max);
+            assert_eq!(m.indices.len() as u64, triangles_of(n, true));
+            if n == max && pieces_for(&c, width, 2 * max) > max {
+                continue; // capped: coarser than the tolerance by request
+            }
+            // The centre line of each piece (its ribbon's two edges averaged)
+            // against the curve between them.
+            let centre: Vec<Vec3> = m.positions.chunks(2).map(|p| 0.5 * (p[0] + p[1])).collect();
+            for (k, w) in centre.windows(2).enumerate() {
+                for j in 1..8 {
+                    let f = j as f32 / 8.0;
+                    let on_curve = bezier_point(&c, (k as f32 + f) / n as f32);
+                    let chord = w[0] + (w[1] - w[0]) * f;
+                    assert!((on_curve - chord).length() <= width / 8.0 + 1e-5, "width {width}, piece {k}");
+                }
+            }
+        }
+        assert!(pieces_for(&c, 0.02, 64) > pieces_for(&c, 0.5, 64), "thinner curves need more pieces");
+        assert_eq!(pieces_for(&c, 0.0, 16), 16, "a zero width takes the most");
     }
 
     #[test]
@@ -285,7 +344,7 @@ mod tests {
     fn ribbons_lie_across_their_normals() {
         let seg = bezier_segments(&line(4), "bezier", 3, &FileLoc::whole_file("c")).unwrap();
         let m = sweep_segments(&seg, Sweep::Ribbon, (0.5, 0.5), &[Vec3::X, Vec3::X], 4);
-        assert_eq!(m.indices.len() as u64, triangles_of(1, true, 4));
+        assert_eq!(m.indices.len() as u64, triangles_of(1, true));
         assert!(m.positions.iter().all(|p| p.x.abs() < 1e-6 && (p.y.abs() - 0.25).abs() < 1e-6));
         assert!(m.normals.iter().all(|n| *n == Vec3::X));
     }
