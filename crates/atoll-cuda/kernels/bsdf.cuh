@@ -262,7 +262,8 @@ __device__ __forceinline__ float3 tr_sample_wm(TrowbridgeReitz d, float3 w, floa
 /// (metallic, roughness, transmission), `eta`, `alpha_x` = specular,
 /// `alpha_y` = specular tint, `p` = (sheen, sheen tint, clearcoat, clearcoat
 /// gloss); Hair `a` = sigma_a, `eta`, `alpha_x` = beta_m, `alpha_y` =
-/// beta_n, `g` = the scales' tilt in degrees. `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
+/// beta_n, `g` = the scales' tilt in degrees, `thickness` = the given
+/// offset across the fibre. `MATERIAL_NONE` means "no BSDF" (Rust's `None` from
 /// `bsdf_from_record`).
 struct Bsdf {
     unsigned int kind;
@@ -359,6 +360,7 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_M]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_N]);
         b.g = f16_to_f32(r.coeffs[COEFF_HAIR_ALPHA]);
+        b.thickness = f16_to_f32(r.coeffs[COEFF_HAIR_OFFSET]);
     } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
         b.a = load_f16x3(&r.coeffs[COEFF_PRINCIPLED_BASE_COLOR]);
         b.b = make_float3(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_METALLIC]),
@@ -760,17 +762,20 @@ __device__ __forceinline__ float hair_powi(float x, int n) {
 struct Hair {
     float3 sigma_a;
     float eta;
+    float given_offset;
     float v[HAIR_P_MAX + 1];
     float s;
     float sin_2k_alpha[3], cos_2k_alpha[3];
 };
 
-/// Mirrors `Hair::new` (`a` = sigma_a, `alpha_x` = beta_m, `alpha_y` =
-/// beta_n, `g` = alpha in degrees; `bsdf_from_record`).
+/// Mirrors `Hair::new(..).with_offset(..)` (`a` = sigma_a, `alpha_x` =
+/// beta_m, `alpha_y` = beta_n, `g` = alpha in degrees, `thickness` = the
+/// given offset; `bsdf_from_record`).
 __device__ __forceinline__ Hair hair_of(const Bsdf& b) {
     Hair h;
     h.sigma_a = b.a;
     h.eta = b.eta;
+    h.given_offset = b.thickness;
     const float bm = b.alpha_x;
     const float v0 = hair_powi(0.726f * bm + 0.812f * bm * bm + 3.7f * hair_powi(bm, 20), 2);
     h.v[0] = v0;

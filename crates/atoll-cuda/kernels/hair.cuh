@@ -114,7 +114,7 @@ struct HairOutgoing {
 /// Mirrors `Hair::outgoing`.
 __device__ __forceinline__ HairOutgoing hair_outgoing(const Hair& h, float3 wo) {
     HairOutgoing o;
-    const float hh = hair_offset(wo);
+    const float hh = fabsf(h.given_offset) <= 1.0f ? h.given_offset : hair_offset(wo);
     o.sin_theta_o = wo.x;
     o.cos_theta_o = hair_safe_sqrt(1.0f - o.sin_theta_o * o.sin_theta_o);
     o.phi_o = atan2f(wo.z, wo.y);
@@ -147,31 +147,21 @@ __device__ __forceinline__ HairOutgoing hair_outgoing(const Hair& h, float3 wo) 
     return o;
 }
 
-/// Mirrors `Hair::lobes` with the attenuations as weights: the BSDF times
-/// `|cos θ_i|`.
-__device__ __forceinline__ float3 hair_lobes_f(const Hair& h, const HairOutgoing& o, float sin_theta_i,
-                                               float cos_theta_i, float dphi) {
-    float3 sum = zero3();
+/// Mirrors `Hair::lobes`: `Σ_p weight[p] Mp Np` plus the isotropic last
+/// lobe; the BSDF times `|cos θ_i|` with the attenuations `o.ap` as
+/// weights (`T` = float3), the pdf with the selection weights `o.ap_pdf`
+/// (`T` = float).
+template <typename T>
+__device__ __forceinline__ T hair_lobes(const Hair& h, const HairOutgoing& o, float sin_theta_i, float cos_theta_i,
+                                        float dphi, const T* weight, T zero) {
+    T sum = zero;
     for (int p = 0; p < HAIR_P_MAX; ++p) {
         const float2 t = hair_tilted(h, p, o.sin_theta_o, o.cos_theta_o);
         const float m = hair_mp(cos_theta_i, t.y, sin_theta_i, t.x, h.v[p]);
-        sum = sum + o.ap[p] * (m * hair_np(dphi, p, h.s, o.gamma_o, o.gamma_t));
+        sum = sum + weight[p] * (m * hair_np(dphi, p, h.s, o.gamma_o, o.gamma_t));
     }
     const float m = hair_mp(cos_theta_i, o.cos_theta_o, sin_theta_i, o.sin_theta_o, h.v[HAIR_P_MAX]);
-    return sum + o.ap[HAIR_P_MAX] * (m * (0.5f * FRAC_1_PI));
-}
-
-/// Mirrors `Hair::lobes` with the selection weights: the pdf.
-__device__ __forceinline__ float hair_lobes_pdf(const Hair& h, const HairOutgoing& o, float sin_theta_i,
-                                                float cos_theta_i, float dphi) {
-    float sum = 0.0f;
-    for (int p = 0; p < HAIR_P_MAX; ++p) {
-        const float2 t = hair_tilted(h, p, o.sin_theta_o, o.cos_theta_o);
-        const float m = hair_mp(cos_theta_i, t.y, sin_theta_i, t.x, h.v[p]);
-        sum = sum + o.ap_pdf[p] * (m * hair_np(dphi, p, h.s, o.gamma_o, o.gamma_t));
-    }
-    const float m = hair_mp(cos_theta_i, o.cos_theta_o, sin_theta_i, o.sin_theta_o, h.v[HAIR_P_MAX]);
-    return sum + o.ap_pdf[HAIR_P_MAX] * (m * (0.5f * FRAC_1_PI));
+    return sum + weight[HAIR_P_MAX] * (m * (0.5f * FRAC_1_PI));
 }
 
 /// Mirrors `Hair::eval`.
@@ -179,7 +169,7 @@ __device__ __noinline__ float3 hair_eval(Hair h, float3 wo, float3 wi) {
     const HairOutgoing o = hair_outgoing(h, wo);
     const float sin_theta_i = wi.x;
     const float cos_theta_i = hair_safe_sqrt(1.0f - sin_theta_i * sin_theta_i);
-    const float3 f = hair_lobes_f(h, o, sin_theta_i, cos_theta_i, atan2f(wi.z, wi.y) - o.phi_o);
+    const float3 f = hair_lobes(h, o, sin_theta_i, cos_theta_i, atan2f(wi.z, wi.y) - o.phi_o, o.ap, zero3());
     const float cos = fabsf(wi.z);
     return cos > 0.0f ? f / cos : f;
 }
@@ -189,7 +179,7 @@ __device__ __noinline__ float hair_pdf(Hair h, float3 wo, float3 wi) {
     const HairOutgoing o = hair_outgoing(h, wo);
     const float sin_theta_i = wi.x;
     const float cos_theta_i = hair_safe_sqrt(1.0f - sin_theta_i * sin_theta_i);
-    return hair_lobes_pdf(h, o, sin_theta_i, cos_theta_i, atan2f(wi.z, wi.y) - o.phi_o);
+    return hair_lobes(h, o, sin_theta_i, cos_theta_i, atan2f(wi.z, wi.y) - o.phi_o, o.ap_pdf, 0.0f);
 }
 
 /// Mirrors `Hair::sample`.
@@ -214,7 +204,7 @@ __device__ __noinline__ bool hair_sample(Hair h, float3 wo, float uc, float2 u, 
                                       : 2.0f * PI * uc;
     const float phi_i = o.phi_o + dphi;
     const float3 wi = make_float3(sin_theta_i, cos_theta_i * cosf(phi_i), cos_theta_i * sinf(phi_i));
-    const float pdf = hair_lobes_pdf(h, o, sin_theta_i, cos_theta_i, dphi);
+    const float pdf = hair_lobes(h, o, sin_theta_i, cos_theta_i, dphi, o.ap_pdf, 0.0f);
     const float3 f = hair_eval(h, wo, wi);
     *out = make_bsdf_sample(f, wi, pdf, 1.0f, false, !same_hemisphere(wo, wi));
     return true;

@@ -87,6 +87,7 @@ inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;
 inline constexpr unsigned int MESH_HAS_UVS = 8u;
+inline constexpr unsigned int MESH_SWEPT_TUBE = 16u;
 inline constexpr unsigned int IMAGE_RGBA8 = 0u;
 inline constexpr unsigned int IMAGE_RGBA8_SRGB = 1u;
 inline constexpr unsigned int IMAGE_RGBA_F32 = 2u;

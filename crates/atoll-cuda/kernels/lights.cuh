@@ -129,28 +129,12 @@ __device__ __forceinline__ float smooth_step(float x, float a, float b) {
     return t * t * (3.0f - 2.0f * t);
 }
 
-/// The radiance an environment emitter `e` with portal `q` sends along `w`
-/// to `origin`: none unless the ray leaves through the portal.
-__device__ __forceinline__ float3 env_radiance_through(const FrameParams& p, const GpuEmitter& e, const Portal& q,
-                                                       float3 origin, float3 w) {
-    if (!portal_passes(q, origin, w)) return zero3();
-    return e.kind == EMITTER_ENVIRONMENT ? env_radiance(p, e, w) : load3(e.radiance);
-}
-
-/// The direction density of an environment emitter `e` with portal `q`:
-/// half its own distribution, half the portal's (`portal::split_strategy`).
-__device__ __forceinline__ float env_direction_pdf_through(const FrameParams& p, const GpuEmitter& e, const Portal& q,
-                                                           float3 from, float3 w) {
-    const float own = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
-    return 0.5f * own + 0.5f * portal_pdf(q, from, w);
-}
-
 /// Mirrors `LightSet::environment_radiance`.
 __device__ __forceinline__ float3 light_environment_radiance(const FrameParams& p, unsigned int index, float3 origin,
                                                              float3 w) {
     const GpuEmitter& e = p.emitters[index];
     if (e.kind != EMITTER_ENVIRONMENT && e.kind != EMITTER_INFINITE) return zero3();
-    if (e.portal != 0u) return env_radiance_through(p, e, portal_of(p, e), origin, w);
+    if (e.portal != 0u && !portal_passes(portal_of(p, e), origin, w)) return zero3();
     return e.kind == EMITTER_ENVIRONMENT ? env_radiance(p, e, w) : load3(e.radiance);
 }
 
@@ -158,8 +142,9 @@ __device__ __forceinline__ float3 light_environment_radiance(const FrameParams& 
 __device__ __forceinline__ float light_environment_direction_pdf(const FrameParams& p, const GpuEmitter& e,
                                                                  float3 from, float3 w) {
     if (e.kind != EMITTER_ENVIRONMENT && e.kind != EMITTER_INFINITE) return 0.0f;
-    if (e.portal != 0u) return env_direction_pdf_through(p, e, portal_of(p, e), from, w);
-    return e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
+    const float own = e.kind == EMITTER_ENVIRONMENT ? env_pdf(p, e, w) : UNIFORM_SPHERE_PDF;
+    if (e.portal == 0u) return own;
+    return 0.5f * own + 0.5f * portal_pdf(portal_of(p, e), from, w);
 }
 
 /// Mirrors `LightSet::pdf_environment`.
@@ -168,18 +153,20 @@ __device__ __forceinline__ float light_pdf_environment(const FrameParams& p, flo
     return light_selection_pmf(p, from, index) * light_environment_direction_pdf(p, p.emitters[index], from, w);
 }
 
-/// Mirrors `LightSet::sample_through_portal` for emitter `e`, which has a
-/// portal.
-__device__ __forceinline__ bool light_sample_through_portal(const FrameParams& p, const GpuEmitter& e, float3 pos,
-                                                            float2 u, float3* wi, float3* radiance, float* pdf) {
-    // The portal's words, loaded once for the sample, its density and radiance.
-    const Portal q = portal_of(p, e);
+/// Mirrors `LightSet::sample_through_portal` for emitter `index` (`e`),
+/// which has a portal.
+__device__ __forceinline__ bool light_sample_through_portal(const FrameParams& p, unsigned int index,
+                                                            const GpuEmitter& e, float3 pos, float2 u, float3* wi,
+                                                            float3* radiance, float* pdf) {
+    // The portal's words are loaded where each use needs them: loaded once
+    // and kept live across the environment's sampling, they cost the plain
+    // shade kernel 13 registers (87 -> 100, tests/wavefront_compile.rs).
     // Mirrors `portal::split_strategy`.
     const bool through_portal = u.x >= 0.5f;
     u.x = through_portal ? u.x * 2.0f - 1.0f : u.x * 2.0f;
     if (through_portal) {
         float portal_density;
-        if (!portal_sample(q, pos, u, wi, &portal_density)) return false;
+        if (!portal_sample(portal_of(p, e), pos, u, wi, &portal_density)) return false;
     } else if (e.kind == EMITTER_ENVIRONMENT) {
         float3 unused_radiance;
         float unused_pdf;
@@ -187,9 +174,9 @@ __device__ __forceinline__ bool light_sample_through_portal(const FrameParams& p
     } else {
         *wi = sample_uniform_sphere(u);
     }
-    *pdf = env_direction_pdf_through(p, e, q, pos, *wi);
+    *pdf = light_environment_direction_pdf(p, e, pos, *wi);
     if (!(*pdf > 0.0f)) return false;
-    *radiance = env_radiance_through(p, e, q, pos, *wi);
+    *radiance = light_environment_radiance(p, index, pos, *wi);
     return true;
 }
 
@@ -240,7 +227,7 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
     }
     if ((e.kind == EMITTER_ENVIRONMENT || e.kind == EMITTER_INFINITE) && e.portal != 0u) {
         float dir_pdf;
-        if (!light_sample_through_portal(p, e, pos, u, &out->wi, &out->radiance, &dir_pdf)) return false;
+        if (!light_sample_through_portal(p, index, e, pos, u, &out->wi, &out->radiance, &dir_pdf)) return false;
         out->distance = f32_infinity();
         out->pdf = pmf * dir_pdf;
         out->delta = false;

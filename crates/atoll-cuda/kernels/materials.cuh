@@ -53,6 +53,7 @@ inline constexpr unsigned int COEFF_HAIR_BETA_M = 4u;
 inline constexpr unsigned int COEFF_HAIR_BETA_N = 5u;
 inline constexpr unsigned int COEFF_HAIR_ALPHA = 6u;
 inline constexpr unsigned int COEFF_HAIR_AXIS = 7u;
+inline constexpr unsigned int COEFF_HAIR_OFFSET = 10u;
 inline constexpr unsigned int COATED_CONDUCTOR_MAX_DEPTH = 10u;
 inline constexpr unsigned int COATED_CONDUCTOR_N_SAMPLES = 1u;
 // END GENERATED materials

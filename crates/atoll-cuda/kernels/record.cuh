@@ -87,6 +87,7 @@ inline constexpr unsigned int MATERIAL_COATED_DIFFUSE = 7u;
 inline constexpr unsigned int MATERIAL_PRINCIPLED = 8u;
 inline constexpr unsigned int MATERIAL_COATED_CONDUCTOR = 9u;
 inline constexpr unsigned int MATERIAL_HAIR = 10u;
+inline constexpr float HAIR_OFFSET_FROM_NORMAL = 2.0f;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(RayRecord, origin) == 0 && sizeof(RayRecord::origin) == 12, "RayRecord.origin: offset or size differs from Rust");

@@ -137,13 +137,17 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
                           affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
         if (meta.x == MATERIAL_HAIR) {
-            // material_coeffs::store_hair_axis.
+            // material_coeffs::store_hair_fibre, with hair_offset_at.
             uint4 cw[2] = {c0, c1};
             unsigned short* coeffs = reinterpret_cast<unsigned short*>(cw);
             const float3 axis = normalize_or_zero3(dpdu);
             coeffs[COEFF_HAIR_AXIS] = f32_to_f16(axis.x);
             coeffs[COEFF_HAIR_AXIS + 1] = f32_to_f16(axis.y);
             coeffs[COEFF_HAIR_AXIS + 2] = f32_to_f16(axis.z);
+            const float offset = (mesh.flags & MESH_SWEPT_TUBE)
+                                     ? HAIR_OFFSET_FROM_NORMAL
+                                     : clampf(-1.0f + 2.0f * hit_uv(s, mesh, i0, i1, i2, b1, b2).y, -1.0f, 1.0f);
+            coeffs[COEFF_HAIR_OFFSET] = f32_to_f16(offset);
             c0 = cw[0];
             c1 = cw[1];
         }

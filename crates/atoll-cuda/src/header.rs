@@ -148,6 +148,7 @@ pub(crate) fn record_asserts() -> String {
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
+    s += &const_float("HAIR_OFFSET_FROM_NORMAL", atoll_render::bsdf::hair::OFFSET_FROM_NORMAL);
     s + &assert_struct::<RayRecord>("RayRecord", record::field_layout())
 }
 
@@ -195,6 +196,7 @@ pub(crate) fn layout_asserts() -> String {
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
         ("MESH_EMISSIVE", mesh_flags::EMISSIVE),
         ("MESH_HAS_UVS", mesh_flags::HAS_UVS),
+        ("MESH_SWEPT_TUBE", mesh_flags::SWEPT_TUBE),
         ("IMAGE_RGBA8", image_format::RGBA8),
         ("IMAGE_RGBA8_SRGB", image_format::RGBA8_SRGB),
         ("IMAGE_RGBA_F32", image_format::RGBA_F32),

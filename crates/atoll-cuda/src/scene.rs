@@ -251,6 +251,9 @@ impl TablePlan {
                 if !mesh.uvs.is_empty() {
                     flags |= mesh_flags::HAS_UVS;
                 }
+                if mesh.transparent_back_faces {
+                    flags |= mesh_flags::SWEPT_TUBE;
+                }
                 let count = range.triangles.end - range.triangles.start;
                 plan.meshes.push(GpuMesh {
                     first_triangle: triangles,

@@ -23,7 +23,7 @@ use atoll_cuda::params::{FrameParamsHost, SceneView};
 use atoll_cuda::scene::{GpuScene, SceneTables};
 use atoll_cuda::work::{WorkFifo, WorkStatus};
 use atoll_render::lights::Emitter;
-use atoll_render::material_coeffs::{bsdf_from_record, store_hair_axis, PackedMaterial};
+use atoll_render::material_coeffs::{bsdf_from_record, store_hair_fibre, PackedMaterial};
 use atoll_render::record::{flags, MaterialKind, NO_LIGHT};
 use atoll_render::rng::{pcg_hash, SampleStream};
 use atoll_render::sampling::sample_uniform_sphere;
@@ -864,7 +864,8 @@ fn shade_materials_matches_the_cpu_stage(materials: &[PackedMaterial]) {
         let m = &materials[i % materials.len()];
         m.store(r);
         // Hair turns its frame about an axis the hit carries.
-        store_hair_axis(m.kind, &mut r.coeffs, unit(i as u32, 17));
+        let offset = if i % 3 == 0 { rnd(i as u32, 18) * 2.0 - 1.0 } else { 2.0 };
+        store_hair_fibre(m.kind, &mut r.coeffs, unit(i as u32, 17), offset);
     }
     let cpu = shade_on_cpu(&frame, &paths);
     let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
@@ -951,7 +952,16 @@ fn hair_materials() -> Vec<PackedMaterial> {
     ]
     .iter()
     .map(PackedMaterial::pack)
+    .chain([given_offset(hair(Rgb::new(0.4, 0.6, 1.0), 0.3, 0.3, 2.0), -0.35)])
     .collect()
+}
+
+/// A hair fibre on a surface that gives its offset (`-1 + 2v`, as on
+/// ribbons) rather than a swept tube's.
+fn given_offset(m: Material, offset: f32) -> PackedMaterial {
+    let mut packed = PackedMaterial::pack(&m);
+    packed.coeffs[atoll_render::material_layout::hair::OFFSET] = half::f16::from_f32(offset);
+    packed
 }
 
 /// The hair BSDF's `eval`, `pdf` and `sample` on the GPU (`hair.cuh`)

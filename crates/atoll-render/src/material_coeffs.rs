@@ -105,6 +105,7 @@ impl PackedMaterial {
                 c[hair::BETA_M] = p.beta_m;
                 c[hair::BETA_N] = p.beta_n;
                 c[hair::ALPHA] = p.alpha;
+                c[hair::OFFSET] = crate::bsdf::hair::OFFSET_FROM_NORMAL;
                 MaterialKind::Hair
             }
         };
@@ -176,13 +177,16 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             transmission: r.coeff(principled::TRANSMISSION),
             eta: r.coeff(principled::ETA),
         }))),
-        MaterialKind::Hair => Some(Bsdf::Hair(Hair::new(&HairParams {
-            sigma_a: r.coeff3(hair::SIGMA_A),
-            eta: r.coeff(hair::ETA),
-            beta_m: r.coeff(hair::BETA_M),
-            beta_n: r.coeff(hair::BETA_N),
-            alpha: r.coeff(hair::ALPHA),
-        }))),
+        MaterialKind::Hair => Some(Bsdf::Hair(
+            Hair::new(&HairParams {
+                sigma_a: r.coeff3(hair::SIGMA_A),
+                eta: r.coeff(hair::ETA),
+                beta_m: r.coeff(hair::BETA_M),
+                beta_n: r.coeff(hair::BETA_N),
+                alpha: r.coeff(hair::ALPHA),
+            })
+            .with_offset(r.coeff(hair::OFFSET)),
+        )),
     }
 }
 
@@ -197,14 +201,27 @@ pub fn shading_frame(r: &RayRecord) -> Frame {
     }
 }
 
-/// Writes the fibre's axis into a hair hit's coefficients (nothing for
-/// other kinds): the surface's `dpdu`, normalised.
-pub fn store_hair_axis(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dpdu: Vec3) {
+/// Writes what a hair hit carries besides the material into its
+/// coefficients (nothing for other kinds): the fibre's axis, the surface's
+/// `dpdu` normalised, and the offset across it (`-1 + 2v` from the hit's
+/// `v`, or `hair::OFFSET_FROM_NORMAL` on a swept tube).
+pub fn store_hair_fibre(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dpdu: Vec3, offset: f32) {
     if kind == MaterialKind::Hair {
         let axis = dpdu.normalize_or_zero();
         for (slot, v) in coeffs[hair::AXIS..hair::AXIS + 3].iter_mut().zip(axis.to_array()) {
             *slot = f16::from_f32(v);
         }
+        coeffs[hair::OFFSET] = f16::from_f32(offset);
+    }
+}
+
+/// The offset across a hair fibre at a hit of `v` on a mesh that is a
+/// swept tube or not ([`store_hair_fibre`]).
+pub fn hair_offset_at(v: f32, swept_tube: bool) -> f32 {
+    if swept_tube {
+        crate::bsdf::hair::OFFSET_FROM_NORMAL
+    } else {
+        (-1.0 + 2.0 * v).clamp(-1.0, 1.0)
     }
 }
 

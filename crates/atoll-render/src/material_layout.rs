@@ -155,6 +155,11 @@ layouts! {
         /// not a material parameter, written with the hit, since the hair
         /// BSDF's frame turns about it.
         AXIS: 7..10,
+        /// The offset `h` across the fibre where the surface gives it
+        /// (pbrt's `-1 + 2v`), written with the hit;
+        /// `hair::OFFSET_FROM_NORMAL` on swept tubes, whose offset comes
+        /// from the normal at shading.
+        OFFSET: 10,
     }
 }
 

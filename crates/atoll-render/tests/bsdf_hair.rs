@@ -21,23 +21,8 @@ use atoll_render::bsdf::{Bsdf, Hair};
 use atoll_render::sampling::sample_uniform_sphere;
 use atoll_render::RenderOptions;
 use atoll_scene::{HairParams, Rgb};
-use common::{assert_finite, mean_and_stderr, render_with};
-use glam::{Vec2, Vec3};
-
-/// xorshift64*, enough for tests without an RNG dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 * (1.0 / 16_777_216.0)
-    }
-    fn vec2(&mut self) -> Vec2 {
-        Vec2::new(self.next_f32(), self.next_f32())
-    }
-}
+use common::{assert_finite, mean_and_stderr, render_with, Rng};
+use glam::Vec3;
 
 fn hair(sigma_a: Rgb, beta_m: f32, beta_n: f32, alpha: f32) -> Hair {
     Hair::new(&HairParams { sigma_a, eta: 1.55, beta_m, beta_n, alpha })
@@ -148,6 +133,30 @@ fn offset_is_the_sine_of_the_azimuth_from_the_normal() {
     assert_eq!(Hair::offset(Vec3::X), 0.0);
 }
 
+/// A surface's own offset (pbrt's `-1 + 2v`) is used as is, and means
+/// what the normal's does: the fibre with offset `h` given equals (times
+/// the cosine, and in pdf) the fibre that takes it from the normal, with
+/// `wo` and `wi` turned together about the axis.
+#[test]
+fn a_given_offset_is_the_normals_turned_about_the_axis() {
+    let params =
+        HairParams { sigma_a: Rgb::new(0.3, 0.7, 1.5), eta: 1.55, beta_m: 0.3, beta_n: 0.4, alpha: 2.0 };
+    let from_normal = Hair::new(&params);
+    let mut rng = Rng(0xabcd_ef01_2345_6789);
+    for _ in 0..200 {
+        let (wo, wi) = (sample_uniform_sphere(rng.vec2()), sample_uniform_sphere(rng.vec2()));
+        let given = from_normal.with_offset(Hair::offset(wo));
+        // Turning both about x keeps their azimuths apart and wo's offset.
+        let turn = glam::Quat::from_rotation_x(1.0 + 4.0 * rng.next_f32());
+        // f is divided by the cosine to the normal, which the turn changes.
+        let (a, b) =
+            (from_normal.eval(wo, wi) * wi.z.abs(), given.eval(turn * wo, turn * wi) * (turn * wi).z.abs());
+        assert!((a - b).abs().max_element() <= 1e-3 * a.max_element().max(1e-3), "{a} vs {b}");
+        let (pa, pb) = (from_normal.pdf(wo, wi), given.pdf(turn * wo, turn * wi));
+        assert!((pa - pb).abs() <= 1e-3 * pa.max(1e-3), "{pa} vs {pb}");
+    }
+}
+
 /// The reflection lobe (R) of a smooth, untilted, opaque fibre peaks at
 /// the mirror image of `wo` about the normal: its azimuth mirrored about
 /// the normal's, its longitudinal angle negated.
@@ -213,4 +222,51 @@ fn white_fibre_under_a_uniform_sky_is_invisible() {
     for (i, p) in film.pixels().iter().enumerate() {
         assert!((p.y - 1.0).abs() < 0.25, "pixel {i}: {p}");
     }
+}
+
+/// Hair hits carry the fibre's axis and offset: `-1 + 2v` on a ribbon, as
+/// pbrt reads it, and "from the normal" on a swept tube.
+#[test]
+fn hits_carry_the_fibres_axis_and_offset() {
+    use atoll_render::material_layout::hair;
+    use atoll_render::stages::generate::camera_record;
+    use atoll_render::{CpuDevice, Device, FrameContext, Queue};
+    let source = r#"
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+WorldBegin
+Material "hair"
+Shape "curve" "string type" "ribbon" "point3 P" [ -1 0 0  -0.3 0 0  0.3 0 0  1 0 0 ]
+  "normal N" [ 0 0 1  0 0 1 ] "float width" [ 0.5 ]
+Shape "curve" "string type" "cylinder" "point3 P" [ -1 1 0  -0.3 1 0  0.3 1 0  1 1 0 ] "float width" [ 0.5 ]
+"#;
+    let scene = Arc::new(
+        atoll_scene::pbrt::load_str(source, "fibres.pbrt", std::path::Path::new(".")).unwrap().scene,
+    );
+    let frame = Arc::new(FrameContext::new(&scene, RenderOptions::from_scene(&scene)));
+    let mut cpu = CpuDevice::new();
+    cpu.prepare(&scene, &atoll_bvh::ScenePart::whole(&scene), &frame).unwrap();
+    // Straight down onto the ribbon at y = 0.1, and onto the tube.
+    let rays: Vec<_> = [[0.3, 0.1, 5.0], [0.3, 1.05, 5.0]]
+        .into_iter()
+        .map(|origin| {
+            let mut r = camera_record(&frame, 0, 0);
+            r.origin = origin;
+            r.direction = [0.0, 0.0, -1.0];
+            r
+        })
+        .collect();
+    cpu.write_queue(Queue::Paths, &rays).unwrap();
+    cpu.trace_paths().unwrap();
+    let hits = cpu.read_queue(Queue::Paths).unwrap();
+    for h in &hits {
+        assert_eq!(h.material_kind(), atoll_render::record::MaterialKind::Hair);
+        let axis = h.coeff3(hair::AXIS);
+        assert!((axis.x.abs() - 1.0).abs() < 1e-3, "the fibre runs along x: {axis}");
+    }
+    // The ribbon's v runs from its +y edge (0) to its -y edge (1): y = 0.1
+    // is v = 0.3, h = -0.4.
+    let ribbon = hits[0].coeff(hair::OFFSET);
+    assert!((ribbon + 0.4).abs() < 2e-3, "ribbon offset {ribbon}");
+    assert_eq!(hits[1].coeff(hair::OFFSET), atoll_render::bsdf::hair::OFFSET_FROM_NORMAL);
 }

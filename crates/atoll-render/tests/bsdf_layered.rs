@@ -34,23 +34,8 @@ use atoll_scene::{
     Camera, CoatedConductorParams, CoatedDiffuseParams, Coating, Instance, IntegratorSettings, Light,
     Material, Object, Rgb, Scene, TriangleMesh,
 };
-use common::{assert_finite, mean_and_stderr, render_with};
+use common::{assert_finite, mean_and_stderr, render_with, Rng};
 use glam::{Affine3A, UVec2, Vec2, Vec3};
-
-/// xorshift64*, enough for tests without an RNG dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 * (1.0 / 16_777_216.0)
-    }
-    fn vec2(&mut self) -> Vec2 {
-        Vec2::new(self.next_f32(), self.next_f32())
-    }
-}
 
 /// pbrt's default coating (index 1.5, walks of 10 events) with these
 /// roughnesses and medium.

@@ -3,25 +3,14 @@
 //! conservation of the albedo estimate, the Fresnel equations and the law of
 //! refraction.
 
+mod common;
+
+use common::Rng;
+
 use atoll_render::bsdf::{fr_complex, fr_dielectric, refract, Bsdf, Principled};
 use atoll_render::sampling::sample_uniform_sphere;
 use atoll_scene::{Material, PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
-
-/// xorshift64*, enough for tests without an RNG dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn next_f32(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 * (1.0 / 16_777_216.0)
-    }
-    fn vec2(&mut self) -> Vec2 {
-        Vec2::new(self.next_f32(), self.next_f32())
-    }
-}
 
 fn gold() -> (Rgb, Rgb) {
     (Rgb::new(0.18, 0.42, 1.37), Rgb::new(3.42, 2.35, 1.77))

@@ -150,3 +150,19 @@ pub fn assert_pixels_match(what: &str, film: &Film, want: &[glam::Vec3], median:
     let (m, p) = (errors[errors.len() / 2], errors[errors.len() * 99 / 100]);
     assert!(m < median && p < p99, "{what}: pixel errors median {m}, p99 {p}");
 }
+
+/// xorshift64*, enough for tests without an RNG dependency.
+pub struct Rng(pub u64);
+
+impl Rng {
+    pub fn next_f32(&mut self) -> f32 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 * (1.0 / 16_777_216.0)
+    }
+
+    pub fn vec2(&mut self) -> glam::Vec2 {
+        glam::Vec2::new(self.next_f32(), self.next_f32())
+    }
+}

@@ -9,9 +9,10 @@
 //!
 //! The frame is the hair's: local x is the fibre's axis (the surface's
 //! `dpdu`), z the surface normal, so `sin θ = w.x` and `φ = atan2(w.z,
-//! w.y)`. pbrt takes the offset `h` across the fibre from the curve's `v`
-//! coordinate; atoll's fibres are swept tubes whose normals go round the
-//! axis, so `h` is where `wo` meets that normal, the sine of the azimuth
+//! w.y)`. pbrt takes the offset `h` across the fibre from the surface's `v`
+//! coordinate (`-1 + 2v`), and so does atoll on ribbons and other surfaces.
+//! A curve swept into a tube has normals that go round its axis instead,
+//! so there `h` is where `wo` meets that normal, the sine of the azimuth
 //! between the normal and `wo` ([`Hair::offset`]), which is what `v` stands
 //! for on pbrt's ray-facing curves.
 
@@ -24,10 +25,18 @@ use super::{fr_dielectric, same_hemisphere, BsdfSample};
 /// The last lobe: `p` = `P_MAX` sums every longer path through the fibre.
 pub const P_MAX: usize = 3;
 
+/// [`Hair::given_offset`] meaning "from the normal" ([`Hair::offset`]):
+/// outside [-1, 1], and exact in f16.
+pub const OFFSET_FROM_NORMAL: f32 = 2.0;
+
 /// A hair fibre's BSDF with its per-lobe constants worked out.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hair {
     pub params: HairParams,
+    /// The offset `h` across the fibre as the surface gives it (pbrt's
+    /// `-1 + 2v` on ribbons and other surfaces), or [`OFFSET_FROM_NORMAL`]
+    /// on swept tubes.
+    pub given_offset: f32,
     /// Longitudinal variance of each lobe.
     v: [f32; P_MAX + 1],
     /// Logistic scale of the azimuthal lobes.
@@ -166,7 +175,12 @@ impl Hair {
             cos_2k_alpha[i] =
                 cos_2k_alpha[i - 1] * cos_2k_alpha[i - 1] - sin_2k_alpha[i - 1] * sin_2k_alpha[i - 1];
         }
-        Hair { params: *params, v, s, sin_2k_alpha, cos_2k_alpha }
+        Hair { params: *params, given_offset: OFFSET_FROM_NORMAL, v, s, sin_2k_alpha, cos_2k_alpha }
+    }
+
+    /// The fibre with the offset its surface gives (see [`Hair::given_offset`]).
+    pub fn with_offset(self, given_offset: f32) -> Hair {
+        Hair { given_offset, ..self }
     }
 
     /// The offset `h` in [-1, 1] across the fibre where `wo` (local) meets
@@ -196,7 +210,7 @@ impl Hair {
     }
 
     fn outgoing(&self, wo: Vec3) -> Outgoing {
-        let h = Hair::offset(wo);
+        let h = if self.given_offset.abs() <= 1.0 { self.given_offset } else { Hair::offset(wo) };
         let sin_theta_o = wo.x;
         let cos_theta_o = safe_sqrt(1.0 - sin_theta_o * sin_theta_o);
         let phi_o = wo.z.atan2(wo.y);

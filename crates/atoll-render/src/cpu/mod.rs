@@ -17,7 +17,7 @@ use crate::chunks::SceneSharing;
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
-use crate::material_coeffs::store_hair_axis;
+use crate::material_coeffs::{hair_offset_at, store_hair_fibre};
 use crate::record::{flags, to_f16x3, MaterialKind, RayRecord, NO_LIGHT};
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
@@ -254,7 +254,8 @@ fn write_hit(
         let world = corners.map(|c| to_world.transform_point3(c));
         let (dpdu, dpdv) =
             crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng);
-        store_hair_axis(packed.kind, &mut r.coeffs, dpdu);
+        let offset = hair_offset_at(uv().y, mesh.transparent_back_faces);
+        store_hair_fibre(packed.kind, &mut r.coeffs, dpdu, offset);
         if bends {
             let interpolated = !mesh.normals.is_empty();
             let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
