@@ -78,7 +78,7 @@ pub struct SceneBvhStats {
 /// Decides which candidate hits count: alpha masks that cut holes into
 /// surfaces. Traversal asks only for meshes where [`HitFilter::filters`]
 /// says so (the renderer's texture programs implement it).
-pub trait HitFilter: Sync {
+pub trait HitFilter {
     /// Whether hits on scene mesh `mesh` need [`HitFilter::keeps`].
     fn filters(&self, mesh: MeshId) -> bool;
     /// Whether the hit of triangle `triangle` of `mesh` at barycentrics

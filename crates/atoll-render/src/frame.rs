@@ -10,6 +10,7 @@ use crate::camera::CameraRays;
 use crate::filter::FilterTable;
 use crate::lights::LightSet;
 use crate::material_coeffs::PackedMaterial;
+use crate::medium::MediumTable;
 use crate::record::RayRecord;
 use crate::record::MATERIAL_COEFFS;
 use crate::rng::{BounceDim, SampleStream};
@@ -117,6 +118,8 @@ pub struct FrameContext {
     pub textures: TextureTables,
     /// The scene's texture images (shared), which the programs read.
     pub images: Vec<Arc<TextureImage>>,
+    /// Participating media and the camera's.
+    pub media: MediumTable,
 }
 
 impl FrameContext {
@@ -129,6 +132,7 @@ impl FrameContext {
             lights: LightSet::new(scene, options.light_sampler),
             textures: TextureTables::new(scene, &kinds),
             images: scene.textures.images.clone(),
+            media: MediumTable::new(scene),
             materials,
             options,
         }

@@ -16,6 +16,7 @@
 //! ray half, which saves a third of shading's memory traffic), so nothing
 //! may read it from a record that closest-hit tracing has not hit.
 
+use atoll_scene::{MediumIndex, MediumInterface};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use half::f16;
@@ -36,6 +37,11 @@ pub mod flags {
     /// The direction was sampled from a delta lobe (or is a camera ray): an
     /// emitter found along it is counted without MIS.
     pub const SPECULAR: u8 = 1 << 3;
+    /// The top four bits: the medium a path segment travels through
+    /// ([`atoll_scene::MediumIndex`], 0 the vacuum; [`RayRecord::medium`]).
+    pub const MEDIUM_SHIFT: u32 = 4;
+    /// The bits [`MEDIUM_SHIFT`] points at.
+    pub const MEDIUM_MASK: u8 = 0xf0;
 }
 
 /// Which material model the coefficients describe ([`RayRecord::material`]);
@@ -120,7 +126,9 @@ pub struct RayRecord {
     pub emission_scale: u32,
     /// Geometric normal, oriented by pbrt's rule (not towards the ray).
     pub geometric_normal: [f16; 3],
-    /// [`MaterialKind`] as u16.
+    /// [`MaterialKind`] in the low byte; in the high byte, where the hit
+    /// surface separates two media, their [`atoll_scene::MediumIndex`]es
+    /// (inside in the top four bits, outside below; [`RayRecord::hit_media`]).
     pub material: u16,
     pub shading_normal: [f16; 3],
     /// How far `position` may lie off the surface along the geometric
@@ -269,7 +277,31 @@ impl RayRecord {
         from_f16x3(self.shading_normal)
     }
     pub fn material_kind(&self) -> MaterialKind {
-        MaterialKind::from_u16(self.material)
+        MaterialKind::from_u16(self.material & 0xff)
+    }
+    /// The medium this segment travels through.
+    pub fn medium(&self) -> MediumIndex {
+        self.flags >> flags::MEDIUM_SHIFT
+    }
+    /// Puts the segment in medium `m`.
+    pub fn set_medium(&mut self, m: MediumIndex) {
+        self.flags = (self.flags & !flags::MEDIUM_MASK) | (m << flags::MEDIUM_SHIFT);
+    }
+    /// The media on either side of the hit surface, where they differ.
+    pub fn hit_media(&self) -> Option<MediumInterface> {
+        let byte = (self.material >> 8) as u8;
+        MediumInterface::transition(byte >> 4, byte & 0xf)
+    }
+    /// Records the hit surface's media (after its material kind is stored).
+    pub fn set_hit_media(&mut self, media: Option<MediumInterface>) {
+        let byte = media.map_or(0, |m| (m.inside << 4 | m.outside) as u16);
+        self.material = (self.material & 0xff) | byte << 8;
+    }
+    /// A shadow ray's optical depth through media so far, per channel: it
+    /// reaches the light with `exp(-depth)` of its radiance. Kept in the
+    /// hit half's `position`, which shadow rays never use otherwise.
+    pub fn optical_depth(&self) -> Vec3 {
+        Vec3::from(self.position)
     }
     pub fn coeff(&self, i: usize) -> f32 {
         self.coeffs[i].to_f32()

@@ -24,6 +24,11 @@ pub enum BounceDim {
     MaterialChoice = 7,
 }
 
+/// Where the media's dimensions start (hashed with the segment's origin):
+/// apart from every bounce's, so that media leave every other decision's
+/// numbers as they were.
+pub const MEDIUM_DIMENSIONS: u32 = 1 << 24;
+
 /// One round of the PCG hash.
 #[inline]
 pub fn pcg_hash(x: u32) -> u32 {
@@ -55,6 +60,15 @@ impl SampleStream {
     #[inline]
     pub fn bounce(&self, depth: u32, dim: BounceDim, offset: u32) -> f32 {
         self.get(CAMERA_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim as u32 + offset)
+    }
+
+    /// Uniform float for where a segment leaving vertex `depth` from
+    /// `origin` scatters in a medium. The origin is hashed in because
+    /// several segments may leave one vertex (crossing boundaries of media
+    /// is no vertex): each needs a number of its own.
+    #[inline]
+    pub fn medium_distance(&self, depth: u32, origin: [f32; 3]) -> f32 {
+        self.get(origin.iter().fold(MEDIUM_DIMENSIONS + depth, |h, c| pcg_hash(h ^ c.to_bits())))
     }
 }
 

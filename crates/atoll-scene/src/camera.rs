@@ -317,6 +317,9 @@ pub struct RenderSettings {
     pub integrator: IntegratorSettings,
     /// `Integrator "string lightsampler"`.
     pub light_sampler: LightSampler,
+    /// The medium the camera sits in (pbrt's outside medium where the
+    /// `Camera` statement is).
+    pub camera_medium: crate::MediumIndex,
 }
 
 #[cfg(test)]

@@ -50,6 +50,7 @@ pub fn default_settings() -> RenderSettings {
         spp: SPP,
         integrator: IntegratorSettings::Path { max_depth: MAX_DEPTH },
         light_sampler: Default::default(),
+        camera_medium: crate::VACUUM,
     }
 }
 

@@ -324,6 +324,7 @@ impl<'a> Loader<'a> {
             flip_normals: false,
             alpha,
             transparent_back_faces: false,
+            media: None,
         };
         mesh.validate().map_err(|m| SceneError::caused_by(&loc, format!("{what}: {m}"), m))?;
         Ok(Some(mesh))

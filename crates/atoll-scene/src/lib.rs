@@ -19,6 +19,7 @@ pub mod landscape;
 pub mod light;
 pub mod load;
 pub mod material;
+pub mod medium;
 pub mod mesh;
 pub mod obj;
 pub mod off;
@@ -41,6 +42,7 @@ pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, PrincipledParams,
 };
+pub use medium::{HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA, VACUUM};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{

@@ -50,13 +50,17 @@ pub struct TriangleMesh {
     /// transmission, a shadow ray towards a light behind it) is not caught
     /// by the tube's far wall.
     pub transparent_back_faces: bool,
+    /// The media on either side, where they differ (pbrt's
+    /// `MediumInterface`): a ray crossing the surface changes medium.
+    pub media: Option<crate::MediumInterface>,
 }
 
 impl TriangleMesh {
     /// Whether traversal must ask about each candidate hit on this mesh
-    /// (an alpha mask, or back faces that let rays through).
+    /// (an alpha mask, back faces that let rays through, or a boundary of
+    /// media, which shadow rays cross adding up their optical depth).
     pub fn filters_hits(&self) -> bool {
-        self.alpha.is_some() || self.transparent_back_faces
+        self.alpha.is_some() || self.transparent_back_faces || self.media.is_some()
     }
 
     pub fn triangle_count(&self) -> usize {

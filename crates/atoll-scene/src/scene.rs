@@ -43,6 +43,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// Images, texture nodes and their bindings to material parameters.
     pub textures: crate::Textures,
+    /// Participating media; [`crate::MediumIndex`] `k` is `media[k - 1]`.
+    pub media: Vec<crate::Medium>,
 }
 
 /// Counts and sizes for `atoll info` and memory planning.

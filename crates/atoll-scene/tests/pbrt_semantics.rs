@@ -501,13 +501,16 @@ fn quadrics_and_unsupported_shapes() {
 fn unused_parameters_and_ignored_directives_warn() {
     let loaded = load_str_warnings(
         "Camera \"perspective\" \"float fov\" 30 \"float fovv\" 2\nPixelFilter \"gaussian\" \"float alpha\" 2\nWorldBegin\n\
-         MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
+         MakeNamedMedium \"fog\" \"string type\" \"uniformgrid\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
     );
     let w: Vec<String> = loaded.iter().map(|w| w.to_string()).collect();
     assert_eq!(w[0], "u.pbrt:1:37: Camera \"perspective\": unused parameter \"float fovv\"");
     // pbrt-v3's Gaussian took `alpha`; pbrt-v4's takes `sigma`.
     assert!(w[1].starts_with("u.pbrt:2:") && w[1].contains("unused parameter \"float alpha\""), "{w:?}");
-    assert!(w[2].starts_with("u.pbrt:4:1: participating media are not supported"), "{w:?}");
+    assert!(
+        w[2].starts_with("u.pbrt:4:1: MakeNamedMedium \"fog\": medium type \"uniformgrid\" is not supported"),
+        "{w:?}"
+    );
     assert!(w[3].starts_with("u.pbrt:6:1: TransformBegin/End are deprecated"), "{w:?}");
     assert!(w[4].starts_with("u.pbrt:5:1: AttributeBegin has no AttributeEnd"), "{w:?}");
     assert_eq!(w.len(), 5);
@@ -780,5 +783,46 @@ fn infinite_light_portals_are_read() {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("u.pbrt:2:1: ") && e.contains(why), "{e}");
+    }
+}
+
+/// pbrt-v4's homogeneous medium: defaults, `scale`, named media on the two
+/// sides of a shape (inside behind the normal), the camera's medium (the
+/// outside one where `Camera` is), and the errors.
+#[test]
+fn media_and_their_interfaces() {
+    use atoll_scene::{HomogeneousMedium, Medium, MediumInterface};
+    let loaded = atoll_scene::pbrt::load_str(
+        "MakeNamedMedium \"air\" \"string type\" \"homogeneous\"\n\
+         MakeNamedMedium \"ink\" \"string type\" \"homogeneous\" \"rgb sigma_a\" [1 2 3] \"spectrum sigma_s\" [300 0.5 800 0.5] \"float scale\" 2 \"float g\" -0.3 \"rgb Le\" [1 1 0]\n\
+         MediumInterface \"ink\" \"air\"\n\
+         Camera \"perspective\"\nWorldBegin\n\
+         MediumInterface \"ink\" \"\"\n\
+         Shape \"sphere\"\n\
+         MediumInterface \"air\" \"air\"\n\
+         Shape \"sphere\"\n",
+        "m.pbrt",
+        std::path::Path::new("."),
+    )
+    .unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let scene = loaded.scene;
+    assert_eq!(scene.media[0], Medium::Homogeneous(HomogeneousMedium::pbrt_default()));
+    let Medium::Homogeneous(ink) = scene.media[1];
+    assert_eq!(ink.sigma_a, Vec3::new(2.0, 4.0, 6.0));
+    assert!((ink.sigma_s - Vec3::splat(1.0)).abs().max_element() < 1e-3, "{}", ink.sigma_s);
+    assert_eq!((ink.g, ink.le), (-0.3, Vec3::new(1.0, 1.0, 0.0)));
+    assert_eq!(scene.settings.camera_medium, 1, "the camera is in \"air\", the outside");
+    assert_eq!(scene.meshes[0].media, Some(MediumInterface { inside: 2, outside: 0 }));
+    assert_eq!(scene.meshes[1].media, None, "the same medium on both sides is no boundary");
+
+    for (text, error) in [
+        ("WorldBegin\nMediumInterface \"smoke\" \"\"\nShape \"sphere\"\n", "e.pbrt:2:1: MediumInterface: medium \"smoke\" is not defined"),
+        ("MediumInterface \"\" \"smoke\"\nCamera \"perspective\"\nWorldBegin\n", "e.pbrt:1:1: MediumInterface: medium \"smoke\" is not defined"),
+        ("WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"homogeneous\" \"float g\" 1\n", "e.pbrt:2:1: MakeNamedMedium \"m\": \"g\" 1 must be between -1 and 1"),
+        ("WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"homogeneous\"\nMakeNamedMedium \"m\" \"string type\" \"homogeneous\"\n", "e.pbrt:3:1: MakeNamedMedium: medium \"m\" redefined"),
+    ] {
+        let e = atoll_scene::pbrt::load_str(text, "e.pbrt", std::path::Path::new(".")).unwrap_err();
+        assert_eq!(e.to_string(), error);
     }
 }

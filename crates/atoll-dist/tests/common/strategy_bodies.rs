@@ -78,6 +78,7 @@ macro_rules! strategy_tests {
             a_ring_with_one_home_renders_the_same_image
             ring_over_instance_cost_parts_is_one_device
             passes_of_a_session_add_up_to_one_frame
+            media_on_rings_and_replicas_are_one_device
         );
     };
     // The attributes travel as one token tree: a list repeated inside the
@@ -470,6 +471,25 @@ pub fn a_ring_over_textured_and_alpha_masked_parts_is_one_device(kind: &Kind) {
         let out = kind.render(2, &scene, &opts, &layout, None);
         kind.assert_same_image(&reference, &out.film, &format!("textured ring from {eye}"));
     }
+}
+
+/// `scenes/media.pbrt`: fog the camera sits in, a sphere bounding
+/// scattering ink, glass holding a tint. Replicas and a ring of three
+/// render one device's image: shadow rays gather their optical depth on
+/// every member (boundaries of media are on different parts), and paths
+/// keep their medium across the hand-overs.
+pub fn media_on_rings_and_replicas_are_one_device(kind: &Kind) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/media.pbrt");
+    let scene = Arc::new(atoll_scene::load_any(&path).unwrap().scene);
+    assert!(scene.media.len() == 3 && scene.meshes.iter().filter(|m| m.media.is_some()).count() == 2);
+    let opts = kind.options(&scene, 4);
+    let (reference, _) = kind.single(&scene, &opts);
+    let out = kind.render(2, &scene, &opts, &Layout::Replicate, None);
+    kind.assert_same_image(&reference, &out.film, "media, replicate");
+    let p = partition(&scene, 3, &kind.byte_model(), &PartitionOptions::default()).unwrap();
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
+    let out = kind.render(3, &scene, &opts, &layout, None);
+    kind.assert_same_image(&reference, &out.film, "media, ring of 3");
 }
 
 /// A warmed frame (the first sample rendered untimed on the prepared

@@ -19,6 +19,7 @@ use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
 use crate::material_coeffs::{hair_offset_at, store_hair_fibre};
 use crate::record::{flags, to_f16x3, MaterialKind, RayRecord, NO_LIGHT};
+use crate::shadow_media::ShadowFilter;
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
 use crate::texture::{SceneTextures, TexPoint};
@@ -246,6 +247,7 @@ fn write_hit(
     let at = || TexPoint { uv: uv(), position: p, normal: ng };
     let (material, packed) = frame.material_at(mesh.material, r, at);
     packed.store(r);
+    r.set_hit_media(mesh.media);
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, at(), &mut r.coeffs);
     }
@@ -432,14 +434,26 @@ impl Device for CpuDevice {
         let (res, frame) = (self.resident()?, self.frame()?);
         let textures = res.textures(frame);
         let counter = res.counter();
+        let media = frame.media.any();
         self.run(|| {
             shadows.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
                 if r.has(flags::OCCLUDED) {
                     return;
                 }
-                let occluded = match &counter {
-                    Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &textures, counter),
-                    None => res.bvh.occluded_filtered(&ray_of(r), &textures),
+                let occluded = if media {
+                    // Boundaries of media are crossed, adding to the depth.
+                    let filter = ShadowFilter::new(&textures, frame, r);
+                    let occluded = match &counter {
+                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &filter, counter),
+                        None => res.bvh.occluded_filtered(&ray_of(r), &filter),
+                    };
+                    r.position = filter.optical_depth().to_array();
+                    occluded
+                } else {
+                    match &counter {
+                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &textures, counter),
+                        None => res.bvh.occluded_filtered(&ray_of(r), &textures),
+                    }
                 };
                 if occluded {
                     r.flags |= flags::OCCLUDED;
@@ -453,9 +467,11 @@ impl Device for CpuDevice {
     }
 
     fn resolve_shadows(&mut self) -> Result<(), DeviceError> {
+        let media = self.frame()?.media.any();
         for r in self.shadows.drain(..) {
             if !r.has(flags::OCCLUDED) {
-                self.film.add(r.pixel, r.throughput());
+                let attenuation = if media { (-r.optical_depth().max(Vec3::ZERO)).exp() } else { Vec3::ONE };
+                self.film.add(r.pixel, r.throughput() * attenuation);
             }
         }
         Ok(())

@@ -24,5 +24,6 @@ pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     r.throughput = [weight; 3];
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = flags::SPECULAR;
+    r.set_medium(ctx.media.camera);
     r
 }

@@ -1,6 +1,12 @@
 //! Shading a traced path record: emission, next-event estimation with MIS,
 //! BSDF sampling and Russian roulette (pbrt-v4's PathIntegrator, one vertex
 //! at a time), and the ambient-occlusion variant.
+//!
+//! A segment through a medium first decides whether it scatters on the way
+//! ([`crate::medium`]); a scattering point is a vertex like a surface's,
+//! with the phase function for its BSDF (pbrt-v4's VolPathIntegrator for
+//! homogeneous media). Shadow rays carry the optical depth of the medium
+//! they start in; traversal adds that of the media boundaries they cross.
 
 use atoll_scene::IntegratorSettings;
 use glam::{Vec2, Vec3};
@@ -8,10 +14,14 @@ use glam::{Vec2, Vec3};
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
 use crate::material_coeffs::{bsdf_from_record, shading_frame};
+use crate::medium::{MediumCoeffs, Segment};
 use crate::record::{flags, pack_eta_scale, RayRecord, NO_LIGHT};
 use crate::rng::{BounceDim, SampleStream};
-use crate::sampling::{power_heuristic, sample_cosine_hemisphere};
+use crate::sampling::{
+    henyey_greenstein, power_heuristic, sample_cosine_hemisphere, sample_henyey_greenstein,
+};
 use crate::spawn::{self, SurfacePoint};
+use atoll_scene::MediumIndex;
 
 /// What shading one record produces.
 #[derive(Clone, Copy, Debug, Default)]
@@ -78,6 +88,47 @@ fn shadow_ray(
     Some(s)
 }
 
+/// With media in the scene: a shadow ray leaving in medium `medium` starts
+/// with that medium's optical depth over its whole length (traversal adds
+/// the change at each boundary it crosses), and one towards a light at
+/// infinity ends past the scene, so that its depth is finite.
+fn start_in_medium(ctx: &FrameContext, s: &mut RayRecord, medium: MediumIndex) {
+    if !ctx.media.any() {
+        return;
+    }
+    if s.t_max == f32::INFINITY {
+        s.t_max = ctx.media.shadow_reach / s.direction().length();
+    }
+    let length = s.t_max * s.direction().length();
+    s.position = (ctx.media.get(medium).sigma_t() * length).to_array();
+}
+
+/// Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
+/// the throughput without the radiance scaling of refractions, which
+/// would otherwise end most paths inside glass. Its magnitude: a pixel
+/// filter's negative lobes make some throughputs negative. `None` when
+/// the path ends.
+fn russian_roulette(
+    ctx: &FrameContext,
+    rng: &SampleStream,
+    depth: u32,
+    beta: Vec3,
+    eta_scale: f32,
+) -> Option<Vec3> {
+    let mut beta = beta;
+    if ctx.options.russian_roulette && depth >= 1 {
+        let max = (beta * eta_scale).abs().max_element();
+        if max < 1.0 {
+            let q = (1.0 - max).max(0.0);
+            if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {
+                return None;
+            }
+            beta /= 1.0 - q;
+        }
+    }
+    beta.is_finite().then_some(beta)
+}
+
 /// The shaded hit of `r` as a ray end: position, geometric normal, error.
 fn hit_point(r: &RayRecord) -> SurfacePoint {
     SurfacePoint {
@@ -89,10 +140,30 @@ fn hit_point(r: &RayRecord) -> SurfacePoint {
 
 fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome {
     let lights = &ctx.lights;
-    let beta = r.throughput();
+    let mut beta = r.throughput();
     let dir = r.direction();
     let specular = r.has(flags::SPECULAR);
     let mut out = ShadeOutcome::default();
+    let medium = r.medium();
+
+    // Through a medium: its emission along the segment, then where (and
+    // whether) the segment scatters before its end.
+    if medium != atoll_scene::VACUUM {
+        let m = ctx.media.get(medium);
+        let length = if r.has(flags::HIT) { r.t_max * dir.length() } else { f32::INFINITY };
+        out.emitted += beta * m.emission_over(length);
+        let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+        match m.sample_segment(length, rng.medium_distance(r.depth as u32, r.origin)) {
+            Segment::Scatter { t, weight } => {
+                let p = r.origin() + dir.normalize() * t;
+                return scatter_in_medium(ctx, r, m, p, beta * weight, max_depth, out);
+            }
+            Segment::Pass { weight } => beta *= weight,
+        }
+        if beta == Vec3::ZERO {
+            return out;
+        }
+    }
 
     // Escaped: environment lights, MIS-weighted against light sampling.
     // Light selection may depend on where the path was (the BVH sampler):
@@ -126,9 +197,15 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
 
     let at = hit_point(r);
     let p = at.p;
+    // The medium on the side a direction leaves the surface into.
+    let media = r.hit_media();
+    let medium_towards = |w: Vec3| media.map_or(medium, |m| m.towards(w.dot(at.normal)));
     let Some(bsdf) = bsdf_from_record(r) else {
         // A surface that only bounds a medium: continue straight through.
-        out.next = Some(continuation(r, &at, dir));
+        let mut next = continuation(r, &at, dir);
+        next.throughput = beta.to_array();
+        next.set_medium(medium_towards(dir));
+        out.next = Some(next);
         return out;
     };
     let depth = r.depth as u32;
@@ -155,7 +232,10 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
                 let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, bsdf.pdf(wo, wi)) };
                 let contribution = beta * f * ls.radiance * (w / ls.pdf);
                 let target = ls.distance.is_finite().then_some(&ls.target);
-                out.shadow = shadow_ray(r, &at, target, ls.wi, f32::INFINITY, contribution);
+                out.shadow = shadow_ray(r, &at, target, ls.wi, f32::INFINITY, contribution).map(|mut s| {
+                    start_in_medium(ctx, &mut s, medium_towards(ls.wi));
+                    s
+                });
             }
         }
     }
@@ -171,28 +251,14 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     if bs.pdf <= 0.0 || bs.f == Vec3::ZERO {
         return out;
     }
-    let mut beta = beta * bs.f * (bs.wi.z.abs() / bs.pdf);
+    let beta = beta * bs.f * (bs.wi.z.abs() / bs.pdf);
     let mut eta_scale = r.eta_scale();
     if bs.transmission {
         eta_scale *= bs.eta * bs.eta;
     }
-    // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`),
-    // on the throughput without the radiance scaling of refractions, which
-    // would otherwise end most paths inside glass. Its magnitude: a pixel
-    // filter's negative lobes make some throughputs negative.
-    if ctx.options.russian_roulette && depth >= 1 {
-        let max = (beta * eta_scale).abs().max_element();
-        if max < 1.0 {
-            let q = (1.0 - max).max(0.0);
-            if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {
-                return out;
-            }
-            beta /= 1.0 - q;
-        }
-    }
-    if !beta.is_finite() {
+    let Some(beta) = russian_roulette(ctx, &rng, depth, beta, eta_scale) else {
         return out;
-    }
+    };
     let wi = frame.from_local(bs.wi).normalize();
     let mut next = continuation(r, &at, wi);
     next.throughput = beta.to_array();
@@ -204,6 +270,61 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     next.bsdf_pdf = if proportional { bsdf.pdf(wo, bs.wi) } else { bs.pdf };
     next.depth += 1;
     next.flags = if bs.delta { flags::SPECULAR } else { 0 };
+    next.set_medium(medium_towards(wi));
+    out.next = Some(next);
+    out
+}
+
+/// A path vertex where the segment `r` scatters in medium `m`, at `p`,
+/// with throughput `beta` (the segment's weight included): next-event
+/// estimation and a new direction, both with the Henyey–Greenstein phase
+/// function, which samples itself exactly.
+fn scatter_in_medium(
+    ctx: &FrameContext,
+    r: &RayRecord,
+    m: &MediumCoeffs,
+    p: Vec3,
+    beta: Vec3,
+    max_depth: u32,
+    mut out: ShadeOutcome,
+) -> ShadeOutcome {
+    let depth = r.depth as u32;
+    if depth >= max_depth {
+        return out;
+    }
+    let wo = -r.direction().normalize();
+    let at = SurfacePoint { p, normal: Vec3::ZERO, error: 0.0 };
+    let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+    let u_light = Vec2::new(
+        rng.bounce(depth, BounceDim::LightPosition, 0),
+        rng.bounce(depth, BounceDim::LightPosition, 1),
+    );
+    if let Some(ls) = ctx.lights.sample(p, rng.bounce(depth, BounceDim::LightSelect, 0), u_light) {
+        let phase = henyey_greenstein(wo.dot(ls.wi), m.g);
+        if ls.pdf > 0.0 && phase > 0.0 && ls.radiance != Vec3::ZERO {
+            let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, phase) };
+            let contribution = beta * ls.radiance * (phase * w / ls.pdf);
+            let target = ls.distance.is_finite().then_some(&ls.target);
+            out.shadow = shadow_ray(r, &at, target, ls.wi, f32::INFINITY, contribution).map(|mut s| {
+                start_in_medium(ctx, &mut s, r.medium());
+                s
+            });
+        }
+    }
+    let u_dir = Vec2::new(
+        rng.bounce(depth, BounceDim::BsdfDirection, 0),
+        rng.bounce(depth, BounceDim::BsdfDirection, 1),
+    );
+    let (wi, pdf) = sample_henyey_greenstein(wo, m.g, u_dir);
+    let Some(beta) = russian_roulette(ctx, &rng, depth, beta, r.eta_scale()) else {
+        return out;
+    };
+    let mut next = continuation(r, &at, wi);
+    next.throughput = beta.to_array();
+    next.bsdf_pdf = pdf;
+    next.depth += 1;
+    next.flags = 0;
+    next.set_medium(r.medium());
     out.next = Some(next);
     out
 }

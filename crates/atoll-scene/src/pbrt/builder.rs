@@ -66,6 +66,9 @@ struct GraphicsState {
     shape_attributes: Vec<Param>,
     light_attributes: Vec<Param>,
     material_attributes: Vec<Param>,
+    /// `MediumInterface`'s inside and outside medium names ("" is vacuum)
+    /// and where it was given.
+    media: (String, String, Option<FileLoc>),
 }
 
 impl Default for GraphicsState {
@@ -80,6 +83,7 @@ impl Default for GraphicsState {
             shape_attributes: Vec::new(),
             light_attributes: Vec::new(),
             material_attributes: Vec::new(),
+            media: Default::default(),
         }
     }
 }
@@ -152,6 +156,10 @@ pub struct Builder {
     skipped_shapes: Vec<(String, u64, FileLoc)>,
     /// pbrt-v3 spellings already warned about.
     v3_spellings_warned: std::collections::HashSet<String>,
+    /// `MakeNamedMedium`s by name, as indices into the scene's media.
+    named_media: HashMap<String, crate::MediumIndex>,
+    /// The `Camera`'s outside medium name and where, resolved at the end.
+    camera_medium: Option<(String, FileLoc)>,
 }
 
 impl Builder {
@@ -186,6 +194,8 @@ impl Builder {
             warned_curves: false,
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
+            named_media: HashMap::new(),
+            camera_medium: None,
         }
     }
 
@@ -387,14 +397,7 @@ impl Builder {
                 }
             }
             S::Option(name, _) => self.warn(&loc, format!("Option \"{name}\" is not supported; ignored")),
-            S::MediumInterface(inside, outside) => {
-                if !inside.is_empty() || !outside.is_empty() {
-                    self.warn(
-                        &loc,
-                        "participating media are not supported; MediumInterface ignored: surfaces are lit as in a vacuum",
-                    );
-                }
-            }
+            S::MediumInterface(inside, outside) => self.gs.media = (inside, outside, Some(loc)),
             S::Texture { name, ty, class, params } => self.texture(name, &ty, &class, params, &loc)?,
             S::Entity { kind, name, params } => self.entity(kind, name, params, loc)?,
         }
@@ -516,7 +519,7 @@ impl Builder {
                 }
                 if let Some(source) = shapes::shape_source(&name, &p, &loc, &self.base_dir, w)? {
                     let alpha = self.shape_alpha(&name, &p, &loc)?;
-                    self.add_shape(source, alpha, &loc);
+                    self.add_shape(source, alpha, &loc)?;
                 }
             }
             E::Material if name == "mix" => {
@@ -597,16 +600,7 @@ impl Builder {
             E::Integrator => self.integrator(&name, &p, &loc)?,
             E::PixelFilter => self.pixel_filter(&name, &p, &loc)?,
             E::Accelerator => p.mark_all_used(),
-            E::MakeNamedMedium => {
-                p.mark_all_used();
-                self.warn(
-                    &loc,
-                    format!(
-                        "participating media are not supported; medium \"{name}\" ignored: the image has no fog, \
-                         smoke or light scattered inside objects"
-                    ),
-                );
-            }
+            E::MakeNamedMedium => self.medium(&name, &p, &loc)?,
             E::Attribute => unreachable!("handled above"),
         }
         self.warn_unused(&p, &format!("{keyword} \"{name}\""));
@@ -767,6 +761,10 @@ impl Builder {
         }
         let world_from_camera = self.gs.ctm.inverse();
         self.named_coordinate_systems.insert("camera".into(), world_from_camera);
+        let (_, outside, at) = &self.gs.media;
+        if !outside.is_empty() {
+            self.camera_medium = Some((outside.clone(), at.clone().unwrap_or_else(|| loc.clone())));
+        }
         let cam = &mut self.scene.settings.camera;
         cam.camera_to_world = transform::to_f32(&world_from_camera);
         if name != "perspective" {
@@ -980,13 +978,24 @@ impl Builder {
     /// Records a shape for the world or the object being defined, with the
     /// graphics state's transform, material and emission; its triangles are
     /// made at the end ([`Builder::add_pending_shapes`]).
-    fn add_shape(&mut self, source: ShapeSource, alpha: Option<MeshAlpha>, loc: &FileLoc) {
+    fn add_shape(
+        &mut self,
+        source: ShapeSource,
+        alpha: Option<MeshAlpha>,
+        loc: &FileLoc,
+    ) -> Result<(), SceneError> {
         if let ShapeSource::Mesh(m) = &source {
             if m.indices.is_empty() {
                 self.warn(loc, format!("shape \"{}\" has no triangles; skipped", m.name));
-                return;
+                return Ok(());
             }
         }
+        let (inside, outside, at) = &self.gs.media;
+        let at = at.as_ref().unwrap_or(loc);
+        let media = crate::MediumInterface::transition(
+            self.medium_index(inside, at)?,
+            self.medium_index(outside, at)?,
+        );
         let mut emission = self.gs.area_light;
         if emission.is_some() && self.active_object.is_some() {
             self.warn(
@@ -1009,9 +1018,46 @@ impl Builder {
             emission_texture: emission.and(self.gs.area_light_texture),
             emission,
             alpha,
+            media,
             object: self.active_object,
         };
         self.pending_shapes.push(PendingShape { source, place });
+        Ok(())
+    }
+
+    /// The index of the medium `name` ("" is the vacuum).
+    fn medium_index(&self, name: &str, loc: &FileLoc) -> Result<crate::MediumIndex, SceneError> {
+        if name.is_empty() {
+            return Ok(crate::VACUUM);
+        }
+        self.named_media
+            .get(name)
+            .copied()
+            .ok_or_else(|| SceneError::at(loc, format!("MediumInterface: medium \"{name}\" is not defined")))
+    }
+
+    /// `MakeNamedMedium`: a homogeneous medium joins the scene; the other
+    /// types are warned about once each and become the vacuum.
+    fn medium(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        let medium = entities::medium(name, p, loc, &mut self.warnings)?;
+        let index = match medium {
+            None => crate::VACUUM,
+            Some(medium) => {
+                if self.scene.media.len() == crate::MAX_MEDIA {
+                    return Err(SceneError::at(
+                        loc,
+                        format!("MakeNamedMedium \"{name}\": more than {} media", crate::MAX_MEDIA),
+                    ));
+                }
+                self.scene.media.push(medium);
+                self.scene.media.len() as crate::MediumIndex
+            }
+        };
+        // pbrt-v4 refuses a second definition too.
+        if self.named_media.insert(name.to_string(), index).is_some() {
+            return Err(SceneError::at(loc, format!("MakeNamedMedium: medium \"{name}\" redefined")));
+        }
+        Ok(())
     }
 
     /// Makes the pending shapes (in parallel) and adds their meshes in the
@@ -1060,6 +1106,9 @@ impl Builder {
             }
         }
         crate::input::on_budget(|b| b.end_phase(LoadPhase::Text));
+        if let Some((name, loc)) = self.camera_medium.take() {
+            self.scene.settings.camera_medium = self.medium_index(&name, &loc)?;
+        }
         self.add_pending_shapes()?;
         crate::input::on_budget(|b| b.end_phase(LoadPhase::Meshes));
         for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {

@@ -666,3 +666,51 @@ pub fn light(
         }
     }))
 }
+
+/// `MakeNamedMedium`, following pbrt-v4's `HomogeneousMedium::Create`:
+/// `sigma_a` and `sigma_s` default to 1, both scaled by `scale`; `g` 0;
+/// `Le` (0) scaled by `Lescale`. `None`, after a warning, for the types
+/// atoll does not render (grids, clouds, NanoVDB): the medium is a vacuum.
+pub fn medium(
+    name: &str,
+    p: &ParamList,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<crate::Medium>, SceneError> {
+    let what = format!("MakeNamedMedium \"{name}\"");
+    let ty = p.string("type")?.unwrap_or_default();
+    if ty != "homogeneous" {
+        p.mark_all_used();
+        let ty = if ty.is_empty() { "(no type)".to_string() } else { format!("\"{ty}\"") };
+        w.warn(loc, format!("{what}: medium type {ty} is not supported; it is a vacuum: the image lacks its fog, smoke or scattering"));
+        return Ok(None);
+    }
+    let mut m = crate::HomogeneousMedium::pbrt_default();
+    if let Some(preset) = p.string("preset")? {
+        w.warn(
+            loc,
+            format!("{what}: preset \"{preset}\" is not supported; \"sigma_a\" and \"sigma_s\" are used"),
+        );
+    }
+    let coefficient = |name: &str, default: Rgb, w: &mut WarningSink| -> Result<Rgb, SceneError> {
+        Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, &what, loc, w)).unwrap_or(default))
+    };
+    let scale = p.float_or("scale", 1.0)?;
+    if !(scale >= 0.0 && scale.is_finite()) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: \"scale\" {scale} must be finite and not negative"),
+        ));
+    }
+    m.sigma_a = coefficient("sigma_a", m.sigma_a, w)? * scale;
+    m.sigma_s = coefficient("sigma_s", m.sigma_s, w)? * scale;
+    let g = p.float_or("g", 0.0)?;
+    if !(g > -1.0 && g < 1.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
+    }
+    m.g = g;
+    if let Some(le) = p.spectrum("Le", false)? {
+        m.le = light_rgb(le, &what, loc, w)? * p.float_or("Lescale", 1.0)?.max(0.0);
+    }
+    Ok(Some(crate::Medium::Homogeneous(m)))
+}

@@ -34,6 +34,7 @@ pub(super) struct ShapePlace {
     pub emission: Option<AreaEmission>,
     pub emission_texture: Option<TextureId>,
     pub alpha: Option<MeshAlpha>,
+    pub media: Option<crate::MediumInterface>,
     /// The object being defined, `None` for the world.
     pub object: Option<usize>,
 }
@@ -148,6 +149,7 @@ impl PendingShape {
             emission: place.emission,
             flip_normals: reverse ^ transform::swaps_handedness(&ctm),
             alpha: place.alpha,
+            media: place.media,
         };
         mesh.validate()
             .map_err(|m| SceneError::caused_by(&place.loc, format!("shape \"{}\": {m}", mesh.name), m))?;

@@ -1,0 +1,161 @@
+//! Homogeneous participating media against answers known in closed form:
+//! a slab's transmittance on shadow rays, a scattering sphere that a
+//! uniform sky cannot tell apart from the sky (albedo 1), and a camera
+//! inside an emissive fog that sees its emission everywhere.
+
+mod common;
+
+use std::sync::Arc;
+
+use atoll_render::{Film, RenderOptions};
+use atoll_scene::Scene;
+use common::{assert_finite, mean_and_stderr, render_with};
+use glam::Vec3;
+
+fn load(source: &str) -> Arc<Scene> {
+    let loaded = atoll_scene::pbrt::load_str(source, "media.pbrt", std::path::Path::new(".")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    Arc::new(loaded.scene)
+}
+
+fn render(scene: &Arc<Scene>) -> Film {
+    let film = render_with(scene, RenderOptions::from_scene(scene), None);
+    assert_finite(&film);
+    film
+}
+
+/// A `trianglemesh` box from `lo` to `hi` whose normals point out (pbrt's
+/// normal is `cross(p0 - p2, p1 - p2)`; the inside medium lies behind it).
+fn box_mesh(lo: Vec3, hi: Vec3) -> String {
+    let corner = |i: usize| {
+        Vec3::new(
+            if i & 1 != 0 { hi.x } else { lo.x },
+            if i & 2 != 0 { hi.y } else { lo.y },
+            if i & 4 != 0 { hi.z } else { lo.z },
+        )
+    };
+    let faces = [[0, 1, 3, 2], [4, 5, 7, 6], [0, 1, 5, 4], [2, 3, 7, 6], [0, 2, 6, 4], [1, 3, 7, 5]];
+    let centre = (lo + hi) * 0.5;
+    let (mut points, mut indices) = (String::new(), String::new());
+    for c in 0..8 {
+        let p = corner(c);
+        points += &format!("{} {} {}  ", p.x, p.y, p.z);
+    }
+    for f in faces {
+        for [a, b, c] in [[f[0], f[1], f[2]], [f[0], f[2], f[3]]] {
+            let (p0, p1, p2) = (corner(a), corner(b), corner(c));
+            let outwards = (p0 - p2).cross(p1 - p2).dot((p0 + p1 + p2) / 3.0 - centre) > 0.0;
+            let [a, b, c] = if outwards { [a, b, c] } else { [a, c, b] };
+            indices += &format!("{a} {b} {c}  ");
+        }
+    }
+    format!(r#"Shape "trianglemesh" "point3 P" [ {points}] "integer indices" [ {indices}]"#)
+}
+
+/// Ground lit by a sun straight overhead, seen from straight above but
+/// under a slab of medium 0.5 thick (1 < y < 1.5); direct light only.
+fn sunlit_ground(medium: Option<&str>) -> Arc<Scene> {
+    let slab = match medium {
+        Some(m) => format!(
+            "MakeNamedMedium \"slab\" \"string type\" \"homogeneous\" {m}\nAttributeBegin\nMaterial \"interface\"\n\
+             MediumInterface \"slab\" \"\"\n{}\nAttributeEnd",
+            box_mesh(Vec3::new(-20.0, 1.0, -20.0), Vec3::new(20.0, 1.5, 20.0))
+        ),
+        None => String::new(),
+    };
+    load(&format!(
+        r#"
+LookAt 0 0.5 0  0 0 0  0 0 1
+Camera "perspective" "float fov" [ 60 ]
+Sampler "independent" "integer pixelsamples" [ 4 ]
+Integrator "path" "integer maxdepth" [ 1 ]
+Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 16 ]
+WorldBegin
+LightSource "distant" "point3 from" [ 0 1 0 ] "point3 to" [ 0 0 0 ] "rgb L" [ 1 1 1 ]
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "trianglemesh" "point3 P" [ -20 0 -20  20 0 -20  20 0 20  -20 0 20 ] "integer indices" [ 0 2 1 0 3 2 ]
+{slab}
+"#
+    ))
+}
+
+/// Shadow rays through the slab reach the ground with `exp(-σt · 0.5)`
+/// per channel, scattering or not (direct light only): every pixel is the
+/// vacuum's times that, to rounding, whichever order the two crossings
+/// are found in.
+#[test]
+fn a_slab_dims_sunlight_by_its_transmittance() {
+    let clear = render(&sunlit_ground(None));
+    let coefficients = r#""rgb sigma_a" [ 0.4 1 2 ] "rgb sigma_s" [ 0.6 0 1 ] "float scale" [ 2 ]"#;
+    let dimmed = render(&sunlit_ground(Some(coefficients)));
+    let expected = (-Vec3::new(1.0, 1.0, 3.0) * 2.0 * 0.5).exp();
+    let mut lit = 0;
+    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
+        if c.min_element() > 1e-3 {
+            lit += 1;
+            let ratio = d / c;
+            assert!(
+                (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
+                "{ratio} vs {expected}"
+            );
+        }
+    }
+    assert_eq!(lit, clear.pixels().len(), "the ground fills the view");
+}
+
+/// A sphere of medium that scatters without absorbing (albedo 1), in a
+/// uniform sky of radiance 1: every path leaves it eventually, so it is
+/// invisible (pixels average 1), with a forward-scattering and an
+/// isotropic phase function.
+#[test]
+fn a_white_scattering_sphere_vanishes_in_a_uniform_sky() {
+    for g in [0.0, 0.7] {
+        let scene = load(&format!(
+            r#"
+LookAt 0 0 -4  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+Sampler "independent" "integer pixelsamples" [ 64 ]
+Integrator "path" "integer maxdepth" [ 200 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+MakeNamedMedium "cloud" "string type" "homogeneous" "rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 1.5 1.5 1.5 ] "float g" [ {g} ]
+AttributeBegin
+Material "interface"
+MediumInterface "cloud" ""
+Shape "sphere" "float radius" [ 1 ]
+AttributeEnd
+"#
+        ));
+        let film = render(&scene);
+        let (mean, err) = mean_and_stderr(film.pixels().iter().map(|p| p.y));
+        eprintln!("g {g}: mean {mean} ± {err}");
+        assert!((mean - 1.0).abs() < 4.0 * err + 0.01, "g {g}: mean {mean} ± {err}");
+        let worst = film.pixels().iter().map(|p| (p.y - 1.0).abs()).fold(0.0, f32::max);
+        assert!(worst < 0.35, "g {g}: a pixel differs from the sky by {worst}");
+    }
+}
+
+/// A camera inside an endless emitting fog (pbrt's camera medium) sees
+/// σa·Le/σt directly and the rest scattered in: Le everywhere, whatever
+/// the albedo.
+#[test]
+fn a_camera_in_glowing_fog_sees_its_emission() {
+    let scene = load(
+        r#"
+MakeNamedMedium "fog" "string type" "homogeneous" "rgb sigma_a" [ 0.5 0.5 0.5 ] "rgb sigma_s" [ 0.5 0.5 0.5 ] "rgb Le" [ 2 2 2 ]
+MediumInterface "" "fog"
+LookAt 0 0 -4  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+Sampler "independent" "integer pixelsamples" [ 64 ]
+Integrator "path" "integer maxdepth" [ 200 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+WorldBegin
+"#,
+    );
+    assert_eq!(scene.settings.camera_medium, 1);
+    let film = render(&scene);
+    let (mean, err) = mean_and_stderr(film.pixels().iter().map(|p| p.x));
+    eprintln!("fog: mean {mean} ± {err}");
+    assert!((mean - 2.0).abs() < 4.0 * err + 0.01, "mean {mean} ± {err}");
+}
