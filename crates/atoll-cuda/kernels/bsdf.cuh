@@ -303,7 +303,9 @@ __device__ __forceinline__ BsdfSample make_bsdf_sample(float3 f, float3 wi, floa
 /// Mirrors `material_coeffs::bsdf_from_record`.
 __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     Bsdf b;
-    b.kind = r.material;
+    // The low byte: the high one names the hit surface's media.
+    const unsigned int kind = r.material & 0xffu;
+    b.kind = kind;
     b.a = zero3();
     b.b = zero3();
     b.eta = 0.0f;
@@ -315,23 +317,23 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     b.n_samples = 0u;
     b.p = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     b.base_alpha_y = 0.0f;
-    if (r.material == MATERIAL_DIFFUSE) {
+    if (kind == MATERIAL_DIFFUSE) {
         b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_REFLECTANCE]);
-    } else if (r.material == MATERIAL_CONDUCTOR) {
+    } else if (kind == MATERIAL_CONDUCTOR) {
         b.a = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_ETA]);
         b.b = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_K]);
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_CONDUCTOR_ALPHA_X]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_CONDUCTOR_ALPHA_Y]);
-    } else if (r.material == MATERIAL_DIELECTRIC) {
+    } else if (kind == MATERIAL_DIELECTRIC) {
         b.eta = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ETA]);
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_X]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_Y]);
-    } else if (r.material == MATERIAL_DIFFUSE_TRANSMISSION) {
+    } else if (kind == MATERIAL_DIFFUSE_TRANSMISSION) {
         b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_REFLECTANCE]);
         b.b = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_TRANSMITTANCE]);
-    } else if (r.material == MATERIAL_THIN_DIELECTRIC) {
+    } else if (kind == MATERIAL_THIN_DIELECTRIC) {
         b.eta = f16_to_f32(r.coeffs[COEFF_THIN_DIELECTRIC_ETA]);
-    } else if (ATOLL_WITH_COATED && r.material == MATERIAL_COATED_DIFFUSE) {
+    } else if (ATOLL_WITH_COATED && kind == MATERIAL_COATED_DIFFUSE) {
         b.a = load_f16x3(&r.coeffs[COEFF_COATED_DIFFUSE_REFLECTANCE]);
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_ALPHA_X]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_ALPHA_Y]);
@@ -341,7 +343,7 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.g = f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_G]);
         b.max_depth = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_MAX_DEPTH]);
         b.n_samples = (unsigned int)f16_to_f32(r.coeffs[COEFF_COATED_DIFFUSE_N_SAMPLES]);
-    } else if (ATOLL_WITH_COATED && ATOLL_WITH_COATED_CONDUCTOR && r.material == MATERIAL_COATED_CONDUCTOR) {
+    } else if (ATOLL_WITH_COATED && ATOLL_WITH_COATED_CONDUCTOR && kind == MATERIAL_COATED_CONDUCTOR) {
         b.a = load_f16x3(&r.coeffs[COEFF_COATED_CONDUCTOR_ETA]);
         const float3 k = load_f16x3(&r.coeffs[COEFF_COATED_CONDUCTOR_K]);
         b.p = make_float4(k.x, k.y, k.z, f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_CONDUCTOR_ALPHA_X]));
@@ -354,14 +356,14 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
         b.g = f16_to_f32(r.coeffs[COEFF_COATED_CONDUCTOR_G]);
         b.max_depth = COATED_CONDUCTOR_MAX_DEPTH;
         b.n_samples = COATED_CONDUCTOR_N_SAMPLES;
-    } else if (ATOLL_WITH_HAIR && r.material == MATERIAL_HAIR) {
+    } else if (ATOLL_WITH_HAIR && kind == MATERIAL_HAIR) {
         b.a = load_f16x3(&r.coeffs[COEFF_HAIR_SIGMA_A]);
         b.eta = f16_to_f32(r.coeffs[COEFF_HAIR_ETA]);
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_M]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_HAIR_BETA_N]);
         b.g = f16_to_f32(r.coeffs[COEFF_HAIR_ALPHA]);
         b.thickness = f16_to_f32(r.coeffs[COEFF_HAIR_OFFSET]);
-    } else if (ATOLL_WITH_PRINCIPLED && r.material == MATERIAL_PRINCIPLED) {
+    } else if (ATOLL_WITH_PRINCIPLED && kind == MATERIAL_PRINCIPLED) {
         b.a = load_f16x3(&r.coeffs[COEFF_PRINCIPLED_BASE_COLOR]);
         b.b = make_float3(f16_to_f32(r.coeffs[COEFF_PRINCIPLED_METALLIC]),
                           f16_to_f32(r.coeffs[COEFF_PRINCIPLED_ROUGHNESS]),
@@ -808,7 +810,7 @@ __device__ __noinline__ bool hair_sample(Hair h, float3 wo, float uc, float2 u, 
 /// for hair with x along the fibre's axis.
 __device__ __forceinline__ Frame shading_frame(const RayRecord& r) {
     const float3 n = normalize_or_zero3(load_f16x3(r.shading_normal));
-    if (ATOLL_WITH_HAIR && r.material == MATERIAL_HAIR) return frame_from_xz(load_f16x3(&r.coeffs[COEFF_HAIR_AXIS]), n);
+    if (ATOLL_WITH_HAIR && (r.material & 0xffu) == MATERIAL_HAIR) return frame_from_xz(load_f16x3(&r.coeffs[COEFF_HAIR_AXIS]), n);
     return frame_from_z(n);
 }
 

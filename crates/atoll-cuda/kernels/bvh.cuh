@@ -13,6 +13,7 @@
 #pragma once
 
 #include "texture.cuh"
+#include "media.cuh"
 
 /// Box far distances are scaled by 1 + 2 gamma(3) (pbrt's robust slab test,
 /// Ize 2013) so that rounding never culls a box the ray touches.
@@ -261,6 +262,11 @@ struct TraversalHit {
     float t, u, v;
     unsigned int tri, slot;
     bool hit;
+#if ATOLL_TRACE_MEDIA
+    /// Any-hit queries through media: the optical depth gathered at the
+    /// boundaries crossed, per unit of the world direction's length.
+    float3 depth;
+#endif
 };
 
 /// No hit yet, searching (0, t_max).
@@ -270,6 +276,9 @@ __device__ __forceinline__ TraversalHit no_hit(float t_max) {
     h.u = h.v = 0.0f;
     h.tri = h.slot = 0;
     h.hit = false;
+#if ATOLL_TRACE_MEDIA
+    h.depth = zero3();
+#endif
     return h;
 }
 

@@ -83,11 +83,14 @@ struct WorkFifo {
 // BEGIN GENERATED layout (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int HIT_NONE = 4294967295u;
 inline constexpr unsigned int FILTER_BINS = 32u;
+inline constexpr unsigned int MEDIA_SLOTS = 16u;
 inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;
 inline constexpr unsigned int MESH_HAS_UVS = 8u;
 inline constexpr unsigned int MESH_SWEPT_TUBE = 16u;
+inline constexpr unsigned int MESH_MEDIA_ONLY = 32u;
+inline constexpr unsigned int MESH_MEDIA_SHIFT = 8u;
 inline constexpr unsigned int IMAGE_RGBA8 = 0u;
 inline constexpr unsigned int IMAGE_RGBA8_SRGB = 1u;
 inline constexpr unsigned int IMAGE_RGBA_F32 = 2u;

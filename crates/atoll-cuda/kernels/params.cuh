@@ -66,6 +66,14 @@ struct FilterTable {
     float cdf[2 * FILTER_BINS];
 };
 
+/// Mirror of `params::GpuMedium`: a homogeneous medium's coefficients.
+struct GpuMedium {
+    float sigma_a[3];
+    float sigma_s[3];
+    float le[3];
+    float g;
+};
+
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
 /// every device (`atoll_render::FrameContext` flattened).
 struct FrameParams {
@@ -120,6 +128,12 @@ struct FrameParams {
     unsigned int light_node_count;
     unsigned int unbounded_count;
     FilterTable filter;
+    // MediumTable (medium.rs): homogeneous media by MediumIndex, 0 the vacuum.
+    unsigned int media_count;
+    unsigned int camera_medium;
+    float shadow_reach;
+    unsigned int media_pad;
+    GpuMedium media[MEDIA_SLOTS];
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -205,7 +219,14 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 560, "FrameParams: size differs from Rust");
+static_assert(sizeof(GpuMedium) == 40, "GpuMedium: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuMedium, sigma_a) == 0 && sizeof(GpuMedium::sigma_a) == 12, "GpuMedium.sigma_a: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, sigma_s) == 12 && sizeof(GpuMedium::sigma_s) == 12, "GpuMedium.sigma_s: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, le) == 24 && sizeof(GpuMedium::le) == 12, "GpuMedium.le: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, g) == 36 && sizeof(GpuMedium::g) == 4, "GpuMedium.g: offset or size differs from Rust");
+#endif
+static_assert(sizeof(FrameParams) == 1216, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -244,6 +265,11 @@ static_assert(__builtin_offsetof(FrameParams, unbounded_lights) == 256 && sizeof
 static_assert(__builtin_offsetof(FrameParams, light_node_count) == 264 && sizeof(FrameParams::light_node_count) == 4, "FrameParams.light_node_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, unbounded_count) == 268 && sizeof(FrameParams::unbounded_count) == 4, "FrameParams.unbounded_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, filter) == 272 && sizeof(FrameParams::filter) == 288, "FrameParams.filter: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media_count) == 560 && sizeof(FrameParams::media_count) == 4, "FrameParams.media_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, camera_medium) == 564 && sizeof(FrameParams::camera_medium) == 4, "FrameParams.camera_medium: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, shadow_reach) == 568 && sizeof(FrameParams::shadow_reach) == 4, "FrameParams.shadow_reach: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media_pad) == 572 && sizeof(FrameParams::media_pad) == 4, "FrameParams.media_pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 576 && sizeof(FrameParams::media) == 640, "FrameParams.media: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

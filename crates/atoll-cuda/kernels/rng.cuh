@@ -6,6 +6,7 @@
 // BEGIN GENERATED rng (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
 inline constexpr unsigned int CAMERA_DIMENSIONS = 4u;
 inline constexpr unsigned int DIMENSIONS_PER_BOUNCE = 8u;
+inline constexpr unsigned int MEDIUM_DIMENSIONS = 16777216u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_SELECT = 0u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_POSITION = 1u;
 inline constexpr unsigned int BOUNCE_DIM_BSDF_LOBE = 3u;
@@ -45,4 +46,15 @@ __device__ __forceinline__ float stream_get(SampleStream s, unsigned int dimensi
 __device__ __forceinline__ float stream_bounce(SampleStream s, unsigned int depth, unsigned int dim,
                                                unsigned int offset) {
     return stream_get(s, CAMERA_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset);
+}
+
+/// Uniform float for where a segment leaving vertex `depth` from `origin`
+/// scatters in a medium (the origin tells apart segments of one vertex).
+/// Mirrors `SampleStream::medium_distance`.
+__device__ __forceinline__ float stream_medium_distance(SampleStream s, unsigned int depth, float3 origin) {
+    unsigned int h = MEDIUM_DIMENSIONS + depth;
+    h = pcg_hash(h ^ __float_as_uint(origin.x));
+    h = pcg_hash(h ^ __float_as_uint(origin.y));
+    h = pcg_hash(h ^ __float_as_uint(origin.z));
+    return stream_get(s, h);
 }

@@ -180,8 +180,9 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const unsigned int ns0 = f32_to_f16(ns.x), ns1 = f32_to_f16(ns.y), ns2 = f32_to_f16(ns.z);
     // geometric_normal, material, shading_normal, position_error
     const unsigned int error_bits = pack_error(error_along(ng, position_error));
-    const uint4 w5 = make_uint4(ng0 | ng1 << 16, ng2 | (meta.x & 0xffffu) << 16, ns0 | ns1 << 16,
-                                ns2 | error_bits << 16);
+    // material: the kind, and above it the mesh's media (RayRecord::set_hit_media).
+    const unsigned int material = (meta.x & 0xffu) | ((mesh.flags >> MESH_MEDIA_SHIFT) & 0xffu) << 8;
+    const uint4 w5 = make_uint4(ng0 | ng1 << 16, ng2 | material << 16, ns0 | ns1 << 16, ns2 | error_bits << 16);
     words[2] = w2;
     words[3] = w3;
     words[4] = w4;

@@ -59,7 +59,15 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
                            : LOOP == LOOP_WIDE      ? traverse_wide<TRI, ANY>(v, o, d, a.w)
                                                     : traverse_while_while<TRI, ANY>(v, o, d, a.w);
     if (ANY) {
-        if (h.hit) rec->flags |= FLAG_OCCLUDED;
+        if (h.hit) {
+            rec->flags |= FLAG_OCCLUDED;
+        }
+#if ATOLL_TRACE_MEDIA
+        else if (!is_zero3(h.depth)) {
+            // The record's position holds its optical depth (shade.rs `start_in_medium`).
+            store3(rec->position, load3(rec->position) + h.depth * length3(d));
+        }
+#endif
         return;
     }
     HitRef out;

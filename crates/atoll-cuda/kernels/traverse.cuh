@@ -24,6 +24,14 @@
 #define ATOLL_TRACE_ALPHA 0
 #endif
 
+// Shadow rays crossing surfaces that only bound media (`-DATOLL_TRACE_MEDIA=1`,
+// scenes with media, which also have ATOLL_TRACE_ALPHA): such a candidate
+// is no hit, and the change of σt across it adds to the ray's depth
+// (media.cuh `medium_crossing`).
+#ifndef ATOLL_TRACE_MEDIA
+#define ATOLL_TRACE_MEDIA 0
+#endif
+
 // BLAS leaf links counting from their instance record's tri_base (a BVH
 // built in pieces, src/bvh/pieces.rs; `-DATOLL_TRI_BASES=1`): elsewhere
 // every base is 0, and adding it measured a few percent slower.
@@ -140,6 +148,15 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
         if (hit && v.alpha_params) {
             count_access(v.tri_ids + first + k);
             hit = alpha_keeps(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, t, ray.o, ray.d);
+#if ATOLL_TRACE_MEDIA
+            if (ANY && hit) {
+                float3 change = zero3();
+                hit = medium_crossing(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, ray.d,
+                                      &change);
+                // Any-hit traversal never shrinks h.t: it is the ray's t_max.
+                h.depth = h.depth + change * (h.t - t);
+            }
+#endif
         }
 #endif
         if (hit) {

@@ -26,6 +26,13 @@
 #include "lights.cuh"
 #include "camera.cuh"
 #include "surface.cuh"
+#include "media.cuh"
+
+// Participating media in `shade` (compiled out for frames without any,
+// src/device.rs `shade_features`).
+#ifndef ATOLL_WITH_MEDIA
+#define ATOLL_WITH_MEDIA 1
+#endif
 
 // Which kernels a module holds: all (the default), or, for a frame's two
 // modules compiled at once (src/device.rs), the shading kernels alone
@@ -87,8 +94,10 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
     float3 origin, direction;
     camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
     // Emitters seen directly count in full, like after a specular bounce.
+    // The path starts in the camera's medium.
+    const unsigned char flags = (unsigned char)(FLAG_SPECULAR | (p.camera_medium << FLAG_MEDIUM_SHIFT));
     store_ray_half(dst, origin, f32_infinity(), direction, pixel, make_float3(weight, weight, weight), sample, 0.0f,
-                   0, FLAG_SPECULAR, 0, 0u, 0u);
+                   0, flags, 0, 0u, 0u);
 }
 
 /// Mirrors `atoll_scene::camera::tile_order_pixel`: the pixel at place
@@ -203,6 +212,8 @@ struct ShadeOutcome {
     bool has_shadow;
     float3 shadow_origin, shadow_direction, shadow_radiance;
     float shadow_t_max;
+    /// The shadow ray's optical depth at its start (stored in its position).
+    float3 shadow_depth;
 };
 
 /// Mirrors shade.rs's `hit_point`.
@@ -243,13 +254,96 @@ __device__ __forceinline__ bool spawn_shadow(ShadeOutcome& o, const SurfacePoint
     return true;
 }
 
+/// Mirrors shade.rs's `start_in_medium`: the shadow ray just spawned into
+/// `o` leaves in `medium` (a frame with media only).
+__device__ __forceinline__ void start_in_medium(const FrameParams& p, ShadeOutcome& o, unsigned int medium) {
+    const float scale = length3(o.shadow_direction);
+    if (o.shadow_t_max == f32_infinity()) o.shadow_t_max = p.shadow_reach / scale;
+    o.shadow_depth = medium_sigma_t(p.media[medium]) * (o.shadow_t_max * scale);
+}
+
+/// Mirrors shade.rs's `russian_roulette`: false when the path ends, else
+/// `*beta` rescaled.
+__device__ __forceinline__ bool russian_roulette(const FrameParams& params, SampleStream rng, unsigned int depth,
+                                                 float eta_scale, float3* beta) {
+    if (params.russian_roulette && depth >= 1) {
+        const float m = max_element3(abs3(*beta * eta_scale));
+        if (m < 1.0f) {
+            const float q = fmaxf(1.0f - m, 0.0f);
+            if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return false;
+            *beta = *beta / (1.0f - q);
+        }
+    }
+    return is_finite3(*beta);
+}
+
+#if ATOLL_WITH_MEDIA
+/// Mirrors shade.rs's `scatter_in_medium`: the segment `r` scatters in
+/// medium `medium` at `p`, with throughput `beta`: next-event estimation
+/// and a new direction with the Henyey–Greenstein phase function.
+__device__ __noinline__ void scatter_in_medium(const FrameParams& params, const RayRecord& r, unsigned int medium,
+                                               float3 p, float3 beta, ShadeOutcome& out) {
+    const unsigned int depth = r.depth;
+    if (depth >= params.max_depth) return;
+    const float g = params.media[medium].g;
+    const float3 wo = -normalize3(load3(r.direction));
+    SurfacePoint at;
+    at.p = p;
+    at.normal = zero3();
+    at.error = 0.0f;
+    const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+    const float2 u_light = make_float2(stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_POSITION, 0),
+                                       stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_POSITION, 1));
+    LightSample ls;
+    if (light_sample(params, p, stream_bounce(rng, depth, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
+        const bool spawned = spawn_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity());
+        const float phase = henyey_greenstein(dot3(wo, ls.wi), g);
+        if (spawned && ls.pdf > 0.0f && phase > 0.0f && !is_zero3(ls.radiance)) {
+            const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, phase);
+            out.has_shadow = true;
+            out.shadow_radiance = beta * ls.radiance * (phase * w / ls.pdf);
+            start_in_medium(params, out, medium);
+        }
+    }
+    const float2 u_dir = make_float2(stream_bounce(rng, depth, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_bounce(rng, depth, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    float pdf;
+    const float3 wi = sample_henyey_greenstein(wo, g, u_dir, &pdf);
+    if (!russian_roulette(params, rng, depth, unpack_eta_scale(r.eta_scale), &beta)) return;
+    set_continuation(out, r, at, wi);
+    out.next_throughput = beta;
+    out.next_pdf = pdf;
+    out.next_depth = (unsigned short)(depth + 1);
+    out.next_flags = (unsigned char)(medium << FLAG_MEDIUM_SHIFT);
+}
+#endif
+
 /// Mirrors `shade::shade_path`.
 __device__ __forceinline__ void shade_path(const FrameParams& params, const RayRecord& r, ShadeOutcome& out) {
-    const float3 beta = load3(r.throughput);
+    float3 beta = load3(r.throughput);
     const float3 dir = load3(r.direction);
     const bool specular = (r.flags & FLAG_SPECULAR) != 0;
     // Light selection may depend on where the path was: where this segment started.
     const float3 from = load3(r.origin);
+
+#if ATOLL_WITH_MEDIA
+    const unsigned int medium = r.flags >> FLAG_MEDIUM_SHIFT;
+    // Through a medium: its emission along the segment, then where (and
+    // whether) the segment scatters before its end.
+    if (medium != 0u) {
+        const GpuMedium& m = params.media[medium];
+        const float length = (r.flags & FLAG_HIT) ? r.t_max * length3(dir) : f32_infinity();
+        out.emitted = out.emitted + beta * medium_emission_over(m, length);
+        const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+        const MediumSegment seg = medium_sample_segment(m, length, stream_medium_distance(rng, r.depth, from));
+        if (seg.scatter) {
+            scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
+            return;
+        }
+        beta = beta * seg.weight;
+        if (is_zero3(beta)) return;
+    }
+#endif
 
     // Escaped: environment lights, MIS-weighted against light sampling.
     if (!(r.flags & FLAG_HIT)) {
@@ -276,10 +370,19 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
 
     const SurfacePoint at = hit_point(r);
     const float3 p = at.p;
+#if ATOLL_WITH_MEDIA
+    // The hit surface's media (inside << 4 | outside; 0 where it bounds none).
+    const unsigned int media = r.material >> 8;
+#endif
     const Bsdf bsdf = bsdf_from_record(r);
     if (bsdf.kind == MATERIAL_NONE) {
         // A surface that only bounds a medium: continue straight through.
         set_continuation(out, r, at, dir);
+#if ATOLL_WITH_MEDIA
+        out.next_throughput = beta;
+        const unsigned int next = media ? media_towards(media, dot3(dir, at.normal)) : medium;
+        out.next_flags = (unsigned char)((out.next_flags & ~FLAG_MEDIUM_MASK) | (next << FLAG_MEDIUM_SHIFT));
+#endif
         return;
     }
     const unsigned int depth = r.depth;
@@ -305,6 +408,11 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
                 const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, bsdf_pdf(bsdf, wo, wi));
                 out.has_shadow = true;
                 out.shadow_radiance = beta * f * ls.radiance * (w / ls.pdf);
+#if ATOLL_WITH_MEDIA
+                if (params.media_count > 1u) {
+                    start_in_medium(params, out, media ? media_towards(media, dot3(ls.wi, at.normal)) : medium);
+                }
+#endif
             }
         }
     }
@@ -321,15 +429,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
     // the magnitude of the throughput without the radiance scaling of
     // refractions (a pixel filter's negative lobes make some negative).
-    if (params.russian_roulette && depth >= 1) {
-        const float m = max_element3(abs3(next_beta * eta_scale));
-        if (m < 1.0f) {
-            const float q = fmaxf(1.0f - m, 0.0f);
-            if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
-            next_beta = next_beta / (1.0f - q);
-        }
-    }
-    if (!is_finite3(next_beta)) return;
+    if (!russian_roulette(params, rng, depth, eta_scale, &next_beta)) return;
     const float3 wi = normalize3(frame_from_local(frame, bs.wi));
     set_continuation(out, r, at, wi);
     out.next_throughput = next_beta;
@@ -339,6 +439,10 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     out.next_pdf = bsdf_sampled_pdf_is_proportional(bsdf) && !bs.delta ? bsdf_pdf(bsdf, wo, bs.wi) : bs.pdf;
     out.next_depth = (unsigned short)(r.depth + 1);
     out.next_flags = bs.delta ? FLAG_SPECULAR : 0;
+#if ATOLL_WITH_MEDIA
+    const unsigned int next = media ? media_towards(media, dot3(wi, at.normal)) : medium;
+    out.next_flags |= (unsigned char)(next << FLAG_MEDIUM_SHIFT);
+#endif
 }
 
 /// Mirrors `shade::shade_ambient_occlusion` (cosine-sampled AO: each
@@ -377,6 +481,7 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
     out.emitted = zero3();
     out.has_next = false;
     out.has_shadow = false;
+    out.shadow_depth = zero3();
     if (p.integrator == INTEGRATOR_AMBIENT_OCCLUSION) {
         shade_ambient_occlusion(p, r, out);
     } else {
@@ -396,6 +501,8 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
         store_ray_half(shadows + shadow_slot, out.shadow_origin, out.shadow_t_max, out.shadow_direction, r.pixel,
                        out.shadow_radiance, r.sample, r.bsdf_pdf, r.depth, FLAG_SHADOW, r.eta_scale, NO_LIGHT,
                        r.instance);
+        // The optical depth so far, where a medium can add to it (`RayRecord::optical_depth`).
+        if (ATOLL_WITH_MEDIA) store3(shadows[shadow_slot].position, out.shadow_depth);
     }
 }
 
@@ -409,12 +516,20 @@ extern "C" __global__ void shade(const FrameParams* __restrict__ params, const R
 /// Adds the radiance of every unoccluded shadow ray in
 /// `shadows[0 .. *shadow_count]` to its pixel. Mirrors `CpuDevice::resolve_shadows`.
 extern "C" __global__ void resolve_shadows(const RayRecord* __restrict__ shadows,
-                                           const unsigned int* __restrict__ shadow_count, float* __restrict__ film) {
+                                           const unsigned int* __restrict__ shadow_count, float* __restrict__ film,
+                                           unsigned int media) {
     const unsigned int i = global_index();
     if (i >= *shadow_count) return;
     const RayRecord& r = shadows[i];
     if (r.flags & FLAG_OCCLUDED) return;
-    film_add(film, r.pixel, load3(r.throughput));
+    float3 radiance = load3(r.throughput);
+    if (media) {
+        // Through media, the light arrives attenuated by the optical depth gathered.
+        const float3 depth = load3(r.position);
+        radiance = radiance * make_float3(expf(-fmaxf(depth.x, 0.0f)), expf(-fmaxf(depth.y, 0.0f)),
+                                          expf(-fmaxf(depth.z, 0.0f)));
+    }
+    film_add(film, r.pixel, radiance);
 }
 
 /// Zeroes the two append counters of `shade` (launch with one thread); the

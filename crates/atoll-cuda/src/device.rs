@@ -140,6 +140,7 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
     .filter(|&(_, kinds)| !has(kinds))
     .map(|(name, _)| name)
     .chain(emission_textures)
+    .chain((!frame.media.any()).then_some("ATOLL_WITH_MEDIA"))
     .map(|name| format!("-D{name}=0"))
     .collect()
 }
@@ -803,11 +804,12 @@ impl CudaDevice {
             let q = &mut r.queues;
             if q.known_len(Queue::Shadows) != Some(0) {
                 let threads = q.launch_len(Queue::Shadows);
+                let media = r.frame.media.any() as u32;
                 let mut launch = gpu.stream.launch_builder(&r.kernels.resolve_shadows);
-                launch.arg(&q.shadows).arg(&q.shadow_count).arg(&mut r.film);
+                launch.arg(&q.shadows).arg(&q.shadow_count).arg(&mut r.film).arg(&media);
                 // SAFETY: matches `resolve_shadows(const RayRecord* shadows, const unsigned*
-                // shadow_count, float* film)`; the kernel stops at `*shadow_count <= capacity`
-                // and records only name pixels of this frame's film.
+                // shadow_count, float* film, unsigned int media)`; the kernel stops at
+                // `*shadow_count <= capacity` and records only name pixels of this frame's film.
                 unsafe { launch.launch(launch_1d(threads, BLOCK)) }
                     .map_err(CudaError::driver("launching resolve_shadows"))?;
             }

@@ -24,7 +24,7 @@ use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::material_layout;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
-use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE};
+use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, MEDIUM_DIMENSIONS};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 use atoll_render::spawn::{gamma, SHADOW_EPSILON};
 
@@ -33,7 +33,7 @@ use crate::layout::{
 };
 use crate::params::{
     emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, FrameParams, GpuEmissionTexture,
-    GpuEmitter, GpuMaterial, SceneView, NO_EMISSION_TEXTURE,
+    GpuEmitter, GpuMaterial, GpuMedium, SceneView, NO_EMISSION_TEXTURE,
 };
 use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
@@ -130,9 +130,11 @@ pub(crate) fn record_asserts() -> String {
         ("FLAG_OCCLUDED", flags::OCCLUDED),
         ("FLAG_HIT", flags::HIT),
         ("FLAG_SPECULAR", flags::SPECULAR),
+        ("FLAG_MEDIUM_MASK", flags::MEDIUM_MASK),
     ] {
         s += &const_uint("unsigned char", name, value as u64);
     }
+    s += &const_uint("unsigned int", "FLAG_MEDIUM_SHIFT", flags::MEDIUM_SHIFT as u64);
     for (name, kind) in [
         ("MATERIAL_NONE", MaterialKind::None),
         ("MATERIAL_DIFFUSE", MaterialKind::Diffuse),
@@ -172,6 +174,7 @@ pub(crate) fn material_layout_constants() -> String {
 pub(crate) fn rng_constants() -> String {
     let mut s = const_uint("unsigned int", "CAMERA_DIMENSIONS", CAMERA_DIMENSIONS as u64);
     s += &const_uint("unsigned int", "DIMENSIONS_PER_BOUNCE", DIMENSIONS_PER_BOUNCE as u64);
+    s += &const_uint("unsigned int", "MEDIUM_DIMENSIONS", MEDIUM_DIMENSIONS as u64);
     for (name, dim) in [
         ("BOUNCE_DIM_LIGHT_SELECT", BounceDim::LightSelect),
         ("BOUNCE_DIM_LIGHT_POSITION", BounceDim::LightPosition),
@@ -191,12 +194,16 @@ pub(crate) fn layout_asserts() -> String {
     let mut s = const_uint("unsigned int", "HIT_NONE", HIT_NONE as u64);
     // The pixel filter's table size (params.cuh's `FilterTable` is made of it).
     s += &const_uint("unsigned int", "FILTER_BINS", FILTER_BINS as u64);
+    // Entries of params.cuh's `FrameParams::media`.
+    s += &const_uint("unsigned int", "MEDIA_SLOTS", crate::params::MEDIA_SLOTS as u64);
     for (name, value) in [
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
         ("MESH_EMISSIVE", mesh_flags::EMISSIVE),
         ("MESH_HAS_UVS", mesh_flags::HAS_UVS),
         ("MESH_SWEPT_TUBE", mesh_flags::SWEPT_TUBE),
+        ("MESH_MEDIA_ONLY", mesh_flags::MEDIA_ONLY),
+        ("MESH_MEDIA_SHIFT", mesh_flags::MEDIA_SHIFT),
         ("IMAGE_RGBA8", image_format::RGBA8),
         ("IMAGE_RGBA8_SRGB", image_format::RGBA8_SRGB),
         ("IMAGE_RGBA_F32", image_format::RGBA_F32),
@@ -343,6 +350,7 @@ pub(crate) fn params_asserts() -> String {
     s += &assert_struct::<LightNode>("LightNode", light_node_layout());
     s += &const_uint("unsigned int", "NO_EMISSION_TEXTURE", NO_EMISSION_TEXTURE as u64);
     s += &assert_struct::<GpuEmissionTexture>("GpuEmissionTexture", GpuEmissionTexture::field_layout());
+    s += &assert_struct::<GpuMedium>("GpuMedium", GpuMedium::field_layout());
     s += &assert_struct::<FrameParams>("FrameParams", FrameParams::field_layout());
     s + &assert_struct::<SceneView>("SceneView", SceneView::field_layout())
 }
@@ -413,7 +421,7 @@ mod tests {
     /// struct (all shared structs carry explicit padding fields).
     #[test]
     fn header_layouts_cover_their_structs() {
-        let all: [(&str, usize, FieldLayout); 12] = [
+        let all: [(&str, usize, FieldLayout); 13] = [
             ("RayRecord", std::mem::size_of::<RayRecord>(), record::field_layout()),
             ("GpuMesh", std::mem::size_of::<GpuMesh>(), GpuMesh::field_layout()),
             ("GpuObject", std::mem::size_of::<GpuObject>(), GpuObject::field_layout()),
@@ -424,6 +432,7 @@ mod tests {
             ("WorkFifo", std::mem::size_of::<WorkFifo>(), WorkFifo::field_layout()),
             ("GpuEmitter", std::mem::size_of::<GpuEmitter>(), GpuEmitter::field_layout()),
             ("GpuMaterial", std::mem::size_of::<GpuMaterial>(), GpuMaterial::field_layout()),
+            ("GpuMedium", std::mem::size_of::<GpuMedium>(), GpuMedium::field_layout()),
             ("FrameParams", std::mem::size_of::<FrameParams>(), FrameParams::field_layout()),
             ("SceneView", std::mem::size_of::<SceneView>(), SceneView::field_layout()),
         ];

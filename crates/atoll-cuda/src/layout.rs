@@ -40,6 +40,12 @@ pub(crate) mod mesh_flags {
     /// The mesh is a swept tube (`TriangleMesh::transparent_back_faces`):
     /// hair on it takes its offset from the normal.
     pub(crate) const SWEPT_TUBE: u32 = 1 << 4;
+    /// The mesh bounds media and scatters no light itself (an `interface`
+    /// material): shadow rays cross it, gathering optical depth.
+    pub(crate) const MEDIA_ONLY: u32 = 1 << 5;
+    /// Where the mesh's media sit (inside << 4 | outside, 0 where it bounds
+    /// none, as `RayRecord::material`'s high byte).
+    pub(crate) const MEDIA_SHIFT: u32 = 8;
 }
 
 /// `GpuImage::format` values.

@@ -65,6 +65,26 @@ impl GpuEmissionTexture {
     }
 }
 
+/// A homogeneous medium's coefficients (`atoll_render::medium::MediumCoeffs`), 40 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuMedium {
+    pub sigma_a: [f32; 3],
+    pub sigma_s: [f32; 3],
+    pub le: [f32; 3],
+    pub g: f32,
+}
+
+impl GpuMedium {
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
+        field_layout!(GpuMedium { sigma_a, sigma_s, le, g })
+    }
+}
+
+/// Media a frame can hold: the vacuum and [`atoll_scene::MAX_MEDIA`].
+pub const MEDIA_SLOTS: usize = atoll_scene::MAX_MEDIA + 1;
+
 /// [`FrameParams::light_sampler`] values, one per [`LightSampler`] variant.
 pub(crate) mod light_sampler_kind {
     pub(crate) const POWER: u32 = 0;
@@ -340,6 +360,15 @@ pub struct FrameParams {
     pub unbounded_count: u32,
     /// The pixel filter's sampling tables (`atoll_render::filter`).
     pub filter: FilterTable,
+    /// Entries of `media` in use (1, the vacuum, when the scene has none).
+    pub media_count: u32,
+    /// The medium camera rays start in.
+    pub camera_medium: u32,
+    /// `MediumTable::shadow_reach`.
+    pub shadow_reach: f32,
+    pub media_pad: u32,
+    /// By `MediumIndex`; entry 0 is the vacuum.
+    pub media: [GpuMedium; MEDIA_SLOTS],
 }
 
 impl FrameParams {
@@ -370,8 +399,19 @@ impl FrameParams {
             light_node_count: lights.bvh.nodes.len() as u32,
             unbounded_count: lights.unbounded_lights().len() as u32,
             filter: frame.filter,
+            media_count: frame.media.media.len() as u32,
+            camera_medium: frame.media.camera as u32,
+            shadow_reach: frame.media.shadow_reach,
             ..Zeroable::zeroed()
         };
+        for (slot, m) in params.media.iter_mut().zip(&frame.media.media) {
+            *slot = GpuMedium {
+                sigma_a: m.sigma_a.to_array(),
+                sigma_s: m.sigma_s.to_array(),
+                le: m.le.to_array(),
+                g: m.g,
+            };
+        }
         params.set_camera(&frame.camera);
         params
     }
@@ -428,6 +468,11 @@ impl FrameParams {
             light_node_count,
             unbounded_count,
             filter,
+            media_count,
+            camera_medium,
+            shadow_reach,
+            media_pad,
+            media,
         })
     }
 }
@@ -511,8 +556,10 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 84);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
+    assert!(std::mem::size_of::<GpuMedium>() == 40);
     assert!(
-        std::mem::size_of::<FrameParams>() == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>()
+        std::mem::size_of::<FrameParams>()
+            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 16 + 40 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 72);

@@ -254,6 +254,12 @@ impl TablePlan {
                 if mesh.transparent_back_faces {
                     flags |= mesh_flags::SWEPT_TUBE;
                 }
+                if let Some(media) = mesh.media {
+                    flags |= ((media.inside << 4 | media.outside) as u32) << mesh_flags::MEDIA_SHIFT;
+                }
+                if scene.bounds_media_only(range.mesh) {
+                    flags |= mesh_flags::MEDIA_ONLY;
+                }
                 let count = range.triangles.end - range.triangles.start;
                 plan.meshes.push(GpuMesh {
                     first_triangle: triangles,

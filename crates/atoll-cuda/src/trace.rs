@@ -30,6 +30,10 @@ const FILE: &str = "trace.cu";
 pub(crate) struct TraceFeatures {
     /// Alpha masks are tested during traversal (`ATOLL_TRACE_ALPHA`).
     pub alpha: bool,
+    /// Shadow rays gather optical depth where they cross surfaces that only
+    /// bound media (`ATOLL_TRACE_MEDIA`; needs `alpha`, which such
+    /// surfaces turn on).
+    pub media: bool,
     /// Closest-hit kernels that write surfaces apply texture programs and
     /// emission textures (`ATOLL_WITH_TEXTURES`).
     pub textures: bool,
@@ -47,6 +51,7 @@ impl TraceFeatures {
     pub(crate) fn of(frame: &atoll_render::FrameContext) -> Self {
         TraceFeatures {
             alpha: frame.textures.has_alpha(),
+            media: frame.media.any() && frame.textures.has_alpha(),
             textures: frame
                 .textures
                 .materials
@@ -76,6 +81,9 @@ impl TraceFeatures {
         // Only when set: the other modules keep their cache keys.
         if self.count_accesses {
             defines.push("-DATOLL_COUNT_ACCESSES=1".into());
+        }
+        if self.media {
+            defines.push("-DATOLL_TRACE_MEDIA=1".into());
         }
         if self.tri_bases {
             defines.push("-DATOLL_TRI_BASES=1".into());

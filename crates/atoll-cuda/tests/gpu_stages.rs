@@ -32,8 +32,8 @@ use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOpti
 use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
     AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage,
-    HairParams, Instance, IntegratorSettings, Light, Material, Object, PrincipledParams, Rgb, Scene,
-    TriangleMesh,
+    HairParams, HomogeneousMedium, Instance, IntegratorSettings, Light, Material, Medium, MediumInterface,
+    Object, PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -133,6 +133,9 @@ fn compare_records(cpu: &RayRecord, gpu: &RayRecord) -> Result<(), String> {
     f("light", cpu.light == gpu.light);
     f("instance", cpu.instance == gpu.instance);
     f("eta_scale", cpu.eta_scale == gpu.eta_scale);
+    if cpu.flags & flags::SHADOW != 0 {
+        f("optical depth", close_all(&cpu.position, &gpu.position));
+    }
     // The hit half is defined only for hits (record.rs).
     if cpu.flags & flags::HIT != 0 {
         f("position", close_all(&cpu.position, &gpu.position));
@@ -479,6 +482,56 @@ fn shade_matches_the_cpu_stage() {
     }
 }
 
+/// The test frame with two media (a coloured, scattering, glowing one and
+/// an absorbing one) and the camera in the first.
+fn media_frame() -> FrameContext {
+    let (mut scene, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
+    scene.media.push(Medium::Homogeneous(HomogeneousMedium {
+        sigma_a: Rgb::new(0.3, 0.8, 1.5),
+        sigma_s: Rgb::new(1.2, 0.7, 0.2),
+        g: 0.6,
+        le: Rgb::new(0.5, 0.2, 0.1),
+    }));
+    scene.media.push(Medium::Homogeneous(HomogeneousMedium {
+        sigma_a: Rgb::new(2.0, 0.5, 0.0),
+        sigma_s: Rgb::ZERO,
+        g: 0.0,
+        le: Rgb::ZERO,
+    }));
+    scene.settings.camera_medium = 1;
+    FrameContext::new(&scene, frame.options.clone())
+}
+
+/// Paths travelling through media (or none), hitting surfaces that bound
+/// media (or none): segments scatter, pass, glow; media change across
+/// surfaces; shadow rays start with their medium's optical depth.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn shade_in_media_matches_the_cpu_stage() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    let frame = media_frame();
+    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+    let mut paths = synthetic_paths(&frame, 3000);
+    for (i, r) in paths.iter_mut().enumerate() {
+        let i = i as u32;
+        r.set_medium((i % 3) as u8);
+        if r.has(flags::HIT) {
+            r.set_hit_media(
+                [None, MediumInterface::transition(1, 0), MediumInterface::transition(2, 1)]
+                    [(i / 3 % 3) as usize],
+            );
+        }
+    }
+    let cpu = shade_on_cpu(&frame, &paths);
+    let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
+    // Media scatter some segments, and shadow rays start inside them.
+    let scattered = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() != 0).count();
+    assert!(scattered > 100, "{scattered} paths in media");
+    assert!(cpu.shadows.iter().any(|s| s.optical_depth() != Vec3::ZERO), "no shadow ray starts in a medium");
+    assert_no_mismatches("shade in media", &shade_mismatches(&cpu, &got));
+}
+
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_production_options_mostly_agrees() {
@@ -514,22 +567,39 @@ fn resolve_shadows_adds_unoccluded_rays() {
         }
     }
     let capacity = shadows.len() as u32 + 100;
-    let mut padded = shadows.clone();
-    padded.resize(capacity as usize, RayRecord::zeroed());
-    let input = upload(&gpu, &gpu_records(&padded));
     let count = upload(&gpu, &[shadows.len() as u32]);
-    let mut film = gpu.stream.alloc_zeros::<f32>(3 * pixels).unwrap();
     let f = m.load_function("resolve_shadows").unwrap();
-    let mut b = gpu.stream.launch_builder(&f);
-    b.arg(&input).arg(&count).arg(&mut film);
-    // SAFETY: the arguments match `resolve_shadows`; records past the count are never read.
-    unsafe { b.launch(launch_1d(capacity, BLOCK)) }.unwrap();
-    let film = download(&gpu, &film);
-    let bad: Vec<String> = (0..film.len())
-        .filter(|&i| !close(film[i], expected[i]))
-        .map(|i| format!("film[{i}]: cpu {} gpu {}", expected[i], film[i]))
-        .collect();
-    assert_no_mismatches("resolve_shadows", &bad);
+    let resolve = |shadows: &[RayRecord], media: u32| {
+        let mut padded = shadows.to_vec();
+        padded.resize(capacity as usize, RayRecord::zeroed());
+        let input = upload(&gpu, &gpu_records(&padded));
+        let mut film = gpu.stream.alloc_zeros::<f32>(3 * pixels).unwrap();
+        let mut b = gpu.stream.launch_builder(&f);
+        b.arg(&input).arg(&count).arg(&mut film).arg(&media);
+        // SAFETY: the arguments match `resolve_shadows`; records past the count are never read.
+        unsafe { b.launch(launch_1d(capacity, BLOCK)) }.unwrap();
+        download(&gpu, &film)
+    };
+    let compare = |what: &str, film: &[f32], expected: &[f32]| {
+        let bad: Vec<String> = (0..film.len())
+            .filter(|&i| !close(film[i], expected[i]))
+            .map(|i| format!("film[{i}]: cpu {} gpu {}", expected[i], film[i]))
+            .collect();
+        assert_no_mismatches(what, &bad);
+    };
+    compare("resolve_shadows", &resolve(&shadows, 0), &expected);
+    // Through media: each ray's optical depth (in its position) attenuates it.
+    for (i, s) in shadows.iter_mut().enumerate() {
+        s.position = [rnd(i as u32, 20), 2.0 * rnd(i as u32, 21), 0.5 * rnd(i as u32, 22)];
+    }
+    let mut expected = vec![0.0f32; 3 * pixels];
+    for s in shadows.iter().filter(|s| !s.has(flags::OCCLUDED)) {
+        let attenuated = s.throughput() * (-s.optical_depth()).exp();
+        for c in 0..3 {
+            expected[3 * s.pixel as usize + c] += attenuated[c];
+        }
+    }
+    compare("resolve_shadows through media", &resolve(&shadows, 1), &expected);
 }
 
 /// A scene for `surface`: the Cornell box plus an object with per-vertex

@@ -177,8 +177,8 @@ fn frame_modules_hold_only_their_kernels() {
 }
 
 /// The trace module with every feature a frame or BVH may switch on
-/// (`TraceFeatures`: alpha masks, textures, access counting, record
-/// bases) compiles, every loop in it.
+/// (`TraceFeatures`: alpha masks, media boundaries, textures, access
+/// counting, record bases) compiles, every loop in it.
 #[test]
 fn trace_module_compiles_with_every_feature() {
     if !nvrtc_or_skip("trace features") {
@@ -189,6 +189,7 @@ fn trace_module_compiles_with_every_feature() {
         [
             "-DATOLL_TRACE_LOOPS=63",
             "-DATOLL_TRACE_ALPHA=1",
+            "-DATOLL_TRACE_MEDIA=1",
             "-DATOLL_WITH_TEXTURES=1",
             "-DATOLL_COUNT_ACCESSES=1",
             "-DATOLL_TRI_BASES=1",

@@ -97,9 +97,12 @@ fn specialised_shade_kernels_keep_their_registers() {
         "-DATOLL_WITH_PRINCIPLED=0",
         "-DATOLL_WITH_HAIR=0",
         "-DATOLL_WITH_EMISSION_TEXTURES=0",
+        "-DATOLL_WITH_MEDIA=0",
     ];
     let (_, log) = compile("wavefront.cu", &none);
     let plain = registers(&log, "shade");
+    let (_, log) = compile("wavefront.cu", &none[..4]);
+    let plain_in_media = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let all = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
@@ -108,7 +111,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     let no_hair = registers(&log, "shade");
     eprintln!(
         "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}, all but hair {no_hair}"
+         {no_coated_conductor}, all but hair {no_hair}, plain materials in media {plain_in_media}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
     assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
@@ -118,6 +121,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_PRINCIPLED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_HAIR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEDIA=0"]);
 }
 
 /// Every specialisation of the trace module compiles cleanly (the alpha

@@ -12,7 +12,7 @@ use atoll_scene::MeshId;
 use glam::{Vec3, Vec3A};
 
 use crate::frame::FrameContext;
-use crate::record::{MaterialKind, RayRecord};
+use crate::record::RayRecord;
 use crate::texture::SceneTextures;
 
 /// The hit filter of one shadow ray: alpha masks as for any ray, and
@@ -41,27 +41,18 @@ impl<'a> ShadowFilter<'a> {
     pub fn optical_depth(&self) -> Vec3 {
         self.depth.get()
     }
-
-    /// Whether `mesh` bounds media without scattering light itself.
-    fn bounds_media_only(&self, mesh: MeshId) -> bool {
-        let m = &self.textures.scene.meshes[mesh as usize];
-        m.media.is_some() && {
-            let packed = &self.frame.materials[m.material as usize];
-            packed.kind == MaterialKind::None && packed.mix.is_none()
-        }
-    }
 }
 
 impl HitFilter for ShadowFilter<'_> {
     fn filters(&self, mesh: MeshId) -> bool {
-        self.textures.filters(mesh) || self.bounds_media_only(mesh)
+        self.textures.filters(mesh) || self.textures.scene.bounds_media_only(mesh)
     }
 
     fn keeps(&self, mesh: MeshId, triangle: u32, u: f32, v: f32, t: f32, origin: Vec3A, dir: Vec3A) -> bool {
         if !self.textures.keeps(mesh, triangle, u, v, t, origin, dir) {
             return false;
         }
-        if !self.bounds_media_only(mesh) {
+        if !self.textures.scene.bounds_media_only(mesh) {
             return true;
         }
         let m = &self.textures.scene.meshes[mesh as usize];

@@ -78,6 +78,15 @@ impl Scene {
         (self.materials.len() - 1) as crate::MaterialId
     }
 
+    /// Whether mesh `mesh` bounds media and scatters no light itself (an
+    /// `interface` material): shadow rays cross it (pbrt-v4's
+    /// `TraceTransmittance`), adding up the media's optical depth.
+    pub fn bounds_media_only(&self, mesh: MeshId) -> bool {
+        let m = &self.meshes[mesh as usize];
+        m.media.is_some()
+            && matches!(self.materials.get(m.material as usize), Some(crate::Material::Interface))
+    }
+
     /// Adds a mesh and returns its id.
     pub fn add_mesh(&mut self, mesh: TriangleMesh) -> MeshId {
         self.meshes.push(mesh);

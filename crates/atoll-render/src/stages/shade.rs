@@ -85,6 +85,8 @@ fn shadow_ray(
     s.light = NO_LIGHT;
     s.throughput = radiance.to_array();
     s.flags = flags::SHADOW;
+    // No optical depth unless it starts in a medium (`start_in_medium`).
+    s.position = [0.0; 3];
     Some(s)
 }
 
