@@ -11,7 +11,8 @@
 /// memory), writes that count to `dst_count` and adds the bytes sent to
 /// `*sent_bytes` (this GPU's statistics). Shadow rays need only their first
 /// four words (ray, pixel, throughput, flags): what any-hit tracing and
-/// resolving read. Grid-stride: every launch shape works.
+/// resolving read, unless media give them an optical depth (the fifth
+/// word; the host sends them whole then). Grid-stride: every launch shape works.
 extern "C" __global__ void send_records(const uint4* __restrict__ src, const unsigned int* __restrict__ src_count,
                                         uint4* __restrict__ dst, unsigned int* __restrict__ dst_count,
                                         unsigned int capacity, unsigned int word_shift,

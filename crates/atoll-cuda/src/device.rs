@@ -426,6 +426,12 @@ impl CudaDevice {
         self.resident.as_mut().ok_or_else(|| CudaError::Usage("CudaDevice used before prepare()".into()))
     }
 
+    /// Whether the frame has media: shadow rays then carry their optical
+    /// depth in the record's hit half (an error before `prepare`).
+    pub(crate) fn frame_has_media(&mut self) -> Result<bool, CudaError> {
+        Ok(self.resident()?.frame.media.any())
+    }
+
     /// The frame's queues (an error before `prepare`).
     pub(crate) fn queues_mut(&mut self) -> Result<&mut Queues, CudaError> {
         Ok(&mut self.resident()?.queues)

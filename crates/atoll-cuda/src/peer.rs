@@ -150,6 +150,7 @@ impl CudaDevice {
         let gpu = self.gpu().clone();
         let what = |w: &str| format!("{}: sending the {queue:?} queue: {w}", gpu.label());
         let kernel = gpu.function("peer.cu", "send_records")?;
+        let media = self.frame_has_media()?;
         let queues = self.queues_mut()?;
         if queues.capacity > to.capacity {
             return Err(CudaError::Usage(what(&format!(
@@ -163,10 +164,12 @@ impl CudaDevice {
             Queue::Shadows => (&queues.shadows, &queues.shadow_count),
         };
         let mut launch = gpu.stream.launch_builder(&kernel);
-        // Shadow rays: the first 4 of 8 words (see peer.cu); paths: all of them.
+        // Shadow rays: the first 4 of 8 words (see peer.cu), and through
+        // media all of them (their optical depth is in the hit half's
+        // position); paths: all of them.
         let word_shift: u32 = match queue {
-            Queue::Paths => 3,
-            Queue::Shadows => 2,
+            Queue::Shadows if !media => 2,
+            _ => 3,
         };
         launch
             .arg(src)

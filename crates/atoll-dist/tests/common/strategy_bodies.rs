@@ -479,7 +479,10 @@ pub fn a_ring_over_textured_and_alpha_masked_parts_is_one_device(kind: &Kind) {
 /// every member (boundaries of media are on different parts), and paths
 /// keep their medium across the hand-overs.
 pub fn media_on_rings_and_replicas_are_one_device(kind: &Kind) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/media.pbrt");
+    // Beside the sources where they are, else from the repository root
+    // (test binaries run elsewhere, as on the GPU machine).
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/media.pbrt");
+    let path = if beside.exists() { beside } else { "scenes/media.pbrt".into() };
     let scene = Arc::new(atoll_scene::load_any(&path).unwrap().scene);
     assert!(scene.media.len() == 3 && scene.meshes.iter().filter(|m| m.media.is_some()).count() == 2);
     let opts = kind.options(&scene, 4);
