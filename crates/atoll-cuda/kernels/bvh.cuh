@@ -264,8 +264,8 @@ struct TraversalHit {
     bool hit;
 #if ATOLL_TRACE_MEDIA
     /// Any-hit queries through media: the optical depth gathered at the
-    /// boundaries crossed, per unit of the world direction's length.
-    float3 depth;
+    /// boundaries crossed, and the world ray (grids are in world space).
+    float3 depth, world_o, world_d;
 #endif
 };
 
@@ -278,6 +278,19 @@ __device__ __forceinline__ TraversalHit no_hit(float t_max) {
     h.hit = false;
 #if ATOLL_TRACE_MEDIA
     h.depth = zero3();
+#endif
+    return h;
+}
+
+/// No hit yet of the ray (o, d), searching (0, t_max).
+__device__ __forceinline__ TraversalHit ray_hit(float3 o, float3 d, float t_max) {
+    TraversalHit h = no_hit(t_max);
+#if ATOLL_TRACE_MEDIA
+    h.world_o = o;
+    h.world_d = d;
+#else
+    (void)o;
+    (void)d;
 #endif
     return h;
 }

@@ -84,6 +84,7 @@ struct WorkFifo {
 inline constexpr unsigned int HIT_NONE = 4294967295u;
 inline constexpr unsigned int FILTER_BINS = 32u;
 inline constexpr unsigned int MEDIA_SLOTS = 16u;
+inline constexpr unsigned int NO_GRID = 4294967295u;
 inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;

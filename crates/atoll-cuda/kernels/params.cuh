@@ -66,12 +66,16 @@ struct FilterTable {
     float cdf[2 * FILTER_BINS];
 };
 
-/// Mirror of `params::GpuMedium`: a homogeneous medium's coefficients.
+/// Mirror of `params::GpuMedium`: a medium's coefficients and its density
+/// grid's place (`grid_first` NO_GRID: density 1 everywhere).
 struct GpuMedium {
     float sigma_a[3];
     float sigma_s[3];
     float le[3];
     float g;
+    unsigned int grid_first;
+    unsigned int grid_resolution[3];
+    float world_to_lattice[12];
 };
 
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
@@ -133,6 +137,7 @@ struct FrameParams {
     unsigned int camera_medium;
     float shadow_reach;
     unsigned int media_pad;
+    const float* media_grids;
     GpuMedium media[MEDIA_SLOTS];
 };
 
@@ -219,14 +224,17 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(GpuMedium) == 40, "GpuMedium: size differs from Rust");
+static_assert(sizeof(GpuMedium) == 104, "GpuMedium: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMedium, sigma_a) == 0 && sizeof(GpuMedium::sigma_a) == 12, "GpuMedium.sigma_a: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, sigma_s) == 12 && sizeof(GpuMedium::sigma_s) == 12, "GpuMedium.sigma_s: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, le) == 24 && sizeof(GpuMedium::le) == 12, "GpuMedium.le: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, g) == 36 && sizeof(GpuMedium::g) == 4, "GpuMedium.g: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, grid_first) == 40 && sizeof(GpuMedium::grid_first) == 4, "GpuMedium.grid_first: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, grid_resolution) == 44 && sizeof(GpuMedium::grid_resolution) == 12, "GpuMedium.grid_resolution: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(GpuMedium::world_to_lattice) == 48, "GpuMedium.world_to_lattice: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 1216, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2248, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -269,7 +277,8 @@ static_assert(__builtin_offsetof(FrameParams, media_count) == 560 && sizeof(Fram
 static_assert(__builtin_offsetof(FrameParams, camera_medium) == 564 && sizeof(FrameParams::camera_medium) == 4, "FrameParams.camera_medium: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, shadow_reach) == 568 && sizeof(FrameParams::shadow_reach) == 4, "FrameParams.shadow_reach: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_pad) == 572 && sizeof(FrameParams::media_pad) == 4, "FrameParams.media_pad: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, media) == 576 && sizeof(FrameParams::media) == 640, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media_grids) == 576 && sizeof(FrameParams::media_grids) == 8, "FrameParams.media_grids: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 584 && sizeof(FrameParams::media) == 1664, "FrameParams.media: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

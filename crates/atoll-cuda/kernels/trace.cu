@@ -65,7 +65,7 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
 #if ATOLL_TRACE_MEDIA
         else if (!is_zero3(h.depth)) {
             // The record's position holds its optical depth (shade.rs `start_in_medium`).
-            store3(rec->position, load3(rec->position) + h.depth * length3(d));
+            store3(rec->position, load3(rec->position) + h.depth);
         }
 #endif
         return;

@@ -150,11 +150,14 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
             hit = alpha_keeps(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, t, ray.o, ray.d);
 #if ATOLL_TRACE_MEDIA
             if (ANY && hit) {
-                float3 change = zero3();
-                hit = medium_crossing(*v.alpha_params, *v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, ray.d,
-                                      &change);
+                unsigned int before = 0, after = 0;
+                hit = medium_crossing(*v.alpha_scene, __ldg(v.tri_ids + first + k), u, w, ray.d, &before, &after);
                 // Any-hit traversal never shrinks h.t: it is the ray's t_max.
-                h.depth = h.depth + change * (h.t - t);
+                if (!hit) {
+                    const FrameParams& p = *v.alpha_params;
+                    h.depth = h.depth + medium_optical_depth(p, after, h.world_o, h.world_d, t, h.t) -
+                              medium_optical_depth(p, before, h.world_o, h.world_d, t, h.t);
+                }
             }
 #endif
         }
@@ -183,7 +186,7 @@ __device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal
 /// While-while traversal of the ray (o, d) with hits in (0, t_max).
 template <int TRI, bool ANY>
 __device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, float3 d, float t_max) {
-    TraversalHit h = no_hit(t_max);
+    TraversalHit h = ray_hit(o, d, t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
     init_traversal(tr, stack, v, o, d);
@@ -216,7 +219,7 @@ __device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, fl
 template <int TRI, bool ANY>
 __device__ TraversalHit traverse_speculative(const SceneBvhView& v, float3 o, float3 d, float t_max,
                                              unsigned int mask) {
-    TraversalHit h = no_hit(t_max);
+    TraversalHit h = ray_hit(o, d, t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
     init_traversal(tr, stack, v, o, d);

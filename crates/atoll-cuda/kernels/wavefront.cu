@@ -257,9 +257,8 @@ __device__ __forceinline__ bool spawn_shadow(ShadeOutcome& o, const SurfacePoint
 /// Mirrors shade.rs's `start_in_medium`: the shadow ray just spawned into
 /// `o` leaves in `medium` (a frame with media only).
 __device__ __forceinline__ void start_in_medium(const FrameParams& p, ShadeOutcome& o, unsigned int medium) {
-    const float scale = length3(o.shadow_direction);
-    if (o.shadow_t_max == f32_infinity()) o.shadow_t_max = p.shadow_reach / scale;
-    o.shadow_depth = medium_sigma_t(p.media[medium]) * (o.shadow_t_max * scale);
+    if (o.shadow_t_max == f32_infinity()) o.shadow_t_max = p.shadow_reach / length3(o.shadow_direction);
+    o.shadow_depth = medium_optical_depth(p, medium, o.shadow_origin, o.shadow_direction, 0.0f, o.shadow_t_max);
 }
 
 /// Mirrors shade.rs's `russian_roulette`: false when the path ends, else
@@ -332,10 +331,11 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     // whether) the segment scatters before its end.
     if (medium != 0u) {
         const GpuMedium& m = params.media[medium];
-        const float length = (r.flags & FLAG_HIT) ? r.t_max * length3(dir) : f32_infinity();
-        out.emitted = out.emitted + beta * medium_emission_over(m, length);
+        const float t_max = (r.flags & FLAG_HIT) ? r.t_max : f32_infinity();
+        out.emitted = out.emitted + beta * medium_emission_over(m, t_max * length3(dir));
         const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
-        const MediumSegment seg = medium_sample_segment(m, length, stream_medium_distance(rng, r.depth, from));
+        const float u = stream_medium_distance(rng, r.depth, from);
+        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u);
         if (seg.scatter) {
             scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
             return;

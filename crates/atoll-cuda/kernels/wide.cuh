@@ -75,7 +75,7 @@ struct WideTraversal {
 /// the compressed wide tree rooted at `v.tlas_root`.
 template <int TRI, bool ANY>
 __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d, float t_max) {
-    TraversalHit h = no_hit(t_max);
+    TraversalHit h = ray_hit(o, d, t_max);
     WideEntry stack[TRAVERSAL_STACK];
     WideTraversal tr;
     tr.stack = stack;

@@ -196,6 +196,7 @@ pub(crate) fn layout_asserts() -> String {
     s += &const_uint("unsigned int", "FILTER_BINS", FILTER_BINS as u64);
     // Entries of params.cuh's `FrameParams::media`.
     s += &const_uint("unsigned int", "MEDIA_SLOTS", crate::params::MEDIA_SLOTS as u64);
+    s += &const_uint("unsigned int", "NO_GRID", crate::params::NO_GRID as u64);
     for (name, value) in [
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),

@@ -65,7 +65,8 @@ impl GpuEmissionTexture {
     }
 }
 
-/// A homogeneous medium's coefficients (`atoll_render::medium::MediumCoeffs`), 40 bytes.
+/// A medium's coefficients (`atoll_render::medium::MediumCoeffs`) and its
+/// density grid's place (`atoll_render::density_grid::DensityGrid`), 104 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuMedium {
@@ -73,12 +74,20 @@ pub struct GpuMedium {
     pub sigma_s: [f32; 3],
     pub le: [f32; 3],
     pub g: f32,
+    /// First sample in [`FrameParams::media_grids`], or [`NO_GRID`] (density 1).
+    pub grid_first: u32,
+    pub grid_resolution: [u32; 3],
+    /// World to the grid's sample lattice, row-major 3×4.
+    pub world_to_lattice: [f32; 12],
 }
+
+/// [`GpuMedium::grid_first`] of a medium without a grid.
+pub(crate) const NO_GRID: u32 = u32::MAX;
 
 impl GpuMedium {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(GpuMedium { sigma_a, sigma_s, le, g })
+        field_layout!(GpuMedium { sigma_a, sigma_s, le, g, grid_first, grid_resolution, world_to_lattice })
     }
 }
 
@@ -367,6 +376,8 @@ pub struct FrameParams {
     /// `MediumTable::shadow_reach`.
     pub shadow_reach: f32,
     pub media_pad: u32,
+    /// `f32[]`: every grid medium's density samples, one after another.
+    pub media_grids: u64,
     /// By `MediumIndex`; entry 0 is the vacuum.
     pub media: [GpuMedium; MEDIA_SLOTS],
 }
@@ -404,13 +415,31 @@ impl FrameParams {
             shadow_reach: frame.media.shadow_reach,
             ..Zeroable::zeroed()
         };
+        let mut first = 0;
+        let grid_starts: Vec<u32> = (frame.media.grids.iter())
+            .map(|g| {
+                first += g.values.len() as u32;
+                first - g.values.len() as u32
+            })
+            .collect();
         for (slot, m) in params.media.iter_mut().zip(&frame.media.media) {
             *slot = GpuMedium {
                 sigma_a: m.sigma_a.to_array(),
                 sigma_s: m.sigma_s.to_array(),
                 le: m.le.to_array(),
                 g: m.g,
+                grid_first: NO_GRID,
+                ..Zeroable::zeroed()
             };
+            if let Some(g) = m.grid {
+                let grid = &frame.media.grids[g as usize];
+                slot.grid_first = grid_starts[g as usize];
+                slot.grid_resolution = grid.resolution;
+                let m = glam::Mat4::from(grid.world_to_lattice);
+                for (r, row) in slot.world_to_lattice.chunks_exact_mut(4).enumerate() {
+                    row.copy_from_slice(&m.row(r).to_array());
+                }
+            }
         }
         params.set_camera(&frame.camera);
         params
@@ -472,6 +501,7 @@ impl FrameParams {
             camera_medium,
             shadow_reach,
             media_pad,
+            media_grids,
             media,
         })
     }
@@ -556,10 +586,10 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 84);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<GpuMedium>() == 40);
+    assert!(std::mem::size_of::<GpuMedium>() == 104);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 16 + 40 * MEDIA_SLOTS
+            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 104 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 72);
@@ -710,6 +740,7 @@ pub struct FrameParamsHost {
     light_nodes: CudaSlice<u32>,
     light_leaf: CudaSlice<u32>,
     unbounded_lights: CudaSlice<u32>,
+    media_grids: CudaSlice<f32>,
 }
 
 impl FrameParamsHost {
@@ -741,6 +772,8 @@ impl FrameParamsHost {
         let light_nodes = upload(gpu, &t.light_nodes, "light BVH")?;
         let light_leaf = upload(gpu, &t.light_leaf, "light BVH leaves")?;
         let unbounded_lights = upload(gpu, &t.unbounded_lights, "lights at infinity")?;
+        let grid_values: Vec<f32> = frame.media.grids.iter().flat_map(|g| g.values.iter().copied()).collect();
+        let media_grids = upload(gpu, &grid_values, "media grids")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -759,6 +792,7 @@ impl FrameParamsHost {
         params.light_nodes = light_nodes.device_ptr(stream).0;
         params.light_leaf = light_leaf.device_ptr(stream).0;
         params.unbounded_lights = unbounded_lights.device_ptr(stream).0;
+        params.media_grids = media_grids.device_ptr(stream).0;
         if let Some(scene) = scene {
             params.images = scene.images.device_ptr(stream).0;
             params.texels = scene.texels.device_ptr(stream).0;
@@ -782,6 +816,7 @@ impl FrameParamsHost {
             light_nodes,
             light_leaf,
             unbounded_lights,
+            media_grids,
         })
     }
 
@@ -802,7 +837,8 @@ impl FrameParamsHost {
             + self.emission_textures.num_bytes()
             + self.light_nodes.num_bytes()
             + self.light_leaf.num_bytes()
-            + self.unbounded_lights.num_bytes()) as u64
+            + self.unbounded_lights.num_bytes()
+            + self.media_grids.num_bytes()) as u64
     }
 }
 

@@ -6,6 +6,7 @@ pub mod bump;
 pub mod camera;
 pub mod chunks;
 pub mod cpu;
+pub mod density_grid;
 pub mod device;
 pub mod environment;
 pub mod film;

@@ -1,6 +1,9 @@
-//! Homogeneous participating media along path segments: where a segment
-//! scatters, what it weighs when it does not, what light the medium emits
-//! along it, and the optical depth shadow rays gather.
+//! Participating media along path segments: where a segment scatters, what
+//! it weighs when it does not, what light the medium emits along it, and
+//! the optical depth shadow rays gather. A homogeneous medium has density
+//! 1 everywhere; a grid medium's density comes from its [`DensityGrid`],
+//! integrated exactly, so both sample distances by inverting the optical
+//! depth (no majorants, no null collisions).
 //!
 //! Distances are sampled as in Cycles' and pbrt-v4's spectral MIS, over the
 //! three RGB channels: a channel is picked uniformly, a distance drawn from
@@ -11,6 +14,8 @@
 use atoll_scene::{Medium, MediumIndex, Scene};
 use glam::Vec3;
 
+use crate::density_grid::DensityGrid;
+
 /// One medium's coefficients as shading reads them.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MediumCoeffs {
@@ -20,6 +25,9 @@ pub struct MediumCoeffs {
     pub g: f32,
     /// Emitted radiance per unit absorption.
     pub le: Vec3,
+    /// The density grid scaling σa and σs ([`MediumTable::grids`]), or
+    /// `None` for density 1 everywhere.
+    pub grid: Option<u32>,
 }
 
 /// Where a segment through a medium ends.
@@ -39,29 +47,42 @@ impl MediumCoeffs {
         self.sigma_a + self.sigma_s
     }
 
-    /// Samples where a segment of `length` (world units; infinite for a
-    /// ray that escapes) scatters, from one uniform number `u`.
-    pub fn sample_segment(&self, length: f32, u: f32) -> Segment {
+    /// Samples where a segment scatters, from one uniform number `u`.
+    /// `total` is the segment's ∫ density ds (world units; its length
+    /// where the density is 1, infinite for a ray escaping an endless
+    /// medium); `reach(d)` is the distance along it where that integral
+    /// reaches `d`, `None` past its end.
+    pub fn sample_segment(&self, u: f32, total: f32, reach: impl FnOnce(f32) -> Option<f32>) -> Segment {
         let sigma_t = self.sigma_t();
         // The channel from the leading third of `u`, the distance from the rest.
         let scaled = u * 3.0;
         let channel = (scaled as usize).min(2);
         let u = (scaled - channel as f32).clamp(0.0, 1.0 - f32::EPSILON);
-        let t = if sigma_t[channel] > 0.0 {
+        // The ∫ density where the chosen channel's optical depth is -ln(1 - u).
+        let depth = if sigma_t[channel] > 0.0 {
             crate::sampling::sample_exponential(u, sigma_t[channel])
         } else {
             f32::INFINITY
         };
-        if t < length {
-            let transmittance = (-sigma_t * t).exp();
-            let density = (sigma_t * transmittance).dot(Vec3::splat(1.0 / 3.0));
-            let weight = if density > 0.0 { transmittance * self.sigma_s / density } else { Vec3::ZERO };
-            return Segment::Scatter { t, weight };
+        if depth < total {
+            if let Some(t) = reach(depth) {
+                // The density at t cancels between σs and the mixture's pdf.
+                let transmittance = (-sigma_t * depth).exp();
+                let density = (sigma_t * transmittance).dot(Vec3::splat(1.0 / 3.0));
+                let weight = if density > 0.0 { transmittance * self.sigma_s / density } else { Vec3::ZERO };
+                return Segment::Scatter { t, weight };
+            }
         }
-        let transmittance = transmittance(sigma_t, length);
+        let transmittance = transmittance(sigma_t, total);
         let passing = transmittance.dot(Vec3::splat(1.0 / 3.0));
         let weight = if passing > 0.0 { transmittance / passing } else { Vec3::ZERO };
         Segment::Pass { weight }
+    }
+
+    /// [`MediumCoeffs::sample_segment`] where the density is 1: the
+    /// segment is `length` long.
+    pub fn sample_uniform_segment(&self, length: f32, u: f32) -> Segment {
+        self.sample_segment(u, length, |d| (d < length).then_some(d))
     }
 
     /// The radiance the medium emits towards a segment's start over
@@ -98,6 +119,8 @@ pub fn transmittance(sigma_t: Vec3, length: f32) -> Vec3 {
 #[derive(Clone, Debug, PartialEq)]
 pub struct MediumTable {
     pub media: Vec<MediumCoeffs>,
+    /// The grid media's densities, by [`MediumCoeffs::grid`].
+    pub grids: Vec<DensityGrid>,
     /// The medium camera rays start in.
     pub camera: MediumIndex,
     /// How long a shadow ray towards a light at infinity is made when the
@@ -108,18 +131,34 @@ pub struct MediumTable {
 
 impl Default for MediumTable {
     fn default() -> Self {
-        MediumTable { media: vec![MediumCoeffs::default()], camera: 0, shadow_reach: f32::INFINITY }
+        MediumTable {
+            media: vec![MediumCoeffs::default()],
+            grids: Vec::new(),
+            camera: 0,
+            shadow_reach: f32::INFINITY,
+        }
     }
 }
 
 impl MediumTable {
     pub fn new(scene: &Scene) -> Self {
         let mut table = MediumTable { camera: scene.settings.camera_medium, ..Default::default() };
-        table.media.extend(scene.media.iter().map(|m| match m {
-            Medium::Homogeneous(h) => {
-                MediumCoeffs { sigma_a: h.sigma_a, sigma_s: h.sigma_s, g: h.g, le: h.le }
-            }
-        }));
+        for medium in &scene.media {
+            let (h, grid) = match medium {
+                Medium::Homogeneous(h) => (h, None),
+                Medium::Grid(g) => {
+                    table.grids.push(DensityGrid::new(
+                        g.resolution,
+                        g.density.clone(),
+                        g.lo,
+                        g.hi,
+                        g.world_to_medium,
+                    ));
+                    (&g.coefficients, Some(table.grids.len() as u32 - 1))
+                }
+            };
+            table.media.push(MediumCoeffs { sigma_a: h.sigma_a, sigma_s: h.sigma_s, g: h.g, le: h.le, grid });
+        }
         if table.any() {
             let (lo, hi) = scene.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
             table.shadow_reach = (hi - lo).length().max(1e-3) * 1.01;
@@ -135,6 +174,43 @@ impl MediumTable {
     /// Medium `m`'s coefficients; the vacuum's are zero.
     pub fn get(&self, m: MediumIndex) -> &MediumCoeffs {
         &self.media[(m as usize).min(self.media.len() - 1)]
+    }
+
+    /// ∫ density ds in world units along `origin + t · dir`, `t0 <= t <
+    /// t1`, through medium `m` (the length, where the density is 1).
+    pub fn density_length(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> f32 {
+        let scale = dir.length();
+        match self.get(m).grid {
+            None => (t1 - t0) * scale,
+            Some(g) => self.grids[g as usize].integral(origin, dir, t0, t1) * scale,
+        }
+    }
+
+    /// The optical depth of medium `m` along `origin + t · dir`, `t0 <= t < t1`.
+    pub fn optical_depth(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> Vec3 {
+        let sigma_t = self.get(m).sigma_t();
+        if sigma_t == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        sigma_t * self.density_length(m, origin, dir, t0, t1)
+    }
+
+    /// Where the segment `origin + t · dir`, `0 <= t < t_max`, through
+    /// medium `m` scatters, from one uniform number `u`; a scattering
+    /// distance is in world units.
+    pub fn sample_segment(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t_max: f32, u: f32) -> Segment {
+        let coeffs = self.get(m);
+        let scale = dir.length();
+        match coeffs.grid {
+            None => coeffs.sample_uniform_segment(t_max * scale, u),
+            Some(g) => {
+                let grid = &self.grids[g as usize];
+                let total = grid.integral(origin, dir, 0.0, t_max) * scale;
+                coeffs.sample_segment(u, total, |d| {
+                    grid.invert(origin, dir, 0.0, t_max, d / scale).map(|t| t * scale)
+                })
+            }
+        }
     }
 }
 
@@ -160,7 +236,7 @@ mod tests {
         let n = 200_000;
         let (mut passed, mut scattered) = (Vec3::ZERO, Vec3::ZERO);
         for i in 0..n {
-            match m.sample_segment(length, (i as f32 + 0.5) / n as f32) {
+            match m.sample_uniform_segment(length, (i as f32 + 0.5) / n as f32) {
                 Segment::Pass { weight } => passed += weight,
                 Segment::Scatter { t, weight } => {
                     assert!(t >= 0.0 && t < length);
@@ -183,7 +259,7 @@ mod tests {
     #[test]
     fn grey_media_weigh_their_albedo() {
         let m = grey(0.25, 0.75);
-        match m.sample_segment(f32::INFINITY, 0.4) {
+        match m.sample_uniform_segment(f32::INFINITY, 0.4) {
             Segment::Scatter { weight, .. } => {
                 assert!((weight - Vec3::splat(0.75)).abs().max_element() < 1e-6)
             }
@@ -191,7 +267,7 @@ mod tests {
         }
         // Nothing escapes an endless medium; a vacuum channel always passes.
         let clear_red = MediumCoeffs { sigma_s: Vec3::new(0.0, 1.0, 1.0), ..Default::default() };
-        match clear_red.sample_segment(f32::INFINITY, 0.1) {
+        match clear_red.sample_uniform_segment(f32::INFINITY, 0.1) {
             Segment::Pass { weight } => assert_eq!(weight, Vec3::new(3.0, 0.0, 0.0)),
             other => panic!("{other:?}"),
         }

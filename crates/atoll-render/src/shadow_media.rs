@@ -1,9 +1,12 @@
 //! Shadow rays through the boundaries of media. A shadow ray starts with
 //! the optical depth of its first medium over its whole length
-//! (`stages::shade`); each boundary it crosses at `t` then adds the change
-//! of σt there over the rest, `(σt after − σt before) · (t_max − t)`. The
-//! sum is the integral of σt along the ray whatever order traversal finds
-//! the crossings in, and it adds up across the parts of a ring.
+//! (`stages::shade`); each boundary it crosses at `t` then adds the depth
+//! of the medium after it over the rest of the ray, less that of the
+//! medium before it: for homogeneous media `(σt after − σt before) ·
+//! (t_max − t)`. The sum is the integral of σt along the ray whatever
+//! order traversal finds the crossings in, and it adds up across the parts
+//! of a ring. (A grid's density outside its medium's boundary counts only
+//! where the ray is in that medium: the crossings take it out again.)
 
 use std::cell::Cell;
 
@@ -20,9 +23,10 @@ use crate::texture::SceneTextures;
 pub struct ShadowFilter<'a> {
     textures: &'a SceneTextures<'a>,
     frame: &'a FrameContext,
-    /// The ray's extent and its direction's length (world units per unit of t).
+    /// The world ray and its extent.
+    origin: Vec3,
+    dir: Vec3,
     t_max: f32,
-    scale: f32,
     depth: Cell<Vec3>,
 }
 
@@ -31,8 +35,9 @@ impl<'a> ShadowFilter<'a> {
         ShadowFilter {
             textures,
             frame,
+            origin: r.origin(),
+            dir: r.direction(),
             t_max: r.t_max,
-            scale: r.direction().length(),
             depth: Cell::new(r.optical_depth()),
         }
     }
@@ -70,9 +75,8 @@ impl HitFilter for ShadowFilter<'_> {
         }
         let cos = Vec3::from(dir).dot(n);
         let (before, after) = (media.towards(-cos), media.towards(cos));
-        let sigma_t = |i| self.frame.media.get(i).sigma_t();
-        let change = (sigma_t(after) - sigma_t(before)) * ((self.t_max - t) * self.scale);
-        self.depth.set(self.depth.get() + change);
+        let rest = |m| self.frame.media.optical_depth(m, self.origin, self.dir, t, self.t_max);
+        self.depth.set(self.depth.get() + rest(after) - rest(before));
         false
     }
 }

@@ -57,7 +57,7 @@ fn box_mesh(lo: Vec3, hi: Vec3) -> String {
 fn sunlit_ground(medium: Option<&str>) -> Arc<Scene> {
     let slab = match medium {
         Some(m) => format!(
-            "MakeNamedMedium \"slab\" \"string type\" \"homogeneous\" {m}\nAttributeBegin\nMaterial \"interface\"\n\
+            "MakeNamedMedium \"slab\" {m}\nAttributeBegin\nMaterial \"interface\"\n\
              MediumInterface \"slab\" \"\"\n{}\nAttributeEnd",
             box_mesh(Vec3::new(-20.0, 1.0, -20.0), Vec3::new(20.0, 1.5, 20.0))
         ),
@@ -86,7 +86,7 @@ Shape "trianglemesh" "point3 P" [ -20 0 -20  20 0 -20  20 0 20  -20 0 20 ] "inte
 #[test]
 fn a_slab_dims_sunlight_by_its_transmittance() {
     let clear = render(&sunlit_ground(None));
-    let coefficients = r#""rgb sigma_a" [ 0.4 1 2 ] "rgb sigma_s" [ 0.6 0 1 ] "float scale" [ 2 ]"#;
+    let coefficients = r#""string type" "homogeneous" "rgb sigma_a" [ 0.4 1 2 ] "rgb sigma_s" [ 0.6 0 1 ] "float scale" [ 2 ]"#;
     let dimmed = render(&sunlit_ground(Some(coefficients)));
     let expected = (-Vec3::new(1.0, 1.0, 3.0) * 2.0 * 0.5).exp();
     let mut lit = 0;
@@ -101,6 +101,29 @@ fn a_slab_dims_sunlight_by_its_transmittance() {
         }
     }
     assert_eq!(lit, clear.pixels().len(), "the ground fills the view");
+}
+
+/// A grid medium of density 1 filling the same slab with 4 samples across
+/// its height (voxels 0.125 high): pbrt's samples sit at voxel centres
+/// and the density falls linearly to 1/2 at the box's faces (the missing
+/// neighbours count as 0), losing a quarter voxel at each face: the sun's
+/// rays cross 0.5 - 0.125 / 4 of density, exactly.
+#[test]
+fn a_grid_slab_dims_sunlight_by_its_integral() {
+    let clear = render(&sunlit_ground(None));
+    let ones = vec!["1"; 2 * 4 * 2].join(" ");
+    let grid = format!(
+        r#""string type" "uniformgrid" "rgb sigma_a" [ 0.4 1 2 ] "rgb sigma_s" [ 0.6 0 1 ] "integer nx" 2 "integer ny" 4 "integer nz" 2 "point3 p0" [ -20 1 -20 ] "point3 p1" [ 20 1.5 20 ] "float density" [ {ones} ]"#
+    );
+    let dimmed = render(&sunlit_ground(Some(&grid)));
+    let expected = (-Vec3::new(1.0, 1.0, 3.0) * (0.5 - 0.125 / 4.0)).exp();
+    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
+        let ratio = d / c;
+        assert!(
+            (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
+            "{ratio} vs {expected}"
+        );
+    }
 }
 
 /// A sphere of medium that scatters without absorbing (albedo 1), in a
@@ -133,6 +156,43 @@ AttributeEnd
         assert!((mean - 1.0).abs() < 4.0 * err + 0.01, "g {g}: mean {mean} ± {err}");
         let worst = film.pixels().iter().map(|p| (p.y - 1.0).abs()).fold(0.0, f32::max);
         assert!(worst < 0.35, "g {g}: a pixel differs from the sky by {worst}");
+    }
+}
+
+/// A box of smoke whose density varies voxel by voxel (0 to 4), albedo 1,
+/// placed by a rotation: a uniform sky cannot tell it apart from itself.
+/// Exercises distance sampling by inverting the grid's exact optical depth
+/// and shadow rays leaving it.
+#[test]
+fn a_white_smoke_grid_vanishes_in_a_uniform_sky() {
+    let density: Vec<String> = (0..5 * 4 * 3).map(|i| format!("{}", (i * 37 % 9) as f32 * 0.5)).collect();
+    let scene = load(&format!(
+        r#"
+LookAt 0 0 -4  0 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+Sampler "independent" "integer pixelsamples" [ 64 ]
+Integrator "path" "integer maxdepth" [ 200 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+AttributeBegin
+Rotate 30 0.3 1 0.2
+MakeNamedMedium "smoke" "string type" "uniformgrid" "rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 1 1.5 2 ] "float g" [ 0.5 ]
+  "integer nx" 5 "integer ny" 4 "integer nz" 3 "point3 p0" [ -0.8 -0.7 -0.6 ] "point3 p1" [ 0.8 0.7 0.6 ]
+  "float density" [ {} ]
+Material "interface"
+MediumInterface "smoke" ""
+{}
+AttributeEnd
+"#,
+        density.join(" "),
+        box_mesh(Vec3::new(-0.8, -0.7, -0.6), Vec3::new(0.8, 0.7, 0.6))
+    ));
+    let film = render(&scene);
+    for c in 0..3 {
+        let (mean, err) = mean_and_stderr(film.pixels().iter().map(|p| p[c]));
+        eprintln!("channel {c}: mean {mean} ± {err}");
+        assert!((mean - 1.0).abs() < 4.0 * err + 0.01, "channel {c}: mean {mean} ± {err}");
     }
 }
 

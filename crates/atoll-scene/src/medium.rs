@@ -9,6 +9,38 @@ use crate::Rgb;
 pub enum Medium {
     /// pbrt-v4's `homogeneous`: the same coefficients everywhere.
     Homogeneous(HomogeneousMedium),
+    /// pbrt-v4's `uniformgrid`: the coefficients scaled by a density grid.
+    Grid(GridMedium),
+}
+
+/// A medium whose cross sections are `coefficients`' times a density
+/// interpolated trilinearly from voxel samples (pbrt-v4's `SampledGrid`):
+/// sample `(x, y, z)` sits at the centre of its voxel of the box `lo`..`hi`
+/// in the medium's space, and the density is 0 outside the box.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GridMedium {
+    /// σa and σs at density 1 (pbrt's `scale` applied), `g`; no emission.
+    pub coefficients: HomogeneousMedium,
+    /// Samples per axis.
+    pub resolution: [u32; 3],
+    /// The samples, x fastest, then y, then z.
+    pub density: Vec<f32>,
+    /// The grid's box in the medium's space (pbrt's `p0`, `p1`).
+    pub lo: glam::Vec3,
+    pub hi: glam::Vec3,
+    /// World space to the medium's (the inverse of the transform where
+    /// `MakeNamedMedium` was).
+    pub world_to_medium: glam::Affine3A,
+}
+
+impl Medium {
+    /// Bytes of its data (a grid's samples).
+    pub fn bytes(&self) -> u64 {
+        match self {
+            Medium::Homogeneous(_) => std::mem::size_of::<HomogeneousMedium>() as u64,
+            Medium::Grid(g) => (g.density.len() * std::mem::size_of::<f32>()) as u64,
+        }
+    }
 }
 
 /// Coefficients of a homogeneous medium, per unit of world distance, with

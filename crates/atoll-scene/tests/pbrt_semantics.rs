@@ -501,14 +501,14 @@ fn quadrics_and_unsupported_shapes() {
 fn unused_parameters_and_ignored_directives_warn() {
     let loaded = load_str_warnings(
         "Camera \"perspective\" \"float fov\" 30 \"float fovv\" 2\nPixelFilter \"gaussian\" \"float alpha\" 2\nWorldBegin\n\
-         MakeNamedMedium \"fog\" \"string type\" \"uniformgrid\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
+         MakeNamedMedium \"fog\" \"string type\" \"nanovdb\"\nAttributeBegin\nTransformBegin\nTransformEnd\n",
     );
     let w: Vec<String> = loaded.iter().map(|w| w.to_string()).collect();
     assert_eq!(w[0], "u.pbrt:1:37: Camera \"perspective\": unused parameter \"float fovv\"");
     // pbrt-v3's Gaussian took `alpha`; pbrt-v4's takes `sigma`.
     assert!(w[1].starts_with("u.pbrt:2:") && w[1].contains("unused parameter \"float alpha\""), "{w:?}");
     assert!(
-        w[2].starts_with("u.pbrt:4:1: MakeNamedMedium \"fog\": medium type \"uniformgrid\" is not supported"),
+        w[2].starts_with("u.pbrt:4:1: MakeNamedMedium \"fog\": medium type \"nanovdb\" is not supported"),
         "{w:?}"
     );
     assert!(w[3].starts_with("u.pbrt:6:1: TransformBegin/End are deprecated"), "{w:?}");
@@ -808,7 +808,7 @@ fn media_and_their_interfaces() {
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let scene = loaded.scene;
     assert_eq!(scene.media[0], Medium::Homogeneous(HomogeneousMedium::pbrt_default()));
-    let Medium::Homogeneous(ink) = scene.media[1];
+    let Medium::Homogeneous(ink) = scene.media[1].clone() else { panic!("{:?}", scene.media) };
     assert_eq!(ink.sigma_a, Vec3::new(2.0, 4.0, 6.0));
     assert!((ink.sigma_s - Vec3::splat(1.0)).abs().max_element() < 1e-3, "{}", ink.sigma_s);
     assert_eq!((ink.g, ink.le), (-0.3, Vec3::new(1.0, 1.0, 0.0)));
@@ -825,4 +825,41 @@ fn media_and_their_interfaces() {
         let e = atoll_scene::pbrt::load_str(text, "e.pbrt", std::path::Path::new(".")).unwrap_err();
         assert_eq!(e.to_string(), error);
     }
+}
+
+/// pbrt-v4's `uniformgrid`: its samples and box, placed by the transform
+/// where it is defined; a wrong sample count is an error; emission is
+/// warned about.
+#[test]
+fn grid_media_read_their_samples() {
+    use atoll_scene::Medium;
+    let loaded = atoll_scene::pbrt::load_str(
+        "WorldBegin\nTranslate 1 2 3\n\
+         MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"integer nz\" 3 \"float density\" [1 2 3 4 5 6] \"point3 p1\" [2 1 3] \"float scale\" 0.5 \"rgb Le\" [1 1 1]\n",
+        "g.pbrt",
+        std::path::Path::new("."),
+    )
+    .unwrap();
+    let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        w,
+        ["g.pbrt:3:1: MakeNamedMedium \"smoke\": \"Le\" is not supported: the grid emits no light"]
+    );
+    let Medium::Grid(g) = &loaded.scene.media[0] else { panic!("{:?}", loaded.scene.media) };
+    assert_eq!(
+        (g.resolution, g.density.len(), g.lo, g.hi),
+        ([2, 1, 3], 6, Vec3::ZERO, Vec3::new(2.0, 1.0, 3.0))
+    );
+    assert_eq!(g.coefficients.sigma_s, Vec3::splat(0.5));
+    assert_eq!(g.world_to_medium.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::ZERO);
+    let e = atoll_scene::pbrt::load_str(
+        "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1]\n",
+        "e.pbrt",
+        std::path::Path::new("."),
+    )
+    .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "e.pbrt:2:1: MakeNamedMedium \"m\": \"density\" has 1 values for 2x1x1 samples"
+    );
 }

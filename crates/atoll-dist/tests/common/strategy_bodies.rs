@@ -484,7 +484,7 @@ pub fn media_on_rings_and_replicas_are_one_device(kind: &Kind) {
     let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/media.pbrt");
     let path = if beside.exists() { beside } else { "scenes/media.pbrt".into() };
     let scene = Arc::new(atoll_scene::load_any(&path).unwrap().scene);
-    assert!(scene.media.len() == 3 && scene.meshes.iter().filter(|m| m.media.is_some()).count() == 2);
+    assert!(scene.media.len() == 4 && scene.meshes.iter().filter(|m| m.media.is_some()).count() == 3);
     let opts = kind.options(&scene, 4);
     let (reference, _) = kind.single(&scene, &opts);
     let out = kind.render(2, &scene, &opts, &Layout::Replicate, None);

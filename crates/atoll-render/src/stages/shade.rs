@@ -101,8 +101,7 @@ fn start_in_medium(ctx: &FrameContext, s: &mut RayRecord, medium: MediumIndex) {
     if s.t_max == f32::INFINITY {
         s.t_max = ctx.media.shadow_reach / s.direction().length();
     }
-    let length = s.t_max * s.direction().length();
-    s.position = (ctx.media.get(medium).sigma_t() * length).to_array();
+    s.position = ctx.media.optical_depth(medium, s.origin(), s.direction(), 0.0, s.t_max).to_array();
 }
 
 /// Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
@@ -152,10 +151,11 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     // whether) the segment scatters before its end.
     if medium != atoll_scene::VACUUM {
         let m = ctx.media.get(medium);
-        let length = if r.has(flags::HIT) { r.t_max * dir.length() } else { f32::INFINITY };
-        out.emitted += beta * m.emission_over(length);
+        let t_max = if r.has(flags::HIT) { r.t_max } else { f32::INFINITY };
+        out.emitted += beta * m.emission_over(t_max * dir.length());
         let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
-        match m.sample_segment(length, rng.medium_distance(r.depth as u32, r.origin)) {
+        let u = rng.medium_distance(r.depth as u32, r.origin);
+        match ctx.media.sample_segment(medium, r.origin(), dir, t_max, u) {
             Segment::Scatter { t, weight } => {
                 let p = r.origin() + dir.normalize() * t;
                 return scatter_in_medium(ctx, r, m, p, beta * weight, max_depth, out);

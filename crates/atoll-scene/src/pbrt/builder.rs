@@ -1039,7 +1039,7 @@ impl Builder {
     /// `MakeNamedMedium`: a homogeneous medium joins the scene; the other
     /// types are warned about once each and become the vacuum.
     fn medium(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
-        let medium = entities::medium(name, p, loc, &mut self.warnings)?;
+        let medium = entities::medium(name, p, &self.gs.ctm, loc, &mut self.warnings)?;
         let index = match medium {
             None => crate::VACUUM,
             Some(medium) => {

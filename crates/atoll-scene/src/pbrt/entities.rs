@@ -667,19 +667,24 @@ pub fn light(
     }))
 }
 
-/// `MakeNamedMedium`, following pbrt-v4's `HomogeneousMedium::Create`:
-/// `sigma_a` and `sigma_s` default to 1, both scaled by `scale`; `g` 0;
-/// `Le` (0) scaled by `Lescale`. `None`, after a warning, for the types
-/// atoll does not render (grids, clouds, NanoVDB): the medium is a vacuum.
+/// `MakeNamedMedium`, following pbrt-v4's `HomogeneousMedium::Create` and
+/// `GridMedium::Create`: `sigma_a` and `sigma_s` default to 1, both scaled
+/// by `scale`; `g` 0; a homogeneous medium's `Le` (0) scaled by `Lescale`.
+/// A `uniformgrid` scales them by its `density` samples (`nx` × `ny` ×
+/// `nz`, default 1 each) over the box `p0`..`p1` (default the unit cube)
+/// of the space `ctm` places it in. `None`, after a warning, for the types
+/// atoll does not render (RGB grids, clouds, NanoVDB): the medium is a
+/// vacuum.
 pub fn medium(
     name: &str,
     p: &ParamList,
+    ctm: &DMat4,
     loc: &FileLoc,
     w: &mut WarningSink,
 ) -> Result<Option<crate::Medium>, SceneError> {
     let what = format!("MakeNamedMedium \"{name}\"");
     let ty = p.string("type")?.unwrap_or_default();
-    if ty != "homogeneous" {
+    if ty != "homogeneous" && ty != "uniformgrid" {
         p.mark_all_used();
         let ty = if ty.is_empty() { "(no type)".to_string() } else { format!("\"{ty}\"") };
         w.warn(loc, format!("{what}: medium type {ty} is not supported; it is a vacuum: the image lacks its fog, smoke or scattering"));
@@ -709,8 +714,70 @@ pub fn medium(
         return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
     }
     m.g = g;
+    if ty == "uniformgrid" {
+        return grid_medium(&what, p, m, ctm, loc, w).map(|g| Some(crate::Medium::Grid(g)));
+    }
     if let Some(le) = p.spectrum("Le", false)? {
         m.le = light_rgb(le, &what, loc, w)? * p.float_or("Lescale", 1.0)?.max(0.0);
     }
     Ok(Some(crate::Medium::Homogeneous(m)))
+}
+
+/// The density grid of a `uniformgrid` medium with `coefficients`.
+fn grid_medium(
+    what: &str,
+    p: &ParamList,
+    coefficients: crate::HomogeneousMedium,
+    ctm: &DMat4,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<crate::GridMedium, SceneError> {
+    for emitting in ["Le", "Lescale", "temperature", "temperaturecutoff", "temperaturescale"] {
+        if p.find(emitting, &[ParamType::Float, ParamType::Spectrum, ParamType::Rgb, ParamType::Blackbody])
+            .is_some()
+        {
+            w.warn(loc, format!("{what}: \"{emitting}\" is not supported: the grid emits no light"));
+        }
+    }
+    p.mark_all_used();
+    let count = |axis: &str| -> Result<u32, SceneError> {
+        match p.int(axis)? {
+            None => Ok(1),
+            Some(n) if (1..=1 << 16).contains(&n) => Ok(n as u32),
+            Some(n) => Err(SceneError::at(loc, format!("{what}: \"{axis}\" {n} must be from 1 to 65536"))),
+        }
+    };
+    let resolution = [count("nx")?, count("ny")?, count("nz")?];
+    let samples: u64 = resolution.iter().map(|&n| n as u64).product();
+    let density: Vec<f32> =
+        p.numbers("density", ParamType::Float).unwrap_or(&[]).iter().map(|&v| v as f32).collect();
+    if density.len() as u64 != samples {
+        return Err(SceneError::at(
+            loc,
+            format!(
+                "{what}: \"density\" has {} values for {}x{}x{} samples",
+                density.len(),
+                resolution[0],
+                resolution[1],
+                resolution[2]
+            ),
+        ));
+    }
+    if let Some(v) = density.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: \"density\" value {v} must be finite and not negative"),
+        ));
+    }
+    let lo = p.point3("p0")?.unwrap_or(Vec3::ZERO);
+    let hi = p.point3("p1")?.unwrap_or(Vec3::ONE);
+    if !(lo.cmplt(hi).all()) {
+        return Err(SceneError::at(loc, format!("{what}: the box \"p0\" {lo} to \"p1\" {hi} is empty")));
+    }
+    let det = ctm.determinant();
+    if det == 0.0 || !det.is_finite() {
+        return Err(SceneError::at(loc, format!("{what}: the current transform is not invertible")));
+    }
+    let world_to_medium = glam::Affine3A::from_mat4(transform::to_f32(&ctm.inverse()));
+    Ok(crate::GridMedium { coefficients, resolution, density, lo, hi, world_to_medium })
 }
