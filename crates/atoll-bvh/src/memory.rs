@@ -155,11 +155,11 @@ pub fn part_geometry_bytes(scene: &Scene, part: &ScenePart) -> u64 {
 
 /// Bytes a device with `model` needs for `part`: geometry (see
 /// [`part_geometry_bytes`]) plus the modelled acceleration structures and
-/// build scratch, plus every texture image of the scene: a device shades
-/// the hits it finds and the paths it spawns, on any material, so each
-/// holds them all.
+/// build scratch, plus every texture image and medium of the scene: a
+/// device shades the hits it finds and the paths it spawns, on any
+/// material and in any medium, so each holds them all.
 pub fn part_bytes(scene: &Scene, part: &ScenePart, model: &ByteModel) -> u64 {
-    scene.textures.memory_bytes() + model.bytes(&counts(scene, part))
+    scene.replicated_bytes() + model.bytes(&counts(scene, part))
 }
 
 #[cfg(test)]

@@ -256,8 +256,8 @@ struct Load {
 impl Load {
     fn new(scene: &Scene) -> Self {
         Load {
-            // Every part holds all texture images (see `part_bytes`).
-            bytes: scene.textures.memory_bytes(),
+            // Every part holds all texture images and media (see `part_bytes`).
+            bytes: scene.replicated_bytes(),
             instances: 0,
             meshes: vec![false; scene.meshes.len()],
             objects: vec![None; scene.objects.len()],

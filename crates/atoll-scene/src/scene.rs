@@ -67,6 +67,10 @@ pub struct SceneStats {
     pub texture_images: usize,
     /// Bytes of image texels (every device holds all of them).
     pub texture_bytes: u64,
+    /// Participating media, and the bytes of their grids (every device
+    /// holds all of them too).
+    pub media: usize,
+    pub media_bytes: u64,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
 }
@@ -76,6 +80,12 @@ impl Scene {
     pub fn add_material(&mut self, material: Material) -> crate::MaterialId {
         self.materials.push(material);
         (self.materials.len() - 1) as crate::MaterialId
+    }
+
+    /// Bytes every device holds whole, whatever part of the geometry it
+    /// holds: texture images and media grids.
+    pub fn replicated_bytes(&self) -> u64 {
+        self.textures.memory_bytes() + self.media.iter().map(|m| m.bytes()).sum::<u64>()
     }
 
     /// Whether mesh `mesh` bounds media and scatters no light itself (an
@@ -152,6 +162,8 @@ impl Scene {
             textures: self.textures.textures.len(),
             texture_images: self.textures.images.len(),
             texture_bytes: self.textures.memory_bytes(),
+            media: self.media.len(),
+            media_bytes: self.media.iter().map(|m| m.bytes()).sum(),
             bounds_min,
             bounds_max,
         }

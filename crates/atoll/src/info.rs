@@ -53,6 +53,7 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("lights             {} (plus area lights)", s.lights);
     println!("materials          {}", s.materials);
     println!("textures           {} ({} images, {})", s.textures, s.texture_images, mib(s.texture_bytes));
+    println!("media              {} ({})", s.media, mib(s.media_bytes));
     println!("bounds             {:?} .. {:?}", s.bounds_min.to_array(), s.bounds_max.to_array());
     let r = &scene.settings;
     println!(
@@ -65,9 +66,10 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("geometry memory    {}", mib(s.geometry_bytes));
     println!("BVH memory         {}", mib(bvh_bytes));
     println!("texture memory     {}", mib(s.texture_bytes));
+    println!("media memory       {}", mib(s.media_bytes));
     println!(
-        "memory estimate    {} (geometry + BVH + textures)",
-        mib(s.geometry_bytes + bvh_bytes + s.texture_bytes)
+        "memory estimate    {} (geometry + BVH + textures and media)",
+        mib(s.geometry_bytes + bvh_bytes + s.texture_bytes + s.media_bytes)
     );
     println!(
         "BVH build          {:.1} ms ({} BLAS over {} triangles, TLAS over {} instances)",

@@ -309,10 +309,8 @@ impl Device for CpuDevice {
         let bvh_stats = bvh.stats();
         self.install(Resident::new(scene, Arc::new(bvh), None), frame);
         Ok(PrepareStats {
-            // Every device holds all texture images (see atoll_bvh::part_bytes).
-            scene_bytes: part_geometry_bytes(scene, part)
-                + bvh_stats.bytes as u64
-                + scene.textures.memory_bytes(),
+            // Every device holds all texture images and media (see atoll_bvh::part_bytes).
+            scene_bytes: part_geometry_bytes(scene, part) + bvh_stats.bytes as u64 + scene.replicated_bytes(),
             frame_bytes: self.frame_bytes(&frame.options),
             bvh_build_seconds: build,
             bvh_sah_cost: bvh_stats.blas.sah_cost,
