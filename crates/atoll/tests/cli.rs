@@ -102,7 +102,8 @@ fn info_reports_textures_and_warns_about_unreadable_images() {
     assert!(out.status.success(), "{}", stderr(&out));
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("textures           2 (1 images, 0.00 MiB)"), "{stdout}");
-    assert!(stdout.contains("(geometry + BVH + textures)"), "{stdout}");
+    assert!(stdout.contains("(geometry + BVH + textures and media)"), "{stdout}");
+    assert!(stdout.contains("media              0 (0.00 MiB)"), "{stdout}");
     let err = stderr(&out);
     assert!(err.contains("t.pbrt:3:1: texture \"gone\": ") && err.contains("gone.png"), "{err}");
     assert!(err.contains("; using a constant"), "{err}");
