@@ -68,7 +68,7 @@ fn sunlit_ground(medium: Option<&str>) -> Arc<Scene> {
 LookAt 0 0.5 0  0 0 0  0 0 1
 Camera "perspective" "float fov" [ 60 ]
 Sampler "independent" "integer pixelsamples" [ 4 ]
-Integrator "path" "integer maxdepth" [ 1 ]
+Integrator "volpath" "integer maxdepth" [ 1 ]
 Film "rgb" "integer xresolution" [ 24 ] "integer yresolution" [ 16 ]
 WorldBegin
 LightSource "distant" "point3 from" [ 0 1 0 ] "point3 to" [ 0 0 0 ] "rgb L" [ 1 1 1 ]
@@ -134,7 +134,7 @@ fn under_a_uniform_sky(world: &str) -> Film {
 LookAt 0 0 -4  0 0 0  0 1 0
 Camera "perspective" "float fov" [ 30 ]
 Sampler "independent" "integer pixelsamples" [ 64 ]
-Integrator "path" "integer maxdepth" [ 200 ]
+Integrator "volpath" "integer maxdepth" [ 200 ]
 Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
 WorldBegin
 LightSource "infinite" "rgb L" [ 1 1 1 ]
@@ -212,7 +212,7 @@ MediumInterface "" "fog"
 LookAt 0 0 -4  0 0 0  0 1 0
 Camera "perspective" "float fov" [ 30 ]
 Sampler "independent" "integer pixelsamples" [ 64 ]
-Integrator "path" "integer maxdepth" [ 200 ]
+Integrator "volpath" "integer maxdepth" [ 200 ]
 Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
 WorldBegin
 "#,

@@ -863,3 +863,30 @@ fn grid_media_read_their_samples() {
         "e.pbrt:2:1: MakeNamedMedium \"m\": \"density\" has 1 values for 2x1x1 samples"
     );
 }
+
+/// pbrt-v4's `path` integrator skips media boundaries and sees no media
+/// (its default, `volpath`, renders them): under it the media are left
+/// out, with a warning where it is named.
+#[test]
+fn the_path_integrator_renders_no_media() {
+    let text = |integrator: &str| {
+        format!(
+            "{integrator}MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\nMediumInterface \"\" \"fog\"\n\
+             Camera \"perspective\"\nWorldBegin\nMediumInterface \"fog\" \"\"\nShape \"sphere\"\n"
+        )
+    };
+    let load = |t: String| atoll_scene::pbrt::load_str(&t, "p.pbrt", std::path::Path::new(".")).unwrap();
+    let path = load(text("Integrator \"path\"\n"));
+    let w: Vec<String> = path.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(
+        w,
+        ["p.pbrt:1:1: integrator \"path\" renders no participating media, as in pbrt-v4; 1 media left out (\"volpath\" renders them)"]
+    );
+    assert!(path.scene.media.is_empty() && path.scene.meshes[0].media.is_none());
+    assert_eq!(path.scene.settings.camera_medium, 0);
+    for kept in [text(""), text("Integrator \"volpath\"\n")] {
+        let scene = load(kept).scene;
+        assert_eq!((scene.media.len(), scene.settings.camera_medium), (1, 1));
+        assert!(scene.meshes[0].media.is_some());
+    }
+}

@@ -160,6 +160,9 @@ pub struct Builder {
     named_media: HashMap<String, crate::MediumIndex>,
     /// The `Camera`'s outside medium name and where, resolved at the end.
     camera_medium: Option<(String, FileLoc)>,
+    /// An `Integrator` that renders no media in pbrt-v4 (`path`,
+    /// `ambientocclusion`, ...): its name and where.
+    ignores_media: Option<(String, FileLoc)>,
 }
 
 impl Builder {
@@ -196,6 +199,7 @@ impl Builder {
             v3_spellings_warned: Default::default(),
             named_media: HashMap::new(),
             camera_medium: None,
+            ignores_media: None,
         }
     }
 
@@ -931,6 +935,10 @@ impl Builder {
     }
 
     fn integrator(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        // pbrt-v4's integrators that follow rays through media; the others
+        // skip medium boundaries and see no media (its default is `volpath`).
+        let with_media = ["volpath", "simplevolpath", "bdpt", "mlt"];
+        self.ignores_media = (!with_media.contains(&name)).then(|| (name.to_string(), loc.clone()));
         self.scene.settings.light_sampler = match p.string("lightsampler")?.as_deref() {
             None | Some("bvh") => LightSampler::Bvh,
             Some("power") => LightSampler::Power,
@@ -1025,6 +1033,27 @@ impl Builder {
         Ok(())
     }
 
+    /// Under an integrator that renders no media, as pbrt-v4's do not: the
+    /// media are dropped (warned about where the integrator is named).
+    fn drop_media_unless_rendered(&mut self) {
+        let Some((name, loc)) = self.ignores_media.take() else { return };
+        if self.scene.media.is_empty() {
+            return;
+        }
+        self.warn(
+            &loc,
+            format!(
+                "integrator \"{name}\" renders no participating media, as in pbrt-v4; {} media left out (\"volpath\" renders them)",
+                self.scene.media.len()
+            ),
+        );
+        self.scene.media.clear();
+        self.scene.settings.camera_medium = crate::VACUUM;
+        for mesh in &mut self.scene.meshes {
+            mesh.media = None;
+        }
+    }
+
     /// The index of the medium `name` ("" is the vacuum).
     fn medium_index(&self, name: &str, loc: &FileLoc) -> Result<crate::MediumIndex, SceneError> {
         if name.is_empty() {
@@ -1110,6 +1139,7 @@ impl Builder {
             self.scene.settings.camera_medium = self.medium_index(&name, &loc)?;
         }
         self.add_pending_shapes()?;
+        self.drop_media_unless_rendered();
         crate::input::on_budget(|b| b.end_phase(LoadPhase::Meshes));
         for (mesh, name, loc) in std::mem::take(&mut self.pending_materials) {
             let Some(slot) = self.named_materials.get_mut(&name) else {
