@@ -104,14 +104,20 @@ fn specialised_shade_kernels_keep_their_registers() {
     let (_, log) = compile("wavefront.cu", &none[..4]);
     let plain_in_media = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
+    let everything = registers(&log, "shade");
+    // The material kinds' specialisations, compared without media (their
+    // own specialisation, whose walks through grids add registers of their own).
+    let no_media = "-DATOLL_WITH_MEDIA=0";
+    let (_, log) = compile("wavefront.cu", &[no_media]);
     let all = registers(&log, "shade");
-    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
+    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_COATED_CONDUCTOR=0", no_media]);
     let no_coated_conductor = registers(&log, "shade");
-    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_HAIR=0"]);
+    let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_HAIR=0", no_media]);
     let no_hair = registers(&log, "shade");
     eprintln!(
         "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}, all but hair {no_hair}, plain materials in media {plain_in_media}"
+         {no_coated_conductor}, all but hair {no_hair}; with media: plain materials {plain_in_media}, \
+         every material {everything}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
     assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
