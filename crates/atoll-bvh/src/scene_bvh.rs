@@ -201,7 +201,7 @@ impl<L: BvhLayout> Blas<L> {
         let mut stats = bvh.stats(&BuildOptions::METRIC);
         stats.bytes += std::mem::size_of_val(&tris[..]) + std::mem::size_of_val(&prims[..]);
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
-        let filtered = ranges.iter().any(|r| scene.meshes[r.mesh as usize].filters_hits());
+        let filtered = ranges.iter().any(|r| scene.filters_hits(r.mesh));
         Some(Blas { bvh, tris, prims, filtered, stats })
     }
 

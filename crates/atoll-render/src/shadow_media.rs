@@ -61,7 +61,8 @@ impl HitFilter for ShadowFilter<'_> {
             return true;
         }
         let m = &self.textures.scene.meshes[mesh as usize];
-        let Some(media) = m.media else { return true };
+        // Without a transition the media on both sides are the ray's: no change.
+        let Some(media) = m.media else { return false };
         // The normal the hit writer orients (towards the interpolated
         // normal where there is one), in object space: its side of the ray
         // is the same in world space.

@@ -291,7 +291,7 @@ impl TextureTables {
             }
             tables.materials[id] = ProgramRange { start, len: tables.ops.len() as u32 - start };
         }
-        if scene.meshes.iter().any(|m| m.filters_hits()) {
+        if (0..scene.meshes.len() as u32).any(|m| scene.filters_hits(m)) {
             tables.mesh_alpha = scene
                 .meshes
                 .iter()

@@ -55,6 +55,11 @@ fn box_mesh(lo: Vec3, hi: Vec3) -> String {
 /// Ground lit by a sun straight overhead, seen from straight above but
 /// under a slab of medium 0.5 thick (1 < y < 1.5); direct light only.
 fn sunlit_ground(medium: Option<&str>) -> Arc<Scene> {
+    sunlit_ground_with(medium, "")
+}
+
+/// [`sunlit_ground`] with more shapes, `extra`.
+fn sunlit_ground_with(medium: Option<&str>, extra: &str) -> Arc<Scene> {
     let slab = match medium {
         Some(m) => format!(
             "MakeNamedMedium \"slab\" {m}\nAttributeBegin\nMaterial \"interface\"\n\
@@ -75,6 +80,7 @@ LightSource "distant" "point3 from" [ 0 1 0 ] "point3 to" [ 0 0 0 ] "rgb L" [ 1 
 Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
 Shape "trianglemesh" "point3 P" [ -20 0 -20  20 0 -20  20 0 20  -20 0 20 ] "integer indices" [ 0 2 1 0 3 2 ]
 {slab}
+{extra}
 "#
     ))
 }
@@ -101,6 +107,24 @@ fn a_slab_dims_sunlight_by_its_transmittance() {
         }
     }
     assert_eq!(lit, clear.pixels().len(), "the ground fills the view");
+}
+
+/// An `interface` sheet between the slab and the sun that separates no
+/// media: pbrt-v4's `volpath` lets shadow rays through it, so the ground
+/// is lit as without it.
+#[test]
+fn an_interface_without_a_change_of_medium_lets_shadow_rays_through() {
+    let coefficients = r#""string type" "homogeneous" "rgb sigma_a" [ 0.4 1 2 ] "rgb sigma_s" [ 0.6 0 1 ]"#;
+    let slab = render(&sunlit_ground(Some(coefficients)));
+    let sheet = r#"AttributeBegin
+Material "interface"
+Shape "trianglemesh" "point3 P" [ -20 2 -20  20 2 -20  20 2 20  -20 2 20 ] "integer indices" [ 0 1 2 0 2 3 ]
+AttributeEnd"#;
+    let sheltered = render(&sunlit_ground_with(Some(coefficients), sheet));
+    for (a, b) in slab.pixels().iter().zip(sheltered.pixels()) {
+        assert!(a.min_element() > 1e-3);
+        assert!((a - b).abs().max_element() < 1e-5 * a.max_element(), "{a} vs {b}");
+    }
 }
 
 /// A grid medium of density 1 filling the same slab with 4 samples across

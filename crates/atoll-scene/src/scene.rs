@@ -88,13 +88,21 @@ impl Scene {
         self.textures.memory_bytes() + self.media.iter().map(|m| m.bytes()).sum::<u64>()
     }
 
-    /// Whether mesh `mesh` bounds media and scatters no light itself (an
-    /// `interface` material): shadow rays cross it (pbrt-v4's
-    /// `TraceTransmittance`), adding up the media's optical depth.
+    /// Whether mesh `mesh` scatters no light (an `interface` material) in
+    /// a scene with media: shadow rays cross it (pbrt-v4's
+    /// `TraceTransmittance`), adding up the optical depth of the media on
+    /// its two sides, if they differ. Without media (pbrt's `path`
+    /// integrator) such surfaces still block shadow rays, as in pbrt.
     pub fn bounds_media_only(&self, mesh: MeshId) -> bool {
         let m = &self.meshes[mesh as usize];
-        m.media.is_some()
+        (m.media.is_some() || !self.media.is_empty())
             && matches!(self.materials.get(m.material as usize), Some(crate::Material::Interface))
+    }
+
+    /// Whether traversal must ask about each candidate hit on mesh `mesh`:
+    /// [`TriangleMesh::filters_hits`], or a surface shadow rays cross.
+    pub fn filters_hits(&self, mesh: MeshId) -> bool {
+        self.meshes[mesh as usize].filters_hits() || self.bounds_media_only(mesh)
     }
 
     /// Adds a mesh and returns its id.
