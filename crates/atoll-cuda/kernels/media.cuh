@@ -1,7 +1,7 @@
 // Participating media: the mirror of `atoll_render::medium` (where a
 // segment scatters, its weight, the emission along it), of
-// `atoll_render::density_grid` (a grid's density integrated exactly along
-// rays, cell by cell) and of `atoll_render::shadow_media` (the optical depth
+// `atoll_render::density_grid` (a grid's extinction integrated exactly
+// along rays, cell by cell) and of `atoll_render::shadow_media` (the optical depth
 // a shadow ray gathers where it crosses a surface that only bounds media).
 #pragma once
 
@@ -22,36 +22,126 @@ __device__ __forceinline__ float3 medium_transmittance(float3 sigma_t, float len
                        sigma_t.z == 0.0f ? 1.0f : expf(-sigma_t.z * length));
 }
 
-// --- density grids (density_grid.rs) ---
+// --- grids (density_grid.rs) ---
 
-/// Mirrors `DensityGrid::sample`: sample (x, y, z) of medium `m`'s grid, 0 outside.
-__device__ __forceinline__ float grid_sample(const FrameParams& p, const GpuMedium& m, int x, int y, int z) {
+/// Mirrors `DensityGrid::sample`: channel `k` of sample (x, y, z) of medium `m`'s grid, 0 outside.
+__device__ __forceinline__ float grid_sample(const FrameParams& p, const GpuMedium& m, int x, int y, int z,
+                                             unsigned int k) {
     const int nx = (int)m.grid_resolution[0], ny = (int)m.grid_resolution[1], nz = (int)m.grid_resolution[2];
     if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) return 0.0f;
-    return p.media_grids[m.grid_first + (unsigned int)((z * ny + y) * nx + x)];
+    return p.media_grids[m.grid_first + (unsigned int)((z * ny + y) * nx + x) * m.grid_channels + k];
 }
 
-/// Mirrors `DensityGrid::density_in`: the trilinear density at lattice
-/// point `s` of cell (cx, cy, cz).
-__device__ __forceinline__ float grid_density_in(const FrameParams& p, const GpuMedium& m, int cx, int cy, int cz,
-                                                 float3 s) {
-    const float dx = s.x - (float)cx, dy = s.y - (float)cy, dz = s.z - (float)cz;
+/// Mirrors `DensityGrid::channel_in`: channel `k`, trilinear, at lattice
+/// point `s` of cell `c`.
+__device__ __forceinline__ float grid_channel_in(const FrameParams& p, const GpuMedium& m, const int* c, float3 s,
+                                                 unsigned int k) {
+    const float dx = s.x - (float)c[0], dy = s.y - (float)c[1], dz = s.z - (float)c[2];
     const auto lerp = [](float a, float b, float t) { return a + (b - a) * t; };
-    const float x00 = lerp(grid_sample(p, m, cx, cy, cz), grid_sample(p, m, cx + 1, cy, cz), dx);
-    const float x10 = lerp(grid_sample(p, m, cx, cy + 1, cz), grid_sample(p, m, cx + 1, cy + 1, cz), dx);
-    const float x01 = lerp(grid_sample(p, m, cx, cy, cz + 1), grid_sample(p, m, cx + 1, cy, cz + 1), dx);
-    const float x11 = lerp(grid_sample(p, m, cx, cy + 1, cz + 1), grid_sample(p, m, cx + 1, cy + 1, cz + 1), dx);
+    const int x = c[0], y = c[1], z = c[2];
+    const float x00 = lerp(grid_sample(p, m, x, y, z, k), grid_sample(p, m, x + 1, y, z, k), dx);
+    const float x10 = lerp(grid_sample(p, m, x, y + 1, z, k), grid_sample(p, m, x + 1, y + 1, z, k), dx);
+    const float x01 = lerp(grid_sample(p, m, x, y, z + 1, k), grid_sample(p, m, x + 1, y, z + 1, k), dx);
+    const float x11 = lerp(grid_sample(p, m, x, y + 1, z + 1, k), grid_sample(p, m, x + 1, y + 1, z + 1, k), dx);
     return lerp(lerp(x00, x10, dy), lerp(x01, x11, dy), dz);
 }
 
-/// Mirrors `DensityGrid::cell_integral`: two-point Gauss–Legendre, exact
-/// for the cubic the density is along a ray inside one cell.
-__device__ __forceinline__ float grid_cell_integral(const FrameParams& p, const GpuMedium& m, const int* c, float3 s0,
-                                                    float3 ds, float ta, float tb) {
+/// Channel `ch` (0 red, 1 green, 2 blue) of what a field word reads at
+/// lattice point `s` of cell `c` (`DensityGrid::source_in`).
+__device__ __forceinline__ float grid_source_channel(const FrameParams& p, const GpuMedium& m, unsigned int field,
+                                                     const int* c, float3 s, unsigned int ch) {
+    if (field == GRID_FIELD_CONSTANT) return 1.0f;
+    const unsigned int k = (field & (GRID_FIELD_RGB - 1u)) + ((field & GRID_FIELD_RGB) ? ch : 0u);
+    return grid_channel_in(p, m, c, s, k);
+}
+
+/// Channel `ch` of σt at lattice point `s` of cell `c`
+/// (`DensityGrid::extinction_in`: one lookup where σa and σs scale the
+/// same samples, as a `uniformgrid`'s density). Channel by channel, so
+/// that an RGB grid's lookups never all live in registers at once.
+__device__ __forceinline__ float grid_extinction_channel(const FrameParams& p, const GpuMedium& m, const int* c,
+                                                         float3 s, unsigned int ch) {
+    const unsigned int fa = m.grid_fields[0], fs = m.grid_fields[1];
+    if (fa == fs) return (m.sigma_a[ch] + m.sigma_s[ch]) * grid_source_channel(p, m, fa, c, s, ch);
+    return m.sigma_a[ch] * grid_source_channel(p, m, fa, c, s, ch) +
+           m.sigma_s[ch] * grid_source_channel(p, m, fs, c, s, ch);
+}
+
+/// Whether a field word reads one value for all three colours.
+__device__ __forceinline__ bool grid_field_grey(unsigned int field) {
+    return field == GRID_FIELD_CONSTANT || !(field & GRID_FIELD_RGB);
+}
+
+/// Mirrors `DensityGrid::extinction_in`: σt at lattice point `s` of cell
+/// `c`. Channel by channel, so that an RGB grid's lookups never all live
+/// in registers at once; a grey field is looked up once for all three.
+__device__ __forceinline__ float3 grid_extinction_in(const FrameParams& p, const GpuMedium& m, const int* c,
+                                                     float3 s) {
+    const unsigned int fa = m.grid_fields[0], fs = m.grid_fields[1];
+    float e[3], va = 0.0f, vs = 0.0f;
+#pragma unroll 1
+    for (unsigned int ch = 0; ch < 3u; ++ch) {
+        if (ch == 0u || !grid_field_grey(fa)) va = grid_source_channel(p, m, fa, c, s, ch);
+        if (fa == fs) {
+            e[ch] = (m.sigma_a[ch] + m.sigma_s[ch]) * va;
+            continue;
+        }
+        if (ch == 0u || !grid_field_grey(fs)) vs = grid_source_channel(p, m, fs, c, s, ch);
+        e[ch] = m.sigma_a[ch] * va + m.sigma_s[ch] * vs;
+    }
+    return make_float3(e[0], e[1], e[2]);
+}
+
+/// Mirrors `DensityGrid::cell_integral`: ∫ σt dt over [ta, tb] in cell
+/// `c`, two-point Gauss–Legendre, exact for the cubics along a ray.
+__device__ __forceinline__ float3 grid_cell_integral(const FrameParams& p, const GpuMedium& m, const int* c,
+                                                     float3 s0, float3 ds, float ta, float tb) {
     const float gauss = 0.577350269f;
     const float mid = 0.5f * (ta + tb), half = 0.5f * (tb - ta);
-    return half * (grid_density_in(p, m, c[0], c[1], c[2], s0 + ds * (mid - half * gauss)) +
-                   grid_density_in(p, m, c[0], c[1], c[2], s0 + ds * (mid + half * gauss)));
+    return (grid_extinction_in(p, m, c, s0 + ds * (mid - half * gauss)) +
+            grid_extinction_in(p, m, c, s0 + ds * (mid + half * gauss))) *
+           half;
+}
+
+/// Channel `ch` of `grid_cell_integral` alone (what bisection needs).
+__device__ __forceinline__ float grid_cell_integral_channel(const FrameParams& p, const GpuMedium& m, const int* c,
+                                                            float3 s0, float3 ds, float ta, float tb,
+                                                            unsigned int ch) {
+    const float gauss = 0.577350269f;
+    const float mid = 0.5f * (ta + tb), half = 0.5f * (tb - ta);
+    return (grid_extinction_channel(p, m, c, s0 + ds * (mid - half * gauss), ch) +
+            grid_extinction_channel(p, m, c, s0 + ds * (mid + half * gauss), ch)) *
+           half;
+}
+
+/// A grid medium's coefficients at a point (mirrors `GridPoint`).
+struct GridPoint {
+    float3 sigma_a, sigma_s;
+    float3 emission;  // σa · Le
+};
+
+/// Mirrors `DensityGrid::point`: the coefficients at world point `w`, none outside the bounds.
+__device__ __noinline__ GridPoint grid_point(const FrameParams& p, const GpuMedium& m, float3 w) {
+    GridPoint g;
+    g.sigma_a = g.sigma_s = g.emission = zero3();
+    const float3 s = affine_point(m.world_to_lattice, w);
+    const float sa[3] = {s.x, s.y, s.z};
+    int c[3];
+    for (int a = 0; a < 3; ++a) {
+        if (sa[a] < -0.5f || sa[a] > (float)m.grid_resolution[a] - 0.5f) return g;
+        c[a] = (int)floorf(sa[a]);
+    }
+    float a[3], sc[3], e[3];
+#pragma unroll 1
+    for (unsigned int ch = 0; ch < 3u; ++ch) {
+        a[ch] = m.sigma_a[ch] * grid_source_channel(p, m, m.grid_fields[0], c, s, ch);
+        sc[ch] = m.sigma_s[ch] * grid_source_channel(p, m, m.grid_fields[1], c, s, ch);
+        e[ch] = a[ch] * (m.le[ch] * grid_source_channel(p, m, m.grid_fields[2], c, s, ch));
+    }
+    g.sigma_a = make_float3(a[0], a[1], a[2]);
+    g.sigma_s = make_float3(sc[0], sc[1], sc[2]);
+    g.emission = make_float3(e[0], e[1], e[2]);
+    return g;
 }
 
 /// Mirrors `DensityGrid::walk`: calls `cell(c, s0, ds, ta, tb)` for each
@@ -103,39 +193,44 @@ __device__ __forceinline__ void grid_walk(const GpuMedium& m, float3 o, float3 d
     }
 }
 
-/// Mirrors `DensityGrid::integral`.
-__device__ __noinline__ float grid_integral(const FrameParams& p, const GpuMedium& m, float3 o, float3 d, float t0,
-                                            float t1) {
-    float sum = 0.0f;
+/// Mirrors `DensityGrid::integral`: ∫ σt dt per channel.
+__device__ __noinline__ float3 grid_integral(const FrameParams& p, const GpuMedium& m, float3 o, float3 d, float t0,
+                                             float t1) {
+    float3 sum = zero3();
     grid_walk(m, o, d, t0, t1, [&](const int* c, float3 s0, float3 ds, float ta, float tb) {
-        sum += grid_cell_integral(p, m, c, s0, ds, ta, tb);
+        sum = sum + grid_cell_integral(p, m, c, s0, ds, ta, tb);
         return true;
     });
     return sum;
 }
 
-/// Mirrors `DensityGrid::invert`: the t where the integral from t0 reaches
-/// `target` into `*t`; false when the segment holds less.
+__device__ __forceinline__ float channel_of(float3 v, unsigned int k) { return k == 0 ? v.x : k == 1 ? v.y : v.z; }
+
+/// Mirrors `DensityGrid::invert`: the t where channel `k` of the integral
+/// from t0 reaches `target` into `*t`, the whole integral up to it into
+/// `*depth`; false when the segment holds less.
 __device__ __noinline__ bool grid_invert(const FrameParams& p, const GpuMedium& m, float3 o, float3 d, float t0,
-                                         float t1, float target, float* t) {
-    float sum = 0.0f;
+                                         float t1, unsigned int k, float target, float* t, float3* depth) {
+    float3 sum = zero3();
     bool found = false;
     grid_walk(m, o, d, t0, t1, [&](const int* c, float3 s0, float3 ds, float ta, float tb) {
-        const float here = grid_cell_integral(p, m, c, s0, ds, ta, tb);
-        if (sum + here < target) {
-            sum += here;
+        const float3 here = grid_cell_integral(p, m, c, s0, ds, ta, tb);
+        if (channel_of(sum, k) + channel_of(here, k) < target) {
+            sum = sum + here;
             return true;
         }
         float lo = ta, hi = tb;
-        for (int k = 0; k < 30; ++k) {
+        const float before = channel_of(sum, k);
+        for (int i = 0; i < 30; ++i) {
             const float mid = 0.5f * (lo + hi);
-            if (sum + grid_cell_integral(p, m, c, s0, ds, ta, mid) < target) {
+            if (before + grid_cell_integral_channel(p, m, c, s0, ds, ta, mid, k) < target) {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
         *t = 0.5f * (lo + hi);
+        *depth = sum + grid_cell_integral(p, m, c, s0, ds, ta, *t);
         found = true;
         return false;
     });
@@ -144,71 +239,36 @@ __device__ __noinline__ bool grid_invert(const FrameParams& p, const GpuMedium& 
 
 // --- media (medium.rs) ---
 
-/// Mirrors `MediumTable::density_length`: ∫ density ds in world units
-/// along `o + t d`, t0 <= t < t1, through medium `medium`.
-__device__ __forceinline__ float medium_density_length(const FrameParams& p, unsigned int medium, float3 o, float3 d,
-                                                       float t0, float t1) {
-    const GpuMedium& m = p.media[medium];
-    const float scale = length3(d);
-    if (m.grid_first == NO_GRID) return (t1 - t0) * scale;
-    return grid_integral(p, m, o, d, t0, t1) * scale;
-}
-
 /// Mirrors `MediumTable::optical_depth`.
 __device__ __forceinline__ float3 medium_optical_depth(const FrameParams& p, unsigned int medium, float3 o, float3 d,
                                                        float t0, float t1) {
-    const float3 sigma_t = medium_sigma_t(p.media[medium]);
+    const GpuMedium& m = p.media[medium];
+    const float3 sigma_t = medium_sigma_t(m);
     if (is_zero3(sigma_t)) return zero3();
-    return sigma_t * medium_density_length(p, medium, o, d, t0, t1);
+    const float scale = length3(d);
+    if (m.grid_first == NO_GRID) return sigma_t * ((t1 - t0) * scale);
+    return grid_integral(p, m, o, d, t0, t1) * scale;
 }
 
-/// Mirrors `medium::Segment`: scatter at `t` (else pass), with `weight`.
+/// Mirrors `medium::SegmentSample`: scatter at `t` (else pass), with
+/// `weight`, and the emission along the segment.
 struct MediumSegment {
     bool scatter;
     float t;
     float3 weight;
+    float3 emitted;
 };
 
-/// Mirrors `MediumTable::sample_segment` (with `MediumCoeffs::sample_segment`):
-/// a channel from the leading third of `u`, the optical depth to reach
-/// from the rest, inverted along the segment `o + t d`, 0 <= t < t_max;
-/// weighted by the three channels' mixture. A scattering `t` is in world units.
-__device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p, unsigned int medium, float3 o,
-                                                            float3 d, float t_max, float u) {
-    const GpuMedium& m = p.media[medium];
-    const float3 sigma_t = medium_sigma_t(m);
-    const float scale = length3(d);
-    const bool grid = m.grid_first != NO_GRID;
-    const float total = grid ? grid_integral(p, m, o, d, 0.0f, t_max) * scale : t_max * scale;
-    const float scaled = u * 3.0f;
-    const unsigned int channel = min((unsigned int)scaled, 2u);
-    const float v = clampf(scaled - (float)channel, 0.0f, 1.0f - 1.1920929e-7f);
-    const float st = channel == 0 ? sigma_t.x : channel == 1 ? sigma_t.y : sigma_t.z;
-    const float depth = st > 0.0f ? sample_exponential(v, st) : f32_infinity();
-    MediumSegment s;
-    s.t = 0.0f;
+/// Mirrors `medium::mean`.
+__device__ __forceinline__ float mean3(float3 v) {
     const float third = 1.0f / 3.0f;
-    if (depth < total) {
-        float t = depth;
-        bool reached = true;
-        if (grid) {
-            reached = grid_invert(p, m, o, d, 0.0f, t_max, depth / scale, &t);
-            t *= scale;
-        }
-        if (reached) {
-            const float3 tr = make_float3(expf(-sigma_t.x * depth), expf(-sigma_t.y * depth), expf(-sigma_t.z * depth));
-            const float density = dot3(sigma_t * tr, make_float3(third, third, third));
-            s.scatter = true;
-            s.t = t;
-            s.weight = density > 0.0f ? tr * make_float3(m.sigma_s[0], m.sigma_s[1], m.sigma_s[2]) / density : zero3();
-            return s;
-        }
-    }
-    const float3 tr = medium_transmittance(sigma_t, total);
-    const float passing = dot3(tr, make_float3(third, third, third));
-    s.scatter = false;
-    s.weight = passing > 0.0f ? tr / passing : zero3();
-    return s;
+    return dot3(v, make_float3(third, third, third));
+}
+
+/// Mirrors `medium::pass`.
+__device__ __forceinline__ float3 medium_pass_weight(float3 tr) {
+    const float passing = mean3(tr);
+    return passing > 0.0f ? tr / passing : zero3();
 }
 
 /// Mirrors `MediumCoeffs::emission_over`: ∫ T(t) σa Le dt over `length`.
@@ -223,6 +283,61 @@ __device__ __forceinline__ float3 medium_emission_over(const GpuMedium& m, float
     return make_float3(medium_emission_channel(m.sigma_a[0], m.le[0], sigma_t.x, length),
                        medium_emission_channel(m.sigma_a[1], m.le[1], sigma_t.y, length),
                        medium_emission_channel(m.sigma_a[2], m.le[2], sigma_t.z, length));
+}
+
+/// Mirrors `MediumTable::sample_segment` (with `channel_and_depth` and
+/// `MediumCoeffs::sample_uniform_segment`): a channel from the leading
+/// third of `u`, the optical depth to reach from the rest, found along the
+/// segment `o + t d`, 0 <= t < t_max, and weighted by the three channels'
+/// mixture; a homogeneous medium's emission in closed form, a grid's where
+/// the segment scatters. A scattering `t` is in world units.
+__device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p, unsigned int medium, float3 o,
+                                                            float3 d, float t_max, float u) {
+    const GpuMedium& m = p.media[medium];
+    const float scale = length3(d);
+    const float scaled = u * 3.0f;
+    const unsigned int channel = min((unsigned int)scaled, 2u);
+    const float v = clampf(scaled - (float)channel, 0.0f, 1.0f - 1.1920929e-7f);
+    const float target = sample_exponential(v, 1.0f);
+    MediumSegment s;
+    s.scatter = false;
+    s.t = 0.0f;
+    s.emitted = zero3();
+    if (m.grid_first == NO_GRID) {
+        const float3 sigma_t = medium_sigma_t(m);
+        const float length = t_max * scale;
+        s.emitted = medium_emission_over(m, length);
+        const float st = channel_of(sigma_t, channel);
+        const float depth = st > 0.0f ? target / st : f32_infinity();
+        if (depth < length) {
+            const float3 tr =
+                make_float3(expf(-sigma_t.x * depth), expf(-sigma_t.y * depth), expf(-sigma_t.z * depth));
+            const float density = mean3(sigma_t * tr);
+            s.scatter = true;
+            s.t = depth;
+            s.weight = density > 0.0f ? tr * load3(m.sigma_s) / density : zero3();
+            return s;
+        }
+        s.weight = medium_pass_weight(medium_transmittance(sigma_t, length));
+        return s;
+    }
+    const float target_t = target / scale;
+    const float3 total = grid_integral(p, m, o, d, 0.0f, t_max);
+    float t;
+    float3 depth;
+    if (target_t < channel_of(total, channel) && grid_invert(p, m, o, d, 0.0f, t_max, channel, target_t, &t, &depth)) {
+        const GridPoint at = grid_point(p, m, o + d * t);
+        const float3 tr = make_float3(expf(-(depth.x * scale)), expf(-(depth.y * scale)), expf(-(depth.z * scale)));
+        const float density = mean3((at.sigma_a + at.sigma_s) * tr);
+        s.scatter = true;
+        s.t = t * scale;
+        s.weight = density > 0.0f ? tr * at.sigma_s / density : zero3();
+        s.emitted = density > 0.0f ? tr * at.emission / density : zero3();
+        return s;
+    }
+    s.weight = medium_pass_weight(
+        make_float3(expf(-(total.x * scale)), expf(-(total.y * scale)), expf(-(total.z * scale))));
+    return s;
 }
 
 /// Mirrors `MediumInterface::towards`: the medium of a mesh flags word

@@ -66,8 +66,10 @@ struct FilterTable {
     float cdf[2 * FILTER_BINS];
 };
 
-/// Mirror of `params::GpuMedium`: a medium's coefficients and its density
-/// grid's place (`grid_first` NO_GRID: density 1 everywhere).
+/// Mirror of `params::GpuMedium`: a medium's coefficients (a grid's field
+/// scales), its grid's place (`grid_first` NO_GRID: the same coefficients
+/// everywhere) and where its fields come from (GRID_FIELD_CONSTANT, a
+/// channel, or a channel | GRID_FIELD_RGB).
 struct GpuMedium {
     float sigma_a[3];
     float sigma_s[3];
@@ -76,6 +78,8 @@ struct GpuMedium {
     unsigned int grid_first;
     unsigned int grid_resolution[3];
     float world_to_lattice[12];
+    unsigned int grid_channels;
+    unsigned int grid_fields[3];
 };
 
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
@@ -224,7 +228,7 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(GpuMedium) == 104, "GpuMedium: size differs from Rust");
+static_assert(sizeof(GpuMedium) == 120, "GpuMedium: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMedium, sigma_a) == 0 && sizeof(GpuMedium::sigma_a) == 12, "GpuMedium.sigma_a: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, sigma_s) == 12 && sizeof(GpuMedium::sigma_s) == 12, "GpuMedium.sigma_s: offset or size differs from Rust");
@@ -233,8 +237,10 @@ static_assert(__builtin_offsetof(GpuMedium, g) == 36 && sizeof(GpuMedium::g) == 
 static_assert(__builtin_offsetof(GpuMedium, grid_first) == 40 && sizeof(GpuMedium::grid_first) == 4, "GpuMedium.grid_first: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_resolution) == 44 && sizeof(GpuMedium::grid_resolution) == 12, "GpuMedium.grid_resolution: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(GpuMedium::world_to_lattice) == 48, "GpuMedium.world_to_lattice: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, grid_channels) == 104 && sizeof(GpuMedium::grid_channels) == 4, "GpuMedium.grid_channels: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2248, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2504, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -278,7 +284,7 @@ static_assert(__builtin_offsetof(FrameParams, camera_medium) == 564 && sizeof(Fr
 static_assert(__builtin_offsetof(FrameParams, shadow_reach) == 568 && sizeof(FrameParams::shadow_reach) == 4, "FrameParams.shadow_reach: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_pad) == 572 && sizeof(FrameParams::media_pad) == 4, "FrameParams.media_pad: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_grids) == 576 && sizeof(FrameParams::media_grids) == 8, "FrameParams.media_grids: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, media) == 584 && sizeof(FrameParams::media) == 1664, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 584 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -330,12 +330,11 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     // Through a medium: its emission along the segment, then where (and
     // whether) the segment scatters before its end.
     if (medium != 0u) {
-        const GpuMedium& m = params.media[medium];
         const float t_max = (r.flags & FLAG_HIT) ? r.t_max : f32_infinity();
-        out.emitted = out.emitted + beta * medium_emission_over(m, t_max * length3(dir));
         const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
         const float u = stream_medium_distance(rng, r.depth, from);
         const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u);
+        out.emitted = out.emitted + beta * seg.emitted;
         if (seg.scatter) {
             scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
             return;

@@ -197,6 +197,8 @@ pub(crate) fn layout_asserts() -> String {
     // Entries of params.cuh's `FrameParams::media`.
     s += &const_uint("unsigned int", "MEDIA_SLOTS", crate::params::MEDIA_SLOTS as u64);
     s += &const_uint("unsigned int", "NO_GRID", crate::params::NO_GRID as u64);
+    s += &const_uint("unsigned int", "GRID_FIELD_CONSTANT", crate::params::grid_field::CONSTANT as u64);
+    s += &const_uint("unsigned int", "GRID_FIELD_RGB", crate::params::grid_field::RGB as u64);
     for (name, value) in [
         ("MESH_HAS_NORMALS", mesh_flags::HAS_NORMALS),
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),

@@ -65,8 +65,9 @@ impl GpuEmissionTexture {
     }
 }
 
-/// A medium's coefficients (`atoll_render::medium::MediumCoeffs`) and its
-/// density grid's place (`atoll_render::density_grid::DensityGrid`), 104 bytes.
+/// A medium's coefficients (`atoll_render::medium::MediumCoeffs`: a grid
+/// medium's field scales) and its grid's place and fields
+/// (`atoll_render::density_grid::DensityGrid`), 120 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuMedium {
@@ -74,20 +75,53 @@ pub struct GpuMedium {
     pub sigma_s: [f32; 3],
     pub le: [f32; 3],
     pub g: f32,
-    /// First sample in [`FrameParams::media_grids`], or [`NO_GRID`] (density 1).
+    /// First value in [`FrameParams::media_grids`], or [`NO_GRID`] (the
+    /// same coefficients everywhere).
     pub grid_first: u32,
     pub grid_resolution: [u32; 3],
     /// World to the grid's sample lattice, row-major 3×4.
     pub world_to_lattice: [f32; 12],
+    /// Values per sample.
+    pub grid_channels: u32,
+    /// Where σa, σs and Le come from ([`grid_field`]).
+    pub grid_fields: [u32; 3],
 }
 
 /// [`GpuMedium::grid_first`] of a medium without a grid.
 pub(crate) const NO_GRID: u32 = u32::MAX;
 
+/// [`GpuMedium::grid_fields`]: a field's [`FieldSource`] as one word.
+pub(crate) mod grid_field {
+    use atoll_scene::FieldSource;
+
+    /// 1 everywhere in the box.
+    pub(crate) const CONSTANT: u32 = u32::MAX;
+    /// With a channel: it and the next two are red, green and blue.
+    pub(crate) const RGB: u32 = 1 << 16;
+
+    pub(crate) fn encode(source: FieldSource) -> u32 {
+        match source {
+            FieldSource::Constant => CONSTANT,
+            FieldSource::Scalar(k) => k,
+            FieldSource::Rgb(k) => k | RGB,
+        }
+    }
+}
+
 impl GpuMedium {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(GpuMedium { sigma_a, sigma_s, le, g, grid_first, grid_resolution, world_to_lattice })
+        field_layout!(GpuMedium {
+            sigma_a,
+            sigma_s,
+            le,
+            g,
+            grid_first,
+            grid_resolution,
+            world_to_lattice,
+            grid_channels,
+            grid_fields
+        })
     }
 }
 
@@ -435,6 +469,8 @@ impl FrameParams {
                 let grid = &frame.media.grids[g as usize];
                 slot.grid_first = grid_starts[g as usize];
                 slot.grid_resolution = grid.resolution;
+                slot.grid_channels = grid.channels;
+                slot.grid_fields = grid.fields.map(|f| grid_field::encode(f.source));
                 let m = glam::Mat4::from(grid.world_to_lattice);
                 for (r, row) in slot.world_to_lattice.chunks_exact_mut(4).enumerate() {
                     row.copy_from_slice(&m.row(r).to_array());
@@ -586,10 +622,10 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 84);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<GpuMedium>() == 104);
+    assert!(std::mem::size_of::<GpuMedium>() == 120);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 104 * MEDIA_SLOTS
+            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 120 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
     assert!(std::mem::size_of::<SceneView>() == 72);

@@ -32,8 +32,8 @@ use atoll_render::{CpuDevice, Device, FrameContext, Queue, RayRecord, RenderOpti
 use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
     AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage,
-    GridMedium, HairParams, HomogeneousMedium, Instance, IntegratorSettings, Light, Material, Medium,
-    MediumInterface, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
+    FieldSource, GridField, GridMedium, HairParams, HomogeneousMedium, Instance, IntegratorSettings, Light,
+    Material, Medium, MediumInterface, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -482,8 +482,9 @@ fn shade_matches_the_cpu_stage() {
     }
 }
 
-/// The test frame with three media (a coloured, scattering, glowing one,
-/// an absorbing one and a density grid) and the camera in the first.
+/// The test frame with four media (a coloured, scattering, glowing one,
+/// an absorbing one, a density grid and a glowing RGB grid) and the
+/// camera in the first.
 fn media_frame() -> FrameContext {
     let (mut scene, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
     scene.media.push(Medium::Homogeneous(HomogeneousMedium {
@@ -499,21 +500,32 @@ fn media_frame() -> FrameContext {
         le: Rgb::ZERO,
     }));
     // A grid of smoke about the box's middle, turned and shifted.
+    let place = Affine3A::from_rotation_translation(Quat::from_rotation_y(0.4), Vec3::new(0.1, 0.2, 0.0));
+    let density_field = |scale| GridField { scale, source: FieldSource::Scalar(0) };
     scene.media.push(Medium::Grid(GridMedium {
-        coefficients: HomogeneousMedium {
-            sigma_a: Rgb::new(0.2, 0.1, 0.3),
-            sigma_s: Rgb::new(2.0, 3.0, 1.0),
-            g: -0.3,
-            le: Rgb::ZERO,
-        },
         resolution: [4, 3, 5],
-        density: (0..60).map(|i| (i * 13 % 7) as f32 * 0.4).collect(),
+        channels: 1,
+        values: (0..60).map(|i| (i * 13 % 7) as f32 * 0.4).collect(),
+        sigma_a: density_field(Rgb::new(0.2, 0.1, 0.3)),
+        sigma_s: density_field(Rgb::new(2.0, 3.0, 1.0)),
+        le: GridField::constant(Rgb::ZERO),
+        g: -0.3,
         lo: Vec3::new(-0.8, 0.0, -0.6),
         hi: Vec3::new(0.7, 1.5, 0.9),
-        world_to_medium: Affine3A::from_rotation_translation(
-            Quat::from_rotation_y(0.4),
-            Vec3::new(0.1, 0.2, 0.0),
-        ),
+        world_to_medium: place,
+    }));
+    // A glowing RGB grid over the same box: σa and Le per colour, σs 1.
+    scene.media.push(Medium::Grid(GridMedium {
+        resolution: [3, 4, 2],
+        channels: 6,
+        values: (0..24 * 6).map(|i| (i * 5 % 9) as f32 * 0.3).collect(),
+        sigma_a: GridField { scale: Rgb::splat(1.5), source: FieldSource::Rgb(0) },
+        sigma_s: GridField::constant(Rgb::splat(1.5)),
+        le: GridField { scale: Rgb::splat(2.0), source: FieldSource::Rgb(3) },
+        g: 0.2,
+        lo: Vec3::new(-0.8, 0.0, -0.6),
+        hi: Vec3::new(0.7, 1.5, 0.9),
+        world_to_medium: place,
     }));
     scene.settings.camera_medium = 1;
     FrameContext::new(&scene, frame.options.clone())
@@ -532,15 +544,16 @@ fn shade_in_media_matches_the_cpu_stage() {
     let mut paths = synthetic_paths(&frame, 3000);
     for (i, r) in paths.iter_mut().enumerate() {
         let i = i as u32;
-        r.set_medium((i % 4) as u8);
+        r.set_medium((i % 5) as u8);
         if r.has(flags::HIT) {
             let boundaries = [
                 None,
                 MediumInterface::transition(1, 0),
                 MediumInterface::transition(2, 1),
                 MediumInterface::transition(3, 1),
+                MediumInterface::transition(4, 0),
             ];
-            r.set_hit_media(boundaries[(i / 4 % 4) as usize]);
+            r.set_hit_media(boundaries[(i / 5 % 5) as usize]);
         }
     }
     let cpu = shade_on_cpu(&frame, &paths);
@@ -548,8 +561,10 @@ fn shade_in_media_matches_the_cpu_stage() {
     // Media scatter some segments, and shadow rays start inside them.
     let scattered = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() != 0).count();
     assert!(scattered > 100, "{scattered} paths in media");
-    let in_grid = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() == 3).count();
-    assert!(in_grid > 10, "{in_grid} paths going on in the grid");
+    for grid in [3, 4] {
+        let in_grid = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() == grid).count();
+        assert!(in_grid > 10, "{in_grid} paths going on in grid {grid}");
+    }
     assert!(cpu.shadows.iter().any(|s| s.optical_depth() != Vec3::ZERO), "no shadow ray starts in a medium");
     assert_no_mismatches("shade in media", &shade_mismatches(&cpu, &got));
 }

@@ -1,62 +1,78 @@
-//! Integrals of a voxel density grid along rays, exactly: pbrt-v4's
+//! Integrals of a grid medium's extinction along rays, exactly: pbrt-v4's
 //! `SampledGrid` interpolates its samples trilinearly (sample `i` sits at
 //! `(i + 0.5) / n` of the bounds, missing neighbours count as 0), so along
-//! a ray, inside one cell of the sample lattice, the density is a product
+//! a ray, inside one cell of the sample lattice, each channel is a product
 //! of three linear functions of `t`: a cubic, which two-point
-//! Gauss–Legendre quadrature integrates exactly. Walking the cells the ray
+//! Gauss–Legendre quadrature integrates exactly; σt is a sum of such
+//! channels (a `uniformgrid`'s density times σt, an `rgbgrid`'s σa and σs
+//! per colour). Walking the cells the ray
 //! crosses (Amanatides & Woo's DDA) gives the optical depth of any segment
 //! without noise, and inverting it gives exact distance sampling (regular
 //! tracking), so grid media need neither delta nor ratio tracking's
 //! majorants. The CUDA kernels (`kernels/media.cuh`) walk the same cells.
 
+use atoll_scene::{FieldSource, GridField, GridMedium};
 use glam::{Affine3A, Vec3};
 
-/// A density grid placed in the world.
+/// A grid medium's samples placed in the world, with the fields that read them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DensityGrid {
     /// Samples per axis.
     pub resolution: [u32; 3],
-    /// `resolution[0] * resolution[1] * resolution[2]` samples, x fastest.
+    /// Values per sample.
+    pub channels: u32,
+    /// `channels` values per sample, samples x fastest.
     pub values: Vec<f32>,
+    /// σa, σs and Le ([`GridMedium`]'s fields).
+    pub fields: [GridField; 3],
     /// World space to the grid's sample lattice: sample `i` at integer `i`,
     /// the bounds from -0.5 to `n - 0.5`.
     pub world_to_lattice: Affine3A,
+}
+
+/// The coefficients of a grid medium at one point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GridPoint {
+    pub sigma_a: Vec3,
+    pub sigma_s: Vec3,
+    /// σa · Le: the radiance emitted per unit length.
+    pub emission: Vec3,
 }
 
 /// Abscissa of two-point Gauss–Legendre quadrature on [-1, 1]: 1/√3.
 const GAUSS: f32 = 0.577_350_26;
 
 impl DensityGrid {
-    /// A grid of `values` filling the medium-space box `lo`..`hi`, placed
-    /// by `world_to_medium`.
-    pub fn new(
-        resolution: [u32; 3],
-        values: Vec<f32>,
-        lo: Vec3,
-        hi: Vec3,
-        world_to_medium: Affine3A,
-    ) -> Self {
-        let n = Vec3::new(resolution[0] as f32, resolution[1] as f32, resolution[2] as f32);
-        let scale = n / (hi - lo);
+    /// The grid of `medium`, placed by its transform.
+    pub fn new(medium: &GridMedium) -> Self {
+        let n =
+            Vec3::new(medium.resolution[0] as f32, medium.resolution[1] as f32, medium.resolution[2] as f32);
+        let scale = n / (medium.hi - medium.lo);
         let to_lattice = Affine3A::from_translation(Vec3::splat(-0.5))
             * Affine3A::from_scale(scale)
-            * Affine3A::from_translation(-lo);
-        DensityGrid { resolution, values, world_to_lattice: to_lattice * world_to_medium }
+            * Affine3A::from_translation(-medium.lo);
+        DensityGrid {
+            resolution: medium.resolution,
+            channels: medium.channels,
+            values: medium.values.clone(),
+            fields: [medium.sigma_a, medium.sigma_s, medium.le],
+            world_to_lattice: to_lattice * medium.world_to_medium,
+        }
     }
 
-    /// Sample `(x, y, z)`, 0 outside the grid.
-    fn sample(&self, x: i32, y: i32, z: i32) -> f32 {
+    /// Channel `k` of sample `(x, y, z)`, 0 outside the grid.
+    fn sample(&self, x: i32, y: i32, z: i32, k: u32) -> f32 {
         let [nx, ny, nz] = self.resolution.map(|n| n as i32);
         if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
             return 0.0;
         }
-        self.values[((z * ny + y) * nx + x) as usize]
+        self.values[((z * ny + y) * nx + x) as usize * self.channels as usize + k as usize]
     }
 
-    /// The density at lattice point `s` inside cell `c` (trilinear).
-    fn density_in(&self, c: [i32; 3], s: Vec3) -> f32 {
+    /// Channel `k` at lattice point `s` inside cell `c` (trilinear).
+    fn channel_in(&self, c: [i32; 3], s: Vec3, k: u32) -> f32 {
         let d = s - Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32);
-        let v = |i, j, k| self.sample(c[0] + i, c[1] + j, c[2] + k);
+        let v = |i, j, l| self.sample(c[0] + i, c[1] + j, c[2] + l, k);
         let lerp = |a: f32, b: f32, t: f32| a + (b - a) * t;
         let x00 = lerp(v(0, 0, 0), v(1, 0, 0), d.x);
         let x10 = lerp(v(0, 1, 0), v(1, 1, 0), d.x);
@@ -65,16 +81,53 @@ impl DensityGrid {
         lerp(lerp(x00, x10, d.y), lerp(x01, x11, d.y), d.z)
     }
 
-    /// The density at world point `p` (pbrt's `SampledGrid::Lookup`; 0
-    /// outside the bounds).
-    pub fn density(&self, p: Vec3) -> f32 {
+    /// What `source` interpolates at lattice point `s` of cell `c`.
+    fn source_in(&self, source: FieldSource, c: [i32; 3], s: Vec3) -> Vec3 {
+        match source {
+            FieldSource::Constant => Vec3::ONE,
+            FieldSource::Scalar(k) => Vec3::splat(self.channel_in(c, s, k)),
+            FieldSource::Rgb(k) => Vec3::new(
+                self.channel_in(c, s, k),
+                self.channel_in(c, s, k + 1),
+                self.channel_in(c, s, k + 2),
+            ),
+        }
+    }
+
+    /// σt = σa + σs at lattice point `s` of cell `c` (one lookup where
+    /// both scale the same samples, as a `uniformgrid`'s density).
+    fn extinction_in(&self, c: [i32; 3], s: Vec3) -> Vec3 {
+        let [a, sc, _] = self.fields;
+        if a.source == sc.source {
+            return (a.scale + sc.scale) * self.source_in(a.source, c, s);
+        }
+        a.scale * self.source_in(a.source, c, s) + sc.scale * self.source_in(sc.source, c, s)
+    }
+
+    /// The lattice point of world point `p` and its cell, `None` outside the bounds.
+    fn locate(&self, p: Vec3) -> Option<([i32; 3], Vec3)> {
         let s = self.world_to_lattice.transform_point3(p);
         let n = Vec3::new(self.resolution[0] as f32, self.resolution[1] as f32, self.resolution[2] as f32);
         if s.cmplt(Vec3::splat(-0.5)).any() || s.cmpgt(n - 0.5).any() {
-            return 0.0;
+            return None;
         }
         let c = s.floor();
-        self.density_in([c.x as i32, c.y as i32, c.z as i32], s)
+        Some(([c.x as i32, c.y as i32, c.z as i32], s))
+    }
+
+    /// The coefficients at world point `p` (pbrt's `SamplePoint`; none
+    /// outside the bounds).
+    pub fn point(&self, p: Vec3) -> GridPoint {
+        let Some((c, s)) = self.locate(p) else { return GridPoint::default() };
+        let field = |f: &GridField| f.scale * self.source_in(f.source, c, s);
+        let [a, sc, le] = &self.fields;
+        let sigma_a = field(a);
+        GridPoint { sigma_a, sigma_s: field(sc), emission: sigma_a * field(le) }
+    }
+
+    /// σt at world point `p` (0 outside the bounds).
+    pub fn extinction(&self, p: Vec3) -> Vec3 {
+        self.locate(p).map_or(Vec3::ZERO, |(c, s)| self.extinction_in(c, s))
     }
 
     /// Walks the cells the ray `origin + t · dir` crosses for `t0 <= t <
@@ -145,17 +198,17 @@ impl DensityGrid {
         }
     }
 
-    /// ∫ density dt over `ta..tb` inside cell `c` (exact: a cubic).
-    fn cell_integral(&self, c: [i32; 3], s0: Vec3, ds: Vec3, ta: f32, tb: f32) -> f32 {
+    /// ∫ σt dt over `ta..tb` inside cell `c` (exact: a cubic per channel).
+    fn cell_integral(&self, c: [i32; 3], s0: Vec3, ds: Vec3, ta: f32, tb: f32) -> Vec3 {
         let (mid, half) = (0.5 * (ta + tb), 0.5 * (tb - ta));
-        let at = |t: f32| self.density_in(c, s0 + ds * t);
+        let at = |t: f32| self.extinction_in(c, s0 + ds * t);
         half * (at(mid - half * GAUSS) + at(mid + half * GAUSS))
     }
 
-    /// ∫ density dt along `origin + t · dir` for `t0 <= t < t1` (in units
-    /// of `t`: times `|dir|` for world distance).
-    pub fn integral(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> f32 {
-        let mut sum = 0.0;
+    /// ∫ σt dt along `origin + t · dir` for `t0 <= t < t1`, per channel
+    /// (in units of `t`: times `|dir|` for the optical depth).
+    pub fn integral(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> Vec3 {
+        let mut sum = Vec3::ZERO;
         self.walk(origin, dir, t0, t1, |c, s0, ds, ta, tb| {
             sum += self.cell_integral(c, s0, ds, ta, tb);
             true
@@ -163,14 +216,23 @@ impl DensityGrid {
         sum
     }
 
-    /// The `t` in `t0..t1` where [`DensityGrid::integral`] from `t0`
-    /// reaches `target`, or `None` when the whole segment holds less.
-    pub fn invert(&self, origin: Vec3, dir: Vec3, t0: f32, t1: f32, target: f32) -> Option<f32> {
-        let mut sum = 0.0;
+    /// The `t` in `t0..t1` where channel `channel` of
+    /// [`DensityGrid::integral`] from `t0` reaches `target`, with the
+    /// whole integral up to it; `None` when the segment holds less.
+    pub fn invert(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        t0: f32,
+        t1: f32,
+        channel: usize,
+        target: f32,
+    ) -> Option<(f32, Vec3)> {
+        let mut sum = Vec3::ZERO;
         let mut found = None;
         self.walk(origin, dir, t0, t1, |c, s0, ds, ta, tb| {
             let here = self.cell_integral(c, s0, ds, ta, tb);
-            if sum + here < target {
+            if sum[channel] + here[channel] < target {
                 sum += here;
                 return true;
             }
@@ -178,13 +240,14 @@ impl DensityGrid {
             let (mut lo, mut hi) = (ta, tb);
             for _ in 0..30 {
                 let t = 0.5 * (lo + hi);
-                if sum + self.cell_integral(c, s0, ds, ta, t) < target {
+                if sum[channel] + self.cell_integral(c, s0, ds, ta, t)[channel] < target {
                     lo = t;
                 } else {
                     hi = t;
                 }
             }
-            found = Some(0.5 * (lo + hi));
+            let t = 0.5 * (lo + hi);
+            found = Some((t, sum + self.cell_integral(c, s0, ds, ta, t)));
             false
         });
         found
@@ -195,17 +258,57 @@ impl DensityGrid {
 mod tests {
     use super::*;
 
+    /// A `uniformgrid` of `values` with σa 0.25 and σs 0.75.
+    fn density_grid(resolution: [u32; 3], values: Vec<f32>, lo: Vec3, hi: Vec3, m: Affine3A) -> DensityGrid {
+        let field = |scale| GridField { scale: Vec3::splat(scale), source: FieldSource::Scalar(0) };
+        DensityGrid::new(&GridMedium {
+            resolution,
+            channels: 1,
+            values,
+            sigma_a: field(0.25),
+            sigma_s: field(0.75),
+            le: GridField::constant(Vec3::ZERO),
+            g: 0.0,
+            lo,
+            hi,
+            world_to_medium: m,
+        })
+    }
+
     fn grid() -> DensityGrid {
         // 3 × 2 × 2 samples with varied values over [-1, 2] × [0, 1] × [0, 2].
         let values = (0..12).map(|i| ((i * 7) % 5) as f32 * 0.5 + 0.25).collect();
         let m = Affine3A::from_rotation_y(0.3).inverse();
-        DensityGrid::new([3, 2, 2], values, Vec3::new(-1.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 2.0), m)
+        density_grid([3, 2, 2], values, Vec3::new(-1.0, 0.0, 0.0), Vec3::new(2.0, 1.0, 2.0), m)
+    }
+
+    /// An `rgbgrid` over the same box: σa per colour from the samples, σs
+    /// constant 0.5, so that each channel's integral differs.
+    fn rgb_grid() -> DensityGrid {
+        let values = (0..36).map(|i| ((i * 5) % 7) as f32 * 0.3).collect();
+        DensityGrid::new(&GridMedium {
+            resolution: [3, 2, 2],
+            channels: 3,
+            values,
+            sigma_a: GridField { scale: Vec3::splat(2.0), source: FieldSource::Rgb(0) },
+            sigma_s: GridField::constant(Vec3::splat(0.5)),
+            le: GridField::constant(Vec3::ZERO),
+            g: 0.0,
+            lo: Vec3::new(-1.0, 0.0, 0.0),
+            hi: Vec3::new(2.0, 1.0, 2.0),
+            world_to_medium: Affine3A::from_rotation_x(-0.2),
+        })
     }
 
     /// The walked integral equals fine midpoint quadrature of the lookups.
     #[test]
     fn integrals_match_fine_quadrature() {
-        let g = grid();
+        for g in [grid(), rgb_grid()] {
+            integrals_match_fine_quadrature_of(&g);
+        }
+    }
+
+    fn integrals_match_fine_quadrature_of(g: &DensityGrid) {
         for (o, d) in [
             (Vec3::new(-3.0, 0.4, 0.7), Vec3::new(1.0, 0.05, 0.1)),
             (Vec3::new(0.2, -1.0, 0.3), Vec3::new(0.1, 1.0, 0.35)),
@@ -215,33 +318,39 @@ mod tests {
             let (t0, t1) = (0.0, 6.0);
             let n = 200_000;
             let h = (t1 - t0) / n as f32;
-            let fine: f64 =
-                (0..n).map(|i| g.density(o + d * (t0 + (i as f32 + 0.5) * h)) as f64 * h as f64).sum();
+            let fine = (0..n)
+                .map(|i| g.extinction(o + d * (t0 + (i as f32 + 0.5) * h)).as_dvec3() * h as f64)
+                .sum::<glam::DVec3>();
             let exact = g.integral(o, d, t0, t1);
-            assert!(fine > 0.1, "the ray {o} {d} misses the grid");
-            assert!((exact as f64 - fine).abs() < 1e-3 * fine, "{exact} vs {fine} for {o} {d}");
-            // Inverting gives back the distance to half the depth.
-            let t = g.invert(o, d, t0, t1, exact * 0.5).unwrap();
-            assert!((g.integral(o, d, t0, t) - 0.5 * exact).abs() < 1e-4 * exact, "{t}");
-            assert_eq!(g.invert(o, d, t0, t1, exact * 1.01), None);
+            for k in 0..3 {
+                let (exact, fine) = (exact[k], fine[k]);
+                assert!(fine > 0.1, "the ray {o} {d} misses the grid");
+                assert!((exact as f64 - fine).abs() < 1e-3 * fine, "{exact} vs {fine} for {o} {d}");
+            }
+            // Inverting gives back the distance to half the depth, channel by channel.
+            for k in 0..3 {
+                let (t, at) = g.invert(o, d, t0, t1, k, exact[k] * 0.5).unwrap();
+                let to_t = g.integral(o, d, t0, t);
+                assert!((to_t[k] - 0.5 * exact[k]).abs() < 1e-4 * exact[k], "{t}");
+                assert!((to_t - at).abs().max_element() < 1e-4 * exact.max_element(), "{to_t} vs {at}");
+                assert_eq!(g.invert(o, d, t0, t1, k, exact[k] * 1.01), None);
+            }
         }
     }
 
     #[test]
     fn lookups_follow_pbrts_sample_placement() {
-        let g = DensityGrid::new(
-            [2, 1, 1],
-            vec![1.0, 3.0],
-            Vec3::ZERO,
-            Vec3::new(2.0, 1.0, 1.0),
-            Affine3A::IDENTITY,
-        );
+        let g =
+            density_grid([2, 1, 1], vec![1.0, 3.0], Vec3::ZERO, Vec3::new(2.0, 1.0, 1.0), Affine3A::IDENTITY);
         // Samples at x = 0.5 and 1.5; halfway between them, their mean;
         // towards the edges, a ramp down to the missing neighbours.
-        assert_eq!(g.density(Vec3::new(0.5, 0.5, 0.5)), 1.0);
-        assert_eq!(g.density(Vec3::new(1.0, 0.5, 0.5)), 2.0);
-        assert_eq!(g.density(Vec3::new(1.5, 0.5, 0.5)), 3.0);
-        assert_eq!(g.density(Vec3::new(1.75, 0.5, 0.5)), 2.25);
-        assert_eq!(g.density(Vec3::new(2.5, 0.5, 0.5)), 0.0);
+        let density = |x: f32| g.extinction(Vec3::new(x, 0.5, 0.5)).x;
+        assert_eq!(density(0.5), 1.0);
+        assert_eq!(density(1.0), 2.0);
+        assert_eq!(density(1.5), 3.0);
+        assert_eq!(density(1.75), 2.25);
+        assert_eq!(density(2.5), 0.0);
+        let p = g.point(Vec3::new(1.0, 0.5, 0.5));
+        assert_eq!((p.sigma_a, p.sigma_s), (Vec3::splat(0.5), Vec3::splat(1.5)));
     }
 }

@@ -1,9 +1,11 @@
 //! Participating media along path segments: where a segment scatters, what
 //! it weighs when it does not, what light the medium emits along it, and
-//! the optical depth shadow rays gather. A homogeneous medium has density
-//! 1 everywhere; a grid medium's density comes from its [`DensityGrid`],
-//! integrated exactly, so both sample distances by inverting the optical
-//! depth (no majorants, no null collisions).
+//! the optical depth shadow rays gather. A homogeneous medium's optical
+//! depth is its length times σt; a grid medium's comes from its
+//! [`DensityGrid`], integrated exactly, so both sample distances by
+//! inverting the optical depth (no majorants, no null collisions). A
+//! homogeneous medium's emission along a segment is integrated in closed
+//! form; a grid's is estimated where the segment scatters.
 //!
 //! Distances are sampled as in Cycles' and pbrt-v4's spectral MIS, over the
 //! three RGB channels: a channel is picked uniformly, a distance drawn from
@@ -16,7 +18,9 @@ use glam::Vec3;
 
 use crate::density_grid::DensityGrid;
 
-/// One medium's coefficients as shading reads them.
+/// One medium's coefficients as shading reads them: a homogeneous
+/// medium's, or the scales of a grid medium's fields (σt ≤ σa + σs times
+/// the largest sample).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MediumCoeffs {
     pub sigma_a: Vec3,
@@ -25,9 +29,18 @@ pub struct MediumCoeffs {
     pub g: f32,
     /// Emitted radiance per unit absorption.
     pub le: Vec3,
-    /// The density grid scaling σa and σs ([`MediumTable::grids`]), or
-    /// `None` for density 1 everywhere.
+    /// The grid the coefficients come from ([`MediumTable::grids`]), or
+    /// `None` for the same everywhere.
     pub grid: Option<u32>,
+}
+
+/// A segment through a medium: where it ends, and the radiance the medium
+/// emits along it towards its start (to be weighted by the throughput
+/// before the segment).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SegmentSample {
+    pub end: Segment,
+    pub emitted: Vec3,
 }
 
 /// Where a segment through a medium ends.
@@ -47,42 +60,19 @@ impl MediumCoeffs {
         self.sigma_a + self.sigma_s
     }
 
-    /// Samples where a segment scatters, from one uniform number `u`.
-    /// `total` is the segment's ∫ density ds (world units; its length
-    /// where the density is 1, infinite for a ray escaping an endless
-    /// medium); `reach(d)` is the distance along it where that integral
-    /// reaches `d`, `None` past its end.
-    pub fn sample_segment(&self, u: f32, total: f32, reach: impl FnOnce(f32) -> Option<f32>) -> Segment {
-        let sigma_t = self.sigma_t();
-        // The channel from the leading third of `u`, the distance from the rest.
-        let scaled = u * 3.0;
-        let channel = (scaled as usize).min(2);
-        let u = (scaled - channel as f32).clamp(0.0, 1.0 - f32::EPSILON);
-        // The ∫ density where the chosen channel's optical depth is -ln(1 - u).
-        let depth = if sigma_t[channel] > 0.0 {
-            crate::sampling::sample_exponential(u, sigma_t[channel])
-        } else {
-            f32::INFINITY
-        };
-        if depth < total {
-            if let Some(t) = reach(depth) {
-                // The density at t cancels between σs and the mixture's pdf.
-                let transmittance = (-sigma_t * depth).exp();
-                let density = (sigma_t * transmittance).dot(Vec3::splat(1.0 / 3.0));
-                let weight = if density > 0.0 { transmittance * self.sigma_s / density } else { Vec3::ZERO };
-                return Segment::Scatter { t, weight };
-            }
-        }
-        let transmittance = transmittance(sigma_t, total);
-        let passing = transmittance.dot(Vec3::splat(1.0 / 3.0));
-        let weight = if passing > 0.0 { transmittance / passing } else { Vec3::ZERO };
-        Segment::Pass { weight }
-    }
-
-    /// [`MediumCoeffs::sample_segment`] where the density is 1: the
-    /// segment is `length` long.
+    /// Samples where a segment of `length` scatters, from one uniform number `u`.
     pub fn sample_uniform_segment(&self, length: f32, u: f32) -> Segment {
-        self.sample_segment(u, length, |d| (d < length).then_some(d))
+        let sigma_t = self.sigma_t();
+        let (channel, target) = channel_and_depth(u);
+        let depth = if sigma_t[channel] > 0.0 { target / sigma_t[channel] } else { f32::INFINITY };
+        if depth < length {
+            // The same σt at every point: T σs / mix(σt T).
+            let transmittance = (-sigma_t * depth).exp();
+            let density = mean(sigma_t * transmittance);
+            let weight = if density > 0.0 { transmittance * self.sigma_s / density } else { Vec3::ZERO };
+            return Segment::Scatter { t: depth, weight };
+        }
+        pass(transmittance(sigma_t, length))
     }
 
     /// The radiance the medium emits towards a segment's start over
@@ -107,6 +97,27 @@ impl MediumCoeffs {
             per_channel(self.sigma_a.z, self.le.z, sigma_t.z),
         )
     }
+}
+
+/// The channel a uniform number `u` picks (its leading third) and the
+/// optical depth the rest of it reaches in that channel, `-ln(1 - u')`.
+fn channel_and_depth(u: f32) -> (usize, f32) {
+    let scaled = u * 3.0;
+    let channel = (scaled as usize).min(2);
+    let u = (scaled - channel as f32).clamp(0.0, 1.0 - f32::EPSILON);
+    (channel, crate::sampling::sample_exponential(u, 1.0))
+}
+
+/// The mean of the three channels: the mixture over the channel picked.
+fn mean(v: Vec3) -> f32 {
+    v.dot(Vec3::splat(1.0 / 3.0))
+}
+
+/// A segment passing with `transmittance`, weighted by the mixture's
+/// probability of passing.
+fn pass(transmittance: Vec3) -> Segment {
+    let passing = mean(transmittance);
+    Segment::Pass { weight: if passing > 0.0 { transmittance / passing } else { Vec3::ZERO } }
 }
 
 /// `exp(-σt · length)` per channel, 1 where σt is 0 even over an infinite length.
@@ -144,20 +155,21 @@ impl MediumTable {
     pub fn new(scene: &Scene) -> Self {
         let mut table = MediumTable { camera: scene.settings.camera_medium, ..Default::default() };
         for medium in &scene.media {
-            let (h, grid) = match medium {
-                Medium::Homogeneous(h) => (h, None),
-                Medium::Grid(g) => {
-                    table.grids.push(DensityGrid::new(
-                        g.resolution,
-                        g.density.clone(),
-                        g.lo,
-                        g.hi,
-                        g.world_to_medium,
-                    ));
-                    (&g.coefficients, Some(table.grids.len() as u32 - 1))
+            table.media.push(match medium {
+                Medium::Homogeneous(h) => {
+                    MediumCoeffs { sigma_a: h.sigma_a, sigma_s: h.sigma_s, g: h.g, le: h.le, grid: None }
                 }
-            };
-            table.media.push(MediumCoeffs { sigma_a: h.sigma_a, sigma_s: h.sigma_s, g: h.g, le: h.le, grid });
+                Medium::Grid(g) => {
+                    table.grids.push(DensityGrid::new(g));
+                    MediumCoeffs {
+                        sigma_a: g.sigma_a.scale,
+                        sigma_s: g.sigma_s.scale,
+                        g: g.g,
+                        le: g.le.scale,
+                        grid: Some(table.grids.len() as u32 - 1),
+                    }
+                }
+            });
         }
         if table.any() {
             let (lo, hi) = scene.world_bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
@@ -176,41 +188,60 @@ impl MediumTable {
         &self.media[(m as usize).min(self.media.len() - 1)]
     }
 
-    /// ∫ density ds in world units along `origin + t · dir`, `t0 <= t <
-    /// t1`, through medium `m` (the length, where the density is 1).
-    pub fn density_length(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> f32 {
+    /// The optical depth of medium `m` along `origin + t · dir`, `t0 <= t < t1`.
+    pub fn optical_depth(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> Vec3 {
+        let coeffs = self.get(m);
+        if coeffs.sigma_t() == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
         let scale = dir.length();
-        match self.get(m).grid {
-            None => (t1 - t0) * scale,
+        match coeffs.grid {
+            None => coeffs.sigma_t() * ((t1 - t0) * scale),
             Some(g) => self.grids[g as usize].integral(origin, dir, t0, t1) * scale,
         }
     }
 
-    /// The optical depth of medium `m` along `origin + t · dir`, `t0 <= t < t1`.
-    pub fn optical_depth(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t0: f32, t1: f32) -> Vec3 {
-        let sigma_t = self.get(m).sigma_t();
-        if sigma_t == Vec3::ZERO {
-            return Vec3::ZERO;
-        }
-        sigma_t * self.density_length(m, origin, dir, t0, t1)
-    }
-
     /// Where the segment `origin + t · dir`, `0 <= t < t_max`, through
-    /// medium `m` scatters, from one uniform number `u`; a scattering
-    /// distance is in world units.
-    pub fn sample_segment(&self, m: MediumIndex, origin: Vec3, dir: Vec3, t_max: f32, u: f32) -> Segment {
+    /// medium `m` scatters, from one uniform number `u`, and what the
+    /// medium emits along it; a scattering distance is in world units.
+    pub fn sample_segment(
+        &self,
+        m: MediumIndex,
+        origin: Vec3,
+        dir: Vec3,
+        t_max: f32,
+        u: f32,
+    ) -> SegmentSample {
         let coeffs = self.get(m);
         let scale = dir.length();
-        match coeffs.grid {
-            None => coeffs.sample_uniform_segment(t_max * scale, u),
-            Some(g) => {
-                let grid = &self.grids[g as usize];
-                let total = grid.integral(origin, dir, 0.0, t_max) * scale;
-                coeffs.sample_segment(u, total, |d| {
-                    grid.invert(origin, dir, 0.0, t_max, d / scale).map(|t| t * scale)
-                })
+        let Some(g) = coeffs.grid else {
+            let length = t_max * scale;
+            return SegmentSample {
+                end: coeffs.sample_uniform_segment(length, u),
+                emitted: coeffs.emission_over(length),
+            };
+        };
+        let grid = &self.grids[g as usize];
+        let (channel, target) = channel_and_depth(u);
+        // In units of t: the optical depth over |dir|.
+        let target = target / scale;
+        let total = grid.integral(origin, dir, 0.0, t_max);
+        if target < total[channel] {
+            if let Some((t, depth)) = grid.invert(origin, dir, 0.0, t_max, channel, target) {
+                // The mixture's density of stopping at t, and what the
+                // medium scatters and emits there.
+                let at = grid.point(origin + dir * t);
+                let transmittance = (-depth * scale).exp();
+                let density = mean((at.sigma_a + at.sigma_s) * transmittance);
+                let (weight, emitted) = if density > 0.0 {
+                    (transmittance * at.sigma_s / density, transmittance * at.emission / density)
+                } else {
+                    (Vec3::ZERO, Vec3::ZERO)
+                };
+                return SegmentSample { end: Segment::Scatter { t: t * scale, weight }, emitted };
             }
         }
+        SegmentSample { end: pass((-total * scale).exp()), emitted: Vec3::ZERO }
     }
 }
 
@@ -284,5 +315,87 @@ mod tests {
             (MediumCoeffs { le: Vec3::ONE, ..grey(0.5, 0.0) }.emission_over(f32::INFINITY).x - 1.0).abs()
                 < 1e-6
         );
+    }
+
+    /// Through an `rgbgrid` whose σa, σs and Le vary by colour and place,
+    /// the expected weights of passing and scattering, and the expected
+    /// emission, equal the transmittance, ∫ T σs dt and ∫ T σa Le dt by
+    /// fine quadrature, channel by channel.
+    #[test]
+    fn grid_segments_and_emission_are_unbiased_per_channel() {
+        use atoll_scene::{FieldSource, GridField, GridMedium};
+        let values: Vec<f32> = (0..3 * 2 * 2 * 9).map(|i| ((i * 7) % 11) as f32 * 0.15).collect();
+        let medium = GridMedium {
+            resolution: [3, 2, 2],
+            channels: 9,
+            values,
+            sigma_a: GridField { scale: Vec3::splat(1.5), source: FieldSource::Rgb(0) },
+            sigma_s: GridField { scale: Vec3::splat(1.5), source: FieldSource::Rgb(3) },
+            le: GridField { scale: Vec3::splat(2.0), source: FieldSource::Rgb(6) },
+            g: 0.0,
+            lo: Vec3::new(-1.0, -0.5, -0.5),
+            hi: Vec3::new(1.0, 0.5, 0.5),
+            world_to_medium: glam::Affine3A::IDENTITY,
+        };
+        let table = MediumTable {
+            media: vec![MediumCoeffs::default(), {
+                let mut c = MediumCoeffs {
+                    sigma_a: Vec3::splat(1.5),
+                    sigma_s: Vec3::splat(1.5),
+                    ..Default::default()
+                };
+                c.le = Vec3::splat(2.0);
+                c.grid = Some(0);
+                c
+            }],
+            grids: vec![DensityGrid::new(&medium)],
+            ..Default::default()
+        };
+        let grid = &table.grids[0];
+        let (origin, dir, t_max) = (Vec3::new(-1.5, 0.1, -0.2), Vec3::new(2.0, 0.05, 0.2), 1.4);
+        // Fine quadrature of the three integrals (in world units: |dir| per t).
+        let steps = 50_000;
+        let h = t_max / steps as f32;
+        let speed = dir.length();
+        let (mut depth, mut scattered, mut emitted) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        for i in 0..steps {
+            let p = origin + dir * ((i as f32 + 0.5) * h);
+            let at = grid.point(p);
+            let sigma_t = at.sigma_a + at.sigma_s;
+            let step = h * speed;
+            let t = (-(depth + sigma_t * (0.5 * step))).exp();
+            scattered += t * at.sigma_s * step;
+            emitted += t * at.emission * step;
+            depth += sigma_t * step;
+        }
+        let passing = (-depth).exp();
+        assert!(depth.min_element() > 0.3, "the segment misses the grid: {depth}");
+        let n = 200_000;
+        let (mut pass_sum, mut scatter_sum, mut emission_sum) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+        for i in 0..n {
+            let s = table.sample_segment(1, origin, dir, t_max, (i as f32 + 0.5) / n as f32);
+            emission_sum += s.emitted;
+            match s.end {
+                Segment::Pass { weight } => pass_sum += weight,
+                Segment::Scatter { t, weight } => {
+                    assert!(t > 0.0 && t < t_max * speed);
+                    scatter_sum += weight;
+                }
+            }
+        }
+        let n = n as f32;
+        for (what, got, want) in [
+            ("passing", pass_sum / n, passing),
+            ("scattering", scatter_sum / n, scattered),
+            ("emission", emission_sum / n, emitted),
+        ] {
+            assert!(
+                (got - want).abs().max_element() < 3e-3 * want.max_element().max(1.0),
+                "{what}: {got} vs {want}"
+            );
+        }
+        // Shadow rays see the same depth.
+        let shadow = table.optical_depth(1, origin, dir, 0.0, t_max);
+        assert!((shadow - depth).abs().max_element() < 1e-3 * depth.max_element(), "{shadow} vs {depth}");
     }
 }

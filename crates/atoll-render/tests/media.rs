@@ -150,6 +150,65 @@ fn a_grid_slab_dims_sunlight_by_its_integral() {
     }
 }
 
+/// An `rgbgrid` in the same slab: σa from RGB samples (falling to half at
+/// the faces, as the density grid's), σs left out, so 1 everywhere in the
+/// box (pbrt's default), both times `scale`.
+#[test]
+fn an_rgb_grid_slab_dims_sunlight_by_its_integral() {
+    let clear = render(&sunlit_ground(None));
+    let samples = vec!["0.4 1 2"; 2 * 4 * 2].join("  ");
+    let grid = format!(
+        r#""string type" "rgbgrid" "integer nx" 2 "integer ny" 4 "integer nz" 2 "point3 p0" [ -20 1 -20 ] "point3 p1" [ 20 1.5 20 ] "rgb sigma_a" [ {samples} ] "float scale" 2"#
+    );
+    let dimmed = render(&sunlit_ground(Some(&grid)));
+    let expected = (-(Vec3::new(0.4, 1.0, 2.0) * (0.5 - 0.125 / 4.0) + Vec3::splat(0.5)) * 2.0).exp();
+    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
+        let ratio = d / c;
+        assert!(
+            (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
+            "{ratio} vs {expected}"
+        );
+    }
+}
+
+/// A glowing slab of grid medium that only absorbs, over black ground,
+/// seen from straight above (rays within half a degree of the vertical): each ray gathers ∫ T σa Le dt = Le (1 −
+/// e^(−τ)) whatever the density's profile (here the faces' ramps),
+/// estimated where the ray stops in the medium.
+#[test]
+fn a_glowing_grid_slab_shows_its_emission() {
+    let ones = vec!["1"; 2 * 4 * 2].join(" ");
+    let scene = load(&format!(
+        r#"
+LookAt 0 3 0  0 0 0  0 0 1
+Camera "perspective" "float fov" [ 1 ]
+Sampler "independent" "integer pixelsamples" [ 256 ]
+Integrator "volpath" "integer maxdepth" [ 5 ]
+Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
+WorldBegin
+MakeNamedMedium "glow" "string type" "uniformgrid" "rgb sigma_a" [ 1 2 4 ] "rgb sigma_s" [ 0 0 0 ] "rgb Le" [ 3 2 1 ]
+  "integer nx" 2 "integer ny" 4 "integer nz" 2 "point3 p0" [ -20 1 -20 ] "point3 p1" [ 20 1.5 20 ] "float density" [ {ones} ]
+Material "diffuse" "rgb reflectance" [ 0 0 0 ]
+Shape "trianglemesh" "point3 P" [ -20 0 -20  20 0 -20  20 0 20  -20 0 20 ] "integer indices" [ 0 2 1 0 3 2 ]
+AttributeBegin
+Material "interface"
+MediumInterface "glow" ""
+{}
+AttributeEnd
+"#,
+        box_mesh(Vec3::new(-20.0, 1.0, -20.0), Vec3::new(20.0, 1.5, 20.0))
+    ));
+    let film = render(&scene);
+    let depth = Vec3::new(1.0, 2.0, 4.0) * (0.5 - 0.125 / 4.0);
+    let expected = Vec3::new(3.0, 2.0, 1.0) * (Vec3::ONE - (-depth).exp());
+    for c in 0..3 {
+        let (mean, err) = mean_and_stderr(film.pixels().iter().map(|p| p[c]));
+        eprintln!("channel {c}: mean {mean} ± {err}, expected {}", expected[c]);
+        let want = expected[c] as f64;
+        assert!((mean - want).abs() < 4.0 * err + 2e-3, "channel {c}: {mean} ± {err} vs {want}");
+    }
+}
+
 /// `world` (after `WorldBegin`) in a uniform sky of radiance 1, seen from
 /// 4 units away at 16×16 pixels, 64 samples, paths up to 200 vertices.
 fn under_a_uniform_sky(world: &str) -> Film {
@@ -222,6 +281,32 @@ AttributeEnd
         box_mesh(Vec3::new(-0.8, -0.7, -0.6), Vec3::new(0.8, 0.7, 0.6))
     ));
     assert_invisible("smoke", &film);
+}
+
+/// An `rgbgrid` that scatters without absorbing, each colour with its own
+/// density pattern (so the channels' optical depths differ from point to
+/// point): invisible in a uniform sky, as the density grid's smoke.
+#[test]
+fn a_white_rgb_grid_vanishes_in_a_uniform_sky() {
+    let sigma_s: Vec<String> = (0..4 * 3 * 3)
+        .map(|i| format!("{} {} {}", i % 4, ((i * 5) % 7) as f32 * 0.4, (i * 3 % 5) as f32 * 0.7))
+        .collect();
+    let film = under_a_uniform_sky(&format!(
+        r#"
+AttributeBegin
+Rotate -20 1 0.4 0
+MakeNamedMedium "tinted" "string type" "rgbgrid" "rgb sigma_a" [ {} ] "rgb sigma_s" [ {} ] "float scale" 1.5
+  "integer nx" 4 "integer ny" 3 "integer nz" 3 "point3 p0" [ -0.8 -0.7 -0.6 ] "point3 p1" [ 0.8 0.7 0.6 ]
+Material "interface"
+MediumInterface "tinted" ""
+{}
+AttributeEnd
+"#,
+        vec!["0 0 0"; 36].join("  "),
+        sigma_s.join("  "),
+        box_mesh(Vec3::new(-0.8, -0.7, -0.6), Vec3::new(0.8, 0.7, 0.6))
+    ));
+    assert_invisible("rgb grid", &film);
 }
 
 /// A camera inside an endless emitting fog (pbrt's camera medium) sees

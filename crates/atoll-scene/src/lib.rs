@@ -42,7 +42,10 @@ pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, PrincipledParams,
 };
-pub use medium::{GridMedium, HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA, VACUUM};
+pub use medium::{
+    FieldSource, GridField, GridMedium, HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA,
+    VACUUM,
+};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{

@@ -9,22 +9,35 @@ use crate::Rgb;
 pub enum Medium {
     /// pbrt-v4's `homogeneous`: the same coefficients everywhere.
     Homogeneous(HomogeneousMedium),
-    /// pbrt-v4's `uniformgrid`: the coefficients scaled by a density grid.
+    /// pbrt-v4's `uniformgrid` and `rgbgrid`: coefficients interpolated
+    /// from voxel samples.
     Grid(GridMedium),
 }
 
-/// A medium whose cross sections are `coefficients`' times a density
-/// interpolated trilinearly from voxel samples (pbrt-v4's `SampledGrid`):
-/// sample `(x, y, z)` sits at the centre of its voxel of the box `lo`..`hi`
-/// in the medium's space, and the density is 0 outside the box.
+/// A medium whose coefficients come from samples on a voxel grid,
+/// interpolated trilinearly (pbrt-v4's `SampledGrid`): sample `(x, y, z)`
+/// sits at the centre of its voxel of the box `lo`..`hi` in the medium's
+/// space, missing neighbours count as 0, and outside the box there is no
+/// medium. A `uniformgrid` has one channel, the density scaling σa and σs
+/// (and a second for `Lescale` where that is a grid); an `rgbgrid` has an
+/// RGB triple per sample for each of σa, σs and Le it gives.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GridMedium {
-    /// σa and σs at density 1 (pbrt's `scale` applied), `g`; no emission.
-    pub coefficients: HomogeneousMedium,
     /// Samples per axis.
     pub resolution: [u32; 3],
-    /// The samples, x fastest, then y, then z.
-    pub density: Vec<f32>,
+    /// Values per sample.
+    pub channels: u32,
+    /// `channels` values per sample; samples x fastest, then y, then z.
+    pub values: Vec<f32>,
+    /// Absorption σa at each point.
+    pub sigma_a: GridField,
+    /// Scattering σs at each point.
+    pub sigma_s: GridField,
+    /// Emitted radiance per unit absorption at each point: the medium adds
+    /// σa · Le per unit length.
+    pub le: GridField,
+    /// Henyey–Greenstein asymmetry of the phase function, in (-1, 1).
+    pub g: f32,
     /// The grid's box in the medium's space (pbrt's `p0`, `p1`).
     pub lo: glam::Vec3,
     pub hi: glam::Vec3,
@@ -33,12 +46,38 @@ pub struct GridMedium {
     pub world_to_medium: glam::Affine3A,
 }
 
+/// One coefficient of a [`GridMedium`] at each point inside its box:
+/// `scale` times what `source` interpolates there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridField {
+    pub scale: Rgb,
+    pub source: FieldSource,
+}
+
+/// Where a [`GridField`] comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FieldSource {
+    /// 1 everywhere in the box.
+    Constant,
+    /// Channel `k` of the samples, the same for red, green and blue.
+    Scalar(u32),
+    /// Channels `k`, `k + 1`, `k + 2`: red, green, blue.
+    Rgb(u32),
+}
+
+impl GridField {
+    /// `scale` everywhere in the box.
+    pub fn constant(scale: Rgb) -> Self {
+        GridField { scale, source: FieldSource::Constant }
+    }
+}
+
 impl Medium {
     /// Bytes of its data (a grid's samples).
     pub fn bytes(&self) -> u64 {
         match self {
             Medium::Homogeneous(_) => std::mem::size_of::<HomogeneousMedium>() as u64,
-            Medium::Grid(g) => (g.density.len() * std::mem::size_of::<f32>()) as u64,
+            Medium::Grid(g) => (g.values.len() * std::mem::size_of::<f32>()) as u64,
         }
     }
 }

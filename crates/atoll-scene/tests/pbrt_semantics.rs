@@ -828,14 +828,17 @@ fn media_and_their_interfaces() {
 }
 
 /// pbrt-v4's `uniformgrid`: its samples and box, placed by the transform
-/// where it is defined; a wrong sample count is an error; emission is
-/// warned about.
+/// where it is defined, the density scaling σa and σs, `Le` constant or
+/// times an `Lescale` grid; wrong sample counts are errors; a
+/// `temperature` grid is warned about.
 #[test]
 fn grid_media_read_their_samples() {
-    use atoll_scene::Medium;
+    use atoll_scene::{FieldSource, GridField, Medium};
     let loaded = atoll_scene::pbrt::load_str(
         "WorldBegin\nTranslate 1 2 3\n\
-         MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"integer nz\" 3 \"float density\" [1 2 3 4 5 6] \"point3 p1\" [2 1 3] \"float scale\" 0.5 \"rgb Le\" [1 1 1]\n",
+         MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"integer nz\" 3 \"float density\" [1 2 3 4 5 6] \"point3 p1\" [2 1 3] \"float scale\" 0.5 \"rgb Le\" [1 2 3]\n\
+         MakeNamedMedium \"fire\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 2] \"float Lescale\" [0.5 4] \"rgb Le\" [1 1 1]\n\
+         MakeNamedMedium \"hot\" \"string type\" \"uniformgrid\" \"float density\" [1] \"float temperature\" [1500]\n",
         "g.pbrt",
         std::path::Path::new("."),
     )
@@ -843,25 +846,85 @@ fn grid_media_read_their_samples() {
     let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(
         w,
-        ["g.pbrt:3:1: MakeNamedMedium \"smoke\": \"Le\" is not supported: the grid emits no light"]
+        ["g.pbrt:5:1: MakeNamedMedium \"hot\": \"temperature\" is not supported: the grid's blackbody emission is missing"]
     );
     let Medium::Grid(g) = &loaded.scene.media[0] else { panic!("{:?}", loaded.scene.media) };
     assert_eq!(
-        (g.resolution, g.density.len(), g.lo, g.hi),
-        ([2, 1, 3], 6, Vec3::ZERO, Vec3::new(2.0, 1.0, 3.0))
+        (g.resolution, g.channels, g.values.len(), g.lo, g.hi),
+        ([2, 1, 3], 1, 6, Vec3::ZERO, Vec3::new(2.0, 1.0, 3.0))
     );
-    assert_eq!(g.coefficients.sigma_s, Vec3::splat(0.5));
+    assert_eq!(g.sigma_s, GridField { scale: Vec3::splat(0.5), source: FieldSource::Scalar(0) });
+    assert_eq!(g.le, GridField::constant(Vec3::new(1.0, 2.0, 3.0)));
     assert_eq!(g.world_to_medium.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::ZERO);
-    let e = atoll_scene::pbrt::load_str(
-        "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1]\n",
-        "e.pbrt",
+    let Medium::Grid(fire) = &loaded.scene.media[1] else { panic!() };
+    // Density and Lescale side by side, sample by sample.
+    assert_eq!((fire.channels, &fire.values[..]), (2, &[1.0, 0.5, 2.0, 4.0][..]));
+    assert_eq!(fire.le, GridField { scale: Vec3::ONE, source: FieldSource::Scalar(1) });
+    for (text, error) in [
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": \"density\" has 1 values for 2x1x1 samples",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] \"rgb Le\" [1 1 1] \"float Lescale\" 2\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": \"Lescale\" has 1 values for 2x1x1 samples",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [-1]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": \"density\" value -1 must be finite and not negative",
+        ),
+    ] {
+        let e = atoll_scene::pbrt::load_str(text, "e.pbrt", std::path::Path::new(".")).unwrap_err();
+        assert_eq!(e.to_string(), error);
+    }
+}
+
+/// pbrt-v4's `rgbgrid`: σa, σs and Le as RGB samples (a missing σa or σs
+/// is 1), `scale` on both cross sections, `Lescale` on the emission; it
+/// needs σa or σs, and σa where it has Le.
+#[test]
+fn rgb_grid_media_read_their_samples() {
+    use atoll_scene::{FieldSource, GridField, Medium};
+    let loaded = atoll_scene::pbrt::load_str(
+        "WorldBegin\n\
+         MakeNamedMedium \"a\" \"string type\" \"rgbgrid\" \"integer nx\" 2 \"rgb sigma_s\" [1 2 3 4 5 6] \"float scale\" 2\n\
+         MakeNamedMedium \"b\" \"string type\" \"rgbgrid\" \"integer ny\" 2 \"rgb sigma_a\" [1 1 1 2 2 2] \"rgb Le\" [0 1 0 0 0 1] \"float Lescale\" 3 \"float g\" 0.5\n",
+        "g.pbrt",
         std::path::Path::new("."),
     )
-    .unwrap_err();
+    .unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let Medium::Grid(a) = &loaded.scene.media[0] else { panic!() };
     assert_eq!(
-        e.to_string(),
-        "e.pbrt:2:1: MakeNamedMedium \"m\": \"density\" has 1 values for 2x1x1 samples"
+        (a.resolution, a.channels, &a.values[..]),
+        ([2, 1, 1], 3, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0][..])
     );
+    assert_eq!(a.sigma_a, GridField::constant(Vec3::splat(2.0)));
+    assert_eq!(a.sigma_s, GridField { scale: Vec3::splat(2.0), source: FieldSource::Rgb(0) });
+    assert_eq!(a.le, GridField::constant(Vec3::ZERO));
+    let Medium::Grid(b) = &loaded.scene.media[1] else { panic!() };
+    assert_eq!((b.channels, b.values.len(), b.g), (6, 12, 0.5));
+    assert_eq!(&b.values[..6], &[1.0, 1.0, 1.0, 0.0, 1.0, 0.0]);
+    assert_eq!(b.sigma_a, GridField { scale: Vec3::ONE, source: FieldSource::Rgb(0) });
+    assert_eq!(b.sigma_s, GridField::constant(Vec3::ONE));
+    assert_eq!(b.le, GridField { scale: Vec3::splat(3.0), source: FieldSource::Rgb(3) });
+    for (text, error) in [
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"rgbgrid\"\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": an rgbgrid needs \"sigma_a\" or \"sigma_s\" values",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"rgbgrid\" \"rgb sigma_s\" [1 1 1] \"rgb Le\" [1 1 1]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": an rgbgrid with \"Le\" values needs \"sigma_a\" values",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"rgbgrid\" \"integer nx\" 2 \"rgb sigma_s\" [1 1 1]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": \"sigma_s\" has 1 RGB values for 2x1x1 samples",
+        ),
+    ] {
+        let e = atoll_scene::pbrt::load_str(text, "e.pbrt", std::path::Path::new(".")).unwrap_err();
+        assert_eq!(e.to_string(), error);
+    }
 }
 
 /// pbrt-v4's `path` integrator skips media boundaries and sees no media

@@ -152,10 +152,11 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     if medium != atoll_scene::VACUUM {
         let m = ctx.media.get(medium);
         let t_max = if r.has(flags::HIT) { r.t_max } else { f32::INFINITY };
-        out.emitted += beta * m.emission_over(t_max * dir.length());
         let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
         let u = rng.medium_distance(r.depth as u32, r.origin);
-        match ctx.media.sample_segment(medium, r.origin(), dir, t_max, u) {
+        let segment = ctx.media.sample_segment(medium, r.origin(), dir, t_max, u);
+        out.emitted += beta * segment.emitted;
+        match segment.end {
             Segment::Scatter { t, weight } => {
                 let p = r.origin() + dir.normalize() * t;
                 return scatter_in_medium(ctx, r, m, p, beta * weight, max_depth, out);

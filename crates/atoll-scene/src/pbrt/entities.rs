@@ -667,14 +667,13 @@ pub fn light(
     }))
 }
 
-/// `MakeNamedMedium`, following pbrt-v4's `HomogeneousMedium::Create` and
-/// `GridMedium::Create`: `sigma_a` and `sigma_s` default to 1, both scaled
-/// by `scale`; `g` 0; a homogeneous medium's `Le` (0) scaled by `Lescale`.
-/// A `uniformgrid` scales them by its `density` samples (`nx` × `ny` ×
-/// `nz`, default 1 each) over the box `p0`..`p1` (default the unit cube)
-/// of the space `ctm` places it in. `None`, after a warning, for the types
-/// atoll does not render (RGB grids, clouds, NanoVDB): the medium is a
-/// vacuum.
+/// `MakeNamedMedium`, following pbrt-v4's `HomogeneousMedium::Create`,
+/// `GridMedium::Create` and `RGBGridMedium::Create`: `sigma_a` and
+/// `sigma_s` default to 1, both scaled by `scale`; `g` 0; a homogeneous
+/// medium's `Le` (0) scaled by `Lescale`. A `uniformgrid` scales them by
+/// its `density` samples, an `rgbgrid` takes them from its RGB samples
+/// (see [`grid_medium`]). `None`, after a warning, for the types atoll
+/// does not render (clouds, NanoVDB): the medium is a vacuum.
 pub fn medium(
     name: &str,
     p: &ParamList,
@@ -684,11 +683,25 @@ pub fn medium(
 ) -> Result<Option<crate::Medium>, SceneError> {
     let what = format!("MakeNamedMedium \"{name}\"");
     let ty = p.string("type")?.unwrap_or_default();
-    if ty != "homogeneous" && ty != "uniformgrid" {
+    if !["homogeneous", "uniformgrid", "rgbgrid"].contains(&ty.as_str()) {
         p.mark_all_used();
         let ty = if ty.is_empty() { "(no type)".to_string() } else { format!("\"{ty}\"") };
         w.warn(loc, format!("{what}: medium type {ty} is not supported; it is a vacuum: the image lacks its fog, smoke or scattering"));
         return Ok(None);
+    }
+    let scale = p.float_or("scale", 1.0)?;
+    if !(scale >= 0.0 && scale.is_finite()) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: \"scale\" {scale} must be finite and not negative"),
+        ));
+    }
+    let g = p.float_or("g", 0.0)?;
+    if !(g > -1.0 && g < 1.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
+    }
+    if ty == "rgbgrid" {
+        return rgb_grid_medium(&what, p, scale, g, ctm, loc).map(|g| Some(crate::Medium::Grid(g)));
     }
     let mut m = crate::HomogeneousMedium::pbrt_default();
     if let Some(preset) = p.string("preset")? {
@@ -700,46 +713,22 @@ pub fn medium(
     let coefficient = |name: &str, default: Rgb, w: &mut WarningSink| -> Result<Rgb, SceneError> {
         Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, &what, loc, w)).unwrap_or(default))
     };
-    let scale = p.float_or("scale", 1.0)?;
-    if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(SceneError::at(
-            loc,
-            format!("{what}: \"scale\" {scale} must be finite and not negative"),
-        ));
-    }
     m.sigma_a = coefficient("sigma_a", m.sigma_a, w)? * scale;
     m.sigma_s = coefficient("sigma_s", m.sigma_s, w)? * scale;
-    let g = p.float_or("g", 0.0)?;
-    if !(g > -1.0 && g < 1.0) {
-        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
-    }
     m.g = g;
+    let le = match p.spectrum("Le", false)? {
+        Some(le) => light_rgb(le, &what, loc, w)?,
+        None => Rgb::ZERO,
+    };
     if ty == "uniformgrid" {
-        return grid_medium(&what, p, m, ctm, loc, w).map(|g| Some(crate::Medium::Grid(g)));
+        return density_grid_medium(&what, p, m, le, ctm, loc, w).map(|g| Some(crate::Medium::Grid(g)));
     }
-    if let Some(le) = p.spectrum("Le", false)? {
-        m.le = light_rgb(le, &what, loc, w)? * p.float_or("Lescale", 1.0)?.max(0.0);
-    }
+    m.le = le * p.float_or("Lescale", 1.0)?.max(0.0);
     Ok(Some(crate::Medium::Homogeneous(m)))
 }
 
-/// The density grid of a `uniformgrid` medium with `coefficients`.
-fn grid_medium(
-    what: &str,
-    p: &ParamList,
-    coefficients: crate::HomogeneousMedium,
-    ctm: &DMat4,
-    loc: &FileLoc,
-    w: &mut WarningSink,
-) -> Result<crate::GridMedium, SceneError> {
-    for emitting in ["Le", "Lescale", "temperature", "temperaturecutoff", "temperaturescale"] {
-        if p.find(emitting, &[ParamType::Float, ParamType::Spectrum, ParamType::Rgb, ParamType::Blackbody])
-            .is_some()
-        {
-            w.warn(loc, format!("{what}: \"{emitting}\" is not supported: the grid emits no light"));
-        }
-    }
-    p.mark_all_used();
+/// The samples per axis of a grid medium (`nx`, `ny`, `nz`, 1 each by default).
+fn grid_resolution(what: &str, p: &ParamList, loc: &FileLoc) -> Result<[u32; 3], SceneError> {
     let count = |axis: &str| -> Result<u32, SceneError> {
         match p.int(axis)? {
             None => Ok(1),
@@ -747,28 +736,51 @@ fn grid_medium(
             Some(n) => Err(SceneError::at(loc, format!("{what}: \"{axis}\" {n} must be from 1 to 65536"))),
         }
     };
-    let resolution = [count("nx")?, count("ny")?, count("nz")?];
-    let samples: u64 = resolution.iter().map(|&n| n as u64).product();
-    let density: Vec<f32> =
-        p.numbers("density", ParamType::Float).unwrap_or(&[]).iter().map(|&v| v as f32).collect();
-    if density.len() as u64 != samples {
+    Ok([count("nx")?, count("ny")?, count("nz")?])
+}
+
+/// The values of grid parameter `name` (`per_sample` numbers for each of
+/// the `resolution`'s samples), checked finite and not negative; `None`
+/// where it is not given.
+fn grid_values(
+    what: &str,
+    p: &ParamList,
+    name: &str,
+    ty: ParamType,
+    per_sample: usize,
+    resolution: [u32; 3],
+    loc: &FileLoc,
+) -> Result<Option<Vec<f32>>, SceneError> {
+    let Some(numbers) = p.numbers(name, ty) else { return Ok(None) };
+    let samples = resolution.iter().map(|&n| n as usize).product::<usize>();
+    if numbers.len() != samples * per_sample {
+        let [nx, ny, nz] = resolution;
+        let unit = if per_sample == 3 { " RGB" } else { "" };
         return Err(SceneError::at(
             loc,
             format!(
-                "{what}: \"density\" has {} values for {}x{}x{} samples",
-                density.len(),
-                resolution[0],
-                resolution[1],
-                resolution[2]
+                "{what}: \"{name}\" has {}{unit} values for {nx}x{ny}x{nz} samples",
+                numbers.len() / per_sample
             ),
         ));
     }
-    if let Some(v) = density.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
+    if let Some(v) = numbers.iter().find(|v| !(v.is_finite() && **v >= 0.0)) {
         return Err(SceneError::at(
             loc,
-            format!("{what}: \"density\" value {v} must be finite and not negative"),
+            format!("{what}: \"{name}\" value {v} must be finite and not negative"),
         ));
     }
+    Ok(Some(numbers.iter().map(|&v| v as f32).collect()))
+}
+
+/// A grid medium's box (`p0`, `p1`, the unit cube by default) and the
+/// world-to-medium transform of the space `ctm` places it in.
+fn grid_placement(
+    what: &str,
+    p: &ParamList,
+    ctm: &DMat4,
+    loc: &FileLoc,
+) -> Result<(Vec3, Vec3, glam::Affine3A), SceneError> {
     let lo = p.point3("p0")?.unwrap_or(Vec3::ZERO);
     let hi = p.point3("p1")?.unwrap_or(Vec3::ONE);
     if !(lo.cmplt(hi).all()) {
@@ -778,6 +790,133 @@ fn grid_medium(
     if det == 0.0 || !det.is_finite() {
         return Err(SceneError::at(loc, format!("{what}: the current transform is not invertible")));
     }
-    let world_to_medium = glam::Affine3A::from_mat4(transform::to_f32(&ctm.inverse()));
-    Ok(crate::GridMedium { coefficients, resolution, density, lo, hi, world_to_medium })
+    Ok((lo, hi, glam::Affine3A::from_mat4(transform::to_f32(&ctm.inverse()))))
+}
+
+/// The grid medium over `resolution` samples with `values` (each a whole
+/// grid: one or more numbers per sample) and `fields` reading them.
+#[allow(clippy::too_many_arguments)]
+fn grid_medium(
+    what: &str,
+    p: &ParamList,
+    resolution: [u32; 3],
+    values: &[Vec<f32>],
+    [sigma_a, sigma_s, le]: [crate::GridField; 3],
+    g: f32,
+    ctm: &DMat4,
+    loc: &FileLoc,
+) -> Result<crate::GridMedium, SceneError> {
+    let (lo, hi, world_to_medium) = grid_placement(what, p, ctm, loc)?;
+    // Interleave: each sample's values together, as lookups read them.
+    let samples = resolution.iter().map(|&n| n as usize).product::<usize>();
+    let channels: usize = values.iter().map(|v| v.len() / samples).sum();
+    let mut interleaved = Vec::with_capacity(samples * channels);
+    for i in 0..samples {
+        for v in values {
+            let per = v.len() / samples;
+            interleaved.extend_from_slice(&v[i * per..(i + 1) * per]);
+        }
+    }
+    Ok(crate::GridMedium {
+        resolution,
+        channels: channels as u32,
+        values: interleaved,
+        sigma_a,
+        sigma_s,
+        le,
+        g,
+        lo,
+        hi,
+        world_to_medium,
+    })
+}
+
+/// A `uniformgrid`: `coefficients`' σa and σs times the `density` samples,
+/// emitting `le` (pbrt's `Le`, 0 by default) times `Lescale`, a grid of
+/// its own where given (pbrt reads it as one value per sample), else 1.
+/// The `temperature` grid's blackbody emission is not rendered: warned.
+fn density_grid_medium(
+    what: &str,
+    p: &ParamList,
+    coefficients: crate::HomogeneousMedium,
+    le: Rgb,
+    ctm: &DMat4,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<crate::GridMedium, SceneError> {
+    use crate::{FieldSource, GridField};
+    for emitting in ["temperature", "temperatureoffset", "temperaturecutoff", "temperaturescale"] {
+        if p.find(emitting, &[ParamType::Float]).is_some() {
+            w.warn(
+                loc,
+                format!("{what}: \"{emitting}\" is not supported: the grid's blackbody emission is missing"),
+            );
+        }
+    }
+    p.mark_all_used();
+    let resolution = grid_resolution(what, p, loc)?;
+    let [nx, ny, nz] = resolution;
+    let density =
+        grid_values(what, p, "density", ParamType::Float, 1, resolution, loc)?.ok_or_else(|| {
+            SceneError::at(loc, format!("{what}: \"density\" has 0 values for {nx}x{ny}x{nz} samples"))
+        })?;
+    let le_scale = grid_values(what, p, "Lescale", ParamType::Float, 1, resolution, loc)?;
+    let le_field = match (&le_scale, le == Rgb::ZERO) {
+        (_, true) => GridField::constant(Rgb::ZERO),
+        (Some(_), false) => GridField { scale: le, source: FieldSource::Scalar(1) },
+        (None, false) => GridField::constant(le),
+    };
+    let density_field = |scale| GridField { scale, source: FieldSource::Scalar(0) };
+    let fields = [density_field(coefficients.sigma_a), density_field(coefficients.sigma_s), le_field];
+    let values: Vec<Vec<f32>> = match le_scale {
+        Some(s) if le != Rgb::ZERO => vec![density, s],
+        _ => vec![density],
+    };
+    grid_medium(what, p, resolution, &values, fields, coefficients.g, ctm, loc)
+}
+
+/// An `rgbgrid`: σa and σs from the RGB samples `sigma_a` and `sigma_s`
+/// (at least one given; a missing one is 1), both times `scale`, and the
+/// emission from the RGB samples `Le` (which need `sigma_a`) times
+/// `Lescale`.
+fn rgb_grid_medium(
+    what: &str,
+    p: &ParamList,
+    scale: f32,
+    g: f32,
+    ctm: &DMat4,
+    loc: &FileLoc,
+) -> Result<crate::GridMedium, SceneError> {
+    use crate::{FieldSource, GridField};
+    p.mark_all_used();
+    let resolution = grid_resolution(what, p, loc)?;
+    let rgb = |name| grid_values(what, p, name, ParamType::Rgb, 3, resolution, loc);
+    let (sigma_a, sigma_s, le) = (rgb("sigma_a")?, rgb("sigma_s")?, rgb("Le")?);
+    if sigma_a.is_none() && sigma_s.is_none() {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: an rgbgrid needs \"sigma_a\" or \"sigma_s\" values"),
+        ));
+    }
+    if le.is_some() && sigma_a.is_none() {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: an rgbgrid with \"Le\" values needs \"sigma_a\" values"),
+        ));
+    }
+    let le_scale = p.float_or("Lescale", 1.0)?.max(0.0);
+    let mut values = Vec::new();
+    let mut field = |samples: Option<Vec<f32>>, scale: Rgb, otherwise: Rgb| match samples {
+        Some(v) => {
+            values.push(v);
+            GridField { scale, source: FieldSource::Rgb(3 * (values.len() as u32 - 1)) }
+        }
+        None => GridField::constant(otherwise),
+    };
+    let fields = [
+        field(sigma_a, Rgb::splat(scale), Rgb::splat(scale)),
+        field(sigma_s, Rgb::splat(scale), Rgb::splat(scale)),
+        field(le, Rgb::splat(le_scale), Rgb::ZERO),
+    ];
+    grid_medium(what, p, resolution, &values, fields, g, ctm, loc)
 }
