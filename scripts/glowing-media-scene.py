@@ -6,7 +6,9 @@
 A dim room holding a fireball (an `rgbgrid`: σa, σs and Le per colour,
 hot and yellow at the core, red and smoky outside) and a glowing column
 of mist (a `uniformgrid` whose emission is its `Le` times an `Lescale`
-grid). The CPU/GPU comparison scene of scripts/gpu-check for grid media
+grid) standing just above the floor (a boundary in the floor's plane
+would make which surface is hit a matter of rounding). The CPU/GPU
+comparison scene of scripts/gpu-check for grid media
 that emit.
 """
 import math
@@ -100,12 +102,12 @@ AttributeBegin
 Translate 0.8 0 0.4
 MakeNamedMedium "mist" "string type" "uniformgrid" "rgb sigma_a" [ 0.8 0.8 0.8 ] "rgb sigma_s" [ 0.6 0.8 1.2 ]
   "rgb Le" [ 0.4 1.2 2.0 ] "integer nx" [ 4 ] "integer ny" [ 6 ] "integer nz" [ 4 ]
-  "point3 p0" [ -0.3 0 -0.3 ] "point3 p1" [ 0.3 1.8 0.3 ]
+  "point3 p0" [ -0.3 0.02 -0.3 ] "point3 p1" [ 0.3 1.8 0.3 ]
   "float density" [ {numbers(density)} ]
   "float Lescale" [ {numbers(lescale)} ]
 Material "interface"
 MediumInterface "mist" ""
-{box([-0.3, 0, -0.3], [0.3, 1.8, 0.3])}
+{box([-0.3, 0.02, -0.3], [0.3, 1.8, 0.3])}
 AttributeEnd''')
 
 

@@ -10,6 +10,14 @@
 #include "params.cuh"
 #include "sampling.cuh"
 
+// Grid media whose σa, σs or Le differ by colour (`rgbgrid`):
+// `-DATOLL_WITH_RGB_MEDIA=0` (src/device.rs `shade_features`, src/trace.rs
+// `TraceFeatures`) compiles them out of frames whose grids are all grey,
+// whose walks then keep the registers they had before RGB grids.
+#ifndef ATOLL_WITH_RGB_MEDIA
+#define ATOLL_WITH_RGB_MEDIA 1
+#endif
+
 /// Mirrors `MediumCoeffs::sigma_t`.
 __device__ __forceinline__ float3 medium_sigma_t(const GpuMedium& m) {
     return make_float3(m.sigma_a[0] + m.sigma_s[0], m.sigma_a[1] + m.sigma_s[1], m.sigma_a[2] + m.sigma_s[2]);
@@ -72,24 +80,24 @@ __device__ __forceinline__ bool grid_field_grey(unsigned int field) {
     return field == GRID_FIELD_CONSTANT || !(field & GRID_FIELD_RGB);
 }
 
+/// `grid_extinction_in` where a field is RGB: channel by channel, out of
+/// line, so that its lookups never all live in registers at once and
+/// grey grids do not pay for them.
+__device__ __noinline__ float3 grid_extinction_rgb(const FrameParams& p, const GpuMedium& m, const int* c,
+                                                   float3 s) {
+    return make_float3(grid_extinction_channel(p, m, c, s, 0u), grid_extinction_channel(p, m, c, s, 1u),
+                       grid_extinction_channel(p, m, c, s, 2u));
+}
+
 /// Mirrors `DensityGrid::extinction_in`: σt at lattice point `s` of cell
-/// `c`. Channel by channel, so that an RGB grid's lookups never all live
-/// in registers at once; a grey field is looked up once for all three.
+/// `c`; a grey field is looked up once for all three colours.
 __device__ __forceinline__ float3 grid_extinction_in(const FrameParams& p, const GpuMedium& m, const int* c,
                                                      float3 s) {
     const unsigned int fa = m.grid_fields[0], fs = m.grid_fields[1];
-    float e[3], va = 0.0f, vs = 0.0f;
-#pragma unroll 1
-    for (unsigned int ch = 0; ch < 3u; ++ch) {
-        if (ch == 0u || !grid_field_grey(fa)) va = grid_source_channel(p, m, fa, c, s, ch);
-        if (fa == fs) {
-            e[ch] = (m.sigma_a[ch] + m.sigma_s[ch]) * va;
-            continue;
-        }
-        if (ch == 0u || !grid_field_grey(fs)) vs = grid_source_channel(p, m, fs, c, s, ch);
-        e[ch] = m.sigma_a[ch] * va + m.sigma_s[ch] * vs;
-    }
-    return make_float3(e[0], e[1], e[2]);
+    if (!grid_field_grey(fa) || !grid_field_grey(fs)) return grid_extinction_rgb(p, m, c, s);
+    const float va = grid_source_channel(p, m, fa, c, s, 0u);
+    if (fa == fs) return (load3(m.sigma_a) + load3(m.sigma_s)) * va;
+    return load3(m.sigma_a) * va + load3(m.sigma_s) * grid_source_channel(p, m, fs, c, s, 0u);
 }
 
 /// Mirrors `DensityGrid::cell_integral`: ∫ σt dt over [ta, tb] in cell
@@ -112,36 +120,6 @@ __device__ __forceinline__ float grid_cell_integral_channel(const FrameParams& p
     return (grid_extinction_channel(p, m, c, s0 + ds * (mid - half * gauss), ch) +
             grid_extinction_channel(p, m, c, s0 + ds * (mid + half * gauss), ch)) *
            half;
-}
-
-/// A grid medium's coefficients at a point (mirrors `GridPoint`).
-struct GridPoint {
-    float3 sigma_a, sigma_s;
-    float3 emission;  // σa · Le
-};
-
-/// Mirrors `DensityGrid::point`: the coefficients at world point `w`, none outside the bounds.
-__device__ __noinline__ GridPoint grid_point(const FrameParams& p, const GpuMedium& m, float3 w) {
-    GridPoint g;
-    g.sigma_a = g.sigma_s = g.emission = zero3();
-    const float3 s = affine_point(m.world_to_lattice, w);
-    const float sa[3] = {s.x, s.y, s.z};
-    int c[3];
-    for (int a = 0; a < 3; ++a) {
-        if (sa[a] < -0.5f || sa[a] > (float)m.grid_resolution[a] - 0.5f) return g;
-        c[a] = (int)floorf(sa[a]);
-    }
-    float a[3], sc[3], e[3];
-#pragma unroll 1
-    for (unsigned int ch = 0; ch < 3u; ++ch) {
-        a[ch] = m.sigma_a[ch] * grid_source_channel(p, m, m.grid_fields[0], c, s, ch);
-        sc[ch] = m.sigma_s[ch] * grid_source_channel(p, m, m.grid_fields[1], c, s, ch);
-        e[ch] = a[ch] * (m.le[ch] * grid_source_channel(p, m, m.grid_fields[2], c, s, ch));
-    }
-    g.sigma_a = make_float3(a[0], a[1], a[2]);
-    g.sigma_s = make_float3(sc[0], sc[1], sc[2]);
-    g.emission = make_float3(e[0], e[1], e[2]);
-    return g;
 }
 
 /// Mirrors `DensityGrid::walk`: calls `cell(c, s0, ds, ta, tb)` for each
@@ -193,6 +171,103 @@ __device__ __forceinline__ void grid_walk(const GpuMedium& m, float3 o, float3 d
     }
 }
 
+__device__ __forceinline__ float channel_of(float3 v, unsigned int k) { return k == 0 ? v.x : k == 1 ? v.y : v.z; }
+
+#if !ATOLL_WITH_RGB_MEDIA
+// Frames whose grids are all grey (`uniformgrid`s: σa and σs scale one
+// density): the walks integrate that density alone and scale it by σt
+// afterwards, as `DensityGrid` does per channel, to rounding. Shading
+// then needs no float3 sums, which keeps its registers.
+
+/// The density of a grey grid at lattice point `s` of cell `c`.
+__device__ __forceinline__ float grid_density_in(const FrameParams& p, const GpuMedium& m, const int* c, float3 s) {
+    return grid_channel_in(p, m, c, s, m.grid_fields[0]);
+}
+
+/// ∫ density dt over [ta, tb] in cell `c` (two-point Gauss–Legendre).
+__device__ __forceinline__ float grid_density_cell(const FrameParams& p, const GpuMedium& m, const int* c, float3 s0,
+                                                   float3 ds, float ta, float tb) {
+    const float gauss = 0.577350269f;
+    const float mid = 0.5f * (ta + tb), half = 0.5f * (tb - ta);
+    return half * (grid_density_in(p, m, c, s0 + ds * (mid - half * gauss)) +
+                   grid_density_in(p, m, c, s0 + ds * (mid + half * gauss)));
+}
+
+/// ∫ density dt along `o + t d`, t0 <= t < t1.
+__device__ __noinline__ float grid_density_integral(const FrameParams& p, const GpuMedium& m, float3 o, float3 d,
+                                                    float t0, float t1) {
+    float sum = 0.0f;
+    grid_walk(m, o, d, t0, t1, [&](const int* c, float3 s0, float3 ds, float ta, float tb) {
+        sum += grid_density_cell(p, m, c, s0, ds, ta, tb);
+        return true;
+    });
+    return sum;
+}
+
+/// The t where the density's integral from t0 reaches `target` into `*t`;
+/// false when the segment holds less.
+__device__ __noinline__ bool grid_density_invert(const FrameParams& p, const GpuMedium& m, float3 o, float3 d,
+                                                 float t0, float t1, float target, float* t) {
+    float sum = 0.0f;
+    bool found = false;
+    grid_walk(m, o, d, t0, t1, [&](const int* c, float3 s0, float3 ds, float ta, float tb) {
+        const float here = grid_density_cell(p, m, c, s0, ds, ta, tb);
+        if (sum + here < target) {
+            sum += here;
+            return true;
+        }
+        float lo = ta, hi = tb;
+        for (int k = 0; k < 30; ++k) {
+            const float mid = 0.5f * (lo + hi);
+            if (sum + grid_density_cell(p, m, c, s0, ds, ta, mid) < target) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        *t = 0.5f * (lo + hi);
+        found = true;
+        return false;
+    });
+    return found;
+}
+
+/// A grey grid's emission scale (its `Lescale`) at world point `w` inside it.
+__device__ __noinline__ float grid_le_scale_at(const FrameParams& p, const GpuMedium& m, float3 w) {
+    if (m.grid_fields[2] == GRID_FIELD_CONSTANT) return 1.0f;
+    const float3 s = affine_point(m.world_to_lattice, w);
+    const int c[3] = {(int)floorf(s.x), (int)floorf(s.y), (int)floorf(s.z)};
+    return grid_channel_in(p, m, c, s, m.grid_fields[2]);
+}
+#else
+/// A grid medium's coefficients at a point (mirrors `GridPoint`).
+struct GridPoint {
+    float3 sigma_a, sigma_s;
+    float3 emission;  // σa · Le
+};
+
+/// Mirrors `DensityGrid::point`: the coefficients at world point `w`, none outside the bounds.
+__device__ __noinline__ GridPoint grid_point(const FrameParams& p, const GpuMedium& m, float3 w) {
+    GridPoint g;
+    g.sigma_a = g.sigma_s = g.emission = zero3();
+    const float3 s = affine_point(m.world_to_lattice, w);
+    const float sa[3] = {s.x, s.y, s.z};
+    int c[3];
+    for (int a = 0; a < 3; ++a) {
+        if (sa[a] < -0.5f || sa[a] > (float)m.grid_resolution[a] - 0.5f) return g;
+        c[a] = (int)floorf(sa[a]);
+    }
+    const auto field = [&](const float* scale, unsigned int word) {
+        return make_float3(scale[0] * grid_source_channel(p, m, word, c, s, 0u),
+                           scale[1] * grid_source_channel(p, m, word, c, s, 1u),
+                           scale[2] * grid_source_channel(p, m, word, c, s, 2u));
+    };
+    g.sigma_a = field(m.sigma_a, m.grid_fields[0]);
+    g.sigma_s = field(m.sigma_s, m.grid_fields[1]);
+    g.emission = g.sigma_a * field(m.le, m.grid_fields[2]);
+    return g;
+}
+
 /// Mirrors `DensityGrid::integral`: ∫ σt dt per channel.
 __device__ __noinline__ float3 grid_integral(const FrameParams& p, const GpuMedium& m, float3 o, float3 d, float t0,
                                              float t1) {
@@ -203,8 +278,6 @@ __device__ __noinline__ float3 grid_integral(const FrameParams& p, const GpuMedi
     });
     return sum;
 }
-
-__device__ __forceinline__ float channel_of(float3 v, unsigned int k) { return k == 0 ? v.x : k == 1 ? v.y : v.z; }
 
 /// Mirrors `DensityGrid::invert`: the t where channel `k` of the integral
 /// from t0 reaches `target` into `*t`, the whole integral up to it into
@@ -237,6 +310,8 @@ __device__ __noinline__ bool grid_invert(const FrameParams& p, const GpuMedium& 
     return found;
 }
 
+#endif
+
 // --- media (medium.rs) ---
 
 /// Mirrors `MediumTable::optical_depth`.
@@ -247,16 +322,18 @@ __device__ __forceinline__ float3 medium_optical_depth(const FrameParams& p, uns
     if (is_zero3(sigma_t)) return zero3();
     const float scale = length3(d);
     if (m.grid_first == NO_GRID) return sigma_t * ((t1 - t0) * scale);
+#if ATOLL_WITH_RGB_MEDIA
     return grid_integral(p, m, o, d, t0, t1) * scale;
+#else
+    return sigma_t * (grid_density_integral(p, m, o, d, t0, t1) * scale);
+#endif
 }
 
-/// Mirrors `medium::SegmentSample`: scatter at `t` (else pass), with
-/// `weight`, and the emission along the segment.
+/// Mirrors `medium::Segment`: scatter at `t` (else pass), with `weight`.
 struct MediumSegment {
     bool scatter;
     float t;
     float3 weight;
-    float3 emitted;
 };
 
 /// Mirrors `medium::mean`.
@@ -290,9 +367,11 @@ __device__ __forceinline__ float3 medium_emission_over(const GpuMedium& m, float
 /// third of `u`, the optical depth to reach from the rest, found along the
 /// segment `o + t d`, 0 <= t < t_max, and weighted by the three channels'
 /// mixture; a homogeneous medium's emission in closed form, a grid's where
-/// the segment scatters. A scattering `t` is in world units.
+/// the segment scatters, added to `*emitted` times `beta` (the throughput
+/// before the segment). A scattering `t` is in world units.
 __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p, unsigned int medium, float3 o,
-                                                            float3 d, float t_max, float u) {
+                                                            float3 d, float t_max, float u, float3 beta,
+                                                            float3* emitted) {
     const GpuMedium& m = p.media[medium];
     const float scale = length3(d);
     const float scaled = u * 3.0f;
@@ -302,11 +381,10 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
     MediumSegment s;
     s.scatter = false;
     s.t = 0.0f;
-    s.emitted = zero3();
     if (m.grid_first == NO_GRID) {
         const float3 sigma_t = medium_sigma_t(m);
         const float length = t_max * scale;
-        s.emitted = medium_emission_over(m, length);
+        *emitted = *emitted + beta * medium_emission_over(m, length);
         const float st = channel_of(sigma_t, channel);
         const float depth = st > 0.0f ? target / st : f32_infinity();
         if (depth < length) {
@@ -321,6 +399,33 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         s.weight = medium_pass_weight(medium_transmittance(sigma_t, length));
         return s;
     }
+#if !ATOLL_WITH_RGB_MEDIA
+    {
+        // A grey grid: the density at the stop cancels out of the weights.
+        const float3 sigma_t = medium_sigma_t(m);
+        const float total = grid_density_integral(p, m, o, d, 0.0f, t_max) * scale;
+        const float st = channel_of(sigma_t, channel);
+        const float depth = st > 0.0f ? target / st : f32_infinity();
+        float t;
+        if (depth < total && grid_density_invert(p, m, o, d, 0.0f, t_max, depth / scale, &t)) {
+            const float3 tr =
+                make_float3(expf(-sigma_t.x * depth), expf(-sigma_t.y * depth), expf(-sigma_t.z * depth));
+            const float density = mean3(sigma_t * tr);
+            s.scatter = true;
+            s.t = t * scale;
+            if (density > 0.0f) {
+                s.weight = tr * load3(m.sigma_s) / density;
+                const float3 le = load3(m.le) * grid_le_scale_at(p, m, o + d * t);
+                *emitted = *emitted + beta * (tr * load3(m.sigma_a) * le / density);
+            } else {
+                s.weight = zero3();
+            }
+            return s;
+        }
+        s.weight = medium_pass_weight(medium_transmittance(sigma_t, total));
+        return s;
+    }
+#else
     const float target_t = target / scale;
     const float3 total = grid_integral(p, m, o, d, 0.0f, t_max);
     float t;
@@ -332,12 +437,13 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         s.scatter = true;
         s.t = t * scale;
         s.weight = density > 0.0f ? tr * at.sigma_s / density : zero3();
-        s.emitted = density > 0.0f ? tr * at.emission / density : zero3();
+        if (density > 0.0f) *emitted = *emitted + beta * (tr * at.emission / density);
         return s;
     }
     s.weight = medium_pass_weight(
         make_float3(expf(-(total.x * scale)), expf(-(total.y * scale)), expf(-(total.z * scale))));
     return s;
+#endif
 }
 
 /// Mirrors `MediumInterface::towards`: the medium of a mesh flags word

@@ -333,8 +333,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
         const float t_max = (r.flags & FLAG_HIT) ? r.t_max : f32_infinity();
         const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
         const float u = stream_medium_distance(rng, r.depth, from);
-        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u);
-        out.emitted = out.emitted + beta * seg.emitted;
+        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u, beta, &out.emitted);
         if (seg.scatter) {
             scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
             return;

@@ -141,6 +141,7 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
     .map(|(name, _)| name)
     .chain(emission_textures)
     .chain((!frame.media.any()).then_some("ATOLL_WITH_MEDIA"))
+    .chain((frame.media.any() && !frame.media.has_rgb_grids()).then_some("ATOLL_WITH_RGB_MEDIA"))
     .map(|name| format!("-D{name}=0"))
     .collect()
 }

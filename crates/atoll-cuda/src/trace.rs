@@ -34,6 +34,9 @@ pub(crate) struct TraceFeatures {
     /// bound media (`ATOLL_TRACE_MEDIA`; needs `alpha`, which such
     /// surfaces turn on).
     pub media: bool,
+    /// With `media`: some grid differs by colour (`ATOLL_WITH_RGB_MEDIA`,
+    /// kernels/media.cuh); grey grids alone take a lighter walk.
+    pub rgb_media: bool,
     /// Closest-hit kernels that write surfaces apply texture programs and
     /// emission textures (`ATOLL_WITH_TEXTURES`).
     pub textures: bool,
@@ -52,6 +55,7 @@ impl TraceFeatures {
         TraceFeatures {
             alpha: frame.textures.has_alpha(),
             media: frame.media.any() && frame.textures.has_alpha(),
+            rgb_media: frame.media.has_rgb_grids(),
             textures: frame
                 .textures
                 .materials
@@ -84,6 +88,9 @@ impl TraceFeatures {
         }
         if self.media {
             defines.push("-DATOLL_TRACE_MEDIA=1".into());
+            if !self.rgb_media {
+                defines.push("-DATOLL_WITH_RGB_MEDIA=0".into());
+            }
         }
         if self.tri_bases {
             defines.push("-DATOLL_TRI_BASES=1".into());

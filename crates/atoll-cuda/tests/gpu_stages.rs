@@ -66,7 +66,13 @@ fn gpu() -> Option<Arc<Gpu>> {
 /// Kernel file `file` compiled for this GPU, with `--fmad=false` unless
 /// `production` (then exactly the options the device uses).
 fn module(gpu: &Gpu, file: &str, production: bool) -> Arc<CudaModule> {
+    module_with(gpu, file, production, &[])
+}
+
+/// [`module`] with extra NVRTC options (a specialisation's defines).
+fn module_with(gpu: &Gpu, file: &str, production: bool, extra: &[&str]) -> Arc<CudaModule> {
     let mut options = gpu.compile_options().clone();
+    options.extra.extend(extra.iter().map(|s| s.to_string()));
     if !production {
         options.extra.push("--fmad=false".into());
     }
@@ -483,9 +489,10 @@ fn shade_matches_the_cpu_stage() {
 }
 
 /// The test frame with four media (a coloured, scattering, glowing one,
-/// an absorbing one, a density grid and a glowing RGB grid) and the
-/// camera in the first.
-fn media_frame() -> FrameContext {
+/// an absorbing one, a density grid, and a glowing RGB grid or, without
+/// `rgb`, a density grid glowing by an `Lescale` grid) and the camera in
+/// the first.
+fn media_frame(rgb: bool) -> FrameContext {
     let (mut scene, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
     scene.media.push(Medium::Homogeneous(HomogeneousMedium {
         sigma_a: Rgb::new(0.3, 0.8, 1.5),
@@ -515,18 +522,34 @@ fn media_frame() -> FrameContext {
         world_to_medium: place,
     }));
     // A glowing RGB grid over the same box: σa and Le per colour, σs 1.
-    scene.media.push(Medium::Grid(GridMedium {
-        resolution: [3, 4, 2],
-        channels: 6,
-        values: (0..24 * 6).map(|i| (i * 5 % 9) as f32 * 0.3).collect(),
-        sigma_a: GridField { scale: Rgb::splat(1.5), source: FieldSource::Rgb(0) },
-        sigma_s: GridField::constant(Rgb::splat(1.5)),
-        le: GridField { scale: Rgb::splat(2.0), source: FieldSource::Rgb(3) },
-        g: 0.2,
-        lo: Vec3::new(-0.8, 0.0, -0.6),
-        hi: Vec3::new(0.7, 1.5, 0.9),
-        world_to_medium: place,
-    }));
+    let glowing = if rgb {
+        GridMedium {
+            resolution: [3, 4, 2],
+            channels: 6,
+            values: (0..24 * 6).map(|i| (i * 5 % 9) as f32 * 0.3).collect(),
+            sigma_a: GridField { scale: Rgb::splat(1.5), source: FieldSource::Rgb(0) },
+            sigma_s: GridField::constant(Rgb::splat(1.5)),
+            le: GridField { scale: Rgb::splat(2.0), source: FieldSource::Rgb(3) },
+            g: 0.2,
+            lo: Vec3::new(-0.8, 0.0, -0.6),
+            hi: Vec3::new(0.7, 1.5, 0.9),
+            world_to_medium: place,
+        }
+    } else {
+        GridMedium {
+            resolution: [3, 4, 2],
+            channels: 2,
+            values: (0..24 * 2).map(|i| (i * 5 % 9) as f32 * 0.3).collect(),
+            sigma_a: density_field(Rgb::new(1.0, 0.5, 0.2)),
+            sigma_s: density_field(Rgb::new(0.5, 1.0, 2.0)),
+            le: GridField { scale: Rgb::new(2.0, 1.0, 0.5), source: FieldSource::Scalar(1) },
+            g: 0.2,
+            lo: Vec3::new(-0.8, 0.0, -0.6),
+            hi: Vec3::new(0.7, 1.5, 0.9),
+            world_to_medium: place,
+        }
+    };
+    scene.media.push(Medium::Grid(glowing));
     scene.settings.camera_medium = 1;
     FrameContext::new(&scene, frame.options.clone())
 }
@@ -538,35 +561,41 @@ fn media_frame() -> FrameContext {
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_in_media_matches_the_cpu_stage() {
     let Some(gpu) = gpu() else { return };
-    let m = module(&gpu, "wavefront.cu", false);
-    let frame = media_frame();
-    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
-    let mut paths = synthetic_paths(&frame, 3000);
-    for (i, r) in paths.iter_mut().enumerate() {
-        let i = i as u32;
-        r.set_medium((i % 5) as u8);
-        if r.has(flags::HIT) {
-            let boundaries = [
-                None,
-                MediumInterface::transition(1, 0),
-                MediumInterface::transition(2, 1),
-                MediumInterface::transition(3, 1),
-                MediumInterface::transition(4, 0),
-            ];
-            r.set_hit_media(boundaries[(i / 5 % 5) as usize]);
+    // RGB grids, then grey ones only in their own specialisation.
+    for (rgb, defines) in [(true, &[][..]), (false, &["-DATOLL_WITH_RGB_MEDIA=0"][..])] {
+        let m = module_with(&gpu, "wavefront.cu", false, defines);
+        let frame = media_frame(rgb);
+        let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+        let mut paths = synthetic_paths(&frame, 3000);
+        for (i, r) in paths.iter_mut().enumerate() {
+            let i = i as u32;
+            r.set_medium((i % 5) as u8);
+            if r.has(flags::HIT) {
+                let boundaries = [
+                    None,
+                    MediumInterface::transition(1, 0),
+                    MediumInterface::transition(2, 1),
+                    MediumInterface::transition(3, 1),
+                    MediumInterface::transition(4, 0),
+                ];
+                r.set_hit_media(boundaries[(i / 5 % 5) as usize]);
+            }
         }
+        let cpu = shade_on_cpu(&frame, &paths);
+        let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
+        // Media scatter some segments, and shadow rays start inside them.
+        let scattered = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() != 0).count();
+        assert!(scattered > 100, "{scattered} paths in media");
+        for grid in [3, 4] {
+            let in_grid = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() == grid).count();
+            assert!(in_grid > 10, "{in_grid} paths going on in grid {grid}");
+        }
+        assert!(
+            cpu.shadows.iter().any(|s| s.optical_depth() != Vec3::ZERO),
+            "no shadow ray starts in a medium"
+        );
+        assert_no_mismatches(&format!("shade in media (rgb {rgb})"), &shade_mismatches(&cpu, &got));
     }
-    let cpu = shade_on_cpu(&frame, &paths);
-    let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
-    // Media scatter some segments, and shadow rays start inside them.
-    let scattered = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() != 0).count();
-    assert!(scattered > 100, "{scattered} paths in media");
-    for grid in [3, 4] {
-        let in_grid = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() == grid).count();
-        assert!(in_grid > 10, "{in_grid} paths going on in grid {grid}");
-    }
-    assert!(cpu.shadows.iter().any(|s| s.optical_depth() != Vec3::ZERO), "no shadow ray starts in a medium");
-    assert_no_mismatches("shade in media", &shade_mismatches(&cpu, &got));
 }
 
 #[test]

@@ -184,20 +184,25 @@ fn trace_module_compiles_with_every_feature() {
     if !nvrtc_or_skip("trace features") {
         return;
     }
-    let mut options = CompileOptions::ptx(ARCH);
-    options.extra.extend(
-        [
-            "-DATOLL_TRACE_LOOPS=63",
-            "-DATOLL_TRACE_ALPHA=1",
-            "-DATOLL_TRACE_MEDIA=1",
-            "-DATOLL_WITH_TEXTURES=1",
-            "-DATOLL_COUNT_ACCESSES=1",
-            "-DATOLL_TRI_BASES=1",
-            atoll_cuda::compile::LAYOUT_CHECK_OPTION,
-        ]
-        .map(String::from),
-    );
-    let compiled = compile_with_cache("trace.cu", &options, None).unwrap_or_else(|e| panic!("trace.cu: {e}"));
-    let ptx = String::from_utf8(compiled.image).expect("PTX is text");
-    assert_eq!(ptx.matches(".entry ").count(), 24, "six loops, two queries, two tests");
+    // RGB grids, then grey grids alone (their own walk).
+    for rgb in ["-DATOLL_WITH_RGB_MEDIA=1", "-DATOLL_WITH_RGB_MEDIA=0"] {
+        let mut options = CompileOptions::ptx(ARCH);
+        options.extra.extend(
+            [
+                "-DATOLL_TRACE_LOOPS=63",
+                "-DATOLL_TRACE_ALPHA=1",
+                "-DATOLL_TRACE_MEDIA=1",
+                rgb,
+                "-DATOLL_WITH_TEXTURES=1",
+                "-DATOLL_COUNT_ACCESSES=1",
+                "-DATOLL_TRI_BASES=1",
+                atoll_cuda::compile::LAYOUT_CHECK_OPTION,
+            ]
+            .map(String::from),
+        );
+        let compiled =
+            compile_with_cache("trace.cu", &options, None).unwrap_or_else(|e| panic!("trace.cu {rgb}: {e}"));
+        let ptx = String::from_utf8(compiled.image).expect("PTX is text");
+        assert_eq!(ptx.matches(".entry ").count(), 24, "six loops, two queries, two tests");
+    }
 }

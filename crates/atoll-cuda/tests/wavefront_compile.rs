@@ -101,8 +101,11 @@ fn specialised_shade_kernels_keep_their_registers() {
     ];
     let (_, log) = compile("wavefront.cu", &none);
     let plain = registers(&log, "shade");
-    let (_, log) = compile("wavefront.cu", &none[..4]);
+    let grey_grids = "-DATOLL_WITH_RGB_MEDIA=0";
+    let (_, log) = compile("wavefront.cu", &[&none[..4], &[grey_grids]].concat());
     let plain_in_media = registers(&log, "shade");
+    let (_, log) = compile("wavefront.cu", &none[..4]);
+    let plain_in_rgb_media = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let everything = registers(&log, "shade");
     // The material kinds' specialisations, compared without media (their
@@ -116,13 +119,16 @@ fn specialised_shade_kernels_keep_their_registers() {
     let no_hair = registers(&log, "shade");
     eprintln!(
         "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}, all but hair {no_hair}; with media: plain materials {plain_in_media}, \
-         every material {everything}"
+         {no_coated_conductor}, all but hair {no_hair}; with media: plain materials {plain_in_media} \
+         ({plain_in_rgb_media} with RGB grids), every material {everything}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
     // Registers are allocated in eights: past 128, a 128-thread block no
     // longer fits four times into an SM's 64K registers.
-    assert!(plain_in_media <= 128, "shade with media and plain materials uses {plain_in_media} registers");
+    assert!(
+        plain_in_media <= 128,
+        "shade with grey media and plain materials uses {plain_in_media} registers"
+    );
     assert!(plain < all, "specialisation must drop registers ({plain} vs {all})");
     assert!(no_coated_conductor <= all, "leaving coated conductors out must not add registers");
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED=0"]);
@@ -131,6 +137,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_HAIR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEDIA=0"]);
+    check("wavefront.cu", &["shade"], &[grey_grids]);
 }
 
 /// Every specialisation of the trace module compiles cleanly (the alpha

@@ -183,6 +183,19 @@ impl MediumTable {
         self.media.len() > 1
     }
 
+    /// Whether a grid's coefficients differ by colour from sample to
+    /// sample, or its σa and σs read different samples (an `rgbgrid`),
+    /// rather than both scaling one density (a `uniformgrid`): the GPU
+    /// kernels have a lighter specialisation for the latter.
+    pub fn has_rgb_grids(&self) -> bool {
+        self.grids.iter().any(|g| {
+            let [a, s, le] = g.fields;
+            !(a.source == s.source
+                && matches!(a.source, atoll_scene::FieldSource::Scalar(_))
+                && !matches!(le.source, atoll_scene::FieldSource::Rgb(_)))
+        })
+    }
+
     /// Medium `m`'s coefficients; the vacuum's are zero.
     pub fn get(&self, m: MediumIndex) -> &MediumCoeffs {
         &self.media[(m as usize).min(self.media.len() - 1)]
