@@ -415,8 +415,10 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
             s.t = t * scale;
             if (density > 0.0f) {
                 s.weight = tr * load3(m.sigma_s) / density;
-                const float3 le = load3(m.le) * grid_le_scale_at(p, m, o + d * t);
-                *emitted = *emitted + beta * (tr * load3(m.sigma_a) * le / density);
+                if (!is_zero3(load3(m.le))) {
+                    const float3 le = load3(m.le) * grid_le_scale_at(p, m, o + d * t);
+                    *emitted = *emitted + beta * (tr * load3(m.sigma_a) * le / density);
+                }
             } else {
                 s.weight = zero3();
             }

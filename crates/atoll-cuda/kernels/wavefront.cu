@@ -333,7 +333,10 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
         const float t_max = (r.flags & FLAG_HIT) ? r.t_max : f32_infinity();
         const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
         const float u = stream_medium_distance(rng, r.depth, from);
-        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u, beta, &out.emitted);
+        // Its own local: the address of `out` would move all of it to local memory.
+        float3 emitted = zero3();
+        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u, beta, &emitted);
+        out.emitted = out.emitted + emitted;
         if (seg.scatter) {
             scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
             return;
