@@ -37,7 +37,7 @@ __device__ __forceinline__ float grid_sample(const FrameParams& p, const GpuMedi
                                              unsigned int k) {
     const int nx = (int)m.grid_resolution[0], ny = (int)m.grid_resolution[1], nz = (int)m.grid_resolution[2];
     if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) return 0.0f;
-    return p.media_grids[m.grid_first + (unsigned int)((z * ny + y) * nx + x) * m.grid_channels + k];
+    return p.media_grids[m.grid_first + k * m.grid_plane + (unsigned int)((z * ny + y) * nx + x)];
 }
 
 /// Mirrors `DensityGrid::channel_in`: channel `k`, trilinear, at lattice

@@ -78,7 +78,7 @@ struct GpuMedium {
     unsigned int grid_first;
     unsigned int grid_resolution[3];
     float world_to_lattice[12];
-    unsigned int grid_channels;
+    unsigned int grid_plane;
     unsigned int grid_fields[3];
 };
 
@@ -237,7 +237,7 @@ static_assert(__builtin_offsetof(GpuMedium, g) == 36 && sizeof(GpuMedium::g) == 
 static_assert(__builtin_offsetof(GpuMedium, grid_first) == 40 && sizeof(GpuMedium::grid_first) == 4, "GpuMedium.grid_first: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_resolution) == 44 && sizeof(GpuMedium::grid_resolution) == 12, "GpuMedium.grid_resolution: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(GpuMedium::world_to_lattice) == 48, "GpuMedium.world_to_lattice: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuMedium, grid_channels) == 104 && sizeof(GpuMedium::grid_channels) == 4, "GpuMedium.grid_channels: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
 static_assert(sizeof(FrameParams) == 2504, "FrameParams: size differs from Rust");

@@ -81,8 +81,9 @@ pub struct GpuMedium {
     pub grid_resolution: [u32; 3],
     /// World to the grid's sample lattice, row-major 3×4.
     pub world_to_lattice: [f32; 12],
-    /// Values per sample.
-    pub grid_channels: u32,
+    /// Samples per channel: channel `k` of the grid starts `k` planes
+    /// after `grid_first`.
+    pub grid_plane: u32,
     /// Where σa, σs and Le come from ([`grid_field`]).
     pub grid_fields: [u32; 3],
 }
@@ -119,7 +120,7 @@ impl GpuMedium {
             grid_first,
             grid_resolution,
             world_to_lattice,
-            grid_channels,
+            grid_plane,
             grid_fields
         })
     }
@@ -469,7 +470,7 @@ impl FrameParams {
                 let grid = &frame.media.grids[g as usize];
                 slot.grid_first = grid_starts[g as usize];
                 slot.grid_resolution = grid.resolution;
-                slot.grid_channels = grid.channels;
+                slot.grid_plane = grid.resolution.iter().product();
                 slot.grid_fields = grid.fields.map(|f| grid_field::encode(f.source));
                 let m = glam::Mat4::from(grid.world_to_lattice);
                 for (r, row) in slot.world_to_lattice.chunks_exact_mut(4).enumerate() {

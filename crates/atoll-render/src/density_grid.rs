@@ -21,7 +21,7 @@ pub struct DensityGrid {
     pub resolution: [u32; 3],
     /// Values per sample.
     pub channels: u32,
-    /// `channels` values per sample, samples x fastest.
+    /// `channels` planes of samples ([`GridMedium::values`]).
     pub values: Vec<f32>,
     /// σa, σs and Le ([`GridMedium`]'s fields).
     pub fields: [GridField; 3],
@@ -66,7 +66,8 @@ impl DensityGrid {
         if x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz {
             return 0.0;
         }
-        self.values[((z * ny + y) * nx + x) as usize * self.channels as usize + k as usize]
+        let plane = (nx * ny * nz) as usize;
+        self.values[k as usize * plane + ((z * ny + y) * nx + x) as usize]
     }
 
     /// Channel `k` at lattice point `s` inside cell `c` (trilinear).

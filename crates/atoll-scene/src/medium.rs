@@ -27,7 +27,9 @@ pub struct GridMedium {
     pub resolution: [u32; 3],
     /// Values per sample.
     pub channels: u32,
-    /// `channels` values per sample; samples x fastest, then y, then z.
+    /// Channel by channel (a plane of samples each, so that a grid's first
+    /// channel reads as fast alone as a one-channel grid); samples x
+    /// fastest, then y, then z.
     pub values: Vec<f32>,
     /// Absorption σa at each point.
     pub sigma_a: GridField,

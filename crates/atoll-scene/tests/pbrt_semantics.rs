@@ -857,8 +857,8 @@ fn grid_media_read_their_samples() {
     assert_eq!(g.le, GridField::constant(Vec3::new(1.0, 2.0, 3.0)));
     assert_eq!(g.world_to_medium.transform_point3(Vec3::new(1.0, 2.0, 3.0)), Vec3::ZERO);
     let Medium::Grid(fire) = &loaded.scene.media[1] else { panic!() };
-    // Density and Lescale side by side, sample by sample.
-    assert_eq!((fire.channels, &fire.values[..]), (2, &[1.0, 0.5, 2.0, 4.0][..]));
+    // The density's plane, then Lescale's.
+    assert_eq!((fire.channels, &fire.values[..]), (2, &[1.0, 2.0, 0.5, 4.0][..]));
     assert_eq!(fire.le, GridField { scale: Vec3::ONE, source: FieldSource::Scalar(1) });
     for (text, error) in [
         (
@@ -897,14 +897,15 @@ fn rgb_grid_media_read_their_samples() {
     let Medium::Grid(a) = &loaded.scene.media[0] else { panic!() };
     assert_eq!(
         (a.resolution, a.channels, &a.values[..]),
-        ([2, 1, 1], 3, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0][..])
+        ([2, 1, 1], 3, &[1.0, 4.0, 2.0, 5.0, 3.0, 6.0][..])
     );
     assert_eq!(a.sigma_a, GridField::constant(Vec3::splat(2.0)));
     assert_eq!(a.sigma_s, GridField { scale: Vec3::splat(2.0), source: FieldSource::Rgb(0) });
     assert_eq!(a.le, GridField::constant(Vec3::ZERO));
     let Medium::Grid(b) = &loaded.scene.media[1] else { panic!() };
     assert_eq!((b.channels, b.values.len(), b.g), (6, 12, 0.5));
-    assert_eq!(&b.values[..6], &[1.0, 1.0, 1.0, 0.0, 1.0, 0.0]);
+    // A plane per colour: σa's three, then Le's.
+    assert_eq!(&b.values[..], &[1.0, 2.0, 1.0, 2.0, 1.0, 2.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0]);
     assert_eq!(b.sigma_a, GridField { scale: Vec3::ONE, source: FieldSource::Rgb(0) });
     assert_eq!(b.sigma_s, GridField::constant(Vec3::ONE));
     assert_eq!(b.le, GridField { scale: Vec3::splat(3.0), source: FieldSource::Rgb(3) });

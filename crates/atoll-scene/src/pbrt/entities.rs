@@ -807,20 +807,20 @@ fn grid_medium(
     loc: &FileLoc,
 ) -> Result<crate::GridMedium, SceneError> {
     let (lo, hi, world_to_medium) = grid_placement(what, p, ctm, loc)?;
-    // Interleave: each sample's values together, as lookups read them.
+    // A plane per channel: an RGB parameter's triples become three planes.
     let samples = resolution.iter().map(|&n| n as usize).product::<usize>();
     let channels: usize = values.iter().map(|v| v.len() / samples).sum();
-    let mut interleaved = Vec::with_capacity(samples * channels);
-    for i in 0..samples {
-        for v in values {
-            let per = v.len() / samples;
-            interleaved.extend_from_slice(&v[i * per..(i + 1) * per]);
+    let mut planes = Vec::with_capacity(samples * channels);
+    for v in values {
+        let per = v.len() / samples;
+        for k in 0..per {
+            planes.extend(v.iter().skip(k).step_by(per));
         }
     }
     Ok(crate::GridMedium {
         resolution,
         channels: channels as u32,
-        values: interleaved,
+        values: planes,
         sigma_a,
         sigma_s,
         le,
