@@ -205,7 +205,9 @@ __device__ __noinline__ float grid_density_integral(const FrameParams& p, const 
 }
 
 /// The t where the density's integral from t0 reaches `target` into `*t`;
-/// false when the segment holds less.
+/// false when the segment holds less. (Its bisection repeats
+/// `grid_invert`'s: written once as a template taking a lambda, it cost
+/// the shade kernel 40 registers.)
 __device__ __noinline__ bool grid_density_invert(const FrameParams& p, const GpuMedium& m, float3 o, float3 d,
                                                  float t0, float t1, float target, float* t) {
     float sum = 0.0f;

@@ -109,6 +109,17 @@ fn a_slab_dims_sunlight_by_its_transmittance() {
     assert_eq!(lit, clear.pixels().len(), "the ground fills the view");
 }
 
+/// Every pixel of `dimmed` is `expected` times `clear`'s, to 1e-4.
+fn assert_dimmed_by(clear: &Film, dimmed: &Film, expected: Vec3) {
+    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
+        let ratio = d / c;
+        assert!(
+            (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
+            "{ratio} vs {expected}"
+        );
+    }
+}
+
 /// An `interface` sheet between the slab and the sun that separates no
 /// media: pbrt-v4's `volpath` lets shadow rays through it, so the ground
 /// is lit as without it.
@@ -141,13 +152,7 @@ fn a_grid_slab_dims_sunlight_by_its_integral() {
     );
     let dimmed = render(&sunlit_ground(Some(&grid)));
     let expected = (-Vec3::new(1.0, 1.0, 3.0) * (0.5 - 0.125 / 4.0)).exp();
-    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
-        let ratio = d / c;
-        assert!(
-            (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
-            "{ratio} vs {expected}"
-        );
-    }
+    assert_dimmed_by(&clear, &dimmed, expected);
 }
 
 /// An `rgbgrid` in the same slab: σa from RGB samples (falling to half at
@@ -162,19 +167,14 @@ fn an_rgb_grid_slab_dims_sunlight_by_its_integral() {
     );
     let dimmed = render(&sunlit_ground(Some(&grid)));
     let expected = (-(Vec3::new(0.4, 1.0, 2.0) * (0.5 - 0.125 / 4.0) + Vec3::splat(0.5)) * 2.0).exp();
-    for (c, d) in clear.pixels().iter().zip(dimmed.pixels()) {
-        let ratio = d / c;
-        assert!(
-            (ratio - expected).abs().max_element() < 1e-4 * expected.max_element(),
-            "{ratio} vs {expected}"
-        );
-    }
+    assert_dimmed_by(&clear, &dimmed, expected);
 }
 
 /// A glowing slab of grid medium that only absorbs, over black ground,
-/// seen from straight above (rays within half a degree of the vertical): each ray gathers ∫ T σa Le dt = Le (1 −
-/// e^(−τ)) whatever the density's profile (here the faces' ramps),
-/// estimated where the ray stops in the medium.
+/// seen from straight above (rays within half a degree of the vertical):
+/// each ray gathers ∫ T σa Le dt = Le (1 − e^(−τ)) whatever the density's
+/// profile (here the faces' ramps), estimated where the ray stops in the
+/// medium.
 #[test]
 fn a_glowing_grid_slab_shows_its_emission() {
     let ones = vec!["1"; 2 * 4 * 2].join(" ");
