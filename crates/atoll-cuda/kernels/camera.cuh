@@ -1,5 +1,6 @@
 // Camera rays: the mirror of `atoll_render::camera::CameraRays::ray`
-// (pbrt-v4's perspective camera with a thin lens) over `FrameParams`.
+// (pbrt-v4's perspective and orthographic cameras with a thin lens) over
+// `FrameParams`.
 #pragma once
 
 #include "common.cuh"
@@ -17,9 +18,13 @@ __device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, 
     const float y = p.window_max[1] - t.y * (p.window_max[1] - p.window_min[1]);
     float3 dir = make_float3(x, y, 1.0f);
     float3 origin = zero3();
+    if (p.orthographic) {
+        origin = make_float3(x, y, 0.0f);
+        dir = make_float3(0.0f, 0.0f, 1.0f);
+    }
     if (p.lens_radius > 0.0f) {
         const float2 lens = p.lens_radius * sample_uniform_disk_concentric(u_lens);
-        const float3 focus = dir * p.focal_distance;
+        const float3 focus = origin + dir * p.focal_distance;
         origin = make_float3(lens.x, lens.y, 0.0f);
         dir = focus - origin;
     }

@@ -336,7 +336,7 @@ impl GpuMaterial {
 }
 
 /// Everything shading needs, identical on every device: the
-/// [`FrameContext`] flattened (240 bytes). Pointers are device addresses
+/// [`FrameContext`] flattened. Pointers are device addresses
 /// (0 until uploaded: see [`FrameParamsHost`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -349,6 +349,9 @@ pub struct FrameParams {
     pub raster_size: [f32; 2],
     pub lens_radius: f32,
     pub focal_distance: f32,
+    /// 1 for an orthographic camera, 0 for a perspective one.
+    pub orthographic: u32,
+    pub camera_pad: u32,
     pub resolution: [u32; 2],
     pub seed: u32,
     /// [`integrator_kind`].
@@ -492,6 +495,7 @@ impl FrameParams {
         (self.window_min, self.window_max) = (window_min.to_array(), window_max.to_array());
         self.raster_size = camera.raster_size().to_array();
         (self.lens_radius, self.focal_distance) = camera.lens();
+        self.orthographic = camera.orthographic() as u32;
     }
 
     #[cfg(test)]
@@ -503,6 +507,8 @@ impl FrameParams {
             raster_size,
             lens_radius,
             focal_distance,
+            orthographic,
+            camera_pad,
             resolution,
             seed,
             integrator,
@@ -626,9 +632,9 @@ const _: () = {
     assert!(std::mem::size_of::<GpuMedium>() == 120);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 272 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 120 * MEDIA_SLOTS
+            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 120 * MEDIA_SLOTS
     );
-    assert!(std::mem::offset_of!(FrameParams, emitters) == 128);
+    assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
     assert!(std::mem::size_of::<SceneView>() == 72);
 };
 

@@ -36,43 +36,59 @@ fn mean_diff(a: Vec3, b: Vec3) -> f32 {
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn camera_rays_and_hits_match_the_cpu_device() {
     let Some(gpu) = gpu_or_skip("stages") else { return };
-    let scene = cornell();
-    let frame = Arc::new(FrameContext::new(&scene, options(&scene, 32, 1)));
-    let mut cpu = CpuDevice::new();
-    let mut cuda = CudaDevice::on(gpu);
-    cpu.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
-    cuda.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
-    let wave = Wave { sample: 0, first_pixel: 0, pixel_count: 32 * 32 };
-    for device in [&mut cpu as &mut dyn Device, &mut cuda] {
-        device.queue_work(&wave).unwrap();
-        device.refill().unwrap();
-    }
-    let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
-    assert_eq!(c.len(), g.len());
-    for (a, b) in c.iter().zip(&g) {
-        assert_eq!((a.pixel, a.sample, a.flags, a.depth), (b.pixel, b.sample, b.flags, b.depth));
-        assert!(a.origin().abs_diff_eq(b.origin(), 1e-4) && a.direction().abs_diff_eq(b.direction(), 1e-4));
-    }
-    // Trace the CPU's rays on both, so that only traversal and hit attributes differ.
-    cuda.write_queue(Queue::Paths, &c).unwrap();
-    cpu.trace_paths().unwrap();
-    cuda.trace_paths().unwrap();
-    let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
-    let mut mismatched = 0;
-    for (a, b) in c.iter().zip(&g) {
-        if a.has(flags::HIT) != b.has(flags::HIT) || a.instance != b.instance {
-            mismatched += 1;
+    // An orthographic camera with a thin lens and an off-centre screen
+    // window makes its rays as the CPU does, too.
+    let mut orthographic = atoll_scene::cornell::builtin_cornell_box();
+    orthographic.settings.camera = atoll_scene::Camera {
+        projection: atoll_scene::Projection::Orthographic,
+        screen_window: Some([-1.2, 0.8, -0.9, 1.1]),
+        lens_radius: 0.05,
+        focal_distance: 4.0,
+        ..orthographic.settings.camera.clone()
+    };
+    for scene in [Arc::new(orthographic), cornell()] {
+        let frame = Arc::new(FrameContext::new(&scene, options(&scene, 32, 1)));
+        let mut cpu = CpuDevice::new();
+        let mut cuda = CudaDevice::on(gpu.clone());
+        cpu.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
+        cuda.prepare(&scene, &ScenePart::whole(&scene), &frame).unwrap();
+        let wave = Wave { sample: 0, first_pixel: 0, pixel_count: 32 * 32 };
+        for device in [&mut cpu as &mut dyn Device, &mut cuda] {
+            device.queue_work(&wave).unwrap();
+            device.refill().unwrap();
+        }
+        let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
+        assert_eq!(c.len(), g.len());
+        for (a, b) in c.iter().zip(&g) {
+            assert_eq!((a.pixel, a.sample, a.flags, a.depth), (b.pixel, b.sample, b.flags, b.depth));
+            assert!(
+                a.origin().abs_diff_eq(b.origin(), 1e-4) && a.direction().abs_diff_eq(b.direction(), 1e-4)
+            );
+        }
+        if scene.settings.camera.projection == atoll_scene::Projection::Orthographic {
             continue;
         }
-        if a.has(flags::HIT) {
-            assert!((a.t_max - b.t_max).abs() <= 1e-4 * a.t_max.max(1.0), "{} vs {}", a.t_max, b.t_max);
-            assert!(Vec3::from(a.position).abs_diff_eq(Vec3::from(b.position), 1e-4));
-            assert!(a.geometric_normal().abs_diff_eq(b.geometric_normal(), 1e-3));
-            assert_eq!((a.material, a.coeffs, a.light), (b.material, b.coeffs, b.light));
+        // Trace the CPU's rays on both, so that only traversal and hit attributes differ.
+        cuda.write_queue(Queue::Paths, &c).unwrap();
+        cpu.trace_paths().unwrap();
+        cuda.trace_paths().unwrap();
+        let (c, g) = (cpu.read_queue(Queue::Paths).unwrap(), cuda.read_queue(Queue::Paths).unwrap());
+        let mut mismatched = 0;
+        for (a, b) in c.iter().zip(&g) {
+            if a.has(flags::HIT) != b.has(flags::HIT) || a.instance != b.instance {
+                mismatched += 1;
+                continue;
+            }
+            if a.has(flags::HIT) {
+                assert!((a.t_max - b.t_max).abs() <= 1e-4 * a.t_max.max(1.0), "{} vs {}", a.t_max, b.t_max);
+                assert!(Vec3::from(a.position).abs_diff_eq(Vec3::from(b.position), 1e-4));
+                assert!(a.geometric_normal().abs_diff_eq(b.geometric_normal(), 1e-3));
+                assert_eq!((a.material, a.coeffs, a.light), (b.material, b.coeffs, b.light));
+            }
         }
+        // Rays through triangle edges may legitimately disagree.
+        assert!(mismatched <= c.len() / 200, "{mismatched} of {} hits differ", c.len());
     }
-    // Rays through triangle edges may legitimately disagree.
-    assert!(mismatched <= c.len() / 200, "{mismatched} of {} hits differ", c.len());
 }
 
 #[test]

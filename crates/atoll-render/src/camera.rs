@@ -1,6 +1,6 @@
-//! Camera rays (pbrt-v4's perspective camera with a thin lens).
+//! Camera rays (pbrt-v4's perspective and orthographic cameras with a thin lens).
 
-use atoll_scene::Camera;
+use atoll_scene::{Camera, Projection};
 use glam::{Mat4, UVec2, Vec2, Vec3};
 
 use crate::sampling::sample_uniform_disk_concentric;
@@ -9,7 +9,10 @@ use crate::sampling::sample_uniform_disk_concentric;
 #[derive(Clone, Debug)]
 pub struct CameraRays {
     camera_to_world: Mat4,
-    /// Screen window scaled by tan(fov/2): camera-space x/y at z = 1.
+    orthographic: bool,
+    /// The screen window in camera space: x/y at z = 1 for a perspective
+    /// camera (pbrt's screen scaled by tan(fov/2)), at z = 0 for an
+    /// orthographic one.
     window_min: Vec2,
     window_max: Vec2,
     resolution: Vec2,
@@ -19,14 +22,15 @@ pub struct CameraRays {
 
 impl CameraRays {
     pub fn new(camera: &Camera, resolution: UVec2) -> Self {
-        // pbrt: the fov spans the shorter image axis.
-        let aspect = resolution.x as f32 / resolution.y as f32;
-        let (sx, sy) = if aspect > 1.0 { (aspect, 1.0) } else { (1.0, 1.0 / aspect) };
-        let tan_half = (camera.fov_degrees.to_radians() * 0.5).tan();
+        let [x0, x1, y0, y1] = camera.screen_window(resolution);
+        let (window_min, window_max) = (Vec2::new(x0, y0), Vec2::new(x1, y1));
+        let orthographic = camera.projection == Projection::Orthographic;
+        let scale = if orthographic { 1.0 } else { (camera.fov_degrees.to_radians() * 0.5).tan() };
         CameraRays {
             camera_to_world: camera.camera_to_world,
-            window_min: Vec2::new(-sx, -sy) * tan_half,
-            window_max: Vec2::new(sx, sy) * tan_half,
+            orthographic,
+            window_min: window_min * scale,
+            window_max: window_max * scale,
             resolution: resolution.as_vec2(),
             lens_radius: camera.lens_radius,
             focal_distance: camera.focal_distance,
@@ -56,7 +60,13 @@ impl CameraRays {
         self.camera_to_world
     }
 
-    /// Screen window (camera-space x/y at z = 1): (min, max).
+    /// Whether rays are parallel (orthographic) rather than from a point.
+    pub fn orthographic(&self) -> bool {
+        self.orthographic
+    }
+
+    /// Screen window in camera space (x/y at z = 1, or at z = 0 for an
+    /// orthographic camera): (min, max).
     pub fn window(&self) -> (Vec2, Vec2) {
         (self.window_min, self.window_max)
     }
@@ -78,11 +88,17 @@ impl CameraRays {
         // Raster y grows downwards, camera y upwards.
         let x = self.window_min.x + t.x * (self.window_max.x - self.window_min.x);
         let y = self.window_max.y - t.y * (self.window_max.y - self.window_min.y);
-        let mut dir = Vec3::new(x, y, 1.0);
-        let mut origin = Vec3::ZERO;
+        let (mut origin, mut dir) = if self.orthographic {
+            (Vec3::new(x, y, 0.0), Vec3::Z)
+        } else {
+            (Vec3::ZERO, Vec3::new(x, y, 1.0))
+        };
         if self.lens_radius > 0.0 {
+            // The point in focus along the pinhole ray; pbrt-v4's
+            // orthographic camera, too, moves the origin to the lens sample
+            // itself (not beside the ray's own origin).
             let lens = self.lens_radius * sample_uniform_disk_concentric(u_lens);
-            let focus = dir * self.focal_distance;
+            let focus = origin + dir * self.focal_distance;
             origin = Vec3::new(lens.x, lens.y, 0.0);
             dir = focus - origin;
         }
@@ -125,5 +141,64 @@ mod tests {
             let (o2, d2) = part.ray(raster, Vec2::ZERO);
             assert!(o1.distance(o2) < 1e-5 && d1.distance(d2) < 1e-5, "{raster}: {d1} against {d2}");
         }
+    }
+
+    /// An orthographic camera's rays are parallel to its +z and leave from
+    /// the screen window, which pbrt makes from the frame's aspect ratio
+    /// unless `screenwindow` gives it; a thin lens focuses them on the
+    /// plane at the focal distance.
+    #[test]
+    fn orthographic_rays_are_parallel_and_leave_the_screen_window() {
+        let turn =
+            Mat4::from_rotation_translation(glam::Quat::from_rotation_x(0.4), Vec3::new(3.0, -1.0, 2.0));
+        let forward = turn.transform_vector3(Vec3::Z);
+        let mut camera =
+            Camera { camera_to_world: turn, projection: Projection::Orthographic, ..Camera::default() };
+        let rays = CameraRays::new(&camera, UVec2::new(200, 100));
+        assert_eq!(rays.window(), (Vec2::new(-2.0, -1.0), Vec2::new(2.0, 1.0)), "the aspect ratio's frame");
+        for (raster, local) in [
+            (Vec2::new(0.0, 0.0), Vec2::new(-2.0, 1.0)),
+            (Vec2::new(200.0, 100.0), Vec2::new(2.0, -1.0)),
+            (Vec2::new(100.0, 50.0), Vec2::ZERO),
+        ] {
+            let (o, d) = rays.ray(raster, Vec2::new(0.7, 0.2));
+            assert!(d.abs_diff_eq(forward, 1e-6), "{d}");
+            let expected = turn.transform_point3(local.extend(0.0));
+            assert!(o.abs_diff_eq(expected, 1e-5), "{raster}: {o} against {expected}");
+        }
+        // A screen window of its own; tall images keep the window.
+        camera.screen_window = Some([-0.5, 1.5, 0.0, 4.0]);
+        let rays = CameraRays::new(&camera, UVec2::new(10, 40));
+        assert_eq!(rays.window(), (Vec2::new(-0.5, 0.0), Vec2::new(1.5, 4.0)));
+        // Through a lens, rays of one raster position meet at the focal plane.
+        camera.lens_radius = 0.3;
+        camera.focal_distance = 5.0;
+        let rays = CameraRays::new(&camera, UVec2::new(10, 40));
+        let raster = Vec2::new(7.5, 12.5);
+        let focus = turn.transform_point3(Vec3::new(-0.5 + 0.75 * 2.0, 4.0 - 12.5 / 40.0 * 4.0, 5.0));
+        for u in [Vec2::new(0.1, 0.9), Vec2::new(0.6, 0.3)] {
+            let (o, d) = rays.ray(raster, u);
+            let t = (focus - o).dot(d);
+            assert!((o + t * d).abs_diff_eq(focus, 1e-4), "lens sample {u}");
+        }
+    }
+
+    /// A perspective camera's screen window is the frame's, or the one
+    /// given, scaled by tan(fov / 2).
+    #[test]
+    fn perspective_screen_windows_scale_with_the_field_of_view() {
+        let tan = (30.0f32).to_radians().tan();
+        let mut camera = Camera { fov_degrees: 60.0, ..Camera::default() };
+        let rays = CameraRays::new(&camera, UVec2::new(100, 200));
+        assert_eq!(rays.window(), (Vec2::new(-1.0, -2.0) * tan, Vec2::new(1.0, 2.0) * tan));
+        camera.frame_aspect_ratio = Some(2.0);
+        let rays = CameraRays::new(&camera, UVec2::new(100, 200));
+        assert_eq!(rays.window(), (Vec2::new(-2.0, -1.0) * tan, Vec2::new(2.0, 1.0) * tan));
+        camera.screen_window = Some([0.0, 1.0, -1.0, 0.0]);
+        let rays = CameraRays::new(&camera, UVec2::new(100, 200));
+        assert_eq!(rays.window(), (Vec2::new(0.0, -1.0) * tan, Vec2::new(1.0, 0.0) * tan));
+        // The window's corner pixel looks along its corner.
+        let (_, d) = rays.ray(Vec2::new(100.0, 200.0), Vec2::ZERO);
+        assert!(d.abs_diff_eq(Vec3::new(tan, -tan, 1.0).normalize(), 1e-6), "{d}");
     }
 }

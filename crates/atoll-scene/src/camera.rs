@@ -2,23 +2,69 @@
 
 use glam::{Mat3, Mat4, UVec2, Vec3};
 
-/// pbrt-style perspective camera. Camera space is left-handed: +x right,
-/// +y up, +z forward (pbrt-v4's convention).
+/// pbrt-style projective camera (perspective or orthographic). Camera
+/// space is left-handed: +x right, +y up, +z forward (pbrt-v4's convention).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     /// Camera space to world space (the inverse of the CTM at `Camera`).
     pub camera_to_world: Mat4,
-    /// Field of view in degrees, spanning the shorter image axis (pbrt's rule).
+    pub projection: Projection,
+    /// Field of view in degrees, spanning the shorter side of the screen
+    /// window (pbrt's rule); perspective cameras only.
     pub fov_degrees: f32,
     /// Thin-lens aperture radius; 0 is a pinhole.
     pub lens_radius: f32,
     /// Distance to the plane in focus (used only when `lens_radius > 0`).
     pub focal_distance: f32,
+    /// pbrt's `screenwindow`: (x min, x max, y min, y max) of the image on
+    /// the screen, before a perspective camera's fov scales it. `None`: from
+    /// the frame's aspect ratio ([`Camera::screen_window`]).
+    pub screen_window: Option<[f32; 4]>,
+    /// pbrt's `frameaspectratio`; `None`: the image's width over its height.
+    pub frame_aspect_ratio: Option<f32>,
+}
+
+/// How camera space maps onto the screen.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Projection {
+    /// Rays fan out from the origin through the screen at z = 1, scaled by
+    /// the field of view.
+    #[default]
+    Perspective,
+    /// Parallel rays along +z, leaving from the screen window at z = 0 (its
+    /// units are camera-space lengths).
+    Orthographic,
 }
 
 impl Default for Camera {
     fn default() -> Self {
-        Camera { camera_to_world: Mat4::IDENTITY, fov_degrees: 90.0, lens_radius: 0.0, focal_distance: 1e6 }
+        Camera {
+            camera_to_world: Mat4::IDENTITY,
+            projection: Projection::Perspective,
+            fov_degrees: 90.0,
+            lens_radius: 0.0,
+            focal_distance: 1e6,
+            screen_window: None,
+            frame_aspect_ratio: None,
+        }
+    }
+}
+
+impl Camera {
+    /// The screen window of an image of `resolution` as pbrt-v4 makes it:
+    /// the shorter side spans [-1, 1] and the other keeps the frame's
+    /// aspect ratio, unless `screenwindow` gives it. (x min, x max, y min,
+    /// y max).
+    pub fn screen_window(&self, resolution: UVec2) -> [f32; 4] {
+        if let Some(window) = self.screen_window {
+            return window;
+        }
+        let frame = self.frame_aspect_ratio.unwrap_or(resolution.x as f32 / resolution.y as f32);
+        if frame > 1.0 {
+            [-frame, frame, -1.0, 1.0]
+        } else {
+            [-1.0, 1.0, -1.0 / frame, 1.0 / frame]
+        }
     }
 }
 

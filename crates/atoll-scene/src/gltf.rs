@@ -115,8 +115,16 @@ struct Loader<'a> {
     ignored: BTreeSet<&'static str>,
     /// glTF mesh index → atoll object (`None`: the mesh has no triangles).
     objects: HashMap<usize, Option<ObjectId>>,
-    /// The first perspective camera: node world transform, yfov, aspect ratio.
-    camera: Option<(Mat4, f32, Option<f32>)>,
+    /// The first camera: its node's world transform and its projection.
+    camera: Option<(Mat4, GltfProjection)>,
+}
+
+/// A glTF camera's projection, as the file gives it.
+enum GltfProjection {
+    /// Vertical field of view in radians and the aspect ratio, if given.
+    Perspective { yfov: f32, aspect: Option<f32> },
+    /// Half the view's width and height in camera-space units.
+    Orthographic { xmag: f32, ymag: f32 },
 }
 
 /// Parses, reads the buffers, converts.
@@ -192,22 +200,38 @@ impl<'a> Loader<'a> {
             }
         }
         if let Some(cam) = node.camera() {
-            match cam.projection() {
-                ::gltf::camera::Projection::Perspective(p) if self.camera.is_none() => {
-                    let yfov = p.yfov();
-                    if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
-                        return Err(SceneError::at(
-                            &self.loc,
-                            format!("camera {}: yfov {yfov} is not between 0 and pi radians", cam.index()),
-                        ));
+            if self.camera.is_none() {
+                let projection = match cam.projection() {
+                    ::gltf::camera::Projection::Perspective(p) => {
+                        let yfov = p.yfov();
+                        if !(yfov > 0.0 && yfov < std::f32::consts::PI) {
+                            return Err(SceneError::at(
+                                &self.loc,
+                                format!(
+                                    "camera {}: yfov {yfov} is not between 0 and pi radians",
+                                    cam.index()
+                                ),
+                            ));
+                        }
+                        GltfProjection::Perspective { yfov, aspect: p.aspect_ratio() }
                     }
-                    self.camera = Some((world, yfov, p.aspect_ratio()))
-                }
-                ::gltf::camera::Projection::Perspective(_) => {}
-                ::gltf::camera::Projection::Orthographic(_) => self.w.warn(
-                    &self.loc,
-                    format!("orthographic camera {} is not supported; skipped", cam.index()),
-                ),
+                    ::gltf::camera::Projection::Orthographic(o) => {
+                        let (xmag, ymag) = (o.xmag().abs(), o.ymag().abs());
+                        if !(xmag > 0.0 && ymag > 0.0 && xmag.is_finite() && ymag.is_finite()) {
+                            return Err(SceneError::at(
+                                &self.loc,
+                                format!(
+                                    "camera {}: orthographic xmag {} and ymag {} must be nonzero",
+                                    cam.index(),
+                                    o.xmag(),
+                                    o.ymag()
+                                ),
+                            ));
+                        }
+                        GltfProjection::Orthographic { xmag, ymag }
+                    }
+                };
+                self.camera = Some((world, projection));
             }
         }
         if let Some(light) = node.light() {
@@ -554,10 +578,24 @@ impl<'a> Loader<'a> {
         // lighting: without punctual lights, the default sky and sun are added.
         let punctual_lights = !scene.lights.is_empty();
         match self.camera.take() {
-            Some((world, yfov, aspect)) => {
-                let (fov_degrees, resolution) = camera_fov_and_resolution(yfov, aspect);
-                scene.settings.camera =
-                    Camera { camera_to_world: camera_to_world(world), fov_degrees, ..Default::default() };
+            Some((world, projection)) => {
+                let camera_to_world = camera_to_world(world);
+                let (camera, resolution) = match projection {
+                    GltfProjection::Perspective { yfov, aspect } => {
+                        let (fov_degrees, resolution) = camera_fov_and_resolution(yfov, aspect);
+                        (Camera { camera_to_world, fov_degrees, ..Default::default() }, resolution)
+                    }
+                    GltfProjection::Orthographic { xmag, ymag } => {
+                        let camera = Camera {
+                            camera_to_world,
+                            projection: crate::Projection::Orthographic,
+                            screen_window: Some([-xmag, xmag, -ymag, ymag]),
+                            ..Default::default()
+                        };
+                        (camera, image_resolution(Some(xmag / ymag)))
+                    }
+                };
+                scene.settings.camera = camera;
                 crate::framing::frame_scene(&mut scene, false);
                 scene.settings.film.resolution = resolution;
             }
@@ -594,14 +632,20 @@ pub fn camera_to_world(node_world: Mat4) -> Mat4 {
 /// one. glTF's `yfov` is vertical: on a portrait image the shorter axis is
 /// the horizontal one, whose angle is `2 atan(tan(yfov / 2) · width / height)`.
 pub fn camera_fov_and_resolution(yfov: f32, aspect: Option<f32>) -> (f32, UVec2) {
-    let resolution = match aspect.filter(|a| a.is_finite() && *a > 0.0) {
-        Some(a) if a >= 1.0 => UVec2::new(1024, ((1024.0 / a).round() as u32).max(1)),
-        Some(a) => UVec2::new(((1024.0 * a).round() as u32).max(1), 1024),
-        None => crate::framing::RESOLUTION,
-    };
+    let resolution = image_resolution(aspect);
     let (w, h) = (resolution.x as f32, resolution.y as f32);
     let fov = if w >= h { yfov } else { 2.0 * ((yfov * 0.5).tan() * w / h).atan() };
     (fov.to_degrees(), resolution)
+}
+
+/// An image 1024 pixels on its longer side with the aspect ratio (width
+/// over height) `aspect`, or the default framing's size.
+fn image_resolution(aspect: Option<f32>) -> UVec2 {
+    match aspect.filter(|a| a.is_finite() && *a > 0.0) {
+        Some(a) if a >= 1.0 => UVec2::new(1024, ((1024.0 / a).round() as u32).max(1)),
+        Some(a) => UVec2::new(((1024.0 * a).round() as u32).max(1), 1024),
+        None => crate::framing::RESOLUTION,
+    }
 }
 
 /// The raw JSON of these extensions is read (the `gltf` crate does not

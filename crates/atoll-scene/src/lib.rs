@@ -33,7 +33,7 @@ pub mod texture;
 pub mod texture_scenes;
 
 pub use camera::{
-    Camera, FilmSettings, IntegratorSettings, LightSampler, PixelFilter, RenderSettings, Sensor,
+    Camera, FilmSettings, IntegratorSettings, LightSampler, PixelFilter, Projection, RenderSettings, Sensor,
 };
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};

@@ -380,6 +380,26 @@ fn broken_gltf_files_are_errors() {
     assert!(e.message.contains("cycle"), "{e}");
 }
 
+/// An orthographic glTF camera: half-width and half-height as the screen
+/// window, an image of their aspect ratio; a zero size is an error.
+#[test]
+fn gltf_orthographic_camera() {
+    let dir = temp_dir("gltf-ortho");
+    write(&dir, "scene.bin", gltf_bin());
+    let mut j = gltf_json(Some("scene.bin".into()));
+    j["cameras"][0] =
+        json!({"type": "orthographic", "orthographic": {"xmag": 3, "ymag": 1.5, "znear": 0, "zfar": 50}});
+    let s = load_any(&write(&dir, "ortho.gltf", j.to_string())).unwrap().scene;
+    let cam = &s.settings.camera;
+    assert_eq!(cam.projection, atoll_scene::Projection::Orthographic);
+    assert_eq!(cam.screen_window, Some([-3.0, 3.0, -1.5, 1.5]));
+    assert_eq!(s.settings.film.resolution, UVec2::new(1024, 512));
+    assert_close(cam.camera_to_world.transform_vector3(Vec3::Z), -Vec3::Z, 1e-6);
+    j["cameras"][0]["orthographic"]["ymag"] = json!(0);
+    let e = load_any(&write(&dir, "flat.gltf", j.to_string())).unwrap_err();
+    assert!(e.message.contains("camera 0: orthographic xmag 3 and ymag 0 must be nonzero"), "{e}");
+}
+
 /// Files the gltf crate panicked on (found by the property tests): refused
 /// with what is wrong, not with "the glTF reader failed".
 #[test]

@@ -29,6 +29,35 @@ fn mirrored_look_at_camera() {
     assert_eq!(s.settings.camera.fov_degrees, 45.0);
 }
 
+/// `orthographic` cameras, `screenwindow` and `frameaspectratio` as
+/// pbrt-v4 reads them; malformed ones are errors at their statement.
+#[test]
+fn orthographic_cameras_and_screen_windows() {
+    let camera = |text: &str| load_world(text, "").map(|l| (l.scene.settings.camera, l.warnings));
+    let (c, w) = camera("Camera \"orthographic\" \"float screenwindow\" [ -2 2 -1 1.5 ]").unwrap();
+    assert!(w.is_empty(), "{w:?}");
+    assert_eq!(c.projection, atoll_scene::Projection::Orthographic);
+    assert_eq!(c.screen_window, Some([-2.0, 2.0, -1.0, 1.5]));
+    let (c, _) = camera("Camera \"perspective\" \"float fov\" 30 \"float frameaspectratio\" 0.5").unwrap();
+    assert_eq!((c.projection, c.fov_degrees), (atoll_scene::Projection::Perspective, 30.0));
+    assert_eq!(c.frame_aspect_ratio, Some(0.5));
+    assert_eq!(c.screen_window(glam::UVec2::new(640, 480)), [-1.0, 1.0, -2.0, 2.0]);
+    let (c, w) = camera("Camera \"realistic\" \"string lensfile\" \"wide.dat\"").unwrap();
+    assert_eq!(c.projection, atoll_scene::Projection::Perspective);
+    assert!(w[0].message.contains("camera \"realistic\" is not supported"), "{w:?}");
+    for (text, error) in [
+        (
+            "Camera \"orthographic\" \"float screenwindow\" [ -1 1 -1 ]",
+            "test.pbrt:1:1: Camera: \"screenwindow\" needs four values",
+        ),
+        ("Camera \"perspective\" \"float screenwindow\" [ 1 -1 -1 1 ]", "each minimum below its maximum"),
+        ("Camera \"orthographic\" \"float frameaspectratio\" 0", "\"frameaspectratio\" 0 is not positive"),
+    ] {
+        let message = camera(text).unwrap_err().to_string();
+        assert!(message.contains(error), "{text}: {message}");
+    }
+}
+
 #[test]
 fn defaults_follow_pbrt() {
     let s = load_world("", "").unwrap().scene;

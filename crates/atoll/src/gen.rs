@@ -7,7 +7,9 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use atoll_scene::landscape::{Landscape, LandscapeEstimate};
-use atoll_scene::{CoatedDiffuseParams, Coating, IntegratorSettings, Light, Material, Scene, TriangleMesh};
+use atoll_scene::{
+    CoatedDiffuseParams, Coating, IntegratorSettings, Light, Material, Projection, Scene, TriangleMesh,
+};
 use clap::{Args, Subcommand};
 use glam::{Affine3A, Mat4, Vec3};
 
@@ -328,7 +330,19 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
     let world_to_camera = s.camera.camera_to_world.as_dmat4().inverse();
     write!(out, "Transform ")?;
     list(out, world_to_camera.to_cols_array())?;
-    write!(out, "\nCamera \"perspective\" \"float fov\" [ {} ]", s.camera.fov_degrees)?;
+    match s.camera.projection {
+        Projection::Perspective => {
+            write!(out, "\nCamera \"perspective\" \"float fov\" [ {} ]", s.camera.fov_degrees)?
+        }
+        Projection::Orthographic => write!(out, "\nCamera \"orthographic\"")?,
+    }
+    if let Some(window) = s.camera.screen_window {
+        write!(out, " \"float screenwindow\" ")?;
+        list(out, window)?;
+    }
+    if let Some(frame) = s.camera.frame_aspect_ratio {
+        write!(out, " \"float frameaspectratio\" [ {frame} ]")?;
+    }
     if s.camera.lens_radius > 0.0 {
         let c = &s.camera;
         write!(
@@ -520,7 +534,13 @@ mod tests {
         }
         let (ca, cb) = (&a.settings.camera, &b.settings.camera);
         assert!(ca.camera_to_world.abs_diff_eq(cb.camera_to_world, 1e-4), "{ca:?} {cb:?}");
-        assert_eq!((ca.fov_degrees, ca.lens_radius), (cb.fov_degrees, cb.lens_radius));
+        // An orthographic camera has no field of view.
+        let fov =
+            |c: &atoll_scene::Camera| (c.projection == Projection::Perspective).then_some(c.fov_degrees);
+        assert_eq!(
+            (ca.projection, fov(ca), ca.lens_radius, ca.screen_window, ca.frame_aspect_ratio),
+            (cb.projection, fov(cb), cb.lens_radius, cb.screen_window, cb.frame_aspect_ratio)
+        );
         let (sa, sb) = (&a.settings, &b.settings);
         assert_eq!(
             (sa.film.resolution, sa.spp, &sa.integrator),
@@ -570,6 +590,12 @@ mod tests {
         let scene = atoll_scene::cornell::builtin_cornell_box();
         assert!(scene.stats().emissive_triangles > 0);
         assert_equal(&scene, &round_trip(&scene));
+        // An orthographic camera with a screen window and a frame ratio.
+        let mut ortho = scene.clone();
+        ortho.settings.camera.projection = Projection::Orthographic;
+        ortho.settings.camera.screen_window = Some([-1.25, 0.75, -1.0, 1.5]);
+        ortho.settings.camera.frame_aspect_ratio = Some(1.5);
+        assert_equal(&ortho, &round_trip(&ortho));
     }
 
     #[test]

@@ -44,8 +44,12 @@ fn ray_from_params(p: &FrameParams, raster: Vec2) -> (Vec3, Vec3) {
     let row = |r: usize, v: Vec3, w: f32| {
         m[r * 4] * v.x + m[r * 4 + 1] * v.y + m[r * 4 + 2] * v.z + m[r * 4 + 3] * w
     };
-    let dir = Vec3::new(x, y, 1.0);
-    let o = Vec3::new(row(0, Vec3::ZERO, 1.0), row(1, Vec3::ZERO, 1.0), row(2, Vec3::ZERO, 1.0));
+    let (origin, dir) = if p.orthographic == 1 {
+        (Vec3::new(x, y, 0.0), Vec3::Z)
+    } else {
+        (Vec3::ZERO, Vec3::new(x, y, 1.0))
+    };
+    let o = Vec3::new(row(0, origin, 1.0), row(1, origin, 1.0), row(2, origin, 1.0));
     let d = Vec3::new(row(0, dir, 0.0), row(1, dir, 0.0), row(2, dir, 0.0)).normalize();
     (o, d)
 }
@@ -63,6 +67,20 @@ fn frame_params_reproduce_the_camera_and_options() {
         let cpu = frame.camera.ray(raster, Vec2::new(0.3, 0.6));
         let gpu = ray_from_params(&p, raster);
         assert_eq!(cpu, gpu, "raster {raster}");
+    }
+    // An orthographic camera's rays, too.
+    let (mut scene, _) = cornell_frame(IntegratorSettings::Path { max_depth: 6 });
+    scene.settings.camera.projection = atoll_scene::Projection::Orthographic;
+    scene.settings.camera.screen_window = Some([-1.5, 0.5, -0.25, 2.0]);
+    let ortho = FrameContext::new(&scene, RenderOptions::from_scene(&scene));
+    let q = FrameParams::from_frame(&ortho);
+    assert_eq!((q.orthographic, q.window_min, q.window_max), (1, [-1.5, -0.25], [0.5, 2.0]));
+    for raster in [Vec2::new(0.5, 0.5), Vec2::new(63.2, 1.7), Vec2::new(20.0, 47.9)] {
+        assert_eq!(
+            ortho.camera.ray(raster, Vec2::new(0.3, 0.6)),
+            ray_from_params(&q, raster),
+            "raster {raster}"
+        );
     }
     // Row 3 of the camera matrix is (0, 0, 0, 1): dropping it loses nothing.
     assert_eq!(frame.camera.camera_to_world().row(3), Vec4::W);

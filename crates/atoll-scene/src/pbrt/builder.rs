@@ -769,29 +769,53 @@ impl Builder {
         if !outside.is_empty() {
             self.camera_medium = Some((outside.clone(), at.clone().unwrap_or_else(|| loc.clone())));
         }
-        let cam = &mut self.scene.settings.camera;
-        cam.camera_to_world = transform::to_f32(&world_from_camera);
-        if name != "perspective" {
-            p.mark_all_used();
-            self.warn(loc, format!("camera \"{name}\" is not supported; using a perspective camera"));
-            return Ok(());
-        }
+        let projection = match name {
+            "perspective" => crate::Projection::Perspective,
+            "orthographic" => crate::Projection::Orthographic,
+            _ => {
+                p.mark_all_used();
+                self.warn(loc, format!("camera \"{name}\" is not supported; using a perspective camera"));
+                let cam = &mut self.scene.settings.camera;
+                *cam = crate::Camera {
+                    camera_to_world: transform::to_f32(&world_from_camera),
+                    ..Default::default()
+                };
+                return Ok(());
+            }
+        };
         let fov = p.float_or("fov", 90.0)?;
-        if !(fov > 0.0 && fov < 180.0) {
+        if projection == crate::Projection::Perspective && !(fov > 0.0 && fov < 180.0) {
             return Err(SceneError::at(
                 loc,
                 format!("Camera: \"fov\" {fov} is not between 0 and 180 degrees"),
             ));
         }
-        cam.fov_degrees = fov;
-        for (param, ty) in [("frameaspectratio", ParamType::Float), ("screenwindow", ParamType::Float)] {
-            if p.find(param, &[ty]).is_some() {
-                let msg = format!(
-                    "Camera: \"{param}\" is not supported; the image's aspect ratio and the fov are used"
-                );
-                self.warnings.warn(loc, msg);
-            }
+        let frame_aspect_ratio = p.float("frameaspectratio")?;
+        if let Some(frame) = frame_aspect_ratio.filter(|f| !(*f > 0.0 && f.is_finite())) {
+            return Err(SceneError::at(loc, format!("Camera: \"frameaspectratio\" {frame} is not positive")));
         }
+        let screen_window = match p.numbers("screenwindow", ParamType::Float) {
+            None => None,
+            Some(&[x0, x1, y0, y1]) if x0 < x1 && y0 < y1 => Some([x0, x1, y0, y1].map(|v| v as f32)),
+            Some(w) => {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "Camera: \"screenwindow\" needs four values (x min, x max, y min, y max) \
+                         with each minimum below its maximum, got {w:?}"
+                    ),
+                ))
+            }
+        };
+        let cam = &mut self.scene.settings.camera;
+        *cam = crate::Camera {
+            camera_to_world: transform::to_f32(&world_from_camera),
+            projection,
+            fov_degrees: fov,
+            screen_window,
+            frame_aspect_ratio,
+            ..Default::default()
+        };
         cam.lens_radius = p.float_or("lensradius", 0.0)?;
         cam.focal_distance = p.float_or("focaldistance", 1e6)?;
         // The film's exposure; motion blur over it is not rendered.
