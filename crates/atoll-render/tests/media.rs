@@ -178,6 +178,34 @@ fn an_rgb_grid_slab_dims_sunlight_by_its_integral() {
 #[test]
 fn a_glowing_grid_slab_shows_its_emission() {
     let ones = vec!["1"; 2 * 4 * 2].join(" ");
+    assert_glowing_slab_shows(
+        &format!("\"rgb Le\" [ 3 2 1 ] \"float density\" [ {ones} ]"),
+        Vec3::new(3.0, 2.0, 1.0),
+        false,
+    );
+}
+
+/// The same slab glowing by its temperature: a blackbody at
+/// (T − offset) × scale kelvin, times `Lescale`, at every sample.
+#[test]
+fn a_hot_grid_slab_glows_as_a_blackbody() {
+    let samples = 2 * 4 * 2;
+    let repeat = |v: &str| vec![v; samples].join(" ");
+    let emission = format!(
+        "\"float density\" [ {} ] \"float temperature\" [ {} ] \"float Lescale\" [ {} ] \
+         \"float temperatureoffset\" 100 \"float temperaturescale\" 5",
+        repeat("1"),
+        repeat("700"),
+        repeat("2")
+    );
+    let le = atoll_scene::pbrt::spectrum::blackbody_peak_normalised_rgb(3000.0) * 2.0;
+    assert_glowing_slab_shows(&emission, le, true);
+}
+
+/// Renders the glowing slab whose grid (2 × 4 × 2 samples) has
+/// `emission`'s parameters and checks that it shows `le`, constant or (if
+/// `le_is_gridded`) interpolated between the samples as the density is.
+fn assert_glowing_slab_shows(emission: &str, le: Vec3, le_is_gridded: bool) {
     let scene = load(&format!(
         r#"
 LookAt 0 3 0  0 0 0  0 0 1
@@ -186,8 +214,8 @@ Sampler "independent" "integer pixelsamples" [ 256 ]
 Integrator "volpath" "integer maxdepth" [ 5 ]
 Film "rgb" "integer xresolution" [ 8 ] "integer yresolution" [ 8 ]
 WorldBegin
-MakeNamedMedium "glow" "string type" "uniformgrid" "rgb sigma_a" [ 1 2 4 ] "rgb sigma_s" [ 0 0 0 ] "rgb Le" [ 3 2 1 ]
-  "integer nx" 2 "integer ny" 4 "integer nz" 2 "point3 p0" [ -20 1 -20 ] "point3 p1" [ 20 1.5 20 ] "float density" [ {ones} ]
+MakeNamedMedium "glow" "string type" "uniformgrid" "rgb sigma_a" [ 1 2 4 ] "rgb sigma_s" [ 0 0 0 ]
+  "integer nx" 2 "integer ny" 4 "integer nz" 2 "point3 p0" [ -20 1 -20 ] "point3 p1" [ 20 1.5 20 ] {emission}
 Material "diffuse" "rgb reflectance" [ 0 0 0 ]
 Shape "trianglemesh" "point3 P" [ -20 0 -20  20 0 -20  20 0 20  -20 0 20 ] "integer indices" [ 0 2 1 0 3 2 ]
 AttributeBegin
@@ -199,13 +227,37 @@ AttributeEnd
         box_mesh(Vec3::new(-20.0, 1.0, -20.0), Vec3::new(20.0, 1.5, 20.0))
     ));
     let film = render(&scene);
-    let depth = Vec3::new(1.0, 2.0, 4.0) * (0.5 - 0.125 / 4.0);
-    let expected = Vec3::new(3.0, 2.0, 1.0) * (Vec3::ONE - (-depth).exp());
+    // Along the vertical the grid's 4 samples sit at the centres of four
+    // layers; the value falls linearly to half at the faces (to 0 half a
+    // layer beyond). A gridded emission falls with the density.
+    let profile = |u: f32| {
+        let x = u * 4.0 - 0.5;
+        if x < 0.0 {
+            1.0 + x
+        } else if x > 3.0 {
+            4.0 - x
+        } else {
+            1.0
+        }
+    };
+    let sigma_a = Vec3::new(1.0, 2.0, 4.0);
+    let (steps, thickness) = (100_000, 0.5);
+    let (mut depth, mut expected) = (Vec3::ZERO, Vec3::ZERO);
+    for i in 0..steps {
+        let f = profile((i as f32 + 0.5) / steps as f32);
+        let ds = thickness / steps as f32;
+        let emitted = if le_is_gridded { le * f } else { le };
+        expected += (-(depth + sigma_a * f * ds * 0.5)).exp() * sigma_a * f * emitted * ds;
+        depth += sigma_a * f * ds;
+    }
     for c in 0..3 {
         let (mean, err) = mean_and_stderr(film.pixels().iter().map(|p| p[c]));
         eprintln!("channel {c}: mean {mean} ± {err}, expected {}", expected[c]);
         let want = expected[c] as f64;
-        assert!((mean - want).abs() < 4.0 * err + 2e-3, "channel {c}: {mean} ± {err} vs {want}");
+        assert!(
+            (mean - want).abs() < 4.0 * err + 2e-3 * le.max_element() as f64,
+            "channel {c}: {mean} ± {err} vs {want}"
+        );
     }
 }
 

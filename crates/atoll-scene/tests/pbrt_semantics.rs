@@ -858,8 +858,8 @@ fn media_and_their_interfaces() {
 
 /// pbrt-v4's `uniformgrid`: its samples and box, placed by the transform
 /// where it is defined, the density scaling σa and σs, `Le` constant or
-/// times an `Lescale` grid; wrong sample counts are errors; a
-/// `temperature` grid is warned about.
+/// times an `Lescale` grid, or a `temperature` grid's blackbody times
+/// `Lescale`; wrong sample counts are errors.
 #[test]
 fn grid_media_read_their_samples() {
     use atoll_scene::{FieldSource, GridField, Medium};
@@ -867,16 +867,12 @@ fn grid_media_read_their_samples() {
         "WorldBegin\nTranslate 1 2 3\n\
          MakeNamedMedium \"smoke\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"integer nz\" 3 \"float density\" [1 2 3 4 5 6] \"point3 p1\" [2 1 3] \"float scale\" 0.5 \"rgb Le\" [1 2 3]\n\
          MakeNamedMedium \"fire\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 2] \"float Lescale\" [0.5 4] \"rgb Le\" [1 1 1]\n\
-         MakeNamedMedium \"hot\" \"string type\" \"uniformgrid\" \"float density\" [1] \"float temperature\" [1500]\n",
+         MakeNamedMedium \"hot\" \"string type\" \"uniformgrid\" \"integer nx\" 3 \"float density\" [1 1 1] \"float temperature\" [700 1100 1200] \"float Lescale\" [1 2 3]\n  \"float temperatureoffset\" 200 \"float temperaturescale\" 4\n",
         "g.pbrt",
         std::path::Path::new("."),
     )
     .unwrap();
-    let w: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(
-        w,
-        ["g.pbrt:5:1: MakeNamedMedium \"hot\": \"temperature\" is not supported: the grid's blackbody emission is missing"]
-    );
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let Medium::Grid(g) = &loaded.scene.media[0] else { panic!("{:?}", loaded.scene.media) };
     assert_eq!(
         (g.resolution, g.channels, g.values.len(), g.lo, g.hi),
@@ -889,6 +885,15 @@ fn grid_media_read_their_samples() {
     // The density's plane, then Lescale's.
     assert_eq!((fire.channels, &fire.values[..]), (2, &[1.0, 2.0, 0.5, 4.0][..]));
     assert_eq!(fire.le, GridField { scale: Vec3::ONE, source: FieldSource::Scalar(1) });
+    // A blackbody per sample at (T - 200) * 4 kelvin, times Lescale: a
+    // plane per colour after the density's.
+    let Medium::Grid(hot) = &loaded.scene.media[2] else { panic!() };
+    assert_eq!((hot.channels, hot.le), (4, GridField { scale: Vec3::ONE, source: FieldSource::Rgb(1) }));
+    for (i, (kelvin, scale)) in [(2000.0, 1.0), (3600.0, 2.0), (4000.0, 3.0)].into_iter().enumerate() {
+        let want = atoll_scene::pbrt::spectrum::blackbody_peak_normalised_rgb(kelvin) * scale;
+        let got = Vec3::new(hot.values[3 + i], hot.values[6 + i], hot.values[9 + i]);
+        assert!((got - want).abs().max_element() < 1e-4 * want.max_element(), "{kelvin} K: {got} vs {want}");
+    }
     for (text, error) in [
         (
             "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1]\n",
@@ -897,6 +902,14 @@ fn grid_media_read_their_samples() {
         (
             "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] \"rgb Le\" [1 1 1] \"float Lescale\" 2\n",
             "e.pbrt:2:1: MakeNamedMedium \"m\": \"Lescale\" has 1 values for 2x1x1 samples",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [1] \"float temperature\" [900] \"rgb Le\" [1 1 1]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": both \"Le\" and \"temperature\" values were given",
+        ),
+        (
+            "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"integer nx\" 2 \"float density\" [1 1] \"float temperature\" [900]\n",
+            "e.pbrt:2:1: MakeNamedMedium \"m\": \"temperature\" has 1 values for 2x1x1 samples",
         ),
         (
             "WorldBegin\nMakeNamedMedium \"m\" \"string type\" \"uniformgrid\" \"float density\" [-1]\n",

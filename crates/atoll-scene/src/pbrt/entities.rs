@@ -721,7 +721,7 @@ pub fn medium(
         None => Rgb::ZERO,
     };
     if ty == "uniformgrid" {
-        return density_grid_medium(&what, p, m, le, ctm, loc, w).map(|g| Some(crate::Medium::Grid(g)));
+        return density_grid_medium(&what, p, m, le, ctm, loc).map(|g| Some(crate::Medium::Grid(g)));
     }
     m.le = le * p.float_or("Lescale", 1.0)?.max(0.0);
     Ok(Some(crate::Medium::Homogeneous(m)))
@@ -834,7 +834,11 @@ fn grid_medium(
 /// A `uniformgrid`: `coefficients`' σa and σs times the `density` samples,
 /// emitting `le` (pbrt's `Le`, 0 by default) times `Lescale`, a grid of
 /// its own where given (pbrt reads it as one value per sample), else 1.
-/// The `temperature` grid's blackbody emission is not rendered: warned.
+/// A `temperature` grid emits instead a blackbody at each sample's
+/// (temperature − `temperatureoffset`) × `temperaturescale` kelvin (none at
+/// 100 K or below), times `Lescale`, as pbrt's `GridMedium` does; here the
+/// radiance is taken at the samples and interpolated between them, where
+/// pbrt interpolates the temperature.
 fn density_grid_medium(
     what: &str,
     p: &ParamList,
@@ -842,17 +846,8 @@ fn density_grid_medium(
     le: Rgb,
     ctm: &DMat4,
     loc: &FileLoc,
-    w: &mut WarningSink,
 ) -> Result<crate::GridMedium, SceneError> {
     use crate::{FieldSource, GridField};
-    for emitting in ["temperature", "temperatureoffset", "temperaturecutoff", "temperaturescale"] {
-        if p.find(emitting, &[ParamType::Float]).is_some() {
-            w.warn(
-                loc,
-                format!("{what}: \"{emitting}\" is not supported: the grid's blackbody emission is missing"),
-            );
-        }
-    }
     p.mark_all_used();
     let resolution = grid_resolution(what, p, loc)?;
     let [nx, ny, nz] = resolution;
@@ -861,18 +856,49 @@ fn density_grid_medium(
             SceneError::at(loc, format!("{what}: \"density\" has 0 values for {nx}x{ny}x{nz} samples"))
         })?;
     let le_scale = grid_values(what, p, "Lescale", ParamType::Float, 1, resolution, loc)?;
+    let density_field = |scale| GridField { scale, source: FieldSource::Scalar(0) };
+    let (sigma_a, sigma_s) = (density_field(coefficients.sigma_a), density_field(coefficients.sigma_s));
+    if let Some(temperature) = grid_values(what, p, "temperature", ParamType::Float, 1, resolution, loc)? {
+        if p.has("Le") {
+            return Err(SceneError::at(
+                loc,
+                format!("{what}: both \"Le\" and \"temperature\" values were given"),
+            ));
+        }
+        let offset = match p.float("temperatureoffset")? {
+            Some(offset) => offset,
+            None => p.float_or("temperaturecutoff", 0.0)?,
+        };
+        let scale = p.float_or("temperaturescale", 1.0)?;
+        let blackbody = super::spectrum::BlackbodyTable::new();
+        let emission: Vec<f32> = (temperature.iter().enumerate())
+            .flat_map(|(i, t)| {
+                let le_scale = le_scale.as_ref().map_or(1.0, |s| s[i]);
+                (blackbody.rgb((t - offset) * scale) * le_scale).to_array()
+            })
+            .collect();
+        let le_field = GridField { scale: Rgb::ONE, source: FieldSource::Rgb(1) };
+        return grid_medium(
+            what,
+            p,
+            resolution,
+            &[density, emission],
+            [sigma_a, sigma_s, le_field],
+            coefficients.g,
+            ctm,
+            loc,
+        );
+    }
     let le_field = match (&le_scale, le == Rgb::ZERO) {
         (_, true) => GridField::constant(Rgb::ZERO),
         (Some(_), false) => GridField { scale: le, source: FieldSource::Scalar(1) },
         (None, false) => GridField::constant(le),
     };
-    let density_field = |scale| GridField { scale, source: FieldSource::Scalar(0) };
-    let fields = [density_field(coefficients.sigma_a), density_field(coefficients.sigma_s), le_field];
     let values: Vec<Vec<f32>> = match le_scale {
         Some(s) if le != Rgb::ZERO => vec![density, s],
         _ => vec![density],
     };
-    grid_medium(what, p, resolution, &values, fields, coefficients.g, ctm, loc)
+    grid_medium(what, p, resolution, &values, [sigma_a, sigma_s, le_field], coefficients.g, ctm, loc)
 }
 
 /// An `rgbgrid`: σa and σs from the RGB samples `sigma_a` and `sigma_s`

@@ -141,6 +141,12 @@ pub fn sampled_rgb(pairs: &[(f32, f32)]) -> Vec3 {
     Vec3::new(band(600.0), band(500.0), band(400.0))
 }
 
+/// Planck's law at `nm` nanometres and `kelvin`, up to a constant factor.
+fn planck(nm: f64, kelvin: f64) -> f64 {
+    let lm = nm * 1e-9;
+    1.0 / (lm.powi(5) * ((0.014387769 / (lm * kelvin)).exp() - 1.0))
+}
+
 /// Linear-sRGB colour of a blackbody at `kelvin`, normalised to luminance 1
 /// (pbrt-v4 divides light spectra by their luminance, so only the colour of a
 /// blackbody matters; `scale` sets the brightness).
@@ -149,17 +155,79 @@ pub fn blackbody_rgb(kelvin: f32) -> Vec3 {
         return Vec3::ZERO;
     }
     let t = kelvin as f64;
-    // Planck's law up to a constant factor (removed by the normalisation).
-    emission_rgb(|l| {
-        let lm = l * 1e-9;
-        1.0 / (lm.powi(5) * ((0.014387769 / (lm * t)).exp() - 1.0))
-    })
+    emission_rgb(|l| planck(l, t))
 }
 
-/// Linear-sRGB colour of the emission spectrum `spd` (of the wavelength in
-/// nm), normalised to luminance 1: integrated against the analytic CIE 1931
-/// fit of Wyman, Sloan and Shirley (2013) from 360 to 830 nm.
-fn emission_rgb(spd: impl Fn(f64) -> f64) -> Vec3 {
+/// Linear-sRGB radiance of pbrt-v4's `BlackbodySpectrum` at `kelvin`: the
+/// spectrum scaled to 1 at its peak, not normalised to a luminance (what
+/// a grid medium's `temperature` emits). Its luminance is
+/// ∫ B ȳ dλ / ∫ ȳ dλ, as pbrt's sensor counts it.
+pub fn blackbody_peak_normalised_rgb(kelvin: f32) -> Vec3 {
+    if kelvin <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let t = kelvin as f64;
+    // Wien's displacement law: where the spectrum peaks.
+    let peak = planck(2.8977721e6 / t, t);
+    let [_, y, _] = emission_xyz(|l| planck(l, t) / peak);
+    let [_, y_of_one, _] = emission_xyz(|_| 1.0);
+    emission_rgb(|l| planck(l, t)) * (y / y_of_one) as f32
+}
+
+/// A blackbody's [`blackbody_peak_normalised_rgb`] by table: grids of
+/// temperature samples convert millions of values, each an integral over
+/// the spectrum otherwise.
+pub struct BlackbodyTable {
+    rgb: Vec<Vec3>,
+}
+
+impl BlackbodyTable {
+    /// The table's span: below it pbrt's grid emits nothing; above it
+    /// the colour is computed directly.
+    const LOWEST: f32 = 100.0;
+    const HIGHEST: f32 = 1e5;
+    const ENTRIES: usize = 4096;
+
+    pub fn new() -> Self {
+        let rgb =
+            (0..Self::ENTRIES).map(|i| blackbody_peak_normalised_rgb(Self::kelvin_at(i as f32))).collect();
+        BlackbodyTable { rgb }
+    }
+
+    /// The temperature of entry `i` (or between entries): evenly spaced in
+    /// log temperature, where the colour varies smoothly.
+    fn kelvin_at(i: f32) -> f32 {
+        let span = (Self::HIGHEST / Self::LOWEST).ln();
+        Self::LOWEST * (span * i / (Self::ENTRIES - 1) as f32).exp()
+    }
+
+    /// The radiance at `kelvin` (linear between entries).
+    pub fn rgb(&self, kelvin: f32) -> Vec3 {
+        // Also NaN: no light.
+        if kelvin.is_nan() || kelvin < Self::LOWEST {
+            return Vec3::ZERO;
+        }
+        if kelvin >= Self::HIGHEST {
+            return blackbody_peak_normalised_rgb(kelvin);
+        }
+        let span = (Self::HIGHEST / Self::LOWEST).ln();
+        let x = (kelvin / Self::LOWEST).ln() / span * (Self::ENTRIES - 1) as f32;
+        let i = (x as usize).min(Self::ENTRIES - 2);
+        let f = x - i as f32;
+        self.rgb[i] * (1.0 - f) + self.rgb[i + 1] * f
+    }
+}
+
+impl Default for BlackbodyTable {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// CIE 1931 XYZ sums of the emission spectrum `spd` (of the wavelength in
+/// nm): integrated at 1 nm steps against the analytic fit of Wyman, Sloan
+/// and Shirley (2013) from 360 to 830 nm.
+fn emission_xyz(spd: impl Fn(f64) -> f64) -> [f64; 3] {
     let g = |x: f64, mu: f64, s1: f64, s2: f64| {
         let s = if x < mu { s1 } else { s2 };
         (-(x - mu) * (x - mu) / (2.0 * s * s)).exp()
@@ -174,6 +242,13 @@ fn emission_rgb(spd: impl Fn(f64) -> f64) -> Vec3 {
         y += b * (0.821 * g(l, 568.8, 46.9, 40.5) + 0.286 * g(l, 530.9, 16.3, 31.1));
         z += b * (1.217 * g(l, 437.0, 11.8, 36.0) + 0.681 * g(l, 459.0, 26.0, 13.8));
     }
+    [x, y, z]
+}
+
+/// Linear-sRGB colour of the emission spectrum `spd` (of the wavelength in
+/// nm), normalised to luminance 1 ([`emission_xyz`]'s integrals).
+fn emission_rgb(spd: impl Fn(f64) -> f64) -> Vec3 {
+    let [x, y, z] = emission_xyz(spd);
     if y <= 0.0 || !y.is_finite() {
         return Vec3::ZERO;
     }
@@ -198,6 +273,48 @@ mod tests {
         assert_eq!(sampled_at(&s, 600.0), 3.0);
         assert_eq!(sampled_at(&s, 800.0), 4.0);
         assert!((sampled_rgb(&[(300.0, 0.5), (800.0, 0.5)]) - Vec3::splat(0.5)).abs().max_element() < 1e-6);
+    }
+
+    /// pbrt's peak-normalised blackbody: the colour of the luminance-1
+    /// blackbody, with the luminance of a spectrum that is 1 at its peak
+    /// (checked against a plain sum of Planck's law times ȳ where no colour
+    /// channel is clipped at 0, and against the table).
+    #[test]
+    fn peak_normalised_blackbodies() {
+        let luminance = |c: Vec3| c.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+        // Wyman, Sloan and Shirley's two-lobe fit of ȳ.
+        let lobe = |l: f64, mu: f64, s1: f64, s2: f64| {
+            (-0.5 * ((l - mu) / if l < mu { s1 } else { s2 }).powi(2)).exp()
+        };
+        let y_bar = |l: f64| 0.821 * lobe(l, 568.8, 46.9, 40.5) + 0.286 * lobe(l, 530.9, 16.3, 31.1);
+        let table = BlackbodyTable::new();
+        for kelvin in [2000.0f32, 3000.0, 5000.0, 6500.0, 12000.0] {
+            let c = blackbody_peak_normalised_rgb(kelvin);
+            let colour = blackbody_rgb(kelvin);
+            assert!(
+                (c.normalize() - colour.normalize()).abs().max_element() < 1e-5,
+                "{kelvin}: {c} {colour}"
+            );
+            let t = kelvin as f64;
+            let peak = planck(2.8977721e6 / t, t);
+            let (mut num, mut den) = (0.0, 0.0);
+            for nm in 360..=830 {
+                num += planck(nm as f64, t) / peak * y_bar(nm as f64);
+                den += y_bar(nm as f64);
+            }
+            let expected = (num / den) as f32;
+            assert!(
+                (luminance(c) / expected - 1.0).abs() < 2e-3,
+                "{kelvin} K: {} vs {expected}",
+                luminance(c)
+            );
+            assert!((table.rgb(kelvin) - c).abs().max_element() <= 1e-4 * c.max_element() + 1e-9, "{kelvin}");
+        }
+        // Nothing at or below 100 K; a star's heat beyond the table.
+        assert_eq!(table.rgb(100.0 - 1e-3), Vec3::ZERO);
+        assert_eq!(table.rgb(2e5), blackbody_peak_normalised_rgb(2e5));
+        assert!(luminance(blackbody_peak_normalised_rgb(5200.0)) > 0.8);
+        assert!(luminance(blackbody_peak_normalised_rgb(1000.0)) < 1e-3);
     }
 
     #[test]
