@@ -240,14 +240,16 @@ pub fn generate_rays<L: BvhLayout>(scene: &Scene, bvh: &SceneBvh<L>, opts: &Benc
     }
 }
 
-/// One ray per pixel centre through the scene's camera as a pinhole
-/// (perspective or orthographic, over its screen window; camera space is
-/// +x right, +y up, +z forward). The rays come in the order the renderer
-/// makes camera paths in (8×4 tiles, [`tile_order_pixel`]).
+/// One ray per pixel centre through the scene's camera as a pinhole (over
+/// its screen window, [`atoll_scene::Projection::camera_ray`]). The rays
+/// come in the order the renderer makes camera paths in (8×4 tiles,
+/// [`tile_order_pixel`]).
 fn camera_rays(scene: &Scene, resolution: UVec2) -> Vec<Ray> {
     let cam = &scene.settings.camera;
-    let orthographic = cam.projection == atoll_scene::Projection::Orthographic;
-    let scale = if orthographic { 1.0 } else { (cam.fov_degrees.to_radians() * 0.5).tan() };
+    let scale = match cam.projection {
+        atoll_scene::Projection::Perspective => (cam.fov_degrees.to_radians() * 0.5).tan(),
+        _ => 1.0,
+    };
     let [x0, x1, y0, y1] = cam.screen_window(resolution).map(|v| v * scale);
     let size = resolution.as_vec2();
     (0..resolution.x * resolution.y)
@@ -256,11 +258,7 @@ fn camera_rays(scene: &Scene, resolution: UVec2) -> Vec<Ray> {
             let pixel = tile_order_pixel(i, resolution);
             let (px, py) = ((pixel % resolution.x) as f32 + 0.5, (pixel / resolution.x) as f32 + 0.5);
             let (x, y) = (x0 + px / size.x * (x1 - x0), y1 - py / size.y * (y1 - y0));
-            let (origin, local) = if orthographic {
-                (Vec3::new(x, y, 0.0), Vec3::Z)
-            } else {
-                (Vec3::ZERO, Vec3::new(x, y, 1.0))
-            };
+            let (origin, local) = cam.projection.camera_ray(glam::Vec2::new(x, y));
             let origin = cam.camera_to_world.transform_point3(origin);
             let direction = cam.camera_to_world.transform_vector3(local).normalize();
             Ray { origin, direction, t_max: f32::INFINITY }

@@ -1,11 +1,27 @@
 // Camera rays: the mirror of `atoll_render::camera::CameraRays::ray`
-// (pbrt-v4's perspective and orthographic cameras with a thin lens) over
-// `FrameParams`.
+// (pbrt-v4's perspective and orthographic cameras with a thin lens, and its
+// spherical camera) over `FrameParams`.
 #pragma once
 
 #include "common.cuh"
 #include "params.cuh"
 #include "sampling.cuh"
+#include "environment.cuh"
+
+/// Mirrors `wrap_equal_area_square`.
+__device__ __forceinline__ float2 wrap_equal_area_square(float2 uv) {
+    if (uv.x < 0.0f) {
+        uv = make_float2(-uv.x, 1.0f - uv.y);
+    } else if (uv.x > 1.0f) {
+        uv = make_float2(2.0f - uv.x, 1.0f - uv.y);
+    }
+    if (uv.y < 0.0f) {
+        uv = make_float2(1.0f - uv.x, -uv.y);
+    } else if (uv.y > 1.0f) {
+        uv = make_float2(1.0f - uv.x, 2.0f - uv.y);
+    }
+    return uv;
+}
 
 /// Mirrors `CameraRays::ray`: world-space ray through raster position
 /// `raster` (pixels, y down) with lens sample `u_lens`; writes the origin
@@ -18,9 +34,19 @@ __device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, 
     const float y = p.window_max[1] - t.y * (p.window_max[1] - p.window_min[1]);
     float3 dir = make_float3(x, y, 1.0f);
     float3 origin = zero3();
-    if (p.orthographic) {
+    if (p.projection == PROJECTION_ORTHOGRAPHIC) {
         origin = make_float3(x, y, 0.0f);
         dir = make_float3(0.0f, 0.0f, 1.0f);
+    } else if (p.projection == PROJECTION_SPHERE_EQUAL_AREA || p.projection == PROJECTION_SPHERE_LAT_LONG) {
+        // `Projection::camera_ray`: the mapping's direction at (u, v) =
+        // (x, -y), its pole (+z) turned to camera +y.
+        const bool equal_area = p.projection == PROJECTION_SPHERE_EQUAL_AREA;
+        float2 uv = make_float2(x, -y);
+        if (equal_area) uv = wrap_equal_area_square(uv);
+        const float3 d = env_direction(equal_area ? ENV_EQUAL_AREA : ENV_LAT_LONG, uv);
+        *origin_out = affine_point(p.camera_to_world, zero3());
+        *direction_out = normalize3(affine_vector(p.camera_to_world, make_float3(d.x, d.z, d.y)));
+        return;
     }
     if (p.lens_radius > 0.0f) {
         const float2 lens = p.lens_radius * sample_uniform_disk_concentric(u_lens);

@@ -32,25 +32,30 @@ __device__ __forceinline__ float3 medium_transmittance(float3 sigma_t, float len
 
 // --- grids (density_grid.rs) ---
 
-/// Mirrors `DensityGrid::sample`: channel `k` of sample (x, y, z) of medium `m`'s grid, 0 outside.
-__device__ __forceinline__ float grid_sample(const FrameParams& p, const GpuMedium& m, int x, int y, int z,
-                                             unsigned int k) {
-    const int nx = (int)m.grid_resolution[0], ny = (int)m.grid_resolution[1], nz = (int)m.grid_resolution[2];
-    if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) return 0.0f;
-    return p.media_grids[m.grid_first + k * m.grid_plane + (unsigned int)((z * ny + y) * nx + x)];
+/// The samples of channel `k` of medium `m`'s grid (one plane of
+/// `media_grids`). Walks look it up once: indexing each sample from the
+/// parameter block costs grid-heavy kernels several percent.
+__device__ __forceinline__ const float* grid_plane(const FrameParams& p, const GpuMedium& m, unsigned int k) {
+    return p.media_grids + m.grid_first + k * m.grid_plane;
 }
 
-/// Mirrors `DensityGrid::channel_in`: channel `k`, trilinear, at lattice
+/// Mirrors `DensityGrid::sample`: sample (x, y, z) of a `plane` of medium `m`'s grid, 0 outside.
+__device__ __forceinline__ float grid_sample(const GpuMedium& m, const float* plane, int x, int y, int z) {
+    const int nx = (int)m.grid_resolution[0], ny = (int)m.grid_resolution[1], nz = (int)m.grid_resolution[2];
+    if (x < 0 || y < 0 || z < 0 || x >= nx || y >= ny || z >= nz) return 0.0f;
+    return plane[(unsigned int)((z * ny + y) * nx + x)];
+}
+
+/// Mirrors `DensityGrid::channel_in`: a `plane`, trilinear, at lattice
 /// point `s` of cell `c`.
-__device__ __forceinline__ float grid_channel_in(const FrameParams& p, const GpuMedium& m, const int* c, float3 s,
-                                                 unsigned int k) {
+__device__ __forceinline__ float grid_channel_in(const GpuMedium& m, const float* plane, const int* c, float3 s) {
     const float dx = s.x - (float)c[0], dy = s.y - (float)c[1], dz = s.z - (float)c[2];
     const auto lerp = [](float a, float b, float t) { return a + (b - a) * t; };
     const int x = c[0], y = c[1], z = c[2];
-    const float x00 = lerp(grid_sample(p, m, x, y, z, k), grid_sample(p, m, x + 1, y, z, k), dx);
-    const float x10 = lerp(grid_sample(p, m, x, y + 1, z, k), grid_sample(p, m, x + 1, y + 1, z, k), dx);
-    const float x01 = lerp(grid_sample(p, m, x, y, z + 1, k), grid_sample(p, m, x + 1, y, z + 1, k), dx);
-    const float x11 = lerp(grid_sample(p, m, x, y + 1, z + 1, k), grid_sample(p, m, x + 1, y + 1, z + 1, k), dx);
+    const float x00 = lerp(grid_sample(m, plane, x, y, z), grid_sample(m, plane, x + 1, y, z), dx);
+    const float x10 = lerp(grid_sample(m, plane, x, y + 1, z), grid_sample(m, plane, x + 1, y + 1, z), dx);
+    const float x01 = lerp(grid_sample(m, plane, x, y, z + 1), grid_sample(m, plane, x + 1, y, z + 1), dx);
+    const float x11 = lerp(grid_sample(m, plane, x, y + 1, z + 1), grid_sample(m, plane, x + 1, y + 1, z + 1), dx);
     return lerp(lerp(x00, x10, dy), lerp(x01, x11, dy), dz);
 }
 
@@ -60,7 +65,7 @@ __device__ __forceinline__ float grid_source_channel(const FrameParams& p, const
                                                      const int* c, float3 s, unsigned int ch) {
     if (field == GRID_FIELD_CONSTANT) return 1.0f;
     const unsigned int k = (field & (GRID_FIELD_RGB - 1u)) + ((field & GRID_FIELD_RGB) ? ch : 0u);
-    return grid_channel_in(p, m, c, s, k);
+    return grid_channel_in(m, grid_plane(p, m, k), c, s);
 }
 
 /// Channel `ch` of σt at lattice point `s` of cell `c`
@@ -179,18 +184,16 @@ __device__ __forceinline__ float channel_of(float3 v, unsigned int k) { return k
 // afterwards, as `DensityGrid` does per channel, to rounding. Shading
 // then needs no float3 sums, which keeps its registers.
 
-/// The density of a grey grid at lattice point `s` of cell `c`.
-__device__ __forceinline__ float grid_density_in(const FrameParams& p, const GpuMedium& m, const int* c, float3 s) {
-    return grid_channel_in(p, m, c, s, m.grid_fields[0]);
-}
-
-/// ∫ density dt over [ta, tb] in cell `c` (two-point Gauss–Legendre).
+/// ∫ density dt over [ta, tb] in cell `c` (two-point Gauss–Legendre). A
+/// grey frame's density is its grids' first plane (`MediumTable::has_rgb_grids`):
+/// a constant plane keeps both the index arithmetic and the registers down.
 __device__ __forceinline__ float grid_density_cell(const FrameParams& p, const GpuMedium& m, const int* c, float3 s0,
                                                    float3 ds, float ta, float tb) {
     const float gauss = 0.577350269f;
     const float mid = 0.5f * (ta + tb), half = 0.5f * (tb - ta);
-    return half * (grid_density_in(p, m, c, s0 + ds * (mid - half * gauss)) +
-                   grid_density_in(p, m, c, s0 + ds * (mid + half * gauss)));
+    const float* density = grid_plane(p, m, 0u);
+    return half * (grid_channel_in(m, density, c, s0 + ds * (mid - half * gauss)) +
+                   grid_channel_in(m, density, c, s0 + ds * (mid + half * gauss)));
 }
 
 /// ∫ density dt along `o + t d`, t0 <= t < t1.
@@ -239,7 +242,7 @@ __device__ __noinline__ float grid_le_scale_at(const FrameParams& p, const GpuMe
     if (m.grid_fields[2] == GRID_FIELD_CONSTANT) return 1.0f;
     const float3 s = affine_point(m.world_to_lattice, w);
     const int c[3] = {(int)floorf(s.x), (int)floorf(s.y), (int)floorf(s.z)};
-    return grid_channel_in(p, m, c, s, m.grid_fields[2]);
+    return grid_channel_in(m, grid_plane(p, m, m.grid_fields[2]), c, s);
 }
 #else
 /// A grid medium's coefficients at a point (mirrors `GridPoint`).

@@ -92,7 +92,7 @@ struct FrameParams {
     float raster_size[2];
     float lens_radius;
     float focal_distance;
-    unsigned int orthographic;
+    unsigned int projection;
     unsigned int camera_pad;
     // RenderOptions.
     unsigned int resolution[2];
@@ -171,6 +171,10 @@ inline constexpr unsigned int EMITTER_INFINITE = 2u;
 inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
 inline constexpr unsigned int EMITTER_SPOT = 4u;
 inline constexpr unsigned int EMITTER_ENVIRONMENT = 5u;
+inline constexpr unsigned int PROJECTION_PERSPECTIVE = 0u;
+inline constexpr unsigned int PROJECTION_ORTHOGRAPHIC = 1u;
+inline constexpr unsigned int PROJECTION_SPHERE_EQUAL_AREA = 2u;
+inline constexpr unsigned int PROJECTION_SPHERE_LAT_LONG = 3u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
 inline constexpr unsigned int LIGHT_SAMPLER_POWER = 0u;
@@ -250,7 +254,7 @@ static_assert(__builtin_offsetof(FrameParams, window_max) == 56 && sizeof(FrameP
 static_assert(__builtin_offsetof(FrameParams, raster_size) == 64 && sizeof(FrameParams::raster_size) == 8, "FrameParams.raster_size: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, lens_radius) == 72 && sizeof(FrameParams::lens_radius) == 4, "FrameParams.lens_radius: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, focal_distance) == 76 && sizeof(FrameParams::focal_distance) == 4, "FrameParams.focal_distance: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, orthographic) == 80 && sizeof(FrameParams::orthographic) == 4, "FrameParams.orthographic: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, projection) == 80 && sizeof(FrameParams::projection) == 4, "FrameParams.projection: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, camera_pad) == 84 && sizeof(FrameParams::camera_pad) == 4, "FrameParams.camera_pad: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, resolution) == 88 && sizeof(FrameParams::resolution) == 8, "FrameParams.resolution: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, seed) == 96 && sizeof(FrameParams::seed) == 4, "FrameParams.seed: offset or size differs from Rust");

@@ -32,8 +32,8 @@ use crate::layout::{
     image_format, mesh_flags, FieldLayout, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
 };
 use crate::params::{
-    emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, FrameParams, GpuEmissionTexture,
-    GpuEmitter, GpuMaterial, GpuMedium, SceneView, NO_EMISSION_TEXTURE,
+    emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, projection_kind, FrameParams,
+    GpuEmissionTexture, GpuEmitter, GpuMaterial, GpuMedium, SceneView, NO_EMISSION_TEXTURE,
 };
 use crate::work::{GpuWave, WorkFifo, WorkStatus, WORK_CLAIMS, WORK_SLOTS};
 
@@ -331,6 +331,10 @@ pub(crate) fn params_asserts() -> String {
         ("EMITTER_TRIANGLE", emitter_kind::TRIANGLE),
         ("EMITTER_SPOT", emitter_kind::SPOT),
         ("EMITTER_ENVIRONMENT", emitter_kind::ENVIRONMENT),
+        ("PROJECTION_PERSPECTIVE", projection_kind::PERSPECTIVE),
+        ("PROJECTION_ORTHOGRAPHIC", projection_kind::ORTHOGRAPHIC),
+        ("PROJECTION_SPHERE_EQUAL_AREA", projection_kind::SPHERE_EQUAL_AREA),
+        ("PROJECTION_SPHERE_LAT_LONG", projection_kind::SPHERE_LAT_LONG),
         ("INTEGRATOR_PATH", integrator_kind::PATH),
         ("INTEGRATOR_AMBIENT_OCCLUSION", integrator_kind::AMBIENT_OCCLUSION),
         ("LIGHT_SAMPLER_POWER", light_sampler_kind::POWER),

@@ -25,7 +25,7 @@ use atoll_render::portal::PortalFrame;
 use atoll_render::record::MATERIAL_COEFFS;
 use atoll_render::texture::{ProgramRange, ShadingNormalProgram};
 use atoll_render::FrameContext;
-use atoll_scene::{IntegratorSettings, LightSampler};
+use atoll_scene::{EnvLayout, IntegratorSettings, LightSampler, Projection};
 use bytemuck::{Pod, Zeroable};
 use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
 
@@ -155,6 +155,14 @@ pub(crate) fn light_node_layout() -> FieldLayout {
 }
 
 /// [`FrameParams::integrator`] values, one per [`IntegratorSettings`] variant.
+/// `FrameParams::projection`: how camera rays leave (`atoll_scene::Projection`).
+pub(crate) mod projection_kind {
+    pub(crate) const PERSPECTIVE: u32 = 0;
+    pub(crate) const ORTHOGRAPHIC: u32 = 1;
+    pub(crate) const SPHERE_EQUAL_AREA: u32 = 2;
+    pub(crate) const SPHERE_LAT_LONG: u32 = 3;
+}
+
 pub(crate) mod integrator_kind {
     pub(crate) const PATH: u32 = 0;
     pub(crate) const AMBIENT_OCCLUSION: u32 = 1;
@@ -349,8 +357,8 @@ pub struct FrameParams {
     pub raster_size: [f32; 2],
     pub lens_radius: f32,
     pub focal_distance: f32,
-    /// 1 for an orthographic camera, 0 for a perspective one.
-    pub orthographic: u32,
+    /// [`projection_kind`].
+    pub projection: u32,
     pub camera_pad: u32,
     pub resolution: [u32; 2],
     pub seed: u32,
@@ -495,7 +503,12 @@ impl FrameParams {
         (self.window_min, self.window_max) = (window_min.to_array(), window_max.to_array());
         self.raster_size = camera.raster_size().to_array();
         (self.lens_radius, self.focal_distance) = camera.lens();
-        self.orthographic = camera.orthographic() as u32;
+        self.projection = match camera.projection() {
+            Projection::Perspective => projection_kind::PERSPECTIVE,
+            Projection::Orthographic => projection_kind::ORTHOGRAPHIC,
+            Projection::Spherical { mapping: EnvLayout::EqualArea } => projection_kind::SPHERE_EQUAL_AREA,
+            Projection::Spherical { mapping: EnvLayout::LatLong } => projection_kind::SPHERE_LAT_LONG,
+        };
     }
 
     #[cfg(test)]
@@ -507,7 +520,7 @@ impl FrameParams {
             raster_size,
             lens_radius,
             focal_distance,
-            orthographic,
+            projection,
             camera_pad,
             resolution,
             seed,

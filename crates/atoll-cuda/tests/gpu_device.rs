@@ -37,7 +37,7 @@ fn mean_diff(a: Vec3, b: Vec3) -> f32 {
 fn camera_rays_and_hits_match_the_cpu_device() {
     let Some(gpu) = gpu_or_skip("stages") else { return };
     // An orthographic camera with a thin lens and an off-centre screen
-    // window makes its rays as the CPU does, too.
+    // window, and spherical ones, make their rays as the CPU does, too.
     let mut orthographic = atoll_scene::cornell::builtin_cornell_box();
     orthographic.settings.camera = atoll_scene::Camera {
         projection: atoll_scene::Projection::Orthographic,
@@ -46,7 +46,19 @@ fn camera_rays_and_hits_match_the_cpu_device() {
         focal_distance: 4.0,
         ..orthographic.settings.camera.clone()
     };
-    for scene in [Arc::new(orthographic), cornell()] {
+    // Spherical cameras in both mappings.
+    let spherical = |mapping| {
+        let mut s = atoll_scene::cornell::builtin_cornell_box();
+        s.settings.camera.projection = atoll_scene::Projection::Spherical { mapping };
+        Arc::new(s)
+    };
+    let cameras = [
+        Arc::new(orthographic),
+        spherical(atoll_scene::EnvLayout::EqualArea),
+        spherical(atoll_scene::EnvLayout::LatLong),
+        cornell(),
+    ];
+    for scene in cameras {
         let frame = Arc::new(FrameContext::new(&scene, options(&scene, 32, 1)));
         let mut cpu = CpuDevice::new();
         let mut cuda = CudaDevice::on(gpu.clone());
@@ -65,7 +77,7 @@ fn camera_rays_and_hits_match_the_cpu_device() {
                 a.origin().abs_diff_eq(b.origin(), 1e-4) && a.direction().abs_diff_eq(b.direction(), 1e-4)
             );
         }
-        if scene.settings.camera.projection == atoll_scene::Projection::Orthographic {
+        if scene.settings.camera.projection != atoll_scene::Projection::Perspective {
             continue;
         }
         // Trace the CPU's rays on both, so that only traversal and hit attributes differ.

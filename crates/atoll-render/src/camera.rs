@@ -1,4 +1,5 @@
-//! Camera rays (pbrt-v4's perspective and orthographic cameras with a thin lens).
+//! Camera rays (pbrt-v4's perspective and orthographic cameras with a thin
+//! lens, and its spherical camera).
 
 use atoll_scene::{Camera, Projection};
 use glam::{Mat4, UVec2, Vec2, Vec3};
@@ -9,10 +10,11 @@ use crate::sampling::sample_uniform_disk_concentric;
 #[derive(Clone, Debug)]
 pub struct CameraRays {
     camera_to_world: Mat4,
-    orthographic: bool,
+    projection: Projection,
     /// The screen window in camera space: x/y at z = 1 for a perspective
     /// camera (pbrt's screen scaled by tan(fov/2)), at z = 0 for an
-    /// orthographic one.
+    /// orthographic one; for a spherical camera, (u, -v) of the image's
+    /// square of directions (so that a crop cuts it as it cuts the others).
     window_min: Vec2,
     window_max: Vec2,
     resolution: Vec2,
@@ -24,11 +26,13 @@ impl CameraRays {
     pub fn new(camera: &Camera, resolution: UVec2) -> Self {
         let [x0, x1, y0, y1] = camera.screen_window(resolution);
         let (window_min, window_max) = (Vec2::new(x0, y0), Vec2::new(x1, y1));
-        let orthographic = camera.projection == Projection::Orthographic;
-        let scale = if orthographic { 1.0 } else { (camera.fov_degrees.to_radians() * 0.5).tan() };
+        let scale = match camera.projection {
+            Projection::Perspective => (camera.fov_degrees.to_radians() * 0.5).tan(),
+            _ => 1.0,
+        };
         CameraRays {
             camera_to_world: camera.camera_to_world,
-            orthographic,
+            projection: camera.projection,
             window_min: window_min * scale,
             window_max: window_max * scale,
             resolution: resolution.as_vec2(),
@@ -60,9 +64,8 @@ impl CameraRays {
         self.camera_to_world
     }
 
-    /// Whether rays are parallel (orthographic) rather than from a point.
-    pub fn orthographic(&self) -> bool {
-        self.orthographic
+    pub fn projection(&self) -> Projection {
+        self.projection
     }
 
     /// Screen window in camera space (x/y at z = 1, or at z = 0 for an
@@ -88,11 +91,7 @@ impl CameraRays {
         // Raster y grows downwards, camera y upwards.
         let x = self.window_min.x + t.x * (self.window_max.x - self.window_min.x);
         let y = self.window_max.y - t.y * (self.window_max.y - self.window_min.y);
-        let (mut origin, mut dir) = if self.orthographic {
-            (Vec3::new(x, y, 0.0), Vec3::Z)
-        } else {
-            (Vec3::ZERO, Vec3::new(x, y, 1.0))
-        };
+        let (mut origin, mut dir) = self.projection.camera_ray(Vec2::new(x, y));
         if self.lens_radius > 0.0 {
             // The point in focus along the pinhole ray; pbrt-v4's
             // orthographic camera, too, moves the origin to the lens sample
@@ -200,5 +199,39 @@ mod tests {
         // The window's corner pixel looks along its corner.
         let (_, d) = rays.ray(Vec2::new(100.0, 200.0), Vec2::ZERO);
         assert!(d.abs_diff_eq(Vec3::new(tan, -tan, 1.0).normalize(), 1e-6), "{d}");
+    }
+
+    /// A spherical camera sees every direction from its origin, pole up:
+    /// equirectangular rows run from +y down to -y, its centre looks along
+    /// -x; the equal-area square's centre is the pole, its corners the
+    /// other pole, and border samples past its edge fold back onto the sphere.
+    #[test]
+    fn spherical_rays_cover_the_sphere_pole_up() {
+        let turn =
+            Mat4::from_rotation_translation(glam::Quat::from_rotation_y(0.7), Vec3::new(1.0, 2.0, 3.0));
+        let sphere = |mapping| Camera {
+            camera_to_world: turn,
+            projection: Projection::Spherical { mapping },
+            ..Camera::default()
+        };
+        let world = |v: Vec3| turn.transform_vector3(v);
+        let rays = CameraRays::new(&sphere(atoll_scene::EnvLayout::LatLong), UVec2::new(200, 100));
+        for (raster, expected) in [
+            (Vec2::new(100.0, 0.0), Vec3::Y),
+            (Vec2::new(37.0, 100.0), -Vec3::Y),
+            (Vec2::new(100.0, 50.0), -Vec3::X),
+            (Vec2::new(50.0, 50.0), Vec3::Z),
+        ] {
+            let (o, d) = rays.ray(raster, Vec2::ZERO);
+            assert!(o.abs_diff_eq(Vec3::new(1.0, 2.0, 3.0), 1e-6));
+            assert!(d.abs_diff_eq(world(expected), 1e-5), "{raster}: {d}");
+        }
+        let rays = CameraRays::new(&sphere(atoll_scene::EnvLayout::EqualArea), UVec2::new(64, 64));
+        assert!(rays.ray(Vec2::new(32.0, 32.0), Vec2::ZERO).1.abs_diff_eq(world(Vec3::Y), 1e-6));
+        assert!(rays.ray(Vec2::new(0.0, 64.0), Vec2::ZERO).1.abs_diff_eq(world(-Vec3::Y), 1e-6));
+        // Just past the left edge is just inside it, mirrored top to bottom.
+        let (_, outside) = rays.ray(Vec2::new(-0.5, 10.0), Vec2::ZERO);
+        let (_, inside) = rays.ray(Vec2::new(0.5, 54.0), Vec2::ZERO);
+        assert!(outside.abs_diff_eq(inside, 1e-5), "{outside} vs {inside}");
     }
 }

@@ -185,13 +185,14 @@ impl MediumTable {
 
     /// Whether a grid's coefficients differ by colour from sample to
     /// sample, or its σa and σs read different samples (an `rgbgrid`),
-    /// rather than both scaling one density (a `uniformgrid`): the GPU
-    /// kernels have a lighter specialisation for the latter.
+    /// rather than both scaling one density, its first plane (a
+    /// `uniformgrid`): the GPU kernels have a lighter specialisation for
+    /// the latter, which reads the density there.
     pub fn has_rgb_grids(&self) -> bool {
         self.grids.iter().any(|g| {
             let [a, s, le] = g.fields;
             !(a.source == s.source
-                && matches!(a.source, atoll_scene::FieldSource::Scalar(_))
+                && a.source == atoll_scene::FieldSource::Scalar(0)
                 && !matches!(le.source, atoll_scene::FieldSource::Rgb(_)))
         })
     }

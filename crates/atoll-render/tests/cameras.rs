@@ -51,3 +51,52 @@ fn orthographic_views_keep_sizes_at_any_distance() {
     let right: f32 = film.pixels().iter().enumerate().filter(|(i, _)| i % 64 >= 32).map(|(_, p)| p.x).sum();
     assert!(right < 5.0, "a perspective view's far square covers {right} pixels");
 }
+
+/// A spherical camera about 2 units from a glowing ball of radius 1,
+/// which covers 2π(1 − cos α) sr (sin α = 1 / distance): an equal-area
+/// image gives every pixel the same solid angle, so the ball fills that
+/// share of 4π of it; an equirectangular one gives its rows sin θ of it.
+#[test]
+fn spherical_images_cover_the_solid_angle_of_what_they_see() {
+    let distance = (0.3f64 * 0.3 + 0.2 * 0.2 + 2.0 * 2.0).sqrt();
+    let solid_angle = std::f64::consts::TAU * (1.0 - (1.0 - 1.0 / (distance * distance)).sqrt());
+    for (mapping, size) in [("equalarea", (96, 96)), ("equirectangular", (192, 96))] {
+        let text = format!(
+            r#"LookAt 0 0 0  0 0 1  0 1 0
+Camera "spherical" "string mapping" "{mapping}"
+Film "rgb" "integer xresolution" [ {} ] "integer yresolution" [ {} ]
+PixelFilter "box"
+Sampler "independent" "integer pixelsamples" [ 16 ]
+Integrator "path" "integer maxdepth" [ 1 ]
+WorldBegin
+AttributeBegin
+ AreaLightSource "diffuse" "rgb L" [ 1 1 1 ]
+ Translate 0.3 -0.2 2
+ Shape "sphere" "float radius" 1
+AttributeEnd
+"#,
+            size.0, size.1
+        );
+        let scene = Arc::new(
+            atoll_scene::pbrt::load_str(&text, "ball.pbrt", std::path::Path::new(".")).unwrap().scene,
+        );
+        let film = render_with(&scene, RenderOptions::from_scene(&scene), Some(2));
+        let (w, h) = (size.0 as usize, size.1 as usize);
+        let seen: f64 = film
+            .pixels()
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let pixel_solid_angle = if mapping == "equalarea" {
+                    4.0 * std::f64::consts::PI / (w * h) as f64
+                } else {
+                    let theta = std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64;
+                    2.0 * std::f64::consts::PI.powi(2) * theta.sin() / (w * h) as f64
+                };
+                p.x as f64 * pixel_solid_angle
+            })
+            .sum();
+        // The tessellated ball's outline is a little inside the sphere's.
+        assert!((seen / solid_angle - 1.0).abs() < 0.005, "{mapping}: {seen} sr, expected {solid_angle}");
+    }
+}

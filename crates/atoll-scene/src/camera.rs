@@ -2,7 +2,7 @@
 
 use glam::{Mat3, Mat4, UVec2, Vec3};
 
-/// pbrt-style projective camera (perspective or orthographic). Camera
+/// pbrt-style camera (perspective, orthographic or spherical). Camera
 /// space is left-handed: +x right, +y up, +z forward (pbrt-v4's convention).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
@@ -34,6 +34,33 @@ pub enum Projection {
     /// Parallel rays along +z, leaving from the screen window at z = 0 (its
     /// units are camera-space lengths).
     Orthographic,
+    /// Every direction from the origin: the image is the sphere of
+    /// directions laid out by `mapping` (pbrt's `spherical` camera; its
+    /// pole is camera +y).
+    Spherical { mapping: crate::EnvLayout },
+}
+
+impl Projection {
+    /// The camera-space pinhole ray (origin, direction; not normalised)
+    /// through point `screen` of the camera's window: at z = 1 for a
+    /// perspective camera (its window scaled by tan(fov/2)), at z = 0 for
+    /// an orthographic one, and for a spherical one the direction at
+    /// (u, v) = (x, −y) of its mapping, pole up (pbrt-v4's swap of y and z).
+    pub fn camera_ray(self, screen: glam::Vec2) -> (Vec3, Vec3) {
+        match self {
+            Projection::Perspective => (Vec3::ZERO, screen.extend(1.0)),
+            Projection::Orthographic => (screen.extend(0.0), Vec3::Z),
+            Projection::Spherical { mapping } => {
+                let uv = glam::Vec2::new(screen.x, -screen.y);
+                let uv = match mapping {
+                    crate::EnvLayout::EqualArea => crate::environment::wrap_equal_area_square(uv),
+                    crate::EnvLayout::LatLong => uv,
+                };
+                let d = mapping.direction(uv);
+                (Vec3::ZERO, Vec3::new(d.x, d.z, d.y))
+            }
+        }
+    }
 }
 
 impl Default for Camera {
@@ -55,7 +82,13 @@ impl Camera {
     /// the shorter side spans [-1, 1] and the other keeps the frame's
     /// aspect ratio, unless `screenwindow` gives it. (x min, x max, y min,
     /// y max).
+    /// A spherical camera's window is its square of directions, as
+    /// (u, −v): [0, 1] × [−1, 0] (so that a crop cuts it as it cuts the
+    /// others; see [`Projection::camera_ray`]).
     pub fn screen_window(&self, resolution: UVec2) -> [f32; 4] {
+        if let Projection::Spherical { .. } = self.projection {
+            return [0.0, 1.0, -1.0, 0.0];
+        }
         if let Some(window) = self.screen_window {
             return window;
         }

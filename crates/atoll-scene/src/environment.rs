@@ -86,6 +86,22 @@ pub fn equal_area_square_to_sphere(p: Vec2) -> Vec3 {
     Vec3::new(cos_phi * s, sin_phi * s, z)
 }
 
+/// pbrt-v4's `WrapEqualAreaSquare`: a point past an edge of the
+/// equal-area square, folded back to the point of the sphere beside it.
+pub fn wrap_equal_area_square(mut uv: Vec2) -> Vec2 {
+    if uv.x < 0.0 {
+        uv = Vec2::new(-uv.x, 1.0 - uv.y);
+    } else if uv.x > 1.0 {
+        uv = Vec2::new(2.0 - uv.x, 1.0 - uv.y);
+    }
+    if uv.y < 0.0 {
+        uv = Vec2::new(1.0 - uv.x, -uv.y);
+    } else if uv.y > 1.0 {
+        uv = Vec2::new(1.0 - uv.x, 2.0 - uv.y);
+    }
+    uv
+}
+
 /// pbrt-v4's `EqualAreaSphereToSquare` (with an exact arctangent).
 pub fn equal_area_sphere_to_square(d: Vec3) -> Vec2 {
     let (x, y, z) = (d.x.abs(), d.y.abs(), d.z.abs());

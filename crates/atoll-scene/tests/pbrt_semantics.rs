@@ -29,8 +29,9 @@ fn mirrored_look_at_camera() {
     assert_eq!(s.settings.camera.fov_degrees, 45.0);
 }
 
-/// `orthographic` cameras, `screenwindow` and `frameaspectratio` as
-/// pbrt-v4 reads them; malformed ones are errors at their statement.
+/// `orthographic` and `spherical` cameras, `screenwindow` and
+/// `frameaspectratio` as pbrt-v4 reads them; malformed ones are errors at
+/// their statement.
 #[test]
 fn orthographic_cameras_and_screen_windows() {
     let camera = |text: &str| load_world(text, "").map(|l| (l.scene.settings.camera, l.warnings));
@@ -42,6 +43,13 @@ fn orthographic_cameras_and_screen_windows() {
     assert_eq!((c.projection, c.fov_degrees), (atoll_scene::Projection::Perspective, 30.0));
     assert_eq!(c.frame_aspect_ratio, Some(0.5));
     assert_eq!(c.screen_window(glam::UVec2::new(640, 480)), [-1.0, 1.0, -2.0, 2.0]);
+    let (c, _) = camera("Camera \"spherical\"").unwrap();
+    assert_eq!(
+        c.projection,
+        atoll_scene::Projection::Spherical { mapping: atoll_scene::EnvLayout::EqualArea }
+    );
+    let (c, _) = camera("Camera \"spherical\" \"string mapping\" \"equirectangular\"").unwrap();
+    assert_eq!(c.projection, atoll_scene::Projection::Spherical { mapping: atoll_scene::EnvLayout::LatLong });
     let (c, w) = camera("Camera \"realistic\" \"string lensfile\" \"wide.dat\"").unwrap();
     assert_eq!(c.projection, atoll_scene::Projection::Perspective);
     assert!(w[0].message.contains("camera \"realistic\" is not supported"), "{w:?}");
@@ -52,6 +60,7 @@ fn orthographic_cameras_and_screen_windows() {
         ),
         ("Camera \"perspective\" \"float screenwindow\" [ 1 -1 -1 1 ]", "each minimum below its maximum"),
         ("Camera \"orthographic\" \"float frameaspectratio\" 0", "\"frameaspectratio\" 0 is not positive"),
+        ("Camera \"spherical\" \"string mapping\" \"cube\"", "Camera: \"mapping\" \"cube\" is unknown"),
     ] {
         let message = camera(text).unwrap_err().to_string();
         assert!(message.contains(error), "{text}: {message}");

@@ -335,6 +335,13 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
             write!(out, "\nCamera \"perspective\" \"float fov\" [ {} ]", s.camera.fov_degrees)?
         }
         Projection::Orthographic => write!(out, "\nCamera \"orthographic\"")?,
+        Projection::Spherical { mapping } => {
+            let mapping = match mapping {
+                atoll_scene::EnvLayout::EqualArea => "equalarea",
+                atoll_scene::EnvLayout::LatLong => "equirectangular",
+            };
+            write!(out, "\nCamera \"spherical\" \"string mapping\" \"{mapping}\"")?
+        }
     }
     if let Some(window) = s.camera.screen_window {
         write!(out, " \"float screenwindow\" ")?;
@@ -596,6 +603,10 @@ mod tests {
         ortho.settings.camera.screen_window = Some([-1.25, 0.75, -1.0, 1.5]);
         ortho.settings.camera.frame_aspect_ratio = Some(1.5);
         assert_equal(&ortho, &round_trip(&ortho));
+        let mut sphere = scene.clone();
+        sphere.settings.camera.projection =
+            Projection::Spherical { mapping: atoll_scene::EnvLayout::LatLong };
+        assert_equal(&sphere, &round_trip(&sphere));
     }
 
     #[test]

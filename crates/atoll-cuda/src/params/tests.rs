@@ -44,7 +44,7 @@ fn ray_from_params(p: &FrameParams, raster: Vec2) -> (Vec3, Vec3) {
     let row = |r: usize, v: Vec3, w: f32| {
         m[r * 4] * v.x + m[r * 4 + 1] * v.y + m[r * 4 + 2] * v.z + m[r * 4 + 3] * w
     };
-    let (origin, dir) = if p.orthographic == 1 {
+    let (origin, dir) = if p.projection == projection_kind::ORTHOGRAPHIC {
         (Vec3::new(x, y, 0.0), Vec3::Z)
     } else {
         (Vec3::ZERO, Vec3::new(x, y, 1.0))
@@ -74,7 +74,10 @@ fn frame_params_reproduce_the_camera_and_options() {
     scene.settings.camera.screen_window = Some([-1.5, 0.5, -0.25, 2.0]);
     let ortho = FrameContext::new(&scene, RenderOptions::from_scene(&scene));
     let q = FrameParams::from_frame(&ortho);
-    assert_eq!((q.orthographic, q.window_min, q.window_max), (1, [-1.5, -0.25], [0.5, 2.0]));
+    assert_eq!(
+        (q.projection, q.window_min, q.window_max),
+        (projection_kind::ORTHOGRAPHIC, [-1.5, -0.25], [0.5, 2.0])
+    );
     for raster in [Vec2::new(0.5, 0.5), Vec2::new(63.2, 1.7), Vec2::new(20.0, 47.9)] {
         assert_eq!(
             ortho.camera.ray(raster, Vec2::new(0.3, 0.6)),

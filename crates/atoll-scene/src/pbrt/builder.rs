@@ -772,6 +772,21 @@ impl Builder {
         let projection = match name {
             "perspective" => crate::Projection::Perspective,
             "orthographic" => crate::Projection::Orthographic,
+            "spherical" => {
+                let mapping = match p.string("mapping")?.as_deref() {
+                    None | Some("equalarea") => crate::EnvLayout::EqualArea,
+                    Some("equirectangular") => crate::EnvLayout::LatLong,
+                    Some(other) => {
+                        return Err(SceneError::at(
+                            loc,
+                            format!(
+                                "Camera: \"mapping\" \"{other}\" is unknown (expected \"equalarea\" or \"equirectangular\")"
+                            ),
+                        ))
+                    }
+                };
+                crate::Projection::Spherical { mapping }
+            }
             _ => {
                 p.mark_all_used();
                 self.warn(loc, format!("camera \"{name}\" is not supported; using a perspective camera"));
