@@ -36,7 +36,11 @@ impl CameraRays {
             window_min: window_min * scale,
             window_max: window_max * scale,
             resolution: resolution.as_vec2(),
-            lens_radius: camera.lens_radius,
+            // pbrt-v4's spherical camera has no lens.
+            lens_radius: match camera.projection {
+                Projection::Spherical { .. } => 0.0,
+                _ => camera.lens_radius,
+            },
             focal_distance: camera.focal_distance,
         }
     }
@@ -68,8 +72,8 @@ impl CameraRays {
         self.projection
     }
 
-    /// Screen window in camera space (x/y at z = 1, or at z = 0 for an
-    /// orthographic camera): (min, max).
+    /// Screen window in camera space (x/y at z = 1, at z = 0 for an
+    /// orthographic camera, (u, −v) for a spherical one): (min, max).
     pub fn window(&self) -> (Vec2, Vec2) {
         (self.window_min, self.window_max)
     }
@@ -226,7 +230,11 @@ mod tests {
             assert!(o.abs_diff_eq(Vec3::new(1.0, 2.0, 3.0), 1e-6));
             assert!(d.abs_diff_eq(world(expected), 1e-5), "{raster}: {d}");
         }
-        let rays = CameraRays::new(&sphere(atoll_scene::EnvLayout::EqualArea), UVec2::new(64, 64));
+        // A lens changes nothing.
+        let rays = CameraRays::new(
+            &Camera { lens_radius: 0.5, ..sphere(atoll_scene::EnvLayout::EqualArea) },
+            UVec2::new(64, 64),
+        );
         assert!(rays.ray(Vec2::new(32.0, 32.0), Vec2::ZERO).1.abs_diff_eq(world(Vec3::Y), 1e-6));
         assert!(rays.ray(Vec2::new(0.0, 64.0), Vec2::ZERO).1.abs_diff_eq(world(-Vec3::Y), 1e-6));
         // Just past the left edge is just inside it, mirrored top to bottom.
