@@ -202,6 +202,32 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->target = point_target(load3(&e.p[0]));
         return true;
     }
+    if (e.kind == EMITTER_GONIOMETRIC) {
+        // Mirrors `Emitter::Goniometric`: a point scaled by its map towards
+        // the light-space direction (pole +y: the square's z is its y).
+        const float3 d = load3(e.normal) - pos;
+        const float dist2 = length_squared3(d);
+        const float distance = sqrtf(dist2);
+        const float3 wi = d / distance;
+        const float3 w = -wi;
+        const float3 l = make_float3(e.p[0] * w.x + e.p[3] * w.y + e.p[6] * w.z,
+                                     e.p[1] * w.x + e.p[4] * w.y + e.p[7] * w.z,
+                                     e.p[2] * w.x + e.p[5] * w.y + e.p[8] * w.z);
+        const float len = length3(l);
+        if (!(len > 0.0f)) return false;
+        const float2 uv = env_sphere_to_equal_area(make_float3(l.x, l.z, l.y) / len);
+        const int n = (int)e.area;
+        const int x = min(max((int)(uv.x * (float)n), 0), n - 1), y = min(max((int)(uv.y * (float)n), 0), n - 1);
+        const float scale = p.environment_tables[e.table + (unsigned int)(y * n + x)];
+        if (scale <= 0.0f) return false;
+        out->wi = wi;
+        out->distance = distance;
+        out->radiance = load3(e.radiance) * __fdiv_rn(scale, dist2);
+        out->pdf = pmf;
+        out->delta = true;
+        out->target = point_target(load3(e.normal));
+        return true;
+    }
     if (e.kind == EMITTER_SPOT) {
         const float3 d = load3(&e.p[0]) - pos;
         const float dist2 = length_squared3(d);

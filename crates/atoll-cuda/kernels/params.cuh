@@ -171,6 +171,7 @@ inline constexpr unsigned int EMITTER_INFINITE = 2u;
 inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
 inline constexpr unsigned int EMITTER_SPOT = 4u;
 inline constexpr unsigned int EMITTER_ENVIRONMENT = 5u;
+inline constexpr unsigned int EMITTER_GONIOMETRIC = 6u;
 inline constexpr unsigned int PROJECTION_PERSPECTIVE = 0u;
 inline constexpr unsigned int PROJECTION_ORTHOGRAPHIC = 1u;
 inline constexpr unsigned int PROJECTION_SPHERE_EQUAL_AREA = 2u;

@@ -331,6 +331,7 @@ pub(crate) fn params_asserts() -> String {
         ("EMITTER_TRIANGLE", emitter_kind::TRIANGLE),
         ("EMITTER_SPOT", emitter_kind::SPOT),
         ("EMITTER_ENVIRONMENT", emitter_kind::ENVIRONMENT),
+        ("EMITTER_GONIOMETRIC", emitter_kind::GONIOMETRIC),
         ("PROJECTION_PERSPECTIVE", projection_kind::PERSPECTIVE),
         ("PROJECTION_ORTHOGRAPHIC", projection_kind::ORTHOGRAPHIC),
         ("PROJECTION_SPHERE_EQUAL_AREA", projection_kind::SPHERE_EQUAL_AREA),

@@ -43,6 +43,7 @@ pub(crate) mod emitter_kind {
     pub(crate) const TRIANGLE: u32 = 3;
     pub(crate) const SPOT: u32 = 4;
     pub(crate) const ENVIRONMENT: u32 = 5;
+    pub(crate) const GONIOMETRIC: u32 = 6;
 }
 
 /// [`GpuEmitter::table`] of a triangle emitter without an emission texture.
@@ -178,7 +179,10 @@ pub(crate) mod integrator_kind {
 /// equal-area, 1 lat-long) as floats, `area` the sum of its selection
 /// weights, `table` its offset in [`FrameParams::environment_tables`];
 /// a triangle's `table` indexes [`FrameParams::emission_textures`]
-/// ([`NO_EMISSION_TEXTURE`]: untextured).
+/// ([`NO_EMISSION_TEXTURE`]: untextured); goniometric: `p` the
+/// world-to-light matrix's columns, `normal` the position, `radiance`
+/// intensity, `area` the map's resolution as a float and `table` the
+/// offset of its values in [`FrameParams::environment_tables`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub(crate) struct GpuEmitter {
@@ -232,8 +236,8 @@ impl GpuEmitter {
                 g.kind = emitter_kind::INFINITE;
                 g.radiance = radiance.to_array();
             }
-            Emitter::Environment { .. } => {
-                unreachable!("environment emitters are built by GpuEmitter::environment")
+            Emitter::Environment { .. } | Emitter::Goniometric { .. } => {
+                unreachable!("emitters with tables are built by FrameTables::build")
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 g.kind = emitter_kind::SPOT;
@@ -699,6 +703,18 @@ impl FrameTables {
                     let mut g = GpuEmitter::environment(env, env.tables(&mut environment_tables));
                     g.portal = portal
                         .map_or(0, |k| push_portal(&mut environment_tables, &lights.portals[k as usize]));
+                    g
+                }
+                Emitter::Goniometric { position, world_to_light, intensity, map } => {
+                    let map = &lights.intensity_maps[map as usize];
+                    let mut g = GpuEmitter::zeroed();
+                    g.kind = emitter_kind::GONIOMETRIC;
+                    g.p = world_to_light.to_cols_array();
+                    g.normal = position.to_array();
+                    g.radiance = intensity.to_array();
+                    g.area = map.resolution as f32;
+                    g.table = environment_tables.len() as u32;
+                    environment_tables.extend_from_slice(&map.values);
                     g
                 }
                 Emitter::Infinite { portal: Some(k), .. } => {

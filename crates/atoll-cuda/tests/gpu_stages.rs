@@ -1141,6 +1141,16 @@ fn light_sampling_and_lookup_match() {
         Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3), portal: None },
         // Aimed down into the sampled region, its falloff band crossing it.
         Light::spot(Vec3::new(0.0, 1.8, 0.0), -Vec3::Y, Rgb::new(4.0, 3.0, 2.0), 25.0, 10.0),
+        // Above the sampled region, turned, its 8×8 map varying texel by texel.
+        Light::Goniometric {
+            position: Vec3::new(-0.1, 1.7, 0.2),
+            world_to_light: glam::Mat3::from_rotation_z(0.4) * glam::Mat3::from_rotation_x(-0.3),
+            intensity: Rgb::new(2.0, 1.0, 0.5),
+            map: std::sync::Arc::new(atoll_scene::IntensityMap {
+                resolution: 8,
+                values: (0..64).map(|i| (i % 7) as f32 * 0.3).collect(),
+            }),
+        },
         environment_light(EnvLayout::LatLong),
         environment_light(EnvLayout::EqualArea),
     ]);

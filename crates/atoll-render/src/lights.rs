@@ -64,6 +64,15 @@ pub enum Emitter {
         /// instance transform's rounding), added to a sampled point's own.
         corner_error: f32,
     },
+    /// A point whose intensity is scaled by map `map` of
+    /// [`LightSet::intensity_maps`] towards `world_to_light × w`; see
+    /// [`Light::Goniometric`].
+    Goniometric {
+        position: Vec3,
+        world_to_light: glam::Mat3,
+        intensity: Rgb,
+        map: u32,
+    },
 }
 
 /// A triangle emitter's texture: its corners' uvs and its program in
@@ -117,6 +126,8 @@ pub struct LightSet {
     infinite: Vec<u32>,
     /// The image-based environments, by [`Emitter::Environment`] index.
     pub environments: Vec<EnvironmentSampler>,
+    /// The goniometric lights' intensity maps, by their emitters' `map`.
+    pub intensity_maps: Vec<Arc<atoll_scene::IntensityMap>>,
     /// The infinite lights' portals, by their emitters' `portal` index.
     pub portals: Vec<PortalFrame>,
     /// Programs of emission textures ([`EmissionTexture::program`]).
@@ -170,7 +181,9 @@ fn light_bounds(e: &Emitter, phi: f32) -> Option<LightBounds> {
         two_sided: false,
     };
     match *e {
-        Emitter::Point { position, .. } => Some(whole_sphere(position)),
+        Emitter::Point { position, .. } | Emitter::Goniometric { position, .. } => {
+            Some(whole_sphere(position))
+        }
         Emitter::Spot { position, direction, cos_falloff_start, cos_falloff_end, .. } => {
             // Light leaves within the falloff cone; the full cone is the
             // start angle plus what the falloff band adds.
@@ -212,6 +225,11 @@ impl LightSet {
                 }
                 Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                     Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end }
+                }
+                Light::Goniometric { position, world_to_light, intensity, ref map } => {
+                    set.intensity_maps.push(map.clone());
+                    let map = set.intensity_maps.len() as u32 - 1;
+                    Emitter::Goniometric { position, world_to_light, intensity, map }
                 }
                 Light::Environment { ref image, scale, light_to_world, portal } => {
                     set.environments.push(EnvironmentSampler::new(image.clone(), scale, light_to_world));
@@ -292,6 +310,11 @@ impl LightSet {
             .iter()
             .map(|e| match *e {
                 Emitter::Point { intensity, .. } => 4.0 * std::f32::consts::PI * luminance(intensity),
+                Emitter::Goniometric { intensity, map, .. } => {
+                    4.0 * std::f32::consts::PI
+                        * luminance(intensity)
+                        * set.intensity_maps[map as usize].mean()
+                }
                 Emitter::Spot { intensity, cos_falloff_start, cos_falloff_end, .. } => {
                     Light::spot_solid_angle(cos_falloff_start, cos_falloff_end) * luminance(intensity)
                 }
@@ -513,6 +536,25 @@ impl LightSet {
                     pdf: pmf * pdf,
                     delta: false,
                     target: AT_INFINITY,
+                })
+            }
+            Emitter::Goniometric { position, world_to_light, intensity, map } => {
+                let d = position - p;
+                let dist2 = d.length_squared();
+                let distance = dist2.sqrt();
+                let wi = d / distance;
+                let towards = (world_to_light * -wi).try_normalize()?;
+                let scale = self.intensity_maps[map as usize].towards(towards);
+                if scale <= 0.0 {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    distance,
+                    radiance: intensity * (scale / dist2),
+                    pdf: pmf,
+                    delta: true,
+                    target: point_target(position),
                 })
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {

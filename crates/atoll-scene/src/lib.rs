@@ -37,7 +37,7 @@ pub use camera::{
 };
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
-pub use light::{AreaEmission, Light, Portal};
+pub use light::{AreaEmission, IntensityMap, Light, Portal};
 pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, PrincipledParams,

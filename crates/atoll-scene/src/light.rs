@@ -52,6 +52,41 @@ pub enum Light {
     /// direction `light_to_world × d` (a rotation; `d` in the image's space);
     /// with a `portal`, only through it.
     Environment { image: Arc<EnvironmentImage>, scale: Rgb, light_to_world: Mat3, portal: Option<Portal> },
+    /// pbrt-v4's goniometric light: a point whose intensity towards world
+    /// direction `w` is `intensity × map(world_to_light × w)`, the map an
+    /// equal-area square of directions (its pole is the light's +y, as
+    /// pbrt swaps y and z), read at the nearest sample.
+    Goniometric { position: Vec3, world_to_light: Mat3, intensity: Rgb, map: Arc<IntensityMap> },
+}
+
+/// A goniometric light's distribution: `resolution`² values over pbrt's
+/// equal-area square (rows from the top), the average of an image's
+/// red, green and blue.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IntensityMap {
+    pub resolution: u32,
+    pub values: Vec<f32>,
+}
+
+impl IntensityMap {
+    /// The value at the nearest sample to `uv` in [0, 1]² (pbrt's
+    /// `LookupNearest`, clamped at the edges).
+    pub fn nearest(&self, uv: glam::Vec2) -> f32 {
+        let n = self.resolution;
+        let texel = |t: f32| ((t * n as f32) as i64).clamp(0, n as i64 - 1) as usize;
+        self.values[texel(uv.y) * n as usize + texel(uv.x)]
+    }
+
+    /// The value towards unit direction `d` of the light's space
+    /// (pole +y): the equal-area square's sample there.
+    pub fn towards(&self, d: Vec3) -> f32 {
+        self.nearest(crate::environment::equal_area_sphere_to_square(Vec3::new(d.x, d.z, d.y)))
+    }
+
+    /// The mean value: the light's power is 4π times this times its intensity.
+    pub fn mean(&self) -> f32 {
+        (self.values.iter().map(|&v| v as f64).sum::<f64>() / self.values.len().max(1) as f64) as f32
+    }
 }
 
 /// pbrt-v4's infinite-light `portal`: a rectangle in world space (corners

@@ -511,6 +511,46 @@ fn light_sources() {
     assert!(load_world("", "LightSource \"spot\" \"float coneangle\" 200").is_err());
 }
 
+/// pbrt-v4's `goniometric` light: a square image's channel average as its
+/// map, placed and turned by the transform, `power` over 4π times the
+/// map's mean; a map that is not square is an error, a missing one too
+/// (a warning with `--allow-missing`), and no `filename` a warning.
+#[test]
+fn goniometric_lights() {
+    let dir = std::env::temp_dir().join(format!("atoll-gonio-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    exr::prelude::write_rgb_file(dir.join("map.exr"), 2, 2, |x, y| (x as f32, y as f32, 0.5)).unwrap();
+    exr::prelude::write_rgb_file(dir.join("wide.exr"), 4, 2, |_, _| (1.0, 1.0, 1.0)).unwrap();
+    let load = |world: &str| {
+        atoll_scene::pbrt::load_str(&format!("WorldBegin\n{world}\n"), "g.pbrt", &dir)
+            .map(|l| (l.scene.lights, l.warnings))
+    };
+    let (lights, warnings) = load(
+        "AttributeBegin\nTranslate 1 2 3\nRotate 90 0 0 1\n\
+         LightSource \"goniometric\" \"string filename\" \"map.exr\" \"rgb I\" [ 2 2 2 ] \"float scale\" 3\nAttributeEnd\n\
+         LightSource \"goniometric\" \"string filename\" \"map.exr\" \"float power\" 10",
+    )
+    .unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let Light::Goniometric { position, world_to_light, intensity, ref map } = lights[0] else {
+        panic!("{lights:?}")
+    };
+    assert_close(position, Vec3::new(1.0, 2.0, 3.0), 1e-6);
+    assert_close(world_to_light * -Vec3::X, Vec3::Y, 1e-6);
+    assert_eq!(intensity, Rgb::splat(6.0));
+    assert_eq!((map.resolution, &map.values[..]), (2, &[0.5 / 3.0, 1.5 / 3.0, 1.5 / 3.0, 2.5 / 3.0][..]));
+    let Light::Goniometric { intensity, ref map, .. } = lights[1] else { panic!() };
+    let emitted = 4.0 * std::f32::consts::PI * map.mean() * intensity.x;
+    assert!((emitted - 10.0).abs() < 1e-4, "{emitted} W");
+    let e = load("LightSource \"goniometric\" \"string filename\" \"wide.exr\"").unwrap_err().to_string();
+    assert!(e.starts_with("g.pbrt:2:1: light \"goniometric\": \"wide.exr\" is 4x2, not square"), "{e}");
+    let e = load("LightSource \"goniometric\" \"string filename\" \"none.exr\"").unwrap_err().to_string();
+    assert!(e.starts_with("g.pbrt:2:1: light \"goniometric\": ") && e.contains("none.exr"), "{e}");
+    let (lights, warnings) = load("LightSource \"goniometric\"").unwrap();
+    assert!(lights.is_empty() && warnings[0].message.contains("no \"filename\" given"), "{warnings:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn quadrics_and_unsupported_shapes() {
     let loaded = load_world(

@@ -411,6 +411,20 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
                     portal_text(portal)
                 )?
             }
+            Light::Goniometric { position, intensity, map, .. } => {
+                // The map itself is not written out: its mean stands in.
+                writeln!(
+                    out,
+                    "# goniometric light ({0}x{0} map) written as a point light of its mean intensity",
+                    map.resolution
+                )?;
+                writeln!(
+                    out,
+                    "LightSource \"point\" \"point3 from\" {} \"rgb I\" {}",
+                    v(*position),
+                    v(*intensity * map.mean())
+                )?
+            }
             Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let cone_angle = cos_falloff_end.clamp(-1.0, 1.0).acos().to_degrees();
                 let cone_delta = cone_angle - cos_falloff_start.clamp(-1.0, 1.0).acos().to_degrees();

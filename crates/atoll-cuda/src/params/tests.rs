@@ -13,6 +13,15 @@ fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
     scene.lights.push(Light::Point { position: Vec3::new(0.1, 0.5, 0.2), intensity: Rgb::splat(2.0) });
     scene.lights.push(Light::Infinite { radiance: Rgb::new(0.1, 0.2, 0.3), portal: None });
     scene.lights.push(Light::spot(Vec3::new(0.0, 1.9, 0.0), -Vec3::Y, Rgb::splat(3.0), 40.0, 5.0));
+    scene.lights.push(Light::Goniometric {
+        position: Vec3::new(0.2, 1.5, -0.1),
+        world_to_light: glam::Mat3::from_rotation_x(0.3),
+        intensity: Rgb::new(1.0, 2.0, 3.0),
+        map: std::sync::Arc::new(atoll_scene::IntensityMap {
+            resolution: 2,
+            values: vec![0.5, 1.0, 0.0, 2.0],
+        }),
+    });
     let pixels = (0..12).map(|i| Rgb::new(i as f32, 1.0, 0.5)).collect();
     scene.lights.push(Light::Environment {
         image: std::sync::Arc::new(atoll_scene::EnvironmentImage::new(
@@ -132,6 +141,16 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                 assert_eq!(t.environment_tables.len() - t0, 3 * 12 + 12 + 4 + 3 * 5);
                 assert_eq!(t.environment_tables[t0 + 3 * 5], 10.0, "pixel 5, red, scale 2");
                 assert_eq!(&t.environment_tables[t0 + 48..t0 + 52], env.marginal_cdf.as_slice());
+            }
+            Emitter::Goniometric { position, world_to_light, intensity, map } => {
+                assert_eq!(g.kind, emitter_kind::GONIOMETRIC);
+                assert_eq!((g.p, g.normal), (world_to_light.to_cols_array(), position.to_array()));
+                assert_eq!((g.radiance, g.area), (intensity.to_array(), 2.0));
+                let t0 = g.table as usize;
+                assert_eq!(
+                    &t.environment_tables[t0..t0 + 4],
+                    &lights.intensity_maps[map as usize].values[..]
+                );
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 assert_eq!(g.kind, emitter_kind::SPOT);

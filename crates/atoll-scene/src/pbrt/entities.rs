@@ -572,6 +572,64 @@ pub fn light(
             }
             light
         }
+        "goniometric" => {
+            let i =
+                p.spectrum("I", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
+            let scale = light_scale(p, &what, loc)?;
+            let Some(file) = p.string("filename")? else {
+                w.warn(loc, format!("{what}: no \"filename\" given; it emits nothing (as in pbrt-v4)"));
+                return Ok(None);
+            };
+            let image = crate::input::beside(base_dir, &file)
+                .map_err(crate::ImageLoadError::io(std::path::Path::new(&file)))
+                .and_then(|path| crate::EnvironmentImage::load(&path));
+            let image = match image {
+                Ok(image) => image,
+                Err(e) => {
+                    super::missing_file(loc, &what, e.clone())?;
+                    w.warn(loc, format!("{what}: {e}; it emits nothing"));
+                    return Ok(None);
+                }
+            };
+            if image.width != image.height {
+                return Err(SceneError::at(
+                    loc,
+                    format!(
+                        "{what}: \"{file}\" is {}x{}, not square: not an equal-area map of directions",
+                        image.width, image.height
+                    ),
+                ));
+            }
+            let map = crate::IntensityMap {
+                resolution: image.width,
+                values: image.pixels.iter().map(|p| (p.x + p.y + p.z) / 3.0).collect(),
+            };
+            // pbrt-v4: `power` sets the emitted power, 4π × the map's mean × I.
+            let mut intensity = i * scale;
+            match p.float("power")? {
+                Some(power) if power < 0.0 => {
+                    let at = p.find("power", &[ParamType::Float]).map_or(loc, |q| &q.loc);
+                    return Err(SceneError::at(at, format!("{what}: negative \"power\" {power}")));
+                }
+                Some(power) if power > 0.0 => {
+                    let per_unit = 4.0 * std::f32::consts::PI * map.mean() * crate::luminance(i);
+                    if per_unit > 0.0 {
+                        intensity = i * (scale * power / per_unit);
+                    }
+                }
+                _ => {}
+            }
+            let m = glam::DMat3::from_mat4(*ctm);
+            if m.determinant() == 0.0 || !m.determinant().is_finite() {
+                return Err(SceneError::at(loc, format!("{what}: the current transform is not invertible")));
+            }
+            Light::Goniometric {
+                position: transform::point(ctm, DVec3::ZERO).as_vec3(),
+                world_to_light: m.inverse().as_mat3(),
+                intensity,
+                map: std::sync::Arc::new(map),
+            }
+        }
         "distant" => {
             let l =
                 p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
