@@ -928,7 +928,7 @@ fn density_grid_medium(
             None => p.float_or("temperaturecutoff", 0.0)?,
         };
         let scale = p.float_or("temperaturescale", 1.0)?;
-        let blackbody = super::spectrum::BlackbodyTable::new();
+        let blackbody = super::spectrum::BlackbodyTable::shared();
         let emission: Vec<f32> = (temperature.iter().enumerate())
             .flat_map(|(i, t)| {
                 let le_scale = le_scale.as_ref().map_or(1.0, |s| s[i]);

@@ -169,9 +169,10 @@ pub fn blackbody_peak_normalised_rgb(kelvin: f32) -> Vec3 {
     let t = kelvin as f64;
     // Wien's displacement law: where the spectrum peaks.
     let peak = planck(2.8977721e6 / t, t);
-    let [_, y, _] = emission_xyz(|l| planck(l, t) / peak);
-    let [_, y_of_one, _] = emission_xyz(|_| 1.0);
-    emission_rgb(|l| planck(l, t)) * (y / y_of_one) as f32
+    static Y_OF_ONE: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    let y_of_one = *Y_OF_ONE.get_or_init(|| emission_xyz(|_| 1.0)[1]);
+    let xyz = emission_xyz(|l| planck(l, t));
+    xyz_to_unit_luminance_rgb(xyz) * (xyz[1] / peak / y_of_one) as f32
 }
 
 /// A blackbody's [`blackbody_peak_normalised_rgb`] by table: grids of
@@ -187,6 +188,12 @@ impl BlackbodyTable {
     const LOWEST: f32 = 100.0;
     const HIGHEST: f32 = 1e5;
     const ENTRIES: usize = 4096;
+
+    /// The table, built once per process (4096 spectral integrals).
+    pub fn shared() -> &'static BlackbodyTable {
+        static TABLE: std::sync::OnceLock<BlackbodyTable> = std::sync::OnceLock::new();
+        TABLE.get_or_init(BlackbodyTable::new)
+    }
 
     pub fn new() -> Self {
         let rgb =
@@ -248,7 +255,12 @@ fn emission_xyz(spd: impl Fn(f64) -> f64) -> [f64; 3] {
 /// Linear-sRGB colour of the emission spectrum `spd` (of the wavelength in
 /// nm), normalised to luminance 1 ([`emission_xyz`]'s integrals).
 fn emission_rgb(spd: impl Fn(f64) -> f64) -> Vec3 {
-    let [x, y, z] = emission_xyz(spd);
+    xyz_to_unit_luminance_rgb(emission_xyz(spd))
+}
+
+/// Linear sRGB of the colour of XYZ sums, normalised to luminance 1
+/// (negative channels clipped).
+fn xyz_to_unit_luminance_rgb([x, y, z]: [f64; 3]) -> Vec3 {
     if y <= 0.0 || !y.is_finite() {
         return Vec3::ZERO;
     }
