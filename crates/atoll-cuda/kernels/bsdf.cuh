@@ -28,6 +28,9 @@
 #ifndef ATOLL_WITH_HAIR
 #define ATOLL_WITH_HAIR 1
 #endif
+#ifndef ATOLL_WITH_MEASURED
+#define ATOLL_WITH_MEASURED 1
+#endif
 
 #include "common.cuh"
 #include "materials.cuh"
@@ -276,6 +279,10 @@ struct Bsdf {
     float4 p;
     // Coated conductor only.
     float base_alpha_y;
+#if ATOLL_WITH_MEASURED
+    // Measured only: the BRDF's tables (measured.cuh).
+    const float* table;
+#endif
 };
 
 /// Mirrors `bsdf::BsdfSample`.
@@ -300,8 +307,9 @@ __device__ __forceinline__ BsdfSample make_bsdf_sample(float3 f, float3 wi, floa
     return s;
 }
 
-/// Mirrors `material_coeffs::bsdf_from_record`.
-__device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
+/// Mirrors `material_coeffs::bsdf_from_record`; `measured` is the frame's
+/// measured BRDFs (`FrameParams::measured`).
+__device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r, const float* measured) {
     Bsdf b;
     // The low byte: the high one names the hit surface's media.
     const unsigned int kind = r.material & 0xffu;
@@ -317,6 +325,9 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
     b.n_samples = 0u;
     b.p = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
     b.base_alpha_y = 0.0f;
+#if ATOLL_WITH_MEASURED
+    b.table = nullptr;
+#endif
     if (kind == MATERIAL_DIFFUSE) {
         b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_REFLECTANCE]);
     } else if (kind == MATERIAL_CONDUCTOR) {
@@ -375,6 +386,11 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r) {
                           f16_to_f32(r.coeffs[COEFF_PRINCIPLED_CLEARCOAT]),
                           f16_to_f32(r.coeffs[COEFF_PRINCIPLED_CLEARCOAT_GLOSS]));
         b.eta = f16_to_f32(r.coeffs[COEFF_PRINCIPLED_ETA]);
+#if ATOLL_WITH_MEASURED
+    } else if (kind == MATERIAL_MEASURED && measured) {
+        const unsigned int brdf = (unsigned int)f16_to_f32(r.coeffs[COEFF_MEASURED_BRDF]);
+        b.table = measured + __float_as_uint(measured[brdf]);
+#endif
     } else {
         b.kind = MATERIAL_NONE;
     }
@@ -804,6 +820,10 @@ __device__ __noinline__ float3 hair_eval(Hair h, float3 wo, float3 wi);
 __device__ __noinline__ float hair_pdf(Hair h, float3 wo, float3 wi);
 __device__ __noinline__ bool hair_sample(Hair h, float3 wo, float uc, float2 u, BsdfSample* out);
 
+#if ATOLL_WITH_MEASURED
+#include "measured.cuh"
+#endif
+
 // --- dispatch (bsdf.rs `impl Bsdf`) ---
 
 /// Mirrors `material_coeffs::shading_frame`: about the shading normal, and
@@ -823,6 +843,9 @@ __device__ __forceinline__ float3 bsdf_eval(const Bsdf& b, float3 wo, float3 wi)
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_eval(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_eval(principled_of(b), wo, wi);
     if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return hair_eval(hair_of(b), wo, wi);
+#if ATOLL_WITH_MEASURED
+    if (b.kind == MATERIAL_MEASURED) return measured_eval(b.table, wo, wi);
+#endif
     return dielectric_eval(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -835,6 +858,9 @@ __device__ __forceinline__ float bsdf_pdf(const Bsdf& b, float3 wo, float3 wi) {
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_pdf(coated_of(b), wo, wi);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_pdf(principled_of(b), wo, wi);
     if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return hair_pdf(hair_of(b), wo, wi);
+#if ATOLL_WITH_MEASURED
+    if (b.kind == MATERIAL_MEASURED) return measured_pdf(b.table, wo, wi);
+#endif
     return dielectric_pdf(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, wi);
 }
 
@@ -857,6 +883,10 @@ __device__ __forceinline__ bool bsdf_sample(const Bsdf& b, float3 wo, float uc, 
         if (!principled_sample(principled_of(b), wo, uc, u, &s)) return false;
     } else if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) {
         if (!hair_sample(hair_of(b), wo, uc, u, &s)) return false;
+#if ATOLL_WITH_MEASURED
+    } else if (b.kind == MATERIAL_MEASURED) {
+        if (!measured_sample(b.table, wo, u, &s)) return false;
+#endif
     } else {
         if (!dielectric_sample(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y), wo, uc, u, &s)) return false;
     }
@@ -877,6 +907,7 @@ __device__ __forceinline__ bool bsdf_is_delta(const Bsdf& b) {
     if (ATOLL_WITH_COATED && is_coated(b.kind)) return coated_is_delta(b);
     if (ATOLL_WITH_PRINCIPLED && b.kind == MATERIAL_PRINCIPLED) return principled_is_delta(principled_of(b));
     if (ATOLL_WITH_HAIR && b.kind == MATERIAL_HAIR) return false;
+    if (ATOLL_WITH_MEASURED && b.kind == MATERIAL_MEASURED) return false;
     return dielectric_is_specular(b.eta, trowbridge_reitz(b.alpha_x, b.alpha_y));
 }
 

@@ -54,6 +54,8 @@ inline constexpr unsigned int COEFF_HAIR_BETA_N = 5u;
 inline constexpr unsigned int COEFF_HAIR_ALPHA = 6u;
 inline constexpr unsigned int COEFF_HAIR_AXIS = 7u;
 inline constexpr unsigned int COEFF_HAIR_OFFSET = 10u;
+inline constexpr unsigned int COEFF_MEASURED_BRDF = 0u;
 inline constexpr unsigned int COATED_CONDUCTOR_MAX_DEPTH = 10u;
 inline constexpr unsigned int COATED_CONDUCTOR_N_SAMPLES = 1u;
+inline constexpr unsigned int MEASURED_HEADER_WORDS = 30u;
 // END GENERATED materials

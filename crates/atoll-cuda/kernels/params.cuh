@@ -144,6 +144,9 @@ struct FrameParams {
     float shadow_reach;
     unsigned int media_pad;
     const float* media_grids;
+    // The measured BRDFs (measured.cuh): per BRDF the bits of its tables'
+    // offset in this array, then the tables. Null for none.
+    const float* measured;
     GpuMedium media[MEDIA_SLOTS];
 };
 
@@ -247,7 +250,7 @@ static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(Gp
 static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2512, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2520, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -293,7 +296,8 @@ static_assert(__builtin_offsetof(FrameParams, camera_medium) == 572 && sizeof(Fr
 static_assert(__builtin_offsetof(FrameParams, shadow_reach) == 576 && sizeof(FrameParams::shadow_reach) == 4, "FrameParams.shadow_reach: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_pad) == 580 && sizeof(FrameParams::media_pad) == 4, "FrameParams.media_pad: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_grids) == 584 && sizeof(FrameParams::media_grids) == 8, "FrameParams.media_grids: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, media) == 592 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FrameParams::measured) == 8, "FrameParams.measured: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 600 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

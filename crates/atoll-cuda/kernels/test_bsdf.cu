@@ -17,17 +17,19 @@
 #define BSDF_OUT 16
 
 /// For each case i: the BSDF of `records[i]` (material and coefficients,
-/// as `bsdf_from_record`), and `inputs[9i..]` = wo.xyz, wi.xyz, uc, u.xy.
+/// as `bsdf_from_record`, measured ones reading `measured`), and
+/// `inputs[9i..]` = wo.xyz, wi.xyz, uc, u.xy.
 /// Writes `outputs[16i..]` = eval(wo, wi).rgb, pdf(wo, wi), sample valid
 /// (0/1), sample f.rgb, wi.xyz, pdf, eta, delta (0/1), transmission (0/1),
 /// is_delta (0/1). A record without a BSDF writes zeros.
-extern "C" __global__ void test_bsdf(const RayRecord* records, const float* inputs, unsigned int n, float* outputs) {
+extern "C" __global__ void test_bsdf(const RayRecord* records, const float* measured, const float* inputs,
+                                     unsigned int n, float* outputs) {
     const unsigned int i = blockIdx.x * blockDim.x + threadIdx.x;
     if (i >= n) return;
     const float* in = inputs + BSDF_IN * i;
     float* out = outputs + BSDF_OUT * i;
     for (int k = 0; k < BSDF_OUT; ++k) out[k] = 0.0f;
-    const Bsdf b = bsdf_from_record(records[i]);
+    const Bsdf b = bsdf_from_record(records[i], measured);
     if (b.kind == MATERIAL_NONE) return;
     const float3 wo = load3(in), wi = load3(in + 3);
     store3(out, bsdf_eval(b, wo, wi));

@@ -375,7 +375,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     // The hit surface's media (inside << 4 | outside; 0 where it bounds none).
     const unsigned int media = r.material >> 8;
 #endif
-    const Bsdf bsdf = bsdf_from_record(r);
+    const Bsdf bsdf = bsdf_from_record(r, params.measured);
     if (bsdf.kind == MATERIAL_NONE) {
         // A surface that only bounds a medium: continue straight through.
         set_continuation(out, r, at, dir);
@@ -453,7 +453,7 @@ __device__ __forceinline__ void shade_ambient_occlusion(const FrameParams& param
     if (!(r.flags & FLAG_HIT)) return;
     const SurfacePoint at = hit_point(r);
     const float3 dir = load3(r.direction);
-    if (bsdf_from_record(r).kind == MATERIAL_NONE) {
+    if (bsdf_from_record(r, params.measured).kind == MATERIAL_NONE) {
         set_continuation(out, r, at, dir);
         return;
     }

@@ -44,6 +44,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("params.cuh", include_str!("../kernels/params.cuh")),
     ("principled.cuh", include_str!("../kernels/principled.cuh")),
     ("hair.cuh", include_str!("../kernels/hair.cuh")),
+    ("measured.cuh", include_str!("../kernels/measured.cuh")),
     ("media.cuh", include_str!("../kernels/media.cuh")),
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),

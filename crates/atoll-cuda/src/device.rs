@@ -135,6 +135,7 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
         ("ATOLL_WITH_COATED_CONDUCTOR", &[MaterialKind::CoatedConductor]),
         ("ATOLL_WITH_PRINCIPLED", &[MaterialKind::Principled]),
         ("ATOLL_WITH_HAIR", &[MaterialKind::Hair]),
+        ("ATOLL_WITH_MEASURED", &[MaterialKind::Measured]),
     ]
     .into_iter()
     .filter(|&(_, kinds)| !has(kinds))

@@ -147,6 +147,7 @@ pub(crate) fn record_asserts() -> String {
         ("MATERIAL_PRINCIPLED", MaterialKind::Principled),
         ("MATERIAL_COATED_CONDUCTOR", MaterialKind::CoatedConductor),
         ("MATERIAL_HAIR", MaterialKind::Hair),
+        ("MATERIAL_MEASURED", MaterialKind::Measured),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -156,7 +157,8 @@ pub(crate) fn record_asserts() -> String {
 
 /// Each material kind's coefficient slots (`atoll_render::material_layout`)
 /// as `COEFF_<KIND>_<PARAMETER>`, e.g. `COEFF_CONDUCTOR_ALPHA_X`, and the
-/// coated conductor's walk, which has no slots.
+/// coated conductor's walk, which has no slots, and the size of a measured
+/// BRDF's header (`MeasuredBrdf::pack`).
 pub(crate) fn material_layout_constants() -> String {
     let mut s = String::new();
     for layout in material_layout::LAYOUTS {
@@ -167,7 +169,9 @@ pub(crate) fn material_layout_constants() -> String {
     }
     let (max_depth, n_samples) = atoll_scene::Material::COATED_CONDUCTOR_WALK;
     s += &const_uint("unsigned int", "COATED_CONDUCTOR_MAX_DEPTH", max_depth as u64);
-    s + &const_uint("unsigned int", "COATED_CONDUCTOR_N_SAMPLES", n_samples as u64)
+    s += &const_uint("unsigned int", "COATED_CONDUCTOR_N_SAMPLES", n_samples as u64);
+    let header = atoll_scene::measured::PACK_HEADER_WORDS;
+    s + &const_uint("unsigned int", "MEASURED_HEADER_WORDS", header as u64)
 }
 
 /// The random-number dimension layout of `rng`.

@@ -428,6 +428,8 @@ pub struct FrameParams {
     pub media_pad: u32,
     /// `f32[]`: every grid medium's density samples, one after another.
     pub media_grids: u64,
+    /// `f32[]`: the measured BRDFs ([`FrameTables::measured`]); 0 for none.
+    pub measured: u64,
     /// By `MediumIndex`; entry 0 is the vacuum.
     pub media: [GpuMedium; MEDIA_SLOTS],
 }
@@ -562,6 +564,7 @@ impl FrameParams {
             shadow_reach,
             media_pad,
             media_grids,
+            measured,
             media,
         })
     }
@@ -649,7 +652,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuMedium>() == 120);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 24 + 120 * MEDIA_SLOTS
+            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 32 + 120 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
     assert!(std::mem::size_of::<SceneView>() == 72);
@@ -678,6 +681,21 @@ pub(crate) struct FrameTables {
     pub light_nodes: Vec<u32>,
     pub light_leaf: Vec<u32>,
     pub unbounded_lights: Vec<u32>,
+    /// The measured BRDFs: one word per BRDF, the bits of the offset of its
+    /// tables ([`atoll_scene::MeasuredBrdf::pack`]) in this array, then the
+    /// tables one after another.
+    pub measured: Vec<f32>,
+}
+
+/// [`FrameTables::measured`] of `brdfs`: what `FrameParams::measured`
+/// points to.
+pub fn pack_measured(brdfs: &[Arc<atoll_scene::MeasuredBrdf>]) -> Vec<f32> {
+    let mut words = vec![0.0f32; brdfs.len()];
+    for (i, brdf) in brdfs.iter().enumerate() {
+        words[i] = f32::from_bits(words.len() as u32);
+        words.extend(brdf.pack());
+    }
+    words
 }
 
 /// Appends `portal`'s words to `tables`; the emitter's `portal` field for it.
@@ -758,6 +776,7 @@ impl FrameTables {
             emission_textures,
             mesh_alpha: bytemuck::cast_slice(&frame.textures.mesh_alpha).to_vec(),
             srgb_to_linear: atoll_scene::texture::srgb8_to_linear().to_vec(),
+            measured: pack_measured(&frame.measured),
             light_nodes: bytemuck::cast_slice(&lights.bvh.nodes).to_vec(),
             light_leaf: lights.bvh.leaf_of.clone(),
             unbounded_lights: lights.unbounded_lights().to_vec(),
@@ -813,6 +832,7 @@ pub struct FrameParamsHost {
     light_leaf: CudaSlice<u32>,
     unbounded_lights: CudaSlice<u32>,
     media_grids: CudaSlice<f32>,
+    measured: CudaSlice<f32>,
 }
 
 impl FrameParamsHost {
@@ -846,6 +866,7 @@ impl FrameParamsHost {
         let unbounded_lights = upload(gpu, &t.unbounded_lights, "lights at infinity")?;
         let grid_values: Vec<f32> = frame.media.grids.iter().flat_map(|g| g.values.iter().copied()).collect();
         let media_grids = upload(gpu, &grid_values, "media grids")?;
+        let measured = upload(gpu, &t.measured, "measured BRDFs")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -865,6 +886,7 @@ impl FrameParamsHost {
         params.light_leaf = light_leaf.device_ptr(stream).0;
         params.unbounded_lights = unbounded_lights.device_ptr(stream).0;
         params.media_grids = media_grids.device_ptr(stream).0;
+        params.measured = if t.measured.is_empty() { 0 } else { measured.device_ptr(stream).0 };
         if let Some(scene) = scene {
             params.images = scene.images.device_ptr(stream).0;
             params.texels = scene.texels.device_ptr(stream).0;
@@ -889,6 +911,7 @@ impl FrameParamsHost {
             light_leaf,
             unbounded_lights,
             media_grids,
+            measured,
         })
     }
 
@@ -910,7 +933,8 @@ impl FrameParamsHost {
             + self.light_nodes.num_bytes()
             + self.light_leaf.num_bytes()
             + self.unbounded_lights.num_bytes()
-            + self.media_grids.num_bytes()) as u64
+            + self.media_grids.num_bytes()
+            + self.measured.num_bytes()) as u64
     }
 }
 

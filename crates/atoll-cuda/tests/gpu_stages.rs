@@ -33,7 +33,7 @@ use atoll_scene::camera::tile_order_pixel;
 use atoll_scene::{
     AreaEmission, CoatedConductorParams, CoatedDiffuseParams, Coating, EnvLayout, EnvironmentImage,
     FieldSource, GridField, GridMedium, HairParams, HomogeneousMedium, Instance, IntegratorSettings, Light,
-    Material, Medium, MediumInterface, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
+    Material, MeasuredBrdf, Medium, MediumInterface, Object, PrincipledParams, Rgb, Scene, TriangleMesh,
 };
 use bytemuck::Zeroable;
 use cudarc::driver::{CudaModule, CudaSlice, PushKernelArg};
@@ -850,9 +850,9 @@ fn rng_is_bit_identical() {
 }
 
 /// The 16 output words of `test_bsdf` for one case, computed on the CPU.
-fn bsdf_reference(r: &RayRecord, input: &[f32]) -> [f32; 16] {
+fn bsdf_reference(r: &RayRecord, measured: &[Arc<MeasuredBrdf>], input: &[f32]) -> [f32; 16] {
     let mut out = [0.0f32; 16];
-    let Some(b) = bsdf_from_record(r) else { return out };
+    let Some(b) = bsdf_from_record(r, measured) else { return out };
     let (wo, wi) = (Vec3::from_slice(&input[0..3]), Vec3::from_slice(&input[3..6]));
     out[0..3].copy_from_slice(&b.eval(wo, wi).to_array());
     out[3] = b.pdf(wo, wi);
@@ -873,6 +873,16 @@ fn bsdf_reference(r: &RayRecord, input: &[f32]) -> [f32; 16] {
 /// directions, half of them reflection pairs) and compares every output
 /// with [`bsdf_reference`]; returns the cases that differ.
 fn bsdf_mismatches(gpu: &Gpu, materials: &[PackedMaterial], cases: u32) -> Vec<String> {
+    bsdf_mismatches_measured(gpu, materials, &[], cases)
+}
+
+/// [`bsdf_mismatches`] with the measured BRDFs `measured` materials name.
+fn bsdf_mismatches_measured(
+    gpu: &Gpu,
+    materials: &[PackedMaterial],
+    measured: &[Arc<MeasuredBrdf>],
+    cases: u32,
+) -> Vec<String> {
     let m = module(gpu, "test_bsdf.cu", false);
     let (mut records, mut inputs) = (Vec::new(), Vec::new());
     for i in 0..cases {
@@ -890,16 +900,20 @@ fn bsdf_mismatches(gpu: &Gpu, materials: &[PackedMaterial], cases: u32) -> Vec<S
     let n = records.len() as u32;
     let r_dev = upload(gpu, &gpu_records(&records));
     let in_dev = upload(gpu, &inputs);
+    // One word more, so that no measured BRDFs still upload.
+    let mut tables = atoll_cuda::params::pack_measured(measured);
+    tables.push(0.0);
+    let tables = upload(gpu, &tables);
     let mut out = gpu.stream.alloc_zeros::<f32>(16 * n as usize).unwrap();
     let f = m.load_function("test_bsdf").unwrap();
     let mut b = gpu.stream.launch_builder(&f);
-    b.arg(&r_dev).arg(&in_dev).arg(&n).arg(&mut out);
+    b.arg(&r_dev).arg(&tables).arg(&in_dev).arg(&n).arg(&mut out);
     // SAFETY: the arguments match `test_bsdf`; 9 input and 16 output words per case.
     unsafe { b.launch(launch_1d(n, BLOCK)) }.unwrap();
     let out = download(gpu, &out);
     let mut bad = Vec::new();
     for i in 0..n as usize {
-        let expected = bsdf_reference(&records[i], &inputs[9 * i..9 * i + 9]);
+        let expected = bsdf_reference(&records[i], measured, &inputs[9 * i..9 * i + 9]);
         let got = &out[16 * i..16 * i + 16];
         if !close_all(&expected, got) {
             bad.push(format!(
@@ -1122,6 +1136,25 @@ fn hair_bsdfs_match_value_by_value() {
 
 /// `shade` with hair hits: the frame about the stored axis, light sampling
 /// and sampled directions to both sides of the surface.
+/// A measured BRDF (`scenes/measured-ggx.bsdf`): its tables' lookups,
+/// warps and the BSDF built on them, value by value.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn measured_bsdf_matches_value_by_value() {
+    let Some(gpu) = gpu() else { return };
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf");
+    let brdf = MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), "measured-ggx.bsdf").unwrap();
+    let measured = [Arc::new(brdf)];
+    let materials = [PackedMaterial::pack(&Material::Measured { brdf: 0 })];
+    let bad = bsdf_mismatches_measured(&gpu, &materials, &measured, 12_000);
+    assert!(
+        bad.len() <= 3,
+        "{} measured cases differ, first ones:\n{}",
+        bad.len(),
+        bad[..bad.len().min(6)].join("\n")
+    );
+}
+
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_hair_matches_the_cpu_stage() {

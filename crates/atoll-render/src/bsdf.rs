@@ -25,6 +25,7 @@ mod dielectric;
 pub mod fresnel;
 pub mod hair;
 pub mod layered;
+pub mod measured;
 pub mod microfacet;
 pub mod principled;
 mod thin;
@@ -36,7 +37,7 @@ pub use microfacet::TrowbridgeReitz;
 pub use principled::Principled;
 
 use crate::sampling::{cosine_hemisphere_pdf, sample_cosine_hemisphere};
-use atoll_scene::{Material, Rgb};
+use atoll_scene::{Material, MeasuredBrdf, Rgb};
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
@@ -99,9 +100,10 @@ pub(crate) fn same_hemisphere(a: Vec3, b: Vec3) -> bool {
     a.z * b.z > 0.0
 }
 
-/// A BSDF at a hit point, in the local shading frame.
+/// A BSDF at a hit point, in the local shading frame; it borrows the
+/// scene's tables where it has any (measured BRDFs).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Bsdf {
+pub enum Bsdf<'a> {
     /// Lambertian reflection on both sides of the surface.
     Diffuse {
         /// Hemispherical reflectance (albedo) per channel.
@@ -155,6 +157,8 @@ pub enum Bsdf {
     /// A hair fibre (pbrt-v4's `HairBxDF`, [`Hair`]), in a frame whose x is
     /// the fibre's axis ([`Frame::from_xz`]). It scatters to both sides.
     Hair(Hair),
+    /// A tabulated BRDF (pbrt-v4's `MeasuredBxDF`, [`measured`]).
+    Measured(&'a MeasuredBrdf),
 }
 
 /// The result of [`Bsdf::sample`].
@@ -179,10 +183,11 @@ pub struct BsdfSample {
     pub transmission: bool,
 }
 
-impl Bsdf {
-    /// The BSDF for a scene material; `None` for [`Material::Interface`],
-    /// which has no surface, and for [`Material::Mix`], resolved per hit.
-    pub fn from_material(m: &Material) -> Option<Bsdf> {
+impl<'a> Bsdf<'a> {
+    /// The BSDF for a scene material whose measured BRDFs are `measured`
+    /// (the scene's); `None` for [`Material::Interface`], which has no
+    /// surface, and for [`Material::Mix`], resolved per hit.
+    pub fn from_material(m: &Material, measured: &'a [std::sync::Arc<MeasuredBrdf>]) -> Option<Bsdf<'a>> {
         match *m {
             Material::Diffuse { reflectance } => Some(Bsdf::Diffuse { reflectance }),
             Material::Conductor { eta, k, alpha_x, alpha_y } => {
@@ -202,6 +207,7 @@ impl Bsdf {
             Material::Mix { .. } => None,
             Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),
             Material::Hair(params) => Some(Bsdf::Hair(Hair::new(&params))),
+            Material::Measured { brdf } => Some(Bsdf::Measured(&measured[brdf as usize])),
         }
     }
 
@@ -232,6 +238,7 @@ impl Bsdf {
             Bsdf::Coated(c) => c.eval(wo, wi),
             Bsdf::Principled(p) => p.eval(wo, wi),
             Bsdf::Hair(h) => h.eval(wo, wi),
+            Bsdf::Measured(m) => measured::eval(m, wo, wi),
         }
     }
 
@@ -264,6 +271,7 @@ impl Bsdf {
             Bsdf::Coated(c) => c.pdf(wo, wi),
             Bsdf::Principled(p) => p.pdf(wo, wi),
             Bsdf::Hair(h) => h.pdf(wo, wi),
+            Bsdf::Measured(m) => measured::pdf(m, wo, wi),
         }
     }
 
@@ -300,6 +308,7 @@ impl Bsdf {
             Bsdf::Coated(c) => c.sample(wo, uc, u)?,
             Bsdf::Principled(p) => p.sample(wo, uc, u)?,
             Bsdf::Hair(h) => h.sample(wo, uc, u)?,
+            Bsdf::Measured(m) => measured::sample(m, wo, u)?,
         };
         // As pbrt's `BSDF::Sample_f`: drop samples the integrator can't use.
         if s.pdf > 0.0 && s.wi.z != 0.0 && s.f.is_finite() {
@@ -324,7 +333,7 @@ impl Bsdf {
             Bsdf::ThinDielectric { .. } => true,
             Bsdf::Coated(c) => c.is_delta(),
             Bsdf::Principled(p) => p.is_delta(),
-            Bsdf::Hair(_) => false,
+            Bsdf::Hair(_) | Bsdf::Measured(_) => false,
         }
     }
 
@@ -384,15 +393,18 @@ mod tests {
     #[test]
     fn from_material_maps_every_variant() {
         let d = Material::Diffuse { reflectance: Rgb::splat(0.25) };
-        assert_eq!(Bsdf::from_material(&d), Some(Bsdf::Diffuse { reflectance: Rgb::splat(0.25) }));
+        assert_eq!(Bsdf::from_material(&d, &[]), Some(Bsdf::Diffuse { reflectance: Rgb::splat(0.25) }));
         let c = Material::Conductor { eta: Rgb::ONE, k: Rgb::splat(3.0), alpha_x: 0.1, alpha_y: 0.2 };
         assert_eq!(
-            Bsdf::from_material(&c),
+            Bsdf::from_material(&c, &[]),
             Some(Bsdf::Conductor { eta: Rgb::ONE, k: Rgb::splat(3.0), alpha_x: 0.1, alpha_y: 0.2 })
         );
         let g = Material::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 };
-        assert_eq!(Bsdf::from_material(&g), Some(Bsdf::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 }));
-        assert_eq!(Bsdf::from_material(&Material::Interface), None);
+        assert_eq!(
+            Bsdf::from_material(&g, &[]),
+            Some(Bsdf::Dielectric { eta: 1.5, alpha_x: 0.0, alpha_y: 0.0 })
+        );
+        assert_eq!(Bsdf::from_material(&Material::Interface, &[]), None);
     }
 
     #[test]

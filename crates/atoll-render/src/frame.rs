@@ -120,6 +120,8 @@ pub struct FrameContext {
     pub images: Vec<Arc<TextureImage>>,
     /// Participating media and the camera's.
     pub media: MediumTable,
+    /// The scene's measured BRDFs (shared), which measured surfaces read.
+    pub measured: Vec<Arc<atoll_scene::MeasuredBrdf>>,
 }
 
 impl FrameContext {
@@ -133,6 +135,7 @@ impl FrameContext {
             textures: TextureTables::new(scene, &kinds),
             images: scene.textures.images.clone(),
             media: MediumTable::new(scene),
+            measured: scene.measured.clone(),
             materials,
             options,
         }

@@ -1,14 +1,16 @@
 //! Materials reduced to the compact f16 coefficients a hit carries in the
 //! ray record, and the BSDF rebuilt from them on the shading device.
 
-use atoll_scene::{Coating, HairParams, Material, PrincipledParams, Rgb};
+use std::sync::Arc;
+
+use atoll_scene::{Coating, HairParams, Material, MeasuredBrdf, PrincipledParams, Rgb};
 use glam::Vec3;
 use half::f16;
 
 use crate::bsdf::{Bsdf, Coated, CoatedBase, Frame, Hair, Principled};
 use crate::material_layout::{
-    coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, hair, principled,
-    thin_dielectric,
+    coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, hair, measured,
+    principled, thin_dielectric,
 };
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
@@ -108,6 +110,10 @@ impl PackedMaterial {
                 c[hair::OFFSET] = crate::bsdf::hair::OFFSET_FROM_NORMAL;
                 MaterialKind::Hair
             }
+            Material::Measured { brdf } => {
+                c[measured::BRDF] = brdf as f32;
+                MaterialKind::Measured
+            }
         };
         PackedMaterial { kind, coeffs: c.map(f16::from_f32), mix }
     }
@@ -119,8 +125,9 @@ impl PackedMaterial {
     }
 }
 
-/// The BSDF of a record's hit; `None` for pass-through surfaces and misses.
-pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
+/// The BSDF of a record's hit, reading the frame's measured BRDFs `brdfs`;
+/// `None` for pass-through surfaces and misses.
+pub fn bsdf_from_record<'a>(r: &RayRecord, brdfs: &'a [Arc<MeasuredBrdf>]) -> Option<Bsdf<'a>> {
     match r.material_kind() {
         MaterialKind::None | MaterialKind::Mix => None,
         MaterialKind::Diffuse => Some(Bsdf::Diffuse { reflectance: r.coeff3(diffuse::REFLECTANCE) }),
@@ -187,6 +194,7 @@ pub fn bsdf_from_record(r: &RayRecord) -> Option<Bsdf> {
             })
             .with_offset(r.coeff(hair::OFFSET)),
         )),
+        MaterialKind::Measured => brdfs.get(r.coeff(measured::BRDF) as usize).map(|m| Bsdf::Measured(m)),
     }
 }
 
@@ -362,11 +370,13 @@ mod tests {
                 beta_n: 0.375,
                 alpha: 2.0,
             }),
+            Material::Measured { brdf: 1 },
         ];
+        let brdfs = [Arc::new(MeasuredBrdf::default()), Arc::new(MeasuredBrdf::default())];
         for m in &materials {
             let mut r = RayRecord::zeroed();
             PackedMaterial::pack(m).store(&mut r);
-            let b = bsdf_from_record(&r).unwrap();
+            let b = bsdf_from_record(&r, &brdfs).unwrap();
             let back = match b {
                 Bsdf::Diffuse { reflectance } => Material::Diffuse { reflectance },
                 Bsdf::Conductor { eta, k, alpha_x, alpha_y } => {
@@ -386,6 +396,9 @@ mod tests {
                 }) => Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }),
                 Bsdf::Principled(p) => Material::Principled(p.0),
                 Bsdf::Hair(h) => Material::Hair(h.params),
+                Bsdf::Measured(brdf) => Material::Measured {
+                    brdf: brdfs.iter().position(|b| std::ptr::eq(&**b, brdf)).unwrap() as u32,
+                },
             };
             // f16 keeps ~3 significant digits.
             let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(1.0);
@@ -409,12 +422,13 @@ mod tests {
                 | (Material::CoatedDiffuse(_), Material::CoatedDiffuse(_))
                 | (Material::CoatedConductor(_), Material::CoatedConductor(_))
                 | (Material::Principled(_), Material::Principled(_))
-                | (Material::Hair(_), Material::Hair(_)) => assert_eq!(m, &back),
+                | (Material::Hair(_), Material::Hair(_))
+                | (Material::Measured { .. }, Material::Measured { .. }) => assert_eq!(m, &back),
                 _ => panic!("kind changed: {m:?} -> {back:?}"),
             }
         }
         let mut r = RayRecord::zeroed();
         PackedMaterial::pack(&Material::Interface).store(&mut r);
-        assert!(bsdf_from_record(&r).is_none());
+        assert!(bsdf_from_record(&r, &brdfs).is_none());
     }
 }

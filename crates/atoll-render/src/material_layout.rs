@@ -161,6 +161,11 @@ layouts! {
         /// from the normal at shading.
         OFFSET: 10,
     }
+    /// [`MaterialKind::Measured`].
+    Measured => measured {
+        /// The BRDF's index in the scene's measured BRDFs (an f16 integer).
+        BRDF: 0,
+    }
 }
 
 #[cfg(test)]

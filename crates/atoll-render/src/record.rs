@@ -64,6 +64,7 @@ pub enum MaterialKind {
     Principled = 8,
     CoatedConductor = 9,
     Hair = 10,
+    Measured = 11,
 }
 
 impl MaterialKind {
@@ -79,6 +80,7 @@ impl MaterialKind {
             8 => MaterialKind::Principled,
             9 => MaterialKind::CoatedConductor,
             10 => MaterialKind::Hair,
+            11 => MaterialKind::Measured,
             _ => MaterialKind::None,
         }
     }

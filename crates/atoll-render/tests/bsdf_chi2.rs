@@ -12,7 +12,7 @@
 //! sample is an error too).
 
 use atoll_render::bsdf::{Bsdf, Hair, Principled};
-use atoll_scene::{HairParams, PrincipledParams, Rgb};
+use atoll_scene::{HairParams, MeasuredBrdf, PrincipledParams, Rgb};
 use glam::{Vec2, Vec3};
 use std::f64::consts::PI;
 
@@ -243,7 +243,7 @@ fn cell_splits(bsdf: &Bsdf) -> usize {
 
 struct Case {
     name: String,
-    bsdf: Bsdf,
+    bsdf: Bsdf<'static>,
     wo: Vec3,
 }
 
@@ -324,7 +324,25 @@ fn all_cases() -> Vec<Case> {
             });
         }
     }
+    // A measured BRDF (GGX tabulated as Dupuy and Jakob's files are),
+    // sampled through its luminance and visible-normal warps.
+    for (&(t, p), below) in angles.iter().zip([false, false, true]) {
+        cases.push(Case {
+            name: format!("measured wo θ={t} below={below}"),
+            bsdf: Bsdf::Measured(measured_ggx()),
+            wo: wo_at(t, p, below),
+        });
+    }
     cases
+}
+
+/// `scenes/measured-ggx.bsdf` (scripts/measured-scene.py), read once.
+fn measured_ggx() -> &'static MeasuredBrdf {
+    static BRDF: std::sync::OnceLock<MeasuredBrdf> = std::sync::OnceLock::new();
+    BRDF.get_or_init(|| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf");
+        MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), "measured-ggx.bsdf").unwrap()
+    })
 }
 
 /// The principled BSDF: metallic 0 and 1, roughness 0.05, 0.5 and 1,
@@ -568,6 +586,11 @@ fn chi2_principled_glass_and_everything() {
 #[test]
 fn chi2_hair() {
     run_family("hair");
+}
+
+#[test]
+fn chi2_measured() {
+    run_family("measured");
 }
 
 /// The test must be able to fail: samples from one BSDF checked against the

@@ -17,7 +17,7 @@ fn gold() -> (Rgb, Rgb) {
 }
 
 /// The rough BSDFs the properties are checked on.
-fn rough_bsdfs() -> Vec<Bsdf> {
+fn rough_bsdfs() -> Vec<Bsdf<'static>> {
     let (eta, k) = gold();
     let mut v = vec![Bsdf::Diffuse { reflectance: Rgb::new(0.9, 0.5, 0.1) }];
     for (ax, ay) in [(0.1, 0.1), (0.3, 0.3), (0.7, 0.7), (0.2, 0.6)] {

@@ -19,6 +19,7 @@ pub mod landscape;
 pub mod light;
 pub mod load;
 pub mod material;
+pub mod measured;
 pub mod medium;
 pub mod mesh;
 pub mod obj;
@@ -29,6 +30,7 @@ pub mod ply_write;
 pub mod procedural;
 pub mod progress;
 pub mod scene;
+pub mod tensor;
 pub mod texture;
 pub mod texture_scenes;
 
@@ -40,8 +42,10 @@ pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, IntensityMap, Light, Portal};
 pub use load::{load_any, LoadedScene};
 pub use material::{
-    CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, PrincipledParams,
+    CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, MeasuredId,
+    PrincipledParams,
 };
+pub use measured::MeasuredBrdf;
 pub use medium::{
     FieldSource, GridField, GridMedium, HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA,
     VACUUM,

@@ -55,7 +55,13 @@ pub enum Material {
     /// tilted cuticle scales (`HairBxDF`, Chiang et al. 2016). Its axis is
     /// the surface's `dpdu` at the hit, as for pbrt's curves.
     Hair(HairParams),
+    /// pbrt-v4's `measured`: a tabulated BRDF read from a `.bsdf` file,
+    /// `Scene::measured[brdf]`.
+    Measured { brdf: MeasuredId },
 }
+
+/// Index of a measured BRDF in [`crate::Scene::measured`].
+pub type MeasuredId = u32;
 
 /// The dielectric coating of a layered surface ([`Material::CoatedDiffuse`],
 /// [`Material::CoatedConductor`]) and the medium under it, shared with the

@@ -85,6 +85,7 @@ pub fn flatten(scene: &Scene) -> Scene {
         settings: scene.settings.clone(),
         materials: scene.materials.clone(),
         lights: scene.lights.clone(),
+        measured: scene.measured.clone(),
         ..Scene::default()
     };
     for inst in &scene.instances {

@@ -45,6 +45,8 @@ pub struct Scene {
     pub textures: crate::Textures,
     /// Participating media; [`crate::MediumIndex`] `k` is `media[k - 1]`.
     pub media: Vec<crate::Medium>,
+    /// Tabulated BRDFs that [`crate::Material::Measured`] surfaces read.
+    pub measured: Vec<std::sync::Arc<crate::MeasuredBrdf>>,
 }
 
 /// Counts and sizes for `atoll info` and memory planning.
@@ -83,9 +85,11 @@ impl Scene {
     }
 
     /// Bytes every device holds whole, whatever part of the geometry it
-    /// holds: texture images and media grids.
+    /// holds: texture images, media grids and measured BRDFs.
     pub fn replicated_bytes(&self) -> u64 {
-        self.textures.memory_bytes() + self.media.iter().map(|m| m.bytes()).sum::<u64>()
+        self.textures.memory_bytes()
+            + self.media.iter().map(|m| m.bytes()).sum::<u64>()
+            + self.measured.iter().map(|m| m.bytes()).sum::<u64>()
     }
 
     /// Whether mesh `mesh` scatters no light (an `interface` material) in

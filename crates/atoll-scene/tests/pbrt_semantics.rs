@@ -551,6 +551,47 @@ fn goniometric_lights() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// pbrt-v4's `measured` material: its `.bsdf` file read once however many
+/// materials name it; a missing file (unless `--allow-missing`: then
+/// diffuse, with a warning), a truncated one or no `filename` is an error
+/// at the material's line.
+#[test]
+fn measured_materials() {
+    let dir = std::env::temp_dir().join(format!("atoll-measured-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bsdf = std::fs::read(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf"),
+    )
+    .unwrap();
+    std::fs::write(dir.join("ggx.bsdf"), &bsdf).unwrap();
+    std::fs::write(dir.join("cut.bsdf"), &bsdf[..bsdf.len() / 2]).unwrap();
+    let load = |world: &str| atoll_scene::pbrt::load_str(&format!("WorldBegin\n{world}\n"), "m.pbrt", &dir);
+    let triangle = tri([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+    let measured = |file: &str| format!("Material \"measured\" \"string filename\" \"{file}\"\n{triangle}\n");
+    let loaded = load(&format!("{}{}", measured("ggx.bsdf"), measured("ggx.bsdf"))).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let s = &loaded.scene;
+    assert_eq!(s.measured.len(), 1, "one file, read once");
+    assert!(s.materials.iter().all(|m| *m == Material::Measured { brdf: 0 }), "{:?}", s.materials);
+    let brdf = &s.measured[0];
+    assert!(brdf.isotropic);
+    assert_eq!((brdf.theta_i.len(), brdf.vndf.nx, brdf.vndf.ny, brdf.rgb.planes), (9, 32, 32, 3));
+    for (file, message) in [("cut.bsdf", "cut.bsdf: field"), ("none.bsdf", "none.bsdf")] {
+        let e = load(&measured(file)).unwrap_err().to_string();
+        assert!(e.starts_with("m.pbrt:2:1: material \"measured\": ") && e.contains(message), "{e}");
+    }
+    let allowed = allowing_missing(|| load(&measured("none.bsdf"))).unwrap();
+    assert_eq!(allowed.scene.materials, vec![Material::default_diffuse()]);
+    assert!(
+        allowed.warnings[0].message.contains("its measured reflection is lost"),
+        "{:?}",
+        allowed.warnings
+    );
+    let e = load("Material \"measured\"").unwrap_err().to_string();
+    assert!(e.starts_with("m.pbrt:2:1: ") && e.contains("\"filename\" must be given"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn quadrics_and_unsupported_shapes() {
     let loaded = load_world(

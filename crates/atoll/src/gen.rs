@@ -198,7 +198,9 @@ fn shape(out: &mut impl Write, mesh: &TriangleMesh, world: bool) -> io::Result<(
     writeln!(out, "\nAttributeEnd")
 }
 
-fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
+/// Writes material `id`; a measured one names its file as the scene did, so
+/// the text reads back beside the same `.bsdf` files.
+fn material(out: &mut impl Write, id: usize, m: &Material, scene: &Scene) -> io::Result<()> {
     write!(out, "MakeNamedMaterial \"material_{id}\" ")?;
     // Roughness is stored as GGX alpha already: no remapping on the way back.
     let rough = |ax: f32, ay: f32| {
@@ -303,6 +305,11 @@ fn material(out: &mut impl Write, id: usize, m: &Material) -> io::Result<()> {
         Material::Mix { materials: [a, b], amount } => writeln!(
             out,
             "\"string type\" \"mix\" \"string materials\" [ \"material_{a}\" \"material_{b}\" ] \"float amount\" [ {amount} ]"
+        ),
+        Material::Measured { brdf } => writeln!(
+            out,
+            "\"string type\" \"measured\" \"string filename\" \"{}\"",
+            scene.measured[*brdf as usize].filename
         ),
     }
 }
@@ -439,7 +446,7 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
         }
     }
     for (id, m) in scene.materials.iter().enumerate() {
-        material(out, id, m)?;
+        material(out, id, m, scene)?;
     }
     Ok(())
 }

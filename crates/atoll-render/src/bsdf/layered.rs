@@ -163,7 +163,7 @@ impl Coated {
 
     /// The base's BSDF inside the coating: pbrt-v4 divides a conductor's
     /// index by the coating's.
-    fn base(&self) -> Bsdf {
+    fn base(&self) -> Bsdf<'static> {
         match self.base {
             CoatedBase::Diffuse { reflectance } => Bsdf::Diffuse { reflectance },
             CoatedBase::Conductor { eta, k, alpha_x, alpha_y } => {

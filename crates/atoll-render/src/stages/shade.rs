@@ -203,7 +203,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     // The medium on the side a direction leaves the surface into.
     let media = r.hit_media();
     let medium_towards = |w: Vec3| media.map_or(medium, |m| m.towards(w.dot(at.normal)));
-    let Some(bsdf) = bsdf_from_record(r) else {
+    let Some(bsdf) = bsdf_from_record(r, &ctx.measured) else {
         // A surface that only bounds a medium: continue straight through.
         let mut next = continuation(r, &at, dir);
         next.throughput = beta.to_array();
@@ -341,7 +341,7 @@ fn shade_ambient_occlusion(ctx: &FrameContext, r: &RayRecord, max_distance: f32)
     }
     let at = hit_point(r);
     let dir = r.direction();
-    if bsdf_from_record(r).is_none() {
+    if bsdf_from_record(r, &ctx.measured).is_none() {
         out.next = Some(continuation(r, &at, dir));
         return out;
     }

@@ -675,8 +675,21 @@ impl Builder {
     /// its normal map (`normalmap`, an image read linearly).
     fn material(&mut self, ty: &str, p: &ParamList, loc: &FileLoc) -> Result<MaterialSlot, SceneError> {
         let what = format!("Material \"{ty}\"");
+        let measured = match ty {
+            "measured" => Some(super::measured::measured_material(
+                p,
+                &self.base_dir,
+                &mut self.scene,
+                loc,
+                &mut self.warnings,
+            )?),
+            _ => None,
+        };
         let mut tex = TexCtx::new(&self.textures, &mut self.scene.textures);
-        let material = entities::material(ty, p, loc, &mut self.warnings, &mut tex)?;
+        let material = match measured {
+            Some(m) => m,
+            None => entities::material(ty, p, loc, &mut self.warnings, &mut tex)?,
+        };
         let bump =
             if p.find("displacement", &[ParamType::Texture]).is_some() { "displacement" } else { "bumpmap" };
         let displacement = tex.float(p, bump, &what, loc, &mut self.warnings)?;

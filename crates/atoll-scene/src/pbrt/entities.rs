@@ -171,7 +171,6 @@ pub fn material(
             None => {
                 p.mark_all_used();
                 let lacks = match ty {
-                    "measured" => "its measured reflection is lost",
                     "subsurface" => "no light travels under its surface",
                     _ => "its own look is lost",
                 };

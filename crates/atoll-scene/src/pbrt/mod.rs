@@ -24,6 +24,7 @@ pub mod builder;
 pub mod curves;
 pub mod entities;
 mod fluorescent;
+mod measured;
 pub mod params;
 pub mod parser;
 mod pending;

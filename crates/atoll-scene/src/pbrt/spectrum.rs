@@ -141,6 +141,35 @@ pub fn sampled_rgb(pairs: &[(f32, f32)]) -> Vec3 {
     Vec3::new(band(600.0), band(500.0), band(400.0))
 }
 
+/// The linear-sRGB colour of a reflectance spectrum sampled at
+/// `wavelengths` (nm, increasing; piecewise linear between them and constant
+/// past the ends, as pbrt reads tabulated spectra), as weights: the colour of
+/// values `v` is `Σ weights[k] · v[k]`. The spectrum's XYZ under an
+/// equal-energy light becomes sRGB divided channel by channel by the sRGB of
+/// a perfect reflector's, so that a constant spectrum `c` is exactly `(c, c,
+/// c)` (white stays white, as it does in pbrt-v4's RGB film). Tables of
+/// many spectra on one set of wavelengths (measured BRDFs) convert with one
+/// dot product each.
+pub fn reflectance_rgb_weights(wavelengths: &[f32]) -> Vec<Vec3> {
+    let n = wavelengths.len();
+    let to_rgb = |[x, y, z]: [f64; 3]| {
+        glam::DVec3::new(
+            3.2404542 * x - 1.5371385 * y - 0.4985314 * z,
+            -0.9692660 * x + 1.8760108 * y + 0.0415560 * z,
+            0.0556434 * x - 0.2040259 * y + 1.0572252 * z,
+        )
+    };
+    // The spectrum that is 1 at sample `k` and 0 at the others.
+    let hat = |k: usize| {
+        let pairs: Vec<(f32, f32)> =
+            wavelengths.iter().enumerate().map(|(i, &l)| (l, if i == k { 1.0 } else { 0.0 })).collect();
+        move |l: f64| sampled_at(&pairs, l as f32) as f64
+    };
+    let rgb: Vec<glam::DVec3> = (0..n).map(|k| to_rgb(emission_xyz(hat(k)))).collect();
+    let white: glam::DVec3 = rgb.iter().sum();
+    rgb.iter().map(|c| (*c / white).as_vec3()).collect()
+}
+
 /// Planck's law at `nm` nanometres and `kelvin`, up to a constant factor.
 fn planck(nm: f64, kelvin: f64) -> f64 {
     let lm = nm * 1e-9;
