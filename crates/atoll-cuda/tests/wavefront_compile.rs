@@ -82,7 +82,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
     words[at + 1].parse().unwrap()
 }
 
-/// The shade kernel a scene without coated, principled or hair
+/// The shade kernel a scene without coated, principled, hair or measured
 /// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
 /// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,
@@ -96,15 +96,16 @@ fn specialised_shade_kernels_keep_their_registers() {
         "-DATOLL_WITH_COATED=0",
         "-DATOLL_WITH_PRINCIPLED=0",
         "-DATOLL_WITH_HAIR=0",
+        "-DATOLL_WITH_MEASURED=0",
         "-DATOLL_WITH_EMISSION_TEXTURES=0",
         "-DATOLL_WITH_MEDIA=0",
     ];
     let (_, log) = compile("wavefront.cu", &none);
     let plain = registers(&log, "shade");
     let grey_grids = "-DATOLL_WITH_RGB_MEDIA=0";
-    let (_, log) = compile("wavefront.cu", &[&none[..4], &[grey_grids]].concat());
+    let (_, log) = compile("wavefront.cu", &[&none[..5], &[grey_grids]].concat());
     let plain_in_media = registers(&log, "shade");
-    let (_, log) = compile("wavefront.cu", &none[..4]);
+    let (_, log) = compile("wavefront.cu", &none[..5]);
     let plain_in_rgb_media = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let everything = registers(&log, "shade");
@@ -117,9 +118,11 @@ fn specialised_shade_kernels_keep_their_registers() {
     let no_coated_conductor = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &["-DATOLL_WITH_HAIR=0", no_media]);
     let no_hair = registers(&log, "shade");
+    let (_, log) = compile("wavefront.cu", &[&none[..3], &[none[4], no_media]].concat());
+    let measured_only = registers(&log, "shade");
     eprintln!(
         "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}, all but hair {no_hair}; with media: plain materials {plain_in_media} \
+         {no_coated_conductor}, all but hair {no_hair}, measured among plain ones {measured_only}; with media: plain materials {plain_in_media} \
          ({plain_in_rgb_media} with RGB grids), every material {everything}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
@@ -135,6 +138,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_COATED_CONDUCTOR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_PRINCIPLED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_HAIR=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEASURED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEDIA=0"]);
     check("wavefront.cu", &["shade"], &[grey_grids]);
