@@ -87,8 +87,14 @@ __device__ __forceinline__ Warp2d measured_table(const float* brdf, unsigned int
     return w;
 }
 
-/// Mirrors `Warp2d::evaluate`.
-__device__ float warp_evaluate(const Warp2d& w, float2 pos, const IncidentLookup& at, unsigned int plane) {
+// The warps are kept out of line: the measured scene renders faster so on
+// an H100 than with them inlined into the BSDF's three functions (though
+// the shade kernel then holds a few registers more; BENCHMARKS.md).
+
+/// Mirrors `Warp2d::evaluate` of table `k` of `brdf`.
+__device__ __noinline__ float warp_evaluate(const float* brdf, unsigned int k, float2 pos, const IncidentLookup& at,
+                                            unsigned int plane) {
+    const Warp2d w = measured_table(brdf, k);
     const unsigned int nx = w.nx, ny = w.ny;
     pos.x *= (float)(nx - 1u);
     pos.y *= (float)(ny - 1u);
@@ -102,8 +108,11 @@ __device__ float warp_evaluate(const Warp2d& w, float2 pos, const IncidentLookup
     return (w0y * (w0x * v00 + w1x * v10) + w1y * (w0x * v01 + w1x * v11)) * w.density_scale;
 }
 
-/// Mirrors `Warp2d::sample`: the point `u` maps to; its density in `*pdf`.
-__device__ float2 warp_sample(const Warp2d& w, float2 u, const IncidentLookup& at, float* pdf) {
+/// Mirrors `Warp2d::sample` of table `k` of `brdf`: the point `u` maps to;
+/// its density in `*pdf`.
+__device__ __noinline__ float2 warp_sample(const float* brdf, unsigned int k, float2 u, const IncidentLookup& at,
+                                           float* pdf) {
+    const Warp2d w = measured_table(brdf, k);
     const unsigned int nx = w.nx, ny = w.ny;
     const float lo = 1.0f - MEASURED_ONE_MINUS_EPSILON;
     float ux = fminf(fmaxf(u.x, lo), MEASURED_ONE_MINUS_EPSILON);
@@ -143,9 +152,11 @@ __device__ float2 warp_sample(const Warp2d& w, float2 u, const IncidentLookup& a
     return make_float2(((float)col + ux) / (float)(nx - 1u), ((float)row + uy) / (float)(ny - 1u));
 }
 
-/// Mirrors `Warp2d::invert`: the sample that maps to `p`; the density at
-/// `p` in `*pdf`.
-__device__ float2 warp_invert(const Warp2d& w, float2 p, const IncidentLookup& at, float* pdf) {
+/// Mirrors `Warp2d::invert` of table `k` of `brdf`: the sample that maps to
+/// `p`; the density at `p` in `*pdf`.
+__device__ __noinline__ float2 warp_invert(const float* brdf, unsigned int k, float2 p, const IncidentLookup& at,
+                                           float* pdf) {
+    const Warp2d w = measured_table(brdf, k);
     const unsigned int nx = w.nx, ny = w.ny;
     const unsigned int slice = nx * ny;
     const float px = p.x * (float)(nx - 1u), py = p.y * (float)(ny - 1u);
@@ -256,13 +267,12 @@ __device__ __forceinline__ bool measured_normal_square(const float* brdf, const 
 /// Mirrors `measured::value`.
 __device__ float3 measured_value(const float* brdf, const MeasuredIncident& inc, float2 s, float2 u_wm,
                                  float cos_theta_i) {
-    const Warp2d rgb = measured_table(brdf, MEASURED_RGB);
-    const float3 c = make_float3(fmaxf(warp_evaluate(rgb, s, inc.at, 0u), 0.0f),
-                                 fmaxf(warp_evaluate(rgb, s, inc.at, 1u), 0.0f),
-                                 fmaxf(warp_evaluate(rgb, s, inc.at, 2u), 0.0f));
+    const float3 c = make_float3(fmaxf(warp_evaluate(brdf, MEASURED_RGB, s, inc.at, 0u), 0.0f),
+                                 fmaxf(warp_evaluate(brdf, MEASURED_RGB, s, inc.at, 1u), 0.0f),
+                                 fmaxf(warp_evaluate(brdf, MEASURED_RGB, s, inc.at, 2u), 0.0f));
     const IncidentLookup single = incident_single();
-    const float d = warp_evaluate(measured_table(brdf, MEASURED_NDF), u_wm, single, 0u);
-    const float sigma = warp_evaluate(measured_table(brdf, MEASURED_SIGMA), inc.u_wo, single, 0u);
+    const float d = warp_evaluate(brdf, MEASURED_NDF, u_wm, single, 0u);
+    const float sigma = warp_evaluate(brdf, MEASURED_SIGMA, inc.u_wo, single, 0u);
     return c * (d / (4.0f * sigma * cos_theta_i));
 }
 
@@ -278,7 +288,7 @@ __device__ __noinline__ float3 measured_eval(const float* brdf, float3 wo, float
     float2 u_wm;
     if (!measured_normal_square(brdf, inc, wo, wi, &wm, &u_wm)) return zero3();
     float vndf_pdf;
-    const float2 s = warp_invert(measured_table(brdf, MEASURED_VNDF), u_wm, inc.at, &vndf_pdf);
+    const float2 s = warp_invert(brdf, MEASURED_VNDF, u_wm, inc.at, &vndf_pdf);
     return measured_value(brdf, inc, s, u_wm, wi.z);
 }
 
@@ -294,8 +304,8 @@ __device__ __noinline__ float measured_pdf(const float* brdf, float3 wo, float3 
     float2 u_wm;
     if (!measured_normal_square(brdf, inc, wo, wi, &wm, &u_wm)) return 0.0f;
     float vndf_pdf;
-    const float2 s = warp_invert(measured_table(brdf, MEASURED_VNDF), u_wm, inc.at, &vndf_pdf);
-    const float luminance_pdf = warp_evaluate(measured_table(brdf, MEASURED_LUMINANCE), s, inc.at, 0u);
+    const float2 s = warp_invert(brdf, MEASURED_VNDF, u_wm, inc.at, &vndf_pdf);
+    const float luminance_pdf = warp_evaluate(brdf, MEASURED_LUMINANCE, s, inc.at, 0u);
     const float sin_theta_m = sqrtf(wm.x * wm.x + wm.y * wm.y);
     return vndf_pdf * luminance_pdf / measured_jacobian(wo, wm, u_wm.x, sin_theta_m);
 }
@@ -306,8 +316,8 @@ __device__ __noinline__ bool measured_sample(const float* brdf, float3 wo, float
     if (flip) wo = -wo;
     const MeasuredIncident inc = measured_incident_of(brdf, wo);
     float luminance_pdf, vndf_pdf;
-    const float2 s = warp_sample(measured_table(brdf, MEASURED_LUMINANCE), u, inc.at, &luminance_pdf);
-    const float2 u_wm = warp_sample(measured_table(brdf, MEASURED_VNDF), s, inc.at, &vndf_pdf);
+    const float2 s = warp_sample(brdf, MEASURED_LUMINANCE, u, inc.at, &luminance_pdf);
+    const float2 u_wm = warp_sample(brdf, MEASURED_VNDF, s, inc.at, &vndf_pdf);
     float phi_m = (2.0f * u_wm.y - 1.0f) * PI;
     if (reinterpret_cast<const unsigned int*>(brdf)[0] != 0u) phi_m += inc.phi;
     const float theta_m = u_wm.x * u_wm.x * (PI / 2.0f);
