@@ -4,9 +4,10 @@
     scripts/measured-scene.py scenes
 
 writes scenes/measured-ggx.bsdf, a tensor file in the layout of Dupuy and
-Jakob's measured BRDFs (what pbrt-v4's `measured` material reads), and
-scenes/measured.pbrt, spheres of it in a lit room: the CPU/GPU comparison
-scene of scripts/gpu-check for measured materials.
+Jakob's measured BRDFs (what pbrt-v4's `measured` material reads), its
+anisotropic sibling scenes/measured-ggx-aniso.bsdf, and
+scenes/measured.pbrt, spheres of them in a lit room: the CPU/GPU
+comparison scene of scripts/gpu-check for measured materials.
 
 The BRDF is isotropic GGX with alpha ALPHA and a reflectance F(lambda) that
 rises from 0.2 at 400 nm to 0.9 at 700 nm, tabulated as such files are:
@@ -15,7 +16,9 @@ rises from 0.2 at 400 nm to 0.9 at 700 nm, tabulated as such files are:
     sigma(wo) = cos(theta_o) (1 + Lambda(wo))   (projected microfacet area),
 
 so f = F D G1(wo) / (4 cos(theta_o) cos(theta_i)), which atoll's tests
-compute in closed form. The visible-normal table is D_wo(m) in the unit
+compute in closed form. The anisotropic file holds GGX with alphas
+ANISO_ALPHAS (x, y) and a constant reflectance 0.7, tabulated for
+incident azimuths over the whole circle, its normals in absolute azimuth. The visible-normal table is D_wo(m) in the unit
 square of the normal (with its Jacobian 2 pi^2 u sin(theta_m)); the
 luminance table, 1 + x, is deliberately not uniform so that sampling warps
 through both tables. Deterministic: no randomness.
@@ -26,6 +29,7 @@ import struct
 import sys
 
 ALPHA = 0.3
+ANISO_ALPHAS = (0.15, 0.45)
 WAVELENGTHS = [400.0 + 50.0 * i for i in range(8)]
 THETA_I = [math.radians(d) for d in (0, 10, 20, 30, 40, 50, 60, 70, 80)]
 PHI_I = [0.0]
@@ -46,37 +50,48 @@ def u2phi(u):
     return (2 * u - 1) * math.pi
 
 
-def ggx_d(cos_m):
+def ggx_d(cos_m, phi=0.0, alphas=None):
+    """Anisotropic GGX's D at elevation cosine cos_m and azimuth phi."""
+    ax, ay = alphas or (ALPHA, ALPHA)
     if cos_m <= 0:
         return 0.0
     c2 = cos_m * cos_m
     tan2 = (1 - c2) / c2
-    return 1.0 / (math.pi * ALPHA * ALPHA * c2 * c2 * (1 + tan2 / (ALPHA * ALPHA)) ** 2)
+    e = tan2 * (math.cos(phi) ** 2 / (ax * ax) + math.sin(phi) ** 2 / (ay * ay))
+    return 1.0 / (math.pi * ax * ay * c2 * c2 * (1 + e) ** 2)
 
 
-def ggx_lambda(cos_t):
+def ggx_lambda(cos_t, phi=0.0, alphas=None):
+    ax, ay = alphas or (ALPHA, ALPHA)
     c2 = cos_t * cos_t
     if c2 >= 1:
         return 0.0
     tan2 = (1 - c2) / max(c2, 1e-12)
-    return (-1 + math.sqrt(1 + ALPHA * ALPHA * tan2)) / 2
+    a2 = (math.cos(phi) * ax) ** 2 + (math.sin(phi) * ay) ** 2
+    return (-1 + math.sqrt(1 + a2 * tan2)) / 2
 
 
 def grid(ny, nx, f):
     return [f(x / (nx - 1), y / (ny - 1)) for y in range(ny) for x in range(nx)]
 
 
-def ndf(ux, uy):
-    return ggx_d(math.cos(u2theta(ux)))
+def ndf(alphas=None):
+    return lambda ux, uy: ggx_d(math.cos(u2theta(ux)), u2phi(uy), alphas)
 
 
-def sigma(ux, uy):
-    c = math.cos(u2theta(ux))
-    return c * (1 + ggx_lambda(c))
+def sigma(alphas=None):
+    def value(ux, uy):
+        c = math.cos(u2theta(ux))
+        return c * (1 + ggx_lambda(c, u2phi(uy), alphas))
+
+    return value
 
 
-def vndf(theta_o):
-    wo = (math.sin(theta_o), 0.0, math.cos(theta_o))
+def vndf(theta_o, phi_o=0.0, alphas=None):
+    """D_wo over the normal's square; the normal's azimuth is relative to
+    phi_o for isotropic tables (phi_o 0), absolute for anisotropic ones."""
+    st = math.sin(theta_o)
+    wo = (st * math.cos(phi_o), st * math.sin(phi_o), math.cos(theta_o))
 
     def value(ux, uy):
         tm, pm = u2theta(ux), u2phi(uy)
@@ -84,8 +99,8 @@ def vndf(theta_o):
         dot = wo[0] * m[0] + wo[1] * m[1] + wo[2] * m[2]
         if dot <= 0:
             return 0.0
-        g1 = 1 / (1 + ggx_lambda(wo[2]))
-        return g1 * dot * ggx_d(m[2]) / wo[2] * 2 * math.pi ** 2 * ux * math.sin(tm)
+        g1 = 1 / (1 + ggx_lambda(wo[2], phi_o, alphas))
+        return g1 * dot * ggx_d(m[2], pm, alphas) / wo[2] * 2 * math.pi ** 2 * ux * math.sin(tm)
 
     return value
 
@@ -108,33 +123,47 @@ def floats(values):
     return struct.pack("<%df" % len(values), *values)
 
 
-def main():
-    out = sys.argv[1] if len(sys.argv) > 1 else "scenes"
+def brdf_file(description, phi_i, theta_i, wavelengths, reflectance, alphas, sizes):
+    """The tensor file of GGX with `alphas` (None: isotropic ALPHA) whose
+    reflectance at wavelength l is reflectance(l)."""
     u8, f32 = 1, 10
-    n_phi, n_theta = len(PHI_I), len(THETA_I)
+    ndf_size, vndf_size, sample_size = sizes
+    n_phi, n_theta = len(phi_i), len(theta_i)
     vndf_values, lum_values, spectra_values = [], [], []
-    for _ in PHI_I:
-        for theta in THETA_I:
+    for phi in phi_i:
+        for theta in theta_i:
             # A normal incidence of exactly 0 has no azimuth: tabulate just off it.
-            vndf_values += grid(*VNDF_SIZE, vndf(max(theta, 1e-3)))
-            lum_values += grid(*SAMPLE_SIZE, lambda x, y: 1 + x)
-            for lam in WAVELENGTHS:
-                spectra_values += grid(*SAMPLE_SIZE, lambda x, y: reflectance(lam))
-    description = b"GGX alpha 0.3, reflectance rising from 0.2 to 0.9 (scripts/measured-scene.py)"
+            vndf_values += grid(*vndf_size, vndf(max(theta, 1e-3), phi, alphas))
+            lum_values += grid(*sample_size, lambda x, y: 1 + x)
+            for lam in wavelengths:
+                spectra_values += grid(*sample_size, lambda x, y: reflectance(lam))
     fields = [
         ("description", u8, [len(description)], description),
         ("jacobian", u8, [1], bytes([1])),
-        ("phi_i", f32, [n_phi], floats(PHI_I)),
-        ("theta_i", f32, [n_theta], floats(THETA_I)),
-        ("wavelengths", f32, [len(WAVELENGTHS)], floats(WAVELENGTHS)),
-        ("ndf", f32, list(NDF_SIZE), floats(grid(*NDF_SIZE, ndf))),
-        ("sigma", f32, list(NDF_SIZE), floats(grid(*NDF_SIZE, sigma))),
-        ("vndf", f32, [n_phi, n_theta, *VNDF_SIZE], floats(vndf_values)),
-        ("luminance", f32, [n_phi, n_theta, *SAMPLE_SIZE], floats(lum_values)),
-        ("spectra", f32, [n_phi, n_theta, len(WAVELENGTHS), *SAMPLE_SIZE], floats(spectra_values)),
+        ("phi_i", f32, [n_phi], floats(phi_i)),
+        ("theta_i", f32, [n_theta], floats(theta_i)),
+        ("wavelengths", f32, [len(wavelengths)], floats(wavelengths)),
+        ("ndf", f32, list(ndf_size), floats(grid(*ndf_size, ndf(alphas)))),
+        ("sigma", f32, list(ndf_size), floats(grid(*ndf_size, sigma(alphas)))),
+        ("vndf", f32, [n_phi, n_theta, *vndf_size], floats(vndf_values)),
+        ("luminance", f32, [n_phi, n_theta, *sample_size], floats(lum_values)),
+        ("spectra", f32, [n_phi, n_theta, len(wavelengths), *sample_size], floats(spectra_values)),
     ]
+    return tensor_file(fields)
+
+
+def main():
+    out = sys.argv[1] if len(sys.argv) > 1 else "scenes"
+    description = b"GGX alpha 0.3, reflectance rising from 0.2 to 0.9 (scripts/measured-scene.py)"
+    sizes = (NDF_SIZE, VNDF_SIZE, SAMPLE_SIZE)
     with open(os.path.join(out, "measured-ggx.bsdf"), "wb") as f:
-        f.write(tensor_file(fields))
+        f.write(brdf_file(description, PHI_I, THETA_I, WAVELENGTHS, reflectance, None, sizes))
+    description = b"GGX alphas 0.15, 0.45, reflectance 0.7 (scripts/measured-scene.py)"
+    phi_i = [math.pi * (i / 4 - 1) for i in range(9)]
+    theta_i = [math.radians(d) for d in (0, 15, 30, 45, 60, 75)]
+    sizes = ((64, 64), (24, 24), (8, 8))
+    with open(os.path.join(out, "measured-ggx-aniso.bsdf"), "wb") as f:
+        f.write(brdf_file(description, phi_i, theta_i, [500.0], lambda l: 0.7, ANISO_ALPHAS, sizes))
     with open(os.path.join(out, "measured.pbrt"), "w") as f:
         f.write("""# Spheres of a measured BRDF (measured-ggx.bsdf) in a lit room.
 # Made by scripts/measured-scene.py.
@@ -159,7 +188,9 @@ Translate -0.5 0.45 0.3
 Shape "sphere" "float radius" 0.45
 AttributeEnd
 AttributeBegin
+Material "measured" "string filename" "measured-ggx-aniso.bsdf"
 Translate 0.55 0.35 -0.2
+Rotate 60 0 1 0
 Shape "sphere" "float radius" 0.35
 AttributeEnd
 """)

@@ -1136,16 +1136,18 @@ fn hair_bsdfs_match_value_by_value() {
 
 /// `shade` with hair hits: the frame about the stored axis, light sampling
 /// and sampled directions to both sides of the surface.
-/// A measured BRDF (`scenes/measured-ggx.bsdf`): its tables' lookups,
-/// warps and the BSDF built on them, value by value.
+/// Measured BRDFs (`scenes/measured-ggx.bsdf`, isotropic, and
+/// `measured-ggx-aniso.bsdf`, anisotropic): their tables' lookups, warps
+/// and the BSDF built on them, value by value, from a table of two.
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn measured_bsdf_matches_value_by_value() {
     let Some(gpu) = gpu() else { return };
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf");
-    let brdf = MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), "measured-ggx.bsdf").unwrap();
-    let measured = [Arc::new(brdf)];
-    let materials = [PackedMaterial::pack(&Material::Measured { brdf: 0 })];
+    let measured = ["measured-ggx.bsdf", "measured-ggx-aniso.bsdf"].map(|name| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name);
+        Arc::new(MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), name).unwrap())
+    });
+    let materials = [0, 1].map(|brdf| PackedMaterial::pack(&Material::Measured { brdf }));
     let bad = bsdf_mismatches_measured(&gpu, &materials, &measured, 12_000);
     // A sampled direction is a reflection about a normal made from sin and
     // cos of table angles: a component near 0 (a grazing wi.z, and `f`

@@ -326,23 +326,30 @@ fn all_cases() -> Vec<Case> {
     }
     // A measured BRDF (GGX tabulated as Dupuy and Jakob's files are),
     // sampled through its luminance and visible-normal warps.
+    let [isotropic, anisotropic] = measured_ggx();
     for (&(t, p), below) in angles.iter().zip([false, false, true]) {
-        cases.push(Case {
-            name: format!("measured wo θ={t} below={below}"),
-            bsdf: Bsdf::Measured(measured_ggx()),
-            wo: wo_at(t, p, below),
-        });
+        for (kind, brdf) in [("isotropic", isotropic), ("anisotropic", anisotropic)] {
+            cases.push(Case {
+                name: format!("measured {kind} wo θ={t} below={below}"),
+                bsdf: Bsdf::Measured(brdf),
+                wo: wo_at(t, p, below),
+            });
+        }
     }
     cases
 }
 
-/// `scenes/measured-ggx.bsdf` (scripts/measured-scene.py), read once.
-fn measured_ggx() -> &'static MeasuredBrdf {
-    static BRDF: std::sync::OnceLock<MeasuredBrdf> = std::sync::OnceLock::new();
-    BRDF.get_or_init(|| {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf");
-        MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), "measured-ggx.bsdf").unwrap()
-    })
+/// `scenes/measured-ggx.bsdf` and `measured-ggx-aniso.bsdf`
+/// (scripts/measured-scene.py), read once.
+fn measured_ggx() -> [&'static MeasuredBrdf; 2] {
+    static BRDFS: std::sync::OnceLock<[MeasuredBrdf; 2]> = std::sync::OnceLock::new();
+    let [a, b] = BRDFS.get_or_init(|| {
+        ["measured-ggx.bsdf", "measured-ggx-aniso.bsdf"].map(|name| {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name);
+            MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), name).unwrap()
+        })
+    });
+    [a, b]
 }
 
 /// The principled BSDF: metallic 0 and 1, roughness 0.05, 0.5 and 1,
