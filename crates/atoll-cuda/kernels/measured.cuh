@@ -276,38 +276,44 @@ __device__ float3 measured_value(const float* brdf, const MeasuredIncident& inc,
     return c * (d / (4.0f * sigma * cos_theta_i));
 }
 
-/// Mirrors `measured::eval`.
-__device__ __noinline__ float3 measured_eval(const float* brdf, float3 wo, float3 wi) {
-    if (!same_hemisphere(wo, wi)) return zero3();
+/// Mirrors `measured::Pair`.
+struct MeasuredPair {
+    float3 wo, wi;
+    MeasuredIncident inc;
+    float3 wm;
+    float2 u_wm, s;
+    float vndf_pdf;
+};
+
+/// Mirrors `measured::pair`; false for `None`.
+__device__ __forceinline__ bool measured_pair(const float* brdf, float3 wo, float3 wi, MeasuredPair* q) {
+    if (!same_hemisphere(wo, wi)) return false;
     if (wo.z < 0.0f) {
         wo = -wo;
         wi = -wi;
     }
-    const MeasuredIncident inc = measured_incident_of(brdf, wo);
-    float3 wm;
-    float2 u_wm;
-    if (!measured_normal_square(brdf, inc, wo, wi, &wm, &u_wm)) return zero3();
-    float vndf_pdf;
-    const float2 s = warp_invert(brdf, MEASURED_VNDF, u_wm, inc.at, &vndf_pdf);
-    return measured_value(brdf, inc, s, u_wm, wi.z);
+    q->wo = wo;
+    q->wi = wi;
+    q->inc = measured_incident_of(brdf, wo);
+    if (!measured_normal_square(brdf, q->inc, wo, wi, &q->wm, &q->u_wm)) return false;
+    q->s = warp_invert(brdf, MEASURED_VNDF, q->u_wm, q->inc.at, &q->vndf_pdf);
+    return true;
+}
+
+/// Mirrors `measured::eval`.
+__device__ __noinline__ float3 measured_eval(const float* brdf, float3 wo, float3 wi) {
+    MeasuredPair q;
+    if (!measured_pair(brdf, wo, wi, &q)) return zero3();
+    return measured_value(brdf, q.inc, q.s, q.u_wm, q.wi.z);
 }
 
 /// Mirrors `measured::pdf`.
 __device__ __noinline__ float measured_pdf(const float* brdf, float3 wo, float3 wi) {
-    if (!same_hemisphere(wo, wi)) return 0.0f;
-    if (wo.z < 0.0f) {
-        wo = -wo;
-        wi = -wi;
-    }
-    const MeasuredIncident inc = measured_incident_of(brdf, wo);
-    float3 wm;
-    float2 u_wm;
-    if (!measured_normal_square(brdf, inc, wo, wi, &wm, &u_wm)) return 0.0f;
-    float vndf_pdf;
-    const float2 s = warp_invert(brdf, MEASURED_VNDF, u_wm, inc.at, &vndf_pdf);
-    const float luminance_pdf = warp_evaluate(brdf, MEASURED_LUMINANCE, s, inc.at, 0u);
-    const float sin_theta_m = sqrtf(wm.x * wm.x + wm.y * wm.y);
-    return vndf_pdf * luminance_pdf / measured_jacobian(wo, wm, u_wm.x, sin_theta_m);
+    MeasuredPair q;
+    if (!measured_pair(brdf, wo, wi, &q)) return 0.0f;
+    const float luminance_pdf = warp_evaluate(brdf, MEASURED_LUMINANCE, q.s, q.inc.at, 0u);
+    const float sin_theta_m = sqrtf(q.wm.x * q.wm.x + q.wm.y * q.wm.y);
+    return q.vndf_pdf * luminance_pdf / measured_jacobian(q.wo, q.wm, q.u_wm.x, sin_theta_m);
 }
 
 /// Mirrors `measured::sample`.

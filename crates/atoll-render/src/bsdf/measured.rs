@@ -76,43 +76,45 @@ fn value(brdf: &MeasuredBrdf, inc: &Incident, s: Vec2, u_wm: Vec2, cos_theta_i: 
         / (4.0 * brdf.sigma.evaluate(inc.u_wo, &single, 0) * cos_theta_i))
 }
 
-/// `wo` and `wi` mirrored to `wo`'s side being +z, as pbrt flips them.
-fn upper(wo: Vec3, wi: Vec3) -> (Vec3, Vec3) {
-    if wo.z < 0.0 {
-        (-wo, -wi)
-    } else {
-        (wo, wi)
+/// What `eval` and `pdf` both need of a pair of directions: mirrored to
+/// `wo`'s side being +z (as pbrt flips them), the incident parameters, the
+/// normal between them and its square, and the sample that maps to it.
+struct Pair {
+    wo: Vec3,
+    wi: Vec3,
+    inc: Incident,
+    wm: Vec3,
+    u_wm: Vec2,
+    s: Vec2,
+    vndf_pdf: f32,
+}
+
+/// The [`Pair`] of `wo` and `wi`; `None` across the surface or for
+/// opposite directions.
+fn pair(brdf: &MeasuredBrdf, wo: Vec3, wi: Vec3) -> Option<Pair> {
+    if !same_hemisphere(wo, wi) {
+        return None;
     }
+    let (wo, wi) = if wo.z < 0.0 { (-wo, -wi) } else { (wo, wi) };
+    let inc = incident(brdf, wo);
+    let (wm, u_wm) = normal_square(brdf, &inc, wo, wi)?;
+    let (s, vndf_pdf) = brdf.vndf.invert(u_wm, &inc.at);
+    Some(Pair { wo, wi, inc, wm, u_wm, s, vndf_pdf })
 }
 
 /// pbrt's `MeasuredBxDF::f`.
 pub fn eval(brdf: &MeasuredBrdf, wo: Vec3, wi: Vec3) -> Rgb {
-    if !same_hemisphere(wo, wi) {
-        return Rgb::ZERO;
-    }
-    let (wo, wi) = upper(wo, wi);
-    let inc = incident(brdf, wo);
-    let Some((_, u_wm)) = normal_square(brdf, &inc, wo, wi) else {
-        return Rgb::ZERO;
-    };
-    let (s, _) = brdf.vndf.invert(u_wm, &inc.at);
-    value(brdf, &inc, s, u_wm, wi.z)
+    pair(brdf, wo, wi).map_or(Rgb::ZERO, |q| value(brdf, &q.inc, q.s, q.u_wm, q.wi.z))
 }
 
 /// pbrt's `MeasuredBxDF::PDF`.
 pub fn pdf(brdf: &MeasuredBrdf, wo: Vec3, wi: Vec3) -> f32 {
-    if !same_hemisphere(wo, wi) {
-        return 0.0;
-    }
-    let (wo, wi) = upper(wo, wi);
-    let inc = incident(brdf, wo);
-    let Some((wm, u_wm)) = normal_square(brdf, &inc, wo, wi) else {
+    let Some(q) = pair(brdf, wo, wi) else {
         return 0.0;
     };
-    let (s, vndf_pdf) = brdf.vndf.invert(u_wm, &inc.at);
-    let luminance_pdf = brdf.luminance.evaluate(s, &inc.at, 0);
-    let sin_theta_m = (wm.x * wm.x + wm.y * wm.y).sqrt();
-    vndf_pdf * luminance_pdf / jacobian(wo, wm, u_wm.x, sin_theta_m)
+    let luminance_pdf = brdf.luminance.evaluate(q.s, &q.inc.at, 0);
+    let sin_theta_m = (q.wm.x * q.wm.x + q.wm.y * q.wm.y).sqrt();
+    q.vndf_pdf * luminance_pdf / jacobian(q.wo, q.wm, q.u_wm.x, sin_theta_m)
 }
 
 /// pbrt's `MeasuredBxDF::Sample_f`.
