@@ -322,6 +322,8 @@ impl MeasuredBrdf {
             theta_i.windows(2).all(|w| w[0] < w[1]) && phi_i.windows(2).all(|w| w[0] < w[1]),
             "phi_i or theta_i do not increase",
         )?;
+        let non_negative = |v: &[f32]| v.iter().all(|&x| x >= 0.0);
+        structure(non_negative(&vndf) && non_negative(&luminance), "negative vndf or luminance densities")?;
         let isotropic = n_phi <= 2;
         if !isotropic {
             let reduction = (2.0 * std::f32::consts::PI / (phi_i[n_phi - 1] - phi_i[0])).round();
@@ -476,6 +478,39 @@ mod tests {
                 assert!((pdf - warp.evaluate(p, &at, 0)).abs() < 1e-4 * pdf);
             }
         }
+    }
+
+    /// A file whose densities are negative, whose fields have the wrong
+    /// type or whose tables disagree in size, or that lacks a field, is
+    /// refused with what is wrong.
+    #[test]
+    fn malformed_files_are_refused() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/measured-ggx.bsdf");
+        let bytes = std::fs::read(path).unwrap();
+        assert!(MeasuredBrdf::from_bytes(&bytes, "ggx.bsdf").is_ok());
+        let file = TensorFile::parse(&bytes).unwrap();
+        let read = |f: &TensorFile| {
+            let fields: Vec<_> =
+                f.fields.iter().map(|(n, v)| (n.as_str(), v.dtype, &v.shape[..], &v.bytes[..])).collect();
+            MeasuredBrdf::from_bytes(&TensorFile::write(&fields), "ggx.bsdf").unwrap_err()
+        };
+        let edited = |name: &str, edit: &dyn Fn(&mut crate::tensor::TensorField)| {
+            let mut f = file.clone();
+            edit(f.fields.get_mut(name).unwrap());
+            read(&f)
+        };
+        let negative = edited("vndf", &|v| v.bytes[..4].copy_from_slice(&(-1.0f32).to_le_bytes()));
+        assert!(negative.contains("negative"), "{negative}");
+        let wrong_type = edited("theta_i", &|v| v.dtype = TensorType::Int32);
+        assert!(wrong_type.contains("\"theta_i\" is not float32"), "{wrong_type}");
+        let smaller = edited("luminance", &|v| {
+            v.shape[3] -= 1;
+            v.bytes.truncate(v.shape.iter().product::<usize>() * 4);
+        });
+        assert!(smaller.contains("invalid BRDF file structure"), "{smaller}");
+        let mut without = file.clone();
+        without.fields.remove("spectra");
+        assert!(read(&without).contains("no \"spectra\" field"));
     }
 
     /// A constant reflectance spectrum is that grey exactly, and a spectrum
