@@ -61,11 +61,11 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
     let (multi::Placed { mut devices, layout, partition }, description) =
         open_for_serving(&args.render, &scene, &mut options)?;
     let target_samples = options.spp;
+    let orbit = Orbit::new(&scene.settings.camera, options.resolution, scene.world_bounds());
     let frame = atoll_render::FrameContext::new(&scene, options.clone());
     let ownership = ownership::Ownership::new(scene.clone(), frame, partition);
     let session = Session::prepare(&mut devices, &scene, options, &layout, args.render.ring_transport)
         .map_err(|e| CliError::Runtime(format!("preparing the devices: {e}")))?;
-    let orbit = Orbit::new(&scene.settings.camera, scene.world_bounds());
 
     let (commands, from_viewers) = mpsc::channel();
     let (to_viewers, snapshots) = watch::channel(Arc::new(Snapshot::default()));
