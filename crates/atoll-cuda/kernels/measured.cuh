@@ -226,7 +226,7 @@ __device__ IncidentLookup measured_incident(const float* brdf, float phi, float 
 
 __device__ __forceinline__ float measured_theta_to_u(float theta) { return sqrtf(theta * (2.0f / PI)); }
 __device__ __forceinline__ float measured_phi_to_u(float phi) { return phi * (0.5f / PI) + 0.5f; }
-/// Mirrors `measured::spherical_theta`.
+/// Mirrors `measured::polar_angle`.
 __device__ __forceinline__ float measured_theta(float3 w) { return atan2f(sqrtf(w.x * w.x + w.y * w.y), w.z); }
 
 /// Mirrors `measured::jacobian`.

@@ -27,11 +27,12 @@ fn phi_to_u(phi: f32) -> f32 {
     phi * (0.5 / PI) + 0.5
 }
 
-/// pbrt's `SphericalTheta` of a unit vector, as an arctangent: `acos(z)`
-/// loses the small angles near the pole, where the tables' density goes to
-/// zero with the angle, to f32 rounding of `z` to 1.
+/// pbrt's `SphericalTheta` of a unit vector, as an arctangent. Not
+/// [`crate::sampling::spherical_theta`]'s `acos(z)`: that loses the small
+/// angles near the pole, where the tables' density goes to zero with the
+/// angle, to f32 rounding of `z` to 1.
 #[inline]
-fn spherical_theta(w: Vec3) -> f32 {
+fn polar_angle(w: Vec3) -> f32 {
     (w.x * w.x + w.y * w.y).sqrt().atan2(w.z)
 }
 
@@ -51,7 +52,7 @@ struct Incident {
 }
 
 fn incident(brdf: &MeasuredBrdf, wo: Vec3) -> Incident {
-    let (theta, phi) = (spherical_theta(wo), wo.y.atan2(wo.x));
+    let (theta, phi) = (polar_angle(wo), wo.y.atan2(wo.x));
     Incident { phi, at: brdf.incident(phi, theta), u_wo: Vec2::new(theta_to_u(theta), phi_to_u(phi)) }
 }
 
@@ -65,7 +66,7 @@ fn normal_square(brdf: &MeasuredBrdf, inc: &Incident, wo: Vec3, wi: Vec3) -> Opt
     let wm = wm.normalize();
     let phi_m = wm.y.atan2(wm.x);
     let v = phi_to_u(if brdf.isotropic { phi_m - inc.phi } else { phi_m });
-    Some((wm, Vec2::new(theta_to_u(spherical_theta(wm)), v - v.floor())))
+    Some((wm, Vec2::new(theta_to_u(polar_angle(wm)), v - v.floor())))
 }
 
 /// The reflectance at sample-square point `s` times `D(wm) / (4 σ(wo) cos θi)`.
