@@ -31,6 +31,12 @@
 #ifndef ATOLL_WITH_MEASURED
 #define ATOLL_WITH_MEASURED 1
 #endif
+// Whether some hit may carry a tangent for its frame (hair, measured BRDFs,
+// anisotropic or textured roughness): without, every frame is about the
+// normal alone and the shade kernel skips reading one.
+#ifndef ATOLL_WITH_TANGENTS
+#define ATOLL_WITH_TANGENTS 1
+#endif
 
 #include "common.cuh"
 #include "materials.cuh"
@@ -826,12 +832,24 @@ __device__ __noinline__ bool hair_sample(Hair h, float3 wo, float uc, float2 u, 
 
 // --- dispatch (bsdf.rs `impl Bsdf`) ---
 
-/// Mirrors `material_coeffs::shading_frame`: about the shading normal, and
-/// for hair with x along the fibre's axis.
+/// Mirrors `material_coeffs::shading_frame`: about the shading normal, with
+/// x along the tangent the hit carries where its kind has one
+/// (`material_layout::tangent_slot`; zero where the hit wrote none). Each
+/// kind reads its own constant slots: indexing the record's coefficients
+/// by a variable slot would put the record in local memory.
 __device__ __forceinline__ Frame shading_frame(const RayRecord& r) {
     const float3 n = normalize_or_zero3(load_f16x3(r.shading_normal));
-    if (ATOLL_WITH_HAIR && (r.material & 0xffu) == MATERIAL_HAIR) return frame_from_xz(load_f16x3(&r.coeffs[COEFF_HAIR_AXIS]), n);
-    return frame_from_z(n);
+    // No material of the frame turns its lobes about the normal: no hit
+    // carries a tangent.
+    if (!ATOLL_WITH_TANGENTS) return frame_from_z(n);
+    const unsigned int kind = r.material & 0xffu;
+    float3 tangent = zero3();
+    if (kind == MATERIAL_CONDUCTOR) tangent = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_TANGENT]);
+    if (kind == MATERIAL_DIELECTRIC) tangent = load_f16x3(&r.coeffs[COEFF_DIELECTRIC_TANGENT]);
+    if (ATOLL_WITH_COATED && kind == MATERIAL_COATED_DIFFUSE) tangent = load_f16x3(&r.coeffs[COEFF_COATED_DIFFUSE_TANGENT]);
+    if (ATOLL_WITH_HAIR && kind == MATERIAL_HAIR) tangent = load_f16x3(&r.coeffs[COEFF_HAIR_TANGENT]);
+    if (ATOLL_WITH_MEASURED && kind == MATERIAL_MEASURED) tangent = load_f16x3(&r.coeffs[COEFF_MEASURED_TANGENT]);
+    return frame_from_xz(tangent, n);
 }
 
 /// Mirrors `Bsdf::eval`. `b.kind` must not be `MATERIAL_NONE`.

@@ -35,11 +35,13 @@ __device__ void triangle_partials(float3 p0, float3 p1, float3 p2, float2 uv0, f
     coordinate_system(ng, dpdu, dpdv);
 }
 
-/// `bump::bent_normal` with `TextureTables::shading_normal`'s program:
+/// `bump::bent_normal` with `TextureTables::shading_geometry`'s program:
 /// the shading normal at `position`/`uv` bent by program `range` of `kind`
-/// (`bump::kind`); `ns` where the result is no direction.
+/// (`bump::kind`), returned, and pbrt's shading `dpdu` with it in
+/// `*dpdu_out` (`bump::Bent`); `ns` where the result is no direction.
 __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRange range, float3 position,
-                              float2 uv, float3 ng, float3 ns, float3 dpdu, float3 dpdv, bool interpolated) {
+                              float2 uv, float3 ng, float3 ns, float3 dpdu, float3 dpdv, bool interpolated,
+                              float3* dpdu_out) {
     // SurfaceAt::shading_partials.
     float3 ss = dpdu, ts = dpdv;
     if (interpolated) {
@@ -51,6 +53,7 @@ __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRa
         }
     }
     float3 n = zero3();
+    *dpdu_out = ss;
     if (kind == BUMP_BUMP) {
         const float step = BUMP_STEP;
         const float d = run_program(p, range, uv, position, ng, nullptr).x;
@@ -59,6 +62,7 @@ __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRa
         const float3 pu = ss + ns * ((du - d) / step);
         const float3 pv = ts + ns * ((dv - d) / step);
         n = normalize_or_zero3(cross3(pu, pv));
+        *dpdu_out = pu;
     } else if (kind == BUMP_NORMAL_MAP) {
         const float3 c = run_program(p, range, uv, position, ng, nullptr);
         const float3 local = normalize_or_zero3(c * 2.0f - make_float3(1.0f, 1.0f, 1.0f));
@@ -66,6 +70,9 @@ __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRa
         const float3 y = cross3(ns, x);
         n = normalize_or_zero3(x * local.x + y * local.y + ns * local.z);
     }
-    if (is_zero3(n) || !finite3(n)) return ns;
+    if (is_zero3(n) || !finite3(n)) {
+        *dpdu_out = ss;
+        return ns;
+    }
     return dot3(n, ng) < 0.0f ? -n : n;
 }

@@ -22,6 +22,42 @@
 #define ATOLL_WITH_TEXTURES 1
 #endif
 
+/// Coefficient `slot` of a material's two 16-byte words, as a float.
+__device__ __forceinline__ float coeff_of(uint4 c0, uint4 c1, unsigned int slot) {
+    const uint4 w = slot < 8u ? c0 : c1;
+    const unsigned int i = (slot % 8u) / 2u;
+    const unsigned int word = i == 0u ? w.x : i == 1u ? w.y : i == 2u ? w.z : w.w;
+    return f16_to_f32((unsigned short)(word >> (16u * (slot & 1u))));
+}
+
+/// Sets coefficient `slot` of a material's two 16-byte words to the f16
+/// `bits`, in registers: a local array indexed by `slot` would cost every
+/// hit a stack frame.
+__device__ __forceinline__ void put_coeff(uint4& c0, uint4& c1, unsigned int slot, unsigned short bits) {
+    const unsigned int word = slot / 2u, shift = 16u * (slot & 1u);
+    const unsigned int mask = ~(0xffffu << shift), value = (unsigned int)bits << shift;
+    const auto put = [&](unsigned int w, unsigned int i) { return i == word ? (w & mask) | value : w; };
+    c0 = make_uint4(put(c0.x, 0u), put(c0.y, 1u), put(c0.z, 2u), put(c0.w, 3u));
+    c1 = make_uint4(put(c1.x, 4u), put(c1.y, 5u), put(c1.z, 6u), put(c1.w, 7u));
+}
+
+/// Mirrors `material_coeffs::wants_tangent` with `material_layout::tangent_slot`:
+/// where a hit on kind `kind` with coefficients `c0`, `c1` (textures applied)
+/// carries the surface's `dpdu`, or -1 where it needs none.
+__device__ __forceinline__ int wanted_tangent_slot(unsigned int kind, uint4 c0, uint4 c1) {
+    if (kind == MATERIAL_HAIR) return COEFF_HAIR_TANGENT;
+    if (kind == MATERIAL_MEASURED) return COEFF_MEASURED_TANGENT;
+    if (kind == MATERIAL_CONDUCTOR && coeff_of(c0, c1, COEFF_CONDUCTOR_ALPHA_X) != coeff_of(c0, c1, COEFF_CONDUCTOR_ALPHA_Y))
+        return COEFF_CONDUCTOR_TANGENT;
+    if (kind == MATERIAL_DIELECTRIC &&
+        coeff_of(c0, c1, COEFF_DIELECTRIC_ALPHA_X) != coeff_of(c0, c1, COEFF_DIELECTRIC_ALPHA_Y))
+        return COEFF_DIELECTRIC_TANGENT;
+    if (kind == MATERIAL_COATED_DIFFUSE &&
+        coeff_of(c0, c1, COEFF_COATED_DIFFUSE_ALPHA_X) != coeff_of(c0, c1, COEFF_COATED_DIFFUSE_ALPHA_Y))
+        return COEFF_COATED_DIFFUSE_TANGENT;
+    return -1;
+}
+
 /// Fills the hit fields of `record` for `hit` (which found something).
 /// `t_max` was already shrunk by traversal. Not inlined: traversal kernels
 /// call it once per ray and should keep their own register budget.
@@ -122,11 +158,20 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         c0 = cw[0];
         c1 = cw[1];
     }
+    // A hair hit's offset across the fibre (material_coeffs::store_hair_offset,
+    // with hair_offset_at).
+    if (meta.x == MATERIAL_HAIR) {
+        const float offset = (mesh.flags & MESH_SWEPT_TUBE)
+                                 ? HAIR_OFFSET_FROM_NORMAL
+                                 : clampf(-1.0f + 2.0f * hit_uv(s, mesh, i0, i1, i2, b1, b2).y, -1.0f, 1.0f);
+        put_coeff(c0, c1, COEFF_HAIR_OFFSET, f32_to_f16(offset));
+    }
     // The chosen material's bump or normal map (GpuMaterial's bend word in
-    // meta.w: kind << 30 | start << 8 | len), and a hair fibre's axis, as
-    // the CPU's write_hit: both need the surface's partial derivatives.
+    // meta.w: kind << 30 | start << 8 | len), and the BSDF frame's tangent,
+    // as the CPU's write_hit: both need the surface's partial derivatives.
     const bool bends = ATOLL_WITH_TEXTURES && meta.x != MATERIAL_MIX && meta.w != 0u;
-    if (bends || meta.x == MATERIAL_HAIR) {
+    const int tangent_slot = wanted_tangent_slot(meta.x, c0, c1);
+    if (bends || tangent_slot >= 0) {
         float2 uv0 = make_float2(0.0f, 0.0f), uv1 = make_float2(1.0f, 0.0f), uv2 = make_float2(1.0f, 1.0f);
         if (mesh.flags & MESH_HAS_UVS) {
             uv0 = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
@@ -136,27 +181,21 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         float3 dpdu, dpdv;
         triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
                           affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
-        if (meta.x == MATERIAL_HAIR) {
-            // material_coeffs::store_hair_fibre, with hair_offset_at.
-            uint4 cw[2] = {c0, c1};
-            unsigned short* coeffs = reinterpret_cast<unsigned short*>(cw);
-            const float3 axis = normalize_or_zero3(dpdu);
-            coeffs[COEFF_HAIR_AXIS] = f32_to_f16(axis.x);
-            coeffs[COEFF_HAIR_AXIS + 1] = f32_to_f16(axis.y);
-            coeffs[COEFF_HAIR_AXIS + 2] = f32_to_f16(axis.z);
-            const float offset = (mesh.flags & MESH_SWEPT_TUBE)
-                                     ? HAIR_OFFSET_FROM_NORMAL
-                                     : clampf(-1.0f + 2.0f * hit_uv(s, mesh, i0, i1, i2, b1, b2).y, -1.0f, 1.0f);
-            coeffs[COEFF_HAIR_OFFSET] = f32_to_f16(offset);
-            c0 = cw[0];
-            c1 = cw[1];
-        }
         if (bends) {
             ProgramRange range;
             range.start = (meta.w >> 8) & 0x3fffffu;
             range.len = meta.w & 0xffu;
+            float3 bent_dpdu;
             ns = bent_normal(p, meta.w >> 30, range, position, hit_uv(s, mesh, i0, i1, i2, b1, b2), ng, ns, dpdu,
-                             dpdv, (mesh.flags & MESH_HAS_NORMALS) != 0u);
+                             dpdv, (mesh.flags & MESH_HAS_NORMALS) != 0u, &bent_dpdu);
+            dpdu = bent_dpdu;
+        }
+        // material_coeffs::store_tangent.
+        if (tangent_slot >= 0) {
+            const float3 t = normalize_or_zero3(dpdu);
+            put_coeff(c0, c1, tangent_slot, f32_to_f16(t.x));
+            put_coeff(c0, c1, tangent_slot + 1, f32_to_f16(t.y));
+            put_coeff(c0, c1, tangent_slot + 2, f32_to_f16(t.z));
         }
     }
     // The record's bytes [32, 128) are written as whole 16-byte words, three

@@ -24,6 +24,8 @@ use std::time::Instant;
 use atoll_bvh::{ByteModel, ScenePart};
 use atoll_render::camera::CameraRays;
 use atoll_render::device::{DeviceStats, PrepareStats};
+use atoll_render::material_coeffs::wants_tangent;
+use atoll_render::material_layout::tangent_slot;
 use atoll_render::record::MaterialKind;
 use atoll_render::{
     Device, DeviceError, DirectTransport, Film, FrameContext, Queue, RayRecord, RenderOptions, Wave,
@@ -141,10 +143,20 @@ fn shade_features(frame: &FrameContext) -> Vec<String> {
     .filter(|&(_, kinds)| !has(kinds))
     .map(|(name, _)| name)
     .chain(emission_textures)
+    .chain((!may_carry_tangents(frame)).then_some("ATOLL_WITH_TANGENTS"))
     .chain((!frame.media.any()).then_some("ATOLL_WITH_MEDIA"))
     .chain((frame.media.any() && !frame.media.has_rgb_grids()).then_some("ATOLL_WITH_RGB_MEDIA"))
     .map(|name| format!("-D{name}=0"))
     .collect()
+}
+
+/// Whether some hit of `frame` may carry a tangent for its BSDF frame
+/// (`material_coeffs::wants_tangent`): a material of a kind with a tangent
+/// slot that wants one as packed, or whose textures may make it want one.
+fn may_carry_tangents(frame: &FrameContext) -> bool {
+    frame.materials.iter().zip(&frame.textures.materials).any(|(m, textures)| {
+        tangent_slot(m.kind).is_some() && (wants_tangent(m.kind, &m.coeffs) || !textures.is_empty())
+    })
 }
 
 /// A frame's scene on one GPU: tables, BVH and frame parameters. Read-only
@@ -1080,5 +1092,33 @@ impl Device for CudaDevice {
         (stats.rays_traced, stats.shadow_rays_traced) = self.checked("stats", || self.try_traced())?;
         stats.busy_seconds = self.checked("stats", || self.try_busy_seconds())?;
         Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use atoll_scene::texture_scenes::anisotropic_plane_scene;
+    use atoll_scene::{Material, Rgb};
+    use glam::Vec2;
+
+    fn features_of(scene: &Scene) -> Vec<String> {
+        shade_features(&FrameContext::new(scene, atoll_render::RenderOptions::from_scene(scene)))
+    }
+
+    /// Only frames with a material whose hits may carry a tangent compile
+    /// the shade kernel's tangent read in.
+    #[test]
+    fn tangents_are_compiled_in_for_anisotropic_materials_only() {
+        let without = "-DATOLL_WITH_TANGENTS=0".to_string();
+        let conductor = |alpha_y| Material::Conductor { eta: Rgb::ONE, k: Rgb::ONE, alpha_x: 0.1, alpha_y };
+        let cornell = atoll_scene::cornell::builtin_cornell_box();
+        assert!(features_of(&cornell).contains(&without));
+        let isotropic = anisotropic_plane_scene(conductor(0.1), 0.0, Vec2::ZERO);
+        assert!(features_of(&isotropic).contains(&without));
+        let anisotropic = anisotropic_plane_scene(conductor(0.4), 0.0, Vec2::ZERO);
+        assert!(!features_of(&anisotropic).contains(&without));
+        let measured = anisotropic_plane_scene(Material::Measured { brdf: 0 }, 0.0, Vec2::ZERO);
+        assert!(!features_of(&measured).contains(&without));
     }
 }

@@ -211,6 +211,44 @@ fn assert_renders_match(cuda: &mut CudaDevice, scene: &Arc<Scene>, what: &str) {
     assert!(differ * 200 < cpu.film.sum.len(), "{what}: {differ} pixels differ");
 }
 
+/// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)
+/// turn with the surface's dp/du on the GPU as on the CPU, bump-mapped or
+/// not (the frame's tangent written with the hit, read when shading).
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn anisotropic_frames_match_the_cpu_device() {
+    use atoll_scene::texture_scenes::anisotropic_plane_scene;
+    use atoll_scene::{CoatedDiffuseParams, Coating, Material, MeasuredBrdf, Rgb};
+    let Some(gpu) = gpu_or_skip("anisotropy") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/measured-ggx-aniso.bsdf");
+    let table = MeasuredBrdf::from_bytes(&std::fs::read(path).unwrap(), "measured-ggx-aniso.bsdf").unwrap();
+    let coating = Coating { alpha_x: 0.1, alpha_y: 0.4, ..Coating::PBRT_DEFAULT };
+    let materials = [
+        Material::Conductor {
+            eta: Rgb::new(0.2, 0.9, 1.1),
+            k: Rgb::new(3.9, 2.4, 2.2),
+            alpha_x: 0.1,
+            alpha_y: 0.4,
+        },
+        Material::Dielectric { eta: 1.5, alpha_x: 0.1, alpha_y: 0.4 },
+        Material::CoatedDiffuse(CoatedDiffuseParams { reflectance: Rgb::splat(0.5), coating }),
+        Material::Measured { brdf: 0 },
+    ];
+    for material in materials {
+        for (angle, slopes) in [(30.0, glam::Vec2::ZERO), (120.0, glam::Vec2::new(0.4, -0.3))] {
+            let mut scene = anisotropic_plane_scene(material.clone(), angle, slopes);
+            scene.measured = vec![Arc::new(table.clone())];
+            scene.settings.spp = 64;
+            assert_renders_match(
+                &mut cuda,
+                &Arc::new(scene),
+                &format!("{material:?} at {angle}°, bumps {slopes}"),
+            );
+        }
+    }
+}
+
 /// Textured parameters (a checkerboard ground, a screen that is a mix
 /// chosen by a texture) and alpha cut-outs (the screen's stripes, seen from
 /// above and casting their shadow below) render alike on CPU and GPU: same

@@ -23,7 +23,7 @@ use atoll_cuda::params::{FrameParamsHost, SceneView};
 use atoll_cuda::scene::{GpuScene, SceneTables};
 use atoll_cuda::work::{WorkFifo, WorkStatus};
 use atoll_render::lights::Emitter;
-use atoll_render::material_coeffs::{bsdf_from_record, store_hair_fibre, PackedMaterial};
+use atoll_render::material_coeffs::{bsdf_from_record, store_hair_offset, store_tangent, PackedMaterial};
 use atoll_render::record::{flags, MaterialKind, NO_LIGHT};
 use atoll_render::rng::{pcg_hash, SampleStream};
 use atoll_render::sampling::sample_uniform_sphere;
@@ -1013,9 +1013,11 @@ fn shade_materials_matches_the_cpu_stage(materials: &[PackedMaterial]) {
     for (i, r) in paths.iter_mut().enumerate().filter(|(_, r)| r.has(flags::HIT)) {
         let m = &materials[i % materials.len()];
         m.store(r);
-        // Hair turns its frame about an axis the hit carries.
+        // Hair, measured and anisotropic lobes turn their frame about a
+        // tangent the hit carries.
         let offset = if i % 3 == 0 { rnd(i as u32, 18) * 2.0 - 1.0 } else { 2.0 };
-        store_hair_fibre(m.kind, &mut r.coeffs, unit(i as u32, 17), offset);
+        store_hair_offset(m.kind, &mut r.coeffs, offset);
+        store_tangent(m.kind, &mut r.coeffs, unit(i as u32, 17));
     }
     let cpu = shade_on_cpu(&frame, &paths);
     let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);

@@ -83,7 +83,7 @@ fn registers(log: &str, kernel: &str) -> u32 {
 }
 
 /// The shade kernel a scene without coated, principled, hair or measured
-/// materials or emission textures gets (src/device.rs `shade_features`) keeps the register count
+/// materials, anisotropic roughness or emission textures gets (src/device.rs `shade_features`) keeps the register count
 /// it had before those materials existed (the bound below): their code would
 /// otherwise halve every scene's occupancy. Specialised for one of them,
 /// it still compiles cleanly.
@@ -98,14 +98,18 @@ fn specialised_shade_kernels_keep_their_registers() {
         "-DATOLL_WITH_HAIR=0",
         "-DATOLL_WITH_MEASURED=0",
         "-DATOLL_WITH_EMISSION_TEXTURES=0",
+        "-DATOLL_WITH_TANGENTS=0",
         "-DATOLL_WITH_MEDIA=0",
     ];
     let (_, log) = compile("wavefront.cu", &none);
     let plain = registers(&log, "shade");
+    // Anisotropic conductors or dielectrics: the frame's tangent read.
+    let (_, log) = compile("wavefront.cu", &[&none[..5], &none[6..]].concat());
+    let plain_anisotropic = registers(&log, "shade");
     let grey_grids = "-DATOLL_WITH_RGB_MEDIA=0";
-    let (_, log) = compile("wavefront.cu", &[&none[..5], &[grey_grids]].concat());
+    let (_, log) = compile("wavefront.cu", &[&none[..6], &[grey_grids]].concat());
     let plain_in_media = registers(&log, "shade");
-    let (_, log) = compile("wavefront.cu", &none[..5]);
+    let (_, log) = compile("wavefront.cu", &none[..6]);
     let plain_in_rgb_media = registers(&log, "shade");
     let (_, log) = compile("wavefront.cu", &[]);
     let everything = registers(&log, "shade");
@@ -121,11 +125,16 @@ fn specialised_shade_kernels_keep_their_registers() {
     let (_, log) = compile("wavefront.cu", &[&none[..3], &[none[4], no_media]].concat());
     let measured_only = registers(&log, "shade");
     eprintln!(
-        "shade registers: plain materials {plain}, every material {all}, all but coated conductors \
-         {no_coated_conductor}, all but hair {no_hair}, measured among plain ones {measured_only}; with media: plain materials {plain_in_media} \
-         ({plain_in_rgb_media} with RGB grids), every material {everything}"
+        "shade registers: plain materials {plain} ({plain_anisotropic} anisotropic), every material {all}, \
+         all but coated conductors {no_coated_conductor}, all but hair {no_hair}, measured among plain ones \
+         {measured_only}; with media: plain materials {plain_in_media} ({plain_in_rgb_media} with RGB grids), \
+         every material {everything}"
     );
     assert!(plain <= 104, "shade without coated/principled uses {plain} registers");
+    assert!(
+        plain_anisotropic <= 104,
+        "shade with anisotropic plain materials uses {plain_anisotropic} registers"
+    );
     // Registers are allocated in eights: past 128, a 128-thread block no
     // longer fits four times into an SM's 64K registers.
     assert!(
@@ -143,6 +152,7 @@ fn specialised_shade_kernels_keep_their_registers() {
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_HAIR=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEASURED=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_EMISSION_TEXTURES=0"]);
+    check("wavefront.cu", &["shade"], &["-DATOLL_WITH_TANGENTS=0"]);
     check("wavefront.cu", &["shade"], &["-DATOLL_WITH_MEDIA=0"]);
     check("wavefront.cu", &["shade"], &[grey_grids]);
 }

@@ -86,13 +86,26 @@ impl SurfaceAt {
     }
 }
 
-/// The shading normal `surface` gets from a material that bends it by
-/// `kind`, its texture evaluated by `eval` at (uv, point); unchanged where
-/// the result is no direction. Faces the geometric normal's side (pbrt's
-/// `SetShadingGeometry`, orientation not authoritative).
-pub fn bent_normal(kind: u32, surface: &SurfaceAt, mut eval: impl FnMut(Vec2, Vec3) -> Vec3) -> Vec3 {
+/// A surface's shading geometry after bump or normal mapping: pbrt's
+/// shading normal and `dpdu`, the BSDF frame's z and x axes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bent {
+    /// Unit; on the geometric normal's side.
+    pub normal: Vec3,
+    /// Not unit, not necessarily perpendicular to `normal`: the frame makes
+    /// it so ([`crate::bsdf::Frame::from_xz`]), which for bump maps leaves
+    /// it as pbrt has it (perpendicular already) and for normal maps is
+    /// pbrt's Gram–Schmidt step.
+    pub dpdu: Vec3,
+}
+
+/// The shading geometry `surface` gets from a material that bends it by
+/// `kind`, its texture evaluated by `eval` at (uv, point); the unbent
+/// normal where the result is no direction. Faces the geometric normal's
+/// side (pbrt's `SetShadingGeometry`, orientation not authoritative).
+pub fn bent_normal(kind: u32, surface: &SurfaceAt, mut eval: impl FnMut(Vec2, Vec3) -> Vec3) -> Bent {
     let (ss, ts) = surface.shading_partials();
-    let n = match kind {
+    let (n, dpdu) = match kind {
         kind::BUMP => {
             let d = eval(surface.uv, surface.position).x;
             let step = BUMP_STEP;
@@ -100,25 +113,21 @@ pub fn bent_normal(kind: u32, surface: &SurfaceAt, mut eval: impl FnMut(Vec2, Ve
             let dv = eval(surface.uv + Vec2::new(0.0, step), surface.position + ts * step).x;
             let dpdu = ss + surface.ns * ((du - d) / step);
             let dpdv = ts + surface.ns * ((dv - d) / step);
-            dpdu.cross(dpdv).normalize_or_zero()
+            (dpdu.cross(dpdv).normalize_or_zero(), dpdu)
         }
         kind::NORMAL_MAP => {
             let c = eval(surface.uv, surface.position);
             let local = (c * 2.0 - Vec3::ONE).normalize_or_zero();
             let x = ss.normalize_or_zero();
             let y = surface.ns.cross(x);
-            (x * local.x + y * local.y + surface.ns * local.z).normalize_or_zero()
+            ((x * local.x + y * local.y + surface.ns * local.z).normalize_or_zero(), ss)
         }
-        _ => Vec3::ZERO,
+        _ => (Vec3::ZERO, ss),
     };
     if n == Vec3::ZERO || !n.is_finite() {
-        return surface.ns;
+        return Bent { normal: surface.ns, dpdu: ss };
     }
-    if n.dot(surface.ng) < 0.0 {
-        -n
-    } else {
-        n
-    }
+    Bent { normal: if n.dot(surface.ng) < 0.0 { -n } else { n }, dpdu }
 }
 
 #[cfg(test)]
@@ -155,11 +164,13 @@ mod tests {
             let s = flat(interpolated);
             let tilted = bent_normal(kind::BUMP, &s, |uv, _| Vec3::splat(0.5 * uv.x));
             let expected = Vec3::new(-0.5, 0.0, 1.0).normalize();
-            assert!((tilted - expected).length() < 1e-3, "{tilted}");
-            assert_eq!(bent_normal(kind::BUMP, &s, |_, _| Vec3::splat(0.7)), Vec3::Z);
+            assert!((tilted.normal - expected).length() < 1e-3, "{tilted:?}");
+            // dp/du climbs the slope, perpendicular to the bent normal.
+            assert!((tilted.dpdu - Vec3::new(1.0, 0.0, 0.5)).length() < 1e-3, "{tilted:?}");
+            assert_eq!(bent_normal(kind::BUMP, &s, |_, _| Vec3::splat(0.7)).normal, Vec3::Z);
         }
         // Read at the point as well as the uv: the same slope from p.
-        let by_point = bent_normal(kind::BUMP, &flat(false), |_, p| Vec3::splat(0.5 * p.x));
+        let by_point = bent_normal(kind::BUMP, &flat(false), |_, p| Vec3::splat(0.5 * p.x)).normal;
         assert!((by_point - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-3, "{by_point}");
     }
 
@@ -168,12 +179,13 @@ mod tests {
         let s = flat(true);
         // (0.5, 0.5, 1) is the unbent normal; (1, 0.5, 0.5) points along +u.
         assert!(
-            (bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 1.0)) - Vec3::Z).length() < 1e-6
+            (bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 1.0)).normal - Vec3::Z).length()
+                < 1e-6
         );
-        let along_u = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(1.0, 0.5, 0.75));
+        let along_u = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(1.0, 0.5, 0.75)).normal;
         assert!((along_u - Vec3::new(1.0, 0.0, 0.5).normalize()).length() < 1e-5, "{along_u}");
         // Never below the surface: flipped to the geometric normal's side.
-        let under = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 0.0));
+        let under = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 0.0)).normal;
         assert!(under.dot(Vec3::Z) >= 0.0, "{under}");
     }
 }

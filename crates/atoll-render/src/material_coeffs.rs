@@ -10,7 +10,7 @@ use half::f16;
 use crate::bsdf::{Bsdf, Coated, CoatedBase, Frame, Hair, Principled};
 use crate::material_layout::{
     coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, hair, measured,
-    principled, thin_dielectric,
+    principled, tangent_slot, thin_dielectric,
 };
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
@@ -199,32 +199,57 @@ pub fn bsdf_from_record<'a>(r: &RayRecord, brdfs: &'a [Arc<MeasuredBrdf>]) -> Op
 }
 
 /// The local shading frame of a record's hit: about the shading normal,
-/// and for hair with x along the fibre's axis.
+/// with x along the surface's `dpdu` where the hit carries it
+/// ([`store_tangent`]; pbrt's `Frame::FromXZ(dpdu, ns)`), else the
+/// normal's own basis ([`Frame::from_z`]).
 pub fn shading_frame(r: &RayRecord) -> Frame {
     let n = r.shading_normal().normalize_or_zero();
-    if r.material_kind() == MaterialKind::Hair {
-        Frame::from_xz(r.coeff3(hair::AXIS), n)
-    } else {
-        Frame::from_z(n)
+    match tangent_slot(r.material_kind()) {
+        Some(slot) => Frame::from_xz(r.coeff3(slot), n),
+        None => Frame::from_z(n),
     }
 }
 
-/// Writes what a hair hit carries besides the material into its
-/// coefficients (nothing for other kinds): the fibre's axis, the surface's
-/// `dpdu` normalised, and the offset across it (`-1 + 2v` from the hit's
-/// `v`, or `hair::OFFSET_FROM_NORMAL` on a swept tube).
-pub fn store_hair_fibre(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dpdu: Vec3, offset: f32) {
-    if kind == MaterialKind::Hair {
-        let axis = dpdu.normalize_or_zero();
-        for (slot, v) in coeffs[hair::AXIS..hair::AXIS + 3].iter_mut().zip(axis.to_array()) {
-            *slot = f16::from_f32(v);
+/// Whether a hit on material `kind` with (textured) coefficients `coeffs`
+/// needs the surface's `dpdu` for its frame: always for hair (its axis) and
+/// measured BRDFs (their azimuth), and where the roughness is anisotropic
+/// for the others that have room for it ([`tangent_slot`]). Isotropic
+/// lobes do not turn about the normal, so their hits skip the partials.
+pub fn wants_tangent(kind: MaterialKind, coeffs: &[f16; MATERIAL_COEFFS]) -> bool {
+    let anisotropic = |x: usize, y: usize| coeffs[x] != coeffs[y];
+    match kind {
+        MaterialKind::Hair | MaterialKind::Measured => true,
+        MaterialKind::Conductor => anisotropic(conductor::ALPHA_X, conductor::ALPHA_Y),
+        MaterialKind::Dielectric => anisotropic(dielectric::ALPHA_X, dielectric::ALPHA_Y),
+        MaterialKind::CoatedDiffuse => anisotropic(coated_diffuse::ALPHA_X, coated_diffuse::ALPHA_Y),
+        _ => false,
+    }
+}
+
+/// Writes the surface's `dpdu` (pbrt's shading `dpdu`: after bump mapping,
+/// see [`crate::bump::Bent`]), normalised, into the hit's tangent slot
+/// where [`wants_tangent`]; the slots stay zero otherwise, which
+/// [`shading_frame`] reads as "no tangent".
+pub fn store_tangent(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dpdu: Vec3) {
+    if let Some(slot) = tangent_slot(kind).filter(|_| wants_tangent(kind, coeffs)) {
+        let unit = dpdu.normalize_or_zero();
+        for (c, v) in coeffs[slot..slot + 3].iter_mut().zip(unit.to_array()) {
+            *c = f16::from_f32(v);
         }
+    }
+}
+
+/// Writes a hair hit's offset across the fibre into its coefficients
+/// (nothing for other kinds): `-1 + 2v` from the hit's `v`, or
+/// `hair::OFFSET_FROM_NORMAL` on a swept tube ([`hair_offset_at`]).
+pub fn store_hair_offset(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], offset: f32) {
+    if kind == MaterialKind::Hair {
         coeffs[hair::OFFSET] = f16::from_f32(offset);
     }
 }
 
 /// The offset across a hair fibre at a hit of `v` on a mesh that is a
-/// swept tube or not ([`store_hair_fibre`]).
+/// swept tube or not ([`store_hair_offset`]).
 pub fn hair_offset_at(v: f32, swept_tube: bool) -> f32 {
     if swept_tube {
         crate::bsdf::hair::OFFSET_FROM_NORMAL

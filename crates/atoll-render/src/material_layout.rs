@@ -69,12 +69,22 @@ layouts! {
         K: 3..6,
         ALPHA_X: 6,
         ALPHA_Y: 7,
+        /// The surface's `dpdu` at the hit: not a material parameter,
+        /// written with the hit where the roughness is anisotropic
+        /// ([`crate::material_coeffs::store_tangent`]), since the
+        /// roughness's x axis follows it.
+        TANGENT: 8..11,
     }
     /// [`MaterialKind::Dielectric`].
     Dielectric => dielectric {
         ETA: 0,
         ALPHA_X: 1,
         ALPHA_Y: 2,
+        /// The surface's `dpdu` at the hit: not a material parameter,
+        /// written with the hit where the roughness is anisotropic
+        /// ([`crate::material_coeffs::store_tangent`]), since the
+        /// roughness's x axis follows it.
+        TANGENT: 3..6,
     }
     /// [`MaterialKind::DiffuseTransmission`].
     DiffuseTransmission => diffuse_transmission {
@@ -108,6 +118,10 @@ layouts! {
         MAX_DEPTH: 11,
         /// As [`MAX_DEPTH`].
         N_SAMPLES: 12,
+        /// As [`conductor::TANGENT`], for the coating's roughness.
+        ///
+        /// [`conductor::TANGENT`]: super::conductor::TANGENT
+        TANGENT: 13..16,
     }
     /// [`MaterialKind::CoatedConductor`]: every coefficient is used, so
     /// its walk is fixed (`Material::COATED_CONDUCTOR_WALK`).
@@ -152,9 +166,9 @@ layouts! {
         /// Degrees.
         ALPHA: 6,
         /// The fibre's axis at the hit (the surface's `dpdu`, unit length):
-        /// not a material parameter, written with the hit, since the hair
-        /// BSDF's frame turns about it.
-        AXIS: 7..10,
+        /// not a material parameter, written with every hit, since the
+        /// hair BSDF's frame turns about it.
+        TANGENT: 7..10,
         /// The offset `h` across the fibre where the surface gives it
         /// (pbrt's `-1 + 2v`), written with the hit;
         /// `hair::OFFSET_FROM_NORMAL` on swept tubes, whose offset comes
@@ -165,6 +179,27 @@ layouts! {
     Measured => measured {
         /// The BRDF's index in the scene's measured BRDFs (an f16 integer).
         BRDF: 0,
+        /// As [`conductor::TANGENT`], written with every hit: an
+        /// anisotropic table's azimuth is measured from it.
+        ///
+        /// [`conductor::TANGENT`]: super::conductor::TANGENT
+        TANGENT: 1..4,
+    }
+}
+
+/// The first of the three slots where a kind's hit carries the surface's
+/// `dpdu` (every kind's `TANGENT`), which the BSDF's frame takes its x
+/// axis from; `None` for kinds whose BSDF does not turn about the normal
+/// or that have no room for it (the coated conductor, whose anisotropic
+/// roughness turns with the frame about the normal alone).
+pub const fn tangent_slot(kind: MaterialKind) -> Option<usize> {
+    match kind {
+        MaterialKind::Conductor => Some(conductor::TANGENT),
+        MaterialKind::Dielectric => Some(dielectric::TANGENT),
+        MaterialKind::CoatedDiffuse => Some(coated_diffuse::TANGENT),
+        MaterialKind::Hair => Some(hair::TANGENT),
+        MaterialKind::Measured => Some(measured::TANGENT),
+        _ => None,
     }
 }
 
@@ -189,6 +224,19 @@ mod tests {
         let kinds = (1..).map(MaterialKind::from_u16).take_while(|&k| k != MaterialKind::None);
         for kind in kinds {
             assert_eq!(LAYOUTS.iter().filter(|l| l.kind == kind).count(), 1, "{kind:?}");
+        }
+    }
+
+    /// [`tangent_slot`] names exactly the kinds whose layout has a
+    /// `TANGENT`, at its slots.
+    #[test]
+    fn tangent_slots_are_the_layouts_tangents() {
+        for layout in LAYOUTS {
+            let tangent = layout.params.iter().find(|(name, _)| *name == "TANGENT");
+            assert_eq!(tangent_slot(layout.kind), tangent.map(|(_, slots)| slots.start), "{}", layout.name);
+            if let Some((_, slots)) = tangent {
+                assert_eq!(slots.len(), 3, "{}", layout.name);
+            }
         }
     }
 

@@ -864,12 +864,12 @@ impl SceneTextures<'_> {
         }
     }
 
-    /// The shading normal of `surface` with material `id`'s bump or normal
-    /// map; `surface.ns` where it has none.
-    pub fn shading_normal(&self, id: u32, surface: &crate::bump::SurfaceAt) -> Vec3 {
+    /// The shading normal and `dpdu` of `surface` with material `id`'s bump
+    /// or normal map; the surface's own where it has none.
+    pub fn shading_geometry(&self, id: u32, surface: &crate::bump::SurfaceAt) -> crate::bump::Bent {
         let bend = self.tables.shading_normals[id as usize];
         if bend.kind == bump::NONE {
-            return surface.ns;
+            return crate::bump::Bent { normal: surface.ns, dpdu: surface.dpdu };
         }
         let ops = self.ops(bend.program);
         crate::bump::bent_normal(bend.kind, surface, |uv, p| {

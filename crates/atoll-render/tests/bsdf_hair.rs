@@ -261,7 +261,7 @@ Shape "curve" "string type" "cylinder" "point3 P" [ -1 1 0  -0.3 1 0  0.3 1 0  1
     let hits = cpu.read_queue(Queue::Paths).unwrap();
     for h in &hits {
         assert_eq!(h.material_kind(), atoll_render::record::MaterialKind::Hair);
-        let axis = h.coeff3(hair::AXIS);
+        let axis = h.coeff3(hair::TANGENT);
         assert!((axis.x.abs() - 1.0).abs() < 1e-3, "the fibre runs along x: {axis}");
     }
     // The ribbon's v runs from its +y edge (0) to its -y edge (1): y = 0.1

@@ -235,3 +235,66 @@ pub fn bent_plane_scene(bend: Bend) -> Scene {
     scene.settings.integrator = IntegratorSettings::Path { max_depth: 1 };
     scene
 }
+
+/// The direction the camera of [`anisotropic_plane_scene`] looks from (unit,
+/// from the plane towards the camera).
+pub fn anisotropic_plane_view() -> Vec3 {
+    Vec3::new(0.0, -1.0, 1.0).normalize()
+}
+
+/// The direction towards the distant light of [`anisotropic_plane_scene`]
+/// (unit): off the mirror direction of the view, so that the highlight
+/// depends on how the roughness is oriented.
+pub fn anisotropic_plane_light() -> Vec3 {
+    let (theta, phi) = (40f32.to_radians(), 115f32.to_radians());
+    Vec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+}
+
+/// The plane z = 0 of `material`, its uvs turned so that `dp/du` points
+/// along `(cos a, sin a, 0)` for `a = u_angle_degrees`, seen by an
+/// orthographic camera from [`anisotropic_plane_view`] and lit by a distant
+/// light of radiance 1 from [`anisotropic_plane_light`], direct light only:
+/// every pixel is `f(wo, wi) cos θi` of the BSDF in the frame whose x is
+/// `dp/du`, whatever the material. Non-zero `bump_slopes` (a, b) bump-map
+/// the plane by the displacement `a·u + b·v`, which tilts the shading
+/// normal and `dp/du` (pbrt's `BumpMap`) as the surface `z = a·u + b·v`
+/// would have them.
+pub fn anisotropic_plane_scene(material: Material, u_angle_degrees: f32, bump_slopes: Vec2) -> Scene {
+    let mut scene = Scene::default();
+    let material = scene.add_material(material);
+    let mut plane = quad(-2.0, 2.0, -2.0, 2.0, 0.0, material);
+    let (sin, cos) = u_angle_degrees.to_radians().sin_cos();
+    plane.uvs =
+        plane.positions.iter().map(|p| Vec2::new(cos * p.x + sin * p.y, -sin * p.x + cos * p.y)).collect();
+    if bump_slopes != Vec2::ZERO {
+        // bilerp's corners (v00, v10, v01, v11) make a·u + b·v: linear
+        // everywhere, past [0, 1] too.
+        let corner = |v: f32| crate::TexInput::Value(Rgb::splat(v));
+        let (a, b) = (bump_slopes.x, bump_slopes.y);
+        let ramp = scene.textures.add(Texture::Bilerp {
+            mapping: crate::TexMapping::default(),
+            corners: [corner(0.0), corner(a), corner(b), corner(a + b)],
+        });
+        scene.textures.bind(TextureBinding {
+            material,
+            param: TexturedParam::Displacement,
+            texture: ramp,
+            remap_roughness: false,
+        });
+    }
+    let plane = scene.add_mesh(plane);
+    let object = scene.add_object(Object { name: "world".into(), meshes: vec![plane] });
+    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.lights.push(Light::Distant { direction: -anisotropic_plane_light(), radiance: Rgb::ONE });
+    scene.settings.camera = Camera {
+        camera_to_world: crate::framing::look_at(anisotropic_plane_view() * 4.0, Vec3::ZERO, Vec3::Z)
+            .unwrap_or(Mat4::IDENTITY),
+        projection: crate::Projection::Orthographic,
+        screen_window: Some([-1.0, 1.0, -1.0, 1.0]),
+        ..Camera::default()
+    };
+    scene.settings.film.resolution = glam::UVec2::new(8, 8);
+    scene.settings.spp = 1;
+    scene.settings.integrator = IntegratorSettings::Path { max_depth: 1 };
+    scene
+}

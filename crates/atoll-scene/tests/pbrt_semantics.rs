@@ -337,7 +337,9 @@ fn coated_diffuse() {
 /// pbrt-v4's `coatedconductor`: copper under a smooth coating by default;
 /// `conductor.*` and `interface.*` parameters each reach their own layer;
 /// `reflectance` gives the conductor's index as for `conductor`; walks
-/// other than pbrt's default are warned about, at the statement.
+/// other than pbrt's default, and anisotropic roughness (which atoll
+/// cannot orient along dp/du for this material), are warned about, at the
+/// statement.
 #[test]
 fn coated_conductor() {
     let world = format!(
@@ -379,8 +381,10 @@ fn coated_conductor() {
     assert_eq!(from_reflectance.eta, Rgb::ONE);
     assert_eq!(from_reflectance.k, Material::conductor_k_from_reflectance(Rgb::splat(0.5)));
     assert_eq!((from_reflectance.coating.max_depth, from_reflectance.coating.n_samples), (10, 1));
-    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
-    let warning = loaded.warnings[0].to_string();
+    assert_eq!(loaded.warnings.len(), 2, "{:?}", loaded.warnings);
+    let anisotropic = loaded.warnings[0].to_string();
+    assert!(anisotropic.starts_with("test.pbrt:5:") && anisotropic.contains("anisotropic"), "{anisotropic}");
+    let warning = loaded.warnings[1].to_string();
     assert!(warning.starts_with("test.pbrt:7:") && warning.contains("\"maxdepth\" 20"), "{warning}");
 }
 

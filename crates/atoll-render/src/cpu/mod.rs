@@ -17,8 +17,8 @@ use crate::chunks::SceneSharing;
 use crate::device::{Device, DeviceError, DeviceStats, PrepareStats, Queue};
 use crate::film::Film;
 use crate::frame::{FrameContext, RenderOptions, Wave};
-use crate::material_coeffs::{hair_offset_at, store_hair_fibre};
-use crate::record::{flags, to_f16x3, MaterialKind, RayRecord, NO_LIGHT};
+use crate::material_coeffs::{hair_offset_at, store_hair_offset, store_tangent, wants_tangent};
+use crate::record::{flags, to_f16x3, RayRecord, NO_LIGHT};
 use crate::shadow_media::ShadowFilter;
 use crate::spawn;
 use crate::stages::{generate::camera_record, shade::shade, shade::ShadeOutcome};
@@ -251,18 +251,19 @@ fn write_hit(
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, at(), &mut r.coeffs);
     }
+    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv().y, mesh.transparent_back_faces));
+    // The partial derivatives, for a bump or normal map and for the BSDF
+    // frame's tangent.
     let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;
-    if bends || packed.kind == MaterialKind::Hair {
+    if bends || wants_tangent(packed.kind, &r.coeffs) {
         let world = corners.map(|c| to_world.transform_point3(c));
         let (dpdu, dpdv) =
             crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng);
-        let offset = hair_offset_at(uv().y, mesh.transparent_back_faces);
-        store_hair_fibre(packed.kind, &mut r.coeffs, dpdu, offset);
-        if bends {
-            let interpolated = !mesh.normals.is_empty();
-            let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
-            r.shading_normal = to_f16x3(textures.shading_normal(material, &surface));
-        }
+        let interpolated = !mesh.normals.is_empty();
+        let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
+        let bent = textures.shading_geometry(material, &surface);
+        r.shading_normal = to_f16x3(bent.normal);
+        store_tangent(packed.kind, &mut r.coeffs, bent.dpdu);
     }
 }
 

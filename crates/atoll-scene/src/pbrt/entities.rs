@@ -270,6 +270,16 @@ fn coated_conductor(
         );
         (coating.max_depth, coating.n_samples) = (max_depth, n_samples);
     }
+    if alpha_x != alpha_y || coating.alpha_x != coating.alpha_y {
+        w.warn(
+            loc,
+            format!(
+                "{what}: anisotropic roughness of \"coatedconductor\" is oriented about the shading normal \
+                 alone, not along the surface's dp/du (its hits have no room for a tangent): \
+                 the highlights' direction will differ"
+            ),
+        );
+    }
     Ok(Material::CoatedConductor(CoatedConductorParams { eta, k, alpha_x, alpha_y, coating }))
 }
 
