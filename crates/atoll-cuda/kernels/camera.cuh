@@ -7,6 +7,7 @@
 #include "params.cuh"
 #include "sampling.cuh"
 #include "environment.cuh"
+#include "lens.cuh"
 
 /// Mirrors `wrap_equal_area_square`.
 __device__ __forceinline__ float2 wrap_equal_area_square(float2 uv) {
@@ -23,17 +24,29 @@ __device__ __forceinline__ float2 wrap_equal_area_square(float2 uv) {
     return uv;
 }
 
-/// Mirrors `CameraRays::ray`: world-space ray through raster position
-/// `raster` (pixels, y down) with lens sample `u_lens`; writes the origin
-/// and the unit direction.
-__device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, float2 u_lens, float3* origin_out,
-                                           float3* direction_out) {
+/// Mirrors `CameraRays::weighted_ray`: world-space ray through raster
+/// position `raster` (pixels, y down) with lens sample `u_lens`; writes the
+/// origin and the unit direction, and returns the ray's weight (1 but for a
+/// realistic camera; 0 where its lens blocks the ray).
+__device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster, float2 u_lens, float3* origin_out,
+                                            float3* direction_out) {
     const float2 t = raster / make_float2(p.raster_size[0], p.raster_size[1]);
     // Raster y grows downwards, camera y upwards.
     const float x = p.window_min[0] + t.x * (p.window_max[0] - p.window_min[0]);
     const float y = p.window_max[1] - t.y * (p.window_max[1] - p.window_min[1]);
     float3 dir = make_float3(x, y, 1.0f);
     float3 origin = zero3();
+    if (p.projection == PROJECTION_REALISTIC) {
+        // The lens turns the image over: the film point is opposite.
+        const float weight = lens_ray(p.lens, make_float2(-x, -y), u_lens, &origin, &dir);
+        if (weight == 0.0f) {
+            origin = zero3();
+            dir = make_float3(0.0f, 0.0f, 1.0f);
+        }
+        *origin_out = affine_point(p.camera_to_world, origin);
+        *direction_out = normalize3(affine_vector(p.camera_to_world, dir));
+        return weight;
+    }
     if (p.projection == PROJECTION_ORTHOGRAPHIC) {
         origin = make_float3(x, y, 0.0f);
         dir = make_float3(0.0f, 0.0f, 1.0f);
@@ -46,7 +59,7 @@ __device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, 
         const float3 d = env_direction(equal_area ? ENV_EQUAL_AREA : ENV_LAT_LONG, uv);
         *origin_out = affine_point(p.camera_to_world, zero3());
         *direction_out = normalize3(affine_vector(p.camera_to_world, make_float3(d.x, d.z, d.y)));
-        return;
+        return 1.0f;
     }
     if (p.lens_radius > 0.0f) {
         const float2 lens = p.lens_radius * sample_uniform_disk_concentric(u_lens);
@@ -56,6 +69,7 @@ __device__ __forceinline__ void camera_ray(const FrameParams& p, float2 raster, 
     }
     *origin_out = affine_point(p.camera_to_world, origin);
     *direction_out = normalize3(affine_vector(p.camera_to_world, dir));
+    return 1.0f;
 }
 
 /// Mirrors `FilterTable::sample_axis`: an offset along `axis` from the

@@ -147,6 +147,9 @@ struct FrameParams {
     // The measured BRDFs (measured.cuh): per BRDF the bits of its tables'
     // offset in this array, then the tables. Null for none.
     const float* measured;
+    // A realistic camera's lens (params.rs `pack_lens`; lens.cuh); null for
+    // other cameras.
+    const float* lens;
     GpuMedium media[MEDIA_SLOTS];
 };
 
@@ -179,6 +182,9 @@ inline constexpr unsigned int PROJECTION_PERSPECTIVE = 0u;
 inline constexpr unsigned int PROJECTION_ORTHOGRAPHIC = 1u;
 inline constexpr unsigned int PROJECTION_SPHERE_EQUAL_AREA = 2u;
 inline constexpr unsigned int PROJECTION_SPHERE_LAT_LONG = 3u;
+inline constexpr unsigned int PROJECTION_REALISTIC = 4u;
+inline constexpr unsigned int LENS_HEADER_WORDS = 4u;
+inline constexpr unsigned int LENS_PUPIL_RINGS = 64u;
 inline constexpr unsigned int INTEGRATOR_PATH = 0u;
 inline constexpr unsigned int INTEGRATOR_AMBIENT_OCCLUSION = 1u;
 inline constexpr unsigned int LIGHT_SAMPLER_POWER = 0u;
@@ -250,7 +256,7 @@ static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(Gp
 static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2520, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2528, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -297,7 +303,8 @@ static_assert(__builtin_offsetof(FrameParams, shadow_reach) == 576 && sizeof(Fra
 static_assert(__builtin_offsetof(FrameParams, media_pad) == 580 && sizeof(FrameParams::media_pad) == 4, "FrameParams.media_pad: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media_grids) == 584 && sizeof(FrameParams::media_grids) == 8, "FrameParams.media_grids: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FrameParams::measured) == 8, "FrameParams.measured: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, media) == 600 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, lens) == 600 && sizeof(FrameParams::lens) == 8, "FrameParams.lens: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 72, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -92,12 +92,16 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
     const float2 raster = filter_sample(p.filter, make_float2((float)(pixel % res_x), (float)(pixel / res_x)),
                                         make_float2(stream_get(rng, 0), stream_get(rng, 1)), &weight);
     float3 origin, direction;
-    camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
+    const float lens_weight =
+        camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
     // Emitters seen directly count in full, like after a specular bounce.
     // The path starts in the camera's medium.
     const unsigned char flags = (unsigned char)(FLAG_SPECULAR | (p.camera_medium << FLAG_MEDIUM_SHIFT));
-    store_ray_half(dst, origin, f32_infinity(), direction, pixel, make_float3(weight, weight, weight), sample, 0.0f,
-                   0, flags, 0, 0u, 0u);
+    // A ray the lens blocks still counts as a sample, of nothing.
+    const float t_max = lens_weight == 0.0f ? 0.0f : f32_infinity();
+    weight *= lens_weight;
+    store_ray_half(dst, origin, t_max, direction, pixel, make_float3(weight, weight, weight), sample, 0.0f, 0, flags,
+                   0, 0u, 0u);
 }
 
 /// Mirrors `atoll_scene::camera::tile_order_pixel`: the pixel at place

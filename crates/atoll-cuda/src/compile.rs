@@ -34,6 +34,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("environment.cuh", include_str!("../kernels/environment.cuh")),
     ("layout.cuh", include_str!("../kernels/layout.cuh")),
     ("layered.cuh", include_str!("../kernels/layered.cuh")),
+    ("lens.cuh", include_str!("../kernels/lens.cuh")),
     ("lbvh.cu", include_str!("../kernels/lbvh.cu")),
     ("lbvh.cuh", include_str!("../kernels/lbvh.cuh")),
     ("light_bvh.cuh", include_str!("../kernels/light_bvh.cuh")),

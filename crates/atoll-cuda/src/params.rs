@@ -162,6 +162,7 @@ pub(crate) mod projection_kind {
     pub(crate) const ORTHOGRAPHIC: u32 = 1;
     pub(crate) const SPHERE_EQUAL_AREA: u32 = 2;
     pub(crate) const SPHERE_LAT_LONG: u32 = 3;
+    pub(crate) const REALISTIC: u32 = 4;
 }
 
 pub(crate) mod integrator_kind {
@@ -430,6 +431,8 @@ pub struct FrameParams {
     pub media_grids: u64,
     /// `f32[]`: the measured BRDFs ([`FrameTables::measured`]); 0 for none.
     pub measured: u64,
+    /// `f32[]`: a realistic camera's lens ([`pack_lens`]); 0 for none.
+    pub lens: u64,
     /// By `MediumIndex`; entry 0 is the vacuum.
     pub media: [GpuMedium; MEDIA_SLOTS],
 }
@@ -514,6 +517,7 @@ impl FrameParams {
             Projection::Orthographic => projection_kind::ORTHOGRAPHIC,
             Projection::Spherical { mapping: EnvLayout::EqualArea } => projection_kind::SPHERE_EQUAL_AREA,
             Projection::Spherical { mapping: EnvLayout::LatLong } => projection_kind::SPHERE_LAT_LONG,
+            Projection::Realistic => projection_kind::REALISTIC,
         };
     }
 
@@ -565,6 +569,7 @@ impl FrameParams {
             media_pad,
             media_grids,
             measured,
+            lens,
             media,
         })
     }
@@ -652,7 +657,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuMedium>() == 120);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 32 + 120 * MEDIA_SLOTS
+            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 40 + 120 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
     assert!(std::mem::size_of::<SceneView>() == 72);
@@ -685,6 +690,26 @@ pub(crate) struct FrameTables {
     /// tables ([`atoll_scene::MeasuredBrdf::pack`]) in this array, then the
     /// tables one after another.
     pub measured: Vec<f32>,
+    /// A realistic camera's lens ([`pack_lens`]); empty for other cameras.
+    pub lens: Vec<f32>,
+}
+
+/// Words of [`pack_lens`]'s header: element count, pupil count (as f32
+/// bits), the film's diagonal and the rear element's distance from it.
+pub const LENS_HEADER_WORDS: usize = 4;
+
+/// A realistic camera's lens as `FrameParams::lens` points to it: the
+/// header ([`LENS_HEADER_WORDS`]), each element's radius, thickness, index
+/// and aperture radius front to rear, then each ring's exit-pupil bounds.
+pub fn pack_lens(lens: &atoll_scene::lens::LensSystem) -> Vec<f32> {
+    let count = |n: usize| f32::from_bits(n as u32);
+    let mut words =
+        vec![count(lens.elements.len()), count(lens.pupils.len()), lens.film_diagonal, lens.rear_z()];
+    for e in &lens.elements {
+        words.extend([e.curvature_radius, e.thickness, e.eta, e.aperture_radius]);
+    }
+    words.extend(lens.pupils.iter().flatten());
+    words
 }
 
 /// [`FrameTables::measured`] of `brdfs`: what `FrameParams::measured`
@@ -777,6 +802,7 @@ impl FrameTables {
             mesh_alpha: bytemuck::cast_slice(&frame.textures.mesh_alpha).to_vec(),
             srgb_to_linear: atoll_scene::texture::srgb8_to_linear().to_vec(),
             measured: pack_measured(&frame.measured),
+            lens: frame.camera.lens_system().map(|lens| pack_lens(lens)).unwrap_or_default(),
             light_nodes: bytemuck::cast_slice(&lights.bvh.nodes).to_vec(),
             light_leaf: lights.bvh.leaf_of.clone(),
             unbounded_lights: lights.unbounded_lights().to_vec(),
@@ -804,6 +830,7 @@ impl FrameTables {
             + b(&self.light_nodes)
             + b(&self.light_leaf)
             + b(&self.unbounded_lights)
+            + b(&self.lens)
             + std::mem::size_of::<FrameParams>() as u64
     }
 }
@@ -833,6 +860,7 @@ pub struct FrameParamsHost {
     unbounded_lights: CudaSlice<u32>,
     media_grids: CudaSlice<f32>,
     measured: CudaSlice<f32>,
+    lens: CudaSlice<f32>,
 }
 
 impl FrameParamsHost {
@@ -867,6 +895,7 @@ impl FrameParamsHost {
         let grid_values: Vec<f32> = frame.media.grids.iter().flat_map(|g| g.values.iter().copied()).collect();
         let media_grids = upload(gpu, &grid_values, "media grids")?;
         let measured = upload(gpu, &t.measured, "measured BRDFs")?;
+        let lens = upload(gpu, &t.lens, "camera lens")?;
         let stream = &gpu.stream;
         let mut params = FrameParams::from_frame(frame);
         params.emitters = emitters.device_ptr(stream).0;
@@ -887,6 +916,7 @@ impl FrameParamsHost {
         params.unbounded_lights = unbounded_lights.device_ptr(stream).0;
         params.media_grids = media_grids.device_ptr(stream).0;
         params.measured = if t.measured.is_empty() { 0 } else { measured.device_ptr(stream).0 };
+        params.lens = if t.lens.is_empty() { 0 } else { lens.device_ptr(stream).0 };
         if let Some(scene) = scene {
             params.images = scene.images.device_ptr(stream).0;
             params.texels = scene.texels.device_ptr(stream).0;
@@ -912,6 +942,7 @@ impl FrameParamsHost {
             unbounded_lights,
             media_grids,
             measured,
+            lens,
         })
     }
 
@@ -934,7 +965,8 @@ impl FrameParamsHost {
             + self.light_leaf.num_bytes()
             + self.unbounded_lights.num_bytes()
             + self.media_grids.num_bytes()
-            + self.measured.num_bytes()) as u64
+            + self.measured.num_bytes()
+            + self.lens.num_bytes()) as u64
     }
 }
 

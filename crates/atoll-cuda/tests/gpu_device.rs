@@ -211,6 +211,21 @@ fn assert_renders_match(cuda: &mut CudaDevice, scene: &Arc<Scene>, what: &str) {
     assert!(differ * 200 < cpu.film.sum.len(), "{what}: {differ} pixels differ");
 }
 
+/// A realistic camera's rays (traced through its lens on the GPU from the
+/// packed lens table) render the image the CPU renders: vignetting, focus
+/// and all.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn realistic_cameras_match_the_cpu_device() {
+    let Some(gpu) = gpu_or_skip("realistic camera") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/realistic.pbrt");
+    let mut scene = atoll_scene::load_any(std::path::Path::new(path)).unwrap().scene;
+    scene.settings.film.resolution = UVec2::new(96, 64);
+    scene.settings.spp = 16;
+    assert_renders_match(&mut cuda, &Arc::new(scene), "realistic.pbrt");
+}
+
 /// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)
 /// turn with the surface's dp/du on the GPU as on the CPU, bump-mapped or
 /// not (the frame's tangent written with the hit, read when shading).

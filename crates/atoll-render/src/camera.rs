@@ -1,6 +1,9 @@
 //! Camera rays (pbrt-v4's perspective and orthographic cameras with a thin
 //! lens, and its spherical camera).
 
+use std::sync::Arc;
+
+use atoll_scene::lens::LensSystem;
 use atoll_scene::{Camera, Projection};
 use glam::{Mat4, UVec2, Vec2, Vec3};
 
@@ -20,12 +23,30 @@ pub struct CameraRays {
     resolution: Vec2,
     lens_radius: f32,
     focal_distance: f32,
+    /// A realistic camera's lens; its window is then the physical film
+    /// (metres, centred on the axis).
+    lens: Option<Arc<LensSystem>>,
+}
+
+/// A camera ray in world space: origin, unit direction, and the weight the
+/// camera gives it (1 but for a realistic camera's lens; 0 for a ray the
+/// lens blocks, which then has no extent).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraRay {
+    pub origin: Vec3,
+    pub direction: Vec3,
+    pub weight: f32,
 }
 
 impl CameraRays {
     pub fn new(camera: &Camera, resolution: UVec2) -> Self {
         let [x0, x1, y0, y1] = camera.screen_window(resolution);
-        let (window_min, window_max) = (Vec2::new(x0, y0), Vec2::new(x1, y1));
+        let (mut window_min, mut window_max) = (Vec2::new(x0, y0), Vec2::new(x1, y1));
+        let lens = camera.lens.clone().filter(|_| camera.projection == Projection::Realistic);
+        if let Some(lens) = &lens {
+            let half = lens.film_half_extent(resolution.y as f32 / resolution.x as f32);
+            (window_min, window_max) = (-half, half);
+        }
         let scale = match camera.projection {
             Projection::Perspective => (camera.fov_degrees.to_radians() * 0.5).tan(),
             _ => 1.0,
@@ -42,6 +63,7 @@ impl CameraRays {
                 _ => camera.lens_radius,
             },
             focal_distance: camera.focal_distance,
+            lens,
         }
     }
 
@@ -88,13 +110,41 @@ impl CameraRays {
         (self.lens_radius, self.focal_distance)
     }
 
+    /// A realistic camera's lens system.
+    pub fn lens_system(&self) -> Option<&Arc<LensSystem>> {
+        self.lens.as_ref()
+    }
+
     /// World-space ray through raster position `raster` (pixels, y down),
-    /// with lens sample `u_lens`. Returns (origin, unit direction).
+    /// with lens sample `u_lens`. Returns (origin, unit direction); see
+    /// [`Self::weighted_ray`] for the weight a realistic camera gives it.
     pub fn ray(&self, raster: Vec2, u_lens: Vec2) -> (Vec3, Vec3) {
+        let r = self.weighted_ray(raster, u_lens);
+        (r.origin, r.direction)
+    }
+
+    /// World-space ray through raster position `raster` (pixels, y down),
+    /// with lens sample `u_lens`, and its weight.
+    pub fn weighted_ray(&self, raster: Vec2, u_lens: Vec2) -> CameraRay {
         let t = raster / self.resolution;
         // Raster y grows downwards, camera y upwards.
         let x = self.window_min.x + t.x * (self.window_max.x - self.window_min.x);
         let y = self.window_max.y - t.y * (self.window_max.y - self.window_min.y);
+        if let Some(lens) = &self.lens {
+            // The lens turns the image over: the film point is opposite.
+            return match lens.ray(Vec2::new(-x, -y), u_lens) {
+                Some(r) => CameraRay {
+                    origin: self.camera_to_world.transform_point3(r.origin),
+                    direction: self.camera_to_world.transform_vector3(r.direction).normalize(),
+                    weight: r.weight,
+                },
+                None => CameraRay {
+                    origin: self.camera_to_world.transform_point3(Vec3::ZERO),
+                    direction: self.camera_to_world.transform_vector3(Vec3::Z).normalize(),
+                    weight: 0.0,
+                },
+            };
+        }
         let (mut origin, mut dir) = self.projection.camera_ray(Vec2::new(x, y));
         if self.lens_radius > 0.0 {
             // The point in focus along the pinhole ray; pbrt-v4's
@@ -107,7 +157,7 @@ impl CameraRays {
         }
         let o = self.camera_to_world.transform_point3(origin);
         let d = self.camera_to_world.transform_vector3(dir).normalize();
-        (o, d)
+        CameraRay { origin: o, direction: d, weight: 1.0 }
     }
 }
 

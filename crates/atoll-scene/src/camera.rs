@@ -22,6 +22,8 @@ pub struct Camera {
     pub screen_window: Option<[f32; 4]>,
     /// pbrt's `frameaspectratio`; `None`: the image's width over its height.
     pub frame_aspect_ratio: Option<f32>,
+    /// The lens system of a [`Projection::Realistic`] camera, focused.
+    pub lens: Option<std::sync::Arc<crate::lens::LensSystem>>,
 }
 
 /// How camera space maps onto the screen.
@@ -38,6 +40,10 @@ pub enum Projection {
     /// directions laid out by `mapping` (pbrt's `spherical` camera; its
     /// pole is camera +y).
     Spherical { mapping: crate::EnvLayout },
+    /// pbrt-v4's `realistic` camera: rays from the physical film through
+    /// the lens system [`Camera::lens`] (its own ray generation:
+    /// [`crate::lens::LensSystem::ray`]).
+    Realistic,
 }
 
 impl Projection {
@@ -50,6 +56,8 @@ impl Projection {
         match self {
             Projection::Perspective => (Vec3::ZERO, screen.extend(1.0)),
             Projection::Orthographic => (screen.extend(0.0), Vec3::Z),
+            // Only its film point: the lens makes the ray.
+            Projection::Realistic => (screen.extend(0.0), Vec3::Z),
             Projection::Spherical { mapping } => {
                 let uv = glam::Vec2::new(screen.x, -screen.y);
                 let uv = match mapping {
@@ -73,6 +81,7 @@ impl Default for Camera {
             focal_distance: 1e6,
             screen_window: None,
             frame_aspect_ratio: None,
+            lens: None,
         }
     }
 }
@@ -114,6 +123,9 @@ pub struct FilmSettings {
     pub sensor: Sensor,
     /// How samples around a pixel make its value.
     pub filter: PixelFilter,
+    /// The physical film's diagonal in metres (pbrt's `diagonal`, given in
+    /// millimetres): a realistic camera's film size.
+    pub diagonal: f32,
 }
 
 /// pbrt-v4's pixel filters. Each is a product of one function per axis,
@@ -343,6 +355,7 @@ impl Default for FilmSettings {
             crop_window: None,
             sensor: Sensor::default(),
             filter: PixelFilter::PIXEL,
+            diagonal: 0.035,
         }
     }
 }

@@ -16,6 +16,7 @@ pub mod framing;
 pub mod gltf;
 pub mod input;
 pub mod landscape;
+pub mod lens;
 pub mod light;
 pub mod load;
 pub mod material;

@@ -1090,3 +1090,59 @@ fn the_path_integrator_renders_no_media() {
         assert!(scene.meshes[0].media.is_some());
     }
 }
+
+/// pbrt-v4's `realistic` camera: its lens file read beside the scene,
+/// focused once the film (its `diagonal`, millimetres) is known; a stop
+/// asked wider than the lens's is clamped with a warning, as is an
+/// aperture shape atoll does not draw; a missing file is an error unless
+/// allowed (a perspective camera then), a malformed one always, naming
+/// the line.
+#[test]
+fn realistic_cameras() {
+    let dir = common::temp_dir("lens");
+    common::write(
+        &dir,
+        "singlet.dat",
+        "# radius thickness eta aperture\n50 5 1.5 20\n-50 2 1 20\n0 40 1 12\n",
+    );
+    common::write(&dir, "bad.dat", "50 5 1.5 20\n-50 2 x 20\n");
+    let load = |camera: &str| {
+        atoll_scene::pbrt::load_str(
+            &format!("{camera}\nFilm \"rgb\" \"float diagonal\" 24\nWorldBegin\n{}", tri(UNIT_TRI)),
+            "c.pbrt",
+            &dir,
+        )
+    };
+    let loaded = load(
+        "Camera \"realistic\" \"string lensfile\" \"singlet.dat\" \"float aperturediameter\" 20 \
+         \"float focusdistance\" 3 \"string aperture\" \"star\"",
+    )
+    .unwrap();
+    let camera = &loaded.scene.settings.camera;
+    assert_eq!(camera.projection, atoll_scene::Projection::Realistic);
+    assert_eq!(loaded.scene.settings.film.diagonal, 0.024);
+    let lens = camera.lens.as_ref().unwrap();
+    assert_eq!((lens.elements.len(), lens.film_diagonal), (3, 0.024));
+    assert_eq!(lens.elements[2].aperture_radius, 0.006, "clamped to the stop's 12 mm");
+    // Focused at 3 m: a little beyond the 50 mm focal length behind the lens.
+    assert!(lens.rear_z() > 0.04 && lens.rear_z() < 0.06, "{}", lens.rear_z());
+    let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert!(warnings.iter().any(|w| w.starts_with("c.pbrt:1:1: ") && w.contains("\"star\"")), "{warnings:?}");
+    assert!(warnings.iter().any(|w| w.contains("larger than the lens's stop")), "{warnings:?}");
+
+    let e = load("Camera \"realistic\" \"string lensfile\" \"bad.dat\"").unwrap_err().to_string();
+    assert!(e.starts_with("c.pbrt:1:1: ") && e.contains("bad.dat: line 2: \"x\" is not a number"), "{e}");
+    let e = load("Camera \"realistic\"").unwrap_err().to_string();
+    assert!(e.contains("\"lensfile\" must be given"), "{e}");
+    let e = load("Camera \"realistic\" \"string lensfile\" \"singlet.dat\" \"float focusdistance\" 0.02")
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("c.pbrt:1:1: ") && e.contains("too short"), "{e}");
+    let missing = "Camera \"realistic\" \"string lensfile\" \"gone.dat\"";
+    let e = load(missing).unwrap_err().to_string();
+    assert!(e.contains("gone.dat") && e.contains("--allow-missing"), "{e}");
+    let allowed = allowing_missing(|| load(missing)).unwrap();
+    assert_eq!(allowed.scene.settings.camera.projection, atoll_scene::Projection::Perspective);
+    std::fs::remove_dir_all(&dir).ok();
+}

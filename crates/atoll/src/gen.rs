@@ -349,6 +349,14 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
             };
             write!(out, "\nCamera \"spherical\" \"string mapping\" \"{mapping}\"")?
         }
+        // A lens file is not written beside a stream: the camera is kept
+        // as a pinhole through the film's centre.
+        Projection::Realistic => write!(
+            out,
+            "\n# a realistic camera's lens system is not written back: a perspective camera stands in\n\
+             Camera \"perspective\" \"float fov\" [ {} ]",
+            s.camera.fov_degrees
+        )?,
     }
     if let Some(window) = s.camera.screen_window {
         write!(out, " \"float screenwindow\" ")?;

@@ -14,14 +14,15 @@ pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     // The pixel filter places the sample and weights it (`filter`).
     let corner = Vec2::new((pixel % res.x) as f32, (pixel / res.x) as f32);
     let (raster, weight) = ctx.filter.sample(corner, Vec2::new(rng.get(0), rng.get(1)));
-    let (origin, direction) = ctx.camera.ray(raster, Vec2::new(rng.get(2), rng.get(3)));
+    let ray = ctx.camera.weighted_ray(raster, Vec2::new(rng.get(2), rng.get(3)));
     let mut r = RayRecord::zeroed();
-    r.origin = origin.to_array();
-    r.direction = direction.to_array();
-    r.t_max = f32::INFINITY;
+    r.origin = ray.origin.to_array();
+    r.direction = ray.direction.to_array();
+    // A ray the lens blocks still counts as a sample, of nothing.
+    r.t_max = if ray.weight == 0.0 { 0.0 } else { f32::INFINITY };
     r.pixel = pixel;
     r.sample = sample;
-    r.throughput = [weight; 3];
+    r.throughput = [weight * ray.weight; 3];
     // Emitters seen directly count in full, like after a specular bounce.
     r.flags = flags::SPECULAR;
     r.set_medium(ctx.media.camera);

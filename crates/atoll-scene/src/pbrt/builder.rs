@@ -163,6 +163,19 @@ pub struct Builder {
     /// An `Integrator` that renders no media in pbrt-v4 (`path`,
     /// `ambientocclusion`, ...): its name and where.
     ignores_media: Option<(String, FileLoc)>,
+    /// A `realistic` camera's lens, focused once the film is known (at
+    /// `WorldBegin`).
+    pending_lens: Option<PendingLens>,
+}
+
+/// A `realistic` camera's parameters until its film's size is known.
+struct PendingLens {
+    /// The lens file's numbers.
+    values: Vec<f32>,
+    file: String,
+    aperture_diameter: f32,
+    focus_distance: f32,
+    loc: FileLoc,
 }
 
 impl Builder {
@@ -198,6 +211,7 @@ impl Builder {
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
             named_media: HashMap::new(),
+            pending_lens: None,
             camera_medium: None,
             ignores_media: None,
         }
@@ -308,6 +322,7 @@ impl Builder {
             S::Include(_) | S::Import(_) => unreachable!("files are included as they are read ahead"),
             S::WorldBegin => {
                 self.require_options("WorldBegin", &loc)?;
+                self.focus_lens()?;
                 self.in_world = true;
                 self.gs.ctm = DMat4::IDENTITY;
                 self.gs.active = ActiveTransform::All;
@@ -778,6 +793,7 @@ impl Builder {
         }
         let world_from_camera = self.gs.ctm.inverse();
         self.named_coordinate_systems.insert("camera".into(), world_from_camera);
+        self.pending_lens = None;
         let (_, outside, at) = &self.gs.media;
         if !outside.is_empty() {
             self.camera_medium = Some((outside.clone(), at.clone().unwrap_or_else(|| loc.clone())));
@@ -799,6 +815,12 @@ impl Builder {
                     }
                 };
                 crate::Projection::Spherical { mapping }
+            }
+            "realistic" => {
+                if !self.realistic_camera(p, loc)? {
+                    return self.camera("perspective", p, loc);
+                }
+                crate::Projection::Realistic
             }
             _ => {
                 p.mark_all_used();
@@ -855,6 +877,56 @@ impl Builder {
             ));
         }
         self.scene.settings.film.sensor.exposure_time = close - open;
+        Ok(())
+    }
+
+    /// A `realistic` camera's lens file and parameters (pbrt-v4's
+    /// defaults: a 1 mm aperture focused at 10 m), kept until `WorldBegin`
+    /// knows the film. `false` where the lens file is missing and
+    /// `--allow-missing` makes the camera a perspective one.
+    fn realistic_camera(&mut self, p: &ParamList, loc: &FileLoc) -> Result<bool, SceneError> {
+        let what = "Camera \"realistic\"";
+        let Some(file) = p.string("lensfile")? else {
+            return Err(SceneError::at(loc, format!("{what}: \"lensfile\" must be given")));
+        };
+        let aperture_diameter = p.float_or("aperturediameter", 1.0)?;
+        let focus_distance = p.float_or("focusdistance", 10.0)?;
+        if let Some(shape) = p.string("aperture")? {
+            self.warn(
+                loc,
+                format!("{what}: \"aperture\" \"{shape}\" is not supported; the stop stays round (bokeh shapes differ)"),
+            );
+        }
+        let text = crate::input::beside(&self.base_dir, &file).and_then(|path| crate::input::read(&path));
+        let text = match text {
+            Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
+            Err(e) => {
+                let e = crate::ImageLoadError::io(Path::new(&file))(e);
+                super::missing_file(loc, what, e.clone())?;
+                self.warn(loc, format!("{what}: {e}; using a perspective camera"));
+                return Ok(false);
+            }
+        };
+        let values = crate::lens::parse_lens_file(&text)
+            .map_err(|e| SceneError::at(loc, format!("{what}: {file}: {e}")))?;
+        self.pending_lens =
+            Some(PendingLens { values, file, aperture_diameter, focus_distance, loc: loc.clone() });
+        Ok(true)
+    }
+
+    /// Focuses a `realistic` camera's lens for the film (its diagonal), and
+    /// bounds its exit pupils.
+    fn focus_lens(&mut self) -> Result<(), SceneError> {
+        let Some(l) = self.pending_lens.take() else { return Ok(()) };
+        let diagonal = self.scene.settings.film.diagonal;
+        let what = "Camera \"realistic\"";
+        let (lens, warning) =
+            crate::lens::LensSystem::new(&l.values, l.aperture_diameter, l.focus_distance, diagonal)
+                .map_err(|e| SceneError::at(&l.loc, format!("{what}: {}: {e}", l.file)))?;
+        if let Some(w) = warning {
+            self.warn(&l.loc, format!("{what}: {w}"));
+        }
+        self.scene.settings.camera.lens = Some(std::sync::Arc::new(lens));
         Ok(())
     }
 
@@ -982,7 +1054,11 @@ impl Builder {
         }
         // What only changes how pbrt stores its image.
         p.find("savefp16", &[ParamType::Bool]);
-        p.find("diagonal", &[ParamType::Float]);
+        let diagonal = p.float_or("diagonal", 35.0)?;
+        if !(diagonal > 0.0 && diagonal.is_finite()) {
+            return Err(SceneError::at(loc, format!("Film: \"diagonal\" {diagonal} mm is not positive")));
+        }
+        self.scene.settings.film.diagonal = diagonal / 1000.0;
         Ok(())
     }
 
