@@ -694,21 +694,33 @@ pub(crate) struct FrameTables {
     pub lens: Vec<f32>,
 }
 
-/// Words of [`pack_lens`]'s header: element count, pupil count (as f32
-/// bits), the film's diagonal and the rear element's distance from it.
-pub const LENS_HEADER_WORDS: usize = 4;
+/// Words of [`pack_lens`]'s header: element count, pupil count (as u32
+/// bits), the film's diagonal, the rear element's distance from it, and the
+/// aperture image's width and height (u32 bits; 0 for a round stop).
+pub const LENS_HEADER_WORDS: usize = 6;
 
 /// A realistic camera's lens as `FrameParams::lens` points to it: the
 /// header ([`LENS_HEADER_WORDS`]), each element's radius, thickness, index
-/// and aperture radius front to rear, then each ring's exit-pupil bounds.
+/// and aperture radius front to rear, each ring's exit-pupil bounds, then
+/// the aperture image's values row by row.
 pub fn pack_lens(lens: &atoll_scene::lens::LensSystem) -> Vec<f32> {
     let count = |n: usize| f32::from_bits(n as u32);
-    let mut words =
-        vec![count(lens.elements.len()), count(lens.pupils.len()), lens.film_diagonal, lens.rear_z()];
+    let (width, height) = lens.aperture.as_ref().map_or((0, 0), |a| (a.width as usize, a.height as usize));
+    let mut words = vec![
+        count(lens.elements.len()),
+        count(lens.pupils.len()),
+        lens.film_diagonal,
+        lens.rear_z(),
+        count(width),
+        count(height),
+    ];
     for e in &lens.elements {
         words.extend([e.curvature_radius, e.thickness, e.eta, e.aperture_radius]);
     }
     words.extend(lens.pupils.iter().flatten());
+    if let Some(aperture) = &lens.aperture {
+        words.extend(&aperture.values);
+    }
     words
 }
 

@@ -223,7 +223,15 @@ fn realistic_cameras_match_the_cpu_device() {
     let mut scene = atoll_scene::load_any(std::path::Path::new(path)).unwrap().scene;
     scene.settings.film.resolution = UVec2::new(96, 64);
     scene.settings.spp = 16;
-    assert_renders_match(&mut cuda, &Arc::new(scene), "realistic.pbrt");
+    assert_renders_match(&mut cuda, &Arc::new(scene.clone()), "realistic.pbrt");
+    // The same lens wide open with pbrt's star-shaped stop.
+    use atoll_scene::lens::{parse_lens_file, ApertureImage, LensSystem};
+    let lens_file = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/singlet-50mm.dat");
+    let values = parse_lens_file(&std::fs::read_to_string(lens_file).unwrap()).unwrap();
+    let star = ApertureImage::builtin("star");
+    let (lens, _) = LensSystem::new(&values, 12.0, star, 3.04, scene.settings.film.diagonal).unwrap();
+    scene.settings.camera.lens = Some(Arc::new(lens));
+    assert_renders_match(&mut cuda, &Arc::new(scene), "realistic.pbrt with a star-shaped stop");
 }
 
 /// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)

@@ -57,6 +57,131 @@ pub struct LensSystem {
     pub film_diagonal: f32,
     /// [`PUPIL_RINGS`] bounds, from the film's centre outwards.
     pub pupils: Vec<PupilBounds>,
+    /// The stop's shape where it is not round (pbrt-v4's `aperture`).
+    pub aperture: Option<ApertureImage>,
+}
+
+/// A stop's shape and transmission over the square the stop's circle fits
+/// in: pbrt-v4's aperture image, one channel, its mean scaled to π/4 (a
+/// round stop's share of the square) so that every shape passes the light
+/// of the round stop.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ApertureImage {
+    pub width: u32,
+    pub height: u32,
+    /// Row 0 at the stop's −y edge, as pbrt-v4 has it after `FlipY`.
+    pub values: Vec<f32>,
+}
+
+/// Size of pbrt-v4's built-in aperture shapes.
+const BUILTIN_APERTURE_SIZE: u32 = 256;
+
+impl ApertureImage {
+    /// pbrt-v4's built-in shapes by name (`gaussian`, `square`, `pentagon`,
+    /// `star`), or `None` for another name (an image file).
+    pub fn builtin(name: &str) -> Option<ApertureImage> {
+        let n = BUILTIN_APERTURE_SIZE;
+        let at = |x: u32, y: u32| {
+            Vec2::new(-1.0 + 2.0 * (x as f32 + 0.5) / n as f32, -1.0 + 2.0 * (y as f32 + 0.5) / n as f32)
+        };
+        let image = |f: &dyn Fn(Vec2, u32, u32) -> f32| {
+            let values =
+                (0..n).flat_map(|y| (0..n).map(move |x| (x, y))).map(|(x, y)| f(at(x, y), x, y)).collect();
+            ApertureImage::from_rows(n, n, values)
+        };
+        let pentagon = || {
+            let (c1, c2) = ((5f32.sqrt() - 1.0) / 4.0, (5f32.sqrt() + 1.0) / 4.0);
+            let (s1, s2) = ((10.0 + 2.0 * 5f32.sqrt()).sqrt() / 4.0, (10.0 - 2.0 * 5f32.sqrt()).sqrt() / 4.0);
+            [
+                Vec2::new(0.0, 1.0),
+                Vec2::new(s1, c1),
+                Vec2::new(s2, -c2),
+                Vec2::new(-s2, -c2),
+                Vec2::new(-s1, c1),
+            ]
+            .map(|v| v * 0.8)
+            .to_vec()
+        };
+        let star = || {
+            let inner = 72f32.to_radians().cos() / 36f32.to_radians().cos();
+            let mut v: Vec<Vec2> = (0..10)
+                .map(|i| {
+                    let r = if i % 2 == 1 { 1.0 } else { inner };
+                    let a = std::f32::consts::PI * i as f32 / 5.0;
+                    Vec2::new(r * a.cos(), r * a.sin())
+                })
+                .collect();
+            v.reverse();
+            v
+        };
+        match name {
+            "gaussian" => Some(image(&|p, _, _| ((-p.length_squared()).exp() - (-1f32).exp()).max(0.0))),
+            "square" => {
+                let inside = |i: u32| i >= n / 4 && i < 3 * n / 4;
+                Some(image(&|_, x, y| if inside(x) && inside(y) { 4.0 } else { 0.0 }))
+            }
+            "pentagon" => {
+                let v = pentagon();
+                Some(image(&|p, _, _| if winding_number(&v, p) != 0 { 1.0 } else { 0.0 }))
+            }
+            "star" => {
+                let v = star();
+                Some(image(&|p, _, _| if winding_number(&v, p) != 0 { 1.0 } else { 0.0 }))
+            }
+            _ => None,
+        }
+    }
+
+    /// The aperture of an image whose rows run from `values`' first (top of
+    /// a file; −y of a built-in shape) on: turned over and scaled as
+    /// pbrt-v4 does. An image of no light stays dark.
+    pub fn from_rows(width: u32, height: u32, values: Vec<f32>) -> ApertureImage {
+        let mut flipped: Vec<f32> = values.chunks(width as usize).rev().flatten().copied().collect();
+        let mean = flipped.iter().map(|&v| v as f64).sum::<f64>() / flipped.len().max(1) as f64;
+        if mean > 0.0 {
+            let scale = (std::f64::consts::FRAC_PI_4 / mean) as f32;
+            flipped.iter_mut().for_each(|v| *v *= scale);
+        }
+        ApertureImage { width, height, values: flipped }
+    }
+
+    /// The bilinear value at `uv` (pbrt-v4's `BilerpChannel` with black
+    /// outside the image).
+    pub fn bilerp(&self, uv: Vec2) -> f32 {
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        let (xi, yi) = (x.floor(), y.floor());
+        let (dx, dy) = (x - xi, y - yi);
+        let texel = |x: f32, y: f32| {
+            if x < 0.0 || y < 0.0 || x >= self.width as f32 || y >= self.height as f32 {
+                0.0
+            } else {
+                self.values[y as usize * self.width as usize + x as usize]
+            }
+        };
+        (1.0 - dx) * (1.0 - dy) * texel(xi, yi)
+            + dx * (1.0 - dy) * texel(xi + 1.0, yi)
+            + (1.0 - dx) * dy * texel(xi, yi + 1.0)
+            + dx * dy * texel(xi + 1.0, yi + 1.0)
+    }
+}
+
+/// The winding number of polygon `v` about `p` (pbrt-v4's rasteriser of
+/// its built-in aperture shapes).
+fn winding_number(v: &[Vec2], p: Vec2) -> i32 {
+    let mut winding = 0;
+    for i in 0..v.len() {
+        let (a, b) = (v[i], v[(i + 1) % v.len()]);
+        let e = (p.x - a.x) * (b.y - a.y) - (p.y - a.y) * (b.x - a.x);
+        if a.y <= p.y {
+            if b.y > p.y && e > 0.0 {
+                winding += 1;
+            }
+        } else if b.y <= p.y && e < 0.0 {
+            winding -= 1;
+        }
+    }
+    winding
 }
 
 /// A camera-space ray out of the lens and its weight (pbrt-v4's
@@ -99,11 +224,13 @@ pub fn parse_lens_file(text: &str) -> Result<Vec<f32>, String> {
 impl LensSystem {
     /// The lens of `values` ([`parse_lens_file`]) with its stop opened to
     /// `aperture_diameter` millimetres (at most the stop's own, which a
-    /// larger value is clamped to, with the warning returned), focused at
-    /// `focus_distance` metres, for a film of diagonal `film_diagonal` metres.
+    /// larger value is clamped to, with the warning returned) and shaped by
+    /// `aperture` (round where `None`), focused at `focus_distance` metres,
+    /// for a film of diagonal `film_diagonal` metres.
     pub fn new(
         values: &[f32],
         aperture_diameter: f32,
+        aperture: Option<ApertureImage>,
         focus_distance: f32,
         film_diagonal: f32,
     ) -> Result<(LensSystem, Option<String>), String> {
@@ -143,7 +270,7 @@ impl LensSystem {
                 "\"focusdistance\" {focus_distance} and the film's diagonal {film_diagonal} must be positive"
             ));
         }
-        let mut lens = LensSystem { elements, film_diagonal, pupils: Vec::new() };
+        let mut lens = LensSystem { elements, film_diagonal, pupils: Vec::new(), aperture };
         let film_distance = lens.focused_film_distance(focus_distance)?;
         lens.elements.last_mut().expect("at least one element").thickness = film_distance;
         lens.pupils = (0..PUPIL_RINGS)
@@ -170,18 +297,27 @@ impl LensSystem {
     }
 
     /// The camera-space ray from film point `origin` along `direction`
-    /// after the whole system (pbrt-v4's `TraceLensesFromFilm`), or `None`
-    /// where an element or the stop blocks it or it reflects totally.
-    pub fn trace_from_film(&self, origin: Vec3, direction: Vec3) -> Option<(Vec3, Vec3)> {
+    /// after the whole system, and the stop's transmission where it has an
+    /// aperture image (pbrt-v4's `TraceLensesFromFilm`); `None` where an
+    /// element or the stop blocks it or it reflects totally.
+    pub fn trace_from_film(&self, origin: Vec3, direction: Vec3) -> Option<(Vec3, Vec3, f32)> {
         let flip = Vec3::new(1.0, 1.0, -1.0);
         let (mut o, mut d) = (origin * flip, direction * flip);
-        let mut z = 0.0;
+        let (mut z, mut weight) = (0.0, 1.0);
         for (i, element) in self.elements.iter().enumerate().rev() {
             z -= element.thickness;
             let (t, n) = intersect_element(element, z, o, d)?;
             let hit = o + d * t;
-            if hit.x * hit.x + hit.y * hit.y > element.aperture_radius * element.aperture_radius {
-                return None;
+            let radius = element.aperture_radius;
+            match &self.aperture {
+                Some(image) if element.is_stop() => {
+                    weight = image.bilerp((hit.truncate() / radius + Vec2::ONE) / 2.0);
+                    if weight == 0.0 {
+                        return None;
+                    }
+                }
+                _ if hit.x * hit.x + hit.y * hit.y > radius * radius => return None,
+                _ => {}
             }
             o = hit;
             if !element.is_stop() {
@@ -193,7 +329,7 @@ impl LensSystem {
                 d = refract(-d.normalize(), n, eta_t / medium_eta(element.eta))?;
             }
         }
-        Some((o * flip, d * flip))
+        Some((o * flip, d * flip, weight))
     }
 
     /// The camera-space ray from scene point `origin` along `direction`
@@ -233,7 +369,7 @@ impl LensSystem {
         let (o, d) = self.trace_from_scene(from_scene.0, from_scene.1).ok_or_else(blocked)?;
         let (p0, f0) = cardinal(from_scene.0, o, d);
         let from_film = (Vec3::new(x, 0.0, self.rear_z() - 1.0), Vec3::Z);
-        let (o, d) = self.trace_from_film(from_film.0, from_film.1).ok_or_else(blocked)?;
+        let (o, d, _) = self.trace_from_film(from_film.0, from_film.1).ok_or_else(blocked)?;
         let (p1, f1) = cardinal(from_film.0, o, d);
         Ok(([p0, p1], [f0, f1]))
     }
@@ -299,9 +435,9 @@ impl LensSystem {
         let (sin, cos) = if r != 0.0 { (film.y / r, film.x / r) } else { (0.0, 1.0) };
         let pupil = Vec3::new(cos * lens.x - sin * lens.y, sin * lens.x + cos * lens.y, self.rear_z());
         let film = film.extend(0.0);
-        let (origin, direction) = self.trace_from_film(film, pupil - film)?;
+        let (origin, direction, transmission) = self.trace_from_film(film, pupil - film)?;
         let cos_theta = (pupil - film).normalize().z;
-        let weight = cos_theta.powi(4) / (pdf * self.rear_z() * self.rear_z());
+        let weight = transmission * cos_theta.powi(4) / (pdf * self.rear_z() * self.rear_z());
         Some(LensRay { origin, direction: direction.normalize(), weight })
     }
 
@@ -402,7 +538,7 @@ mod tests {
     /// (n−1) d / (n R1 R2)).
     #[test]
     fn the_thick_lens_focal_length_is_the_lensmakers() {
-        let (lens, _) = LensSystem::new(&biconvex(10.0), 10.0, 10.0, 0.035).unwrap();
+        let (lens, _) = LensSystem::new(&biconvex(10.0), 10.0, None, 10.0, 0.035).unwrap();
         let (p, f) = lens.cardinal_points().unwrap();
         let (n, r1, r2, d) = (1.5f32, 0.05f32, -0.05f32, 0.005f32);
         let expected = 1.0 / ((n - 1.0) * (1.0 / r1 - 1.0 / r2 + (n - 1.0) * d / (n * r1 * r2)));
@@ -419,7 +555,7 @@ mod tests {
     #[test]
     fn rays_from_the_film_centre_converge_at_the_focus_distance() {
         let spread = |focus: f32| {
-            let (lens, _) = LensSystem::new(&biconvex(2.0), 2.0, focus, 0.035).unwrap();
+            let (lens, _) = LensSystem::new(&biconvex(2.0), 2.0, None, focus, 0.035).unwrap();
             let mut crossings = Vec::new();
             for i in 0..64 {
                 let u = Vec2::new(radical_inverse(2, i), radical_inverse(3, i));
@@ -448,7 +584,7 @@ mod tests {
     /// finds none outside.
     #[test]
     fn exit_pupils_hold_every_ray_that_gets_through() {
-        let (lens, _) = LensSystem::new(&biconvex(8.0), 8.0, 3.0, 0.035).unwrap();
+        let (lens, _) = LensSystem::new(&biconvex(8.0), 8.0, None, 3.0, 0.035).unwrap();
         let extent = lens.rear_radius() * 1.5;
         for ring in [0, 20, 50] {
             let film = Vec3::new((ring as f32 + 0.5) / PUPIL_RINGS as f32 * 0.0175, 0.0, 0.0);
@@ -469,6 +605,43 @@ mod tests {
         }
     }
 
+    /// pbrt-v4's built-in shapes keep the round stop's light on average
+    /// (their mean is π/4) and pass light only where the shape is.
+    #[test]
+    fn aperture_shapes_keep_the_round_stops_light() {
+        for name in ["gaussian", "square", "pentagon", "star"] {
+            let image = ApertureImage::builtin(name).unwrap();
+            let mean = image.values.iter().map(|&v| v as f64).sum::<f64>() / image.values.len() as f64;
+            assert!((mean - std::f64::consts::FRAC_PI_4).abs() < 1e-5, "{name}: {mean}");
+        }
+        assert!(ApertureImage::builtin("heart.png").is_none());
+        let square = ApertureImage::builtin("square").unwrap();
+        // The square covers the middle half of the stop's square on each axis.
+        assert!(square.bilerp(Vec2::splat(0.5)) > 0.0 && square.bilerp(Vec2::new(0.7, 0.7)) > 0.0);
+        assert_eq!(square.bilerp(Vec2::new(0.5, 0.1)), 0.0);
+        let star = ApertureImage::builtin("star").unwrap();
+        assert!(star.bilerp(Vec2::splat(0.5)) > 0.0);
+        // Its notch between two points (at 0°, the points at ±36°), inside a
+        // round stop; a point, further out.
+        assert_eq!(star.bilerp((Vec2::new(0.7, 0.0) + Vec2::ONE) / 2.0), 0.0);
+        let point = Vec2::new(0.7 * 36f32.to_radians().cos(), 0.7 * 36f32.to_radians().sin());
+        assert!(star.bilerp((point + Vec2::ONE) / 2.0) > 0.0);
+        // Through a lens: the weight follows the shape, and the sampled
+        // rays' mean weight is the round stop's.
+        let shaped = |aperture| LensSystem::new(&biconvex(8.0), 8.0, aperture, 3.0, 0.035).unwrap().0;
+        let mean_weight = |lens: &LensSystem| {
+            let n = 1 << 16;
+            (0..n as u64)
+                .filter_map(|i| lens.ray(Vec2::ZERO, Vec2::new(radical_inverse(2, i), radical_inverse(3, i))))
+                .map(|r| r.weight as f64)
+                .sum::<f64>()
+                / n as f64
+        };
+        let (round, square) =
+            (mean_weight(&shaped(None)), mean_weight(&shaped(ApertureImage::builtin("square"))));
+        assert!((square / round - 1.0).abs() < 0.02, "square {square} against round {round}");
+    }
+
     #[test]
     fn lens_files_are_checked() {
         assert_eq!(
@@ -482,9 +655,9 @@ mod tests {
         assert_eq!(parse_lens_file("50 5\n1.5 x\n").unwrap_err(), "line 2: \"x\" is not a number");
         assert!(parse_lens_file("# nothing\n").is_err());
         // A stop asked wider than it is stays as it is, with a warning.
-        let (lens, warning) = LensSystem::new(&biconvex(8.0), 30.0, 3.0, 0.035).unwrap();
+        let (lens, warning) = LensSystem::new(&biconvex(8.0), 30.0, None, 3.0, 0.035).unwrap();
         assert!(warning.unwrap().contains("larger than the lens's stop"));
         assert_eq!(lens.elements[2].aperture_radius, 0.004);
-        assert!(LensSystem::new(&biconvex(8.0), 8.0, 0.01, 0.035).unwrap_err().contains("too short"));
+        assert!(LensSystem::new(&biconvex(8.0), 8.0, None, 0.01, 0.035).unwrap_err().contains("too short"));
     }
 }

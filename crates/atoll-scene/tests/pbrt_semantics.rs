@@ -1093,10 +1093,10 @@ fn the_path_integrator_renders_no_media() {
 
 /// pbrt-v4's `realistic` camera: its lens file read beside the scene,
 /// focused once the film (its `diagonal`, millimetres) is known; a stop
-/// asked wider than the lens's is clamped with a warning, as is an
-/// aperture shape atoll does not draw; a missing file is an error unless
-/// allowed (a perspective camera then), a malformed one always, naming
-/// the line.
+/// asked wider than the lens's is clamped with a warning; pbrt's built-in
+/// aperture shapes are drawn, a missing aperture image is an error; a
+/// missing lens file is an error unless allowed (a perspective camera
+/// then), a malformed one always, naming the line.
 #[test]
 fn realistic_cameras() {
     let dir = common::temp_dir("lens");
@@ -1126,10 +1126,15 @@ fn realistic_cameras() {
     assert_eq!(lens.elements[2].aperture_radius, 0.006, "clamped to the stop's 12 mm");
     // Focused at 3 m: a little beyond the 50 mm focal length behind the lens.
     assert!(lens.rear_z() > 0.04 && lens.rear_z() < 0.06, "{}", lens.rear_z());
+    assert!(lens.aperture.is_some(), "pbrt's built-in star");
     let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(warnings.len(), 2, "{warnings:?}");
-    assert!(warnings.iter().any(|w| w.starts_with("c.pbrt:1:1: ") && w.contains("\"star\"")), "{warnings:?}");
-    assert!(warnings.iter().any(|w| w.contains("larger than the lens's stop")), "{warnings:?}");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].starts_with("c.pbrt:1:1: ") && warnings[0].contains("larger than the lens's stop"));
+    let e =
+        load("Camera \"realistic\" \"string lensfile\" \"singlet.dat\" \"string aperture\" \"heart.png\"")
+            .unwrap_err()
+            .to_string();
+    assert!(e.starts_with("c.pbrt:1:1: ") && e.contains("heart.png") && e.contains("--allow-missing"), "{e}");
 
     let e = load("Camera \"realistic\" \"string lensfile\" \"bad.dat\"").unwrap_err().to_string();
     assert!(e.starts_with("c.pbrt:1:1: ") && e.contains("bad.dat: line 2: \"x\" is not a number"), "{e}");

@@ -174,6 +174,7 @@ struct PendingLens {
     values: Vec<f32>,
     file: String,
     aperture_diameter: f32,
+    aperture: Option<crate::lens::ApertureImage>,
     focus_distance: f32,
     loc: FileLoc,
 }
@@ -891,12 +892,10 @@ impl Builder {
         };
         let aperture_diameter = p.float_or("aperturediameter", 1.0)?;
         let focus_distance = p.float_or("focusdistance", 10.0)?;
-        if let Some(shape) = p.string("aperture")? {
-            self.warn(
-                loc,
-                format!("{what}: \"aperture\" \"{shape}\" is not supported; the stop stays round (bokeh shapes differ)"),
-            );
-        }
+        let aperture = match p.string("aperture")? {
+            None => None,
+            Some(name) => self.aperture_image(&name, what, loc)?,
+        };
         let text = crate::input::beside(&self.base_dir, &file).and_then(|path| crate::input::read(&path));
         let text = match text {
             Ok(bytes) => String::from_utf8_lossy(&bytes).into_owned(),
@@ -910,8 +909,36 @@ impl Builder {
         let values = crate::lens::parse_lens_file(&text)
             .map_err(|e| SceneError::at(loc, format!("{what}: {file}: {e}")))?;
         self.pending_lens =
-            Some(PendingLens { values, file, aperture_diameter, focus_distance, loc: loc.clone() });
+            Some(PendingLens { values, file, aperture_diameter, aperture, focus_distance, loc: loc.clone() });
         Ok(true)
+    }
+
+    /// A realistic camera's `aperture`: one of pbrt-v4's built-in shapes or
+    /// an image file beside the scene (its RGB averaged). A missing file is
+    /// an error unless allowed (the stop then stays round).
+    fn aperture_image(
+        &mut self,
+        name: &str,
+        what: &str,
+        loc: &FileLoc,
+    ) -> Result<Option<crate::lens::ApertureImage>, SceneError> {
+        if let Some(image) = crate::lens::ApertureImage::builtin(name) {
+            return Ok(Some(image));
+        }
+        let image = crate::input::beside(&self.base_dir, name)
+            .map_err(crate::ImageLoadError::io(Path::new(name)))
+            .and_then(|path| crate::EnvironmentImage::load(&path));
+        match image {
+            Ok(image) => {
+                let values = image.pixels.iter().map(|p| (p.x + p.y + p.z) / 3.0).collect();
+                Ok(Some(crate::lens::ApertureImage::from_rows(image.width, image.height, values)))
+            }
+            Err(e) => {
+                super::missing_file(loc, what, e.clone())?;
+                self.warn(loc, format!("{what}: {e}; the stop stays round"));
+                Ok(None)
+            }
+        }
     }
 
     /// Focuses a `realistic` camera's lens for the film (its diagonal), and
@@ -920,9 +947,14 @@ impl Builder {
         let Some(l) = self.pending_lens.take() else { return Ok(()) };
         let diagonal = self.scene.settings.film.diagonal;
         let what = "Camera \"realistic\"";
-        let (lens, warning) =
-            crate::lens::LensSystem::new(&l.values, l.aperture_diameter, l.focus_distance, diagonal)
-                .map_err(|e| SceneError::at(&l.loc, format!("{what}: {}: {e}", l.file)))?;
+        let (lens, warning) = crate::lens::LensSystem::new(
+            &l.values,
+            l.aperture_diameter,
+            l.aperture,
+            l.focus_distance,
+            diagonal,
+        )
+        .map_err(|e| SceneError::at(&l.loc, format!("{what}: {}: {e}", l.file)))?;
         if let Some(w) = warning {
             self.warn(&l.loc, format!("{what}: {w}"));
         }
