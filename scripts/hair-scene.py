@@ -25,9 +25,15 @@ LightSource "distant" "point3 from" [ -1 3 -2 ] "point3 to" [ 0 0 0 ] "rgb L" [ 
 Material "diffuse" "rgb reflectance" [ 0.4 0.4 0.4 ]
 Shape "trianglemesh" "point3 P" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "integer indices" [ 0 1 2 0 2 3 ]'''
 
+# The middle tuft's absorption and roughness are textures (evaluated per
+# hit): bands along each strand (its u), and a constant.
+TUFT_TEXTURES = '''Texture "bands" "spectrum" "checkerboard" "float uscale" [ 6 ] "float vscale" [ 1 ]
+  "rgb tex1" [ 0.35 0.6 1.2 ] "rgb tex2" [ 1.6 0.9 0.3 ]
+Texture "roughness" "float" "constant" "float value" [ 0.2 ]'''
+
 TUFT_MATERIALS = [
     (-0.9, '"float eumelanin" [ 1.3 ]'),
-    (0.0, '"float eumelanin" [ 0.3 ] "float pheomelanin" [ 0.2 ] "float beta_m" [ 0.2 ]'),
+    (0.0, '"texture sigma_a" "bands" "texture beta_m" "roughness"'),
     (0.9, '"rgb reflectance" [ 0.8 0.25 0.1 ] "float alpha" [ 3 ]'),
 ]
 
@@ -58,6 +64,7 @@ def main():
     rng = random.Random(a.seed)
     if a.strands == 0:
         print(HEADER.format(what="Hair tufts", args="", eye_y=1.2, eye_z=-4, look_y=0.7))
+        print(TUFT_TEXTURES)
         for cx, material in TUFT_MATERIALS:
             print(f'Material "hair" {material}')
             for _ in range(70):

@@ -58,6 +58,7 @@ inline constexpr unsigned int STORE_ROUGHNESS = 2u;
 inline constexpr unsigned int STORE_CONDUCTOR_REFLECTANCE = 3u;
 inline constexpr unsigned int STORE_ASYMMETRY = 4u;
 inline constexpr unsigned int STORE_ALBEDO = 5u;
+inline constexpr unsigned int STORE_HAIR_ROUGHNESS = 6u;
 inline constexpr unsigned int ALPHA_NONE = 0u;
 inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
 inline constexpr unsigned int ALPHA_CUTOFF = 2u;
@@ -222,6 +223,10 @@ __device__ __forceinline__ float conductor_k(float r) {
 __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigned int how, unsigned short* coeffs) {
     if (how == STORE_ASYMMETRY) {
         coeffs[slot] = f32_to_f16(clampf(v.x, -1.0f, 1.0f));
+        return;
+    }
+    if (how == STORE_HAIR_ROUGHNESS) {
+        coeffs[slot] = f32_to_f16(clampf(v.x, 0.01f, 1.0f));
         return;
     }
     v = max0(v);

@@ -265,6 +265,7 @@ pub(crate) fn texture_constants() -> String {
         ("STORE_CONDUCTOR_REFLECTANCE", store::CONDUCTOR_REFLECTANCE),
         ("STORE_ASYMMETRY", store::ASYMMETRY),
         ("STORE_ALBEDO", store::ALBEDO),
+        ("STORE_HAIR_ROUGHNESS", store::HAIR_ROUGHNESS),
         ("ALPHA_NONE", alpha_mode::NONE),
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),

@@ -132,6 +132,9 @@ pub mod store {
     /// Three coefficients: the colour clamped to [0, 1] (a medium's
     /// single-scattering albedo, as pbrt-v4 clamps it).
     pub const ALBEDO: u32 = 5;
+    /// One coefficient: the first channel clamped to [0.01, 1] (a hair
+    /// fibre's roughness, as pbrt-v4 clamps it).
+    pub const HAIR_ROUGHNESS: u32 = 6;
 }
 
 /// One instruction of a texture program (32 bytes; the GPU reads the same bytes).
@@ -544,7 +547,7 @@ fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec3 {
 pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
     use crate::material_layout::{
         coated_conductor as cc, coated_diffuse as coated, conductor, dielectric, diffuse,
-        diffuse_transmission, principled,
+        diffuse_transmission, hair, principled,
     };
     use MaterialKind as K;
     use TexturedParam as P;
@@ -595,6 +598,11 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::Principled, P::Clearcoat) => to(&[principled::CLEARCOAT], store::FLOAT),
         (K::Principled, P::ClearcoatGloss) => to(&[principled::CLEARCOAT_GLOSS], store::FLOAT),
         (K::Principled, P::Transmission) => to(&[principled::TRANSMISSION], store::FLOAT),
+        (K::Hair, P::SigmaA) => to(&[hair::SIGMA_A], store::RGB),
+        (K::Hair, P::Eta) => to(&[hair::ETA], store::FLOAT),
+        (K::Hair, P::BetaM) => to(&[hair::BETA_M], store::HAIR_ROUGHNESS),
+        (K::Hair, P::BetaN) => to(&[hair::BETA_N], store::HAIR_ROUGHNESS),
+        (K::Hair, P::HairAlpha) => to(&[hair::ALPHA], store::FLOAT),
         _ => Vec::new(),
     }
 }
@@ -711,6 +719,10 @@ pub fn run_program(
 fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFFS]) {
     if how == store::ASYMMETRY {
         coeffs[slot] = f16::from_f32(v.x.clamp(-1.0, 1.0));
+        return;
+    }
+    if how == store::HAIR_ROUGHNESS {
+        coeffs[slot] = f16::from_f32(v.x.clamp(0.01, 1.0));
         return;
     }
     let v = v.max(Vec3::ZERO);

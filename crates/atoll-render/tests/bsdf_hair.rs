@@ -224,13 +224,64 @@ fn white_fibre_under_a_uniform_sky_is_invisible() {
     }
 }
 
+/// The hits of straight-down rays at `origins` on the scene of pbrt text
+/// `source`, traced on the CPU device.
+fn hits_from_above(source: &str, origins: &[[f32; 3]]) -> Vec<atoll_render::RayRecord> {
+    use atoll_render::stages::generate::camera_record;
+    use atoll_render::{CpuDevice, Device, FrameContext, Queue};
+    let scene = Arc::new(
+        atoll_scene::pbrt::load_str(source, "fibres.pbrt", std::path::Path::new(".")).unwrap().scene,
+    );
+    let frame = Arc::new(FrameContext::new(&scene, RenderOptions::from_scene(&scene)));
+    let mut cpu = CpuDevice::new();
+    cpu.prepare(&scene, &atoll_bvh::ScenePart::whole(&scene), &frame).unwrap();
+    let rays: Vec<_> = origins
+        .iter()
+        .map(|&origin| {
+            let mut r = camera_record(&frame, 0, 0);
+            r.origin = origin;
+            r.direction = [0.0, 0.0, -1.0];
+            r
+        })
+        .collect();
+    cpu.write_queue(Queue::Paths, &rays).unwrap();
+    cpu.trace_paths().unwrap();
+    cpu.read_queue(Queue::Paths).unwrap()
+}
+
+/// Textured hair parameters (`sigma_a`, `eta`, `beta_m`, `beta_n`,
+/// `alpha`) reach the hit's coefficients, the roughnesses clamped to
+/// [0.01, 1] as pbrt-v4 clamps them.
+#[test]
+fn textured_hair_parameters_reach_the_hit() {
+    use atoll_render::material_layout::hair;
+    let source = r#"
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+WorldBegin
+Texture "absorption" "spectrum" "constant" "rgb value" [ 0.5 1.5 2.5 ]
+Texture "index" "float" "constant" "float value" 1.7
+Texture "rough" "float" "constant" "float value" 3
+Texture "smooth" "float" "constant" "float value" 0.001
+Texture "tilt" "float" "constant" "float value" 4
+Material "hair" "texture sigma_a" "absorption" "texture eta" "index" "texture beta_m" "rough"
+  "texture beta_n" "smooth" "texture alpha" "tilt"
+Shape "curve" "string type" "cylinder" "point3 P" [ -1 0 0  -0.3 0 0  0.3 0 0  1 0 0 ] "float width" [ 0.5 ]
+"#;
+    let hits = hits_from_above(source, &[[0.3, 0.05, 5.0]]);
+    let h = &hits[0];
+    assert_eq!(h.material_kind(), atoll_render::record::MaterialKind::Hair);
+    assert!((h.coeff3(hair::SIGMA_A) - Vec3::new(0.5, 1.5, 2.5)).abs().max_element() < 2e-3);
+    let close = |slot: usize, want: f32| (h.coeff(slot) - want).abs() < 2e-3 * want.max(1.0);
+    assert!(close(hair::ETA, 1.7) && close(hair::ALPHA, 4.0), "{:?}", h.coeffs);
+    assert_eq!((h.coeff(hair::BETA_M), h.coeff(hair::BETA_N)), (1.0, half::f16::from_f32(0.01).to_f32()));
+}
+
 /// Hair hits carry the fibre's axis and offset: `-1 + 2v` on a ribbon, as
 /// pbrt reads it, and "from the normal" on a swept tube.
 #[test]
 fn hits_carry_the_fibres_axis_and_offset() {
     use atoll_render::material_layout::hair;
-    use atoll_render::stages::generate::camera_record;
-    use atoll_render::{CpuDevice, Device, FrameContext, Queue};
     let source = r#"
 LookAt 0 0 5  0 0 0  0 1 0
 Camera "perspective"
@@ -240,25 +291,8 @@ Shape "curve" "string type" "ribbon" "point3 P" [ -1 0 0  -0.3 0 0  0.3 0 0  1 0
   "normal N" [ 0 0 1  0 0 1 ] "float width" [ 0.5 ]
 Shape "curve" "string type" "cylinder" "point3 P" [ -1 1 0  -0.3 1 0  0.3 1 0  1 1 0 ] "float width" [ 0.5 ]
 "#;
-    let scene = Arc::new(
-        atoll_scene::pbrt::load_str(source, "fibres.pbrt", std::path::Path::new(".")).unwrap().scene,
-    );
-    let frame = Arc::new(FrameContext::new(&scene, RenderOptions::from_scene(&scene)));
-    let mut cpu = CpuDevice::new();
-    cpu.prepare(&scene, &atoll_bvh::ScenePart::whole(&scene), &frame).unwrap();
     // Straight down onto the ribbon at y = 0.1, and onto the tube.
-    let rays: Vec<_> = [[0.3, 0.1, 5.0], [0.3, 1.05, 5.0]]
-        .into_iter()
-        .map(|origin| {
-            let mut r = camera_record(&frame, 0, 0);
-            r.origin = origin;
-            r.direction = [0.0, 0.0, -1.0];
-            r
-        })
-        .collect();
-    cpu.write_queue(Queue::Paths, &rays).unwrap();
-    cpu.trace_paths().unwrap();
-    let hits = cpu.read_queue(Queue::Paths).unwrap();
+    let hits = hits_from_above(source, &[[0.3, 0.1, 5.0], [0.3, 1.05, 5.0]]);
     for h in &hits {
         assert_eq!(h.material_kind(), atoll_render::record::MaterialKind::Hair);
         let axis = h.coeff3(hair::TANGENT);

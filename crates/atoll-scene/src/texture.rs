@@ -538,7 +538,8 @@ pub enum TexturedParam {
     /// A `mix` material's probability of its second material (read as a
     /// float: the first channel).
     Amount,
-    /// Conductor's complex index of refraction (spectrum textures).
+    /// Conductor's complex index of refraction (spectrum textures); a hair
+    /// fibre's index (a float texture).
     Eta,
     K,
     /// Coated materials: the medium's thickness, albedo and asymmetry `g`.
@@ -558,6 +559,14 @@ pub enum TexturedParam {
     Clearcoat,
     ClearcoatGloss,
     Transmission,
+    /// A hair fibre's absorption coefficient.
+    SigmaA,
+    /// A hair fibre's longitudinal and azimuthal roughness (clamped to
+    /// [0.01, 1] where evaluated, as pbrt-v4 does).
+    BetaM,
+    BetaN,
+    /// A hair fibre's scale tilt (degrees).
+    HairAlpha,
 }
 
 impl TexturedParam {
@@ -587,6 +596,10 @@ impl TexturedParam {
             TexturedParam::Clearcoat => "clearcoat",
             TexturedParam::ClearcoatGloss => "clearcoatgloss",
             TexturedParam::Transmission => "spectrans",
+            TexturedParam::SigmaA => "sigma_a",
+            TexturedParam::BetaM => "beta_m",
+            TexturedParam::BetaN => "beta_n",
+            TexturedParam::HairAlpha => "alpha",
         }
     }
 }

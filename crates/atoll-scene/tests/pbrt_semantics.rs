@@ -390,7 +390,9 @@ fn coated_conductor() {
 
 /// pbrt-v4's `hair`: its defaults, and the absorption from `sigma_a`,
 /// `reflectance` (or `color`) or the melanin concentrations, in that order
-/// of precedence; roughnesses clamped to [0.01, 1]; textures refused.
+/// of precedence; roughnesses clamped to [0.01, 1]; textures bound per hit
+/// for `sigma_a`, `eta`, `beta_m`, `beta_n` and `alpha` (the material keeps
+/// the defaults), refused for the melanin concentrations.
 #[test]
 fn hair() {
     let world = format!(
@@ -401,7 +403,8 @@ fn hair() {
          Material \"hair\" \"rgb reflectance\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
          Material \"hair\" \"rgb color\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
          Material \"hair\" \"float eumelanin\" 0.3 \"float pheomelanin\" 2 \"rgb sigma_a\" [1 1 1]\n{t}\n\
-         Material \"hair\" \"float pheomelanin\" 2 \"texture beta_m\" \"t\" \"float beta_n\" 0.001\n{t}",
+         Material \"hair\" \"float pheomelanin\" 2 \"texture beta_m\" \"t\" \"float beta_n\" 0.001\n{t}\n\
+         Material \"hair\" \"texture eumelanin\" \"t\"\n{t}",
         t = tri(UNIT_TRI)
     );
     let loaded = load_world("", &world).unwrap();
@@ -431,10 +434,15 @@ fn hair() {
     let Material::Hair(red) = m[5] else { panic!("{:?}", m[5]) };
     assert_eq!(red.sigma_a, Rgb::new(0.187, 0.4, 1.05) * 2.0);
     assert_eq!((red.beta_m, red.beta_n), (0.3, 0.01), "a texture keeps the default; clamped to 0.01");
+    let textured = s.meshes[5].material;
+    let bound: Vec<_> =
+        s.textures.bindings.iter().filter(|b| b.material == textured).map(|b| b.param).collect();
+    assert_eq!(bound, vec![atoll_scene::TexturedParam::BetaM]);
+    assert_eq!(m[6], Material::Hair(default), "a textured concentration keeps its default");
     let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(warnings.len(), 2, "{warnings:?}");
     assert!(warnings[0].contains("\"sigma_a\" is used"), "{warnings:?}");
-    assert!(warnings[1].contains("texture \"t\" for \"beta_m\""), "{warnings:?}");
+    assert!(warnings[1].contains("texture \"t\" for \"eumelanin\""), "{warnings:?}");
 }
 
 #[test]

@@ -165,7 +165,7 @@ pub fn material(
         "thindielectric" => Material::ThinDielectric { eta: dielectric_eta(p, &what, loc, w)? },
         "coateddiffuse" => coated_diffuse(p, &what, "reflectance", (0.5, 0.0), loc, w, tex)?,
         "coatedconductor" => coated_conductor(p, &what, loc, w, tex)?,
-        "hair" => hair(p, &what, loc, w)?,
+        "hair" => hair(p, &what, loc, w, tex)?,
         _ => match super::v3::material(ty, p, loc, w, tex)? {
             Some(m) => m,
             None => {
@@ -287,10 +287,30 @@ fn coated_conductor(
 /// from `sigma_a`, else `reflectance` (pbrt-v3's `color`), else the melanin
 /// concentrations `eumelanin` and `pheomelanin`, else eumelanin 1.3
 /// (brown); `eta` 1.55, `beta_m` and `beta_n` 0.3 (clamped to [0.01, 1]),
-/// `alpha` 2 degrees. Every parameter must be a constant: a texture is
-/// warned about and the default used.
-fn hair(p: &ParamList, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result<Material, SceneError> {
+/// `alpha` 2 degrees. `sigma_a`, `eta`, `beta_m`, `beta_n` and `alpha` may
+/// be textures (evaluated per hit); a textured `reflectance` or melanin
+/// concentration is warned about and its default used.
+fn hair(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
     let default = HairParams::pbrt_default();
+    // A textured parameter keeps its default here, bound per hit.
+    let mut float = |name: &str, param: TexturedParam, fallback: f32, w: &mut WarningSink| {
+        Ok::<_, SceneError>(
+            tex.float(p, name, what, loc, w)?
+                .map(|input| tex.value_or_bind(input, param, Rgb::splat(fallback)).x),
+        )
+    };
+    let eta = float("eta", TexturedParam::Eta, default.eta, w)?.unwrap_or(default.eta);
+    let beta_m =
+        float("beta_m", TexturedParam::BetaM, default.beta_m, w)?.unwrap_or(default.beta_m).clamp(0.01, 1.0);
+    let beta_n =
+        float("beta_n", TexturedParam::BetaN, default.beta_n, w)?.unwrap_or(default.beta_n).clamp(0.01, 1.0);
+    let alpha = float("alpha", TexturedParam::HairAlpha, default.alpha, w)?.unwrap_or(default.alpha);
     let constant = |name: &str, fallback: f32, w: &mut WarningSink| -> Result<Option<f32>, SceneError> {
         Ok(match p.float_or_texture(name)? {
             Some(FloatOrTexture::Value(v)) => Some(v),
@@ -304,16 +324,15 @@ fn hair(p: &ParamList, what: &str, loc: &FileLoc, w: &mut WarningSink) -> Result
             None => None,
         })
     };
-    let eta = constant("eta", default.eta, w)?.unwrap_or(default.eta);
-    let beta_m = constant("beta_m", default.beta_m, w)?.unwrap_or(default.beta_m).clamp(0.01, 1.0);
-    let beta_n = constant("beta_n", default.beta_n, w)?.unwrap_or(default.beta_n).clamp(0.01, 1.0);
-    let alpha = constant("alpha", default.alpha, w)?.unwrap_or(default.alpha);
     let eumelanin = constant("eumelanin", 1.3, w)?;
     let pheomelanin = constant("pheomelanin", 0.0, w)?;
+    // Bound per hit; the default stands for it in the material.
+    let sigma_a = tex
+        .spectrum(p, "sigma_a", what, loc, w)?
+        .map(|input| tex.value_or_bind(input, TexturedParam::SigmaA, default.sigma_a));
     let colour = |name: &str, w: &mut WarningSink| -> Result<Option<Rgb>, SceneError> {
         Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, what, loc, w)))
     };
-    let sigma_a = colour("sigma_a", w)?;
     let reflectance = match colour("reflectance", w)? {
         Some(c) => Some(c),
         None => colour("color", w)?,
