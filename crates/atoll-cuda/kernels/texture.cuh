@@ -59,6 +59,7 @@ inline constexpr unsigned int STORE_CONDUCTOR_REFLECTANCE = 3u;
 inline constexpr unsigned int STORE_ASYMMETRY = 4u;
 inline constexpr unsigned int STORE_ALBEDO = 5u;
 inline constexpr unsigned int STORE_HAIR_ROUGHNESS = 6u;
+inline constexpr unsigned int STORE_HAIR_REFLECTANCE = 7u;
 inline constexpr unsigned int ALPHA_NONE = 0u;
 inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
 inline constexpr unsigned int ALPHA_CUTOFF = 2u;
@@ -219,6 +220,15 @@ __device__ __forceinline__ float conductor_k(float r) {
     return 2.0f * sqrtf(r) / sqrtf(1.0f - r);
 }
 
+/// `HairParams::sigma_a_from_reflectance` for one channel: pbrt-v4's fit
+/// of the absorption that gives reflectance `c` at azimuthal roughness `b`.
+__device__ __forceinline__ float hair_sigma_a_from_reflectance(float c, float b) {
+    const float b2 = b * b, b3 = b2 * b, b4 = b2 * b2, b5 = b4 * b;
+    const float fit = 5.969f - 0.215f * b + 2.532f * b2 - 10.73f * b3 + 5.574f * b4 + 0.245f * b5;
+    const float l = logf(clampf(c, 1e-6f, 1.0f)) / fit;
+    return l * l;
+}
+
 /// `texture::store_value` into f16 coefficients.
 __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigned int how, unsigned short* coeffs) {
     if (how == STORE_ASYMMETRY) {
@@ -239,6 +249,13 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
         coeffs[slot] = f32_to_f16(v.x);
     } else if (how == STORE_ROUGHNESS) {
         coeffs[slot] = f32_to_f16(sqrtf(v.x));
+    } else if (how == STORE_HAIR_REFLECTANCE) {
+        // `slot` is the fibre's sigma_a; beta_n lies where its layout puts it.
+        const float b = f16_to_f32(coeffs[slot + (COEFF_HAIR_BETA_N - COEFF_HAIR_SIGMA_A)]);
+        const float sigma[3] = {hair_sigma_a_from_reflectance(fminf(v.x, 1.0f), b),
+                                hair_sigma_a_from_reflectance(fminf(v.y, 1.0f), b),
+                                hair_sigma_a_from_reflectance(fminf(v.z, 1.0f), b)};
+        for (int i = 0; i < 3; ++i) coeffs[slot + i] = f32_to_f16(sigma[i]);
     } else if (how == STORE_CONDUCTOR_REFLECTANCE) {
         const unsigned short one = f32_to_f16(1.0f);
         coeffs[slot] = coeffs[slot + 1] = coeffs[slot + 2] = one;

@@ -266,6 +266,7 @@ pub(crate) fn texture_constants() -> String {
         ("STORE_ASYMMETRY", store::ASYMMETRY),
         ("STORE_ALBEDO", store::ALBEDO),
         ("STORE_HAIR_ROUGHNESS", store::HAIR_ROUGHNESS),
+        ("STORE_HAIR_REFLECTANCE", store::HAIR_REFLECTANCE),
         ("ALPHA_NONE", alpha_mode::NONE),
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),

@@ -28,7 +28,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use half::f16;
 
 use crate::bump::kind as bump;
-use crate::material_layout::conductor;
+use crate::material_layout::{conductor, hair};
 use crate::noise;
 use crate::record::{MaterialKind, MATERIAL_COEFFS};
 use crate::rng::pcg_hash;
@@ -135,6 +135,10 @@ pub mod store {
     /// One coefficient: the first channel clamped to [0.01, 1] (a hair
     /// fibre's roughness, as pbrt-v4 clamps it).
     pub const HAIR_ROUGHNESS: u32 = 6;
+    /// Three coefficients (the slot is a hair fibre's `sigma_a`): the
+    /// absorption that gives the colour, clamped to [0, 1], as a
+    /// reflectance at the fibre's `beta_n` (already in its slot).
+    pub const HAIR_REFLECTANCE: u32 = 7;
 }
 
 /// One instruction of a texture program (32 bytes; the GPU reads the same bytes).
@@ -547,7 +551,7 @@ fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec3 {
 pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
     use crate::material_layout::{
         coated_conductor as cc, coated_diffuse as coated, conductor, dielectric, diffuse,
-        diffuse_transmission, hair, principled,
+        diffuse_transmission, principled,
     };
     use MaterialKind as K;
     use TexturedParam as P;
@@ -599,6 +603,7 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::Principled, P::ClearcoatGloss) => to(&[principled::CLEARCOAT_GLOSS], store::FLOAT),
         (K::Principled, P::Transmission) => to(&[principled::TRANSMISSION], store::FLOAT),
         (K::Hair, P::SigmaA) => to(&[hair::SIGMA_A], store::RGB),
+        (K::Hair, P::Reflectance) => to(&[hair::SIGMA_A], store::HAIR_REFLECTANCE),
         (K::Hair, P::Eta) => to(&[hair::ETA], store::FLOAT),
         (K::Hair, P::BetaM) => to(&[hair::BETA_M], store::HAIR_ROUGHNESS),
         (K::Hair, P::BetaN) => to(&[hair::BETA_N], store::HAIR_ROUGHNESS),
@@ -735,6 +740,14 @@ fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFF
         }
         store::FLOAT => coeffs[slot] = f16::from_f32(v.x),
         store::ROUGHNESS => coeffs[slot] = f16::from_f32(v.x.sqrt()),
+        store::HAIR_REFLECTANCE => {
+            // `slot` is the fibre's sigma_a; beta_n lies where its layout puts it.
+            let beta_n = coeffs[slot + hair::BETA_N - hair::SIGMA_A].to_f32();
+            let sigma_a = atoll_scene::HairParams::sigma_a_from_reflectance(v.min(Vec3::ONE), beta_n);
+            for (i, c) in sigma_a.to_array().into_iter().enumerate() {
+                coeffs[slot + i] = f16::from_f32(c);
+            }
+        }
         store::CONDUCTOR_REFLECTANCE => {
             // `slot` is the conductor's eta; k lies where its layout puts it.
             let k_slot = slot + conductor::K - conductor::ETA;

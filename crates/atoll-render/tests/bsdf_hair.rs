@@ -251,7 +251,8 @@ fn hits_from_above(source: &str, origins: &[[f32; 3]]) -> Vec<atoll_render::RayR
 
 /// Textured hair parameters (`sigma_a`, `eta`, `beta_m`, `beta_n`,
 /// `alpha`) reach the hit's coefficients, the roughnesses clamped to
-/// [0.01, 1] as pbrt-v4 clamps them.
+/// [0.01, 1] as pbrt-v4 clamps them; a textured `reflectance` becomes the
+/// absorption at the hit's (textured) `beta_n`.
 #[test]
 fn textured_hair_parameters_reach_the_hit() {
     use atoll_render::material_layout::hair;
@@ -275,6 +276,19 @@ Shape "curve" "string type" "cylinder" "point3 P" [ -1 0 0  -0.3 0 0  0.3 0 0  1
     let close = |slot: usize, want: f32| (h.coeff(slot) - want).abs() < 2e-3 * want.max(1.0);
     assert!(close(hair::ETA, 1.7) && close(hair::ALPHA, 4.0), "{:?}", h.coeffs);
     assert_eq!((h.coeff(hair::BETA_M), h.coeff(hair::BETA_N)), (1.0, half::f16::from_f32(0.01).to_f32()));
+
+    // A textured reflectance becomes the absorption at the hit's beta_n.
+    let source = source
+        .replace("\"texture sigma_a\" \"absorption\"", "\"texture reflectance\" \"colour\"")
+        .replace("\"texture beta_n\" \"smooth\"", "\"texture beta_n\" \"half\"");
+    let source = source.replace(
+        "Material \"hair\"",
+        "Texture \"colour\" \"spectrum\" \"constant\" \"rgb value\" [ 0.6 0.3 0.1 ]\n\
+         Texture \"half\" \"float\" \"constant\" \"float value\" 0.5\nMaterial \"hair\"",
+    );
+    let h = &hits_from_above(&source, &[[0.3, 0.05, 5.0]])[0];
+    let want = HairParams::sigma_a_from_reflectance(Rgb::new(0.6, 0.3, 0.1), 0.5);
+    assert!((h.coeff3(hair::SIGMA_A) - want).abs().max_element() < 2e-3 * want.max_element(), "{want}");
 }
 
 /// Hair hits carry the fibre's axis and offset: `-1 + 2v` on a ribbon, as

@@ -391,8 +391,9 @@ fn coated_conductor() {
 /// pbrt-v4's `hair`: its defaults, and the absorption from `sigma_a`,
 /// `reflectance` (or `color`) or the melanin concentrations, in that order
 /// of precedence; roughnesses clamped to [0.01, 1]; textures bound per hit
-/// for `sigma_a`, `eta`, `beta_m`, `beta_n` and `alpha` (the material keeps
-/// the defaults), refused for the melanin concentrations.
+/// for `sigma_a`, `reflectance`, `eta`, `beta_m`, `beta_n` and `alpha`
+/// (the material keeps the defaults), refused for the melanin
+/// concentrations.
 #[test]
 fn hair() {
     let world = format!(
@@ -404,7 +405,8 @@ fn hair() {
          Material \"hair\" \"rgb color\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
          Material \"hair\" \"float eumelanin\" 0.3 \"float pheomelanin\" 2 \"rgb sigma_a\" [1 1 1]\n{t}\n\
          Material \"hair\" \"float pheomelanin\" 2 \"texture beta_m\" \"t\" \"float beta_n\" 0.001\n{t}\n\
-         Material \"hair\" \"texture eumelanin\" \"t\"\n{t}",
+         Material \"hair\" \"texture eumelanin\" \"t\"\n{t}\n\
+         Material \"hair\" \"rgb reflectance\" [0.3 0.2 0.1] \"texture beta_n\" \"t\"\n{t}",
         t = tri(UNIT_TRI)
     );
     let loaded = load_world("", &world).unwrap();
@@ -439,6 +441,11 @@ fn hair() {
         s.textures.bindings.iter().filter(|b| b.material == textured).map(|b| b.param).collect();
     assert_eq!(bound, vec![atoll_scene::TexturedParam::BetaM]);
     assert_eq!(m[6], Material::Hair(default), "a textured concentration keeps its default");
+    // A reflectance turns into an absorption per hit, after the textured beta_n.
+    let per_hit = s.meshes[7].material;
+    let bound: Vec<_> =
+        s.textures.bindings.iter().filter(|b| b.material == per_hit).map(|b| b.param).collect();
+    assert_eq!(bound, vec![atoll_scene::TexturedParam::BetaN, atoll_scene::TexturedParam::Reflectance]);
     let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(warnings.len(), 2, "{warnings:?}");
     assert!(warnings[0].contains("\"sigma_a\" is used"), "{warnings:?}");

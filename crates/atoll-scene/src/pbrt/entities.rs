@@ -287,8 +287,9 @@ fn coated_conductor(
 /// from `sigma_a`, else `reflectance` (pbrt-v3's `color`), else the melanin
 /// concentrations `eumelanin` and `pheomelanin`, else eumelanin 1.3
 /// (brown); `eta` 1.55, `beta_m` and `beta_n` 0.3 (clamped to [0.01, 1]),
-/// `alpha` 2 degrees. `sigma_a`, `eta`, `beta_m`, `beta_n` and `alpha` may
-/// be textures (evaluated per hit); a textured `reflectance` or melanin
+/// `alpha` 2 degrees. `sigma_a`, `reflectance`, `eta`, `beta_m`, `beta_n`
+/// and `alpha` may be textures (evaluated per hit; a reflectance becomes
+/// an absorption with the hit's `beta_n`); a textured melanin
 /// concentration is warned about and its default used.
 fn hair(
     p: &ParamList,
@@ -300,17 +301,19 @@ fn hair(
     let default = HairParams::pbrt_default();
     // A textured parameter keeps its default here, bound per hit.
     let mut float = |name: &str, param: TexturedParam, fallback: f32, w: &mut WarningSink| {
-        Ok::<_, SceneError>(
-            tex.float(p, name, what, loc, w)?
-                .map(|input| tex.value_or_bind(input, param, Rgb::splat(fallback)).x),
-        )
+        let input = tex.float(p, name, what, loc, w)?;
+        let textured = matches!(input, Some(TexInput::Texture(_)));
+        let value = input.map(|input| tex.value_or_bind(input, param, Rgb::splat(fallback)).x);
+        Ok::<_, SceneError>((value, textured))
     };
-    let eta = float("eta", TexturedParam::Eta, default.eta, w)?.unwrap_or(default.eta);
-    let beta_m =
-        float("beta_m", TexturedParam::BetaM, default.beta_m, w)?.unwrap_or(default.beta_m).clamp(0.01, 1.0);
-    let beta_n =
-        float("beta_n", TexturedParam::BetaN, default.beta_n, w)?.unwrap_or(default.beta_n).clamp(0.01, 1.0);
-    let alpha = float("alpha", TexturedParam::HairAlpha, default.alpha, w)?.unwrap_or(default.alpha);
+    let eta = float("eta", TexturedParam::Eta, default.eta, w)?.0.unwrap_or(default.eta);
+    let beta_m = float("beta_m", TexturedParam::BetaM, default.beta_m, w)?
+        .0
+        .unwrap_or(default.beta_m)
+        .clamp(0.01, 1.0);
+    let (beta_n, beta_n_textured) = float("beta_n", TexturedParam::BetaN, default.beta_n, w)?;
+    let beta_n = beta_n.unwrap_or(default.beta_n).clamp(0.01, 1.0);
+    let alpha = float("alpha", TexturedParam::HairAlpha, default.alpha, w)?.0.unwrap_or(default.alpha);
     let constant = |name: &str, fallback: f32, w: &mut WarningSink| -> Result<Option<f32>, SceneError> {
         Ok(match p.float_or_texture(name)? {
             Some(FloatOrTexture::Value(v)) => Some(v),
@@ -326,16 +329,10 @@ fn hair(
     };
     let eumelanin = constant("eumelanin", 1.3, w)?;
     let pheomelanin = constant("pheomelanin", 0.0, w)?;
-    // Bound per hit; the default stands for it in the material.
-    let sigma_a = tex
-        .spectrum(p, "sigma_a", what, loc, w)?
-        .map(|input| tex.value_or_bind(input, TexturedParam::SigmaA, default.sigma_a));
-    let colour = |name: &str, w: &mut WarningSink| -> Result<Option<Rgb>, SceneError> {
-        Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, what, loc, w)))
-    };
-    let reflectance = match colour("reflectance", w)? {
+    let sigma_a = tex.spectrum(p, "sigma_a", what, loc, w)?;
+    let reflectance = match tex.spectrum(p, "reflectance", what, loc, w)? {
         Some(c) => Some(c),
-        None => colour("color", w)?,
+        None => tex.spectrum(p, "color", what, loc, w)?,
     };
     let melanin = eumelanin.is_some() || pheomelanin.is_some();
     let given = [sigma_a.is_some(), reflectance.is_some(), melanin];
@@ -344,8 +341,17 @@ fn hair(
         w.warn(loc, format!("{what}: more than one of \"sigma_a\", \"reflectance\" and the melanin concentrations; {used} is used, as in pbrt-v4"));
     }
     let sigma_a = match (sigma_a, reflectance) {
-        (Some(s), _) => s,
-        (None, Some(c)) => HairParams::sigma_a_from_reflectance(c, beta_n),
+        // Bound per hit where textured; the default stands for it here.
+        (Some(s), _) => tex.value_or_bind(s, TexturedParam::SigmaA, default.sigma_a),
+        (None, Some(TexInput::Value(c))) if !beta_n_textured => {
+            HairParams::sigma_a_from_reflectance(c, beta_n)
+        }
+        // Turned into an absorption per hit, with the hit's `beta_n` (even
+        // a constant reflectance, where `beta_n` is a texture).
+        (None, Some(c)) => {
+            tex.bind_always(c, TexturedParam::Reflectance);
+            default.sigma_a
+        }
         (None, None) if melanin => {
             HairParams::sigma_a_from_concentration(eumelanin.unwrap_or(0.0), pheomelanin.unwrap_or(0.0))
         }

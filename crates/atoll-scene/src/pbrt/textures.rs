@@ -550,6 +550,17 @@ impl<'a> TexCtx<'a> {
         self.named.optional_input(p, name, TexKind::Float, what, loc, w)
     }
 
+    /// Binds `param` to `input` per hit even where it is a constant (which
+    /// becomes a constant texture): for a parameter derived per hit from
+    /// others that are textures.
+    pub fn bind_always(&mut self, input: TexInput, param: TexturedParam) {
+        let texture = match input {
+            TexInput::Value(v) => self.store.add(crate::Texture::Constant(v)),
+            TexInput::Texture(t) => t,
+        };
+        self.bindings.push((param, texture, false));
+    }
+
     /// The material's constant for `input`: the value itself, or for a
     /// texture `default` (what the material keeps) with a binding of `param`.
     pub fn value_or_bind(&mut self, input: TexInput, param: TexturedParam, default: Rgb) -> Rgb {
