@@ -25,6 +25,7 @@ pub mod bench;
 pub mod build;
 pub mod bvh2;
 pub mod bvh4;
+pub mod curve;
 pub mod cwbvh;
 pub mod layout;
 pub mod memory;

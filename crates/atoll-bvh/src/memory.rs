@@ -89,10 +89,12 @@ impl ByteModel {
     }
 }
 
-/// Bytes of one mesh's vertex arrays (positions, normals, uvs) as stored.
+/// Bytes of one mesh's vertex arrays (positions, normals, uvs) as
+/// stored, with its curve pieces.
 fn vertex_bytes(scene: &Scene, mesh: MeshId) -> u64 {
     let m = &scene.meshes[mesh as usize];
     (m.positions.len() * 12 + m.normals.len() * 12 + m.uvs.len() * 8) as u64
+        + m.curves.as_ref().map_or(0, |c| c.bytes())
 }
 
 fn counts(scene: &Scene, part: &ScenePart) -> SceneSizes {

@@ -4,10 +4,11 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use atoll_scene::{MeshId, ObjectId, Scene};
+use atoll_scene::{CurveKind, CurvePiece, MeshId, ObjectId, Scene};
 use glam::{Affine3A, Vec3A};
 use rayon::prelude::*;
 
+use crate::curve::intersect_curve;
 use crate::{
     Aabb, BuildOptions, Bvh2, Bvh4Cpu, BvhLayout, BvhStats, Hit, Ray, Ray4, TraversalRay, Tri4, TriAccel,
 };
@@ -159,6 +160,9 @@ struct Blas<L> {
     /// Some of its meshes have alpha masks: candidate hits go through the
     /// [`HitFilter`] (the others take the unfiltered fast path).
     filtered: bool,
+    /// Per primitive slot, the curve piece it holds (its [`Tri4`] lane is
+    /// then degenerate and never hits); empty where the BLAS has no curves.
+    curves: Vec<Option<(CurveKind, CurvePiece)>>,
     stats: BvhStats,
 }
 
@@ -185,6 +189,13 @@ impl<L: BvhLayout> Blas<L> {
             .par_iter()
             .map(|&i| if i == u32::MAX { padding } else { prims[i as usize] })
             .collect();
+        let curve_of = |p: &PrimId| {
+            let curves = scene.meshes.get(p.mesh as usize)?.curves.as_ref()?;
+            Some((curves.kind, curves.pieces[p.triangle as usize]))
+        };
+        let has_curves = ranges.iter().any(|r| scene.meshes[r.mesh as usize].curves.is_some());
+        let curves: Vec<Option<(CurveKind, CurvePiece)>> =
+            if has_curves { prims.par_iter().map(curve_of).collect() } else { Vec::new() };
         let tris: Vec<Tri4> = prims
             .par_chunks(Tri4::LANES)
             .map(|block| {
@@ -192,17 +203,22 @@ impl<L: BvhLayout> Blas<L> {
                 let lanes = block.iter().take_while(|p| p.mesh != u32::MAX).count();
                 let mut tris = [TriAccel::default(); Tri4::LANES];
                 for (tri, p) in tris.iter_mut().zip(&block[..lanes]) {
-                    *tri = TriAccel::new(corners(p));
+                    // A curve's lane stays degenerate: its piece is tested instead.
+                    if !has_curves || curve_of(p).is_none() {
+                        *tri = TriAccel::new(corners(p));
+                    }
                 }
                 Tri4::new(&tris[..lanes])
             })
             .collect();
         let bvh = L::from_bvh2(bvh2);
         let mut stats = bvh.stats(&BuildOptions::METRIC);
-        stats.bytes += std::mem::size_of_val(&tris[..]) + std::mem::size_of_val(&prims[..]);
+        stats.bytes += std::mem::size_of_val(&tris[..])
+            + std::mem::size_of_val(&prims[..])
+            + std::mem::size_of_val(&curves[..]);
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
         let filtered = ranges.iter().any(|r| scene.filters_hits(r.mesh));
-        Some(Blas { bvh, tris, prims, filtered, stats })
+        Some(Blas { bvh, tris, prims, filtered, curves, stats })
     }
 
     /// Triangles stored (padding excluded).
@@ -416,14 +432,29 @@ impl<L: BvhLayout> SceneBvh<L> {
             };
             let ray4 = Ray4::new(ray.origin, ray.dir);
             let lanes = Tri4::LANES as u32;
-            if blas.filtered {
-                // Alpha-masked meshes: every candidate lane goes through the
-                // filter, the nearest kept one wins. A traversal of its own,
-                // so the unfiltered leaf loop below stays as lean as before.
+            if blas.filtered || !blas.curves.is_empty() {
+                // Alpha-masked meshes and curves: every candidate lane goes
+                // through the filter, curve lanes through the curve test,
+                // and the nearest kept hit wins. A traversal of its own, so
+                // the plain leaf loop below stays as lean as before.
                 return blas.bvh.traverse_visiting::<ANY>(&ray, t_max, node, |first, count, t_max| {
                     let mut hit = false;
                     for block in first / lanes..(first + count).div_ceil(lanes) {
                         visits.triangles(b, block);
+                        for prim in block * lanes..(block + 1) * lanes {
+                            let Some(Some((kind, piece))) = blas.curves.get(prim as usize) else { continue };
+                            let Some((t, u, v)) =
+                                intersect_curve::<ANY>(*kind, piece, ray.origin, ray.dir, *t_max)
+                            else {
+                                continue;
+                            };
+                            best = Some((t, leaf, prim, u, v));
+                            hit = true;
+                            if ANY {
+                                return true;
+                            }
+                            *t_max = t;
+                        }
                         let (mut mask, t, u, v) = blas.tris[block as usize].test(&ray4, *t_max);
                         while mask != 0 {
                             let lane = mask.trailing_zeros() as usize;

@@ -14,6 +14,7 @@
 
 #include "texture.cuh"
 #include "media.cuh"
+#include "curve.cuh"
 
 /// Box far distances are scaled by 1 + 2 gamma(3) (pbrt's robust slab test,
 /// Ize 2013) so that rounding never culls a box the ray touches.
@@ -254,6 +255,9 @@ struct SceneBvhView {
     /// unless some mesh has alpha (then candidate hits run `alpha_keeps`).
     const FrameParams* alpha_params;
     const SceneView* alpha_scene;
+    /// The scene's curve pieces (records marked CURVE_RECORD_MARKER index
+    /// them); null without curves.
+    const GpuCurve* curves;
 };
 
 /// The result of one traversal: `tri` is the leaf-order triangle position

@@ -16,6 +16,18 @@ struct GpuMesh {
     unsigned int first_scene_triangle;
 };
 
+/// Mirror of `layout::GpuCurve` (96 bytes): a curve piece's control
+/// points with the segment's widths and the piece's parameter range in
+/// their w, then the ribbon normals, the first with the kind.
+struct __align__(16) GpuCurve {
+    float p0_w0[4];
+    float p1_u0[4];
+    float p2_u1[4];
+    float p3_w1[4];
+    float n0_kind[4];
+    float n1[4];
+};
+
 /// Mirror of `layout::GpuObject` (16 bytes).
 struct GpuObject {
     unsigned int first_triangle;
@@ -93,6 +105,12 @@ inline constexpr unsigned int MESH_EMISSIVE = 4u;
 inline constexpr unsigned int MESH_HAS_UVS = 8u;
 inline constexpr unsigned int MESH_SWEPT_TUBE = 16u;
 inline constexpr unsigned int MESH_MEDIA_ONLY = 32u;
+inline constexpr unsigned int MESH_CURVES = 64u;
+inline constexpr unsigned int CURVE_FLAT = 0u;
+inline constexpr unsigned int CURVE_CYLINDER = 1u;
+inline constexpr unsigned int CURVE_RIBBON = 2u;
+inline constexpr unsigned int CURVE_RECORD_MARKER = 2139144429u;
+inline constexpr unsigned int NO_CURVE = 4294967295u;
 inline constexpr unsigned int MESH_MEDIA_SHIFT = 8u;
 inline constexpr unsigned int IMAGE_RGBA8 = 0u;
 inline constexpr unsigned int IMAGE_RGBA8_SRGB = 1u;
@@ -114,6 +132,15 @@ static_assert(__builtin_offsetof(GpuObject, first_triangle) == 0 && sizeof(GpuOb
 static_assert(__builtin_offsetof(GpuObject, triangle_count) == 4 && sizeof(GpuObject::triangle_count) == 4, "GpuObject.triangle_count: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuObject, first_mesh) == 8 && sizeof(GpuObject::first_mesh) == 4, "GpuObject.first_mesh: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuObject, mesh_count) == 12 && sizeof(GpuObject::mesh_count) == 4, "GpuObject.mesh_count: offset or size differs from Rust");
+#endif
+static_assert(sizeof(GpuCurve) == 96, "GpuCurve: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuCurve, p0_w0) == 0 && sizeof(GpuCurve::p0_w0) == 16, "GpuCurve.p0_w0: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuCurve, p1_u0) == 16 && sizeof(GpuCurve::p1_u0) == 16, "GpuCurve.p1_u0: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuCurve, p2_u1) == 32 && sizeof(GpuCurve::p2_u1) == 16, "GpuCurve.p2_u1: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuCurve, p3_w1) == 48 && sizeof(GpuCurve::p3_w1) == 16, "GpuCurve.p3_w1: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuCurve, n0_kind) == 64 && sizeof(GpuCurve::n0_kind) == 16, "GpuCurve.n0_kind: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuCurve, n1) == 80 && sizeof(GpuCurve::n1) == 16, "GpuCurve.n1: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuInstance) == 144, "GpuInstance: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -409,17 +409,27 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
     lbvh_emit_triangles(unsigned int P, const uint2* child, const unsigned int* leaf_size,
                         const unsigned int* tri_offset, const unsigned int* values, const unsigned int* seg_start,
                         const unsigned int* seg_first_tri, unsigned int segments, const float* vertices,
-                        const unsigned int* triangles, int test, TriRecord* out_tris, unsigned int* out_ids) {
+                        const unsigned int* triangles, const unsigned int* curve_of, int test, TriRecord* out_tris,
+                        unsigned int* out_ids) {
     const unsigned long long k = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
     if (k >= 2ull * P) return;
     for_leaf_primitives(k, P, child, leaf_size, tri_offset, [&](unsigned int j, unsigned int position) {
         const unsigned int p = values[j];
         const unsigned int t = blas_triangle(p, segment_of(p, seg_start, segments), seg_start, seg_first_tri);
+        out_ids[position] = t;
+        // A curve piece's proxy (bvh/layout.rs `curve_record`).
+        const unsigned int curve = curve_of ? curve_of[t] : NO_CURVE;
+        if (curve != NO_CURVE) {
+            TriRecord r;
+            r.a = make_float4(__uint_as_float(curve), 0.0f, 0.0f, __uint_as_float(CURVE_RECORD_MARKER));
+            r.b = r.c = make_float4(0.0f, 0.0f, 0.0f, 0.0f);
+            out_tris[position] = r;
+            return;
+        }
         const float3 a = load_vertex(vertices, triangles[3ull * t]);
         const float3 b = load_vertex(vertices, triangles[3ull * t + 1]);
         const float3 c = load_vertex(vertices, triangles[3ull * t + 2]);
         out_tris[position] = make_tri_record(a, b, c, test);
-        out_ids[position] = t;
     });
 }
 

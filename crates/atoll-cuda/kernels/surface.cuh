@@ -13,6 +13,7 @@
 #include "texture.cuh"
 #include "bump.cuh"
 #include "spawn.cuh"
+#include "curve.cuh"
 
 // Textured material parameters and emission textures at hits: compiled in
 // unless the trace module is specialised for a frame without textures
@@ -20,6 +21,14 @@
 // calls cost the closest-hit kernels many registers.
 #ifndef ATOLL_WITH_TEXTURES
 #define ATOLL_WITH_TEXTURES 1
+#endif
+
+// Hits on curve pieces: compiled out of trace modules for frames without
+// curves (`-DATOLL_TRACE_CURVES=0`), in everywhere else.
+#ifdef ATOLL_TRACE_CURVES
+#define ATOLL_WITH_CURVES ATOLL_TRACE_CURVES
+#else
+#define ATOLL_WITH_CURVES 1
 #endif
 
 /// Coefficient `slot` of a material's two 16-byte words, as a float.
@@ -81,27 +90,55 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const float3 p0 = load3(s.vertices + 3ull * i0);
     const float3 p1 = load3(s.vertices + 3ull * i1);
     const float3 p2 = load3(s.vertices + 3ull * i2);
-    const float3 p_obj = p0 * b0 + p1 * b1 + p2 * b2;
-    const float3 position = affine_point(instance.object_to_world, p_obj);
-    const float3 position_error =
-        transformed_error(instance.object_to_world, p_obj,
-                          barycentric_magnitude(p0, p1, p2, make_float3(b0, b1, b2)) * GAMMA_7);
-    // TriangleMesh::geometric_normal: pbrt's orientation rule.
-    float3 n_obj = cross3(p0 - p2, p1 - p2);
-    if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
-    float3 ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
-    float3 ns = ng;
-    if (mesh.flags & MESH_HAS_NORMALS) {
-        count_access(s.normals + 3ull * i0);
-        count_access(s.normals + 3ull * i1);
-        count_access(s.normals + 3ull * i2);
-        const float3 n = load3(s.normals + 3ull * i0) * b0 + load3(s.normals + 3ull * i1) * b1 +
-                         load3(s.normals + 3ull * i2) * b2;
-        const float3 shading = normalize_or_zero3(mat3_mul(instance.normal_to_world, n));
-        // pbrt: interpolated normals are authoritative for orientation.
-        if (!is_zero3(shading) && dot3(ng, shading) < 0.0f) ng = -ng;
-        ns = is_zero3(shading) ? ng : shading;
+    float3 position, position_error, ng, ns;
+    // A curve piece's surface (the CPU's `curve_surface`): the world
+    // partial derivatives here, the hit's (u, v) its uv.
+    const bool curve = ATOLL_WITH_CURVES && (mesh.flags & MESH_CURVES);
+    float3 curve_dpdu = zero3(), curve_dpdv = zero3();
+    if (curve) {
+        const unsigned int c = s.curve_of[hit.triangle];
+        count_access(s.curve_of + hit.triangle);
+        count_access(s.curves + c);
+        const float3 dir = make_float3(record->direction[0], record->direction[1], record->direction[2]);
+        const float3 origin = make_float3(record->origin[0], record->origin[1], record->origin[2]);
+        const float3 d_obj = affine_vector(instance.world_to_object, dir);
+        const float3 o_obj = affine_point(instance.world_to_object, origin);
+        float3 dpdu, dpdv, n_obj;
+        const float width = curve_surface(load_curve(s.curves, c), b1, b2, d_obj, &dpdu, &dpdv, &n_obj);
+        const float3 p_obj = o_obj + d_obj * record->t_max;
+        position = affine_point(instance.object_to_world, p_obj);
+        position_error = transformed_error(instance.object_to_world, p_obj, make_float3(width, width, width));
+        if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
+        ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
+        ns = ng;
+        curve_dpdu = affine_vector(instance.object_to_world, dpdu);
+        curve_dpdv = affine_vector(instance.object_to_world, dpdv);
+    } else {
+        const float3 p_obj = p0 * b0 + p1 * b1 + p2 * b2;
+        position = affine_point(instance.object_to_world, p_obj);
+        position_error = transformed_error(instance.object_to_world, p_obj,
+                                           barycentric_magnitude(p0, p1, p2, make_float3(b0, b1, b2)) * GAMMA_7);
+        // TriangleMesh::geometric_normal: pbrt's orientation rule.
+        float3 n_obj = cross3(p0 - p2, p1 - p2);
+        if (mesh.flags & MESH_FLIP_NORMALS) n_obj = -n_obj;
+        ng = normalize_or_zero3(mat3_mul(instance.normal_to_world, n_obj));
+        ns = ng;
+        if (mesh.flags & MESH_HAS_NORMALS) {
+            count_access(s.normals + 3ull * i0);
+            count_access(s.normals + 3ull * i1);
+            count_access(s.normals + 3ull * i2);
+            const float3 n = load3(s.normals + 3ull * i0) * b0 + load3(s.normals + 3ull * i1) * b1 +
+                             load3(s.normals + 3ull * i2) * b2;
+            const float3 shading = normalize_or_zero3(mat3_mul(instance.normal_to_world, n));
+            // pbrt: interpolated normals are authoritative for orientation.
+            if (!is_zero3(shading) && dot3(ng, shading) < 0.0f) ng = -ng;
+            ns = is_zero3(shading) ? ng : shading;
+        }
     }
+    // The hit's uv: a curve's (u, v), a triangle's interpolated (or pbrt's default).
+    const auto surface_uv = [&]() {
+        return curve ? make_float2(b1, b2) : hit_uv(s, mesh, i0, i1, i2, b1, b2);
+    };
     const unsigned int light = (mesh.flags & MESH_EMISSIVE)
                                    ? light_triangle_index(p, hit.instance, mesh.scene_mesh,
                                                           hit.triangle - mesh.first_triangle + mesh.first_scene_triangle)
@@ -127,7 +164,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
                 range.start = c0.x;
                 range.len = c0.y;
                 amount = clampf(
-                    run_program(p, range, hit_uv(s, mesh, i0, i1, i2, b1, b2), position, ng, nullptr).x, 0.0f, 1.0f);
+                    run_program(p, range, surface_uv(), position, ng, nullptr).x, 0.0f, 1.0f);
             }
 #endif
             unsigned int next;
@@ -150,7 +187,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         // uint4 storage keeps the 16-byte alignment the word copies need.
         uint4 cw[2] = {c0, c1};
         unsigned short* coeffs = reinterpret_cast<unsigned short*>(cw);
-        const float2 uv = hit_uv(s, mesh, i0, i1, i2, b1, b2);
+        const float2 uv = surface_uv();
         ProgramRange range;
         range.start = meta.y;
         range.len = meta.z;
@@ -163,7 +200,7 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     if (meta.x == MATERIAL_HAIR) {
         const float offset = (mesh.flags & MESH_SWEPT_TUBE)
                                  ? HAIR_OFFSET_FROM_NORMAL
-                                 : clampf(-1.0f + 2.0f * hit_uv(s, mesh, i0, i1, i2, b1, b2).y, -1.0f, 1.0f);
+                                 : clampf(-1.0f + 2.0f * surface_uv().y, -1.0f, 1.0f);
         put_coeff(c0, c1, COEFF_HAIR_OFFSET, f32_to_f16(offset));
     }
     // The chosen material's bump or normal map (GpuMaterial's bend word in
@@ -178,15 +215,16 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
             uv1 = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
             uv2 = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
         }
-        float3 dpdu, dpdv;
-        triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
-                          affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
+        float3 dpdu = curve_dpdu, dpdv = curve_dpdv;
+        if (!curve)
+            triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
+                              affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
         if (bends) {
             ProgramRange range;
             range.start = (meta.w >> 8) & 0x3fffffu;
             range.len = meta.w & 0xffu;
             float3 bent_dpdu;
-            ns = bent_normal(p, meta.w >> 30, range, position, hit_uv(s, mesh, i0, i1, i2, b1, b2), ng, ns, dpdu,
+            ns = bent_normal(p, meta.w >> 30, range, position, surface_uv(), ng, ns, dpdu,
                              dpdv, (mesh.flags & MESH_HAS_NORMALS) != 0u, &bent_dpdu);
             dpdu = bent_dpdu;
         }

@@ -131,9 +131,9 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
         const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
         unsigned int *work, const unsigned int *device_count, unsigned long long *traced,                   \
         const FrameParams *surface_params, const SceneView *surface_scene, const FrameParams *alpha_params, \
-        const SceneView *alpha_scene
+        const SceneView *alpha_scene, const GpuCurve *curves
 #define TRACE_VIEW                                                                   \
-    SceneBvhView v = {tlas_nodes, blas_nodes, wide_nodes, tris, tri_ids, instances, tlas_root, alpha_params, alpha_scene}; \
+    SceneBvhView v = {tlas_nodes, blas_nodes, wide_nodes, tris, tri_ids, instances, tlas_root, alpha_params, alpha_scene, curves}; \
     const unsigned int n = trace_count(count, device_count, traced);                \
     const SurfaceArgs surface = {surface_params, surface_scene}
 

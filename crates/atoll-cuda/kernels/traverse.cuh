@@ -32,6 +32,13 @@
 #define ATOLL_TRACE_MEDIA 0
 #endif
 
+// Curve pieces among the triangle records (`-DATOLL_TRACE_CURVES=1`,
+// scenes with curves): a record marked CURVE_RECORD_MARKER is tested as
+// the curve piece it names (curve.cuh).
+#ifndef ATOLL_TRACE_CURVES
+#define ATOLL_TRACE_CURVES 0
+#endif
+
 // BLAS leaf links counting from their instance record's tri_base (a BVH
 // built in pieces, src/bvh/pieces.rs; `-DATOLL_TRI_BASES=1`): elsewhere
 // every base is 0, and adding it measured a few percent slower.
@@ -141,8 +148,15 @@ __device__ __forceinline__ bool test_triangles(const SceneBvhView& v, const Trav
     for (unsigned int k = 0; k < count; ++k) {
         const TriRecord tri = load_tri(v.tris, first + k);
         float t, u, w;
-        bool hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
-                                    : intersect_woop<APPROX>(tri, ray.o, ray.d, h.t, t, u, w);
+        bool hit;
+#if ATOLL_TRACE_CURVES
+        if (__float_as_uint(tri.a.w) == CURVE_RECORD_MARKER) {
+            count_access(v.curves + __float_as_uint(tri.a.x));
+            hit = intersect_curve<ANY>(load_curve(v.curves, __float_as_uint(tri.a.x)), ray.o, ray.d, h.t, t, u, w);
+        } else
+#endif
+            hit = TRI == TRI_EXACT ? intersect_exact(tri, ray.o, ray.d, h.t, t, u, w)
+                                   : intersect_woop<APPROX>(tri, ray.o, ray.d, h.t, t, u, w);
 #if ATOLL_TRACE_ALPHA
         // Alpha masks (texture.cuh): a cut-out candidate is no hit.
         if (hit && v.alpha_params) {

@@ -31,6 +31,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("bump.cuh", include_str!("../kernels/bump.cuh")),
     ("camera.cuh", include_str!("../kernels/camera.cuh")),
     ("common.cuh", include_str!("../kernels/common.cuh")),
+    ("curve.cuh", include_str!("../kernels/curve.cuh")),
     ("environment.cuh", include_str!("../kernels/environment.cuh")),
     ("layout.cuh", include_str!("../kernels/layout.cuh")),
     ("layered.cuh", include_str!("../kernels/layered.cuh")),

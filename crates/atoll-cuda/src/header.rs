@@ -29,7 +29,7 @@ use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 use atoll_render::spawn::{gamma, SHADOW_EPSILON};
 
 use crate::layout::{
-    image_format, mesh_flags, FieldLayout, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
+    image_format, mesh_flags, FieldLayout, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
 };
 use crate::params::{
     emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, projection_kind, FrameParams,
@@ -210,6 +210,12 @@ pub(crate) fn layout_asserts() -> String {
         ("MESH_HAS_UVS", mesh_flags::HAS_UVS),
         ("MESH_SWEPT_TUBE", mesh_flags::SWEPT_TUBE),
         ("MESH_MEDIA_ONLY", mesh_flags::MEDIA_ONLY),
+        ("MESH_CURVES", mesh_flags::CURVES),
+        ("CURVE_FLAT", atoll_scene::CurveKind::Flat.code()),
+        ("CURVE_CYLINDER", atoll_scene::CurveKind::Cylinder.code()),
+        ("CURVE_RIBBON", atoll_scene::CurveKind::Ribbon.code()),
+        ("CURVE_RECORD_MARKER", crate::bvh::CURVE_RECORD_MARKER),
+        ("NO_CURVE", crate::scene::NO_CURVE),
         ("MESH_MEDIA_SHIFT", mesh_flags::MEDIA_SHIFT),
         ("IMAGE_RGBA8", image_format::RGBA8),
         ("IMAGE_RGBA8_SRGB", image_format::RGBA8_SRGB),
@@ -219,6 +225,7 @@ pub(crate) fn layout_asserts() -> String {
     }
     s += &assert_struct::<GpuMesh>("GpuMesh", GpuMesh::field_layout());
     s += &assert_struct::<GpuObject>("GpuObject", GpuObject::field_layout());
+    s += &assert_struct::<GpuCurve>("GpuCurve", GpuCurve::field_layout());
     s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
     s += &assert_struct::<HitRef>("HitRef", HitRef::field_layout());
     s += &assert_struct::<GpuImage>("GpuImage", GpuImage::field_layout());

@@ -43,6 +43,9 @@ pub(crate) mod mesh_flags {
     /// The mesh bounds media and scatters no light itself (an `interface`
     /// material): shadow rays cross it, gathering optical depth.
     pub(crate) const MEDIA_ONLY: u32 = 1 << 5;
+    /// The mesh is made of curve pieces (`TriangleMesh::curves`): its
+    /// triangles are their proxies, the `curves` table holds the pieces.
+    pub(crate) const CURVES: u32 = 1 << 6;
     /// Where the mesh's media sit (inside << 4 | outside, 0 where it bounds
     /// none, as `RayRecord::material`'s high byte).
     pub(crate) const MEDIA_SHIFT: u32 = 8;
@@ -156,6 +159,42 @@ impl GpuMesh {
     }
 }
 
+/// One curve piece on the device (`atoll_scene::CurvePiece`, 96 bytes),
+/// as six 16-byte words: control point 0 with the segment's width at its
+/// start, points 1 and 2 with the piece's parameter range, point 3 with
+/// the segment's width at its end, and the ribbon normals at the
+/// segment's ends, the first with the curve's kind (`CURVE_FLAT`, ...).
+#[repr(C, align(16))]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuCurve {
+    pub p0_w0: [f32; 4],
+    pub p1_u0: [f32; 4],
+    pub p2_u1: [f32; 4],
+    pub p3_w1: [f32; 4],
+    pub n0_kind: [f32; 4],
+    pub n1: [f32; 4],
+}
+
+impl GpuCurve {
+    pub fn new(kind: atoll_scene::CurveKind, c: &atoll_scene::CurvePiece) -> Self {
+        let [p0, p1, p2, p3] = c.points;
+        let [n0, n1] = c.normals;
+        GpuCurve {
+            p0_w0: p0.extend(c.widths[0]).to_array(),
+            p1_u0: p1.extend(c.u[0]).to_array(),
+            p2_u1: p2.extend(c.u[1]).to_array(),
+            p3_w1: p3.extend(c.widths[1]).to_array(),
+            n0_kind: n0.extend(f32::from_bits(kind.code())).to_array(),
+            n1: n1.extend(0.0).to_array(),
+        }
+    }
+
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
+        field_layout!(GpuCurve { p0_w0, p1_u0, p2_u1, p3_w1, n0_kind, n1 })
+    }
+}
+
 impl GpuObject {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
@@ -189,6 +228,7 @@ const _: () = {
     assert!(std::mem::size_of::<GpuObject>() == 16);
     assert!(std::mem::size_of::<GpuInstance>() == 144);
     assert!(std::mem::size_of::<HitRef>() == 16);
+    assert!(std::mem::size_of::<GpuCurve>() == atoll_scene::curve::CURVE_RECORD_BYTES);
 };
 
 /// [`atoll_render::RayRecord`] as a device element type. cudarc's typed
@@ -225,6 +265,8 @@ unsafe impl cudarc::driver::DeviceRepr for GpuInstance {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuInstance {}
 unsafe impl cudarc::driver::DeviceRepr for GpuImage {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuImage {}
+unsafe impl cudarc::driver::DeviceRepr for GpuCurve {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuCurve {}
 unsafe impl cudarc::driver::DeviceRepr for HitRef {}
 unsafe impl cudarc::driver::ValidAsZeroBits for HitRef {}
 

@@ -575,7 +575,7 @@ impl FrameParams {
     }
 }
 
-/// Device pointers of a [`GpuScene`]'s tables and their sizes (72 bytes);
+/// Device pointers of a [`GpuScene`]'s tables and their sizes (88 bytes);
 /// the crate docs describe the tables.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -594,6 +594,11 @@ pub struct SceneView {
     pub instances: u64,
     /// `f32[2 * vertex_count]` (meaningful for meshes with `HAS_UVS`).
     pub uvs: u64,
+    /// `u32[triangle_count]`: the curve piece a proxy triangle stands for
+    /// (`NO_CURVE` elsewhere); one placeholder without curves.
+    pub curve_of: u64,
+    /// `GpuCurve[..]`: the pieces.
+    pub curves: u64,
     pub triangle_count: u32,
     pub mesh_count: u32,
     pub instance_count: u32,
@@ -612,6 +617,8 @@ impl SceneView {
             meshes: scene.meshes.device_ptr(stream).0,
             instances: scene.instances.device_ptr(stream).0,
             uvs: scene.uvs.device_ptr(stream).0,
+            curve_of: scene.curve_of.device_ptr(stream).0,
+            curves: scene.curves.device_ptr(stream).0,
             triangle_count: scene.counts.triangles as u32,
             mesh_count: scene.counts.meshes as u32,
             instance_count: scene.counts.instances as u32,
@@ -629,6 +636,8 @@ impl SceneView {
             meshes,
             instances,
             uvs,
+            curve_of,
+            curves,
             triangle_count,
             mesh_count,
             instance_count,
@@ -660,7 +669,7 @@ const _: () = {
             == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 40 + 120 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
-    assert!(std::mem::size_of::<SceneView>() == 72);
+    assert!(std::mem::size_of::<SceneView>() == 88);
 };
 
 /// The frame's light and material tables in host memory, exactly as they

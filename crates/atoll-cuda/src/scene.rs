@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 use crate::error::{fmt_bytes, CudaError};
 use crate::gpu::{Gpu, Uploader};
-use crate::layout::{image_format, mesh_flags, GpuImage, GpuInstance, GpuMesh, GpuObject};
+use crate::layout::{image_format, mesh_flags, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuObject};
 use rows::RowTable;
 
 /// The scene tables in host memory, exactly as they go to the device.
@@ -46,6 +46,11 @@ pub struct SceneTables {
     /// u, v per vertex (same indexing as `vertices`), zero for meshes
     /// without uvs; empty when no mesh has uvs.
     pub uvs: Vec<f32>,
+    /// Per triangle, the curve piece its proxy stands for ([`NO_CURVE`]
+    /// for triangles); empty when the part has no curves.
+    pub curve_of: Vec<u32>,
+    /// The part's curve pieces, in triangle order.
+    pub curves: Vec<GpuCurve>,
     /// The scene's texture images, by image id.
     pub images: Vec<GpuImage>,
     /// Their texels ([`GpuImage::texel_offset`]).
@@ -62,6 +67,8 @@ pub struct TableCounts {
     pub instances: u64,
     pub has_normals: bool,
     pub has_uvs: bool,
+    /// Curve pieces (proxy triangles among `triangles`).
+    pub curves: u64,
     pub images: u64,
     /// u32 words of all images' texels.
     pub texel_words: u64,
@@ -93,6 +100,9 @@ impl TableCounts {
                 c.meshes += 1;
                 c.has_normals |= !mesh.normals.is_empty();
                 c.has_uvs |= !mesh.uvs.is_empty();
+                if mesh.curves.is_some() {
+                    c.curves += range.triangles.len() as u64;
+                }
             }
         }
         // Every device holds every image: a texture may be read by any
@@ -109,9 +119,12 @@ impl TableCounts {
         // Absent tables are one placeholder f32 on the device.
         let normals = if self.has_normals { vertex } else { 4 };
         let uvs = if self.has_uvs { self.vertices.max(1) * 8 } else { 4 };
+        let curves = if self.curves > 0 { self.triangles * 4 } else { 4 }
+            + self.curves.max(1) * std::mem::size_of::<GpuCurve>() as u64;
         vertex
             + normals
             + uvs
+            + curves
             + self.images.max(1) * std::mem::size_of::<GpuImage>() as u64
             + self.texel_words.max(1) * 4
             + self.triangles.max(1) * (12 + 4)
@@ -191,6 +204,7 @@ impl SceneTables {
                 Table::Objects(v) => t.objects = v,
                 Table::Instances(v) => t.instances = v,
                 Table::Images(images, texels) => (t.images, t.texels) = (images, texels),
+                Table::Curves(curve_of, curves) => (t.curve_of, t.curves) = (curve_of, curves),
             }
             Ok(())
         });
@@ -206,6 +220,7 @@ impl SceneTables {
             instances: self.instances.len() as u64,
             has_normals: !self.normals.is_empty(),
             has_uvs: !self.uvs.is_empty(),
+            curves: self.curves.len() as u64,
             images: self.images.len() as u64,
             texel_words: self.texels.len() as u64,
         }
@@ -260,6 +275,9 @@ impl TablePlan {
                 if scene.bounds_media_only(range.mesh) {
                     flags |= mesh_flags::MEDIA_ONLY;
                 }
+                if mesh.curves.is_some() {
+                    flags |= mesh_flags::CURVES;
+                }
                 let count = range.triangles.end - range.triangles.start;
                 plan.meshes.push(GpuMesh {
                     first_triangle: triangles,
@@ -296,6 +314,8 @@ pub(crate) enum Table<'a> {
     Instances(Vec<GpuInstance>),
     /// The images and their texels.
     Images(Vec<GpuImage>, Vec<u32>),
+    /// Each triangle's curve piece (empty without curves) and the pieces.
+    Curves(Vec<u32>, Vec<GpuCurve>),
 }
 
 /// Flattens `part` of `scene` into its tables, handing each to `sink`
@@ -334,6 +354,8 @@ pub(crate) fn make_tables<E>(
     sink(Table::Uvs(vertex_table::<Vec2, 2>(scene, blocks, uvs, |m| &m.uvs)))?;
     sink(Table::Triangles(triangle_table(scene, &plan.meshes)))?;
     sink(Table::TriangleMesh(triangle_mesh_table(&plan.meshes)))?;
+    let (curve_of, curves) = curve_tables(scene, &plan.meshes, counts.curves);
+    sink(Table::Curves(curve_of, curves))?;
     let mut images = Vec::with_capacity(counts.images as usize);
     let mut texels = Vec::with_capacity(counts.texel_words as usize);
     for image in &scene.textures.images {
@@ -380,6 +402,30 @@ fn triangle_table<'a>(scene: &'a Scene, meshes: &'a [GpuMesh]) -> RowTable<'a, u
         }
     })
 }
+
+/// `curve_of` and `curves` ([`SceneTables`]) of the table meshes, which
+/// hold `count` curve pieces.
+fn curve_tables(scene: &Scene, meshes: &[GpuMesh], count: u64) -> (Vec<u32>, Vec<GpuCurve>) {
+    if count == 0 {
+        return (Vec::new(), Vec::new());
+    }
+    let mut curve_of = Vec::new();
+    let mut pieces = Vec::with_capacity(count as usize);
+    for m in meshes {
+        let range = m.first_scene_triangle as usize..(m.first_scene_triangle + m.triangle_count) as usize;
+        match &scene.meshes[m.scene_mesh as usize].curves {
+            Some(curves) => {
+                curve_of.extend(pieces.len() as u32..(pieces.len() + range.len()) as u32);
+                pieces.extend(curves.pieces[range].iter().map(|c| GpuCurve::new(curves.kind, c)));
+            }
+            None => curve_of.extend(std::iter::repeat_n(NO_CURVE, range.len())),
+        }
+    }
+    (curve_of, pieces)
+}
+
+/// `SceneTables::curve_of` of a triangle that is no curve's proxy.
+pub(crate) const NO_CURVE: u32 = u32::MAX;
 
 /// Each triangle's index into the table meshes.
 fn triangle_mesh_table(meshes: &[GpuMesh]) -> RowTable<'_, u32> {
@@ -533,6 +579,9 @@ pub struct GpuScene {
     pub instances: CudaSlice<GpuInstance>,
     /// One zero placeholder when no mesh has uvs.
     pub uvs: CudaSlice<f32>,
+    /// One placeholder each when the part has no curves.
+    pub curve_of: CudaSlice<u32>,
+    pub curves: CudaSlice<GpuCurve>,
     pub images: CudaSlice<GpuImage>,
     pub texels: CudaSlice<u32>,
     pub counts: TableCounts,
@@ -572,6 +621,7 @@ impl GpuScene {
         let (mut vertices, mut normals, mut uvs, mut triangles, mut triangle_mesh) =
             (None, None, None, None, None);
         let (mut images, mut texels) = (None, None);
+        let (mut curve_of, mut curves) = (None, None);
         make_tables(scene, part, &mut |table| {
             match table {
                 Table::Vertices(v) => vertices = Some(up.upload_rows(&v, "vertices")?),
@@ -582,6 +632,10 @@ impl GpuScene {
                 Table::Images(i, t) => {
                     images = Some(up.upload(&i, "images")?);
                     texels = Some(up.upload(&t, "texels")?);
+                }
+                Table::Curves(of, c) => {
+                    curve_of = Some(up.upload(&of, "curve pieces of triangles")?);
+                    curves = Some(up.upload(&c, "curve pieces")?);
                 }
                 Table::Meshes(v) => host.meshes = v,
                 Table::Objects(v) => host.objects = v,
@@ -602,6 +656,8 @@ impl GpuScene {
             objects: up.upload(&host.objects, "objects")?,
             instances: up.upload(&host.instances, "instances")?,
             uvs: uvs.expect(made),
+            curve_of: curve_of.expect(made),
+            curves: curves.expect(made),
             images: images.expect(made),
             texels: texels.expect(made),
             counts,
@@ -634,6 +690,8 @@ impl GpuScene {
             objects: up.upload(&t.objects, "objects")?,
             instances: up.upload(&t.instances, "instances")?,
             uvs: up.upload(&t.uvs, "uvs")?,
+            curve_of: up.upload(&t.curve_of, "curve pieces of triangles")?,
+            curves: up.upload(&t.curves, "curve pieces")?,
             images: up.upload(&t.images, "images")?,
             texels: up.upload(&t.texels, "texels")?,
             counts,
@@ -642,6 +700,11 @@ impl GpuScene {
             host_instances: t.instances,
         };
         Ok(scene)
+    }
+
+    /// The `curve_of` table where the scene has curves.
+    pub(crate) fn curve_pieces(&self) -> Option<&CudaSlice<u32>> {
+        (self.counts.curves > 0).then_some(&self.curve_of)
     }
 
     /// Device bytes of the tables.
@@ -654,6 +717,8 @@ impl GpuScene {
             + self.objects.num_bytes()
             + self.instances.num_bytes()
             + self.uvs.num_bytes()
+            + self.curve_of.num_bytes()
+            + self.curves.num_bytes()
             + self.images.num_bytes()
             + self.texels.num_bytes()) as u64
     }

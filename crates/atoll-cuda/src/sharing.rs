@@ -35,8 +35,9 @@ use crate::window::ChunkWindow;
 /// widest loads need, and a cache line's worth more).
 const TABLE_ALIGN: u64 = 256;
 
-/// The window's tables, in order: [`GpuScene`]'s, then [`GpuSceneBvh`]'s.
-const TABLES: [&str; 15] = [
+/// The window's tables, in order: [`GpuScene`]'s, then [`GpuSceneBvh`]'s
+/// (the [`BVH_TABLES`]), then the scene's curve tables.
+const TABLES: [&str; 17] = [
     "vertices",
     "normals",
     "triangles",
@@ -52,10 +53,15 @@ const TABLES: [&str; 15] = [
     "blas nodes",
     "triangle records",
     "triangle ids",
+    "curve pieces of triangles",
+    "curve pieces",
 ];
 
+/// The BVH's tables among [`TABLES`].
+const BVH_TABLES: std::ops::Range<usize> = 10..15;
+
 /// Device pointer and bytes of each table of `scene` and `bvh`, in [`TABLES`] order.
-fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 15] {
+fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 17] {
     fn span<T>(gpu: &Gpu, s: &CudaSlice<T>) -> (u64, u64) {
         (s.device_ptr(&gpu.stream).0, s.num_bytes() as u64)
     }
@@ -76,6 +82,8 @@ fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 15] {
         span(g, &bvh.blas_nodes),
         span(g, &bvh.tris),
         span(g, &bvh.tri_ids),
+        span(g, &scene.curve_of),
+        span(g, &scene.curves),
     ]
 }
 
@@ -139,6 +147,8 @@ unsafe fn views(
         objects: table!(5),
         instances: table!(6),
         uvs: table!(7),
+        curve_of: table!(15),
+        curves: table!(16),
         images: table!(8),
         texels: table!(9),
         counts: meta.counts,
@@ -162,6 +172,7 @@ unsafe fn views(
         options: meta.options,
         stats: meta.stats.clone(),
         scene_triangles: meta.scene_triangles,
+        curves: if meta.counts.curves > 0 { at(16).0 } else { 0 },
         tracers: Mutex::new(Vec::new()),
         wide: Mutex::new(None),
     };
@@ -357,6 +368,8 @@ fn laid_from(
         objects,
         instances,
         uvs,
+        curve_of,
+        curves,
         images,
         texels,
     } = t;
@@ -376,9 +389,11 @@ fn laid_from(
         table_bytes(bvh.blas_nodes),
         table_bytes(bvh.tris),
         table_bytes(bvh.tri_ids),
+        table_bytes(curve_of),
+        table_bytes(curves),
     ];
     // What the device holds of the BVH, placeholders included (as `GpuSceneBvh::bytes`).
-    stats.bytes = tables[10..].iter().map(|t| t.bytes().len() as u64).sum();
+    stats.bytes = tables[BVH_TABLES].iter().map(|t| t.bytes().len() as u64).sum();
     let meta = SceneMeta {
         counts,
         host_meshes,
@@ -668,7 +683,7 @@ mod tests {
         let plan = crate::scene::part_plan(&scene, &whole);
         let scene_table_bytes: u64 = laid.tables[..10].iter().map(|t| t.bytes().len() as u64).sum();
         assert_eq!(scene_table_bytes, plan.scene_tables, "the device byte model's table sizes");
-        let bvh_bytes: u64 = laid.tables[10..].iter().map(|t| t.bytes().len() as u64).sum();
+        let bvh_bytes: u64 = laid.tables[BVH_TABLES].iter().map(|t| t.bytes().len() as u64).sum();
         assert!(bvh_bytes > 0 && bvh_bytes <= plan.bvh, "{bvh_bytes} BVH bytes against {}", plan.bvh);
         assert_eq!(bvh_bytes, laid.meta.stats.bytes);
         let triangles: u64 = scene.meshes.iter().map(|m| m.triangle_count() as u64).sum();

@@ -47,6 +47,9 @@ pub(crate) struct TraceFeatures {
     /// BVH built in pieces, `ATOLL_TRI_BASES`); set by the trace launch
     /// from the BVH traced.
     pub tri_bases: bool,
+    /// Some records are curve pieces (`ATOLL_TRACE_CURVES`); set by the
+    /// trace launch from the BVH traced.
+    pub curves: bool,
 }
 
 impl TraceFeatures {
@@ -66,12 +69,13 @@ impl TraceFeatures {
                 || !frame.lights.emission_ops.is_empty(),
             count_accesses: false,
             tri_bases: false,
+            curves: false,
         }
     }
 
     /// `self` with what tracing through `bvh` needs besides.
     pub(crate) fn for_bvh(self, bvh: &GpuSceneBvh) -> Self {
-        TraceFeatures { tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0), ..self }
+        TraceFeatures { tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0), curves: bvh.curves != 0, ..self }
     }
 
     /// The NVRTC defines of the module holding `variant`'s kernels (a
@@ -95,6 +99,8 @@ impl TraceFeatures {
         if self.tri_bases {
             defines.push("-DATOLL_TRI_BASES=1".into());
         }
+        // Always: surface.cuh compiles its curve hits in where it is not told.
+        defines.push(format!("-DATOLL_TRACE_CURVES={}", self.curves as u32));
         defines
     }
 }
@@ -316,19 +322,22 @@ impl Tracer {
             Some(t) => launch.arg(t.params).arg(t.scene),
             None => launch.arg(&null).arg(&null),
         };
+        launch.arg(&bvh.curves);
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
         // BvhNode* blas_nodes, const WideNode* wide_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
         // count, unsigned* work, const unsigned* device_count, unsigned long long* traced,
         // const FrameParams* surface_params, const SceneView* surface_scene, const FrameParams*
-        // alpha_params, const SceneView* alpha_scene)`.
+        // alpha_params, const SceneView* alpha_scene, const GpuCurve* curves)`.
         // The BVH's links stay within its arrays (built by lbvh.cu; the wide tree's by
         // bvh::wide from them, and only the wide kernels read `wide_nodes`, null otherwise); threads touch records and
         // hits below `count` (or the smaller device count), which both buffers hold (checked);
         // any-hit kernels never touch `hits` (null); `work` was zeroed for persistent launches;
         // `device_count`/`traced` are null or single device integers; the surface tables are
         // null or one FrameParams/SceneView whose tables outlive the launch (the device owns them);
-        // the alpha tables likewise (the kernels read them only when `mesh_alpha` is set).
+        // the alpha tables likewise (the kernels read them only when `mesh_alpha` is set);
+        // `curves` is 0 or the pieces of the scene the BVH was built over (its marked records
+        // index them), which the device keeps alive with the BVH.
         unsafe { launch.launch(config) }
             .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())

@@ -234,6 +234,71 @@ fn realistic_cameras_match_the_cpu_device() {
     assert_renders_match(&mut cuda, &Arc::new(scene), "realistic.pbrt with a star-shaped stop");
 }
 
+/// Curve pieces (flat, cylinder and ribbon curves, bent, tapered, under
+/// diffuse and hair materials, in the world and instanced) are intersected
+/// and shaded on the GPU as on the CPU: the same hits but for fused
+/// multiply-adds at their edges, so the images agree in their means and
+/// nearly every pixel; `scenes/hair.pbrt` too.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn curves_match_the_cpu_device() {
+    let Some(gpu) = gpu_or_skip("curves") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let source = r#"
+LookAt 0 0.5 5  0 0.5 0  0 1 0
+Camera "perspective" "float fov" [ 40 ]
+Sampler "independent" "integer pixelsamples" [ 64 ]
+Integrator "path" "integer maxdepth" [ 8 ]
+Film "rgb" "integer xresolution" [ 64 ] "integer yresolution" [ 48 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 0.4 0.45 0.5 ]
+LightSource "distant" "point3 from" [ -1 3 2 ] "point3 to" [ 0 0 0 ] "rgb L" [ 3 3 3 ]
+Material "diffuse" "rgb reflectance" [ 0.5 0.5 0.5 ]
+Shape "trianglemesh" "point3 P" [ -4 -1 -4  4 -1 -4  4 -1 4  -4 -1 4 ] "integer indices" [ 0 1 2 0 2 3 ]
+Material "diffuse" "rgb reflectance" [ 0.8 0.3 0.2 ]
+Shape "curve" "string type" "flat" "point3 P" [ -2 -1 0  -1.5 1 0.5  -1 0 -0.5  -0.8 2 0 ] "float width0" [ 0.3 ] "float width1" [ 0.05 ]
+Material "hair" "float eumelanin" [ 0.8 ]
+Shape "curve" "string type" "cylinder" "point3 P" [ -0.5 -1 0  0 0.5 1  0.2 1 -1  0.5 2 0 ] "float width" [ 0.25 ]
+Material "conductor"
+Shape "curve" "string type" "ribbon" "point3 P" [ 1 -1 0  1.2 0 0  1.4 1 0  1.3 2 0 ] "normal N" [ 0 0 1  1 0 1 ] "float width" [ 0.4 ]
+ObjectBegin "tuft"
+Material "hair" "rgb sigma_a" [ 0.3 0.6 1.2 ]
+Shape "curve" "string type" "cylinder" "point3 P" [ 0 0 0  0.1 0.3 0  -0.1 0.6 0.1  0 1 0 ] "float width0" [ 0.08 ] "float width1" [ 0.02 ] "integer splitdepth" [ 1 ]
+ObjectEnd
+AttributeBegin
+Translate 2 -1 1
+Rotate 30 0 0 1
+ObjectInstance "tuft"
+AttributeEnd
+AttributeBegin
+Translate -2.5 -1 1
+Scale 1.5 1.5 1.5
+ObjectInstance "tuft"
+AttributeEnd
+"#;
+    let loaded = atoll_scene::pbrt::load_str(source, "curves.pbrt", std::path::Path::new(".")).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let hair = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/hair.pbrt");
+    let mut hair = atoll_scene::load_any(std::path::Path::new(hair)).unwrap().scene;
+    hair.settings.spp = 16;
+    for (scene, what) in [(loaded.scene, "curves"), (hair, "hair.pbrt")] {
+        let scene = Arc::new(scene);
+        let o = RenderOptions::from_scene(&scene);
+        let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+        let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
+        let (mc, mg) = (cpu.film.mean(), gpu.film.mean());
+        assert!(mean_diff(mc, mg) < 5e-3, "{what}: means cpu {mc}, gpu {mg}");
+        let differ = cpu
+            .film
+            .sum
+            .iter()
+            .zip(&gpu.film.sum)
+            .filter(|(p, q)| !p.abs_diff_eq(**q, 1e-3 * p.abs().max_element().max(0.05)))
+            .count();
+        assert!(differ * 20 < cpu.film.sum.len(), "{what}: {differ} of {} pixels differ", cpu.film.sum.len());
+    }
+}
+
 /// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)
 /// turn with the surface's dp/du on the GPU as on the CPU, bump-mapped or
 /// not (the frame's tangent written with the hit, read when shading).

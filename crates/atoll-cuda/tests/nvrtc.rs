@@ -196,6 +196,7 @@ fn trace_module_compiles_with_every_feature() {
                 "-DATOLL_WITH_TEXTURES=1",
                 "-DATOLL_COUNT_ACCESSES=1",
                 "-DATOLL_TRI_BASES=1",
+                "-DATOLL_TRACE_CURVES=1",
                 atoll_cuda::compile::LAYOUT_CHECK_OPTION,
             ]
             .map(String::from),

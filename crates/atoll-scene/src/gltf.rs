@@ -348,6 +348,7 @@ impl<'a> Loader<'a> {
             flip_normals: false,
             alpha,
             transparent_back_faces: false,
+            curves: None,
             media: None,
         };
         mesh.validate().map_err(|m| SceneError::caused_by(&loc, format!("{what}: {m}"), m))?;

@@ -10,6 +10,7 @@
 
 pub mod camera;
 pub mod cornell;
+pub mod curve;
 pub mod environment;
 pub mod error;
 pub mod framing;
@@ -51,6 +52,7 @@ pub use medium::{
     FieldSource, GridField, GridMedium, HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA,
     VACUUM,
 };
+pub use curve::{CurveKind, CurvePiece, Curves};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{

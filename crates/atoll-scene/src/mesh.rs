@@ -1,4 +1,5 @@
-//! Triangle meshes: the only geometric primitive the renderer traces.
+//! Triangle meshes: what the renderer traces, curves included (a mesh of
+//! curves holds one proxy triangle per piece, [`crate::curve`]).
 
 use glam::{Vec2, Vec3};
 
@@ -53,6 +54,11 @@ pub struct TriangleMesh {
     /// The media on either side, where they differ (pbrt's
     /// `MediumInterface`): a ray crossing the surface changes medium.
     pub media: Option<crate::MediumInterface>,
+    /// A mesh of curves: triangle `i` is the proxy of piece `i`
+    /// ([`crate::curve::Curves::proxy_triangles`]), which traversal
+    /// intersects instead of the triangle. Such a mesh has no normals, uvs,
+    /// alpha, media or emission.
+    pub curves: Option<crate::curve::Curves>,
 }
 
 impl TriangleMesh {
@@ -91,6 +97,7 @@ impl TriangleMesh {
     pub fn memory_bytes(&self) -> u64 {
         (self.positions.len() * 12 + self.normals.len() * 12 + self.uvs.len() * 8 + self.indices.len() * 12)
             as u64
+            + self.curves.as_ref().map_or(0, |c| c.bytes())
     }
 
     /// Checks indices and attribute lengths; returns the first problem.

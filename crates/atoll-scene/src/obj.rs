@@ -170,6 +170,7 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
             flip_normals: false,
             alpha,
             transparent_back_faces: false,
+            curves: None,
             media: None,
         };
         // Faces mixing vertices with and without normals (or uvs) leave them partial: drop them.

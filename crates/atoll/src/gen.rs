@@ -182,6 +182,10 @@ fn shape(out: &mut impl Write, mesh: &TriangleMesh, world: bool) -> io::Result<(
     if mesh.flip_normals {
         writeln!(out, "  ReverseOrientation")?;
     }
+    if let Some(curves) = &mesh.curves {
+        curve_shapes(out, curves)?;
+        return writeln!(out, "AttributeEnd");
+    }
     writeln!(out, "  # {}: {} triangles", mesh.name, mesh.triangle_count())?;
     write!(out, "  Shape \"trianglemesh\"\n    \"point3 P\" ")?;
     vec3s(out, &mesh.positions)?;
@@ -196,6 +200,31 @@ fn shape(out: &mut impl Write, mesh: &TriangleMesh, world: bool) -> io::Result<(
     write!(out, "\n    \"integer indices\" ")?;
     list(out, mesh.indices.iter().flatten())?;
     writeln!(out, "\nAttributeEnd")
+}
+
+/// A curve mesh as one `Shape "curve"` per piece (`splitdepth` 0), its
+/// widths and ribbon normals those at the piece's ends: the same surface,
+/// though `u` now runs along each piece rather than its segment.
+fn curve_shapes(out: &mut impl Write, curves: &atoll_scene::Curves) -> io::Result<()> {
+    let kind = match curves.kind {
+        atoll_scene::CurveKind::Flat => "flat",
+        atoll_scene::CurveKind::Cylinder => "cylinder",
+        atoll_scene::CurveKind::Ribbon => "ribbon",
+    };
+    writeln!(out, "  # {} curve pieces", curves.pieces.len())?;
+    for piece in &curves.pieces {
+        let [w0, w1] = piece.u.map(|u| piece.width_at(u));
+        write!(out, "  Shape \"curve\" \"string type\" \"{kind}\" \"integer splitdepth\" 0 \"point3 P\" ")?;
+        vec3s(out, &piece.points)?;
+        write!(out, " \"float width0\" {w0} \"float width1\" {w1}")?;
+        if curves.kind == atoll_scene::CurveKind::Ribbon {
+            let n = piece.u.map(|u| Vec3::from(piece.ribbon_normal(u)));
+            write!(out, " \"normal N\" ")?;
+            vec3s(out, &n)?;
+        }
+        writeln!(out)?;
+    }
+    Ok(())
 }
 
 /// Writes material `id`; a measured one names its file as the scene did, so

@@ -68,6 +68,19 @@ impl TriangleTest {
     }
 }
 
+/// `a[3]`'s bits in the record of a curve piece's proxy triangle (a NaN
+/// no triangle record holds): traversal tests curve piece `a[0]`'s bits
+/// (an index into the scene's `curves` table) instead of a triangle.
+pub const CURVE_RECORD_MARKER: u32 = 0x7f80_c0ed;
+
+/// The record standing for curve piece `index` (see [`CURVE_RECORD_MARKER`]).
+pub(crate) fn curve_record(index: u32) -> GpuTriRecord {
+    GpuTriRecord {
+        a: [f32::from_bits(index), 0.0, 0.0, f32::from_bits(CURVE_RECORD_MARKER)],
+        ..Default::default()
+    }
+}
+
 /// A traversal node: both children's boxes and links (64 bytes).
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]

@@ -34,7 +34,7 @@ use std::time::Instant;
 use cudarc::driver::{CudaSlice, DeviceRepr, PushKernelArg, ValidAsZeroBits};
 
 pub use host::{HostHit, HostSceneBvh, ScenePlan};
-pub use layout::{GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest};
+pub use layout::{GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest, CURVE_RECORD_MARKER};
 
 use crate::error::CudaError;
 use crate::gpu::{launch_1d, Gpu};
@@ -155,6 +155,9 @@ pub struct GpuSceneBvh {
     pub(crate) stats: GpuBvhStats,
     /// Triangles of the scene it was built for (checked by the trace functions).
     pub(crate) scene_triangles: u64,
+    /// Device pointer of that scene's curve pieces (`GpuScene::curves`),
+    /// which records marked `CURVE_RECORD_MARKER` index; 0 without curves.
+    pub(crate) curves: u64,
     /// Per [`crate::Gpu`] (by its `id`: one stream each) that traces this
     /// BVH, the trace kernels and the persistent-threads counter, made on
     /// first use.
@@ -369,6 +372,7 @@ fn device_blases(
     k: &LbvhKernels,
     vertices: &CudaSlice<f32>,
     triangles: &CudaSlice<u32>,
+    curve_of: Option<&CudaSlice<u32>>,
     plan: &ScenePlan,
     options: &BuildOptions,
     phases: &mut Phases,
@@ -413,6 +417,7 @@ fn device_blases(
         tris = written_in_full(gpu, p as u64, "triangle records")?;
         tri_ids = written_in_full(gpu, p as u64, "triangle ids")?;
         let test_value = test.kernel_value();
+        let null: u64 = 0;
         let mut launch = gpu.stream.launch_builder(&k.emit_triangles);
         launch
             .arg(&p)
@@ -424,15 +429,21 @@ fn device_blases(
             .arg(&seg_first_tri)
             .arg(&a.segments)
             .arg(vertices)
-            .arg(triangles)
+            .arg(triangles);
+        match curve_of {
+            Some(c) => launch.arg(c),
+            None => launch.arg(&null),
+        };
+        launch
             .arg(&test_value)
             .arg(&mut tris)
             .arg(&mut tri_ids);
         // SAFETY: matches `lbvh_emit_triangles(unsigned P, const uint2* child, const unsigned*
         // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned*
         // seg_start, const unsigned* seg_first_tri, unsigned segments, const float* vertices,
-        // const unsigned* triangles, int test, TriRecord* out_tris, unsigned* out_ids)`; 2P
-        // threads; leaf offsets are a permutation of 0..P (checked: `records == p`).
+        // const unsigned* triangles, const unsigned* curve_of, int test, TriRecord* out_tris,
+        // unsigned* out_ids)`; 2P threads; leaf offsets are a permutation of 0..P (checked:
+        // `records == p`); `curve_of` is null or holds a word per triangle of `triangles`.
         unsafe { launch.launch(launch_1d(2 * p, THREADS)) }
             .map_err(launch_err(gpu, "lbvh_emit_triangles"))?;
     }
@@ -454,6 +465,7 @@ fn blases_on_device(
     gpu: &Gpu,
     vertices: &CudaSlice<f32>,
     triangles: &CudaSlice<u32>,
+    curve_of: Option<&CudaSlice<u32>>,
     plan: &ScenePlan,
     options: &BuildOptions,
 ) -> Result<reference::HostBlases, CudaError> {
@@ -461,7 +473,7 @@ fn blases_on_device(
     let k = LbvhKernels::load(gpu)?;
     let start = Instant::now();
     let mut phases = Phases::start(gpu)?;
-    let b = device_blases(gpu, &k, vertices, triangles, plan, options, &mut phases)?;
+    let b = device_blases(gpu, &k, vertices, triangles, curve_of, plan, options, &mut phases)?;
     let roots = download_roots(gpu, &b.a)?;
     let device_ms: f32 = phases.finish()?.iter().map(|(_, ms)| ms).sum();
     let built = start.elapsed().as_secs_f64();
@@ -506,10 +518,11 @@ pub fn build_in_pieces(
 ) -> Result<(ScenePlan, HostSceneBvh), CudaError> {
     let vertices = upload(gpu, &t.vertices, "vertices")?;
     let triangles = upload(gpu, &t.triangles, "triangles")?;
+    let curve_of = if t.curve_of.is_empty() { None } else { Some(upload(gpu, &t.curve_of, "curve pieces")?) };
     let (plan, blases) = pieces::build_blases_in_pieces(t, capacity, |piece| {
-        blases_on_device(gpu, &vertices, &triangles, piece, options)
+        blases_on_device(gpu, &vertices, &triangles, curve_of.as_ref(), piece, options)
     })?;
-    drop((vertices, triangles));
+    drop((vertices, triangles, curve_of));
     // Freed device memory goes back to the driver at a synchronisation:
     // here, before the host builds the TLAS (the next use of the GPU, the
     // scene's window, is sized by its free memory).
@@ -550,7 +563,7 @@ impl GpuSceneBvh {
 
         // BLASes: all objects at once, one segment each.
         let DeviceBlases { a, nodes: blas_nodes, node_count: blas_node_count, tris, tri_ids, seg_first_tri } =
-            device_blases(gpu, &k, &scene.vertices, &scene.triangles, &plan, options, &mut phases)?;
+            device_blases(gpu, &k, &scene.vertices, &scene.triangles, scene.curve_pieces(), &plan, options, &mut phases)?;
         let blas = download_roots(gpu, &a)?;
 
         // The TLAS over the valid instances' world boxes: a few instances
@@ -611,6 +624,10 @@ impl GpuSceneBvh {
             options: *options,
             stats,
             scene_triangles: scene.counts.triangles,
+            curves: scene.curve_pieces().map_or(0, |_| {
+                use cudarc::driver::DevicePtr;
+                scene.curves.device_ptr(&gpu.stream).0
+            }),
             tracers: Mutex::new(Vec::new()),
             wide: Mutex::new(None),
         };

@@ -545,7 +545,11 @@ pub(crate) fn build_blases(t: &SceneTables, plan: &ScenePlan, options: &BuildOpt
     let (tree, blas) = build(&boxes, &plan.seg_start, options.max_leaf, options);
     atoll_scene::progress::built(boxes.len() as u64);
     let tri_ids: Vec<u32> = blas.order.par_iter().map(|&j| triangle(tree.values[j as usize])).collect();
-    let tris = tri_ids.par_iter().map(|&id| tri_record(corners(id), options.triangle_test)).collect();
+    let record = |id: u32| match t.curve_of.get(id as usize) {
+        Some(&curve) if curve != crate::scene::NO_CURVE => super::layout::curve_record(curve),
+        _ => tri_record(corners(id), options.triangle_test),
+    };
+    let tris = tri_ids.par_iter().map(|&id| record(id)).collect();
     HostBlases {
         nodes: blas.nodes,
         tris,

@@ -184,21 +184,35 @@ impl Default for CpuDevice {
     }
 }
 
-/// Fills the hit fields of `r` from a BVH hit.
-fn write_hit(
-    r: &mut RayRecord,
-    hit: &Hit,
-    res: &Resident,
-    frame: &FrameContext,
-    counter: Option<&ChunkCounter>,
-) {
+/// Where a hit lies and how the surface is oriented there, in world
+/// space, before its material is looked at.
+struct HitSurface {
+    position: Vec3,
+    /// The position's error bound along each axis.
+    error: Vec3,
+    ng: Vec3,
+    ns: Vec3,
+    uv: glam::Vec2,
+    /// The shading normal was interpolated from the mesh's normals.
+    interpolated: bool,
+    /// `hair::OFFSET_FROM_NORMAL`'s meshes: tubes swept about a curve.
+    swept_tube: bool,
+}
+
+/// Where a hit's partial derivatives come from (made only where a bump
+/// map or a BSDF frame asks for them).
+enum Partials {
+    /// A triangle's object-space corners and its instance's transform.
+    Triangle([Vec3; 3], Affine3A),
+    /// A curve's, in world space.
+    Known(Vec3, Vec3),
+}
+
+/// The surface of a triangle hit.
+fn triangle_surface(hit: &Hit, res: &Resident, textures: &SceneTextures) -> (HitSurface, Partials) {
     let scene = &res.scene;
-    let instance = &scene.instances[hit.instance as usize];
     let mesh = &scene.meshes[hit.mesh as usize];
-    if let Some(counter) = counter {
-        count_hit_reads(counter, hit, mesh);
-    }
-    let to_world: &Affine3A = &instance.object_to_world;
+    let to_world = scene.instances[hit.instance as usize].object_to_world;
     let normal_to_world = res.normal_to_world[hit.instance as usize];
     let [i0, i1, i2] = mesh.indices[hit.triangle as usize].map(|i| i as usize);
     let (b1, b2) = (hit.u, hit.v);
@@ -206,9 +220,9 @@ fn write_hit(
     // Interpolating the vertices is more precise than origin + t * direction.
     let corners = [mesh.positions[i0], mesh.positions[i1], mesh.positions[i2]];
     let p_obj = corners[0] * b0 + corners[1] * b1 + corners[2] * b2;
-    let p = to_world.transform_point3(p_obj);
-    let p_error = spawn::transformed_error(
-        to_world,
+    let position = to_world.transform_point3(p_obj);
+    let error = spawn::transformed_error(
+        &to_world,
         p_obj,
         spawn::gamma(7) * spawn::barycentric_magnitude(corners, [b0, b1, b2]),
     );
@@ -228,10 +242,73 @@ fn write_hit(
             ns
         }
     };
+    let surface = HitSurface {
+        position,
+        error,
+        ng,
+        ns,
+        uv: textures.uv(hit.mesh, hit.triangle, hit.u, hit.v),
+        interpolated: !mesh.normals.is_empty(),
+        swept_tube: mesh.transparent_back_faces,
+    };
+    (surface, Partials::Triangle(corners, to_world))
+}
+
+/// The surface of a curve hit, as pbrt-v4's `Curve` makes it: the point
+/// along the ray, an error bound of the curve's width there, and the
+/// partial derivatives [`atoll_scene::CurvePiece::surface`] gives.
+fn curve_surface(
+    r: &RayRecord,
+    hit: &Hit,
+    res: &Resident,
+    curves: &atoll_scene::Curves,
+) -> (HitSurface, Partials) {
+    let scene = &res.scene;
+    let mesh = &scene.meshes[hit.mesh as usize];
+    let to_world = scene.instances[hit.instance as usize].object_to_world;
+    let to_object = to_world.inverse();
+    let piece = &curves.pieces[hit.triangle as usize];
+    let dir_obj = to_object.transform_vector3a(r.direction().into());
+    let s = piece.surface(curves.kind, hit.u, hit.v, dir_obj);
+    let origin_obj = to_object.transform_point3a(r.origin().into());
+    let p_obj = Vec3::from(origin_obj + dir_obj * hit.t);
+    let normal = if mesh.flip_normals { -s.normal } else { s.normal };
+    let ng = (res.normal_to_world[hit.instance as usize] * normal).normalize_or_zero();
+    let surface = HitSurface {
+        position: to_world.transform_point3(p_obj),
+        error: spawn::transformed_error(&to_world, p_obj, Vec3::splat(s.width)),
+        ng,
+        ns: ng,
+        uv: glam::Vec2::new(hit.u, hit.v),
+        interpolated: false,
+        swept_tube: false,
+    };
+    (surface, Partials::Known(to_world.transform_vector3(s.dpdu), to_world.transform_vector3(s.dpdv)))
+}
+
+/// Fills the hit fields of `r` from a BVH hit.
+fn write_hit(
+    r: &mut RayRecord,
+    hit: &Hit,
+    res: &Resident,
+    frame: &FrameContext,
+    counter: Option<&ChunkCounter>,
+) {
+    let scene = &res.scene;
+    let mesh = &scene.meshes[hit.mesh as usize];
+    if let Some(counter) = counter {
+        count_hit_reads(counter, hit, mesh);
+    }
+    let textures = res.textures(frame);
+    let (surface, partials) = match &mesh.curves {
+        Some(curves) => curve_surface(r, hit, res, curves),
+        None => triangle_surface(hit, res, &textures),
+    };
+    let (p, ng, ns, uv) = (surface.position, surface.ng, surface.ns, surface.uv);
     r.t_max = hit.t;
     r.flags |= flags::HIT;
     r.position = p.to_array();
-    r.position_error = spawn::pack_error(spawn::error_along(ng, p_error));
+    r.position_error = spawn::pack_error(spawn::error_along(ng, surface.error));
     r.instance = hit.instance;
     r.geometric_normal = to_f16x3(ng);
     r.shading_normal = to_f16x3(ns);
@@ -242,26 +319,28 @@ fn write_hit(
     };
     r.emission_scale =
         if r.light != NO_LIGHT { frame.lights.emission_scale(r.light, hit.u, hit.v) } else { 0 };
-    let textures = res.textures(frame);
-    let uv = || textures.uv(hit.mesh, hit.triangle, hit.u, hit.v);
-    let at = || TexPoint { uv: uv(), position: p, normal: ng };
+    let at = || TexPoint { uv, position: p, normal: ng };
     let (material, packed) = frame.material_at(mesh.material, r, at);
     packed.store(r);
     r.set_hit_media(mesh.media);
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, at(), &mut r.coeffs);
     }
-    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv().y, mesh.transparent_back_faces));
+    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y, surface.swept_tube));
     // The partial derivatives, for a bump or normal map and for the BSDF
     // frame's tangent.
     let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;
     if bends || wants_tangent(packed.kind, &r.coeffs) {
-        let world = corners.map(|c| to_world.transform_point3(c));
-        let (dpdu, dpdv) =
-            crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng);
-        let interpolated = !mesh.normals.is_empty();
-        let surface = crate::bump::SurfaceAt { position: p, uv: uv(), ng, ns, dpdu, dpdv, interpolated };
-        let bent = textures.shading_geometry(material, &surface);
+        let (dpdu, dpdv) = match partials {
+            Partials::Known(dpdu, dpdv) => (dpdu, dpdv),
+            Partials::Triangle(corners, to_world) => {
+                let world = corners.map(|c| to_world.transform_point3(c));
+                crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng)
+            }
+        };
+        let interpolated = surface.interpolated;
+        let at = crate::bump::SurfaceAt { position: p, uv, ng, ns, dpdu, dpdv, interpolated };
+        let bent = textures.shading_geometry(material, &at);
         r.shading_normal = to_f16x3(bent.normal);
         store_tangent(packed.kind, &mut r.coeffs, bent.dpdu);
     }

@@ -150,8 +150,6 @@ pub struct Builder {
     warned_transform_begin: bool,
     /// Named float and spectrum textures, and the decoded images.
     textures: NamedTextures,
-    /// Whether the tessellation of curves was warned about.
-    warned_curves: bool,
     /// Unsupported shape types: how many were skipped, and where the first was.
     skipped_shapes: Vec<(String, u64, FileLoc)>,
     /// pbrt-v3 spellings already warned about.
@@ -208,7 +206,6 @@ impl Builder {
             instance_uses: Vec::new(),
             warned_transform_begin: false,
             textures: NamedTextures::default(),
-            warned_curves: false,
             skipped_shapes: Vec::new(),
             v3_spellings_warned: Default::default(),
             named_media: HashMap::new(),
@@ -529,14 +526,6 @@ impl Builder {
                 self.skip_shape(&name, &loc);
             }
             E::Shape => {
-                if name == "curve" && !self.warned_curves {
-                    self.warned_curves = true;
-                    w.warn(
-                        &loc,
-                        "curves are swept into triangles (flat and cylinder curves into tubes of 4 sides, \
-                         ribbons into strips); pbrt intersects them exactly (reported once)",
-                    );
-                }
                 if let Some(source) = shapes::shape_source(&name, &p, &loc, &self.base_dir, w)? {
                     let alpha = self.shape_alpha(&name, &p, &loc)?;
                     self.add_shape(source, alpha, &loc)?;

@@ -104,6 +104,9 @@ impl PendingShape {
         }
         let ctm = place.ctm;
         let reverse = place.reverse_orientation;
+        if let Some(curves) = shape.curves {
+            return Ok(curve_mesh(shape.name, curves, place, warnings));
+        }
         let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
         let unit = |n: DVec3| {
             let n = n.normalize_or_zero().as_vec3();
@@ -150,10 +153,64 @@ impl PendingShape {
             flip_normals: reverse ^ transform::swaps_handedness(&ctm),
             alpha: place.alpha,
             media: place.media,
+            curves: None,
         };
         mesh.validate()
             .map_err(|m| SceneError::caused_by(&place.loc, format!("shape \"{}\": {m}", mesh.name), m))?;
         crate::input::on_budget(|b| b.count_loaded_triangles(mesh.indices.len() as u64));
         Ok(MadeShape { place, mesh: Some(mesh), warnings })
     }
+}
+
+/// The mesh of a curve shape: its pieces through the CTM (control points
+/// as points, ribbon normals as normals, widths by the CTM's mean scale,
+/// `|det|^(1/3)`, exact for similarity transforms) and their proxy
+/// triangles. Curves do not emit, cut holes or bound media (pbrt-v4's
+/// curves cannot be sampled as lights either): those are warned about and
+/// dropped.
+fn curve_mesh(
+    name: String,
+    mut curves: crate::curve::Curves,
+    mut place: ShapePlace,
+    mut warnings: Vec<String>,
+) -> MadeShape {
+    let ctm = place.ctm;
+    let linear = DMat3::from_mat4(ctm);
+    let normal_matrix = linear.inverse().transpose();
+    let scale = linear.determinant().abs().cbrt() as f32;
+    for piece in &mut curves.pieces {
+        for p in &mut piece.points {
+            *p = transform::point(&ctm, p.as_dvec3()).as_vec3();
+        }
+        for n in &mut piece.normals {
+            *n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
+        }
+        piece.widths = piece.widths.map(|w| w * scale);
+    }
+    let mut dropped = Vec::new();
+    if place.emission.take().is_some() {
+        place.emission_texture = None;
+        dropped.push("its area light");
+    }
+    if place.alpha.take().is_some() {
+        dropped.push("its alpha");
+    }
+    if place.media.take().is_some() {
+        dropped.push("its medium interface");
+    }
+    if !dropped.is_empty() {
+        warnings.push(format!("curves cannot have {}; dropped", dropped.join(" or ")));
+    }
+    let (positions, indices) = curves.proxy_triangles();
+    crate::input::on_budget(|b| b.count_loaded_triangles(indices.len() as u64));
+    let mesh = TriangleMesh {
+        name,
+        positions,
+        indices,
+        material: place.material.unwrap_or(0),
+        flip_normals: place.reverse_orientation ^ transform::swaps_handedness(&ctm),
+        curves: Some(curves),
+        ..Default::default()
+    };
+    MadeShape { place, mesh: Some(mesh), warnings }
 }

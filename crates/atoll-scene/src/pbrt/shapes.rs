@@ -1,7 +1,7 @@
 //! `Shape` directives as triangle meshes in object space (before the CTM):
 //! `trianglemesh`, `plymesh`, `loopsubdiv`, `bilinearmesh`, the quadrics
 //! `sphere`, `disk` and `cylinder` (tessellated, [`super::quadrics`]) and
-//! `curve` (swept into tubes and strips, [`super::curves`]). Other pbrt
+//! `curve` (pieces of cubic Bézier curves, [`super::curves`]). Other pbrt
 //! shapes are skipped with a warning.
 //! Checks follow pbrt-v4's `Triangle::CreateMesh`.
 
@@ -28,6 +28,9 @@ pub struct ShapeMesh {
     /// [`crate::TriangleMesh::transparent_back_faces`], for a swept tube
     /// wound outwards.
     pub transparent_back_faces: bool,
+    /// A curve's pieces ([`crate::TriangleMesh::curves`]); the triangles
+    /// are their proxies.
+    pub curves: Option<crate::curve::Curves>,
 }
 
 /// The shape types [`shape_mesh`] turns into triangles.
@@ -279,6 +282,7 @@ fn read_ply_mesh(
         uvs: m.uvs,
         indices: m.indices,
         transparent_back_faces: false,
+        curves: None,
     };
     Ok((mesh, warning))
 }
