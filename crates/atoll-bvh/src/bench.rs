@@ -301,14 +301,18 @@ fn hash01(pixel: u32, dimension: u32) -> f32 {
 }
 
 /// Writes, as little-endian f32: `triangles.f32` (every instanced triangle
-/// in world space, N x 9: p0, p1, p2) and `primary.f32`, `shadow.f32`,
-/// `diffuse.f32` (M x 7: origin, direction, t_max).
+/// in world space, N x 9: p0, p1, p2; curves, which are no triangles, are
+/// left out) and `primary.f32`, `shadow.f32`, `diffuse.f32` (M x 7:
+/// origin, direction, t_max).
 pub fn export_bench_data(scene: &Scene, opts: &BenchOptions, dir: &Path) -> io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut triangles: Vec<[Vec3; 3]> = Vec::new();
     for inst in &scene.instances {
         for &m in &scene.objects[inst.object as usize].meshes {
             let mesh = &scene.meshes[m as usize];
+            if mesh.curves.is_some() {
+                continue;
+            }
             triangles.extend(
                 (0..mesh.triangle_count())
                     .map(|t| mesh.triangle(t).map(|p| inst.object_to_world.transform_point3(p))),

@@ -253,6 +253,17 @@ impl Curves {
         (positions, indices)
     }
 
+    /// Moves the pieces by a transform given as its action on points and
+    /// on normals, and its mean scale (`|det|^(1/3)`, which scales widths:
+    /// exact for similarity transforms).
+    pub fn transform(&mut self, point: impl Fn(Vec3) -> Vec3, normal: impl Fn(Vec3) -> Vec3, scale: f32) {
+        for piece in &mut self.pieces {
+            piece.points = piece.points.map(&point);
+            piece.normals = piece.normals.map(|n| normal(n).normalize_or_zero());
+            piece.widths = piece.widths.map(|w| w * scale);
+        }
+    }
+
     /// Bytes the pieces take in memory (device records are this size too).
     pub fn bytes(&self) -> u64 {
         (self.pieces.len() * CURVE_RECORD_BYTES) as u64

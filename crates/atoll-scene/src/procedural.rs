@@ -94,13 +94,20 @@ pub fn flatten(scene: &Scene) -> Scene {
         let mirrored = m.matrix3.determinant() < 0.0;
         for &mesh_id in &scene.objects[inst.object as usize].meshes {
             let mesh = &scene.meshes[mesh_id as usize];
-            flat.meshes.push(TriangleMesh {
+            let mut moved = TriangleMesh {
                 positions: mesh.positions.iter().map(|&p| m.transform_point3(p)).collect(),
                 normals: mesh.normals.iter().map(|&n| (normal_matrix * n).normalize_or_zero()).collect(),
                 // The transform swapping handedness flips pbrt's geometric normal.
                 flip_normals: mesh.flip_normals ^ mirrored,
                 ..mesh.clone()
-            });
+            };
+            if let Some(curves) = &mut moved.curves {
+                // Pieces move themselves; their proxies are remade, not moved.
+                let scale = m.matrix3.determinant().abs().cbrt();
+                curves.transform(|p| m.transform_point3(p), |n| normal_matrix * n, scale);
+                (moved.positions, moved.indices) = curves.proxy_triangles();
+            }
+            flat.meshes.push(moved);
         }
     }
     let meshes = (0..flat.meshes.len() as u32).collect();
@@ -269,5 +276,34 @@ mod tests {
         let ((lo, hi), (flat_lo, flat_hi)) = (scene.world_bounds().unwrap(), flat.world_bounds().unwrap());
         assert!(lo.cmple(flat_lo + 1e-4).all() && flat_hi.cmple(hi + 1e-4).all());
         assert!((lo - flat_lo).length() < 3.0 && (hi - flat_hi).length() < 3.0);
+    }
+
+    /// Flattened curves move their pieces (points, widths, normals) and
+    /// remake their proxies around them.
+    #[test]
+    fn flatten_moves_curve_pieces() {
+        use crate::curve::{CurveKind, Curves};
+        let line = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0, Vec3::X * 3.0];
+        let curves = Curves::from_segments(CurveKind::Ribbon, &[line], (0.1, 0.1), &[Vec3::Y, Vec3::Y], 2);
+        let (positions, indices) = curves.proxy_triangles();
+        let mut scene = Scene::default();
+        let mesh = scene.add_mesh(TriangleMesh { positions, indices, curves: Some(curves), ..Default::default() });
+        let object = scene.add_object(Object { name: "hair".into(), meshes: vec![mesh] });
+        let to_world = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(2.0),
+            glam::Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            Vec3::new(1.0, 0.0, 0.0),
+        );
+        scene.instances.push(Instance { object, object_to_world: to_world });
+        let flat = flatten(&scene);
+        let moved = &flat.meshes[0];
+        let pieces = &moved.curves.as_ref().unwrap().pieces;
+        assert!((pieces[1].points[3] - Vec3::new(1.0, 6.0, 0.0)).length() < 1e-5, "{}", pieces[1].points[3]);
+        assert!((pieces[0].widths[0] - 0.2).abs() < 1e-6);
+        assert!((pieces[0].normals[0] - Vec3::new(-1.0, 0.0, 0.0)).length() < 1e-6);
+        for (tri, piece) in moved.indices.iter().zip(pieces) {
+            assert_eq!(moved.positions[tri[0] as usize], piece.bounds().0);
+            assert_eq!(moved.positions[tri[1] as usize], piece.bounds().1);
+        }
     }
 }

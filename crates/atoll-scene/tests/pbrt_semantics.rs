@@ -1168,3 +1168,51 @@ fn realistic_cameras() {
     assert_eq!(allowed.scene.settings.camera.projection, atoll_scene::Projection::Perspective);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `curve` shapes become pieces of cubic Bézier segments (`2^splitdepth`
+/// a segment) in the space the CTM gives: control points moved, widths
+/// scaled, ribbon normals turned; their meshes' triangles are the pieces'
+/// bounding proxies. Curves cannot emit, which is warned about; the size
+/// check before loading counts the pieces' bytes.
+#[test]
+fn curves_load_as_pieces_in_world_space() {
+    let world = "Translate 1 2 3\nScale 2 2 2\nRotate 90 0 0 1\n\
+        AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n\
+        Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0 4 1 0 5 1 0 6 1 0] \"float width0\" 0.2 \"float width1\" 0.1 \"integer splitdepth\" 2\n\
+        AttributeEnd\n\
+        Shape \"curve\" \"string type\" \"ribbon\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0] \"normal N\" [0 1 0 0 1 0] \"integer splitdepth\" 0\n";
+    let sizes = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let seen = sizes.clone();
+    let check: atoll_scene::input::SizeCheck = Box::new(move |s: &atoll_scene::SceneSizes| {
+        *seen.lock().unwrap() = Some(*s);
+        Ok(())
+    });
+    let budget = atoll_scene::input::LoadBudget::from_settings().with_size_check(check);
+    let loaded = atoll_scene::input::with_budget(std::sync::Arc::new(budget), || load_world("", world)).unwrap();
+    let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].contains("curves cannot have its area light; dropped"), "{warnings:?}");
+    let meshes = &loaded.scene.meshes;
+    let (flat, ribbon) = (meshes[0].curves.as_ref().unwrap(), meshes[1].curves.as_ref().unwrap());
+    assert_eq!(meshes[0].emission, None);
+    assert_eq!((flat.kind, flat.pieces.len()), (atoll_scene::CurveKind::Flat, 2 * 4));
+    assert_eq!((ribbon.kind, ribbon.pieces.len()), (atoll_scene::CurveKind::Ribbon, 1));
+    // (1, 0, 0) in object space is (1, 2, 3) + 2 (0, 1, 0) in the world.
+    assert_close(flat.pieces[0].points[0], Vec3::new(1.0, 2.0, 3.0), 1e-5);
+    assert_close(flat.pieces[3].points[3], Vec3::new(1.0, 2.0 + 2.0 * 3.0, 3.0), 1e-5);
+    // Widths double with the scale, running along the whole curve.
+    assert!((flat.pieces[0].widths[0] - 0.4).abs() < 1e-6 && (flat.pieces[7].widths[1] - 0.2).abs() < 1e-6);
+    assert!((flat.pieces[3].widths[1] - 0.3).abs() < 1e-6, "{:?}", flat.pieces[3].widths);
+    assert_eq!(flat.pieces[1].u, [0.25, 0.5]);
+    assert_close(ribbon.pieces[0].normals[0], Vec3::new(-1.0, 0.0, 0.0), 1e-6);
+    for (mesh, curves) in [(&meshes[0], flat), (&meshes[1], ribbon)] {
+        assert_eq!(mesh.indices.len(), curves.pieces.len());
+        for (tri, piece) in mesh.indices.iter().zip(&curves.pieces) {
+            let (lo, hi) = piece.bounds();
+            assert_eq!((mesh.positions[tri[0] as usize], mesh.positions[tri[1] as usize]), (lo, hi));
+        }
+    }
+    let sizes = sizes.lock().unwrap().expect("the size check ran");
+    assert_eq!(sizes.triangles, 9);
+    assert!(sizes.geometry_bytes >= flat.bytes() + ribbon.bytes(), "{sizes:?}");
+}

@@ -628,6 +628,38 @@ mod tests {
         }
     }
 
+    /// Curves come back as one curve per piece: the same control points,
+    /// widths at the pieces' ends, ribbon normals and orientation.
+    #[test]
+    fn curves_round_trip_as_their_pieces() {
+        let text = "LookAt 0 0 5 0 0 0 0 1 0\nCamera \"perspective\"\nWorldBegin\n\
+            Shape \"curve\" \"string type\" \"cylinder\" \"point3 P\" [0 0 0 1 1 0 2 -1 0 3 0 1] \"float width0\" 0.3 \"float width1\" 0.1\n\
+            ReverseOrientation\n\
+            Shape \"curve\" \"string type\" \"ribbon\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0] \"normal N\" [0 1 0 0 0 1] \"integer splitdepth\" 1\n";
+        let scene = atoll_scene::pbrt::load_str(text, "c.pbrt", std::path::Path::new(".")).unwrap().scene;
+        let back = round_trip(&scene);
+        let pieces = |s: &Scene| -> Vec<(atoll_scene::CurveKind, atoll_scene::CurvePiece, bool)> {
+            s.meshes
+                .iter()
+                .flat_map(|m| {
+                    let c = m.curves.as_ref().unwrap();
+                    c.pieces.iter().map(move |p| (c.kind, *p, m.flip_normals))
+                })
+                .collect()
+        };
+        let (a, b) = (pieces(&scene), pieces(&back));
+        assert_eq!((a.len(), b.len()), (10, 10));
+        for ((ka, pa, fa), (kb, pb, fb)) in a.iter().zip(&b) {
+            assert_eq!((ka, fa), (kb, fb));
+            assert!(pa.points.iter().zip(&pb.points).all(|(p, q)| close(*p, *q, 1e-6)));
+            for (ua, ub) in pa.u.iter().zip(pb.u) {
+                assert!((pa.width_at(*ua) - pb.width_at(ub)).abs() < 1e-6);
+                let (na, nb) = (Vec3::from(pa.ribbon_normal(*ua)), Vec3::from(pb.ribbon_normal(ub)));
+                assert!(*ka != atoll_scene::CurveKind::Ribbon || close(na, nb, 1e-5), "{na} {nb}");
+            }
+        }
+    }
+
     #[test]
     fn landscape_round_trips_through_pbrt_text() {
         let scene = Landscape { growth: 1, seed: 3, detail: 0.5 }.build();

@@ -71,6 +71,9 @@ pub(super) fn sizes(pending: &[PendingShape], objects: u64, instances: u64) -> S
     let mut s = SceneSizes { objects, instances, ..Default::default() };
     let mut per_object: std::collections::HashMap<Option<usize>, u64> = Default::default();
     for p in pending {
+        if let ShapeSource::Mesh(m) = &p.source {
+            s.geometry_bytes = s.geometry_bytes.saturating_add(m.curves.as_ref().map_or(0, |c| c.bytes()));
+        }
         let (vertices, triangles, normals, uvs) = match &p.source {
             ShapeSource::Mesh(m) => {
                 (m.positions.len() as u64, m.indices.len() as u64, !m.normals.is_empty(), !m.uvs.is_empty())
@@ -162,10 +165,9 @@ impl PendingShape {
     }
 }
 
-/// The mesh of a curve shape: its pieces through the CTM (control points
-/// as points, ribbon normals as normals, widths by the CTM's mean scale,
-/// `|det|^(1/3)`, exact for similarity transforms) and their proxy
-/// triangles. Curves do not emit, cut holes or bound media (pbrt-v4's
+/// The mesh of a curve shape: its pieces through the CTM
+/// ([`crate::curve::Curves::transform`], in f64 as triangles are) and
+/// their proxy triangles. Curves do not emit, cut holes or bound media (pbrt-v4's
 /// curves cannot be sampled as lights either): those are warned about and
 /// dropped.
 fn curve_mesh(
@@ -178,15 +180,11 @@ fn curve_mesh(
     let linear = DMat3::from_mat4(ctm);
     let normal_matrix = linear.inverse().transpose();
     let scale = linear.determinant().abs().cbrt() as f32;
-    for piece in &mut curves.pieces {
-        for p in &mut piece.points {
-            *p = transform::point(&ctm, p.as_dvec3()).as_vec3();
-        }
-        for n in &mut piece.normals {
-            *n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
-        }
-        piece.widths = piece.widths.map(|w| w * scale);
-    }
+    curves.transform(
+        |p| transform::point(&ctm, p.as_dvec3()).as_vec3(),
+        |n| (normal_matrix * n.as_dvec3()).as_vec3(),
+        scale,
+    );
     let mut dropped = Vec::new();
     if place.emission.take().is_some() {
         place.emission_texture = None;
