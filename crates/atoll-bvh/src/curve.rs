@@ -42,7 +42,7 @@ fn refinement_depth(cp: &[Vec3A; 4], widths: [f32; 2]) -> i32 {
     }
     let eps = widths[0].max(widths[1]) * 0.05;
     let v = std::f32::consts::SQRT_2 * 6.0 * l0 / (8.0 * eps);
-    if !(v >= 1.0) {
+    if v.is_nan() || v < 1.0 {
         return 0;
     }
     (log2_int(v) / 2).clamp(0, MAX_CURVE_DEPTH)
@@ -166,7 +166,7 @@ fn segment_hit(
         return None;
     }
     let t = pc.z / ray_length;
-    if !(t > 0.0) {
+    if t.is_nan() || t <= 0.0 {
         return None;
     }
     // Which side of the curve the ray passes, for v across it.
@@ -274,7 +274,8 @@ mod tests {
 
     #[test]
     fn depth_grows_with_bend_over_width() {
-        let cp = [Vec3A::ZERO, Vec3A::new(1.0, 1.0, 0.0), Vec3A::new(2.0, -1.0, 0.0), Vec3A::new(3.0, 0.0, 0.0)];
+        let cp =
+            [Vec3A::ZERO, Vec3A::new(1.0, 1.0, 0.0), Vec3A::new(2.0, -1.0, 0.0), Vec3A::new(3.0, 0.0, 0.0)];
         assert!(refinement_depth(&cp, [0.01, 0.01]) > refinement_depth(&cp, [0.5, 0.5]));
         assert_eq!(refinement_depth(&cp, [0.0, 0.0]), MAX_CURVE_DEPTH);
         let line = [Vec3A::ZERO, Vec3A::X, Vec3A::X * 2.0, Vec3A::X * 3.0];

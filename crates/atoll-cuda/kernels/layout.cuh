@@ -103,7 +103,6 @@ inline constexpr unsigned int MESH_HAS_NORMALS = 1u;
 inline constexpr unsigned int MESH_FLIP_NORMALS = 2u;
 inline constexpr unsigned int MESH_EMISSIVE = 4u;
 inline constexpr unsigned int MESH_HAS_UVS = 8u;
-inline constexpr unsigned int MESH_SWEPT_TUBE = 16u;
 inline constexpr unsigned int MESH_MEDIA_ONLY = 32u;
 inline constexpr unsigned int MESH_CURVES = 64u;
 inline constexpr unsigned int CURVE_FLAT = 0u;

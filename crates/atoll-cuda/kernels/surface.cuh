@@ -195,13 +195,9 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         c0 = cw[0];
         c1 = cw[1];
     }
-    // A hair hit's offset across the fibre (material_coeffs::store_hair_offset,
-    // with hair_offset_at).
+    // A hair hit's offset across the fibre (material_coeffs::hair_offset_at).
     if (meta.x == MATERIAL_HAIR) {
-        const float offset = (mesh.flags & MESH_SWEPT_TUBE)
-                                 ? HAIR_OFFSET_FROM_NORMAL
-                                 : clampf(-1.0f + 2.0f * surface_uv().y, -1.0f, 1.0f);
-        put_coeff(c0, c1, COEFF_HAIR_OFFSET, f32_to_f16(offset));
+        put_coeff(c0, c1, COEFF_HAIR_OFFSET, f32_to_f16(clampf(-1.0f + 2.0f * surface_uv().y, -1.0f, 1.0f)));
     }
     // The chosen material's bump or normal map (GpuMaterial's bend word in
     // meta.w: kind << 30 | start << 8 | len), and the BSDF frame's tangent,

@@ -64,7 +64,6 @@ inline constexpr unsigned int ALPHA_NONE = 0u;
 inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
 inline constexpr unsigned int ALPHA_CUTOFF = 2u;
 inline constexpr unsigned int ALPHA_TEXTURE_MASK = 255u;
-inline constexpr unsigned int ALPHA_BACK_FACES_PASS = 256u;
 inline constexpr unsigned int WRAP_REPEAT = 0u;
 inline constexpr unsigned int WRAP_CLAMP = 1u;
 inline constexpr unsigned int WRAP_BLACK = 2u;
@@ -420,13 +419,6 @@ __device__ __noinline__ bool alpha_keeps(const FrameParams& p, const SceneView& 
     if (ap.mode == ALPHA_NONE) return true;
     const unsigned int i0 = s.triangles[3ull * tri], i1 = s.triangles[3ull * tri + 1],
                        i2 = s.triangles[3ull * tri + 2];
-    if (ap.mode & ALPHA_BACK_FACES_PASS) {
-        // A back face (the ray along the winding normal) lets the ray through.
-        const float3 p0 = load3(s.vertices + 3ull * i0), p1 = load3(s.vertices + 3ull * i1),
-                     p2 = load3(s.vertices + 3ull * i2);
-        if (dot3(cross3(p0 - p2, p1 - p2), d) > 0.0f) return false;
-        if ((ap.mode & ALPHA_TEXTURE_MASK) == ALPHA_NONE) return true;
-    }
     const float2 uv = hit_uv(s, mesh, i0, i1, i2, u, v);
     // The point where traversal sees the hit, no normal (`SceneTextures::keeps`).
     const float alpha = run_program(p, ap.program, uv, o + d * t, zero3(), nullptr).x;

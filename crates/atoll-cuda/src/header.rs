@@ -29,7 +29,8 @@ use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 use atoll_render::spawn::{gamma, SHADOW_EPSILON};
 
 use crate::layout::{
-    image_format, mesh_flags, FieldLayout, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef, HIT_NONE,
+    image_format, mesh_flags, FieldLayout, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuObject, HitRef,
+    HIT_NONE,
 };
 use crate::params::{
     emitter_kind, integrator_kind, light_node_layout, light_sampler_kind, projection_kind, FrameParams,
@@ -208,7 +209,6 @@ pub(crate) fn layout_asserts() -> String {
         ("MESH_FLIP_NORMALS", mesh_flags::FLIP_NORMALS),
         ("MESH_EMISSIVE", mesh_flags::EMISSIVE),
         ("MESH_HAS_UVS", mesh_flags::HAS_UVS),
-        ("MESH_SWEPT_TUBE", mesh_flags::SWEPT_TUBE),
         ("MESH_MEDIA_ONLY", mesh_flags::MEDIA_ONLY),
         ("MESH_CURVES", mesh_flags::CURVES),
         ("CURVE_FLAT", atoll_scene::CurveKind::Flat.code()),
@@ -278,7 +278,6 @@ pub(crate) fn texture_constants() -> String {
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),
         ("ALPHA_TEXTURE_MASK", alpha_mode::TEXTURE_MASK),
-        ("ALPHA_BACK_FACES_PASS", alpha_mode::BACK_FACES_PASS),
         ("WRAP_REPEAT", atoll_scene::Wrap::Repeat as u32),
         ("WRAP_CLAMP", atoll_scene::Wrap::Clamp as u32),
         ("WRAP_BLACK", atoll_scene::Wrap::Black as u32),

@@ -37,9 +37,6 @@ pub(crate) mod mesh_flags {
     pub(crate) const EMISSIVE: u32 = 1 << 2;
     /// The mesh has per-vertex texture coordinates in the `uvs` table.
     pub(crate) const HAS_UVS: u32 = 1 << 3;
-    /// The mesh is a swept tube (`TriangleMesh::transparent_back_faces`):
-    /// hair on it takes its offset from the normal.
-    pub(crate) const SWEPT_TUBE: u32 = 1 << 4;
     /// The mesh bounds media and scatters no light itself (an `interface`
     /// material): shadow rays cross it, gathering optical depth.
     pub(crate) const MEDIA_ONLY: u32 = 1 << 5;

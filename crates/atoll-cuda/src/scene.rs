@@ -266,9 +266,6 @@ impl TablePlan {
                 if !mesh.uvs.is_empty() {
                     flags |= mesh_flags::HAS_UVS;
                 }
-                if mesh.transparent_back_faces {
-                    flags |= mesh_flags::SWEPT_TUBE;
-                }
                 if let Some(media) = mesh.media {
                     flags |= ((media.inside << 4 | media.outside) as u32) << mesh_flags::MEDIA_SHIFT;
                 }

@@ -75,7 +75,11 @@ impl TraceFeatures {
 
     /// `self` with what tracing through `bvh` needs besides.
     pub(crate) fn for_bvh(self, bvh: &GpuSceneBvh) -> Self {
-        TraceFeatures { tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0), curves: bvh.curves != 0, ..self }
+        TraceFeatures {
+            tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0),
+            curves: bvh.curves != 0,
+            ..self
+        }
     }
 
     /// The NVRTC defines of the module holding `variant`'s kernels (a

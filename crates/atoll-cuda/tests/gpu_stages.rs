@@ -1108,8 +1108,8 @@ fn hair_materials() -> Vec<PackedMaterial> {
     .collect()
 }
 
-/// A hair fibre on a surface that gives its offset (`-1 + 2v`, as on
-/// ribbons) rather than a swept tube's.
+/// A hair fibre whose hit gives its offset (`-1 + 2v`) rather than the
+/// packed material's `OFFSET_FROM_NORMAL`.
 fn given_offset(m: Material, offset: f32) -> PackedMaterial {
     let mut packed = PackedMaterial::pack(&m);
     packed.coeffs[atoll_render::material_layout::hair::OFFSET] = half::f16::from_f32(offset);

@@ -240,22 +240,17 @@ pub fn store_tangent(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], dp
 }
 
 /// Writes a hair hit's offset across the fibre into its coefficients
-/// (nothing for other kinds): `-1 + 2v` from the hit's `v`, or
-/// `hair::OFFSET_FROM_NORMAL` on a swept tube ([`hair_offset_at`]).
+/// (nothing for other kinds): `-1 + 2v` from the hit's `v` ([`hair_offset_at`]).
 pub fn store_hair_offset(kind: MaterialKind, coeffs: &mut [f16; MATERIAL_COEFFS], offset: f32) {
     if kind == MaterialKind::Hair {
         coeffs[hair::OFFSET] = f16::from_f32(offset);
     }
 }
 
-/// The offset across a hair fibre at a hit of `v` on a mesh that is a
-/// swept tube or not ([`store_hair_offset`]).
-pub fn hair_offset_at(v: f32, swept_tube: bool) -> f32 {
-    if swept_tube {
-        crate::bsdf::hair::OFFSET_FROM_NORMAL
-    } else {
-        (-1.0 + 2.0 * v).clamp(-1.0, 1.0)
-    }
+/// The offset across a hair fibre at a hit of `v`: pbrt's `-1 + 2v`
+/// ([`store_hair_offset`]).
+pub fn hair_offset_at(v: f32) -> f32 {
+    (-1.0 + 2.0 * v).clamp(-1.0, 1.0)
 }
 
 /// Writes a colour into the three coefficients from `slot`.

@@ -169,10 +169,9 @@ layouts! {
         /// not a material parameter, written with every hit, since the
         /// hair BSDF's frame turns about it.
         TANGENT: 7..10,
-        /// The offset `h` across the fibre where the surface gives it
-        /// (pbrt's `-1 + 2v`), written with the hit;
-        /// `hair::OFFSET_FROM_NORMAL` on swept tubes, whose offset comes
-        /// from the normal at shading.
+        /// The offset `h` across the fibre (pbrt's `-1 + 2v`), written
+        /// with the hit; a packed material holds
+        /// `hair::OFFSET_FROM_NORMAL` until then.
         OFFSET: 10,
     }
     /// [`MaterialKind::Measured`].

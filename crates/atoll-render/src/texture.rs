@@ -176,9 +176,6 @@ pub mod alpha_mode {
     pub const CUTOFF: u32 = 2;
     /// The bits above that name the texture's test.
     pub const TEXTURE_MASK: u32 = 0xff;
-    /// A flag beside the texture's test: hits on a triangle's back face
-    /// (`TriangleMesh::transparent_back_faces`) are not kept.
-    pub const BACK_FACES_PASS: u32 = 1 << 8;
 }
 
 /// A mesh's alpha test (16 bytes, mirrored by the GPU).
@@ -304,8 +301,7 @@ impl TextureTables {
                 .iter()
                 .enumerate()
                 .map(|(id, mesh)| {
-                    let back = if mesh.transparent_back_faces { alpha_mode::BACK_FACES_PASS } else { 0 };
-                    let solid = AlphaProgram { mode: back, ..Default::default() };
+                    let solid = AlphaProgram::default();
                     let Some(alpha) = mesh.alpha else { return solid };
                     let start = tables.ops.len() as u32;
                     let mut program = Vec::new();
@@ -317,11 +313,9 @@ impl TextureTables {
                     let program = ProgramRange { start, len: tables.ops.len() as u32 - start };
                     match alpha.mode {
                         AlphaMode::Stochastic => {
-                            AlphaProgram { program, mode: alpha_mode::STOCHASTIC | back, cutoff: 0.0 }
+                            AlphaProgram { program, mode: alpha_mode::STOCHASTIC, cutoff: 0.0 }
                         }
-                        AlphaMode::Cutoff(c) => {
-                            AlphaProgram { program, mode: alpha_mode::CUTOFF | back, cutoff: c }
-                        }
+                        AlphaMode::Cutoff(c) => AlphaProgram { program, mode: alpha_mode::CUTOFF, cutoff: c },
                     }
                 })
                 .collect();
@@ -923,16 +917,6 @@ impl HitFilter for SceneTextures<'_> {
 
     fn keeps(&self, mesh: u32, triangle: u32, u: f32, v: f32, t: f32, origin: Vec3A, dir: Vec3A) -> bool {
         let Some(program) = self.tables.alpha_of(mesh) else { return true };
-        if program.mode & alpha_mode::BACK_FACES_PASS != 0 {
-            let m = &self.scene.meshes[mesh as usize];
-            let [p0, p1, p2] = m.indices[triangle as usize].map(|i| Vec3A::from(m.positions[i as usize]));
-            if (p0 - p2).cross(p1 - p2).dot(dir) > 0.0 {
-                return false;
-            }
-            if program.mode & alpha_mode::TEXTURE_MASK == alpha_mode::NONE {
-                return true;
-            }
-        }
         let uv = self.uv(mesh, triangle, u, v);
         let mut scratch = [f16::ZERO; MATERIAL_COEFFS];
         // The point where traversal sees the hit: world space, except inside
@@ -1182,42 +1166,6 @@ mod tests {
         let k = Material::conductor_k_from_reflectance(Rgb::splat(0.25)).x;
         assert!((metal[conductor::K] - k).abs() < 1e-2 * k, "{metal:?}");
         assert!(!tables.has_alpha());
-    }
-
-    /// A mesh with transparent back faces keeps only hits from the front
-    /// (against its winding normal), before its alpha test if it has one.
-    #[test]
-    fn back_faces_pass_where_asked() {
-        let mut scene = Scene::default();
-        let material = scene.add_material(Material::default_diffuse());
-        let half = scene.textures.add(Texture::Constant(Rgb::splat(0.5)));
-        // Wound so that the winding normal is +z.
-        let triangle = |alpha| atoll_scene::TriangleMesh {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
-            indices: vec![[0, 1, 2]],
-            material,
-            alpha,
-            transparent_back_faces: true,
-            ..Default::default()
-        };
-        let plain = scene.add_mesh(triangle(None));
-        let cut = scene.add_mesh(triangle(Some(MeshAlpha { texture: half, mode: AlphaMode::Stochastic })));
-        let solid =
-            scene.add_mesh(atoll_scene::TriangleMesh { transparent_back_faces: false, ..triangle(None) });
-        let tables = TextureTables::new(&scene, &[MaterialKind::Diffuse]);
-        let st = SceneTextures { scene: &scene, tables: &tables };
-        assert!(st.filters(plain) && st.filters(cut) && !st.filters(solid));
-        let from_front = Vec3A::new(0.2, 0.2, 1.0);
-        let from_back = Vec3A::new(0.2, 0.2, -1.0);
-        assert!(st.keeps(plain, 0, 0.2, 0.2, 1.0, from_front, -Vec3A::Z));
-        assert!(!st.keeps(plain, 0, 0.2, 0.2, 1.0, from_back, Vec3A::Z));
-        let n = 4_000;
-        let kept = |o: Vec3A, d: Vec3A| {
-            (0..n).filter(|&i| st.keeps(cut, 0, 0.2, 0.2, 1.0, o + Vec3A::X * (i as f32 * 1e-4), d)).count()
-        };
-        assert_eq!(kept(from_back, Vec3A::Z), 0, "back faces pass before the alpha test");
-        let share = kept(from_front, -Vec3A::Z) as f64 / n as f64;
-        assert!((share - 0.5).abs() < 0.05, "front hits keep alpha's share: {share}");
     }
 
     /// Stochastic alpha keeps a share `alpha` of hits, decided by the ray.

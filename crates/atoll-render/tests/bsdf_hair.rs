@@ -1,4 +1,4 @@
-//! The hair BSDF (pbrt-v4's `HairBxDF`) and hair on swept curves.
+//! The hair BSDF (pbrt-v4's `HairBxDF`) and hair on curves.
 //!
 //! What must hold, after pbrt-v4's own hair tests:
 //! - a fibre that absorbs nothing reflects and transmits all light (white

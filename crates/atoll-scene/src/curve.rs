@@ -345,13 +345,17 @@ mod tests {
             assert!(s.normal.z.abs() < 1e-5);
         }
         // The two edges of a cylinder curve face opposite ways.
-        let (a, b) =
-            (piece.surface(CurveKind::Cylinder, 0.5, 0.0, dir), piece.surface(CurveKind::Cylinder, 0.5, 1.0, dir));
+        let (a, b) = (
+            piece.surface(CurveKind::Cylinder, 0.5, 0.0, dir),
+            piece.surface(CurveKind::Cylinder, 0.5, 1.0, dir),
+        );
         assert!(a.normal.dot(b.normal) < -0.999);
         // A ribbon facing the ray shows its full width, one edge on less.
         let ribbon = CurvePiece { normals: [Vec3::Y, Vec3::Y], ..piece };
         assert!((ribbon.surface(CurveKind::Ribbon, 0.5, 0.5, dir).width - 0.5).abs() < 1e-6);
         let slanted = Vec3A::new(1.0, -1.0, 0.0);
-        assert!((ribbon.surface(CurveKind::Ribbon, 0.5, 0.5, slanted).width - 0.5 * 0.5f32.sqrt()).abs() < 1e-6);
+        assert!(
+            (ribbon.surface(CurveKind::Ribbon, 0.5, 0.5, slanted).width - 0.5 * 0.5f32.sqrt()).abs() < 1e-6
+        );
     }
 }

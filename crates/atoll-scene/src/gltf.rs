@@ -347,7 +347,6 @@ impl<'a> Loader<'a> {
             emission,
             flip_normals: false,
             alpha,
-            transparent_back_faces: false,
             curves: None,
             media: None,
         };

@@ -39,6 +39,7 @@ pub mod texture_scenes;
 pub use camera::{
     Camera, FilmSettings, IntegratorSettings, LightSampler, PixelFilter, Projection, RenderSettings, Sensor,
 };
+pub use curve::{CurveKind, CurvePiece, Curves};
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
 pub use light::{AreaEmission, IntensityMap, Light, Portal};
@@ -52,7 +53,6 @@ pub use medium::{
     FieldSource, GridField, GridMedium, HomogeneousMedium, Medium, MediumIndex, MediumInterface, MAX_MEDIA,
     VACUUM,
 };
-pub use curve::{CurveKind, CurvePiece, Curves};
 pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{

@@ -44,13 +44,6 @@ pub struct TriangleMesh {
     /// Alpha mask cutting holes into the surface (pbrt's shape `alpha`,
     /// glTF `MASK`, OBJ `map_d`); needs `uvs` unless the texture is constant.
     pub alpha: Option<crate::MeshAlpha>,
-    /// Rays meeting a triangle from behind (along its winding normal
-    /// `cross(p1 - p0, p2 - p0)` in object space) pass through it. A
-    /// curve swept into a closed tube is one surface, as pbrt's curves
-    /// are: light that leaves a fibre through its surface (hair's
-    /// transmission, a shadow ray towards a light behind it) is not caught
-    /// by the tube's far wall.
-    pub transparent_back_faces: bool,
     /// The media on either side, where they differ (pbrt's
     /// `MediumInterface`): a ray crossing the surface changes medium.
     pub media: Option<crate::MediumInterface>,
@@ -63,10 +56,10 @@ pub struct TriangleMesh {
 
 impl TriangleMesh {
     /// Whether traversal must ask about each candidate hit on this mesh
-    /// (an alpha mask, back faces that let rays through, or a boundary of
-    /// media, which shadow rays cross adding up their optical depth).
+    /// (an alpha mask, or a boundary of media, which shadow rays cross
+    /// adding up their optical depth).
     pub fn filters_hits(&self) -> bool {
-        self.alpha.is_some() || self.transparent_back_faces || self.media.is_some()
+        self.alpha.is_some() || self.media.is_some()
     }
 
     pub fn triangle_count(&self) -> usize {

@@ -169,7 +169,6 @@ fn obj_scene(bytes: &[u8], name: &str, dir: &Path) -> Result<LoadedScene, SceneE
                 .flatten(),
             flip_normals: false,
             alpha,
-            transparent_back_faces: false,
             curves: None,
             media: None,
         };

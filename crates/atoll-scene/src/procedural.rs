@@ -287,7 +287,8 @@ mod tests {
         let curves = Curves::from_segments(CurveKind::Ribbon, &[line], (0.1, 0.1), &[Vec3::Y, Vec3::Y], 2);
         let (positions, indices) = curves.proxy_triangles();
         let mut scene = Scene::default();
-        let mesh = scene.add_mesh(TriangleMesh { positions, indices, curves: Some(curves), ..Default::default() });
+        let mesh =
+            scene.add_mesh(TriangleMesh { positions, indices, curves: Some(curves), ..Default::default() });
         let object = scene.add_object(Object { name: "hair".into(), meshes: vec![mesh] });
         let to_world = Affine3A::from_scale_rotation_translation(
             Vec3::splat(2.0),

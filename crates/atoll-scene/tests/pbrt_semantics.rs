@@ -1188,7 +1188,8 @@ fn curves_load_as_pieces_in_world_space() {
         Ok(())
     });
     let budget = atoll_scene::input::LoadBudget::from_settings().with_size_check(check);
-    let loaded = atoll_scene::input::with_budget(std::sync::Arc::new(budget), || load_world("", world)).unwrap();
+    let loaded =
+        atoll_scene::input::with_budget(std::sync::Arc::new(budget), || load_world("", world)).unwrap();
     let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
     assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(warnings[0].contains("curves cannot have its area light; dropped"), "{warnings:?}");

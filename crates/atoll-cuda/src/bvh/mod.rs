@@ -365,14 +365,22 @@ struct DeviceBlases {
     seg_first_tri: CudaSlice<u32>,
 }
 
+/// The scene tables a BLAS build reads on the device.
+#[derive(Clone, Copy)]
+struct BuildTables<'a> {
+    vertices: &'a CudaSlice<f32>,
+    triangles: &'a CudaSlice<u32>,
+    /// `SceneTables::curve_of`, where the scene has curves: their
+    /// triangles get curve records.
+    curve_of: Option<&'a CudaSlice<u32>>,
+}
+
 /// Builds the BLASes of `plan`'s segments (triangles `plan.seg_first_tri`
-/// onwards of `triangles`, corners in `vertices`), all at once.
+/// onwards of `t.triangles`, corners in `t.vertices`), all at once.
 fn device_blases(
     gpu: &Gpu,
     k: &LbvhKernels,
-    vertices: &CudaSlice<f32>,
-    triangles: &CudaSlice<u32>,
-    curve_of: Option<&CudaSlice<u32>>,
+    t: BuildTables<'_>,
     plan: &ScenePlan,
     options: &BuildOptions,
     phases: &mut Phases,
@@ -389,8 +397,8 @@ fn device_blases(
         let config = a.box_launch();
         let mut launch = gpu.stream.launch_builder(&k.blas_boxes);
         launch
-            .arg(vertices)
-            .arg(triangles)
+            .arg(t.vertices)
+            .arg(t.triangles)
             .arg(&a.seg_start)
             .arg(&seg_first_tri)
             .arg(&a.segments)
@@ -428,16 +436,13 @@ fn device_blases(
             .arg(&a.seg_start)
             .arg(&seg_first_tri)
             .arg(&a.segments)
-            .arg(vertices)
-            .arg(triangles);
-        match curve_of {
+            .arg(t.vertices)
+            .arg(t.triangles);
+        match t.curve_of {
             Some(c) => launch.arg(c),
             None => launch.arg(&null),
         };
-        launch
-            .arg(&test_value)
-            .arg(&mut tris)
-            .arg(&mut tri_ids);
+        launch.arg(&test_value).arg(&mut tris).arg(&mut tri_ids);
         // SAFETY: matches `lbvh_emit_triangles(unsigned P, const uint2* child, const unsigned*
         // leaf_size, const unsigned* tri_offset, const unsigned* values, const unsigned*
         // seg_start, const unsigned* seg_first_tri, unsigned segments, const float* vertices,
@@ -463,9 +468,7 @@ pub(crate) fn piece_bytes(triangles: u64, segments: u64) -> u64 {
 /// `reference::build_blases` makes them.
 fn blases_on_device(
     gpu: &Gpu,
-    vertices: &CudaSlice<f32>,
-    triangles: &CudaSlice<u32>,
-    curve_of: Option<&CudaSlice<u32>>,
+    tables: BuildTables<'_>,
     plan: &ScenePlan,
     options: &BuildOptions,
 ) -> Result<reference::HostBlases, CudaError> {
@@ -473,7 +476,7 @@ fn blases_on_device(
     let k = LbvhKernels::load(gpu)?;
     let start = Instant::now();
     let mut phases = Phases::start(gpu)?;
-    let b = device_blases(gpu, &k, vertices, triangles, curve_of, plan, options, &mut phases)?;
+    let b = device_blases(gpu, &k, tables, plan, options, &mut phases)?;
     let roots = download_roots(gpu, &b.a)?;
     let device_ms: f32 = phases.finish()?.iter().map(|(_, ms)| ms).sum();
     let built = start.elapsed().as_secs_f64();
@@ -520,7 +523,8 @@ pub fn build_in_pieces(
     let triangles = upload(gpu, &t.triangles, "triangles")?;
     let curve_of = if t.curve_of.is_empty() { None } else { Some(upload(gpu, &t.curve_of, "curve pieces")?) };
     let (plan, blases) = pieces::build_blases_in_pieces(t, capacity, |piece| {
-        blases_on_device(gpu, &vertices, &triangles, curve_of.as_ref(), piece, options)
+        let tables = BuildTables { vertices: &vertices, triangles: &triangles, curve_of: curve_of.as_ref() };
+        blases_on_device(gpu, tables, piece, options)
     })?;
     drop((vertices, triangles, curve_of));
     // Freed device memory goes back to the driver at a synchronisation:
@@ -562,8 +566,13 @@ impl GpuSceneBvh {
         let test = options.triangle_test;
 
         // BLASes: all objects at once, one segment each.
+        let tables = BuildTables {
+            vertices: &scene.vertices,
+            triangles: &scene.triangles,
+            curve_of: scene.curve_pieces(),
+        };
         let DeviceBlases { a, nodes: blas_nodes, node_count: blas_node_count, tris, tri_ids, seg_first_tri } =
-            device_blases(gpu, &k, &scene.vertices, &scene.triangles, scene.curve_pieces(), &plan, options, &mut phases)?;
+            device_blases(gpu, &k, tables, &plan, options, &mut phases)?;
         let blas = download_roots(gpu, &a)?;
 
         // The TLAS over the valid instances' world boxes: a few instances

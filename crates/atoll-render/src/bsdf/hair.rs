@@ -10,11 +10,11 @@
 //! The frame is the hair's: local x is the fibre's axis (the surface's
 //! `dpdu`), z the surface normal, so `sin θ = w.x` and `φ = atan2(w.z,
 //! w.y)`. pbrt takes the offset `h` across the fibre from the surface's `v`
-//! coordinate (`-1 + 2v`), and so does atoll on ribbons and other surfaces.
-//! A curve swept into a tube has normals that go round its axis instead,
-//! so there `h` is where `wo` meets that normal, the sine of the azimuth
-//! between the normal and `wo` ([`Hair::offset`]), which is what `v` stands
-//! for on pbrt's ray-facing curves.
+//! coordinate (`-1 + 2v`), and so do atoll's hits. Without one
+//! ([`OFFSET_FROM_NORMAL`], what [`Hair::new`] gives) `h` is where `wo`
+//! meets the normal of a round fibre, the sine of the azimuth between the
+//! normal and `wo` ([`Hair::offset`]): what `v` stands for on pbrt's
+//! ray-facing curves.
 
 use atoll_scene::{HairParams, Rgb};
 use glam::{Vec2, Vec3};
@@ -34,8 +34,7 @@ pub const OFFSET_FROM_NORMAL: f32 = 2.0;
 pub struct Hair {
     pub params: HairParams,
     /// The offset `h` across the fibre as the surface gives it (pbrt's
-    /// `-1 + 2v` on ribbons and other surfaces), or [`OFFSET_FROM_NORMAL`]
-    /// on swept tubes.
+    /// `-1 + 2v`), or [`OFFSET_FROM_NORMAL`] where none is given.
     pub given_offset: f32,
     /// Longitudinal variance of each lobe.
     v: [f32; P_MAX + 1],

@@ -195,8 +195,6 @@ struct HitSurface {
     uv: glam::Vec2,
     /// The shading normal was interpolated from the mesh's normals.
     interpolated: bool,
-    /// `hair::OFFSET_FROM_NORMAL`'s meshes: tubes swept about a curve.
-    swept_tube: bool,
 }
 
 /// Where a hit's partial derivatives come from (made only where a bump
@@ -249,7 +247,6 @@ fn triangle_surface(hit: &Hit, res: &Resident, textures: &SceneTextures) -> (Hit
         ns,
         uv: textures.uv(hit.mesh, hit.triangle, hit.u, hit.v),
         interpolated: !mesh.normals.is_empty(),
-        swept_tube: mesh.transparent_back_faces,
     };
     (surface, Partials::Triangle(corners, to_world))
 }
@@ -281,7 +278,6 @@ fn curve_surface(
         ns: ng,
         uv: glam::Vec2::new(hit.u, hit.v),
         interpolated: false,
-        swept_tube: false,
     };
     (surface, Partials::Known(to_world.transform_vector3(s.dpdu), to_world.transform_vector3(s.dpdv)))
 }
@@ -326,7 +322,7 @@ fn write_hit(
     if !frame.textures.materials[material as usize].is_empty() {
         textures.apply(material, at(), &mut r.coeffs);
     }
-    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y, surface.swept_tube));
+    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y));
     // The partial derivatives, for a bump or normal map and for the BSDF
     // frame's tangent.
     let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;

@@ -139,18 +139,13 @@ impl PendingShape {
                 .with_min_len(MIN_VERTICES)
                 .for_each(|n| *n = unit(normal_matrix * n.as_dvec3()));
         }
-        let mut indices = shape.indices;
-        if shape.transparent_back_faces && transform::swaps_handedness(&ctm) {
-            // Keep such a tube wound outwards: its back faces are its inside.
-            indices.par_iter_mut().with_min_len(MIN_VERTICES).for_each(|t| t.swap(1, 2));
-        }
+        let indices = shape.indices;
         let mesh = TriangleMesh {
             name: shape.name,
             positions,
             normals,
             uvs: shape.uvs,
             indices,
-            transparent_back_faces: shape.transparent_back_faces,
             material: place.material.unwrap_or(0),
             emission: place.emission,
             flip_normals: reverse ^ transform::swaps_handedness(&ctm),

@@ -25,9 +25,6 @@ pub struct ShapeMesh {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
     pub indices: Vec<[u32; 3]>,
-    /// [`crate::TriangleMesh::transparent_back_faces`], for a swept tube
-    /// wound outwards.
-    pub transparent_back_faces: bool,
     /// A curve's pieces ([`crate::TriangleMesh::curves`]); the triangles
     /// are their proxies.
     pub curves: Option<crate::curve::Curves>,
@@ -281,7 +278,6 @@ fn read_ply_mesh(
         normals: m.normals,
         uvs: m.uvs,
         indices: m.indices,
-        transparent_back_faces: false,
         curves: None,
     };
     Ok((mesh, warning))
