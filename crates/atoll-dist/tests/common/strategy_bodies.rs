@@ -79,6 +79,7 @@ macro_rules! strategy_tests {
             ring_over_instance_cost_parts_is_one_device
             passes_of_a_session_add_up_to_one_frame
             media_on_rings_and_replicas_are_one_device
+            curves_on_rings_and_replicas_are_one_device
         );
     };
     // The attributes travel as one token tree: a list repeated inside the
@@ -495,6 +496,26 @@ pub fn media_on_rings_and_replicas_are_one_device(kind: &Kind) {
     kind.assert_same_image(&reference, &out.film, "media, ring of 3");
 }
 
+/// `scenes/hair.pbrt`: curve pieces under the hair material. Replicas and
+/// a ring of two render one device's image: curves are cut between parts
+/// by their proxy triangles like any mesh, and each part's curve hits
+/// travel with their shading data.
+pub fn curves_on_rings_and_replicas_are_one_device(kind: &Kind) {
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
+    let path = if beside.exists() { beside } else { "scenes/hair.pbrt".into() };
+    let scene = Arc::new(atoll_scene::load_any(&path).unwrap().scene);
+    assert!(scene.meshes.iter().filter(|m| m.curves.is_some()).count() > 100);
+    let opts = kind.options(&scene, 4);
+    let (reference, _) = kind.single(&scene, &opts);
+    let out = kind.render(2, &scene, &opts, &Layout::Replicate, None);
+    kind.assert_same_image(&reference, &out.film, "curves, replicate");
+    let p = partition(&scene, 2, &kind.byte_model(), &PartitionOptions::default()).unwrap();
+    assert!(p.parts.iter().all(|part| !part.instances.is_empty() || !part.object_subsets.is_empty()));
+    let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
+    let out = kind.render(2, &scene, &opts, &layout, None);
+    kind.assert_same_image(&reference, &out.film, "curves, ring of 2");
+}
+
 /// A warmed frame (the first sample rendered untimed on the prepared
 /// devices, then cleared) is the cold frame: same image, same ray counts,
 /// and no ray of the warm-up left in the counters or the bytes sent.
@@ -574,12 +595,17 @@ pub fn ring_over_instance_cost_parts_is_one_device(kind: &Kind) {
     kind.assert_same_image(&reference, &out.film, "ring over instance-cost parts");
 }
 
-/// The Cornell box and a landscape of `kind.shared_growth`.
+/// The Cornell box, a landscape of `kind.shared_growth` and the hair
+/// scene (curve pieces, whose tables are chunks like the triangles').
 fn shared_scenes(kind: &Kind) -> Vec<(String, Arc<Scene>)> {
     let mut landscape = atoll_scene::landscape::Landscape::new(kind.shared_growth).build();
     landscape.settings.film.resolution = UVec2::new(128, 72);
     let name = format!("landscape:{}", kind.shared_growth);
-    vec![("cornell".to_string(), cornell()), (name, Arc::new(landscape))]
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
+    let hair = if beside.exists() { beside } else { "scenes/hair.pbrt".into() };
+    let hair = Arc::new(atoll_scene::load_any(&hair).unwrap().scene);
+    // The landscape last: the host tier's test takes the last, largest.
+    vec![("cornell".to_string(), cornell()), ("hair".to_string(), hair), (name, Arc::new(landscape))]
 }
 
 /// Bytes of `scene`'s chunks on this kind's devices, and the budget that
