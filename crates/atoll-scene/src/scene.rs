@@ -55,8 +55,10 @@ pub struct SceneStats {
     pub meshes: usize,
     pub objects: usize,
     pub instances: usize,
-    /// Triangles stored once per mesh.
+    /// Triangles stored once per mesh (curve pieces' proxies among them).
     pub unique_triangles: u64,
+    /// Curve pieces stored once per mesh.
+    pub curve_pieces: u64,
     /// Triangles as seen by rays: each instance counts its object's triangles.
     pub instanced_triangles: u64,
     pub emissive_triangles: u64,
@@ -166,6 +168,12 @@ impl Scene {
             objects: self.objects.len(),
             instances: self.instances.len(),
             unique_triangles: self.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+            curve_pieces: self
+                .meshes
+                .iter()
+                .filter_map(|m| m.curves.as_ref())
+                .map(|c| c.pieces.len() as u64)
+                .sum(),
             instanced_triangles: self.instances.iter().map(|i| per_object[i.object as usize]).sum(),
             emissive_triangles: self.emissive_triangle_count(),
             lights: self.lights.len(),

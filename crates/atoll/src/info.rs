@@ -49,6 +49,12 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("objects            {}", s.objects);
     println!("instances          {}", s.instances);
     println!("triangles          {} unique, {} instanced", s.unique_triangles, s.instanced_triangles);
+    if s.curve_pieces > 0 {
+        println!(
+            "curve pieces       {} unique (counted among the triangles: one proxy each)",
+            s.curve_pieces
+        );
+    }
     println!("emissive triangles {}", s.emissive_triangles);
     println!("lights             {} (plus area lights)", s.lights);
     println!("materials          {}", s.materials);

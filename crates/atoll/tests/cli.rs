@@ -56,6 +56,13 @@ fn info_reports_counts() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("20504 unique"), "{stdout}");
     assert!(stdout.contains("SAH cost"), "{stdout}");
+    assert!(!stdout.contains("curve pieces"), "{stdout}");
+    // Curves: 210 strands of one segment, 8 pieces each, beside the ground's 2 triangles.
+    let hair = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
+    let out = atoll(&dir, &["info", &hair.display().to_string()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("triangles          1682 unique"), "{stdout}");
+    assert!(stdout.contains("curve pieces       1680 unique"), "{stdout}");
 }
 
 /// Output into a pipe whose reader is gone (`atoll info … | head -1`)
