@@ -25,18 +25,20 @@ LightSource "distant" "point3 from" [ -1 3 -2 ] "point3 to" [ 0 0 0 ] "rgb L" [ 
 Material "diffuse" "rgb reflectance" [ 0.4 0.4 0.4 ]
 Shape "trianglemesh" "point3 P" [ -3 0 -3  3 0 -3  3 0 3  -3 0 3 ] "integer indices" [ 0 1 2 0 2 3 ]'''
 
-# The middle tuft's absorption and roughness are textures (evaluated per
-# hit): bands along each strand (its u), and a constant; the right one's
-# colour is a texture too (lighter towards the tips), turned into an
-# absorption per hit.
-TUFT_TEXTURES = '''Texture "bands" "spectrum" "checkerboard" "float uscale" [ 6 ] "float vscale" [ 1 ]
+# The left tuft's eumelanin is a texture (darker bands along each strand,
+# its u); the middle tuft's absorption and roughness are textures
+# (evaluated per hit): bands, and a constant; the right one's colour is a
+# texture too (lighter towards the tips), turned into an absorption per hit.
+TUFT_TEXTURES = '''Texture "melanin" "float" "checkerboard" "float uscale" [ 4 ] "float vscale" [ 1 ]
+  "float tex1" [ 0.9 ] "float tex2" [ 2.2 ]
+Texture "bands" "spectrum" "checkerboard" "float uscale" [ 6 ] "float vscale" [ 1 ]
   "rgb tex1" [ 0.35 0.6 1.2 ] "rgb tex2" [ 1.6 0.9 0.3 ]
 Texture "roughness" "float" "constant" "float value" [ 0.2 ]
 Texture "tips" "spectrum" "checkerboard" "float uscale" [ 2 ] "float vscale" [ 1 ]
   "rgb tex1" [ 0.8 0.25 0.1 ] "rgb tex2" [ 0.9 0.75 0.4 ]'''
 
 TUFT_MATERIALS = [
-    (-0.9, '"float eumelanin" [ 1.3 ]'),
+    (-0.9, '"texture eumelanin" "melanin" "float pheomelanin" [ 0.2 ]'),
     (0.0, '"texture sigma_a" "bands" "texture beta_m" "roughness"'),
     (0.9, '"texture reflectance" "tips" "float alpha" [ 3 ]'),
 ]

@@ -60,6 +60,8 @@ inline constexpr unsigned int STORE_ASYMMETRY = 4u;
 inline constexpr unsigned int STORE_ALBEDO = 5u;
 inline constexpr unsigned int STORE_HAIR_ROUGHNESS = 6u;
 inline constexpr unsigned int STORE_HAIR_REFLECTANCE = 7u;
+inline constexpr unsigned int STORE_EUMELANIN = 8u;
+inline constexpr unsigned int STORE_PHEOMELANIN = 9u;
 inline constexpr unsigned int ALPHA_NONE = 0u;
 inline constexpr unsigned int ALPHA_STOCHASTIC = 1u;
 inline constexpr unsigned int ALPHA_CUTOFF = 2u;
@@ -75,6 +77,12 @@ inline constexpr unsigned int CHANNEL_RED = 3u;
 inline constexpr unsigned int CHANNEL_GREEN = 4u;
 inline constexpr unsigned int CHANNEL_BLUE = 5u;
 inline constexpr float BUMP_STEP = 0.0005f;
+inline constexpr float EUMELANIN_SIGMA_A_R = 0.419f;
+inline constexpr float EUMELANIN_SIGMA_A_G = 0.697f;
+inline constexpr float EUMELANIN_SIGMA_A_B = 1.37f;
+inline constexpr float PHEOMELANIN_SIGMA_A_R = 0.187f;
+inline constexpr float PHEOMELANIN_SIGMA_A_G = 0.4f;
+inline constexpr float PHEOMELANIN_SIGMA_A_B = 1.05f;
 static_assert(sizeof(TexOp) == 32, "TexOp: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(TexOp, code) == 0 && sizeof(TexOp::code) == 4, "TexOp.code: offset or size differs from Rust");
@@ -255,6 +263,12 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
                                 hair_sigma_a_from_reflectance(fminf(v.y, 1.0f), b),
                                 hair_sigma_a_from_reflectance(fminf(v.z, 1.0f), b)};
         for (int i = 0; i < 3; ++i) coeffs[slot + i] = f32_to_f16(sigma[i]);
+    } else if (how == STORE_EUMELANIN || how == STORE_PHEOMELANIN) {
+        const bool eu = how == STORE_EUMELANIN;
+        const float pigment[3] = {eu ? EUMELANIN_SIGMA_A_R : PHEOMELANIN_SIGMA_A_R,
+                                  eu ? EUMELANIN_SIGMA_A_G : PHEOMELANIN_SIGMA_A_G,
+                                  eu ? EUMELANIN_SIGMA_A_B : PHEOMELANIN_SIGMA_A_B};
+        for (int i = 0; i < 3; ++i) coeffs[slot + i] = f32_to_f16(__fadd_rn(f16_to_f32(coeffs[slot + i]), __fmul_rn(pigment[i], v.x)));
     } else if (how == STORE_CONDUCTOR_REFLECTANCE) {
         const unsigned short one = f32_to_f16(1.0f);
         coeffs[slot] = coeffs[slot + 1] = coeffs[slot + 2] = one;

@@ -274,6 +274,8 @@ pub(crate) fn texture_constants() -> String {
         ("STORE_ALBEDO", store::ALBEDO),
         ("STORE_HAIR_ROUGHNESS", store::HAIR_ROUGHNESS),
         ("STORE_HAIR_REFLECTANCE", store::HAIR_REFLECTANCE),
+        ("STORE_EUMELANIN", store::EUMELANIN),
+        ("STORE_PHEOMELANIN", store::PHEOMELANIN),
         ("ALPHA_NONE", alpha_mode::NONE),
         ("ALPHA_STOCHASTIC", alpha_mode::STOCHASTIC),
         ("ALPHA_CUTOFF", alpha_mode::CUTOFF),
@@ -292,6 +294,14 @@ pub(crate) fn texture_constants() -> String {
         s += &const_uint("unsigned int", name, value as u64);
     }
     s += &const_float("BUMP_STEP", atoll_render::bump::BUMP_STEP);
+    for (name, rgb) in [
+        ("EUMELANIN_SIGMA_A", atoll_scene::HairParams::EUMELANIN_SIGMA_A),
+        ("PHEOMELANIN_SIGMA_A", atoll_scene::HairParams::PHEOMELANIN_SIGMA_A),
+    ] {
+        for (channel, value) in ["R", "G", "B"].iter().zip(rgb.to_array()) {
+            s += &const_float(&format!("{name}_{channel}"), value);
+        }
+    }
     s += &assert_struct::<TexOp>("TexOp", field_layout!(TexOp { code, a, b, c, f }));
     s += &assert_struct::<ProgramRange>("ProgramRange", field_layout!(ProgramRange { start, len }));
     s + &assert_struct::<AlphaProgram>("AlphaProgram", field_layout!(AlphaProgram { program, mode, cutoff }))

@@ -139,6 +139,11 @@ pub mod store {
     /// absorption that gives the colour, clamped to [0, 1], as a
     /// reflectance at the fibre's `beta_n` (already in its slot).
     pub const HAIR_REFLECTANCE: u32 = 7;
+    /// Three coefficients (a hair fibre's `sigma_a`): the absorption of the
+    /// first channel's concentration of eumelanin added to theirs.
+    pub const EUMELANIN: u32 = 8;
+    /// The same for pheomelanin.
+    pub const PHEOMELANIN: u32 = 9;
 }
 
 /// One instruction of a texture program (32 bytes; the GPU reads the same bytes).
@@ -602,6 +607,8 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::Hair, P::BetaM) => to(&[hair::BETA_M], store::HAIR_ROUGHNESS),
         (K::Hair, P::BetaN) => to(&[hair::BETA_N], store::HAIR_ROUGHNESS),
         (K::Hair, P::HairAlpha) => to(&[hair::ALPHA], store::FLOAT),
+        (K::Hair, P::Eumelanin) => to(&[hair::SIGMA_A], store::EUMELANIN),
+        (K::Hair, P::Pheomelanin) => to(&[hair::SIGMA_A], store::PHEOMELANIN),
         _ => Vec::new(),
     }
 }
@@ -740,6 +747,16 @@ fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFF
             let sigma_a = atoll_scene::HairParams::sigma_a_from_reflectance(v.min(Vec3::ONE), beta_n);
             for (i, c) in sigma_a.to_array().into_iter().enumerate() {
                 coeffs[slot + i] = f16::from_f32(c);
+            }
+        }
+        store::EUMELANIN | store::PHEOMELANIN => {
+            let pigment = if how == store::EUMELANIN {
+                atoll_scene::HairParams::EUMELANIN_SIGMA_A
+            } else {
+                atoll_scene::HairParams::PHEOMELANIN_SIGMA_A
+            };
+            for (i, c) in (pigment * v.x).to_array().into_iter().enumerate() {
+                coeffs[slot + i] = f16::from_f32(coeffs[slot + i].to_f32() + c);
             }
         }
         store::CONDUCTOR_REFLECTANCE => {

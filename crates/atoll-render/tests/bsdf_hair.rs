@@ -252,7 +252,8 @@ fn hits_from_above(source: &str, origins: &[[f32; 3]]) -> Vec<atoll_render::RayR
 /// Textured hair parameters (`sigma_a`, `eta`, `beta_m`, `beta_n`,
 /// `alpha`) reach the hit's coefficients, the roughnesses clamped to
 /// [0.01, 1] as pbrt-v4 clamps them; a textured `reflectance` becomes the
-/// absorption at the hit's (textured) `beta_n`.
+/// absorption at the hit's (textured) `beta_n`; textured melanin adds its
+/// absorption.
 #[test]
 fn textured_hair_parameters_reach_the_hit() {
     use atoll_render::material_layout::hair;
@@ -288,6 +289,15 @@ Shape "curve" "string type" "cylinder" "point3 P" [ -1 0 0  -0.3 0 0  0.3 0 0  1
     );
     let h = &hits_from_above(&source, &[[0.3, 0.05, 5.0]])[0];
     let want = HairParams::sigma_a_from_reflectance(Rgb::new(0.6, 0.3, 0.1), 0.5);
+    assert!((h.coeff3(hair::SIGMA_A) - want).abs().max_element() < 2e-3 * want.max_element(), "{want}");
+
+    // A textured eumelanin concentration adds its absorption to the constant pheomelanin's.
+    let source = source.replace(
+        "\"texture reflectance\" \"colour\"",
+        "\"texture eumelanin\" \"half\" \"float pheomelanin\" 2",
+    );
+    let h = &hits_from_above(&source, &[[0.3, 0.05, 5.0]])[0];
+    let want = HairParams::sigma_a_from_concentration(0.5, 2.0);
     assert!((h.coeff3(hair::SIGMA_A) - want).abs().max_element() < 2e-3 * want.max_element(), "{want}");
 }
 

@@ -180,10 +180,13 @@ impl HairParams {
     /// `SigmaAFromConcentration`, with its RGB absorption per unit
     /// concentration of each pigment (d'Eon et al. 2011).
     pub fn sigma_a_from_concentration(eumelanin: f32, pheomelanin: f32) -> Rgb {
-        let eumelanin_sigma_a = Rgb::new(0.419, 0.697, 1.37);
-        let pheomelanin_sigma_a = Rgb::new(0.187, 0.4, 1.05);
-        eumelanin_sigma_a * eumelanin.max(0.0) + pheomelanin_sigma_a * pheomelanin.max(0.0)
+        Self::EUMELANIN_SIGMA_A * eumelanin.max(0.0) + Self::PHEOMELANIN_SIGMA_A * pheomelanin.max(0.0)
     }
+
+    /// The absorption of a unit concentration of eumelanin (pbrt-v4's).
+    pub const EUMELANIN_SIGMA_A: Rgb = Rgb::new(0.419, 0.697, 1.37);
+    /// The absorption of a unit concentration of pheomelanin (pbrt-v4's).
+    pub const PHEOMELANIN_SIGMA_A: Rgb = Rgb::new(0.187, 0.4, 1.05);
 
     /// The absorption that gives hair of azimuthal roughness `beta_n` about
     /// the colour `c` after multiple scattering: pbrt-v4's

@@ -567,6 +567,10 @@ pub enum TexturedParam {
     BetaN,
     /// A hair fibre's scale tilt (degrees).
     HairAlpha,
+    /// A hair fibre's concentrations of eumelanin and pheomelanin, whose
+    /// absorptions add up to its `sigma_a` where evaluated.
+    Eumelanin,
+    Pheomelanin,
 }
 
 impl TexturedParam {
@@ -600,6 +604,8 @@ impl TexturedParam {
             TexturedParam::BetaM => "beta_m",
             TexturedParam::BetaN => "beta_n",
             TexturedParam::HairAlpha => "alpha",
+            TexturedParam::Eumelanin => "eumelanin",
+            TexturedParam::Pheomelanin => "pheomelanin",
         }
     }
 }

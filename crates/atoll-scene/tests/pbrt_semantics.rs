@@ -393,9 +393,9 @@ fn coated_conductor() {
 /// pbrt-v4's `hair`: its defaults, and the absorption from `sigma_a`,
 /// `reflectance` (or `color`) or the melanin concentrations, in that order
 /// of precedence; roughnesses clamped to [0.01, 1]; textures bound per hit
-/// for `sigma_a`, `reflectance`, `eta`, `beta_m`, `beta_n` and `alpha`
-/// (the material keeps the defaults), refused for the melanin
-/// concentrations.
+/// for `sigma_a`, `reflectance`, `eta`, `beta_m`, `beta_n`, `alpha` and
+/// the melanin concentrations (the material keeps the defaults, or the
+/// constant concentration's absorption).
 #[test]
 fn hair() {
     let world = format!(
@@ -407,7 +407,7 @@ fn hair() {
          Material \"hair\" \"rgb color\" [0.3 0.2 0.1] \"float beta_n\" 0.5\n{t}\n\
          Material \"hair\" \"float eumelanin\" 0.3 \"float pheomelanin\" 2 \"rgb sigma_a\" [1 1 1]\n{t}\n\
          Material \"hair\" \"float pheomelanin\" 2 \"texture beta_m\" \"t\" \"float beta_n\" 0.001\n{t}\n\
-         Material \"hair\" \"texture eumelanin\" \"t\"\n{t}\n\
+         Material \"hair\" \"texture eumelanin\" \"t\" \"float pheomelanin\" 0.5\n{t}\n\
          Material \"hair\" \"rgb reflectance\" [0.3 0.2 0.1] \"texture beta_n\" \"t\"\n{t}",
         t = tri(UNIT_TRI)
     );
@@ -442,16 +442,21 @@ fn hair() {
     let bound: Vec<_> =
         s.textures.bindings.iter().filter(|b| b.material == textured).map(|b| b.param).collect();
     assert_eq!(bound, vec![atoll_scene::TexturedParam::BetaM]);
-    assert_eq!(m[6], Material::Hair(default), "a textured concentration keeps its default");
+    // A textured concentration adds per hit to the constant one's absorption.
+    let pheomelanin = HairParams::sigma_a_from_concentration(0.0, 0.5);
+    assert_eq!(m[6], Material::Hair(HairParams { sigma_a: pheomelanin, ..default }));
+    let melanin = s.meshes[6].material;
+    let bound: Vec<_> =
+        s.textures.bindings.iter().filter(|b| b.material == melanin).map(|b| b.param).collect();
+    assert_eq!(bound, vec![atoll_scene::TexturedParam::Eumelanin]);
     // A reflectance turns into an absorption per hit, after the textured beta_n.
     let per_hit = s.meshes[7].material;
     let bound: Vec<_> =
         s.textures.bindings.iter().filter(|b| b.material == per_hit).map(|b| b.param).collect();
     assert_eq!(bound, vec![atoll_scene::TexturedParam::BetaN, atoll_scene::TexturedParam::Reflectance]);
     let warnings: Vec<String> = loaded.warnings.iter().map(|w| w.to_string()).collect();
-    assert_eq!(warnings.len(), 2, "{warnings:?}");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
     assert!(warnings[0].contains("\"sigma_a\" is used"), "{warnings:?}");
-    assert!(warnings[1].contains("texture \"t\" for \"eumelanin\""), "{warnings:?}");
 }
 
 #[test]

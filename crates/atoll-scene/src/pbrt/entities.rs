@@ -11,7 +11,7 @@ use crate::{
     Rgb, TexInput, TexturedParam,
 };
 
-use super::params::{FloatOrTexture, ParamList, ParamType, SpectrumParam};
+use super::params::{ParamList, ParamType, SpectrumParam};
 use super::spectrum;
 use super::textures::TexCtx;
 use super::transform;
@@ -289,8 +289,8 @@ fn coated_conductor(
 /// (brown); `eta` 1.55, `beta_m` and `beta_n` 0.3 (clamped to [0.01, 1]),
 /// `alpha` 2 degrees. `sigma_a`, `reflectance`, `eta`, `beta_m`, `beta_n`
 /// and `alpha` may be textures (evaluated per hit; a reflectance becomes
-/// an absorption with the hit's `beta_n`); a textured melanin
-/// concentration is warned about and its default used.
+/// an absorption with the hit's `beta_n`), and so may the melanin
+/// concentrations (their absorptions added up per hit).
 fn hair(
     p: &ParamList,
     what: &str,
@@ -314,21 +314,8 @@ fn hair(
     let (beta_n, beta_n_textured) = float("beta_n", TexturedParam::BetaN, default.beta_n, w)?;
     let beta_n = beta_n.unwrap_or(default.beta_n).clamp(0.01, 1.0);
     let alpha = float("alpha", TexturedParam::HairAlpha, default.alpha, w)?.0.unwrap_or(default.alpha);
-    let constant = |name: &str, fallback: f32, w: &mut WarningSink| -> Result<Option<f32>, SceneError> {
-        Ok(match p.float_or_texture(name)? {
-            Some(FloatOrTexture::Value(v)) => Some(v),
-            Some(FloatOrTexture::Texture(t)) => {
-                w.warn(
-                    loc,
-                    format!("{what}: texture \"{t}\" for \"{name}\" is not supported; using {fallback}"),
-                );
-                Some(fallback)
-            }
-            None => None,
-        })
-    };
-    let eumelanin = constant("eumelanin", 1.3, w)?;
-    let pheomelanin = constant("pheomelanin", 0.0, w)?;
+    let eumelanin = tex.float(p, "eumelanin", what, loc, w)?;
+    let pheomelanin = tex.float(p, "pheomelanin", what, loc, w)?;
     let sigma_a = tex.spectrum(p, "sigma_a", what, loc, w)?;
     let reflectance = match tex.spectrum(p, "reflectance", what, loc, w)? {
         Some(c) => Some(c),
@@ -352,8 +339,20 @@ fn hair(
             tex.bind_always(c, TexturedParam::Reflectance);
             default.sigma_a
         }
+        // A textured concentration adds its absorption per hit to the
+        // constant one's (pbrt-v4 takes a missing one as 0).
         (None, None) if melanin => {
-            HairParams::sigma_a_from_concentration(eumelanin.unwrap_or(0.0), pheomelanin.unwrap_or(0.0))
+            let mut concentration = |input: Option<TexInput>, param| match input {
+                Some(TexInput::Value(c)) => c.x,
+                Some(texture) => {
+                    tex.bind_always(texture, param);
+                    0.0
+                }
+                None => 0.0,
+            };
+            let eumelanin = concentration(eumelanin, TexturedParam::Eumelanin);
+            let pheomelanin = concentration(pheomelanin, TexturedParam::Pheomelanin);
+            HairParams::sigma_a_from_concentration(eumelanin, pheomelanin)
         }
         (None, None) => default.sigma_a,
     };
