@@ -1222,3 +1222,18 @@ fn curves_load_as_pieces_in_world_space() {
     assert_eq!(sizes.triangles, 9);
     assert!(sizes.geometry_bytes >= flat.bytes() + ribbon.bytes(), "{sizes:?}");
 }
+
+/// Curves that cannot be made are errors at their statement: control
+/// points a transform puts past the floats, and more pieces than the scene's budget of generated
+/// primitives allows (drawn before they are made).
+#[test]
+fn bad_curves_are_errors_at_their_statement() {
+    let huge = "Scale 1e30 1e30 1e30\nShape \"curve\" \"point3 P\" [0 0 0 1 0 0 1e10 0 0 3 0 0]";
+    let e = load_world("", huge).unwrap_err().to_string();
+    assert!(e.starts_with("test.pbrt:4:") && e.contains("non-finite"), "{e}");
+    // 3 segments of 8 pieces each against a budget of 20.
+    let long = "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 2 0 0 3 0 0 4 0 0 5 0 0 6 0 0 7 0 0 8 0 0 9 0 0]";
+    let budget = std::sync::Arc::new(atoll_scene::input::LoadBudget::new(u64::MAX, 20));
+    let e = atoll_scene::input::with_budget(budget, || load_world("", long)).unwrap_err().to_string();
+    assert!(e.starts_with("test.pbrt:3:") && e.contains("24 triangles"), "{e}");
+}

@@ -222,6 +222,14 @@ fn scene_traversal(
         atoll_bvh::bench::export_bench_data(&scene, &cpu_options, dir)
             .map_err(|e| CliError::Runtime(format!("{}: {e}", dir.display())))?;
         step(args, format_args!("triangles and rays written to {}", dir.display()));
+        let pieces = scene.stats().curve_pieces;
+        if pieces > 0 {
+            tracing::warn!(
+                "{}: the scene's {pieces} curve pieces are not triangles and are left out of triangles.f32; \
+                 its rays were traced with them",
+                dir.display()
+            );
+        }
     }
     match &selected.gpu {
         Some(gpu) => {

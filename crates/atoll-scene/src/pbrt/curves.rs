@@ -109,6 +109,9 @@ pub fn curve(p: &ParamList, loc: &FileLoc) -> Result<ShapeMesh, SceneError> {
         ));
     }
     let split = p.int("splitdepth")?.unwrap_or(3).clamp(0, MAX_SPLIT_DEPTH);
+    // Drawn from the scene's budget before they are made (a piece is a primitive).
+    let pieces = (segments.len() as u64).checked_mul(1 << split);
+    super::shapes::generate("curve", pieces, loc)?;
     let curves = Curves::from_segments(kind, &segments, (w0, w1), &normals, 1 << split);
     let (positions, indices) = curves.proxy_triangles();
     Ok(ShapeMesh { name: "curve".into(), positions, indices, curves: Some(curves), ..Default::default() })

@@ -108,7 +108,7 @@ impl PendingShape {
         let ctm = place.ctm;
         let reverse = place.reverse_orientation;
         if let Some(curves) = shape.curves {
-            return Ok(curve_mesh(shape.name, curves, place, warnings));
+            return curve_mesh(shape.name, curves, place, warnings);
         }
         let normal_matrix = DMat3::from_mat4(ctm).inverse().transpose();
         let unit = |n: DVec3| {
@@ -170,7 +170,7 @@ fn curve_mesh(
     mut curves: crate::curve::Curves,
     mut place: ShapePlace,
     mut warnings: Vec<String>,
-) -> MadeShape {
+) -> Result<MadeShape, SceneError> {
     let ctm = place.ctm;
     let linear = DMat3::from_mat4(ctm);
     let normal_matrix = linear.inverse().transpose();
@@ -195,7 +195,6 @@ fn curve_mesh(
         warnings.push(format!("curves cannot have {}; dropped", dropped.join(" or ")));
     }
     let (positions, indices) = curves.proxy_triangles();
-    crate::input::on_budget(|b| b.count_loaded_triangles(indices.len() as u64));
     let mesh = TriangleMesh {
         name,
         positions,
@@ -205,5 +204,9 @@ fn curve_mesh(
         curves: Some(curves),
         ..Default::default()
     };
-    MadeShape { place, mesh: Some(mesh), warnings }
+    // Non-finite control points or widths make non-finite proxies.
+    mesh.validate()
+        .map_err(|m| SceneError::caused_by(&place.loc, format!("shape \"{}\": {m}", mesh.name), m))?;
+    crate::input::on_budget(|b| b.count_loaded_triangles(mesh.indices.len() as u64));
+    Ok(MadeShape { place, mesh: Some(mesh), warnings })
 }

@@ -114,7 +114,7 @@ fn made_mesh(
             let phimax = p.float_or("phimax", 360.0)?;
             tessellated("cylinder", quadrics::cylinder(radius, zmin, zmax, phimax), loc)
         }
-        "curve" => tessellated("curve", super::curves::curve(p, loc)?, loc),
+        "curve" => super::curves::curve(p, loc).map(Some),
         _ => {
             p.mark_all_used();
             w.warn(loc, format!("unsupported shape \"{ty}\" skipped"));
@@ -123,7 +123,7 @@ fn made_mesh(
     }
 }
 
-/// A tessellated quadric or curve, its few thousand triangles at most drawn
+/// A tessellated quadric, its few thousand triangles at most drawn
 /// from the scene's budget (made first: they take less memory than the check).
 fn tessellated(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<ShapeMesh>, SceneError> {
     generate(what, Some(mesh.indices.len() as u64), loc)?;
@@ -134,7 +134,7 @@ fn tessellated(what: &str, mesh: ShapeMesh, loc: &FileLoc) -> Result<Option<Shap
 /// budget ([`crate::input::max_generated_triangles`]), before anything is
 /// allocated for them; `None` is a count past `u64`. A mesh's vertices are
 /// addressed with 32 bits, so no more triangles than that either.
-fn generate(what: &str, triangles: Option<u64>, loc: &FileLoc) -> Result<(), SceneError> {
+pub(super) fn generate(what: &str, triangles: Option<u64>, loc: &FileLoc) -> Result<(), SceneError> {
     let Some(t) = triangles.filter(|&t| t <= u32::MAX as u64) else {
         let count = triangles.map_or("more than 2^64".into(), |t| t.to_string());
         return Err(SceneError::at(
