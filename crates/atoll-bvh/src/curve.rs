@@ -3,7 +3,8 @@
 //! into a frame where the ray runs along +z from the origin, cut in halves
 //! until each part is nearly straight, and each part is tested as a
 //! segment of the width the curve has there. The GPU's `curve.cuh` does
-//! the same operations in the same order.
+//! the same operations in the same order (but for the CPU's early
+//! bounding-sphere test, which changes no hit).
 //!
 //! pbrt recurses; here the halves are visited depth first over the
 //! implicit binary tree of parameter ranges, each part's control points
@@ -77,7 +78,9 @@ fn overlaps_ray(cp: &[Vec3A; 4], half_width: f32, z_max: f32) -> bool {
 /// sphere around the piece's control points grown by half its width (the
 /// curve lies in their convex hull): a few operations that spare most
 /// candidate pieces the ray frame and the refinement depth. Conservative:
-/// its margin covers the rounding of the test.
+/// its margin covers the rounding of the test, so it changes no hit. The
+/// GPU's `curve.cuh` goes without it: there it measured slower
+/// (BENCHMARKS.md).
 fn misses_bounding_sphere(piece: &CurvePiece, p: &[Vec3A; 4], origin: Vec3A, dir: Vec3A, t_max: f32) -> bool {
     let centre = (p[0] + p[1] + p[2] + p[3]) * 0.25;
     let r2 = p.iter().map(|q| (*q - centre).length_squared()).fold(0.0f32, f32::max);

@@ -131,30 +131,13 @@ __device__ __forceinline__ bool curve_segment_hit(const CurvePieceData& c, const
     return true;
 }
 
-/// atoll_bvh::curve::misses_bounding_sphere: the ray passes clear of the
-/// sphere around the control points grown by half the width (conservative).
-__device__ __forceinline__ bool curve_misses_bounding_sphere(const CurvePieceData& c, float3 o, float3 d,
-                                                             float t_max) {
-    const float3 centre = (c.p[0] + c.p[1] + c.p[2] + c.p[3]) * 0.25f;
-    float r2 = 0.0f;
-    for (int i = 0; i < 4; ++i) r2 = fmaxf(r2, dot3(c.p[i] - centre, c.p[i] - centre));
-    const float half = 0.5f * fmaxf(curve_width_at(c, c.u0), curve_width_at(c, c.u1));
-    const float3 to_centre = centre - o;
-    const float radius = (sqrtf(r2) + half) * (1.0f + 1e-4f) + 1e-5f * length3(to_centre);
-    const float dd = dot3(d, d);
-    const float t_centre = dot3(to_centre, d) / dd;
-    const float3 off = to_centre - d * t_centre;
-    const float dt = radius / sqrtf(dd);
-    return dot3(off, off) > radius * radius || t_centre + dt < 0.0f || t_centre - dt > t_max;
-}
-
 /// The closest hit (with ANY, the first found) of the ray (o, d) with
 /// 0 < t < t_max on curve piece `c` (atoll_bvh::curve::intersect_curve).
 template <bool ANY>
 __device__ bool intersect_curve(const CurvePieceData& c, float3 o, float3 d, float t_max, float& t_hit,
                                 float& u_hit, float& v_hit) {
     const float ray_length = length3(d);
-    if (ray_length == 0.0f || curve_misses_bounding_sphere(c, o, d, t_max)) return false;
+    if (ray_length == 0.0f) return false;
     const float3 z = d / ray_length;
     float3 up = cross3(d, c.p[3] - c.p[0]);
     if (dot3(up, up) == 0.0f) up = curve_orthonormal(z);
