@@ -190,7 +190,7 @@ mod tests {
     }
 
     fn placed(scene: &mut Scene, object: ObjectId, x: f32) {
-        scene.instances.push(Instance { object, object_to_world: Affine3A::from_translation(Vec3::X * x) });
+        scene.instances.push(Instance::new(object, Affine3A::from_translation(Vec3::X * x)));
     }
 
     const NO_SCRATCH: ByteModel = ByteModel { scratch_per_triangle: 0, ..ByteModel::CPU };

@@ -72,11 +72,11 @@ fn random_scene(seed: u64, tris: usize) -> Scene {
         let scale = rng.vec3(0.3, 2.0);
         let object = if i == 4 { empty } else { objects[i % objects.len()] };
         let m = Affine3A::from_scale_rotation_translation(scale, rotation, rng.vec3(-4.0, 4.0));
-        scene.instances.push(Instance { object, object_to_world: m });
+        scene.instances.push(Instance::new(object, m));
     }
     let world = scene.add_mesh(soup(&mut rng, tris / 6));
     let world = scene.add_object(Object { name: "world".into(), meshes: vec![world] });
-    scene.instances.push(Instance { object: world, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(world, Affine3A::IDENTITY));
     scene
 }
 
@@ -218,7 +218,7 @@ fn coincident_centroids_fill_multi_block_leaves() {
     let mut scene = Scene::default();
     let mesh = scene.add_mesh(mesh);
     let object = scene.add_object(Object { name: "star".into(), meshes: vec![mesh] });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     let bvh = SceneBvh::build(&scene);
     assert!(bvh.stats().blas.leaves >= 5, "{:?}", bvh.stats());
     let rays: Vec<Ray> = (0..500)
@@ -241,7 +241,7 @@ fn empty_scenes_hit_nothing() {
     let mesh = scene.add_mesh(TriangleMesh::default());
     let object = scene.add_object(Object { name: "nothing".into(), meshes: vec![mesh] });
     scene.add_object(Object::default());
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     let bvh = SceneBvh::<Bvh2>::build_layout(&scene, &ScenePart::whole(&scene));
     assert!(bvh.intersect(&ray).is_none() && !bvh.occluded(&ray));
     assert_eq!(bvh.stats().blas_count, 0);
@@ -257,7 +257,7 @@ fn single_triangle_hits_and_t_max_limits() {
     });
     let object = scene.add_object(Object { name: "one".into(), meshes: vec![mesh] });
     let object_to_world = Affine3A::from_translation(Vec3::new(0.0, 0.0, 1.0));
-    scene.instances.push(Instance { object, object_to_world });
+    scene.instances.push(Instance::new(object, object_to_world));
     let bvh = SceneBvh::build(&scene);
     let ray = |t_max| Ray { origin: Vec3::new(1.0, 0.5, 0.0), direction: Vec3::new(0.0, 0.0, 2.0), t_max };
     let hit = bvh.intersect(&ray(10.0)).unwrap();

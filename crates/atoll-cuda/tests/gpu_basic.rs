@@ -204,7 +204,7 @@ fn large_tables_written_into_staging_equal_the_host_tables() {
         meshes.push(scene.add_mesh(mesh));
     }
     let object = scene.add_object(atoll_scene::Object { name: "all".into(), meshes });
-    scene.instances.push(atoll_scene::Instance { object, object_to_world: glam::Affine3A::IDENTITY });
+    scene.instances.push(atoll_scene::Instance::new(object, glam::Affine3A::IDENTITY));
     let host = SceneTables::build(&scene);
     assert!(host.vertices.len() * 4 > 64 << 20);
     let tables = GpuScene::upload(&gpu, &scene, None, 0).unwrap();

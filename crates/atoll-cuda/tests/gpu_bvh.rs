@@ -193,7 +193,7 @@ fn empty_and_tiny_scenes_build_and_trace() {
     let Some(gpu) = gpu_or_skip("tiny") else { return };
     // Objects: one triangle (0) and none (1).
     let objects = random_scene(5, 2, 1, 0);
-    let one = atoll_scene::Instance { object: 0, object_to_world: glam::Affine3A::IDENTITY };
+    let one = atoll_scene::Instance::new(0, glam::Affine3A::IDENTITY);
     let tiny = [
         atoll_scene::Scene::default(),
         atoll_scene::Scene { instances: Vec::new(), ..objects.clone() },

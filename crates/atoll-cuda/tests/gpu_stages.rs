@@ -739,7 +739,7 @@ fn surface_scene() -> Scene {
             Quat::from_axis_angle(axis, angle + k as f32),
             at,
         );
-        scene.instances.push(Instance { object, object_to_world: to_world });
+        scene.instances.push(Instance::new(object, to_world));
     }
     scene
 }

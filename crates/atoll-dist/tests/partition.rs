@@ -37,9 +37,7 @@ fn object(scene: &mut Scene, name: &str, meshes: Vec<TriangleMesh>) -> ObjectId 
 }
 
 fn place(scene: &mut Scene, object: ObjectId, x: f32) {
-    scene
-        .instances
-        .push(Instance { object, object_to_world: Affine3A::from_translation(Vec3::new(x, 0.0, 1.0)) });
+    scene.instances.push(Instance::new(object, Affine3A::from_translation(Vec3::new(x, 0.0, 1.0))));
 }
 
 /// One huge ground object (a 48 × 48 grid, 4608 triangles, and a small
@@ -47,7 +45,7 @@ fn place(scene: &mut Scene, object: ObjectId, x: f32) {
 fn ground_scene() -> Scene {
     let mut scene = Scene::default();
     let ground = object(&mut scene, "ground", vec![grid("terrain", 48, 0.0), grid("kerb", 6, 0.1)]);
-    scene.instances.push(Instance { object: ground, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(ground, Affine3A::IDENTITY));
     for k in 0..12u32 {
         let o = object(&mut scene, &format!("thing{k}"), vec![grid("thing", 2 + k % 5, 0.0)]);
         for copy in 0..=k % 4 {

@@ -763,7 +763,7 @@ mod tests {
             ..Default::default()
         });
         let object = scene.add_object(Object { name: "light".into(), meshes: vec![mesh] });
-        scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+        scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
         scene
     }
 
@@ -865,12 +865,11 @@ mod tests {
         let light_object = scene.instances[0].object;
         let plain_object = scene.add_object(Object { name: "plain".into(), meshes: vec![plain] });
         let mixed = scene.add_object(Object { name: "mixed".into(), meshes: vec![lamp, light_mesh] });
-        scene.instances.insert(0, Instance { object: plain_object, object_to_world: Affine3A::IDENTITY });
-        scene.instances.push(Instance {
-            object: light_object,
-            object_to_world: Affine3A::from_translation(Vec3::new(3.0, 0.0, 0.0)),
-        });
-        scene.instances.push(Instance { object: mixed, object_to_world: Affine3A::IDENTITY });
+        scene.instances.insert(0, Instance::new(plain_object, Affine3A::IDENTITY));
+        scene
+            .instances
+            .push(Instance::new(light_object, Affine3A::from_translation(Vec3::new(3.0, 0.0, 0.0))));
+        scene.instances.push(Instance::new(mixed, Affine3A::IDENTITY));
         let set = LightSet::new(&scene, LightSampler::Power);
         // Instance 1: 2 triangles, instance 2: 2, instance 3: lamp 1 then light 2.
         assert_eq!(set.emitters.len(), 7);

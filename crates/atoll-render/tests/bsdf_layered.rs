@@ -556,7 +556,7 @@ fn lossless_coated_sphere_under_uniform_sky_is_invisible() {
     let mut scene = Scene { materials: vec![material], ..Default::default() };
     let mesh = scene.add_mesh(sphere(0));
     let object = scene.add_object(Object { name: "world".into(), meshes: vec![mesh] });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     scene.settings.camera = Camera {
         camera_to_world: glam::camera::lh::view::look_at_mat4(Vec3::new(0.0, 0.0, -3.0), Vec3::ZERO, Vec3::Y)
             .inverse(),

@@ -37,7 +37,7 @@ fn scene_with(meshes: Vec<TriangleMesh>, materials: Vec<Material>, eye: Vec3, ta
     let mut scene = Scene { materials, ..Default::default() };
     let ids = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
     let object = scene.add_object(Object { name: "world".into(), meshes: ids });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     scene.settings.camera = Camera {
         camera_to_world: glam::camera::lh::view::look_at_mat4(eye, target, Vec3::Y).inverse(),
         fov_degrees: 60.0,

@@ -24,6 +24,9 @@ pub struct Camera {
     pub frame_aspect_ratio: Option<f32>,
     /// The lens system of a [`Projection::Realistic`] camera, focused.
     pub lens: Option<std::sync::Arc<crate::lens::LensSystem>>,
+    /// pbrt's `shutteropen` and `shutterclose`: the times rays are traced
+    /// at, spread evenly over them (what moves is blurred over them).
+    pub shutter: [f32; 2],
 }
 
 /// How camera space maps onto the screen.
@@ -82,7 +85,16 @@ impl Default for Camera {
             screen_window: None,
             frame_aspect_ratio: None,
             lens: None,
+            shutter: [0.0, 1.0],
         }
+    }
+}
+
+impl Camera {
+    /// The time of a ray whose uniform sample is `u` ∈ [0, 1).
+    pub fn time(&self, u: f32) -> f32 {
+        let [open, close] = self.shutter;
+        open + (close - open) * u
     }
 }
 

@@ -193,10 +193,7 @@ impl<'a> Loader<'a> {
     fn node(&mut self, node: &::gltf::Node<'a>, world: Mat4) -> Result<(), SceneError> {
         if let Some(mesh) = node.mesh() {
             if let Some(object) = self.object(&mesh)? {
-                self.out
-                    .scene
-                    .instances
-                    .push(Instance { object, object_to_world: Affine3A::from_mat4(world) });
+                self.out.scene.instances.push(Instance::new(object, Affine3A::from_mat4(world)));
             }
         }
         if let Some(cam) = node.camera() {

@@ -278,11 +278,11 @@ impl Landscape {
             let meshes = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
             ids.push(scene.add_object(Object { name: kind.name.into(), meshes }));
         }
-        scene.instances = std::iter::once(Instance { object: world, object_to_world: Affine3A::IDENTITY })
+        scene.instances = std::iter::once(Instance::new(world, Affine3A::IDENTITY))
             .chain(
                 placements
                     .into_iter()
-                    .map(|(kind, object_to_world)| Instance { object: ids[kind as usize], object_to_world }),
+                    .map(|(kind, object_to_world)| Instance::new(ids[kind as usize], object_to_world)),
             )
             .collect();
         self.set_view(&mut scene, &terrain);

@@ -24,6 +24,7 @@ pub mod material;
 pub mod measured;
 pub mod medium;
 pub mod mesh;
+pub mod motion;
 pub mod obj;
 pub mod off;
 pub mod pbrt;
@@ -54,6 +55,7 @@ pub use medium::{
     VACUUM,
 };
 pub use mesh::{MeshError, MeshId, TriangleMesh};
+pub use motion::{Decomposed, Motion};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{
     AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, Noise, TexInput,

@@ -170,5 +170,5 @@ pub(crate) fn add_world_object(scene: &mut Scene, meshes: Vec<crate::MeshId>) {
         return;
     }
     let object = scene.add_object(Object { name: "world".into(), meshes });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
 }

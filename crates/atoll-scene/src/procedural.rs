@@ -23,7 +23,7 @@ pub fn bench_scene(target_triangles: usize) -> Scene {
     let terrain_quads = (target_triangles / TERRAIN_SHARE / 2).max(4);
     let terrain = scene.add_mesh(TriangleMesh { material, ..terrain_mesh(terrain_quads) });
     let world = scene.add_object(Object { name: "world".into(), meshes: vec![terrain] });
-    scene.instances.push(Instance { object: world, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(world, Affine3A::IDENTITY));
 
     // Object detail grows with the budget, so the instance count stays in the hundreds.
     let stacks = ((target_triangles as f32 / 2048.0).sqrt() as u32).clamp(4, 64);
@@ -50,14 +50,10 @@ pub fn bench_scene(target_triangles: usize) -> Scene {
         let rotation = Quat::from_rotation_y(rng.next() * std::f32::consts::TAU) * tilt;
         // Half sunk into the ground, like boulders.
         let position = Vec3::new(x, height(x, z) + 0.3 * scale, z);
-        scene.instances.push(Instance {
+        scene.instances.push(Instance::new(
             object,
-            object_to_world: Affine3A::from_scale_rotation_translation(
-                Vec3::splat(scale),
-                rotation,
-                position,
-            ),
-        });
+            Affine3A::from_scale_rotation_translation(Vec3::splat(scale), rotation, position),
+        ));
     }
 
     let eye = Vec3::new(0.0, 38.0, -72.0);
@@ -112,7 +108,7 @@ pub fn flatten(scene: &Scene) -> Scene {
     }
     let meshes = (0..flat.meshes.len() as u32).collect();
     let world = flat.add_object(Object { name: "world".into(), meshes });
-    flat.instances.push(Instance { object: world, object_to_world: Affine3A::IDENTITY });
+    flat.instances.push(Instance::new(world, Affine3A::IDENTITY));
     flat
 }
 
@@ -295,7 +291,7 @@ mod tests {
             glam::Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
             Vec3::new(1.0, 0.0, 0.0),
         );
-        scene.instances.push(Instance { object, object_to_world: to_world });
+        scene.instances.push(Instance::new(object, to_world));
         let flat = flatten(&scene);
         let moved = &flat.meshes[0];
         let pieces = &moved.curves.as_ref().unwrap().pieces;

@@ -19,10 +19,19 @@ pub struct Object {
 #[derive(Clone, Copy, Debug)]
 pub struct Instance {
     pub object: crate::ObjectId,
+    /// Object to world; for a moving instance, at the start of its motion.
     pub object_to_world: Affine3A,
+    /// Where it moves while the shutter is open: an index into
+    /// [`Scene::motions`].
+    pub motion: Option<u32>,
 }
 
 impl Instance {
+    /// An instance that stays where `object_to_world` puts it.
+    pub fn new(object: crate::ObjectId, object_to_world: Affine3A) -> Self {
+        Instance { object, object_to_world, motion: None }
+    }
+
     /// The matrix taking object-space normals to world space (inverse
     /// transpose of the linear part). Under a mirroring transform it keeps an
     /// object's orientation, as pbrt does for transformed interactions.
@@ -38,6 +47,8 @@ pub struct Scene {
     pub meshes: Vec<TriangleMesh>,
     pub objects: Vec<Object>,
     pub instances: Vec<Instance>,
+    /// The motions of moving instances ([`Instance::motion`]).
+    pub motions: Vec<crate::Motion>,
     pub materials: Vec<Material>,
     /// Lights not attached to geometry; area lights live on their meshes.
     pub lights: Vec<Light>,
@@ -144,20 +155,26 @@ impl Scene {
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
         let object_bounds: Vec<_> = (0..self.objects.len() as u32).map(|o| self.object_bounds(o)).collect();
         let corners = self.instances.par_iter().flat_map_iter(|inst| {
-            let bounds = object_bounds[inst.object as usize];
-            bounds.into_iter().flat_map(move |(a, b)| {
-                (0..8).map(move |i| {
-                    let corner = Vec3::new(
-                        if i & 1 == 0 { a.x } else { b.x },
-                        if i & 2 == 0 { a.y } else { b.y },
-                        if i & 4 == 0 { a.z } else { b.z },
-                    );
-                    inst.object_to_world.transform_point3(corner)
-                })
+            object_bounds[inst.object as usize].into_iter().flat_map(move |(lo, hi)| {
+                let (a, b) = self.instance_box(inst, lo, hi);
+                [a, b]
             })
         });
         let (lo, hi) = bounds_of(corners);
         (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// The world box of `instance`'s object box `lo`..`hi`: over the whole
+    /// of its motion where it moves.
+    pub fn instance_box(&self, instance: &Instance, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
+        if let Some(m) = instance.motion {
+            return self.motions[m as usize].bounds(lo, hi);
+        }
+        let corners = (0..8).map(|i| {
+            let corner = Vec3::select(glam::BVec3::new(i & 1 != 0, i & 2 != 0, i & 4 != 0), hi, lo);
+            instance.object_to_world.transform_point3(corner)
+        });
+        corners.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| (a.min(p), b.max(p)))
     }
 
     pub fn stats(&self) -> SceneStats {

@@ -109,7 +109,7 @@ pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
     }
     let ids = meshes.into_iter().map(|m| scene.add_mesh(m)).collect();
     let object = scene.add_object(Object { name: "world".into(), meshes: ids });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     // Slightly off vertical so the shadow is displaced from the screen.
     scene
         .lights
@@ -144,7 +144,7 @@ pub fn textured_light_scene(emission: Option<Texture>, eye: Vec3, target: Vec3) 
         scene.textures.bind_emission(light, t);
     }
     let object = scene.add_object(Object { name: "world".into(), meshes: vec![floor, light] });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     scene.settings.camera = Camera {
         camera_to_world: crate::framing::look_at(eye, target, Vec3::Y).unwrap_or(Mat4::IDENTITY),
         fov_degrees: 50.0,
@@ -220,7 +220,7 @@ pub fn bent_plane_scene(bend: Bend) -> Scene {
     }
     let plane = scene.add_mesh(plane);
     let object = scene.add_object(Object { name: "world".into(), meshes: vec![plane] });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     scene
         .lights
         .push(Light::Distant { direction: -Vec3::new(1.0, 0.5, 2.0).normalize(), radiance: Rgb::ONE });
@@ -284,7 +284,7 @@ pub fn anisotropic_plane_scene(material: Material, u_angle_degrees: f32, bump_sl
     }
     let plane = scene.add_mesh(plane);
     let object = scene.add_object(Object { name: "world".into(), meshes: vec![plane] });
-    scene.instances.push(Instance { object, object_to_world: Affine3A::IDENTITY });
+    scene.instances.push(Instance::new(object, Affine3A::IDENTITY));
     scene.lights.push(Light::Distant { direction: -anisotropic_plane_light(), radiance: Rgb::ONE });
     scene.settings.camera = Camera {
         camera_to_world: crate::framing::look_at(anisotropic_plane_view() * 4.0, Vec3::ZERO, Vec3::Z)

@@ -1237,3 +1237,81 @@ fn bad_curves_are_errors_at_their_statement() {
     let e = atoll_scene::input::with_budget(budget, || load_world("", long)).unwrap_err().to_string();
     assert!(e.starts_with("test.pbrt:3:") && e.contains("24 triangles"), "{e}");
 }
+
+/// pbrt-v4's motion blur: `ActiveTransform` picks which of the two
+/// transforms directives change; a shape or instance whose two differ
+/// moves between them over `TransformTimes`, and the camera's shutter says
+/// when rays are traced.
+#[test]
+fn active_transforms_make_moving_shapes_and_instances() {
+    let options =
+        "TransformTimes 1 3\nCamera \"perspective\" \"float shutteropen\" 0.5 \"float shutterclose\" 2";
+    let world = format!(
+        "ObjectBegin \"o\"\n{still}\nObjectEnd\n\
+         AttributeBegin\nTranslate 1 0 0\nActiveTransform StartTime\nTranslate 0 5 0\nActiveTransform All\n\
+         {first}\nAttributeBegin\nActiveTransform EndTime\nTranslate 10 0 0\n{moving}\nAttributeEnd\n\
+         ActiveTransform EndTime\nRotate 90 0 0 1\nActiveTransform All\nObjectInstance \"o\"\nAttributeEnd\n\
+         {after}",
+        still = tri(UNIT_TRI),
+        first = tri(UNIT_TRI),
+        moving = tri(UNIT_TRI),
+        after = tri(UNIT_TRI),
+    );
+    let loaded = load_world(options, &world).unwrap();
+    assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
+    let scene = &loaded.scene;
+    assert_eq!(scene.settings.camera.shutter, [0.5, 2.0]);
+    assert_eq!(scene.motions.len(), 3, "{:?}", scene.motions);
+    let world_point = |inst: &atoll_scene::Instance, time: f32, p: Vec3| match inst.motion {
+        Some(m) => scene.motions[m as usize].at(time).transform_point3(p),
+        None => inst.object_to_world.transform_point3(p),
+    };
+    let moving: Vec<_> = scene.instances.iter().filter(|i| i.motion.is_some()).collect();
+    assert_eq!(moving.len(), 3);
+    for inst in &moving {
+        assert_eq!(scene.motions[inst.motion.unwrap() as usize].times, [1.0, 3.0]);
+    }
+    // A shape's vertices are kept in object space and the instance moves them.
+    let p = Vec3::X;
+    let mesh_of =
+        |inst: &atoll_scene::Instance| &scene.meshes[scene.objects[inst.object as usize].meshes[0] as usize];
+    for inst in &moving {
+        assert_close(mesh_of(inst).positions[0], p, 0.0);
+    }
+    // The first moving shape: start (1, 5, 0) + p; end (1, 0, 0) + p.
+    assert_close(world_point(moving[0], 0.0, p), Vec3::new(2.0, 5.0, 0.0), 1e-5);
+    assert_close(world_point(moving[0], 2.0, p), Vec3::new(2.0, 2.5, 0.0), 1e-5);
+    assert_close(world_point(moving[0], 3.0, p), Vec3::new(2.0, 0.0, 0.0), 1e-5);
+    // The one inside the nested block: its end also moves by 10 along x.
+    assert_close(world_point(moving[1], 3.0, p), Vec3::new(12.0, 0.0, 0.0), 1e-5);
+    // The instance: end transform turned by 90 degrees about z, halfway by 45.
+    let half = world_point(moving[2], 2.0, p);
+    let r = std::f32::consts::FRAC_1_SQRT_2;
+    assert_close(half, Vec3::new(1.0, 2.5, 0.0) + Vec3::new(r, r, 0.0), 1e-5);
+    // After AttributeEnd nothing moves: the last shape lies in the world object.
+    let world_object = scene.objects.iter().find(|o| o.name == "world").unwrap();
+    assert_eq!(world_object.meshes.len(), 1);
+    assert_eq!(scene.instances.len(), 4);
+}
+
+#[test]
+fn moving_lights_cameras_and_area_lights_follow_pbrt() {
+    let world = format!(
+        "ActiveTransform EndTime\nTranslate 0 1 0\nActiveTransform All\n\
+         LightSource \"point\" \"rgb I\" [1 1 1]\n\
+         AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n{}\nAttributeEnd\n",
+        tri(UNIT_TRI)
+    );
+    let err = load_world("", &world).unwrap_err();
+    assert!(err.to_string().contains("area lights cannot move"), "{err}");
+    assert_eq!(err.line, 9);
+    let warnings =
+        load_str_warnings("ActiveTransform StartTime\nTranslate 0 0 1\nActiveTransform All\nCamera \"perspective\"\nWorldBegin\n");
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].to_string().contains("the camera cannot move"), "{warnings:?}");
+    let light = load_world("", &format!("ActiveTransform EndTime\nTranslate 0 1 0\nActiveTransform All\nLightSource \"point\" \"rgb I\" [1 1 1]\n{}", tri(UNIT_TRI))).unwrap();
+    assert_eq!(light.warnings.len(), 1, "{:?}", light.warnings);
+    assert!(light.warnings[0].to_string().contains("a light cannot move"));
+    let err = load_world("TransformTimes 2 1", "").unwrap_err();
+    assert!(err.to_string().contains("TransformTimes"), "{err}");
+}

@@ -402,6 +402,14 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
             c.lens_radius, c.focal_distance
         )?;
     }
+    if s.camera.shutter != [0.0, 1.0] {
+        let [open, close] = s.camera.shutter;
+        write!(out, " \"float shutteropen\" [ {open} ] \"float shutterclose\" [ {close} ]")?;
+    }
+    // pbrt has one pair of transform times per file: the first motion's.
+    if let Some(m) = scene.motions.first().filter(|m| m.times != [0.0, 1.0]) {
+        write!(out, "\nTransformTimes {} {}", m.times[0], m.times[1])?;
+    }
     let res = s.film.resolution;
     write!(
         out,
@@ -498,7 +506,7 @@ fn write_geometry(scene: &Scene, out: &mut impl Write) -> io::Result<()> {
     let mut world_level: Vec<bool> = scene.objects.iter().map(|o| o.name == "world").collect();
     for inst in &scene.instances {
         let o = inst.object as usize;
-        world_level[o] &= uses[o] == 1 && inst.object_to_world == Affine3A::IDENTITY;
+        world_level[o] &= uses[o] == 1 && inst.object_to_world == Affine3A::IDENTITY && inst.motion.is_none();
     }
     for (_, object) in scene.objects.iter().enumerate().filter(|&(o, _)| world_level[o]) {
         for &m in &object.meshes {
@@ -531,6 +539,11 @@ fn write_geometry(scene: &Scene, out: &mut impl Write) -> io::Result<()> {
     for inst in scene.instances.iter().filter(|i| !world_level[i.object as usize]) {
         write!(out, "  Transform ")?;
         matrix(out, &Mat4::from(inst.object_to_world))?;
+        if let Some(m) = inst.motion {
+            write!(out, " ActiveTransform EndTime Transform ")?;
+            matrix(out, &Mat4::from(scene.motions[m as usize].end.matrix()))?;
+            write!(out, " ActiveTransform All")?;
+        }
         writeln!(out, " ObjectInstance \"{}\"", names[inst.object as usize])?;
     }
     writeln!(out, "AttributeEnd")
@@ -600,6 +613,17 @@ mod tests {
         for (i, j) in a.instances.iter().zip(&b.instances) {
             assert_eq!(i.object, j.object);
             assert!(i.object_to_world.abs_diff_eq(j.object_to_world, 1e-5), "{i:?} {j:?}");
+            let motion = |s: &Scene, m: Option<u32>| m.map(|m| s.motions[m as usize]);
+            match (motion(a, i.motion), motion(b, j.motion)) {
+                (None, None) => {}
+                (Some(p), Some(q)) => {
+                    assert_eq!(p.times, q.times);
+                    for t in [0.0, 0.3, 0.7, 1.0].map(|s| p.times[0] + s * (p.times[1] - p.times[0])) {
+                        assert!(p.at(t).abs_diff_eq(q.at(t), 1e-4), "{p:?} {q:?}");
+                    }
+                }
+                (p, q) => panic!("motions differ: {p:?} {q:?}"),
+            }
         }
         let (ca, cb) = (&a.settings.camera, &b.settings.camera);
         assert!(ca.camera_to_world.abs_diff_eq(cb.camera_to_world, 1e-4), "{ca:?} {cb:?}");
@@ -767,5 +791,24 @@ mod tests {
         scene.settings.integrator = IntegratorSettings::AmbientOcclusion { max_distance: 3.0 };
         scene.lights.push(Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::splat(4.0) });
         assert_equal(&scene, &round_trip(&scene));
+    }
+
+    #[test]
+    fn moving_instances_and_the_shutter_round_trip() {
+        let mut scene = Landscape { growth: 1, seed: 0, detail: 0.2 }.build();
+        scene.instances.truncate(20);
+        let start = scene.instances[5].object_to_world;
+        let end =
+            Affine3A::from_rotation_y(1.0) * Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * start;
+        let motion =
+            atoll_scene::Motion::new(&Mat4::from(start).as_dmat4(), &Mat4::from(end).as_dmat4(), [0.25, 2.0])
+                .unwrap();
+        scene.motions.push(motion);
+        scene.instances[5].motion = Some(0);
+        scene.settings.camera.shutter = [0.5, 1.5];
+        let back = round_trip(&scene);
+        assert_equal(&scene, &back);
+        assert_eq!(back.settings.camera.shutter, [0.5, 1.5]);
+        assert_eq!(back.motions.len(), 1);
     }
 }

@@ -327,7 +327,7 @@ fn treelet_dp_finds_the_optimal_topology() {
 #[test]
 fn empty_and_one_triangle_scenes_build() {
     let objects = random_scene(5, 2, 1, 0);
-    let one = atoll_scene::Instance { object: 0, object_to_world: glam::Affine3A::IDENTITY };
+    let one = atoll_scene::Instance::new(0, glam::Affine3A::IDENTITY);
     for (scene, instances) in [
         (atoll_scene::Scene::default(), 0),
         (atoll_scene::Scene { instances: Vec::new(), ..objects.clone() }, 0),

@@ -66,10 +66,8 @@ pub fn random_scene(seed: u64, objects: usize, max_triangles: usize, instances: 
         };
         ids.push(scene.add_object(Object { name: format!("object {o}"), meshes }));
     }
-    scene.instances.push(Instance { object: ids[objects - 1], object_to_world: Affine3A::IDENTITY });
-    scene
-        .instances
-        .push(Instance { object: ids[0], object_to_world: Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0)) });
+    scene.instances.push(Instance::new(ids[objects - 1], Affine3A::IDENTITY));
+    scene.instances.push(Instance::new(ids[0], Affine3A::from_scale(Vec3::new(1.0, 0.0, 1.0))));
     for _ in 0..instances {
         let axis = (rng.vec3() - 0.5).normalize_or(Vec3::Y);
         let m = Affine3A::from_scale_rotation_translation(
@@ -77,9 +75,7 @@ pub fn random_scene(seed: u64, objects: usize, max_triangles: usize, instances: 
             Quat::from_axis_angle(axis, rng.uniform() * 6.0),
             (rng.vec3() - 0.5) * 10.0,
         );
-        scene
-            .instances
-            .push(Instance { object: ids[rng.below(objects as u32) as usize], object_to_world: m });
+        scene.instances.push(Instance::new(ids[rng.below(objects as u32) as usize], m));
     }
     scene
 }

@@ -104,23 +104,19 @@ fn instanced_scene() -> Scene {
     let m2 = scene.add_mesh(big);
     let a = scene.add_object(Object { name: "a".into(), meshes: vec![m0, m1] });
     let b = scene.add_object(Object { name: "b".into(), meshes: vec![m2, m0] });
-    scene.instances.push(Instance { object: b, object_to_world: Affine3A::IDENTITY });
-    scene.instances.push(Instance {
-        object: a,
-        object_to_world: Affine3A::from_scale_rotation_translation(
+    scene.instances.push(Instance::new(b, Affine3A::IDENTITY));
+    scene.instances.push(Instance::new(
+        a,
+        Affine3A::from_scale_rotation_translation(
             Vec3::new(2.0, 0.5, 1.0),
             Quat::from_rotation_y(0.7),
             Vec3::new(1.0, 2.0, 3.0),
         ),
-    });
-    scene.instances.push(Instance {
-        object: b,
-        object_to_world: Affine3A::from_scale_rotation_translation(
-            Vec3::new(-1.0, 1.0, 1.0),
-            Quat::IDENTITY,
-            Vec3::X,
-        ),
-    });
+    ));
+    scene.instances.push(Instance::new(
+        b,
+        Affine3A::from_scale_rotation_translation(Vec3::new(-1.0, 1.0, 1.0), Quat::IDENTITY, Vec3::X),
+    ));
     scene
 }
 

@@ -56,7 +56,10 @@ enum ActiveTransform {
 /// pbrt's `GraphicsState`: what `AttributeBegin` saves and `AttributeEnd` restores.
 #[derive(Clone, Debug)]
 struct GraphicsState {
+    /// The current transform: at the start of the motion, and at its end
+    /// (the same where nothing moves).
     ctm: DMat4,
+    ctm_end: DMat4,
     active: ActiveTransform,
     reverse_orientation: bool,
     material: MaterialRef,
@@ -75,6 +78,7 @@ impl Default for GraphicsState {
     fn default() -> Self {
         GraphicsState {
             ctm: DMat4::IDENTITY,
+            ctm_end: DMat4::IDENTITY,
             active: ActiveTransform::All,
             reverse_orientation: false,
             material: MaterialRef::Default,
@@ -131,7 +135,10 @@ pub struct Builder {
     warnings: WarningSink,
     gs: GraphicsState,
     pushed: Vec<(GraphicsState, Block, FileLoc)>,
-    named_coordinate_systems: HashMap<String, DMat4>,
+    /// `CoordinateSystem`s: both transforms of the motion.
+    named_coordinate_systems: HashMap<String, (DMat4, DMat4)>,
+    /// `TransformTimes`: when the start and end transforms hold.
+    transform_times: [f32; 2],
     in_world: bool,
     /// Open files, innermost last, each read ahead ([`super::ahead`]).
     sources: Vec<Source>,
@@ -146,7 +153,9 @@ pub struct Builder {
     objects: Vec<ObjectDef>,
     object_names: HashMap<String, usize>,
     active_object: Option<usize>,
-    instance_uses: Vec<(String, DMat4, FileLoc)>,
+    /// `ObjectInstance`s: the object, the transforms at the motion's start
+    /// and end, and where.
+    instance_uses: Vec<(String, DMat4, DMat4, FileLoc)>,
     warned_transform_begin: bool,
     /// Named float and spectrum textures, and the decoded images.
     textures: NamedTextures,
@@ -192,6 +201,7 @@ impl Builder {
             gs: GraphicsState::default(),
             pushed: Vec::new(),
             named_coordinate_systems: HashMap::new(),
+            transform_times: [0.0, 1.0],
             in_world: false,
             sources: Vec::new(),
             anonymous: Vec::new(),
@@ -283,13 +293,30 @@ impl Builder {
         }
     }
 
-    /// Applies a transform directive: `ctm = ctm * m` (or `ctm = m`).
+    /// Applies a transform directive to the active transforms: `ctm = ctm
+    /// * m` (or `ctm = m`).
     fn transform(&mut self, m: DMat4, replace: bool) {
-        // We keep only the start transform of pbrt's motion-blur pair.
-        if self.gs.active == ActiveTransform::End {
-            return;
+        let apply = |ctm: &mut DMat4| *ctm = if replace { m } else { *ctm * m };
+        if self.gs.active != ActiveTransform::End {
+            apply(&mut self.gs.ctm);
         }
-        self.gs.ctm = if replace { m } else { self.gs.ctm * m };
+        if self.gs.active != ActiveTransform::Start {
+            apply(&mut self.gs.ctm_end);
+        }
+    }
+
+    /// Whether the two transforms differ: what is made now moves.
+    fn ctm_moves(&self) -> bool {
+        self.gs.ctm != self.gs.ctm_end
+    }
+
+    /// Warns that `what` keeps still at the start transform where the
+    /// current transform moves (as pbrt-v4 does for lights, media and
+    /// textures).
+    fn warn_if_moving(&mut self, what: &str, loc: &FileLoc) {
+        if self.ctm_moves() {
+            self.warn(loc, format!("{what} cannot move (as in pbrt-v4); the start transform is used"));
+        }
     }
 
     fn params(&mut self, raw: Vec<RawParam>) -> Result<ParamList, SceneError> {
@@ -323,8 +350,9 @@ impl Builder {
                 self.focus_lens()?;
                 self.in_world = true;
                 self.gs.ctm = DMat4::IDENTITY;
+                self.gs.ctm_end = DMat4::IDENTITY;
                 self.gs.active = ActiveTransform::All;
-                self.named_coordinate_systems.insert("world".into(), DMat4::IDENTITY);
+                self.named_coordinate_systems.insert("world".into(), (DMat4::IDENTITY, DMat4::IDENTITY));
             }
             S::WorldEnd => self.warn(&loc, "WorldEnd is pbrt-v3 syntax; ignored"),
             S::AttributeBegin => {
@@ -358,7 +386,7 @@ impl Builder {
                         "ObjectInstance is not allowed inside ObjectBegin/ObjectEnd",
                     ));
                 }
-                self.instance_uses.push((name, self.gs.ctm, loc));
+                self.instance_uses.push((name, self.gs.ctm, self.gs.ctm_end, loc));
             }
             S::Identity => self.transform(DMat4::IDENTITY, true),
             S::Translate(v) => self.transform(DMat4::from_translation(DVec3::from(v)), false),
@@ -377,10 +405,10 @@ impl Builder {
             S::Transform(m) => self.transform(transform::from_pbrt_numbers(&m), true),
             S::ConcatTransform(m) => self.transform(transform::from_pbrt_numbers(&m), false),
             S::CoordinateSystem(name) => {
-                self.named_coordinate_systems.insert(name, self.gs.ctm);
+                self.named_coordinate_systems.insert(name, (self.gs.ctm, self.gs.ctm_end));
             }
             S::CoordSysTransform(name) => match self.named_coordinate_systems.get(&name) {
-                Some(m) => self.gs.ctm = *m,
+                Some(&(start, end)) => (self.gs.ctm, self.gs.ctm_end) = (start, end),
                 None => self.warn(&loc, format!("unknown coordinate system \"{name}\"; ignored")),
             },
             S::ActiveTransform(which) => {
@@ -395,11 +423,19 @@ impl Builder {
                         ))
                     }
                 };
-                if self.gs.active != ActiveTransform::All {
-                    self.warn(&loc, "motion blur is not supported; only the start transform is used");
-                }
             }
-            S::TransformTimes(_) => self.require_options("TransformTimes", &loc)?,
+            S::TransformTimes([start, end]) => {
+                self.require_options("TransformTimes", &loc)?;
+                if !(start.is_finite() && end.is_finite() && start <= end) {
+                    return Err(SceneError::at(
+                        &loc,
+                        format!(
+                            "TransformTimes: the end time {end} must not be before the start time {start}"
+                        ),
+                    ));
+                }
+                self.transform_times = [start as f32, end as f32];
+            }
             S::ReverseOrientation => {
                 self.require_world("ReverseOrientation", &loc)?;
                 self.gs.reverse_orientation = !self.gs.reverse_orientation;
@@ -518,6 +554,9 @@ impl Builder {
             E::LightSource | E::AreaLightSource => p = p.with_defaults(&self.gs.light_attributes),
             E::Material | E::MakeNamedMaterial => p = p.with_defaults(&self.gs.material_attributes),
             _ => {}
+        }
+        if kind == E::LightSource {
+            self.warn_if_moving("a light", &loc);
         }
         let w = &mut self.warnings;
         match kind {
@@ -668,6 +707,7 @@ impl Builder {
     ) -> Result<(), SceneError> {
         self.require_world("Texture", loc)?;
         let p = self.params(raw)?;
+        self.warn_if_moving("a texture's space", loc);
         let store = &mut self.scene.textures;
         let site = TextureSite { base_dir: &self.base_dir, world_from_texture: self.gs.ctm };
         self.textures.define(name.clone(), ty, class, &p, &site, store, loc, &mut self.warnings)?;
@@ -782,7 +822,8 @@ impl Builder {
             return Err(SceneError::at(loc, "Camera: the current transform is not invertible"));
         }
         let world_from_camera = self.gs.ctm.inverse();
-        self.named_coordinate_systems.insert("camera".into(), world_from_camera);
+        self.warn_if_moving("the camera", loc);
+        self.named_coordinate_systems.insert("camera".into(), (world_from_camera, world_from_camera));
         self.pending_lens = None;
         let (_, outside, at) = &self.gs.media;
         if !outside.is_empty() {
@@ -867,6 +908,7 @@ impl Builder {
             ));
         }
         self.scene.settings.film.sensor.exposure_time = close - open;
+        self.scene.settings.camera.shutter = [open, close];
         Ok(())
     }
 
@@ -1161,6 +1203,17 @@ impl Builder {
             );
             emission = None;
         }
+        let mut motion = None;
+        if self.ctm_moves() {
+            if emission.is_some() {
+                return Err(SceneError::at(loc, "area lights cannot move (as in pbrt-v4)"));
+            }
+            if self.active_object.is_some() {
+                self.warn(loc, "shapes cannot move inside ObjectBegin here; the start transform is used");
+            } else {
+                motion = Some((self.gs.ctm, self.gs.ctm_end));
+            }
+        }
         let material = self.current_material();
         let named_material = match (&self.gs.material, material) {
             (MaterialRef::Named(name, at), None) => Some((name.clone(), at.clone())),
@@ -1168,7 +1221,7 @@ impl Builder {
         };
         let place = ShapePlace {
             loc: loc.clone(),
-            ctm: self.gs.ctm,
+            ctm: if motion.is_some() { DMat4::IDENTITY } else { self.gs.ctm },
             reverse_orientation: self.gs.reverse_orientation,
             material,
             named_material,
@@ -1177,6 +1230,7 @@ impl Builder {
             alpha,
             media,
             object: self.active_object,
+            motion,
         };
         self.pending_shapes.push(PendingShape { source, place });
         Ok(())
@@ -1217,6 +1271,7 @@ impl Builder {
     /// `MakeNamedMedium`: a homogeneous medium joins the scene; the other
     /// types are warned about once each and become the vacuum.
     fn medium(&mut self, name: &str, p: &ParamList, loc: &FileLoc) -> Result<(), SceneError> {
+        self.warn_if_moving("a medium", loc);
         let medium = entities::medium(name, p, &self.gs.ctm, loc, &mut self.warnings)?;
         let index = match medium {
             None => crate::VACUUM,
@@ -1254,12 +1309,33 @@ impl Builder {
             if let Some((name, at)) = place.named_material {
                 self.pending_materials.push((id, name, at));
             }
-            match place.object {
-                Some(o) => self.objects[o].meshes.push(id),
-                None => self.world_meshes.push(id),
+            match (place.object, place.motion) {
+                (Some(o), _) => self.objects[o].meshes.push(id),
+                (None, Some((start, end))) => {
+                    let object = self.scene.add_object(Object { name: String::new(), meshes: vec![id] });
+                    self.place_instance(object, &start, &end, &place.loc);
+                }
+                (None, None) => self.world_meshes.push(id),
             }
         }
         Ok(())
+    }
+
+    /// Places `object` with the transforms at the motion's start and end
+    /// (moving where they differ).
+    fn place_instance(&mut self, object: crate::ObjectId, start: &DMat4, end: &DMat4, loc: &FileLoc) {
+        let object_to_world = Affine3A::from_mat4(transform::to_f32(start));
+        let mut instance = Instance::new(object, object_to_world);
+        if start != end {
+            match crate::Motion::new(start, end, self.transform_times) {
+                Some(motion) => {
+                    instance.motion = Some(self.scene.motions.len() as u32);
+                    self.scene.motions.push(motion);
+                }
+                None => self.warn(loc, "a motion's transform is singular; the start transform is used"),
+            }
+        }
+        self.scene.instances.push(instance);
     }
 
     /// End of input: close open blocks, resolve names, assemble objects and instances.
@@ -1304,13 +1380,13 @@ impl Builder {
             let id = self
                 .scene
                 .add_object(Object { name: "world".into(), meshes: std::mem::take(&mut self.world_meshes) });
-            self.scene.instances.push(Instance { object: id, object_to_world: Affine3A::IDENTITY });
+            self.scene.instances.push(Instance::new(id, Affine3A::IDENTITY));
         }
         let mut ids = Vec::with_capacity(self.objects.len());
         for def in std::mem::take(&mut self.objects) {
             ids.push(self.scene.add_object(Object { name: def.name, meshes: def.meshes }));
         }
-        for (name, ctm, loc) in std::mem::take(&mut self.instance_uses) {
+        for (name, start, end, loc) in std::mem::take(&mut self.instance_uses) {
             let Some(&i) = self.object_names.get(&name) else {
                 return Err(SceneError::at(
                     &loc,
@@ -1319,8 +1395,7 @@ impl Builder {
             };
             // pbrt-v4 drops instances of empty objects.
             if !self.scene.objects[ids[i] as usize].meshes.is_empty() {
-                let object_to_world = Affine3A::from_mat4(transform::to_f32(&ctm));
-                self.scene.instances.push(Instance { object: ids[i], object_to_world });
+                self.place_instance(ids[i], &start, &end, &loc);
             }
         }
         Ok(LoadedScene { scene: self.scene, warnings: self.warnings.list })

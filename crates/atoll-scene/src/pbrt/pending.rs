@@ -37,6 +37,10 @@ pub(super) struct ShapePlace {
     pub media: Option<crate::MediumInterface>,
     /// The object being defined, `None` for the world.
     pub object: Option<usize>,
+    /// A moving shape's transforms at the motion's start and end; its
+    /// triangles are then made in object space (`ctm` is the identity), as
+    /// pbrt-v4 makes an animated shape's.
+    pub motion: Option<(DMat4, DMat4)>,
 }
 
 /// A pending shape made: its mesh (`None` when it has no triangles) and
