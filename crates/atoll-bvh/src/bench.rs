@@ -229,7 +229,7 @@ pub fn generate_rays<L: BvhLayout>(scene: &Scene, bvh: &SceneBvh<L>, opts: &Benc
                 // coordinates, so the ray does not hit its own triangle.
                 let origin = point + normal * (1e-5 * diagonal);
                 let u = [hash01(pixel, dimension), hash01(pixel, dimension + 1)];
-                Ray { origin, direction: cosine_direction(normal, u), t_max }
+                Ray { origin, direction: cosine_direction(normal, u), t_max, time: 0.0 }
             })
             .collect()
     };
@@ -261,7 +261,7 @@ fn camera_rays(scene: &Scene, resolution: UVec2) -> Vec<Ray> {
             let (origin, local) = cam.projection.camera_ray(glam::Vec2::new(x, y));
             let origin = cam.camera_to_world.transform_point3(origin);
             let direction = cam.camera_to_world.transform_vector3(local).normalize();
-            Ray { origin, direction, t_max: f32::INFINITY }
+            Ray { origin, direction, t_max: f32::INFINITY, time: 0.0 }
         })
         .collect()
 }

@@ -58,6 +58,9 @@ pub struct Ray {
     pub direction: Vec3,
     /// Hits at `t >= t_max` do not count (`f32::INFINITY` for no limit).
     pub t_max: f32,
+    /// When the ray is traced: where moving instances are
+    /// ([`atoll_scene::Motion`]); still ones ignore it.
+    pub time: f32,
 }
 
 /// The closest hit of a ray.

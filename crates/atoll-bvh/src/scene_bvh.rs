@@ -236,6 +236,9 @@ struct TlasInstance {
     blas: u32,
     /// Index into `scene.instances`.
     instance: u32,
+    /// A moving instance's index into [`SceneBvh::motions`]: its
+    /// transform is made for each ray's time instead.
+    motion: Option<u32>,
 }
 
 /// Two-level BVH over a scene or a part of one. `L` is the node layout of
@@ -247,6 +250,8 @@ pub struct SceneBvh<L: BvhLayout = Bvh4Cpu> {
     /// In TLAS leaf order.
     instances: Vec<TlasInstance>,
     blases: Vec<Blas<L>>,
+    /// The scene's motions, which moving instances index.
+    motions: Vec<atoll_scene::Motion>,
     stats: SceneBvhStats,
 }
 
@@ -299,9 +304,17 @@ impl<L: BvhLayout> SceneBvh<L> {
                 let blas = blas_of[inst.object as usize];
                 let world_to_object = inst.object_to_world.inverse();
                 (blas != u32::MAX && world_to_object.is_finite()).then(|| {
-                    let bounds = blases[blas as usize].bvh.bounds().transformed(&inst.object_to_world);
-                    let identity = inst.object_to_world == Affine3A::IDENTITY;
-                    (TlasInstance { world_to_object, identity, blas, instance: i }, bounds)
+                    let object = blases[blas as usize].bvh.bounds();
+                    let bounds = match inst.motion {
+                        Some(_) => {
+                            let (lo, hi) = scene.instance_box(inst, object.min.into(), object.max.into());
+                            Aabb { min: lo.into(), max: hi.into() }
+                        }
+                        None => object.transformed(&inst.object_to_world),
+                    };
+                    let identity = inst.object_to_world == Affine3A::IDENTITY && inst.motion.is_none();
+                    let motion = inst.motion;
+                    (TlasInstance { world_to_object, identity, blas, instance: i, motion }, bounds)
                 })
             })
             .collect();
@@ -334,7 +347,7 @@ impl<L: BvhLayout> SceneBvh<L> {
         stats.instanced_triangles = instances.iter().map(|i| triangles[i.blas as usize]).sum();
         stats.bytes = stats.tlas.bytes + stats.blas.bytes;
         stats.build_ms = start.elapsed().as_secs_f64() * 1e3;
-        SceneBvh { tlas, instances, blases, stats }
+        SceneBvh { tlas, instances, blases, motions: scene.motions.clone(), stats }
     }
 
     /// The closest hit with `0 < t < ray.t_max`, ignoring alpha masks.
@@ -424,7 +437,14 @@ impl<L: BvhLayout> SceneBvh<L> {
             let blas = &self.blases[b as usize];
             let node = |n: u32| visits.blas_node(b, n);
             // Not normalised: t stays the same in both spaces.
-            let m = &inst.world_to_object;
+            let moved;
+            let m = match inst.motion {
+                Some(k) => {
+                    moved = self.motions[k as usize].at(ray.time).inverse();
+                    &moved
+                }
+                None => &inst.world_to_object,
+            };
             let ray = if inst.identity {
                 world
             } else {

@@ -106,7 +106,7 @@ fn random_rays(rng: &mut Rng, scene: &Scene, n: usize) -> Vec<Ray> {
                 direction *= rng.range(0.1, 10.0);
             }
             let t_max = if i % 2 == 0 { f32::INFINITY } else { rng.range(0.0, 2.0) * (hi - lo).length() };
-            Ray { origin, direction, t_max }
+            Ray { origin, direction, t_max, time: 0.0 }
         })
         .collect()
 }
@@ -224,7 +224,7 @@ fn coincident_centroids_fill_multi_block_leaves() {
     let rays: Vec<Ray> = (0..500)
         .map(|_| {
             let origin = rng.direction() * 3.0;
-            Ray { origin, direction: rng.vec3(-0.4, 0.4) - origin, t_max: f32::INFINITY }
+            Ray { origin, direction: rng.vec3(-0.4, 0.4) - origin, t_max: f32::INFINITY, time: 0.0 }
         })
         .collect();
     assert!(check(&scene, &ScenePart::whole(&scene), &bvh, &rays) > 200);
@@ -233,7 +233,7 @@ fn coincident_centroids_fill_multi_block_leaves() {
 #[test]
 fn empty_scenes_hit_nothing() {
     let mut scene = Scene::default();
-    let ray = Ray { origin: Vec3::ZERO, direction: Vec3::Z, t_max: f32::INFINITY };
+    let ray = Ray { origin: Vec3::ZERO, direction: Vec3::Z, t_max: f32::INFINITY, time: 0.0 };
     let bvh = SceneBvh::build(&scene);
     assert!(bvh.intersect(&ray).is_none() && !bvh.occluded(&ray));
     assert_eq!((bvh.stats().instances, bvh.stats().triangles), (0, 0));
@@ -259,7 +259,12 @@ fn single_triangle_hits_and_t_max_limits() {
     let object_to_world = Affine3A::from_translation(Vec3::new(0.0, 0.0, 1.0));
     scene.instances.push(Instance::new(object, object_to_world));
     let bvh = SceneBvh::build(&scene);
-    let ray = |t_max| Ray { origin: Vec3::new(1.0, 0.5, 0.0), direction: Vec3::new(0.0, 0.0, 2.0), t_max };
+    let ray = |t_max| Ray {
+        origin: Vec3::new(1.0, 0.5, 0.0),
+        direction: Vec3::new(0.0, 0.0, 2.0),
+        t_max,
+        time: 0.0,
+    };
     let hit = bvh.intersect(&ray(10.0)).unwrap();
     assert_eq!((hit.t, hit.u, hit.v), (3.0, 0.25, 0.25));
     assert_eq!((hit.instance, hit.mesh, hit.triangle), (0, 0, 0));

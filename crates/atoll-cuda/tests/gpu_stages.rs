@@ -774,7 +774,7 @@ fn surface_matches_write_hit() {
     let mut hits = Vec::with_capacity(rays.len());
     let mut gpu_input = rays.clone();
     for (r, input) in rays.iter().zip(gpu_input.iter_mut()) {
-        let ray = atoll_bvh::Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max };
+        let ray = atoll_bvh::Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max, time: 0.0 };
         hits.push(match bvh.intersect(&ray) {
             Some(h) => {
                 let object = tables.objects[scene.instances[h.instance as usize].object as usize];

@@ -112,7 +112,7 @@ fn main() {
         .map(|i| {
             let px = Vec2::new((i % res.x) as f32 + 0.5, (i / res.x) as f32 + 0.5);
             let (o, d) = cam.ray(px, Vec2::ZERO);
-            Ray { origin: o, direction: d, t_max: f32::INFINITY }
+            Ray { origin: o, direction: d, t_max: f32::INFINITY, time: 0.0 }
         })
         .collect();
     let (hits0, _) = trace(&full, &primary, false);
@@ -136,10 +136,10 @@ fn main() {
         let (t, b) = frame(n);
         let l = sample_cosine_hemisphere(Vec2::new(u01(2 * i as u32), u01(2 * i as u32 + 1)));
         let d = t * l.x + b * l.y + n * l.z;
-        bounce.push(Ray { origin: p, direction: d, t_max: f32::INFINITY });
+        bounce.push(Ray { origin: p, direction: d, t_max: f32::INFINITY, time: 0.0 });
         bounce_from.push(Some((h.instance, h.mesh, h.triangle)));
         if n.dot(sun) > 0.0 {
-            shadow.push(Ray { origin: p, direction: sun, t_max: f32::INFINITY });
+            shadow.push(Ray { origin: p, direction: sun, t_max: f32::INFINITY, time: 0.0 });
             shadow_from.push(Some((h.instance, h.mesh, h.triangle)));
         }
     }

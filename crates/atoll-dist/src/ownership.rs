@@ -51,7 +51,7 @@ pub fn ownership_view_of(
         .into_par_iter()
         .map(|pixel| {
             let r = camera_record(frame, pixel, 0);
-            let ray = Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max };
+            let ray = Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max, time: 0.0 };
             let Some(hit) = bvh.intersect(&ray) else { return Vec3::ZERO };
             let instance = &scene.instances[hit.instance as usize];
             let mesh = &scene.meshes[hit.mesh as usize];

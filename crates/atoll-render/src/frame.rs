@@ -122,6 +122,9 @@ pub struct FrameContext {
     pub media: MediumTable,
     /// The scene's measured BRDFs (shared), which measured surfaces read.
     pub measured: Vec<Arc<atoll_scene::MeasuredBrdf>>,
+    /// The camera's shutter where something in the scene moves; `None`
+    /// where nothing does (rays then need no time).
+    pub shutter: Option<[f32; 2]>,
 }
 
 impl FrameContext {
@@ -136,9 +139,19 @@ impl FrameContext {
             images: scene.textures.images.clone(),
             media: MediumTable::new(scene),
             measured: scene.measured.clone(),
+            shutter: (!scene.motions.is_empty()).then_some(scene.settings.camera.shutter),
             materials,
             options,
         }
+    }
+
+    /// When path vertex `r`'s rays are traced: a time of the shutter drawn
+    /// from its sample, so every segment of a path (and its shadow rays)
+    /// sees the scene at one moment, as in pbrt.
+    pub fn ray_time(&self, r: &RayRecord) -> f32 {
+        let Some([open, close]) = self.shutter else { return 0.0 };
+        let u = SampleStream::new(self.options.seed, r.pixel, r.sample).get(crate::rng::TIME_DIMENSION);
+        open + (close - open) * u
     }
 
     /// The material a hit of path vertex `r` takes on a surface of material

@@ -29,6 +29,10 @@ pub enum BounceDim {
 /// numbers as they were.
 pub const MEDIUM_DIMENSIONS: u32 = 1 << 24;
 
+/// The dimension of a path's time within the shutter (motion blur): one
+/// below the media's, apart from every bounce's.
+pub const TIME_DIMENSION: u32 = MEDIUM_DIMENSIONS - 1;
+
 /// One round of the PCG hash.
 #[inline]
 pub fn pcg_hash(x: u32) -> u32 {

@@ -97,7 +97,7 @@ pub fn random_rays(seed: u64, n: usize) -> Vec<Ray> {
                 direction = (rng.vec3() - 0.5) * 2.0 - origin;
             }
             let t_max = if i % 3 == 0 { 0.5 + 10.0 * rng.uniform() } else { f32::INFINITY };
-            Ray { origin, direction, t_max }
+            Ray { origin, direction, t_max, time: 0.0 }
         })
         .collect()
 }

@@ -80,6 +80,7 @@ macro_rules! strategy_tests {
             passes_of_a_session_add_up_to_one_frame
             media_on_rings_and_replicas_are_one_device
             curves_on_rings_and_replicas_are_one_device
+            moving_instances_on_rings_and_replicas_are_one_device
         );
     };
     // The attributes travel as one token tree: a list repeated inside the
@@ -496,24 +497,42 @@ pub fn media_on_rings_and_replicas_are_one_device(kind: &Kind) {
     kind.assert_same_image(&reference, &out.film, "media, ring of 3");
 }
 
-/// `scenes/hair.pbrt`: curve pieces under the hair material. Replicas and
-/// a ring of two render one device's image: curves are cut between parts
-/// by their proxy triangles like any mesh, and each part's curve hits
-/// travel with their shading data.
-pub fn curves_on_rings_and_replicas_are_one_device(kind: &Kind) {
-    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
-    let path = if beside.exists() { beside } else { "scenes/hair.pbrt".into() };
-    let scene = Arc::new(atoll_scene::load_any(&path).unwrap().scene);
-    assert!(scene.meshes.iter().filter(|m| m.curves.is_some()).count() > 100);
-    let opts = kind.options(&scene, 4);
-    let (reference, _) = kind.single(&scene, &opts);
-    let out = kind.render(2, &scene, &opts, &Layout::Replicate, None);
-    kind.assert_same_image(&reference, &out.film, "curves, replicate");
-    let p = partition(&scene, 2, &kind.byte_model(), &PartitionOptions::default()).unwrap();
+/// `scenes/<name>` of the repository, loaded.
+fn repository_scene(name: &str) -> Arc<Scene> {
+    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(name);
+    let path = if beside.exists() { beside } else { std::path::Path::new("scenes").join(name) };
+    Arc::new(atoll_scene::load_any(&path).unwrap().scene)
+}
+
+/// Replicas and a ring of two render one device's image of `scene`.
+fn replicas_and_a_ring_of_two_are_one_device(kind: &Kind, scene: &Arc<Scene>, what: &str) {
+    let opts = kind.options(scene, 4);
+    let (reference, _) = kind.single(scene, &opts);
+    let out = kind.render(2, scene, &opts, &Layout::Replicate, None);
+    kind.assert_same_image(&reference, &out.film, &format!("{what}, replicate"));
+    let p = partition(scene, 2, &kind.byte_model(), &PartitionOptions::default()).unwrap();
     assert!(p.parts.iter().all(|part| !part.instances.is_empty() || !part.object_subsets.is_empty()));
     let layout = Layout::Ring { parts: p.parts, islands: 1, order: RingOrder::Spread };
-    let out = kind.render(2, &scene, &opts, &layout, None);
-    kind.assert_same_image(&reference, &out.film, "curves, ring of 2");
+    let out = kind.render(2, scene, &opts, &layout, None);
+    kind.assert_same_image(&reference, &out.film, &format!("{what}, ring of 2"));
+}
+
+/// `scenes/hair.pbrt`: curve pieces under the hair material. Curves are
+/// cut between parts by their proxy triangles like any mesh, and each
+/// part's curve hits travel with their shading data.
+pub fn curves_on_rings_and_replicas_are_one_device(kind: &Kind) {
+    let scene = repository_scene("hair.pbrt");
+    assert!(scene.meshes.iter().filter(|m| m.curves.is_some()).count() > 100);
+    replicas_and_a_ring_of_two_are_one_device(kind, &scene, "curves");
+}
+
+/// `scenes/motion.pbrt`: moving shapes and instances. Every member sees
+/// each path at the same time of the shutter, and a part's moving
+/// instances are bounded over their motion.
+pub fn moving_instances_on_rings_and_replicas_are_one_device(kind: &Kind) {
+    let scene = repository_scene("motion.pbrt");
+    assert!(scene.motions.len() >= 3);
+    replicas_and_a_ring_of_two_are_one_device(kind, &scene, "motion blur");
 }
 
 /// A warmed frame (the first sample rendered untimed on the prepared
@@ -595,17 +614,20 @@ pub fn ring_over_instance_cost_parts_is_one_device(kind: &Kind) {
     kind.assert_same_image(&reference, &out.film, "ring over instance-cost parts");
 }
 
-/// The Cornell box, a landscape of `kind.shared_growth` and the hair
-/// scene (curve pieces, whose tables are chunks like the triangles').
+/// The Cornell box, a landscape of `kind.shared_growth`, the hair scene
+/// (curve pieces, whose tables are chunks like the triangles') and the
+/// motion-blur scene (moving instances).
 fn shared_scenes(kind: &Kind) -> Vec<(String, Arc<Scene>)> {
     let mut landscape = atoll_scene::landscape::Landscape::new(kind.shared_growth).build();
     landscape.settings.film.resolution = UVec2::new(128, 72);
     let name = format!("landscape:{}", kind.shared_growth);
-    let beside = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
-    let hair = if beside.exists() { beside } else { "scenes/hair.pbrt".into() };
-    let hair = Arc::new(atoll_scene::load_any(&hair).unwrap().scene);
     // The landscape last: the host tier's test takes the last, largest.
-    vec![("cornell".to_string(), cornell()), ("hair".to_string(), hair), (name, Arc::new(landscape))]
+    vec![
+        ("cornell".to_string(), cornell()),
+        ("hair".to_string(), repository_scene("hair.pbrt")),
+        ("motion".to_string(), repository_scene("motion.pbrt")),
+        (name, Arc::new(landscape)),
+    ]
 }
 
 /// Bytes of `scene`'s chunks on this kind's devices, and the budget that

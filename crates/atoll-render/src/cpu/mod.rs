@@ -52,6 +52,19 @@ impl Resident {
         self.share.as_ref().and_then(Share::counter)
     }
 
+    /// Instance `instance`'s object-to-world transform and normal matrix
+    /// at `time`.
+    fn placement(&self, instance: u32, time: f32) -> (Affine3A, Mat3A) {
+        let inst = &self.scene.instances[instance as usize];
+        match inst.motion {
+            Some(m) => {
+                let to_world = self.scene.motions[m as usize].at(time);
+                (to_world, to_world.matrix3.inverse().transpose())
+            }
+            None => (inst.object_to_world, self.normal_to_world[instance as usize]),
+        }
+    }
+
     /// The frame's texture programs over this scene (alpha masks filter hits).
     fn textures<'a>(&'a self, frame: &'a FrameContext) -> SceneTextures<'a> {
         SceneTextures { scene: &self.scene, tables: &frame.textures }
@@ -207,11 +220,14 @@ enum Partials {
 }
 
 /// The surface of a triangle hit.
-fn triangle_surface(hit: &Hit, res: &Resident, textures: &SceneTextures) -> (HitSurface, Partials) {
+fn triangle_surface(
+    hit: &Hit,
+    res: &Resident,
+    textures: &SceneTextures,
+    (to_world, normal_to_world): (Affine3A, Mat3A),
+) -> (HitSurface, Partials) {
     let scene = &res.scene;
     let mesh = &scene.meshes[hit.mesh as usize];
-    let to_world = scene.instances[hit.instance as usize].object_to_world;
-    let normal_to_world = res.normal_to_world[hit.instance as usize];
     let [i0, i1, i2] = mesh.indices[hit.triangle as usize].map(|i| i as usize);
     let (b1, b2) = (hit.u, hit.v);
     let b0 = 1.0 - b1 - b2;
@@ -259,10 +275,10 @@ fn curve_surface(
     hit: &Hit,
     res: &Resident,
     curves: &atoll_scene::Curves,
+    (to_world, normal_to_world): (Affine3A, Mat3A),
 ) -> (HitSurface, Partials) {
     let scene = &res.scene;
     let mesh = &scene.meshes[hit.mesh as usize];
-    let to_world = scene.instances[hit.instance as usize].object_to_world;
     let to_object = to_world.inverse();
     let piece = &curves.pieces[hit.triangle as usize];
     let dir_obj = to_object.transform_vector3a(r.direction().into());
@@ -270,7 +286,7 @@ fn curve_surface(
     let origin_obj = to_object.transform_point3a(r.origin().into());
     let p_obj = Vec3::from(origin_obj + dir_obj * hit.t);
     let normal = if mesh.flip_normals { -s.normal } else { s.normal };
-    let ng = (res.normal_to_world[hit.instance as usize] * normal).normalize_or_zero();
+    let ng = (normal_to_world * normal).normalize_or_zero();
     let surface = HitSurface {
         position: to_world.transform_point3(p_obj),
         error: spawn::transformed_error(&to_world, p_obj, Vec3::splat(s.width)),
@@ -296,9 +312,10 @@ fn write_hit(
         count_hit_reads(counter, hit, mesh);
     }
     let textures = res.textures(frame);
+    let placement = res.placement(hit.instance, frame.ray_time(r));
     let (surface, partials) = match &mesh.curves {
-        Some(curves) => curve_surface(r, hit, res, curves),
-        None => triangle_surface(hit, res, &textures),
+        Some(curves) => curve_surface(r, hit, res, curves, placement),
+        None => triangle_surface(hit, res, &textures, placement),
     };
     let (p, ng, ns, uv) = (surface.position, surface.ng, surface.ns, surface.uv);
     r.t_max = hit.t;
@@ -357,8 +374,9 @@ fn count_hit_reads(counter: &ChunkCounter, hit: &Hit, mesh: &atoll_scene::Triang
     }
 }
 
-fn ray_of(r: &RayRecord) -> Ray {
-    Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max }
+/// The ray of record `r`, at its time in `frame`.
+fn ray_of(r: &RayRecord, frame: &FrameContext) -> Ray {
+    Ray { origin: r.origin(), direction: r.direction(), t_max: r.t_max, time: frame.ray_time(r) }
 }
 
 impl Device for CpuDevice {
@@ -454,8 +472,8 @@ impl Device for CpuDevice {
             paths.par_iter_mut().with_min_len(CHUNK).for_each(|r| {
                 let textures = res.textures(frame);
                 let hit = match &counter {
-                    Some(counter) => res.bvh.intersect_visiting(&ray_of(r), &textures, counter),
-                    None => res.bvh.intersect_filtered(&ray_of(r), &textures),
+                    Some(counter) => res.bvh.intersect_visiting(&ray_of(r, frame), &textures, counter),
+                    None => res.bvh.intersect_filtered(&ray_of(r, frame), &textures),
                 };
                 if let Some(hit) = hit {
                     write_hit(r, &hit, res, frame, counter.as_ref());
@@ -518,15 +536,15 @@ impl Device for CpuDevice {
                     // Boundaries of media are crossed, adding to the depth.
                     let filter = ShadowFilter::new(&textures, frame, r);
                     let occluded = match &counter {
-                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &filter, counter),
-                        None => res.bvh.occluded_filtered(&ray_of(r), &filter),
+                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r, frame), &filter, counter),
+                        None => res.bvh.occluded_filtered(&ray_of(r, frame), &filter),
                     };
                     r.position = filter.optical_depth().to_array();
                     occluded
                 } else {
                     match &counter {
-                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r), &textures, counter),
-                        None => res.bvh.occluded_filtered(&ray_of(r), &textures),
+                        Some(counter) => res.bvh.occluded_visiting(&ray_of(r, frame), &textures, counter),
+                        None => res.bvh.occluded_filtered(&ray_of(r, frame), &textures),
                     }
                 };
                 if occluded {

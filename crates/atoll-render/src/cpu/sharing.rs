@@ -306,7 +306,7 @@ mod tests {
             let f = |k: u32| ((i.wrapping_mul(2654435761).rotate_left(k) % 1000) as f32) / 1000.0;
             let origin = lo.lerp(hi, f(0)) + glam::Vec3::Y * (hi.y - lo.y);
             let target = lo.lerp(hi, f(11));
-            let ray = Ray { origin, direction: target - origin, t_max: f32::INFINITY };
+            let ray = Ray { origin, direction: target - origin, t_max: f32::INFINITY, time: 0.0 };
             let a = bvh.intersect_visiting(&ray, &NoFilter, &counter);
             let b = bvh.intersect_visiting(&ray, &NoFilter, &total);
             assert_eq!(a, b);
