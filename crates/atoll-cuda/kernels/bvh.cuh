@@ -15,6 +15,7 @@
 #include "texture.cuh"
 #include "media.cuh"
 #include "curve.cuh"
+#include "motion.cuh"
 
 /// Box far distances are scaled by 1 + 2 gamma(3) (pbrt's robust slab test,
 /// Ize 2013) so that rounding never culls a box the ray touches.
@@ -37,13 +38,15 @@ struct __align__(16) TriRecord {
 };
 
 /// A TLAS leaf (64 bytes): the instance's world-to-object transform
-/// (row-major 3x4, copied from GpuInstance), its BLAS root link and its index.
+/// (row-major 3x4, copied from GpuInstance), its BLAS root link and its
+/// index. A moving instance's first word is its motion's index instead.
 struct __align__(16) TlasInstance {
     float4 world_to_object[3];
     int blas_root;
     unsigned int instance;
-    /// 1 when object_to_world is the identity: the ray is used as is (as the CPU does).
-    unsigned int identity;
+    /// How a ray enters (TRANSFORM_*): through world_to_object, as it is
+    /// (the identity, as the CPU does), or through its motion at the ray's time.
+    unsigned int transform;
     /// Where the BLAS's triangle records start: its leaf links count from here.
     unsigned int tri_base;
 };
@@ -59,6 +62,9 @@ constexpr int LINK_DONE = 1985229328;
 constexpr int LINK_INSTANCE_END = 1985229329;
 constexpr unsigned int MAX_LEAF_PRIMS = 4u;
 constexpr int TRAVERSAL_STACK = 96;
+constexpr unsigned int TRANSFORM_AFFINE = 0u;
+constexpr unsigned int TRANSFORM_IDENTITY = 1u;
+constexpr unsigned int TRANSFORM_MOVING = 2u;
 static_assert(sizeof(BvhNode) == 64, "BvhNode: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(BvhNode, left_xy) == 0 && sizeof(BvhNode::left_xy) == 16, "BvhNode.left_xy: offset or size differs from Rust");
@@ -77,7 +83,7 @@ static_assert(sizeof(TlasInstance) == 64, "TlasInstance: size differs from Rust"
 static_assert(__builtin_offsetof(TlasInstance, world_to_object) == 0 && sizeof(TlasInstance::world_to_object) == 48, "TlasInstance.world_to_object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, blas_root) == 48 && sizeof(TlasInstance::blas_root) == 4, "TlasInstance.blas_root: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, instance) == 52 && sizeof(TlasInstance::instance) == 4, "TlasInstance.instance: offset or size differs from Rust");
-static_assert(__builtin_offsetof(TlasInstance, identity) == 56 && sizeof(TlasInstance::identity) == 4, "TlasInstance.identity: offset or size differs from Rust");
+static_assert(__builtin_offsetof(TlasInstance, transform) == 56 && sizeof(TlasInstance::transform) == 4, "TlasInstance.transform: offset or size differs from Rust");
 static_assert(__builtin_offsetof(TlasInstance, tri_base) == 60 && sizeof(TlasInstance::tri_base) == 4, "TlasInstance.tri_base: offset or size differs from Rust");
 #endif
 // END GENERATED bvh
@@ -258,6 +264,9 @@ struct SceneBvhView {
     /// The scene's curve pieces (records marked CURVE_RECORD_MARKER index
     /// them); null without curves.
     const GpuCurve* curves;
+    /// The scene's motions (TRANSFORM_MOVING records index them); null
+    /// where nothing moves.
+    const GpuMotion* motions;
 };
 
 /// The result of one traversal: `tri` is the leaf-order triangle position

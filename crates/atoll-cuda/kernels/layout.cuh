@@ -45,7 +45,22 @@ struct GpuInstance {
     float normal_to_world[9];
     unsigned int object;
     unsigned int excluded;
-    unsigned int pad;
+    /// Row of the `motions` table of a moving instance (NO_MOTION for one
+    /// that stays still: the matrices above are then the start's).
+    unsigned int motion;
+};
+
+/// Mirror of `layout::GpuMotion` (176 bytes): a moving instance's two keys
+/// (translation, rotation quaternion x y z w, row-major symmetric scale),
+/// their times, the camera's shutter and the world box swept.
+struct GpuMotion {
+    float translation[6];
+    float rotation[8];
+    float scale[18];
+    float times[2];
+    float shutter[2];
+    float bounds[6];
+    unsigned int pad[2];
 };
 
 /// Mirror of `layout::HitRef` (16 bytes); `instance == HIT_NONE` means
@@ -110,6 +125,7 @@ inline constexpr unsigned int CURVE_CYLINDER = 1u;
 inline constexpr unsigned int CURVE_RIBBON = 2u;
 inline constexpr unsigned int CURVE_RECORD_MARKER = 2139144429u;
 inline constexpr unsigned int NO_CURVE = 4294967295u;
+inline constexpr unsigned int NO_MOTION = 4294967295u;
 inline constexpr unsigned int MESH_MEDIA_SHIFT = 8u;
 inline constexpr unsigned int IMAGE_RGBA8 = 0u;
 inline constexpr unsigned int IMAGE_RGBA8_SRGB = 1u;
@@ -148,7 +164,17 @@ static_assert(__builtin_offsetof(GpuInstance, world_to_object) == 48 && sizeof(G
 static_assert(__builtin_offsetof(GpuInstance, normal_to_world) == 96 && sizeof(GpuInstance::normal_to_world) == 36, "GpuInstance.normal_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, object) == 132 && sizeof(GpuInstance::object) == 4, "GpuInstance.object: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuInstance, excluded) == 136 && sizeof(GpuInstance::excluded) == 4, "GpuInstance.excluded: offset or size differs from Rust");
-static_assert(__builtin_offsetof(GpuInstance, pad) == 140 && sizeof(GpuInstance::pad) == 4, "GpuInstance.pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuInstance, motion) == 140 && sizeof(GpuInstance::motion) == 4, "GpuInstance.motion: offset or size differs from Rust");
+#endif
+static_assert(sizeof(GpuMotion) == 176, "GpuMotion: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuMotion, translation) == 0 && sizeof(GpuMotion::translation) == 24, "GpuMotion.translation: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, rotation) == 24 && sizeof(GpuMotion::rotation) == 32, "GpuMotion.rotation: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, scale) == 56 && sizeof(GpuMotion::scale) == 72, "GpuMotion.scale: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, times) == 128 && sizeof(GpuMotion::times) == 8, "GpuMotion.times: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, shutter) == 136 && sizeof(GpuMotion::shutter) == 8, "GpuMotion.shutter: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, bounds) == 144 && sizeof(GpuMotion::bounds) == 24, "GpuMotion.bounds: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMotion, pad) == 168 && sizeof(GpuMotion::pad) == 8, "GpuMotion.pad: offset or size differs from Rust");
 #endif
 static_assert(sizeof(HitRef) == 16, "HitRef: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

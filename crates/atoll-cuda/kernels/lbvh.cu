@@ -139,11 +139,12 @@ __device__ __forceinline__ bool is_identity(const float* m) {
 
 // Step 1 (TLAS): world boxes of the valid instances (those with a BLAS and
 // a finite inverse, chosen on the host): the BLAS root box through
-// object_to_world (Arvo 1990), padded by a relative 1e-6 against rounding.
+// object_to_world (Arvo 1990), padded by a relative 1e-6 against rounding;
+// a moving instance's is the box its motion sweeps (made on the host).
 extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
-    lbvh_tlas_boxes(const unsigned int* valid, const GpuInstance* instances, const unsigned int* object_segment,
-                    const float4* seg_root_box, const unsigned int* seg_start, unsigned int P, float4* prim_box,
-                    unsigned int* seg_bounds) {
+    lbvh_tlas_boxes(const unsigned int* valid, const GpuInstance* instances, const GpuMotion* motions,
+                    const unsigned int* object_segment, const float4* seg_root_box, const unsigned int* seg_start,
+                    unsigned int P, float4* prim_box, unsigned int* seg_bounds) {
     const unsigned long long block_first = (unsigned long long)blockIdx.x * BUILD_THREADS * BOX_ITEMS;
     CentroidBounds bounds = centroid_bounds_begin((unsigned int)block_first, seg_start, 1);
     for (unsigned int k = 0; k < BOX_ITEMS; ++k) {
@@ -155,7 +156,11 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
         const float* m = inst.object_to_world;
         float lo[3], hi[3];
         const float bmin[3] = {olo.x, olo.y, olo.z}, bmax[3] = {ohi.x, ohi.y, ohi.z};
-        for (int r = 0; r < 3; ++r) {
+        for (int r = 0; r < 3 && inst.motion != NO_MOTION; ++r) {
+            lo[r] = motions[inst.motion].bounds[r];
+            hi[r] = motions[inst.motion].bounds[3 + r];
+        }
+        for (int r = 0; r < 3 && inst.motion == NO_MOTION; ++r) {
             lo[r] = hi[r] = m[r * 4 + 3];
             for (int c = 0; c < 3; ++c) {
                 const float x = __fmul_rn(m[r * 4 + c], bmin[c]), y = __fmul_rn(m[r * 4 + c], bmax[c]);
@@ -450,7 +455,12 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
             r.world_to_object[row] = make_float4(m[row * 4], m[row * 4 + 1], m[row * 4 + 2], m[row * 4 + 3]);
         r.blas_root = seg_root_link[object_segment[inst.object]];
         r.instance = id;
-        r.identity = is_identity(inst.object_to_world) ? 1u : 0u;
+        r.transform = is_identity(inst.object_to_world) ? TRANSFORM_IDENTITY : TRANSFORM_AFFINE;
+        if (inst.motion != NO_MOTION) {
+            // The matrix is made per ray from the motion: its place holds the motion's index.
+            r.transform = TRANSFORM_MOVING;
+            r.world_to_object[0].x = __uint_as_float(inst.motion);
+        }
         r.tri_base = 0;  // a BVH built whole: leaf links index all records
         out[position] = r;
     });

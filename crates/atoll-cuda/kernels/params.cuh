@@ -168,6 +168,8 @@ struct SceneView {
     const unsigned int* curve_of;
     /// The curve pieces (MESH_CURVES meshes).
     const GpuCurve* curves;
+    /// Moving instances' motions (GpuInstance::motion).
+    const GpuMotion* motions;
     unsigned int triangle_count;
     unsigned int mesh_count;
     unsigned int instance_count;
@@ -310,7 +312,7 @@ static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FramePa
 static_assert(__builtin_offsetof(FrameParams, lens) == 600 && sizeof(FrameParams::lens) == 8, "FrameParams.lens: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
 #endif
-static_assert(sizeof(SceneView) == 88, "SceneView: size differs from Rust");
+static_assert(sizeof(SceneView) == 96, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(SceneView, vertices) == 0 && sizeof(SceneView::vertices) == 8, "SceneView.vertices: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, normals) == 8 && sizeof(SceneView::normals) == 8, "SceneView.normals: offset or size differs from Rust");
@@ -321,9 +323,10 @@ static_assert(__builtin_offsetof(SceneView, instances) == 40 && sizeof(SceneView
 static_assert(__builtin_offsetof(SceneView, uvs) == 48 && sizeof(SceneView::uvs) == 8, "SceneView.uvs: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, curve_of) == 56 && sizeof(SceneView::curve_of) == 8, "SceneView.curve_of: offset or size differs from Rust");
 static_assert(__builtin_offsetof(SceneView, curves) == 64 && sizeof(SceneView::curves) == 8, "SceneView.curves: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, triangle_count) == 72 && sizeof(SceneView::triangle_count) == 4, "SceneView.triangle_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, mesh_count) == 76 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, instance_count) == 80 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
-static_assert(__builtin_offsetof(SceneView, vertex_count) == 84 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, motions) == 72 && sizeof(SceneView::motions) == 8, "SceneView.motions: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, triangle_count) == 80 && sizeof(SceneView::triangle_count) == 4, "SceneView.triangle_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, mesh_count) == 84 && sizeof(SceneView::mesh_count) == 4, "SceneView.mesh_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, instance_count) == 88 && sizeof(SceneView::instance_count) == 4, "SceneView.instance_count: offset or size differs from Rust");
+static_assert(__builtin_offsetof(SceneView, vertex_count) == 92 && sizeof(SceneView::vertex_count) == 4, "SceneView.vertex_count: offset or size differs from Rust");
 #endif
 // END GENERATED params

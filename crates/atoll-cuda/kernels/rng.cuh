@@ -7,6 +7,7 @@
 inline constexpr unsigned int CAMERA_DIMENSIONS = 4u;
 inline constexpr unsigned int DIMENSIONS_PER_BOUNCE = 8u;
 inline constexpr unsigned int MEDIUM_DIMENSIONS = 16777216u;
+inline constexpr unsigned int TIME_DIMENSION = 16777215u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_SELECT = 0u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_POSITION = 1u;
 inline constexpr unsigned int BOUNCE_DIM_BSDF_LOBE = 3u;

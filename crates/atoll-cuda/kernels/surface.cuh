@@ -14,6 +14,7 @@
 #include "bump.cuh"
 #include "spawn.cuh"
 #include "curve.cuh"
+#include "motion.cuh"
 
 // Textured material parameters and emission textures at hits: compiled in
 // unless the trace module is specialised for a frame without textures
@@ -30,6 +31,39 @@
 #else
 #define ATOLL_WITH_CURVES 1
 #endif
+
+// Hits on moving instances: compiled out of trace modules for frames where
+// nothing moves (`-DATOLL_TRACE_MOTION=0`), in everywhere else.
+#ifdef ATOLL_TRACE_MOTION
+#define ATOLL_WITH_MOTION ATOLL_TRACE_MOTION
+#else
+#define ATOLL_WITH_MOTION 1
+#endif
+
+/// Where an instance is when a ray hits it: its stored transforms, or for
+/// a moving one those of its motion at the ray's time (the CPU's
+/// `Resident::placement`).
+struct Placement {
+    float object_to_world[12];
+    float world_to_object[12];
+    float normal_to_world[9];
+};
+
+__device__ __forceinline__ void place_instance(const FrameParams& p, const SceneView& s, const RayRecord* record,
+                                               const GpuInstance& instance, Placement& out) {
+    if (ATOLL_WITH_MOTION && instance.motion != NO_MOTION) {
+        count_access(s.motions + instance.motion);
+        const float time = ray_time_sample(p.seed, record->pixel, record->sample);
+        motion_object_to_world(s.motions[instance.motion], time, out.object_to_world);
+        affine_inverse(out.object_to_world, out.world_to_object, out.normal_to_world);
+        return;
+    }
+    for (int k = 0; k < 12; ++k) {
+        out.object_to_world[k] = instance.object_to_world[k];
+        out.world_to_object[k] = instance.world_to_object[k];
+    }
+    for (int k = 0; k < 9; ++k) out.normal_to_world[k] = instance.normal_to_world[k];
+}
 
 /// Coefficient `slot` of a material's two 16-byte words, as a float.
 __device__ __forceinline__ float coeff_of(uint4 c0, uint4 c1, unsigned int slot) {
@@ -72,7 +106,8 @@ __device__ __forceinline__ int wanted_tangent_slot(unsigned int kind, uint4 c0, 
 /// call it once per ray and should keep their own register budget.
 __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView& s, RayRecord* record,
                                            const HitRef hit) {
-    const GpuInstance& instance = s.instances[hit.instance];
+    Placement instance;
+    place_instance(p, s, record, s.instances[hit.instance], instance);
     const GpuMesh& mesh = s.meshes[s.triangle_mesh[hit.triangle]];
     const unsigned int i0 = s.triangles[3ull * hit.triangle + 0];
     const unsigned int i1 = s.triangles[3ull * hit.triangle + 1];

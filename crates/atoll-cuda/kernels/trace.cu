@@ -43,7 +43,8 @@ struct SurfaceArgs {
 
 template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                          unsigned long long i, unsigned int count, SurfaceArgs surface) {
+                                          unsigned long long i, unsigned int count, SurfaceArgs surface,
+                                          const FrameParams* motion_params) {
     bool valid = i < count;
     RayRecord* rec = records + (valid ? i : 0);
     float4 a = make_float4(0.0f, 0.0f, 0.0f, 0.0f), b = a;
@@ -55,9 +56,14 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
     const unsigned int mask = __ballot_sync(0xffffffffu, valid);
     if (!valid) return;
     const float3 o = make_float3(a.x, a.y, a.z), d = make_float3(b.x, b.y, b.z);
-    const TraversalHit h = LOOP == LOOP_SPECULATIVE ? traverse_speculative<TRI, ANY>(v, o, d, a.w, mask)
-                           : LOOP == LOOP_WIDE      ? traverse_wide<TRI, ANY>(v, o, d, a.w)
-                                                    : traverse_while_while<TRI, ANY>(v, o, d, a.w);
+    float time = 0.0f;
+#if ATOLL_TRACE_MOTION
+    // b.w is the record's pixel.
+    if (motion_params) time = ray_time_sample(motion_params->seed, __float_as_uint(b.w), rec->sample);
+#endif
+    const TraversalHit h = LOOP == LOOP_SPECULATIVE ? traverse_speculative<TRI, ANY>(v, o, d, a.w, time, mask)
+                           : LOOP == LOOP_WIDE      ? traverse_wide<TRI, ANY>(v, o, d, a.w, time)
+                                                    : traverse_while_while<TRI, ANY>(v, o, d, a.w, time);
     if (ANY) {
         if (h.hit) {
             rec->flags |= FLAG_OCCLUDED;
@@ -95,22 +101,25 @@ __device__ __forceinline__ void trace_ray(const SceneBvhView& v, RayRecord* reco
 /// One thread per ray.
 template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_grid(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                           unsigned int count, SurfaceArgs surface) {
+                                           unsigned int count, SurfaceArgs surface,
+                                           const FrameParams* motion_params) {
     const unsigned long long i = (unsigned long long)blockIdx.x * blockDim.x + threadIdx.x;
-    trace_ray<TRI, ANY, LOOP>(v, records, hits, i, count, surface);
+    trace_ray<TRI, ANY, LOOP>(v, records, hits, i, count, surface, motion_params);
 }
 
 /// Persistent threads: warps take batches of 32 rays from `*work`.
 template <int TRI, bool ANY, int LOOP>
 __device__ __forceinline__ void trace_persistent(const SceneBvhView& v, RayRecord* records, HitRef* hits,
-                                                 unsigned int count, unsigned int* work, SurfaceArgs surface) {
+                                                 unsigned int count, unsigned int* work, SurfaceArgs surface,
+                                                 const FrameParams* motion_params) {
     const unsigned int lane = threadIdx.x & 31u;
     for (;;) {
         unsigned int base = 0;
         if (lane == 0) base = atomicAdd(work, 32u);
         base = __shfl_sync(0xffffffffu, base, 0);
         if (base >= count) return;
-        trace_ray<TRI, ANY, LOOP>(v, records, hits, (unsigned long long)base + lane, count, surface);
+        trace_ray<TRI, ANY, LOOP>(v, records, hits, (unsigned long long)base + lane, count, surface,
+                                  motion_params);
         __syncwarp();
     }
 }
@@ -131,9 +140,10 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
         const TlasInstance *instances, int tlas_root, RayRecord *records, HitRef *hits, unsigned int count,   \
         unsigned int *work, const unsigned int *device_count, unsigned long long *traced,                   \
         const FrameParams *surface_params, const SceneView *surface_scene, const FrameParams *alpha_params, \
-        const SceneView *alpha_scene, const GpuCurve *curves
+        const SceneView *alpha_scene, const GpuCurve *curves, const GpuMotion *motions,                     \
+        const FrameParams *motion_params
 #define TRACE_VIEW                                                                   \
-    SceneBvhView v = {tlas_nodes, blas_nodes, wide_nodes, tris, tri_ids, instances, tlas_root, alpha_params, alpha_scene, curves}; \
+    SceneBvhView v = {tlas_nodes, blas_nodes, wide_nodes, tris, tri_ids, instances, tlas_root, alpha_params, alpha_scene, curves, motions}; \
     const unsigned int n = trace_count(count, device_count, traced);                \
     const SurfaceArgs surface = {surface_params, surface_scene}
 
@@ -147,12 +157,12 @@ __device__ __forceinline__ unsigned int trace_count(unsigned int count, const un
 #define TRACE_GRID_KERNEL(query, any, test, tri, name, loop)                                         \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_##name##_##test(TRACE_ARGS) { \
         TRACE_VIEW;                                                                                  \
-        trace_grid<tri, any, loop>(v, records, hits, n, surface);                                    \
+        trace_grid<tri, any, loop>(v, records, hits, n, surface, motion_params);                     \
     }
 #define TRACE_PERSISTENT_KERNEL(query, any, test, tri, name, loop)                                   \
     extern "C" __global__ void __launch_bounds__(TRACE_THREADS) trace_##query##_##name##_##test(TRACE_ARGS) { \
         TRACE_VIEW;                                                                                  \
-        trace_persistent<tri, any, loop>(v, records, hits, n, work, surface);                        \
+        trace_persistent<tri, any, loop>(v, records, hits, n, work, surface, motion_params);         \
     }
 // Both queries with both triangle tests, for one loop.
 #define TRACE_LOOP(kernel, name, loop)                          \

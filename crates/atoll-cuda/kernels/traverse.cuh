@@ -39,6 +39,13 @@
 #define ATOLL_TRACE_CURVES 0
 #endif
 
+// Moving instances (`-DATOLL_TRACE_MOTION=1`, scenes with motion blur): a
+// record marked TRANSFORM_MOVING takes its transform from its motion at
+// the ray's time (motion.cuh).
+#ifndef ATOLL_TRACE_MOTION
+#define ATOLL_TRACE_MOTION 0
+#endif
+
 // BLAS leaf links counting from their instance record's tri_base (a BVH
 // built in pieces, src/bvh/pieces.rs; `-DATOLL_TRI_BASES=1`): elsewhere
 // every base is 0, and adding it measured a few percent slower.
@@ -48,15 +55,34 @@
 
 /// The ray of instance record `s` in object space (`world` unchanged for an
 /// identity instance, kept in `ray`) and its BLAS's first record in
-/// `tri_base`; returns the record's BLAS root.
+/// `tri_base`; returns the record's BLAS root. `time`: the ray's time
+/// sample (moving instances).
 __device__ __forceinline__ int instance_ray(const SceneBvhView& v, unsigned int s, const TraversalRay& world,
-                                            TraversalRay& ray, unsigned int& tri_base) {
+                                            TraversalRay& ray, unsigned int& tri_base, float time) {
     const float4* p = reinterpret_cast<const float4*>(v.instances + s);
     count_access(p);
     const int4 meta = __ldg(reinterpret_cast<const int4*>(p + 3));
     tri_base = (unsigned int)meta.w;
-    if (meta.z == 0) {
-        const float4 m0 = __ldg(p), m1 = __ldg(p + 1), m2 = __ldg(p + 2);
+    if (meta.z != TRANSFORM_IDENTITY) {
+        float4 m0, m1, m2;
+#if ATOLL_TRACE_MOTION
+        if (meta.z == TRANSFORM_MOVING) {
+            const unsigned int motion = __float_as_uint(__ldg(&p->x));
+            count_access(v.motions + motion);
+            float to_world[12], m[12];
+            motion_object_to_world(v.motions[motion], time, to_world);
+            affine_inverse(to_world, m, nullptr);
+            m0 = make_float4(m[0], m[1], m[2], m[3]);
+            m1 = make_float4(m[4], m[5], m[6], m[7]);
+            m2 = make_float4(m[8], m[9], m[10], m[11]);
+        } else
+#endif
+        {
+            (void)time;
+            m0 = __ldg(p);
+            m1 = __ldg(p + 1);
+            m2 = __ldg(p + 2);
+        }
         const float3 o = world.o, d = world.d;
         // glam's Affine3A::transform_point3a / transform_vector3a, rounding included.
         ray = make_traversal_ray(
@@ -76,6 +102,7 @@ struct Traversal {
     bool in_blas;
     unsigned int slot;   // TLAS instance record being traversed
     unsigned int tri_base;  // its BLAS's first triangle record
+    float time;             // the ray's time sample (moving instances)
     int sp;
     int* stack;
 
@@ -91,7 +118,7 @@ struct Traversal {
 
     /// Moves into instance record `s`; returns its BLAS root link.
     __device__ __forceinline__ int enter_instance(const SceneBvhView& v, unsigned int s) {
-        const int root = instance_ray(v, s, world, ray, tri_base);
+        const int root = instance_ray(v, s, world, ray, tri_base, time);
         nodes = v.blas_nodes;
         in_blas = true;
         slot = s;
@@ -126,8 +153,9 @@ struct Traversal {
 };
 
 __device__ __forceinline__ void init_traversal(Traversal& tr, int* stack, const SceneBvhView& v, float3 o,
-                                               float3 d) {
+                                               float3 d, float time) {
     tr.stack = stack;
+    tr.time = time;
     tr.world = make_traversal_ray(o, d);
     tr.ray = tr.world;
     tr.nodes = v.tlas_nodes;
@@ -197,13 +225,14 @@ __device__ __forceinline__ bool test_leaf(const SceneBvhView& v, const Traversal
     return test_triangles<TRI, ANY>(v, tr.ray, tr.slot, base + leaf_first(leaf), leaf_count(leaf), h);
 }
 
-/// While-while traversal of the ray (o, d) with hits in (0, t_max).
+/// While-while traversal of the ray (o, d) at time sample `time` with
+/// hits in (0, t_max).
 template <int TRI, bool ANY>
-__device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, float3 d, float t_max) {
+__device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, float3 d, float t_max, float time) {
     TraversalHit h = ray_hit(o, d, t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
-    init_traversal(tr, stack, v, o, d);
+    init_traversal(tr, stack, v, o, d, time);
     int node = v.tlas_root;
     while (node != LINK_DONE) {
         // Inner nodes (0 <= node < LINK_DONE) until a leaf or a marker.
@@ -231,12 +260,12 @@ __device__ TraversalHit traverse_while_while(const SceneBvhView& v, float3 o, fl
 /// keeps traversing until all lanes of `mask` (the lanes calling this,
 /// together) hold a leaf. Every lane of `mask` must call it.
 template <int TRI, bool ANY>
-__device__ TraversalHit traverse_speculative(const SceneBvhView& v, float3 o, float3 d, float t_max,
+__device__ TraversalHit traverse_speculative(const SceneBvhView& v, float3 o, float3 d, float t_max, float time,
                                              unsigned int mask) {
     TraversalHit h = ray_hit(o, d, t_max);
     int stack[TRAVERSAL_STACK];
     Traversal tr;
-    init_traversal(tr, stack, v, o, d);
+    init_traversal(tr, stack, v, o, d, time);
     int node = v.tlas_root;
     int leaf = 0;  // the postponed leaf link; >= 0 means none
     while (__any_sync(mask, node != LINK_DONE || leaf < 0)) {

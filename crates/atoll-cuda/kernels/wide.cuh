@@ -71,10 +71,10 @@ struct WideTraversal {
     }
 };
 
-/// Closest (or, with ANY, any) hit of the ray (o, d) in (0, t_max) through
-/// the compressed wide tree rooted at `v.tlas_root`.
+/// Closest (or, with ANY, any) hit of the ray (o, d) at time sample `time`
+/// in (0, t_max) through the compressed wide tree rooted at `v.tlas_root`.
 template <int TRI, bool ANY>
-__device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d, float t_max) {
+__device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d, float t_max, float time) {
     TraversalHit h = ray_hit(o, d, t_max);
     WideEntry stack[TRAVERSAL_STACK];
     WideTraversal tr;
@@ -99,7 +99,7 @@ __device__ TraversalHit traverse_wide(const SceneBvhView& v, float3 o, float3 d,
             slot = ~(unsigned int)node;
             tr.push(LINK_INSTANCE_END, __int_as_float(0xff800000));
             unsigned int tri_base;  // 0: the wide tree's leaves index all records
-            node = instance_ray(v, slot, world, ray, tri_base);
+            node = instance_ray(v, slot, world, ray, tri_base, time);
             in_blas = true;
             continue;
         }

@@ -226,6 +226,7 @@ fn time_batch(
             None,
             None,
             None,
+            None,
             crate::trace::TraceFeatures::default(),
         )?;
         end.record(&gpu.stream).map_err(event_err(gpu))?;

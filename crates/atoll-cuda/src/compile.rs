@@ -48,6 +48,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("hair.cuh", include_str!("../kernels/hair.cuh")),
     ("measured.cuh", include_str!("../kernels/measured.cuh")),
     ("media.cuh", include_str!("../kernels/media.cuh")),
+    ("motion.cuh", include_str!("../kernels/motion.cuh")),
     ("record.cuh", include_str!("../kernels/record.cuh")),
     ("rng.cuh", include_str!("../kernels/rng.cuh")),
     ("peer.cu", include_str!("../kernels/peer.cu")),

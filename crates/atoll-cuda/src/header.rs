@@ -24,7 +24,9 @@ use atoll_render::frame::MAX_MIX_DEPTH;
 use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::material_layout;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
-use atoll_render::rng::{BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, MEDIUM_DIMENSIONS};
+use atoll_render::rng::{
+    BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, MEDIUM_DIMENSIONS, TIME_DIMENSION,
+};
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 use atoll_render::spawn::{gamma, SHADOW_EPSILON};
 
@@ -180,6 +182,7 @@ pub(crate) fn rng_constants() -> String {
     let mut s = const_uint("unsigned int", "CAMERA_DIMENSIONS", CAMERA_DIMENSIONS as u64);
     s += &const_uint("unsigned int", "DIMENSIONS_PER_BOUNCE", DIMENSIONS_PER_BOUNCE as u64);
     s += &const_uint("unsigned int", "MEDIUM_DIMENSIONS", MEDIUM_DIMENSIONS as u64);
+    s += &const_uint("unsigned int", "TIME_DIMENSION", TIME_DIMENSION as u64);
     for (name, dim) in [
         ("BOUNCE_DIM_LIGHT_SELECT", BounceDim::LightSelect),
         ("BOUNCE_DIM_LIGHT_POSITION", BounceDim::LightPosition),
@@ -216,6 +219,7 @@ pub(crate) fn layout_asserts() -> String {
         ("CURVE_RIBBON", atoll_scene::CurveKind::Ribbon.code()),
         ("CURVE_RECORD_MARKER", crate::bvh::CURVE_RECORD_MARKER),
         ("NO_CURVE", crate::scene::NO_CURVE),
+        ("NO_MOTION", crate::layout::NO_MOTION),
         ("MESH_MEDIA_SHIFT", mesh_flags::MEDIA_SHIFT),
         ("IMAGE_RGBA8", image_format::RGBA8),
         ("IMAGE_RGBA8_SRGB", image_format::RGBA8_SRGB),
@@ -227,6 +231,7 @@ pub(crate) fn layout_asserts() -> String {
     s += &assert_struct::<GpuObject>("GpuObject", GpuObject::field_layout());
     s += &assert_struct::<GpuCurve>("GpuCurve", GpuCurve::field_layout());
     s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
+    s += &assert_struct::<crate::layout::GpuMotion>("GpuMotion", crate::layout::GpuMotion::field_layout());
     s += &assert_struct::<HitRef>("HitRef", HitRef::field_layout());
     s += &assert_struct::<GpuImage>("GpuImage", GpuImage::field_layout());
     s += &const_uint("unsigned int", "WORK_SLOTS", WORK_SLOTS as u64);
@@ -454,11 +459,16 @@ mod tests {
     /// struct (all shared structs carry explicit padding fields).
     #[test]
     fn header_layouts_cover_their_structs() {
-        let all: [(&str, usize, FieldLayout); 13] = [
+        let all: [(&str, usize, FieldLayout); 14] = [
             ("RayRecord", std::mem::size_of::<RayRecord>(), record::field_layout()),
             ("GpuMesh", std::mem::size_of::<GpuMesh>(), GpuMesh::field_layout()),
             ("GpuObject", std::mem::size_of::<GpuObject>(), GpuObject::field_layout()),
             ("GpuInstance", std::mem::size_of::<GpuInstance>(), GpuInstance::field_layout()),
+            (
+                "GpuMotion",
+                std::mem::size_of::<crate::layout::GpuMotion>(),
+                crate::layout::GpuMotion::field_layout(),
+            ),
             ("HitRef", std::mem::size_of::<HitRef>(), HitRef::field_layout()),
             ("GpuWave", std::mem::size_of::<GpuWave>(), GpuWave::field_layout()),
             ("WorkStatus", std::mem::size_of::<WorkStatus>(), WorkStatus::field_layout()),

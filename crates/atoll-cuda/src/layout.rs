@@ -123,8 +123,54 @@ pub struct GpuInstance {
     /// 1 when the instance is not part of this device's scene part (its
     /// row stays so instance indices are scene-wide; the TLAS leaves it out).
     pub excluded: u32,
+    /// A moving instance's row of the `motions` table ([`NO_MOTION`] for
+    /// one that stays still); its matrices above are then the start's.
+    pub motion: u32,
+}
+
+/// [`GpuInstance::motion`] of an instance that does not move.
+pub const NO_MOTION: u32 = u32::MAX;
+
+/// A moving instance's motion on the device (`atoll_scene::Motion`, 176
+/// bytes): its two keys' translation, rotation (quaternion x, y, z, w)
+/// and row-major scale, the keys' times, the camera's shutter (a ray's
+/// time is `shutter[0] + (shutter[1] - shutter[0]) u`) and the world box
+/// it sweeps (for the TLAS build).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuMotion {
+    pub translation: [f32; 6],
+    pub rotation: [f32; 8],
+    pub scale: [f32; 18],
+    pub times: [f32; 2],
+    pub shutter: [f32; 2],
+    pub bounds: [f32; 6],
     /// Keeps the size a multiple of 16 bytes.
-    pub pad: u32,
+    pub pad: [u32; 2],
+}
+
+impl GpuMotion {
+    /// `motion` under a camera shutter `shutter`, sweeping the world box `bounds` (min, max).
+    pub fn new(motion: &atoll_scene::Motion, shutter: [f32; 2], bounds: (glam::Vec3, glam::Vec3)) -> Self {
+        let (a, b) = (&motion.start, &motion.end);
+        // Row-major: the transpose's columns.
+        let scale = |m: &glam::Mat3| m.transpose().to_cols_array();
+        let mut out = GpuMotion { times: motion.times, shutter, ..Default::default() };
+        out.translation[..3].copy_from_slice(&a.translation.to_array());
+        out.translation[3..].copy_from_slice(&b.translation.to_array());
+        out.rotation[..4].copy_from_slice(&a.rotation.to_array());
+        out.rotation[4..].copy_from_slice(&b.rotation.to_array());
+        out.scale[..9].copy_from_slice(&scale(&a.scale));
+        out.scale[9..].copy_from_slice(&scale(&b.scale));
+        out.bounds[..3].copy_from_slice(&bounds.0.to_array());
+        out.bounds[3..].copy_from_slice(&bounds.1.to_array());
+        out
+    }
+
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
+        field_layout!(GpuMotion { translation, rotation, scale, times, shutter, bounds, pad })
+    }
 }
 
 /// What traversal found for one ray, before hit attributes are computed
@@ -208,7 +254,7 @@ impl GpuInstance {
             normal_to_world,
             object,
             excluded,
-            pad
+            motion
         })
     }
 }
@@ -264,6 +310,8 @@ unsafe impl cudarc::driver::DeviceRepr for GpuImage {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuImage {}
 unsafe impl cudarc::driver::DeviceRepr for GpuCurve {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuCurve {}
+unsafe impl cudarc::driver::DeviceRepr for GpuMotion {}
+unsafe impl cudarc::driver::ValidAsZeroBits for GpuMotion {}
 unsafe impl cudarc::driver::DeviceRepr for HitRef {}
 unsafe impl cudarc::driver::ValidAsZeroBits for HitRef {}
 

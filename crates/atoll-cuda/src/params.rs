@@ -599,6 +599,9 @@ pub struct SceneView {
     pub curve_of: u64,
     /// `GpuCurve[..]`: the pieces.
     pub curves: u64,
+    /// `GpuMotion[..]`: moving instances' motions; one placeholder where
+    /// nothing moves.
+    pub motions: u64,
     pub triangle_count: u32,
     pub mesh_count: u32,
     pub instance_count: u32,
@@ -619,6 +622,7 @@ impl SceneView {
             uvs: scene.uvs.device_ptr(stream).0,
             curve_of: scene.curve_of.device_ptr(stream).0,
             curves: scene.curves.device_ptr(stream).0,
+            motions: scene.motions.device_ptr(stream).0,
             triangle_count: scene.counts.triangles as u32,
             mesh_count: scene.counts.meshes as u32,
             instance_count: scene.counts.instances as u32,
@@ -638,6 +642,7 @@ impl SceneView {
             uvs,
             curve_of,
             curves,
+            motions,
             triangle_count,
             mesh_count,
             instance_count,
@@ -669,7 +674,7 @@ const _: () = {
             == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 40 + 120 * MEDIA_SLOTS
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
-    assert!(std::mem::size_of::<SceneView>() == 88);
+    assert!(std::mem::size_of::<SceneView>() == 96);
 };
 
 /// The frame's light and material tables in host memory, exactly as they

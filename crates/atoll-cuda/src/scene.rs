@@ -22,7 +22,9 @@ use rayon::prelude::*;
 
 use crate::error::{fmt_bytes, CudaError};
 use crate::gpu::{Gpu, Uploader};
-use crate::layout::{image_format, mesh_flags, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuObject};
+use crate::layout::{
+    image_format, mesh_flags, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuMotion, GpuObject, NO_MOTION,
+};
 use rows::RowTable;
 
 /// The scene tables in host memory, exactly as they go to the device.
@@ -43,6 +45,9 @@ pub struct SceneTables {
     /// One per scene instance, same order as `Scene::instances` (hit
     /// records, lights and the CPU device all use these indices).
     pub instances: Vec<GpuInstance>,
+    /// The scene's motions ([`GpuInstance::motion`]), one per
+    /// `Scene::motions`; empty when nothing moves.
+    pub motions: Vec<GpuMotion>,
     /// u, v per vertex (same indexing as `vertices`), zero for meshes
     /// without uvs; empty when no mesh has uvs.
     pub uvs: Vec<f32>,
@@ -69,6 +74,8 @@ pub struct TableCounts {
     pub has_uvs: bool,
     /// Curve pieces (proxy triangles among `triangles`).
     pub curves: u64,
+    /// Motions of moving instances.
+    pub motions: u64,
     pub images: u64,
     /// u32 words of all images' texels.
     pub texel_words: u64,
@@ -86,6 +93,7 @@ impl TableCounts {
         let mut c = TableCounts {
             objects: scene.objects.len() as u64,
             instances: scene.instances.len() as u64,
+            motions: scene.motions.len() as u64,
             ..Default::default()
         };
         // Vertex arrays once per mesh, however many ranges of it the part holds.
@@ -131,6 +139,7 @@ impl TableCounts {
             + self.meshes.max(1) * std::mem::size_of::<GpuMesh>() as u64
             + self.objects.max(1) * std::mem::size_of::<GpuObject>() as u64
             + self.instances.max(1) * std::mem::size_of::<GpuInstance>() as u64
+            + self.motions.max(1) * std::mem::size_of::<GpuMotion>() as u64
     }
 }
 
@@ -170,7 +179,7 @@ pub(crate) fn gpu_instance(instance: &atoll_scene::Instance) -> GpuInstance {
         normal_to_world,
         object: instance.object,
         excluded: 0,
-        pad: 0,
+        motion: instance.motion.unwrap_or(NO_MOTION),
     }
 }
 
@@ -202,7 +211,7 @@ impl SceneTables {
                 Table::TriangleMesh(v) => t.triangle_mesh = v.to_vec(),
                 Table::Meshes(v) => t.meshes = v,
                 Table::Objects(v) => t.objects = v,
-                Table::Instances(v) => t.instances = v,
+                Table::Instances(v, m) => (t.instances, t.motions) = (v, m),
                 Table::Images(images, texels) => (t.images, t.texels) = (images, texels),
                 Table::Curves(curve_of, curves) => (t.curve_of, t.curves) = (curve_of, curves),
             }
@@ -221,6 +230,7 @@ impl SceneTables {
             has_normals: !self.normals.is_empty(),
             has_uvs: !self.uvs.is_empty(),
             curves: self.curves.len() as u64,
+            motions: self.motions.len() as u64,
             images: self.images.len() as u64,
             texel_words: self.texels.len() as u64,
         }
@@ -308,7 +318,8 @@ pub(crate) enum Table<'a> {
     TriangleMesh(RowTable<'a, u32>),
     Meshes(Vec<GpuMesh>),
     Objects(Vec<GpuObject>),
-    Instances(Vec<GpuInstance>),
+    /// The instances and the motions of the moving ones.
+    Instances(Vec<GpuInstance>, Vec<GpuMotion>),
     /// The images and their texels.
     Images(Vec<GpuImage>, Vec<u32>),
     /// Each triangle's curve piece (empty without curves) and the pieces.
@@ -340,7 +351,7 @@ pub(crate) fn make_tables<E>(
         .zip(in_part)
         .map(|(instance, in_part)| GpuInstance { excluded: u32::from(!in_part), ..gpu_instance(instance) })
         .collect();
-    sink(Table::Instances(instances))?;
+    sink(Table::Instances(instances, motion_table(scene)))?;
     let plan = TablePlan::of(scene, part);
     let vertices = counts.vertices as usize;
     let blocks = &plan.vertex_blocks;
@@ -361,6 +372,24 @@ pub(crate) fn make_tables<E>(
     sink(Table::Images(images, texels))?;
     sink(Table::Meshes(plan.meshes))?;
     sink(Table::Objects(plan.objects))
+}
+
+/// The scene's motions on the device, each with the world box it sweeps
+/// the objects of its instances through.
+fn motion_table(scene: &Scene) -> Vec<GpuMotion> {
+    let mut bounds = vec![(Vec3::INFINITY, Vec3::NEG_INFINITY); scene.motions.len()];
+    let mut object_bounds = std::collections::HashMap::new();
+    for inst in &scene.instances {
+        let Some(m) = inst.motion else { continue };
+        let object = *object_bounds.entry(inst.object).or_insert_with(|| scene.object_bounds(inst.object));
+        if let Some((lo, hi)) = object {
+            let (a, b) = scene.instance_box(inst, lo, hi);
+            let swept = &mut bounds[m as usize];
+            *swept = (swept.0.min(a), swept.1.max(b));
+        }
+    }
+    let shutter = scene.settings.camera.shutter;
+    scene.motions.iter().zip(bounds).map(|(m, b)| GpuMotion::new(m, shutter, b)).collect()
 }
 
 /// The vertex table of one attribute (`attr`, `N` words a vertex) over
@@ -574,6 +603,8 @@ pub struct GpuScene {
     pub meshes: CudaSlice<GpuMesh>,
     pub objects: CudaSlice<GpuObject>,
     pub instances: CudaSlice<GpuInstance>,
+    /// One placeholder when nothing moves.
+    pub motions: CudaSlice<GpuMotion>,
     /// One zero placeholder when no mesh has uvs.
     pub uvs: CudaSlice<f32>,
     /// One placeholder each when the part has no curves.
@@ -586,6 +617,7 @@ pub struct GpuScene {
     pub host_meshes: Vec<GpuMesh>,
     pub host_objects: Vec<GpuObject>,
     pub host_instances: Vec<GpuInstance>,
+    pub host_motions: Vec<GpuMotion>,
 }
 
 impl GpuScene {
@@ -618,7 +650,7 @@ impl GpuScene {
         let (mut vertices, mut normals, mut uvs, mut triangles, mut triangle_mesh) =
             (None, None, None, None, None);
         let (mut images, mut texels) = (None, None);
-        let (mut curve_of, mut curves) = (None, None);
+        let (mut curve_of, mut curves, mut motions) = (None, None, None);
         make_tables(scene, part, &mut |table| {
             match table {
                 Table::Vertices(v) => vertices = Some(up.upload_rows(&v, "vertices")?),
@@ -636,7 +668,10 @@ impl GpuScene {
                 }
                 Table::Meshes(v) => host.meshes = v,
                 Table::Objects(v) => host.objects = v,
-                Table::Instances(v) => host.instances = v,
+                Table::Instances(v, m) => {
+                    motions = Some(up.upload(&m, "motions")?);
+                    (host.instances, host.motions) = (v, m);
+                }
             }
             Ok::<(), CudaError>(())
         })?;
@@ -652,6 +687,7 @@ impl GpuScene {
             meshes: up.upload(&host.meshes, "meshes")?,
             objects: up.upload(&host.objects, "objects")?,
             instances: up.upload(&host.instances, "instances")?,
+            motions: motions.expect(made),
             uvs: uvs.expect(made),
             curve_of: curve_of.expect(made),
             curves: curves.expect(made),
@@ -661,6 +697,7 @@ impl GpuScene {
             host_meshes: host.meshes,
             host_objects: host.objects,
             host_instances: host.instances,
+            host_motions: host.motions,
         };
         gpu.synchronize()?;
         let seconds = start.elapsed().as_secs_f64();
@@ -686,6 +723,7 @@ impl GpuScene {
             meshes: up.upload(&t.meshes, "meshes")?,
             objects: up.upload(&t.objects, "objects")?,
             instances: up.upload(&t.instances, "instances")?,
+            motions: up.upload(&t.motions, "motions")?,
             uvs: up.upload(&t.uvs, "uvs")?,
             curve_of: up.upload(&t.curve_of, "curve pieces of triangles")?,
             curves: up.upload(&t.curves, "curve pieces")?,
@@ -695,8 +733,14 @@ impl GpuScene {
             host_meshes: t.meshes,
             host_objects: t.objects,
             host_instances: t.instances,
+            host_motions: t.motions,
         };
         Ok(scene)
+    }
+
+    /// The motions table where something moves.
+    pub(crate) fn moving(&self) -> Option<&CudaSlice<GpuMotion>> {
+        (self.counts.motions > 0).then_some(&self.motions)
     }
 
     /// The `curve_of` table where the scene has curves.
@@ -713,6 +757,7 @@ impl GpuScene {
             + self.meshes.num_bytes()
             + self.objects.num_bytes()
             + self.instances.num_bytes()
+            + self.motions.num_bytes()
             + self.uvs.num_bytes()
             + self.curve_of.num_bytes()
             + self.curves.num_bytes()

@@ -36,8 +36,8 @@ use crate::window::ChunkWindow;
 const TABLE_ALIGN: u64 = 256;
 
 /// The window's tables, in order: [`GpuScene`]'s, then [`GpuSceneBvh`]'s
-/// (the [`BVH_TABLES`]), then the scene's curve tables.
-const TABLES: [&str; 17] = [
+/// (the [`BVH_TABLES`]), then the scene's curve and motion tables.
+const TABLES: [&str; 18] = [
     "vertices",
     "normals",
     "triangles",
@@ -55,13 +55,14 @@ const TABLES: [&str; 17] = [
     "triangle ids",
     "curve pieces of triangles",
     "curve pieces",
+    "motions",
 ];
 
 /// The BVH's tables among [`TABLES`].
 const BVH_TABLES: std::ops::Range<usize> = 10..15;
 
 /// Device pointer and bytes of each table of `scene` and `bvh`, in [`TABLES`] order.
-fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 17] {
+fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 18] {
     fn span<T>(gpu: &Gpu, s: &CudaSlice<T>) -> (u64, u64) {
         (s.device_ptr(&gpu.stream).0, s.num_bytes() as u64)
     }
@@ -84,6 +85,7 @@ fn table_spans(scene: &GpuScene, bvh: &GpuSceneBvh) -> [(u64, u64); 17] {
         span(g, &bvh.tri_ids),
         span(g, &scene.curve_of),
         span(g, &scene.curves),
+        span(g, &scene.motions),
     ]
 }
 
@@ -95,6 +97,7 @@ struct SceneMeta {
     host_meshes: Vec<crate::layout::GpuMesh>,
     host_objects: Vec<crate::layout::GpuObject>,
     host_instances: Vec<crate::layout::GpuInstance>,
+    host_motions: Vec<crate::layout::GpuMotion>,
     tlas_root: i32,
     triangle_test: crate::bvh::TriangleTest,
     blas_roots: Vec<i32>,
@@ -149,12 +152,14 @@ unsafe fn views(
         uvs: table!(7),
         curve_of: table!(15),
         curves: table!(16),
+        motions: table!(17),
         images: table!(8),
         texels: table!(9),
         counts: meta.counts,
         host_meshes: meta.host_meshes.clone(),
         host_objects: meta.host_objects.clone(),
         host_instances: meta.host_instances.clone(),
+        host_motions: meta.host_motions.clone(),
     };
     let bvh = GpuSceneBvh {
         tlas_nodes: table!(10),
@@ -173,6 +178,7 @@ unsafe fn views(
         stats: meta.stats.clone(),
         scene_triangles: meta.scene_triangles,
         curves: if meta.counts.curves > 0 { at(16).0 } else { 0 },
+        motions: if meta.counts.motions > 0 { at(17).0 } else { 0 },
         tracers: Mutex::new(Vec::new()),
         wide: Mutex::new(None),
     };
@@ -191,10 +197,16 @@ pub(crate) fn leak_views(scene: GpuScene, bvh: GpuSceneBvh) {
         objects,
         instances,
         uvs,
+        curve_of,
+        curves,
+        motions,
         images,
         texels,
         ..
     } = scene;
+    curve_of.leak();
+    curves.leak();
+    motions.leak();
     vertices.leak();
     normals.leak();
     triangles.leak();
@@ -357,8 +369,8 @@ fn laid_from(
         tlas_nodes: bvh.tlas_nodes.len() as u32,
         ..Default::default()
     };
-    let (host_meshes, host_objects, host_instances) =
-        (t.meshes.clone(), t.objects.clone(), t.instances.clone());
+    let (host_meshes, host_objects, host_instances, host_motions) =
+        (t.meshes.clone(), t.objects.clone(), t.instances.clone(), t.motions.clone());
     let SceneTables {
         vertices,
         normals,
@@ -370,6 +382,7 @@ fn laid_from(
         uvs,
         curve_of,
         curves,
+        motions,
         images,
         texels,
     } = t;
@@ -391,6 +404,7 @@ fn laid_from(
         table_bytes(bvh.tri_ids),
         table_bytes(curve_of),
         table_bytes(curves),
+        table_bytes(motions),
     ];
     // What the device holds of the BVH, placeholders included (as `GpuSceneBvh::bytes`).
     stats.bytes = tables[BVH_TABLES].iter().map(|t| t.bytes().len() as u64).sum();
@@ -399,6 +413,7 @@ fn laid_from(
         host_meshes,
         host_objects,
         host_instances,
+        host_motions,
         tlas_root: bvh.tlas_root,
         triangle_test: bvh.triangle_test,
         blas_roots: bvh.blas_roots,
@@ -535,6 +550,7 @@ impl SceneSharing for CudaSharing {
                 host_meshes: gpu_scene.host_meshes.clone(),
                 host_objects: gpu_scene.host_objects.clone(),
                 host_instances: gpu_scene.host_instances.clone(),
+                host_motions: gpu_scene.host_motions.clone(),
                 tlas_root: bvh.tlas_root,
                 triangle_test: bvh.triangle_test,
                 blas_roots: bvh.blas_roots.clone(),

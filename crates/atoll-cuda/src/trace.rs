@@ -50,6 +50,9 @@ pub(crate) struct TraceFeatures {
     /// Some records are curve pieces (`ATOLL_TRACE_CURVES`); set by the
     /// trace launch from the BVH traced.
     pub curves: bool,
+    /// Some instances move (`ATOLL_TRACE_MOTION`): rays have times; set by
+    /// the trace launch from the BVH traced.
+    pub motion: bool,
 }
 
 impl TraceFeatures {
@@ -70,6 +73,7 @@ impl TraceFeatures {
             count_accesses: false,
             tri_bases: false,
             curves: false,
+            motion: false,
         }
     }
 
@@ -78,6 +82,7 @@ impl TraceFeatures {
         TraceFeatures {
             tri_bases: bvh.blas_tri_bases.iter().any(|&b| b != 0),
             curves: bvh.curves != 0,
+            motion: bvh.motions != 0,
             ..self
         }
     }
@@ -102,6 +107,9 @@ impl TraceFeatures {
         }
         if self.tri_bases {
             defines.push("-DATOLL_TRI_BASES=1".into());
+        }
+        if self.motion {
+            defines.push("-DATOLL_TRACE_MOTION=1".into());
         }
         // Always: surface.cuh compiles its curve hits in where it is not told.
         defines.push(format!("-DATOLL_TRACE_CURVES={}", self.curves as u32));
@@ -245,6 +253,8 @@ impl Tracer {
 
     /// Queues one trace of `rays[..count]` (`hits` for closest hits, `None`
     /// for any-hit queries); with `queue`, of `rays[..min(count, *queue.length)]`.
+    /// `frame`: the parameters whose seed gives rays their times where
+    /// instances move (without, every ray is at the shutter's opening).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn launch(
         &mut self,
@@ -257,6 +267,7 @@ impl Tracer {
         queue: Option<DeviceQueueLength<'_>>,
         surface: Option<SurfaceTables<'_>>,
         alpha: Option<SurfaceTables<'_>>,
+        frame: Option<&CudaSlice<crate::params::FrameParams>>,
         features: TraceFeatures,
     ) -> Result<(), CudaError> {
         if features.alpha != alpha.is_some() {
@@ -326,13 +337,18 @@ impl Tracer {
             Some(t) => launch.arg(t.params).arg(t.scene),
             None => launch.arg(&null).arg(&null),
         };
-        launch.arg(&bvh.curves);
+        launch.arg(&bvh.curves).arg(&bvh.motions);
+        match frame {
+            Some(f) => launch.arg(f),
+            None => launch.arg(&null),
+        };
         // SAFETY: matches `trace_<query>_<variant>_<test>(const BvhNode* tlas_nodes, const
         // BvhNode* blas_nodes, const WideNode* wide_nodes, const TriRecord* tris, const unsigned* tri_ids, const
         // TlasInstance* instances, int tlas_root, RayRecord* records, HitRef* hits, unsigned
         // count, unsigned* work, const unsigned* device_count, unsigned long long* traced,
         // const FrameParams* surface_params, const SceneView* surface_scene, const FrameParams*
-        // alpha_params, const SceneView* alpha_scene, const GpuCurve* curves)`.
+        // alpha_params, const SceneView* alpha_scene, const GpuCurve* curves, const GpuMotion*
+        // motions, const FrameParams* motion_params)`.
         // The BVH's links stay within its arrays (built by lbvh.cu; the wide tree's by
         // bvh::wide from them, and only the wide kernels read `wide_nodes`, null otherwise); threads touch records and
         // hits below `count` (or the smaller device count), which both buffers hold (checked);
@@ -341,7 +357,8 @@ impl Tracer {
         // null or one FrameParams/SceneView whose tables outlive the launch (the device owns them);
         // the alpha tables likewise (the kernels read them only when `mesh_alpha` is set);
         // `curves` is 0 or the pieces of the scene the BVH was built over (its marked records
-        // index them), which the device keeps alive with the BVH.
+        // index them), which the device keeps alive with the BVH; `motions` likewise for its
+        // moving instance records; `motion_params` is null or one FrameParams.
         unsafe { launch.launch(config) }
             .map_err(CudaError::driver(format!("{}: launching {name}", gpu.label())))?;
         Ok(())
@@ -414,7 +431,7 @@ pub fn trace_closest_with(
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     with_tracer(gpu, bvh, |t| {
-        t.launch(gpu, bvh, rays, count, Some(hits), variant, None, None, None, TraceFeatures::default())
+        t.launch(gpu, bvh, rays, count, Some(hits), variant, None, None, None, None, TraceFeatures::default())
     })
 }
 
@@ -430,7 +447,7 @@ pub fn trace_any_with(
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     with_tracer(gpu, bvh, |t| {
-        t.launch(gpu, bvh, rays, count, None, variant, None, None, None, TraceFeatures::default())
+        t.launch(gpu, bvh, rays, count, None, variant, None, None, None, None, TraceFeatures::default())
     })
 }
 
@@ -452,8 +469,21 @@ pub(crate) fn trace_closest_queued(
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
     let alpha = features.alpha.then_some(SurfaceTables { params: surface.params, scene: surface.scene });
+    let frame = Some(surface.params);
     with_tracer(gpu, bvh, |t| {
-        t.launch(gpu, bvh, rays, capacity, Some(hits), variant, Some(queue), Some(surface), alpha, features)
+        t.launch(
+            gpu,
+            bvh,
+            rays,
+            capacity,
+            Some(hits),
+            variant,
+            Some(queue),
+            Some(surface),
+            alpha,
+            frame,
+            features,
+        )
     })
 }
 
@@ -474,9 +504,10 @@ pub(crate) fn trace_any_queued(
 ) -> Result<(), CudaError> {
     check_scene(scene, bvh)?;
     let variant = TraversalVariant::default();
+    let frame = Some(tables.params);
     let alpha = features.alpha.then_some(tables);
     with_tracer(gpu, bvh, |t| {
-        t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue), None, alpha, features)
+        t.launch(gpu, bvh, rays, capacity, None, variant, Some(queue), None, alpha, frame, features)
     })
 }
 

@@ -302,6 +302,26 @@ AttributeEnd
     }
 }
 
+/// Moving instances (`scenes/motion.pbrt`: a sliding ball, a box turning
+/// and rising, a spinning ring of instances) are where the CPU puts them
+/// at each path's time: rays take the same times on both devices, and the
+/// TLAS bounds them over their motion.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn motion_blur_matches_the_cpu_device() {
+    let Some(gpu) = gpu_or_skip("motion blur") else { return };
+    let mut cuda = CudaDevice::on(gpu);
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/motion.pbrt");
+    let mut scene = atoll_scene::load_any(std::path::Path::new(path)).unwrap().scene;
+    scene.settings.spp = 32;
+    assert!(scene.motions.len() >= 3);
+    let scene = Arc::new(scene);
+    let o = RenderOptions::from_scene(&scene);
+    let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+    let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
+    assert_films_close(&cpu.film, &gpu.film, "motion.pbrt", 5e-3, 20);
+}
+
 /// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)
 /// turn with the surface's dp/du on the GPU as on the CPU, bump-mapped or
 /// not (the frame's tangent written with the hit, read when shading).

@@ -178,7 +178,8 @@ fn frame_modules_hold_only_their_kernels() {
 
 /// The trace module with every feature a frame or BVH may switch on
 /// (`TraceFeatures`: alpha masks, media boundaries, textures, access
-/// counting, record bases) compiles, every loop in it.
+/// counting, record bases, curves, moving instances) compiles, every loop
+/// in it.
 #[test]
 fn trace_module_compiles_with_every_feature() {
     if !nvrtc_or_skip("trace features") {
@@ -197,6 +198,7 @@ fn trace_module_compiles_with_every_feature() {
                 "-DATOLL_COUNT_ACCESSES=1",
                 "-DATOLL_TRI_BASES=1",
                 "-DATOLL_TRACE_CURVES=1",
+                "-DATOLL_TRACE_MOTION=1",
                 atoll_cuda::compile::LAYOUT_CHECK_OPTION,
             ]
             .map(String::from),

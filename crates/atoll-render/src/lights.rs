@@ -264,6 +264,12 @@ impl LightSet {
             for &mesh_id in &scene.objects[instance.object as usize].meshes {
                 let mesh = &scene.meshes[mesh_id as usize];
                 let Some(emission) = mesh.emission else { continue };
+                if instance.motion.is_some() {
+                    // pbrt-v4 refuses moving area lights; the loaders make none.
+                    tracing::warn!(
+                        "mesh {mesh_id}: an emitter cannot move; it emits from its start position"
+                    );
+                }
                 let program = mesh_programs.get(&mesh_id).copied();
                 triangle_base.push((triangle_key(instance_id as u32, mesh_id), set.emitters.len() as u32));
                 let normal_to_world = instance.normal_to_world();

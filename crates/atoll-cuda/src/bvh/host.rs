@@ -228,7 +228,7 @@ impl HostSceneBvh {
     fn object_ray(&self, slot: u32, ray: &Ray) -> TraversalRay {
         let inst = &self.instances[slot as usize];
         let (o, d) = (Vec3A::from(ray.origin), Vec3A::from(ray.direction));
-        if inst.identity != 0 {
+        if inst.transform == super::layout::transform::IDENTITY {
             return TraversalRay::new(o, d);
         }
         let m = &inst.world_to_object;

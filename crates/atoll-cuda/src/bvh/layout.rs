@@ -104,18 +104,30 @@ pub struct GpuTriRecord {
     pub c: [f32; 4],
 }
 
+/// [`GpuTlasInstance::transform`]: how a ray enters the instance.
+pub mod transform {
+    /// Through `world_to_object`.
+    pub const AFFINE: u32 = 0;
+    /// Unchanged (`object_to_world` is the identity).
+    pub const IDENTITY: u32 = 1;
+    /// Through its motion's transform at the ray's time.
+    pub const MOVING: u32 = 2;
+}
+
 /// A TLAS leaf: one instance (64 bytes).
 #[repr(C, align(16))]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuTlasInstance {
-    /// Row-major 3×4, copied from `GpuInstance::world_to_object`.
+    /// Row-major 3×4, copied from `GpuInstance::world_to_object`; for a
+    /// moving instance ([`transform::MOVING`]) its first word holds the
+    /// bits of its motion's index instead (the matrix is made per ray).
     pub world_to_object: [f32; 12],
     /// Root link of the instance's BLAS in the BLAS node array.
     pub blas_root: i32,
     /// Index into the scene's instances.
     pub instance: u32,
-    /// 1 when `object_to_world` is the identity (rays are used unchanged).
-    pub identity: u32,
+    /// How rays enter the instance ([`transform`]).
+    pub transform: u32,
     /// Where the BLAS's triangle records start: its leaf links count from
     /// here, so each BLAS addresses `1 << LEAF_FIRST_BITS` records of its
     /// own and a BVH built in pieces holds more than that in all (0 for a
@@ -173,7 +185,7 @@ impl GpuTriRecord {
 impl GpuTlasInstance {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(GpuTlasInstance { world_to_object, blas_root, instance, identity, tri_base })
+        field_layout!(GpuTlasInstance { world_to_object, blas_root, instance, transform, tri_base })
     }
 }
 
@@ -222,6 +234,9 @@ pub(crate) fn header_block() -> String {
     s += &const_int("int", "LINK_INSTANCE_END", LINK_INSTANCE_END);
     s += &const_int("unsigned int", "MAX_LEAF_PRIMS", format!("{MAX_LEAF_PRIMS}u"));
     s += &const_int("int", "TRAVERSAL_STACK", TRAVERSAL_STACK);
+    s += &const_int("unsigned int", "TRANSFORM_AFFINE", format!("{}u", transform::AFFINE));
+    s += &const_int("unsigned int", "TRANSFORM_IDENTITY", format!("{}u", transform::IDENTITY));
+    s += &const_int("unsigned int", "TRANSFORM_MOVING", format!("{}u", transform::MOVING));
     s += &struct_asserts("BvhNode", std::mem::size_of::<GpuBvhNode>(), &GpuBvhNode::field_layout());
     s += &struct_asserts("TriRecord", std::mem::size_of::<GpuTriRecord>(), &GpuTriRecord::field_layout());
     s + &struct_asserts(

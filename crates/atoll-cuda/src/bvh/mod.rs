@@ -158,6 +158,9 @@ pub struct GpuSceneBvh {
     /// Device pointer of that scene's curve pieces (`GpuScene::curves`),
     /// which records marked `CURVE_RECORD_MARKER` index; 0 without curves.
     pub(crate) curves: u64,
+    /// Device pointer of that scene's motions (`GpuScene::motions`), which
+    /// moving instance records index; 0 where nothing moves.
+    pub(crate) motions: u64,
     /// Per [`crate::Gpu`] (by its `id`: one stream each) that traces this
     /// BVH, the trace kernels and the persistent-threads counter, made on
     /// first use.
@@ -227,7 +230,15 @@ fn tlas_on_host(
     let roots: Vec<i32> = blas.iter().map(|r| r.0).collect();
     let bounds: Vec<Bounds> = blas.iter().map(|r| r.1).collect();
     let bases = vec![0; roots.len()];
-    let t = reference::build_tlas(plan, &scene.host_instances, &roots, &bounds, &bases, options);
+    let t = reference::build_tlas(
+        plan,
+        &scene.host_instances,
+        &scene.host_motions,
+        &roots,
+        &bounds,
+        &bases,
+        options,
+    );
     Ok(DeviceTlas {
         nodes: upload(gpu, &t.nodes, "TLAS nodes")?,
         node_count: t.nodes.len() as u32,
@@ -261,6 +272,7 @@ fn tlas_on_device(
         launch
             .arg(&valid)
             .arg(&scene.instances)
+            .arg(&scene.motions)
             .arg(&object_segment)
             .arg(&a.root_box)
             .arg(&t.seg_start)
@@ -268,10 +280,11 @@ fn tlas_on_device(
             .arg(&mut t.prim_box)
             .arg(&mut t.seg_bounds);
         // SAFETY: matches `lbvh_tlas_boxes(const unsigned* valid, const GpuInstance*
-        // instances, const unsigned* object_segment, const float4* seg_root_box, const
+        // instances, const GpuMotion* motions, const unsigned* object_segment, const float4* seg_root_box, const
         // unsigned* seg_start, unsigned P, float4* prim_box, unsigned* seg_bounds)`; valid
         // instances index `instances` and name objects with a segment (ScenePlan), whose
-        // root box the BLAS build wrote.
+        // root box the BLAS build wrote; a moving instance's `motion` is a row of `motions`
+        // (made with the instances), whose box it takes instead.
         unsafe { launch.launch(config) }.map_err(launch_err(gpu, "lbvh_tlas_boxes"))?;
         t.build_tree(gpu, k, 1, options, tlas_phases)?;
         let (nodes, records) = t.collapse(gpu, k, 1, tlas_phases)?;
@@ -636,6 +649,10 @@ impl GpuSceneBvh {
             curves: scene.curve_pieces().map_or(0, |_| {
                 use cudarc::driver::DevicePtr;
                 scene.curves.device_ptr(&gpu.stream).0
+            }),
+            motions: scene.moving().map_or(0, |m| {
+                use cudarc::driver::DevicePtr;
+                m.device_ptr(&gpu.stream).0
             }),
             tracers: Mutex::new(Vec::new()),
             wide: Mutex::new(None),

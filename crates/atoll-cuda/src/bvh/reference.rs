@@ -15,12 +15,12 @@ use rayon::prelude::*;
 
 use super::host::{HostSceneBvh, ScenePlan};
 use super::layout::{
-    leaf_link, GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest, BUILD_COUNT_MASK, BUILD_LEAF_BIT,
-    BUILD_NONE, LINK_DONE,
+    leaf_link, transform, GpuBvhNode, GpuTlasInstance, GpuTriRecord, TriangleTest, BUILD_COUNT_MASK,
+    BUILD_LEAF_BIT, BUILD_NONE, LINK_DONE,
 };
 use super::BuildOptions;
 use super::{box_area, Bounds};
-use crate::layout::GpuInstance;
+use crate::layout::{GpuInstance, GpuMotion, NO_MOTION};
 use crate::scene::SceneTables;
 
 /// Float to unsigned with the same order (the kernels' atomicMin/Max key).
@@ -463,6 +463,7 @@ pub(crate) struct HostTlas {
 pub(crate) fn build_tlas(
     plan: &ScenePlan,
     instances: &[GpuInstance],
+    motions: &[GpuMotion],
     roots: &[i32],
     bounds: &[Bounds],
     tri_bases: &[u32],
@@ -471,7 +472,13 @@ pub(crate) fn build_tlas(
     let entries = plan.tlas_entries(instances);
     let boxes: Vec<Bounds> = entries
         .par_iter()
-        .map(|&(i, s)| instance_bounds(&instances[i as usize].object_to_world, bounds[s as usize]))
+        .map(|&(i, s)| {
+            let inst = &instances[i as usize];
+            match motions.get(inst.motion as usize) {
+                Some(m) => ([m.bounds[0], m.bounds[1], m.bounds[2]], [m.bounds[3], m.bounds[4], m.bounds[5]]),
+                None => instance_bounds(&inst.object_to_world, bounds[s as usize]),
+            }
+        })
         .collect();
     let (tree, tlas) = build(&boxes, &[0, boxes.len() as u32], 1, options);
     let identity = |m: &[f32; 12]| (0..12).all(|k| m[k] == if k % 5 == 0 { 1.0 } else { 0.0 });
@@ -481,13 +488,22 @@ pub(crate) fn build_tlas(
         .map(|&j| {
             let (id, s) = entries[tree.values[j as usize] as usize];
             let inst = &instances[id as usize];
-            GpuTlasInstance {
+            let mut record = GpuTlasInstance {
                 world_to_object: inst.world_to_object,
                 blas_root: roots[s as usize],
                 instance: id,
-                identity: identity(&inst.object_to_world) as u32,
+                transform: if identity(&inst.object_to_world) {
+                    transform::IDENTITY
+                } else {
+                    transform::AFFINE
+                },
                 tri_base: tri_bases[s as usize],
+            };
+            if inst.motion != NO_MOTION {
+                record.transform = transform::MOVING;
+                record.world_to_object[0] = f32::from_bits(inst.motion);
             }
+            record
         })
         .collect();
     if boxes.is_empty() {
@@ -567,7 +583,8 @@ pub(crate) fn with_tlas(
     blas: HostBlases,
     options: &BuildOptions,
 ) -> HostSceneBvh {
-    let tlas = build_tlas(plan, &t.instances, &blas.roots, &blas.bounds, &blas.tri_bases, options);
+    let tlas =
+        build_tlas(plan, &t.instances, &t.motions, &blas.roots, &blas.bounds, &blas.tri_bases, options);
     HostSceneBvh {
         blas_nodes: blas.nodes,
         tlas_nodes: tlas.nodes,
