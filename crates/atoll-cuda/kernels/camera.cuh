@@ -8,6 +8,7 @@
 #include "sampling.cuh"
 #include "environment.cuh"
 #include "lens.cuh"
+#include "motion.cuh"
 
 /// Mirrors `wrap_equal_area_square`.
 __device__ __forceinline__ float2 wrap_equal_area_square(float2 uv) {
@@ -24,12 +25,19 @@ __device__ __forceinline__ float2 wrap_equal_area_square(float2 uv) {
     return uv;
 }
 
-/// Mirrors `CameraRays::weighted_ray`: world-space ray through raster
-/// position `raster` (pixels, y down) with lens sample `u_lens`; writes the
-/// origin and the unit direction, and returns the ray's weight (1 but for a
-/// realistic camera; 0 where its lens blocks the ray).
-__device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster, float2 u_lens, float3* origin_out,
-                                            float3* direction_out) {
+/// Mirrors `CameraRays::weighted_ray_at`: world-space ray through raster
+/// position `raster` (pixels, y down) with lens sample `u_lens` at time
+/// sample `time` (where a moving camera is then); writes the origin and the
+/// unit direction, and returns the ray's weight (1 but for a realistic
+/// camera; 0 where its lens blocks the ray).
+__device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster, float2 u_lens, float time,
+                                            float3* origin_out, float3* direction_out) {
+    float camera_to_world[12];
+    if (p.camera_moves) {
+        motion_object_to_world(p.camera_motion, time, camera_to_world);
+    } else {
+        for (int k = 0; k < 12; ++k) camera_to_world[k] = p.camera_to_world[k];
+    }
     const float2 t = raster / make_float2(p.raster_size[0], p.raster_size[1]);
     // Raster y grows downwards, camera y upwards.
     const float x = p.window_min[0] + t.x * (p.window_max[0] - p.window_min[0]);
@@ -43,8 +51,8 @@ __device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster,
             origin = zero3();
             dir = make_float3(0.0f, 0.0f, 1.0f);
         }
-        *origin_out = affine_point(p.camera_to_world, origin);
-        *direction_out = normalize3(affine_vector(p.camera_to_world, dir));
+        *origin_out = affine_point(camera_to_world, origin);
+        *direction_out = normalize3(affine_vector(camera_to_world, dir));
         return weight;
     }
     if (p.projection == PROJECTION_ORTHOGRAPHIC) {
@@ -57,8 +65,8 @@ __device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster,
         float2 uv = make_float2(x, -y);
         if (equal_area) uv = wrap_equal_area_square(uv);
         const float3 d = env_direction(equal_area ? ENV_EQUAL_AREA : ENV_LAT_LONG, uv);
-        *origin_out = affine_point(p.camera_to_world, zero3());
-        *direction_out = normalize3(affine_vector(p.camera_to_world, make_float3(d.x, d.z, d.y)));
+        *origin_out = affine_point(camera_to_world, zero3());
+        *direction_out = normalize3(affine_vector(camera_to_world, make_float3(d.x, d.z, d.y)));
         return 1.0f;
     }
     if (p.lens_radius > 0.0f) {
@@ -67,8 +75,8 @@ __device__ __forceinline__ float camera_ray(const FrameParams& p, float2 raster,
         origin = make_float3(lens.x, lens.y, 0.0f);
         dir = focus - origin;
     }
-    *origin_out = affine_point(p.camera_to_world, origin);
-    *direction_out = normalize3(affine_vector(p.camera_to_world, dir));
+    *origin_out = affine_point(camera_to_world, origin);
+    *direction_out = normalize3(affine_vector(camera_to_world, dir));
     return 1.0f;
 }
 

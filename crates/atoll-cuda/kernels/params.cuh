@@ -93,7 +93,8 @@ struct FrameParams {
     float lens_radius;
     float focal_distance;
     unsigned int projection;
-    unsigned int camera_pad;
+    /// 1 when the camera moves: camera_motion places it at each path's time.
+    unsigned int camera_moves;
     // RenderOptions.
     unsigned int resolution[2];
     unsigned int seed;
@@ -151,6 +152,8 @@ struct FrameParams {
     // other cameras.
     const float* lens;
     GpuMedium media[MEDIA_SLOTS];
+    /// A moving camera's camera-to-world motion.
+    GpuMotion camera_motion;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -262,7 +265,7 @@ static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(Gp
 static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2528, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2704, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -271,7 +274,7 @@ static_assert(__builtin_offsetof(FrameParams, raster_size) == 64 && sizeof(Frame
 static_assert(__builtin_offsetof(FrameParams, lens_radius) == 72 && sizeof(FrameParams::lens_radius) == 4, "FrameParams.lens_radius: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, focal_distance) == 76 && sizeof(FrameParams::focal_distance) == 4, "FrameParams.focal_distance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, projection) == 80 && sizeof(FrameParams::projection) == 4, "FrameParams.projection: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, camera_pad) == 84 && sizeof(FrameParams::camera_pad) == 4, "FrameParams.camera_pad: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, camera_moves) == 84 && sizeof(FrameParams::camera_moves) == 4, "FrameParams.camera_moves: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, resolution) == 88 && sizeof(FrameParams::resolution) == 8, "FrameParams.resolution: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, seed) == 96 && sizeof(FrameParams::seed) == 4, "FrameParams.seed: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, integrator) == 100 && sizeof(FrameParams::integrator) == 4, "FrameParams.integrator: offset or size differs from Rust");
@@ -311,6 +314,7 @@ static_assert(__builtin_offsetof(FrameParams, media_grids) == 584 && sizeof(Fram
 static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FrameParams::measured) == 8, "FrameParams.measured: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, lens) == 600 && sizeof(FrameParams::lens) == 8, "FrameParams.lens: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, camera_motion) == 2528 && sizeof(FrameParams::camera_motion) == 176, "FrameParams.camera_motion: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 96, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -92,8 +92,9 @@ __device__ __forceinline__ void write_camera_record(const FrameParams& p, unsign
     const float2 raster = filter_sample(p.filter, make_float2((float)(pixel % res_x), (float)(pixel / res_x)),
                                         make_float2(stream_get(rng, 0), stream_get(rng, 1)), &weight);
     float3 origin, direction;
+    const float time = p.camera_moves ? ray_time_sample(p.seed, pixel, sample) : 0.0f;
     const float lens_weight =
-        camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), &origin, &direction);
+        camera_ray(p, raster, make_float2(stream_get(rng, 2), stream_get(rng, 3)), time, &origin, &direction);
     // Emitters seen directly count in full, like after a specular bounce.
     // The path starts in the camera's medium.
     const unsigned char flags = (unsigned char)(FLAG_SPECULAR | (p.camera_medium << FLAG_MEDIUM_SHIFT));

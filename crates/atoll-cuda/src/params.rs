@@ -31,6 +31,7 @@ use cudarc::driver::{CudaSlice, DevicePtr, DeviceRepr, ValidAsZeroBits};
 
 use crate::error::CudaError;
 use crate::gpu::{upload, Gpu};
+use crate::layout::GpuMotion;
 #[cfg(test)]
 use crate::layout::{field_layout, FieldLayout};
 use crate::scene::GpuScene;
@@ -364,7 +365,8 @@ pub struct FrameParams {
     pub focal_distance: f32,
     /// [`projection_kind`].
     pub projection: u32,
-    pub camera_pad: u32,
+    /// 1 when the camera moves: `camera_motion` places it at each path's time.
+    pub camera_moves: u32,
     pub resolution: [u32; 2],
     pub seed: u32,
     /// [`integrator_kind`].
@@ -435,6 +437,8 @@ pub struct FrameParams {
     pub lens: u64,
     /// By `MediumIndex`; entry 0 is the vacuum.
     pub media: [GpuMedium; MEDIA_SLOTS],
+    /// A moving camera's camera-to-world motion (with `camera_moves`).
+    pub camera_motion: GpuMotion,
 }
 
 impl FrameParams {
@@ -512,6 +516,12 @@ impl FrameParams {
         (self.window_min, self.window_max) = (window_min.to_array(), window_max.to_array());
         self.raster_size = camera.raster_size().to_array();
         (self.lens_radius, self.focal_distance) = camera.lens();
+        (self.camera_moves, self.camera_motion) = match camera.motion() {
+            Some((motion, shutter)) => {
+                (1, GpuMotion::new(motion, shutter, (glam::Vec3::ZERO, glam::Vec3::ZERO)))
+            }
+            None => (0, GpuMotion::default()),
+        };
         self.projection = match camera.projection() {
             Projection::Perspective => projection_kind::PERSPECTIVE,
             Projection::Orthographic => projection_kind::ORTHOGRAPHIC,
@@ -531,7 +541,7 @@ impl FrameParams {
             lens_radius,
             focal_distance,
             projection,
-            camera_pad,
+            camera_moves,
             resolution,
             seed,
             integrator,
@@ -571,6 +581,7 @@ impl FrameParams {
             measured,
             lens,
             media,
+            camera_motion,
         })
     }
 }
@@ -671,7 +682,11 @@ const _: () = {
     assert!(std::mem::size_of::<GpuMedium>() == 120);
     assert!(
         std::mem::size_of::<FrameParams>()
-            == 280 + std::mem::size_of::<atoll_render::filter::FilterTable>() + 40 + 120 * MEDIA_SLOTS
+            == 280
+                + std::mem::size_of::<atoll_render::filter::FilterTable>()
+                + 40
+                + 120 * MEDIA_SLOTS
+                + std::mem::size_of::<GpuMotion>()
     );
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
     assert!(std::mem::size_of::<SceneView>() == 96);

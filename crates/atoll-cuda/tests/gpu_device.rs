@@ -303,9 +303,9 @@ AttributeEnd
 }
 
 /// Moving instances (`scenes/motion.pbrt`: a sliding ball, a box turning
-/// and rising, a spinning ring of instances) are where the CPU puts them
-/// at each path's time: rays take the same times on both devices, and the
-/// TLAS bounds them over their motion.
+/// and rising, a spinning ring of instances) and a moving camera are where
+/// the CPU puts them at each path's time: rays take the same times on both
+/// devices, and the TLAS bounds instances over their motion.
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn motion_blur_matches_the_cpu_device() {
@@ -315,11 +315,21 @@ fn motion_blur_matches_the_cpu_device() {
     let mut scene = atoll_scene::load_any(std::path::Path::new(path)).unwrap().scene;
     scene.settings.spp = 32;
     assert!(scene.motions.len() >= 3);
-    let scene = Arc::new(scene);
-    let o = RenderOptions::from_scene(&scene);
-    let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
-    let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
-    assert_films_close(&cpu.film, &gpu.film, "motion.pbrt", 5e-3, 20);
+    // And with the camera turning and stepping aside while the shutter is open.
+    let mut moving_camera = scene.clone();
+    let start = moving_camera.settings.camera.camera_to_world.as_dmat4();
+    let end = glam::DMat4::from_translation(glam::DVec3::new(0.3, 0.1, 0.0))
+        * start
+        * glam::DMat4::from_rotation_y(0.05);
+    moving_camera.settings.camera.motion = atoll_scene::Motion::new(&start, &end, [0.0, 1.0]);
+    assert!(moving_camera.settings.camera.motion.is_some());
+    for (scene, what) in [(scene, "motion.pbrt"), (moving_camera, "motion.pbrt, moving camera")] {
+        let scene = Arc::new(scene);
+        let o = RenderOptions::from_scene(&scene);
+        let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+        let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
+        assert_films_close(&cpu.film, &gpu.film, what, 5e-3, 20);
+    }
 }
 
 /// Anisotropic lobes (conductor, dielectric, coated diffuse, measured)

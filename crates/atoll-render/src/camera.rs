@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use atoll_scene::lens::LensSystem;
-use atoll_scene::{Camera, Projection};
+use atoll_scene::{Camera, Motion, Projection};
 use glam::{Mat4, UVec2, Vec2, Vec3};
 
 use crate::sampling::sample_uniform_disk_concentric;
@@ -26,6 +26,10 @@ pub struct CameraRays {
     /// A realistic camera's lens; its window is then the physical film
     /// (metres, centred on the axis).
     lens: Option<Arc<LensSystem>>,
+    /// A moving camera's motion (`camera_to_world` is its start) and the
+    /// shutter its rays' times span.
+    motion: Option<Motion>,
+    shutter: [f32; 2],
 }
 
 /// A camera ray in world space: origin, unit direction, and the weight the
@@ -64,6 +68,8 @@ impl CameraRays {
             },
             focal_distance: camera.focal_distance,
             lens,
+            motion: camera.motion,
+            shutter: camera.shutter,
         }
     }
 
@@ -85,9 +91,14 @@ impl CameraRays {
         rays
     }
 
-    /// Camera space to world space.
+    /// Camera space to world space (at the start of a moving camera's motion).
     pub fn camera_to_world(&self) -> Mat4 {
         self.camera_to_world
+    }
+
+    /// A moving camera's motion and the shutter (`None` for a still one).
+    pub fn motion(&self) -> Option<(&Motion, [f32; 2])> {
+        self.motion.as_ref().map(|m| (m, self.shutter))
     }
 
     pub fn projection(&self) -> Projection {
@@ -124,8 +135,21 @@ impl CameraRays {
     }
 
     /// World-space ray through raster position `raster` (pixels, y down),
-    /// with lens sample `u_lens`, and its weight.
+    /// with lens sample `u_lens`, and its weight (of a moving camera, at
+    /// the start of its motion).
     pub fn weighted_ray(&self, raster: Vec2, u_lens: Vec2) -> CameraRay {
+        self.weighted_ray_from(self.camera_to_world, raster, u_lens)
+    }
+
+    /// [`Self::weighted_ray`] at `time` (where a moving camera is then).
+    pub fn weighted_ray_at(&self, raster: Vec2, u_lens: Vec2, time: f32) -> CameraRay {
+        match &self.motion {
+            Some(m) => self.weighted_ray_from(Mat4::from(m.at(time)), raster, u_lens),
+            None => self.weighted_ray(raster, u_lens),
+        }
+    }
+
+    fn weighted_ray_from(&self, camera_to_world: Mat4, raster: Vec2, u_lens: Vec2) -> CameraRay {
         let t = raster / self.resolution;
         // Raster y grows downwards, camera y upwards.
         let x = self.window_min.x + t.x * (self.window_max.x - self.window_min.x);
@@ -134,13 +158,13 @@ impl CameraRays {
             // The lens turns the image over: the film point is opposite.
             return match lens.ray(Vec2::new(-x, -y), u_lens) {
                 Some(r) => CameraRay {
-                    origin: self.camera_to_world.transform_point3(r.origin),
-                    direction: self.camera_to_world.transform_vector3(r.direction).normalize(),
+                    origin: camera_to_world.transform_point3(r.origin),
+                    direction: camera_to_world.transform_vector3(r.direction).normalize(),
                     weight: r.weight,
                 },
                 None => CameraRay {
-                    origin: self.camera_to_world.transform_point3(Vec3::ZERO),
-                    direction: self.camera_to_world.transform_vector3(Vec3::Z).normalize(),
+                    origin: camera_to_world.transform_point3(Vec3::ZERO),
+                    direction: camera_to_world.transform_vector3(Vec3::Z).normalize(),
                     weight: 0.0,
                 },
             };
@@ -155,8 +179,8 @@ impl CameraRays {
             origin = Vec3::new(lens.x, lens.y, 0.0);
             dir = focus - origin;
         }
-        let o = self.camera_to_world.transform_point3(origin);
-        let d = self.camera_to_world.transform_vector3(dir).normalize();
+        let o = camera_to_world.transform_point3(origin);
+        let d = camera_to_world.transform_vector3(dir).normalize();
         CameraRay { origin: o, direction: d, weight: 1.0 }
     }
 }

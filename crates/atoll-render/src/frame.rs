@@ -139,7 +139,8 @@ impl FrameContext {
             images: scene.textures.images.clone(),
             media: MediumTable::new(scene),
             measured: scene.measured.clone(),
-            shutter: (!scene.motions.is_empty()).then_some(scene.settings.camera.shutter),
+            shutter: (!scene.motions.is_empty() || scene.settings.camera.motion.is_some())
+                .then_some(scene.settings.camera.shutter),
             materials,
             options,
         }
@@ -149,8 +150,13 @@ impl FrameContext {
     /// from its sample, so every segment of a path (and its shadow rays)
     /// sees the scene at one moment, as in pbrt.
     pub fn ray_time(&self, r: &RayRecord) -> f32 {
+        self.path_time(r.pixel, r.sample)
+    }
+
+    /// The time of sample `sample` of pixel `pixel`'s path ([`Self::ray_time`]).
+    pub fn path_time(&self, pixel: u32, sample: u32) -> f32 {
         let Some([open, close]) = self.shutter else { return 0.0 };
-        let u = SampleStream::new(self.options.seed, r.pixel, r.sample).get(crate::rng::TIME_DIMENSION);
+        let u = SampleStream::new(self.options.seed, pixel, sample).get(crate::rng::TIME_DIMENSION);
         open + (close - open) * u
     }
 

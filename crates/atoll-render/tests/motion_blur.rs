@@ -15,8 +15,21 @@ use common::render_with;
 /// [-0.5, 0.5] at the start) at z = 5 slides 4 units along +x between the
 /// transform times 0 and 1.
 fn sliding_bar(shutter: [f32; 2]) -> String {
+    bar_scene(shutter, "", "ActiveTransform EndTime\n Translate 4 0 0\n ActiveTransform All")
+}
+
+/// The bar standing still and the camera sliding 4 units along -x instead
+/// (the camera transform's end moves the world by +4 relative to it).
+fn sliding_camera(shutter: [f32; 2]) -> String {
+    bar_scene(shutter, "ActiveTransform EndTime\nTranslate 4 0 0\nActiveTransform All", "")
+}
+
+/// The scene of [`sliding_bar`], `camera_motion` given to the camera's
+/// transform and `bar_motion` to the bar's.
+fn bar_scene(shutter: [f32; 2], camera_motion: &str, bar_motion: &str) -> String {
     format!(
         r#"LookAt 0 0 0  0 0 1  0 1 0
+{camera_motion}
 Camera "orthographic" "float screenwindow" [ -4 6 -1 1 ] "float shutteropen" {} "float shutterclose" {}
 Film "rgb" "integer xresolution" [ 100 ] "integer yresolution" [ 20 ]
 PixelFilter "box"
@@ -29,9 +42,7 @@ AttributeBegin
 AttributeEnd
 AttributeBegin
  Material "diffuse" "rgb reflectance" [ 0 0 0 ]
- ActiveTransform EndTime
- Translate 4 0 0
- ActiveTransform All
+ {bar_motion}
  Shape "bilinearmesh" "point3 P" [ -0.5 -5 5  0.5 -5 5  -0.5 5 5  0.5 5 5 ]
 AttributeEnd
 "#,
@@ -39,11 +50,11 @@ AttributeEnd
     )
 }
 
-/// The mean of pixel column `c` (over its 20 rows).
-fn render_columns(shutter: [f32; 2]) -> Vec<f64> {
-    let loaded = atoll_scene::pbrt::load_str(&sliding_bar(shutter), "bar.pbrt", std::path::Path::new("."));
+/// The mean of pixel column `c` (over its 20 rows) of `scene`.
+fn render_columns(text: &str) -> Vec<f64> {
+    let loaded = atoll_scene::pbrt::load_str(text, "bar.pbrt", std::path::Path::new("."));
     let scene = Arc::new(loaded.unwrap().scene);
-    assert_eq!(scene.motions.len(), 1);
+    assert_eq!(scene.motions.len() + scene.settings.camera.motion.iter().count(), 1);
     let film = render_with(&scene, RenderOptions::from_scene(&scene), Some(2));
     let pixels = film.pixels();
     (0..100).map(|c| (0..20).map(|y| pixels[y * 100 + c].x as f64).sum::<f64>() / 20.0).collect()
@@ -66,7 +77,7 @@ fn covered(x: f64, [open, close]: [f64; 2]) -> f64 {
 #[test]
 fn a_sliding_bar_darkens_pixels_by_the_time_it_covers_them() {
     for shutter in [[0.0, 1.0], [0.0, 2.0], [0.25, 0.75]] {
-        let columns = render_columns(shutter);
+        let columns = render_columns(&sliding_bar(shutter));
         for (c, &value) in columns.iter().enumerate() {
             let x = -4.0 + 0.1 * (c as f64 + 0.5);
             // The box filter averages the pixel's width: away from the
@@ -86,6 +97,19 @@ fn a_sliding_bar_darkens_pixels_by_the_time_it_covers_them() {
                 (value - expect).abs() < 0.035,
                 "shutter {shutter:?}, x = {x:.2}: {value} against {expect}"
             );
+        }
+    }
+}
+
+#[test]
+fn a_sliding_camera_sees_what_a_sliding_bar_shows() {
+    for shutter in [[0.0, 1.0], [0.0, 2.0]] {
+        let bar = render_columns(&sliding_bar(shutter));
+        let camera = render_columns(&sliding_camera(shutter));
+        // The same paths at the same times see the same relative scene:
+        // equal but for the rounding of the two transforms.
+        for (c, (a, b)) in bar.iter().zip(&camera).enumerate() {
+            assert!((a - b).abs() < 0.02, "shutter {shutter:?}, column {c}: bar {a}, camera {b}");
         }
     }
 }

@@ -27,6 +27,9 @@ pub struct Camera {
     /// pbrt's `shutteropen` and `shutterclose`: the times rays are traced
     /// at, spread evenly over them (what moves is blurred over them).
     pub shutter: [f32; 2],
+    /// A moving camera's camera-to-world motion (`camera_to_world` is then
+    /// its start).
+    pub motion: Option<crate::Motion>,
 }
 
 /// How camera space maps onto the screen.
@@ -86,6 +89,7 @@ impl Default for Camera {
             frame_aspect_ratio: None,
             lens: None,
             shutter: [0.0, 1.0],
+            motion: None,
         }
     }
 }

@@ -1305,10 +1305,20 @@ fn moving_lights_cameras_and_area_lights_follow_pbrt() {
     let err = load_world("", &world).unwrap_err();
     assert!(err.to_string().contains("area lights cannot move"), "{err}");
     assert_eq!(err.line, 9);
-    let warnings =
-        load_str_warnings("ActiveTransform StartTime\nTranslate 0 0 1\nActiveTransform All\nCamera \"perspective\"\nWorldBegin\n");
-    assert_eq!(warnings.len(), 1, "{warnings:?}");
-    assert!(warnings[0].to_string().contains("the camera cannot move"), "{warnings:?}");
+    // A moving camera: camera to world moves from the start's inverse to the end's.
+    let camera = load_world(
+        "TransformTimes 0 2\nActiveTransform StartTime\nTranslate 0 0 1\nActiveTransform All\nCamera \"perspective\"",
+        "",
+    )
+    .unwrap();
+    assert!(camera.warnings.is_empty(), "{:?}", camera.warnings);
+    let cam = &camera.scene.settings.camera;
+    let motion = cam.motion.expect("a moving camera");
+    assert_eq!(motion.times, [0.0, 2.0]);
+    assert_close(cam.camera_to_world.transform_point3(Vec3::ZERO), Vec3::new(0.0, 0.0, -1.0), 1e-6);
+    assert_close(motion.at(0.0).transform_point3(Vec3::ZERO), Vec3::new(0.0, 0.0, -1.0), 1e-6);
+    assert_close(motion.at(1.0).transform_point3(Vec3::ZERO), Vec3::new(0.0, 0.0, -0.5), 1e-6);
+    assert_close(motion.at(2.0).transform_point3(Vec3::ZERO), Vec3::ZERO, 1e-6);
     let light = load_world("", &format!("ActiveTransform EndTime\nTranslate 0 1 0\nActiveTransform All\nLightSource \"point\" \"rgb I\" [1 1 1]\n{}", tri(UNIT_TRI))).unwrap();
     assert_eq!(light.warnings.len(), 1, "{:?}", light.warnings);
     assert!(light.warnings[0].to_string().contains("a light cannot move"));

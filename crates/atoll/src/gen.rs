@@ -363,9 +363,21 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
     let s = &scene.settings;
     writeln!(out, "# {header}")?;
     // f64 on the way out and in, so the loader's inverse gives back camera_to_world.
+    // pbrt has one pair of transform times per file, which the camera
+    // takes where it is stated: the camera's motion's, or the first one's.
+    let first_motion = s.camera.motion.as_ref().or(scene.motions.first());
+    if let Some(m) = first_motion.filter(|m| m.times != [0.0, 1.0]) {
+        writeln!(out, "TransformTimes {} {}", m.times[0], m.times[1])?;
+    }
     let world_to_camera = s.camera.camera_to_world.as_dmat4().inverse();
     write!(out, "Transform ")?;
     list(out, world_to_camera.to_cols_array())?;
+    if let Some(m) = &s.camera.motion {
+        let end = glam::Mat4::from(m.end.matrix()).as_dmat4().inverse();
+        write!(out, "\nActiveTransform EndTime Transform ")?;
+        list(out, end.to_cols_array())?;
+        write!(out, " ActiveTransform All")?;
+    }
     match s.camera.projection {
         Projection::Perspective => {
             write!(out, "\nCamera \"perspective\" \"float fov\" [ {} ]", s.camera.fov_degrees)?
@@ -405,10 +417,6 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
     if s.camera.shutter != [0.0, 1.0] {
         let [open, close] = s.camera.shutter;
         write!(out, " \"float shutteropen\" [ {open} ] \"float shutterclose\" [ {close} ]")?;
-    }
-    // pbrt has one pair of transform times per file: the first motion's.
-    if let Some(m) = scene.motions.first().filter(|m| m.times != [0.0, 1.0]) {
-        write!(out, "\nTransformTimes {} {}", m.times[0], m.times[1])?;
     }
     let res = s.film.resolution;
     write!(
@@ -806,9 +814,15 @@ mod tests {
         scene.motions.push(motion);
         scene.instances[5].motion = Some(0);
         scene.settings.camera.shutter = [0.5, 1.5];
+        let camera = Mat4::from(scene.settings.camera.camera_to_world).as_dmat4();
+        let camera_end = glam::DMat4::from_translation(glam::DVec3::X) * camera;
+        scene.settings.camera.motion = atoll_scene::Motion::new(&camera, &camera_end, [0.25, 2.0]);
         let back = round_trip(&scene);
         assert_equal(&scene, &back);
         assert_eq!(back.settings.camera.shutter, [0.5, 1.5]);
         assert_eq!(back.motions.len(), 1);
+        let (a, b) = (scene.settings.camera.motion.unwrap(), back.settings.camera.motion.unwrap());
+        assert_eq!(a.times, b.times);
+        assert!(a.at(1.0).abs_diff_eq(b.at(1.0), 1e-4), "{a:?} {b:?}");
     }
 }

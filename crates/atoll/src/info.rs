@@ -47,7 +47,16 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("scene              {name} (loaded in {load_seconds:.3} s)");
     println!("meshes             {}", s.meshes);
     println!("objects            {}", s.objects);
-    println!("instances          {}", s.instances);
+    let moving = scene.instances.iter().filter(|i| i.motion.is_some()).count();
+    match (moving, scene.settings.camera.motion.is_some()) {
+        (0, false) => println!("instances          {}", s.instances),
+        (_, camera) => println!(
+            "instances          {} ({moving} moving over the shutter {:?}{})",
+            s.instances,
+            scene.settings.camera.shutter,
+            if camera { "; the camera moves too" } else { "" }
+        ),
+    }
     println!("triangles          {} unique, {} instanced", s.unique_triangles, s.instanced_triangles);
     if s.curve_pieces > 0 {
         println!(

@@ -63,6 +63,12 @@ fn info_reports_counts() {
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("triangles          1682 unique"), "{stdout}");
     assert!(stdout.contains("curve pieces       1680 unique"), "{stdout}");
+    assert!(!stdout.contains("moving"), "{stdout}");
+    // Motion blur: the ball, the box and the ring's six cubes move.
+    let motion = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes/motion.pbrt");
+    let out = atoll(&dir, &["info", &motion.display().to_string()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("instances          9 (8 moving over the shutter [0.0, 1.0])"), "{stdout}");
 }
 
 /// Output into a pipe whose reader is gone (`atoll info … | head -1`)

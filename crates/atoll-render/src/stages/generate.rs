@@ -14,7 +14,8 @@ pub fn camera_record(ctx: &FrameContext, pixel: u32, sample: u32) -> RayRecord {
     // The pixel filter places the sample and weights it (`filter`).
     let corner = Vec2::new((pixel % res.x) as f32, (pixel / res.x) as f32);
     let (raster, weight) = ctx.filter.sample(corner, Vec2::new(rng.get(0), rng.get(1)));
-    let ray = ctx.camera.weighted_ray(raster, Vec2::new(rng.get(2), rng.get(3)));
+    let time = ctx.path_time(pixel, sample);
+    let ray = ctx.camera.weighted_ray_at(raster, Vec2::new(rng.get(2), rng.get(3)), time);
     let mut r = RayRecord::zeroed();
     r.origin = ray.origin.to_array();
     r.direction = ray.direction.to_array();

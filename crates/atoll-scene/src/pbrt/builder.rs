@@ -822,8 +822,17 @@ impl Builder {
             return Err(SceneError::at(loc, "Camera: the current transform is not invertible"));
         }
         let world_from_camera = self.gs.ctm.inverse();
-        self.warn_if_moving("the camera", loc);
-        self.named_coordinate_systems.insert("camera".into(), (world_from_camera, world_from_camera));
+        let world_from_camera_end = self.gs.ctm_end.inverse();
+        let motion = if self.ctm_moves() {
+            let motion = crate::Motion::new(&world_from_camera, &world_from_camera_end, self.transform_times);
+            if motion.is_none() {
+                return Err(SceneError::at(loc, "Camera: the end transform is not invertible"));
+            }
+            motion
+        } else {
+            None
+        };
+        self.named_coordinate_systems.insert("camera".into(), (world_from_camera, world_from_camera_end));
         self.pending_lens = None;
         let (_, outside, at) = &self.gs.media;
         if !outside.is_empty() {
@@ -859,6 +868,7 @@ impl Builder {
                 let cam = &mut self.scene.settings.camera;
                 *cam = crate::Camera {
                     camera_to_world: transform::to_f32(&world_from_camera),
+                    motion,
                     ..Default::default()
                 };
                 return Ok(());
@@ -895,11 +905,12 @@ impl Builder {
             fov_degrees: fov,
             screen_window,
             frame_aspect_ratio,
+            motion,
             ..Default::default()
         };
         cam.lens_radius = p.float_or("lensradius", 0.0)?;
         cam.focal_distance = p.float_or("focaldistance", 1e6)?;
-        // The film's exposure; motion blur over it is not rendered.
+        // The film's exposure, over which what moves is blurred.
         let (open, close) = (p.float_or("shutteropen", 0.0)?, p.float_or("shutterclose", 1.0)?);
         if close < open {
             return Err(SceneError::at(

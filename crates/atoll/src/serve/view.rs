@@ -118,7 +118,8 @@ impl Orbit {
             }
             window => window,
         };
-        Camera { camera_to_world, screen_window, ..self.template.clone() }
+        // A view moved by hand stays where it is put: a moving camera's motion is dropped.
+        Camera { camera_to_world, screen_window, motion: None, ..self.template.clone() }
     }
 }
 
