@@ -814,7 +814,7 @@ mod tests {
         scene.motions.push(motion);
         scene.instances[5].motion = Some(0);
         scene.settings.camera.shutter = [0.5, 1.5];
-        let camera = Mat4::from(scene.settings.camera.camera_to_world).as_dmat4();
+        let camera = scene.settings.camera.camera_to_world.as_dmat4();
         let camera_end = glam::DMat4::from_translation(glam::DVec3::X) * camera;
         scene.settings.camera.motion = atoll_scene::Motion::new(&camera, &camera_end, [0.25, 2.0]);
         let back = round_trip(&scene);
