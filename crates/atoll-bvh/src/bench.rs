@@ -322,7 +322,14 @@ pub fn export_bench_data(scene: &Scene, opts: &BenchOptions, dir: &Path) -> io::
     write_f32(&dir.join("triangles.f32"), bytemuck::cast_slice(&triangles))?;
     let rays = generate_rays(scene, &SceneBvh::build(scene), opts);
     for (name, batch) in [("primary", &rays.primary), ("shadow", &rays.shadow), ("diffuse", &rays.diffuse)] {
-        write_f32(&dir.join(format!("{name}.f32")), bytemuck::cast_slice(batch))?;
+        // Seven numbers a ray: bench rays are all at time 0, which is left out.
+        let values: Vec<f32> = batch
+            .iter()
+            .flat_map(|r| {
+                [r.origin.x, r.origin.y, r.origin.z, r.direction.x, r.direction.y, r.direction.z, r.t_max]
+            })
+            .collect();
+        write_f32(&dir.join(format!("{name}.f32")), &values)?;
     }
     Ok(())
 }
