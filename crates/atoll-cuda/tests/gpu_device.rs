@@ -202,6 +202,16 @@ fn assert_renders_match(cuda: &mut CudaDevice, scene: &Arc<Scene>, what: &str) {
     assert_films_close(&cpu.film, &gpu.film, what, 1e-3, 200);
 }
 
+/// Renders `scene` on the CPU and on `cuda` and checks the films agree
+/// ([`assert_films_close`] with `mean_tolerance` and `one_in`).
+fn assert_devices_agree(cuda: &mut CudaDevice, scene: Scene, what: &str, mean_tolerance: f32, one_in: usize) {
+    let scene = Arc::new(scene);
+    let o = RenderOptions::from_scene(&scene);
+    let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
+    let gpu = render(cuda, &scene, o, &mut |_, _| {}).unwrap();
+    assert_films_close(&cpu.film, &gpu.film, what, mean_tolerance, one_in);
+}
+
 /// The films' channel means agree within `mean_tolerance` (relative), and
 /// fewer than one pixel in `one_in` differs by more than 0.1% of its
 /// brightest channel.
@@ -294,11 +304,7 @@ AttributeEnd
     let mut hair = atoll_scene::load_any(std::path::Path::new(hair)).unwrap().scene;
     hair.settings.spp = 16;
     for (scene, what) in [(loaded.scene, "curves"), (hair, "hair.pbrt")] {
-        let scene = Arc::new(scene);
-        let o = RenderOptions::from_scene(&scene);
-        let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
-        let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
-        assert_films_close(&cpu.film, &gpu.film, what, 5e-3, 20);
+        assert_devices_agree(&mut cuda, scene, what, 5e-3, 20);
     }
 }
 
@@ -324,11 +330,7 @@ fn motion_blur_matches_the_cpu_device() {
     moving_camera.settings.camera.motion = atoll_scene::Motion::new(&start, &end, [0.0, 1.0]);
     assert!(moving_camera.settings.camera.motion.is_some());
     for (scene, what) in [(scene, "motion.pbrt"), (moving_camera, "motion.pbrt, moving camera")] {
-        let scene = Arc::new(scene);
-        let o = RenderOptions::from_scene(&scene);
-        let cpu = render(&mut CpuDevice::new(), &scene, o.clone(), &mut |_, _| {}).unwrap();
-        let gpu = render(&mut cuda, &scene, o, &mut |_, _| {}).unwrap();
-        assert_films_close(&cpu.film, &gpu.film, what, 5e-3, 20);
+        assert_devices_agree(&mut cuda, scene, what, 5e-3, 20);
     }
 }
 
