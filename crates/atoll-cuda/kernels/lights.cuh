@@ -228,6 +228,40 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         out->target = point_target(load3(e.normal));
         return true;
     }
+    if (e.kind == EMITTER_PROJECTION) {
+        // Mirrors `Emitter::Projection`: a point projecting its image
+        // (`ProjectionImage::towards`): the table holds width, height, then
+        // r, g, b by rows from the top.
+        const float3 d = load3(e.normal) - pos;
+        const float dist2 = length_squared3(d);
+        const float distance = sqrtf(dist2);
+        const float3 wi = d / distance;
+        const float3 w = -wi;
+        const float3 l = make_float3(e.p[0] * w.x + e.p[3] * w.y + e.p[6] * w.z,
+                                     e.p[1] * w.x + e.p[4] * w.y + e.p[7] * w.z,
+                                     e.p[2] * w.x + e.p[5] * w.y + e.p[8] * w.z);
+        if (l.z < PROJECTION_HITHER) return false;
+        const float* table = p.environment_tables + e.table;
+        const int width = (int)table[0], height = (int)table[1];
+        const float aspect = (float)width / (float)height;
+        const float2 half = aspect > 1.0f ? make_float2(aspect, 1.0f) : make_float2(1.0f, 1.0f / aspect);
+        const float2 screen = make_float2(l.x / l.z, l.y / l.z) / e.radiance[1];
+        if (fabsf(screen.x) > half.x || fabsf(screen.y) > half.y) return false;
+        const float2 uv = (screen + half) / (2.0f * half);
+        const int x = min(max((int)(uv.x * (float)width), 0), width - 1);
+        const int y = min(max((int)(uv.y * (float)height), 0), height - 1);
+        const float* texel = table + 2 + 3 * (y * width + x);
+        const float3 rgb = make_float3(fmaxf(texel[0], 0.0f), fmaxf(texel[1], 0.0f), fmaxf(texel[2], 0.0f));
+        const float3 radiance = rgb * __fdiv_rn(e.radiance[0], dist2);
+        if (is_zero3(radiance)) return false;
+        out->wi = wi;
+        out->distance = distance;
+        out->radiance = radiance;
+        out->pdf = pmf;
+        out->delta = true;
+        out->target = point_target(load3(e.normal));
+        return true;
+    }
     if (e.kind == EMITTER_SPOT) {
         const float3 d = load3(&e.p[0]) - pos;
         const float dist2 = length_squared3(d);

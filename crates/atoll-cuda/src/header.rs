@@ -350,7 +350,7 @@ pub(crate) fn layered_constants() -> String {
 
 /// Emitter and integrator kinds and the asserts of the kernel parameters.
 pub(crate) fn params_asserts() -> String {
-    let mut s = String::new();
+    let mut s = const_float("PROJECTION_HITHER", atoll_scene::ProjectionImage::HITHER);
     for (name, value) in [
         ("EMITTER_POINT", emitter_kind::POINT),
         ("EMITTER_DISTANT", emitter_kind::DISTANT),
@@ -359,6 +359,7 @@ pub(crate) fn params_asserts() -> String {
         ("EMITTER_SPOT", emitter_kind::SPOT),
         ("EMITTER_ENVIRONMENT", emitter_kind::ENVIRONMENT),
         ("EMITTER_GONIOMETRIC", emitter_kind::GONIOMETRIC),
+        ("EMITTER_PROJECTION", emitter_kind::PROJECTION),
         ("PROJECTION_PERSPECTIVE", projection_kind::PERSPECTIVE),
         ("PROJECTION_ORTHOGRAPHIC", projection_kind::ORTHOGRAPHIC),
         ("PROJECTION_SPHERE_EQUAL_AREA", projection_kind::SPHERE_EQUAL_AREA),

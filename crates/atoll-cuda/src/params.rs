@@ -45,6 +45,7 @@ pub(crate) mod emitter_kind {
     pub(crate) const SPOT: u32 = 4;
     pub(crate) const ENVIRONMENT: u32 = 5;
     pub(crate) const GONIOMETRIC: u32 = 6;
+    pub(crate) const PROJECTION: u32 = 7;
 }
 
 /// [`GpuEmitter::table`] of a triangle emitter without an emission texture.
@@ -238,7 +239,7 @@ impl GpuEmitter {
                 g.kind = emitter_kind::INFINITE;
                 g.radiance = radiance.to_array();
             }
-            Emitter::Environment { .. } | Emitter::Goniometric { .. } => {
+            Emitter::Environment { .. } | Emitter::Goniometric { .. } | Emitter::Projection { .. } => {
                 unreachable!("emitters with tables are built by FrameTables::build")
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
@@ -799,6 +800,19 @@ impl FrameTables {
                     g.area = map.resolution as f32;
                     g.table = environment_tables.len() as u32;
                     environment_tables.extend_from_slice(&map.values);
+                    g
+                }
+                Emitter::Projection { position, world_to_light, scale, image } => {
+                    // The table: width, height, then the pixels' r, g, b by rows from the top.
+                    let image = &lights.projection_images[image as usize];
+                    let mut g = GpuEmitter::zeroed();
+                    g.kind = emitter_kind::PROJECTION;
+                    g.p = world_to_light.to_cols_array();
+                    g.normal = position.to_array();
+                    g.radiance = [scale, image.tan_half_fov, 0.0];
+                    g.table = environment_tables.len() as u32;
+                    environment_tables.extend_from_slice(&[image.width as f32, image.height as f32]);
+                    environment_tables.extend(image.pixels.iter().flat_map(|p| p.to_array()));
                     g
                 }
                 Emitter::Infinite { portal: Some(k), .. } => {

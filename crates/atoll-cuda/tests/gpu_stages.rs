@@ -1192,6 +1192,19 @@ fn light_sampling_and_lookup_match() {
                 values: (0..64).map(|i| (i % 7) as f32 * 0.3).collect(),
             }),
         },
+        // A projector above the region, aimed down and turned, its 5×4
+        // image varying pixel by pixel; its frustum covers part of the region.
+        Light::Projection {
+            position: Vec3::new(0.1, 1.6, -0.1),
+            world_to_light: glam::Mat3::from_rotation_z(0.3) * glam::Mat3::from_rotation_x(-1.5),
+            scale: 2.5,
+            image: std::sync::Arc::new(atoll_scene::ProjectionImage {
+                width: 5,
+                height: 4,
+                pixels: (0..20).map(|i| Rgb::new((i % 3) as f32, (i % 5) as f32 * 0.5, 1.0)).collect(),
+                tan_half_fov: 0.4,
+            }),
+        },
         environment_light(EnvLayout::LatLong),
         environment_light(EnvLayout::EqualArea),
     ]);

@@ -73,6 +73,14 @@ pub enum Emitter {
         intensity: Rgb,
         map: u32,
     },
+    /// A point projecting image `image` of [`LightSet::projection_images`]
+    /// towards `world_to_light × w`, times `scale`; see [`Light::Projection`].
+    Projection {
+        position: Vec3,
+        world_to_light: glam::Mat3,
+        scale: f32,
+        image: u32,
+    },
 }
 
 /// A triangle emitter's texture: its corners' uvs and its program in
@@ -128,6 +136,8 @@ pub struct LightSet {
     pub environments: Vec<EnvironmentSampler>,
     /// The goniometric lights' intensity maps, by their emitters' `map`.
     pub intensity_maps: Vec<Arc<atoll_scene::IntensityMap>>,
+    /// The projection lights' images, by their emitters' `image`.
+    pub projection_images: Vec<Arc<atoll_scene::ProjectionImage>>,
     /// The infinite lights' portals, by their emitters' `portal` index.
     pub portals: Vec<PortalFrame>,
     /// Programs of emission textures ([`EmissionTexture::program`]).
@@ -181,9 +191,11 @@ fn light_bounds(e: &Emitter, phi: f32) -> Option<LightBounds> {
         two_sided: false,
     };
     match *e {
-        Emitter::Point { position, .. } | Emitter::Goniometric { position, .. } => {
-            Some(whole_sphere(position))
-        }
+        // A projection light's frustum is left unbounded: what lies outside
+        // it only costs a shadow ray of zero radiance.
+        Emitter::Point { position, .. }
+        | Emitter::Goniometric { position, .. }
+        | Emitter::Projection { position, .. } => Some(whole_sphere(position)),
         Emitter::Spot { position, direction, cos_falloff_start, cos_falloff_end, .. } => {
             // Light leaves within the falloff cone; the full cone is the
             // start angle plus what the falloff band adds.
@@ -230,6 +242,11 @@ impl LightSet {
                     set.intensity_maps.push(map.clone());
                     let map = set.intensity_maps.len() as u32 - 1;
                     Emitter::Goniometric { position, world_to_light, intensity, map }
+                }
+                Light::Projection { position, world_to_light, scale, ref image } => {
+                    set.projection_images.push(image.clone());
+                    let image = set.projection_images.len() as u32 - 1;
+                    Emitter::Projection { position, world_to_light, scale, image }
                 }
                 Light::Environment { ref image, scale, light_to_world, portal } => {
                     set.environments.push(EnvironmentSampler::new(image.clone(), scale, light_to_world));
@@ -320,6 +337,9 @@ impl LightSet {
                     4.0 * std::f32::consts::PI
                         * luminance(intensity)
                         * set.intensity_maps[map as usize].mean()
+                }
+                Emitter::Projection { scale, image, .. } => {
+                    scale * luminance(set.projection_images[image as usize].power())
                 }
                 Emitter::Spot { intensity, cos_falloff_start, cos_falloff_end, .. } => {
                     Light::spot_solid_angle(cos_falloff_start, cos_falloff_end) * luminance(intensity)
@@ -558,6 +578,25 @@ impl LightSet {
                     wi,
                     distance,
                     radiance: intensity * (scale / dist2),
+                    pdf: pmf,
+                    delta: true,
+                    target: point_target(position),
+                })
+            }
+            Emitter::Projection { position, world_to_light, scale, image } => {
+                let d = position - p;
+                let dist2 = d.length_squared();
+                let distance = dist2.sqrt();
+                let wi = d / distance;
+                let rgb = self.projection_images[image as usize].towards(world_to_light * -wi)?;
+                let radiance = rgb.max(Rgb::ZERO) * (scale / dist2);
+                if radiance == Rgb::ZERO {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    distance,
+                    radiance,
                     pdf: pmf,
                     delta: true,
                     target: point_target(position),

@@ -43,7 +43,7 @@ pub use camera::{
 pub use curve::{CurveKind, CurvePiece, Curves};
 pub use environment::{EnvLayout, EnvironmentImage};
 pub use error::{FileLoc, SceneError, Warning};
-pub use light::{AreaEmission, IntensityMap, Light, Portal};
+pub use light::{AreaEmission, IntensityMap, Light, Portal, ProjectionImage};
 pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, MeasuredId,

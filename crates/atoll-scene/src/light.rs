@@ -57,6 +57,81 @@ pub enum Light {
     /// equal-area square of directions (its pole is the light's +y, as
     /// pbrt swaps y and z), read at the nearest sample.
     Goniometric { position: Vec3, world_to_light: Mat3, intensity: Rgb, map: Arc<IntensityMap> },
+    /// pbrt-v4's projection light: a point projecting an image like a slide
+    /// projector. Towards world direction `w` its intensity is `scale ×`
+    /// the image's nearest pixel where `world_to_light × w` pierces the
+    /// image's frustum (see [`ProjectionImage::towards`]), nothing outside.
+    Projection { position: Vec3, world_to_light: Mat3, scale: f32, image: Arc<ProjectionImage> },
+}
+
+/// A projection light's image and frustum: linear RGB rows from the top,
+/// spread over the screen window at z = 1 of the light's space, the
+/// shorter side spanning `tan(fov / 2)` either way (pbrt-v4's
+/// `ProjectionLight`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ProjectionImage {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<Rgb>,
+    /// `tan(fov / 2)`.
+    pub tan_half_fov: f32,
+}
+
+impl ProjectionImage {
+    /// Light-space directions at `z` below this are behind the projector
+    /// (pbrt's near plane).
+    pub const HITHER: f32 = 1e-3;
+
+    /// Half the screen window at z = 1 before the field of view scales it:
+    /// (aspect, 1) for a wide image, (1, 1 / aspect) for a tall one.
+    pub fn half_screen(&self) -> glam::Vec2 {
+        let aspect = self.width as f32 / self.height as f32;
+        if aspect > 1.0 {
+            glam::Vec2::new(aspect, 1.0)
+        } else {
+            glam::Vec2::new(1.0, 1.0 / aspect)
+        }
+    }
+
+    /// The image towards light-space direction `w` (any length): the
+    /// nearest pixel where it crosses the screen window, `None` behind the
+    /// projector or outside the window.
+    pub fn towards(&self, w: Vec3) -> Option<Rgb> {
+        if w.z < Self::HITHER {
+            return None;
+        }
+        let half = self.half_screen();
+        let screen = glam::Vec2::new(w.x / w.z, w.y / w.z) / self.tan_half_fov;
+        if screen.x.abs() > half.x || screen.y.abs() > half.y {
+            return None;
+        }
+        let uv = (screen + half) / (2.0 * half);
+        let texel = |t: f32, n: u32| ((t * n as f32) as i64).clamp(0, n as i64 - 1) as usize;
+        Some(self.pixels[texel(uv.y, self.height) * self.width as usize + texel(uv.x, self.width)])
+    }
+
+    /// The power the image sends out per unit of scale, channel by channel:
+    /// the window's area at z = 1 times the mean over pixels of their
+    /// value times cos³θ (solid angle per unit of window area), as pbrt-v4's
+    /// `ProjectionLight::Phi` sums it.
+    pub fn power(&self) -> Rgb {
+        let half = self.half_screen() * self.tan_half_fov;
+        let area = 4.0 * half.x as f64 * half.y as f64;
+        let mut sum = [0.0f64; 3];
+        for y in 0..self.height {
+            for x in 0..self.width {
+                let sx = -half.x + 2.0 * half.x * (x as f32 + 0.5) / self.width as f32;
+                let sy = -half.y + 2.0 * half.y * (y as f32 + 0.5) / self.height as f32;
+                let cos = 1.0 / (sx * sx + sy * sy + 1.0).sqrt();
+                let p = self.pixels[(y * self.width + x) as usize];
+                for (s, v) in sum.iter_mut().zip(p.to_array()) {
+                    *s += v.max(0.0) as f64 * (cos as f64).powi(3);
+                }
+            }
+        }
+        let n = (self.width as f64 * self.height as f64).max(1.0);
+        Rgb::from_array(sum.map(|s| (area * s / n) as f32))
+    }
 }
 
 /// A goniometric light's distribution: `resolution`² values over pbrt's

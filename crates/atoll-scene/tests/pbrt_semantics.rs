@@ -577,6 +577,55 @@ fn goniometric_lights() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// pbrt-v4's `projection` light: placed and aimed by the transform (its y
+/// turned over, so the image's top row is the light's +y), `power` the
+/// luminous power its image sends out; no `filename`, a missing image or a
+/// field of view outside (0, 180) is an error at its line.
+#[test]
+fn projection_lights() {
+    let dir = std::env::temp_dir().join(format!("atoll-projection-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    exr::prelude::write_rgb_file(dir.join("slide.exr"), 4, 2, |x, y| (x as f32, y as f32, 0.5)).unwrap();
+    let load = |world: &str| {
+        atoll_scene::pbrt::load_str(&format!("WorldBegin\n{world}\n"), "p.pbrt", &dir)
+            .map(|l| (l.scene.lights, l.warnings))
+    };
+    let (lights, warnings) = load(
+        "AttributeBegin\nTranslate 1 2 3\nRotate 90 0 0 1\n\
+         LightSource \"projection\" \"string filename\" \"slide.exr\" \"float fov\" 45 \"float scale\" 3\nAttributeEnd\n\
+         LightSource \"projection\" \"string filename\" \"slide.exr\" \"float power\" 10",
+    )
+    .unwrap();
+    assert!(warnings.is_empty(), "{warnings:?}");
+    let Light::Projection { position, world_to_light, scale, ref image } = lights[0] else {
+        panic!("{lights:?}")
+    };
+    assert_close(position, Vec3::new(1.0, 2.0, 3.0), 1e-6);
+    // The transform turns light +x to world +y and light +y to world -x;
+    // turned over, world +x is the light's +y.
+    assert_close(world_to_light * Vec3::Y, Vec3::X, 1e-6);
+    assert_close(world_to_light * Vec3::X, Vec3::Y, 1e-6);
+    assert_eq!((scale, image.width, image.height), (3.0, 4, 2));
+    assert!((image.tan_half_fov - 22.5f32.to_radians().tan()).abs() < 1e-6);
+    // Along the axis: the window's centre, between columns 1 and 2 and rows 0 and 1.
+    assert_eq!(image.towards(Vec3::new(1e-3, 1e-3, 1.0)), Some(Rgb::new(2.0, 1.0, 0.5)));
+    assert_eq!(image.towards(Vec3::new(-1e-3, -1e-3, 1.0)), Some(Rgb::new(1.0, 0.0, 0.5)));
+    assert_eq!(image.towards(Vec3::new(0.0, 0.0, -1.0)), None, "behind");
+    assert_eq!(image.towards(Vec3::new(0.0, 0.5, 1.0)), None, "above the window");
+    let Light::Projection { scale, ref image, .. } = lights[1] else { panic!() };
+    let emitted = scale * atoll_scene::luminance(image.power());
+    assert!((emitted - 10.0).abs() < 1e-4, "{emitted}");
+    for (statement, message) in [
+        ("LightSource \"projection\"", "\"filename\" must be given"),
+        ("LightSource \"projection\" \"string filename\" \"none.exr\"", "none.exr"),
+        ("LightSource \"projection\" \"string filename\" \"slide.exr\" \"float fov\" 180", "\"fov\" 180"),
+    ] {
+        let e = load(statement).unwrap_err().to_string();
+        assert!(e.starts_with("p.pbrt:2:1: light \"projection\"") && e.contains(message), "{e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// pbrt-v4's `measured` material: its `.bsdf` file read once however many
 /// materials name it; a missing file (unless `--allow-missing`: then
 /// diffuse, with a warning), a truncated one or no `filename` is an error

@@ -485,6 +485,27 @@ fn write_prelude(scene: &Scene, out: &mut impl Write, header: &str) -> io::Resul
                     v(*intensity * map.mean())
                 )?
             }
+            Light::Projection { position, world_to_light, scale, image } => {
+                // The image is not written out: a spot light over the
+                // frustum's corners, of its mean colour, stands in.
+                let axis = (world_to_light.inverse() * Vec3::Z).normalize();
+                let corner = (image.half_screen() * image.tan_half_fov).length();
+                let cone_angle = corner.atan().to_degrees();
+                let n = image.pixels.len().max(1) as f32;
+                let mean = image.pixels.iter().copied().sum::<Vec3>() / n;
+                writeln!(
+                    out,
+                    "# projection light ({}x{} image) written as a spot light of its mean colour",
+                    image.width, image.height
+                )?;
+                writeln!(
+                    out,
+                    "LightSource \"spot\" \"point3 from\" {} \"point3 to\" {} \"rgb I\" {} \"float coneangle\" [ {cone_angle} ] \"float conedelta\" [ 0 ]",
+                    v(*position),
+                    v(*position + axis),
+                    v(mean * *scale)
+                )?
+            }
             Light::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 let cone_angle = cos_falloff_end.clamp(-1.0, 1.0).acos().to_degrees();
                 let cone_delta = cone_angle - cos_falloff_start.clamp(-1.0, 1.0).acos().to_degrees();

@@ -22,6 +22,17 @@ fn cornell_frame(integrator: IntegratorSettings) -> (Scene, FrameContext) {
             values: vec![0.5, 1.0, 0.0, 2.0],
         }),
     });
+    scene.lights.push(Light::Projection {
+        position: Vec3::new(-0.2, 1.0, 0.3),
+        world_to_light: glam::Mat3::from_rotation_y(0.2),
+        scale: 3.0,
+        image: std::sync::Arc::new(atoll_scene::ProjectionImage {
+            width: 3,
+            height: 2,
+            pixels: (0..6).map(|i| Rgb::new(i as f32, 0.5, 1.0)).collect(),
+            tan_half_fov: 0.5,
+        }),
+    });
     let pixels = (0..12).map(|i| Rgb::new(i as f32, 1.0, 0.5)).collect();
     scene.lights.push(Light::Environment {
         image: std::sync::Arc::new(atoll_scene::EnvironmentImage::new(
@@ -151,6 +162,16 @@ fn frame_tables_mirror_the_light_set_and_materials() {
                     &t.environment_tables[t0..t0 + 4],
                     &lights.intensity_maps[map as usize].values[..]
                 );
+            }
+            Emitter::Projection { position, world_to_light, scale, image } => {
+                let image = &lights.projection_images[image as usize];
+                assert_eq!(g.kind, emitter_kind::PROJECTION);
+                assert_eq!((g.p, g.normal), (world_to_light.to_cols_array(), position.to_array()));
+                assert_eq!(g.radiance, [scale, image.tan_half_fov, 0.0]);
+                // Width, height, then r, g, b by rows.
+                let t0 = g.table as usize;
+                assert_eq!(&t.environment_tables[t0..t0 + 2], &[3.0, 2.0]);
+                assert_eq!(&t.environment_tables[t0 + 2 + 3 * 4..t0 + 2 + 3 * 5], &[4.0, 0.5, 1.0]);
             }
             Emitter::Spot { position, direction, intensity, cos_falloff_start, cos_falloff_end } => {
                 assert_eq!(g.kind, emitter_kind::SPOT);

@@ -663,6 +663,73 @@ pub fn light(
                 map: std::sync::Arc::new(map),
             }
         }
+        "projection" => {
+            let scale = light_scale(p, &what, loc)?;
+            let fov = p.float_or("fov", 90.0)?;
+            if !(fov > 0.0 && fov < 180.0) {
+                return Err(SceneError::at(
+                    loc,
+                    format!("{what}: \"fov\" {fov} is not between 0 and 180 degrees"),
+                ));
+            }
+            let Some(file) = p.string("filename")? else {
+                return Err(SceneError::at(
+                    loc,
+                    format!("{what}: \"filename\" must be given (as pbrt-v4 requires)"),
+                ));
+            };
+            let image = crate::input::beside(base_dir, &file)
+                .map_err(crate::ImageLoadError::io(std::path::Path::new(&file)))
+                .and_then(|path| crate::EnvironmentImage::load(&path));
+            let image = match image {
+                Ok(image) => image,
+                Err(e) => {
+                    super::missing_file(loc, &what, e.clone())?;
+                    w.warn(loc, format!("{what}: {e}; it emits nothing"));
+                    return Ok(None);
+                }
+            };
+            if image.pixels.iter().any(|p| !p.is_finite()) {
+                return Err(SceneError::at(
+                    loc,
+                    format!("{what}: \"{file}\" has pixels that are not finite: not suitable as a light"),
+                ));
+            }
+            let image = crate::ProjectionImage {
+                width: image.width,
+                height: image.height,
+                pixels: image.pixels,
+                tan_half_fov: (fov.to_radians() * 0.5).tan(),
+            };
+            // pbrt-v4: `power` sets the luminous power the image sends out.
+            let mut intensity = scale;
+            match p.float("power")? {
+                Some(power) if power < 0.0 => {
+                    let at = p.find("power", &[ParamType::Float]).map_or(loc, |q| &q.loc);
+                    return Err(SceneError::at(at, format!("{what}: negative \"power\" {power}")));
+                }
+                Some(power) if power > 0.0 => {
+                    let per_unit = crate::luminance(image.power());
+                    if per_unit > 0.0 {
+                        intensity = scale * power / per_unit;
+                    }
+                }
+                _ => {}
+            }
+            let m = glam::DMat3::from_mat4(*ctm);
+            if m.determinant() == 0.0 || !m.determinant().is_finite() {
+                return Err(SceneError::at(loc, format!("{what}: the current transform is not invertible")));
+            }
+            // pbrt-v4 turns the light's y over, so that the image's top row
+            // is up in the light's space.
+            let flip = glam::DMat3::from_diagonal(DVec3::new(1.0, -1.0, 1.0));
+            Light::Projection {
+                position: transform::point(ctm, DVec3::ZERO).as_vec3(),
+                world_to_light: (flip * m.inverse()).as_mat3(),
+                scale: intensity,
+                image: std::sync::Arc::new(image),
+            }
+        }
         "distant" => {
             let l =
                 p.spectrum("L", false)?.map(|s| light_rgb(s, &what, loc, w)).transpose()?.unwrap_or(Rgb::ONE);
