@@ -245,7 +245,7 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         const int width = (int)table[0], height = (int)table[1];
         const float aspect = (float)width / (float)height;
         const float2 half = aspect > 1.0f ? make_float2(aspect, 1.0f) : make_float2(1.0f, 1.0f / aspect);
-        const float2 screen = make_float2(l.x / l.z, l.y / l.z) / e.radiance[1];
+        const float2 screen = make_float2(l.x / l.z / e.radiance[1], l.y / l.z / e.radiance[1]);
         if (fabsf(screen.x) > half.x || fabsf(screen.y) > half.y) return false;
         const float2 uv = (screen + half) / (2.0f * half);
         const int x = min(max((int)(uv.x * (float)width), 0), width - 1);

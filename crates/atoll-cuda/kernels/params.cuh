@@ -180,6 +180,7 @@ struct SceneView {
 };
 
 // BEGIN GENERATED params (src/header.rs; regenerate: ATOLL_BLESS=1 cargo test -p atoll-cuda header)
+inline constexpr float PROJECTION_HITHER = 0.001f;
 inline constexpr unsigned int EMITTER_POINT = 0u;
 inline constexpr unsigned int EMITTER_DISTANT = 1u;
 inline constexpr unsigned int EMITTER_INFINITE = 2u;
@@ -187,6 +188,7 @@ inline constexpr unsigned int EMITTER_TRIANGLE = 3u;
 inline constexpr unsigned int EMITTER_SPOT = 4u;
 inline constexpr unsigned int EMITTER_ENVIRONMENT = 5u;
 inline constexpr unsigned int EMITTER_GONIOMETRIC = 6u;
+inline constexpr unsigned int EMITTER_PROJECTION = 7u;
 inline constexpr unsigned int PROJECTION_PERSPECTIVE = 0u;
 inline constexpr unsigned int PROJECTION_ORTHOGRAPHIC = 1u;
 inline constexpr unsigned int PROJECTION_SPHERE_EQUAL_AREA = 2u;
