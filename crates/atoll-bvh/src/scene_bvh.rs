@@ -115,6 +115,8 @@ pub trait Visits: Sync {
     fn triangles(&self, blas: u32, block: u32);
     /// The triangle id in slot `prim` of BLAS `blas` (read for a hit).
     fn prim(&self, blas: u32, prim: u32);
+    /// The curve piece in slot `prim` of BLAS `blas` (read to test it).
+    fn curve(&self, blas: u32, prim: u32);
 }
 
 /// Reads go untold: plain traversal.
@@ -131,6 +133,8 @@ impl Visits for NoVisits {
     fn triangles(&self, _: u32, _: u32) {}
     #[inline(always)]
     fn prim(&self, _: u32, _: u32) {}
+    #[inline(always)]
+    fn curve(&self, _: u32, _: u32) {}
 }
 
 /// One array traversal reads ([`SceneBvh::memory_tables`]).
@@ -391,7 +395,8 @@ impl<L: BvhLayout> SceneBvh<L> {
 
     /// The arrays traversal reads, in this order: `tlas nodes`, `tlas
     /// instances`, then per BLAS `b` (in [`Visits`]' numbering) `blas b
-    /// nodes`, `blas b triangles`, `blas b prims`: table `2 + 3b + k`.
+    /// nodes`, `blas b triangles`, `blas b prims`, `blas b curves` (empty
+    /// without curves): table `2 + 4b + k`.
     pub fn memory_tables(&self) -> Vec<MemoryTable> {
         let table = |name: String, count: usize, element: usize| MemoryTable {
             name,
@@ -410,6 +415,8 @@ impl<L: BvhLayout> SceneBvh<L> {
             ));
             tables.push(table(format!("blas {b} triangles"), blas.tris.len(), std::mem::size_of::<Tri4>()));
             tables.push(table(format!("blas {b} prims"), blas.prims.len(), std::mem::size_of::<PrimId>()));
+            let curve_bytes = std::mem::size_of_val(blas.curves.first().unwrap_or(&None));
+            tables.push(table(format!("blas {b} curves"), blas.curves.len(), curve_bytes));
         }
         tables
     }
@@ -463,6 +470,7 @@ impl<L: BvhLayout> SceneBvh<L> {
                         visits.triangles(b, block);
                         for prim in block * lanes..(block + 1) * lanes {
                             let Some(Some((kind, piece))) = blas.curves.get(prim as usize) else { continue };
+                            visits.curve(b, prim);
                             let Some((t, u, v)) =
                                 intersect_curve::<ANY>(*kind, piece, ray.origin, ray.dir, *t_max)
                             else {

@@ -110,13 +110,16 @@ impl Visits for ChunkCounter<'_> {
         self.add(1, leaf as u64);
     }
     fn blas_node(&self, blas: u32, node: u32) {
-        self.add(2 + 3 * blas as usize, node as u64);
+        self.add(2 + 4 * blas as usize, node as u64);
     }
     fn triangles(&self, blas: u32, block: u32) {
-        self.add(3 + 3 * blas as usize, block as u64);
+        self.add(3 + 4 * blas as usize, block as u64);
     }
     fn prim(&self, blas: u32, prim: u32) {
-        self.add(4 + 3 * blas as usize, prim as u64);
+        self.add(4 + 4 * blas as usize, prim as u64);
+    }
+    fn curve(&self, blas: u32, prim: u32) {
+        self.add(5 + 4 * blas as usize, prim as u64);
     }
 }
 
@@ -258,9 +261,9 @@ mod tests {
     use super::*;
     use atoll_bvh::{NoFilter, Ray};
 
-    /// Counts every read, whatever the chunk.
+    /// Counts every read, whatever the chunk, and the curve reads apart.
     #[derive(Default)]
-    struct Total(AtomicU64);
+    struct Total(AtomicU64, AtomicU64);
 
     impl Visits for Total {
         fn tlas_node(&self, _: u32) {
@@ -278,14 +281,25 @@ mod tests {
         fn prim(&self, _: u32, _: u32) {
             self.0.fetch_add(1, Ordering::Relaxed);
         }
+        fn curve(&self, _: u32, _: u32) {
+            self.0.fetch_add(1, Ordering::Relaxed);
+            self.1.fetch_add(1, Ordering::Relaxed);
+        }
     }
 
-    /// Chunk counters over a scene with instances add up to the reads a
-    /// plain tally of the same traversals makes, and land in the tables
-    /// traversal reads (never in mesh or texture tables).
+    /// Chunk counters over a scene with instances, and over one of curves,
+    /// add up to the reads a plain tally of the same traversals makes, and
+    /// land in the tables traversal reads (never in mesh or texture tables).
     #[test]
     fn chunk_counts_sum_to_the_traversals_reads() {
-        let scene = Arc::new(atoll_scene::procedural::bench_scene(20_000));
+        let hair = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/hair.pbrt");
+        let hair = atoll_scene::load_any(&hair).unwrap().scene;
+        for (scene, curves) in [(atoll_scene::procedural::bench_scene(20_000), false), (hair, true)] {
+            counts_sum_to_the_reads(Arc::new(scene), curves);
+        }
+    }
+
+    fn counts_sum_to_the_reads(scene: Arc<Scene>, curves: bool) {
         let bvh = SceneBvh::build(&scene);
         let (layout, index) = layout_of(&scene, &bvh, 4096);
         assert!(layout.chunk_count() > 8, "{} chunks", layout.chunk_count());
@@ -317,6 +331,7 @@ mod tests {
         assert!(hits > 100, "{hits} hits");
         let counted: u64 = share.counts.iter().map(|c| c.load(Ordering::Relaxed)).sum();
         assert_eq!(counted, total.0.load(Ordering::Relaxed));
+        assert_eq!(total.1.load(Ordering::Relaxed) > 0, curves, "curve reads");
         let first_mesh_byte = share.layout.tables[share.index.first_mesh].offset;
         let last_bvh_chunk = share.layout.chunk_of(first_mesh_byte - 1);
         assert!(share.counts[last_bvh_chunk + 1..].iter().all(|c| c.load(Ordering::Relaxed) == 0));
