@@ -180,6 +180,21 @@ __device__ __forceinline__ bool light_sample_through_portal(const FrameParams& p
     return true;
 }
 
+/// For an emitter at `e.normal` with a world-to-light matrix in `e.p`
+/// (goniometric and projection lights): the unit direction `wi` from
+/// `pos` to it, the distance and its square, and the light-space direction
+/// (not normalised) from it to `pos`.
+__device__ __forceinline__ float3 towards_light_space(const GpuEmitter& e, float3 pos, float3* wi, float* distance,
+                                                      float* dist2) {
+    const float3 d = load3(e.normal) - pos;
+    *dist2 = length_squared3(d);
+    *distance = sqrtf(*dist2);
+    *wi = d / *distance;
+    const float3 w = -*wi;
+    return make_float3(e.p[0] * w.x + e.p[3] * w.y + e.p[6] * w.z, e.p[1] * w.x + e.p[4] * w.y + e.p[7] * w.z,
+                       e.p[2] * w.x + e.p[5] * w.y + e.p[8] * w.z);
+}
+
 /// Mirrors `LightSet::sample`: incident light at `pos` with selection number
 /// `u_select` and position numbers `u`. False for Rust's `None`.
 __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, float u_select, float2 u,
@@ -205,14 +220,9 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
     if (e.kind == EMITTER_GONIOMETRIC) {
         // Mirrors `Emitter::Goniometric`: a point scaled by its map towards
         // the light-space direction (pole +y: the square's z is its y).
-        const float3 d = load3(e.normal) - pos;
-        const float dist2 = length_squared3(d);
-        const float distance = sqrtf(dist2);
-        const float3 wi = d / distance;
-        const float3 w = -wi;
-        const float3 l = make_float3(e.p[0] * w.x + e.p[3] * w.y + e.p[6] * w.z,
-                                     e.p[1] * w.x + e.p[4] * w.y + e.p[7] * w.z,
-                                     e.p[2] * w.x + e.p[5] * w.y + e.p[8] * w.z);
+        float3 wi;
+        float distance, dist2;
+        const float3 l = towards_light_space(e, pos, &wi, &distance, &dist2);
         const float len = length3(l);
         if (!(len > 0.0f)) return false;
         const float2 uv = env_sphere_to_equal_area(make_float3(l.x, l.z, l.y) / len);
@@ -232,14 +242,9 @@ __device__ __forceinline__ bool light_sample(const FrameParams& p, float3 pos, f
         // Mirrors `Emitter::Projection`: a point projecting its image
         // (`ProjectionImage::towards`): the table holds width, height, then
         // r, g, b by rows from the top.
-        const float3 d = load3(e.normal) - pos;
-        const float dist2 = length_squared3(d);
-        const float distance = sqrtf(dist2);
-        const float3 wi = d / distance;
-        const float3 w = -wi;
-        const float3 l = make_float3(e.p[0] * w.x + e.p[3] * w.y + e.p[6] * w.z,
-                                     e.p[1] * w.x + e.p[4] * w.y + e.p[7] * w.z,
-                                     e.p[2] * w.x + e.p[5] * w.y + e.p[8] * w.z);
+        float3 wi;
+        float distance, dist2;
+        const float3 l = towards_light_space(e, pos, &wi, &distance, &dist2);
         if (l.z < PROJECTION_HITHER) return false;
         const float* table = p.environment_tables + e.table;
         const int width = (int)table[0], height = (int)table[1];

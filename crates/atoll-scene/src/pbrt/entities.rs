@@ -514,6 +514,29 @@ fn light_scale(p: &ParamList, what: &str, loc: &FileLoc) -> Result<f32, SceneErr
     Ok(scale)
 }
 
+/// A light's image `file` (beside the scene): `None`, after a warning,
+/// where it cannot be read and `--allow-missing` lets the light emit
+/// nothing; an error otherwise.
+fn light_image(
+    base_dir: &std::path::Path,
+    file: &str,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+) -> Result<Option<crate::EnvironmentImage>, SceneError> {
+    let image = crate::input::beside(base_dir, file)
+        .map_err(crate::ImageLoadError::io(std::path::Path::new(file)))
+        .and_then(|path| crate::EnvironmentImage::load(&path));
+    match image {
+        Ok(image) => Ok(Some(image)),
+        Err(e) => {
+            super::missing_file(loc, what, e.clone())?;
+            w.warn(loc, format!("{what}: {e}; it emits nothing"));
+            Ok(None)
+        }
+    }
+}
+
 /// `AreaLightSource "diffuse"`; `None` (after a warning) for other types.
 pub fn area_light(
     ty: &str,
@@ -613,17 +636,7 @@ pub fn light(
                 w.warn(loc, format!("{what}: no \"filename\" given; it emits nothing (as in pbrt-v4)"));
                 return Ok(None);
             };
-            let image = crate::input::beside(base_dir, &file)
-                .map_err(crate::ImageLoadError::io(std::path::Path::new(&file)))
-                .and_then(|path| crate::EnvironmentImage::load(&path));
-            let image = match image {
-                Ok(image) => image,
-                Err(e) => {
-                    super::missing_file(loc, &what, e.clone())?;
-                    w.warn(loc, format!("{what}: {e}; it emits nothing"));
-                    return Ok(None);
-                }
-            };
+            let Some(image) = light_image(base_dir, &file, &what, loc, w)? else { return Ok(None) };
             if image.width != image.height {
                 return Err(SceneError::at(
                     loc,
@@ -678,17 +691,7 @@ pub fn light(
                     format!("{what}: \"filename\" must be given (as pbrt-v4 requires)"),
                 ));
             };
-            let image = crate::input::beside(base_dir, &file)
-                .map_err(crate::ImageLoadError::io(std::path::Path::new(&file)))
-                .and_then(|path| crate::EnvironmentImage::load(&path));
-            let image = match image {
-                Ok(image) => image,
-                Err(e) => {
-                    super::missing_file(loc, &what, e.clone())?;
-                    w.warn(loc, format!("{what}: {e}; it emits nothing"));
-                    return Ok(None);
-                }
-            };
+            let Some(image) = light_image(base_dir, &file, &what, loc, w)? else { return Ok(None) };
             if image.pixels.iter().any(|p| !p.is_finite()) {
                 return Err(SceneError::at(
                     loc,
