@@ -156,20 +156,24 @@ extern "C" __global__ void __launch_bounds__(BUILD_THREADS)
         const float* m = inst.object_to_world;
         float lo[3], hi[3];
         const float bmin[3] = {olo.x, olo.y, olo.z}, bmax[3] = {ohi.x, ohi.y, ohi.z};
-        for (int r = 0; r < 3 && inst.motion != NO_MOTION; ++r) {
-            lo[r] = motions[inst.motion].bounds[r];
-            hi[r] = motions[inst.motion].bounds[3 + r];
-        }
-        for (int r = 0; r < 3 && inst.motion == NO_MOTION; ++r) {
-            lo[r] = hi[r] = m[r * 4 + 3];
-            for (int c = 0; c < 3; ++c) {
-                const float x = __fmul_rn(m[r * 4 + c], bmin[c]), y = __fmul_rn(m[r * 4 + c], bmax[c]);
-                lo[r] = __fadd_rn(lo[r], fminf(x, y));
-                hi[r] = __fadd_rn(hi[r], fmaxf(x, y));
+        if (inst.motion != NO_MOTION) {
+            const GpuMotion& motion = motions[inst.motion];
+            for (int r = 0; r < 3; ++r) {
+                lo[r] = motion.bounds[r];
+                hi[r] = motion.bounds[3 + r];
             }
-            const float pad = __fmul_rn(1e-6f, fmaxf(fabsf(lo[r]), fabsf(hi[r])));
-            lo[r] = __fsub_rn(lo[r], pad);
-            hi[r] = __fadd_rn(hi[r], pad);
+        } else {
+            for (int r = 0; r < 3; ++r) {
+                lo[r] = hi[r] = m[r * 4 + 3];
+                for (int c = 0; c < 3; ++c) {
+                    const float x = __fmul_rn(m[r * 4 + c], bmin[c]), y = __fmul_rn(m[r * 4 + c], bmax[c]);
+                    lo[r] = __fadd_rn(lo[r], fminf(x, y));
+                    hi[r] = __fadd_rn(hi[r], fmaxf(x, y));
+                }
+                const float pad = __fmul_rn(1e-6f, fmaxf(fabsf(lo[r]), fabsf(hi[r])));
+                lo[r] = __fsub_rn(lo[r], pad);
+                hi[r] = __fadd_rn(hi[r], pad);
+            }
         }
         prim_box[2 * p] = make_float4(lo[0], lo[1], lo[2], 0.0f);
         prim_box[2 * p + 1] = make_float4(hi[0], hi[1], hi[2], 0.0f);
