@@ -216,3 +216,59 @@ fn large_tables_written_into_staging_equal_the_host_tables() {
     assert!(back(&tables.triangles) == host.triangles, "triangles differ");
     assert!(back(&tables.triangle_mesh) == host.triangle_mesh, "triangle meshes differ");
 }
+
+/// Meshes handed to a GPU's mesh sink as a load makes them give the same
+/// tables as the upload after the load, the large ones made on the device
+/// from the arena; a mesh the sink never saw is uploaded by the prepare.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn meshes_streamed_during_the_load_give_the_uploaded_tables() {
+    use atoll_scene::input::MeshSink;
+    let Some(gpu) = gpu_or_skip("mesh stream") else { return };
+    let mut scene = atoll_scene::procedural::bench_scene(200_000);
+    // A mesh with normals and uvs (fewer uvs than vertices), in an object
+    // of its own placed twice.
+    let mut extra = scene.meshes[0].clone();
+    extra.normals = extra.positions.iter().map(|p| p.normalize_or_zero()).collect();
+    extra.uvs = extra.positions.iter().skip(3).map(|p| glam::Vec2::new(p.x, p.z)).collect();
+    let m = scene.add_mesh(extra);
+    let o = scene.add_object(atoll_scene::Object { name: "extra".into(), meshes: vec![m] });
+    for x in [-3.0, 3.0] {
+        let place = glam::Affine3A::from_translation(glam::Vec3::new(x, 0.0, 0.0));
+        scene.instances.push(atoll_scene::Instance::new(o, place));
+    }
+    let sizes = atoll_scene::SceneSizes {
+        geometry_bytes: scene.meshes.iter().map(|m| m.memory_bytes()).sum(),
+        vertices: scene.meshes.iter().map(|m| m.positions.len() as u64).sum(),
+        triangles: scene.meshes.iter().map(|m| m.indices.len() as u64).sum(),
+        largest_object_triangles: (0..scene.objects.len() as u32)
+            .map(|o| scene.object_triangles(o))
+            .max()
+            .unwrap(),
+        objects: scene.objects.len() as u64,
+        instances: scene.instances.len() as u64,
+    };
+    let stream = atoll_cuda::scene::MeshStream::new(gpu.clone(), None);
+    stream.begin(&sizes);
+    // Every mesh but the first, from the loader's many threads.
+    std::thread::scope(|s| {
+        for mesh in &scene.meshes[1..] {
+            let stream = &stream;
+            s.spawn(move || stream.mesh_made(mesh));
+        }
+    });
+    let streamed = stream.take().expect("the arena fits");
+    assert_eq!(streamed.counts(), (scene.meshes.len() - 1, 0));
+    let uploaded = GpuScene::upload_streamed(&gpu, &scene, streamed, None, 0).unwrap();
+    let tables = SceneTables::build(&scene);
+    assert!(!tables.normals.is_empty() && !tables.uvs.is_empty());
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.vertices).unwrap(), tables.vertices);
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.normals).unwrap(), tables.normals);
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.uvs).unwrap(), tables.uvs);
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.triangles).unwrap(), tables.triangles);
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.triangle_mesh).unwrap(), tables.triangle_mesh);
+    assert_eq!(gpu.stream.clone_dtoh(&uploaded.meshes).unwrap(), tables.meshes);
+    assert_eq!(uploaded.bytes(), tables.counts().bytes());
+    // The arena is gone, and a stream taken once holds nothing more.
+    assert!(stream.take().is_none());
+}
