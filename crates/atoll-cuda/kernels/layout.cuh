@@ -28,15 +28,6 @@ struct __align__(16) GpuCurve {
     float n1[4];
 };
 
-/// Mirror of `layout::CopySegment` (24 bytes): `words` words from device
-/// address `src` (0: none) to table word `dst`, each plus `add`.
-struct CopySegment {
-    unsigned long long src;
-    unsigned long long dst;
-    unsigned int words;
-    unsigned int add;
-};
-
 /// Mirror of `layout::GpuObject` (16 bytes).
 struct GpuObject {
     unsigned int first_triangle;
@@ -191,13 +182,6 @@ static_assert(__builtin_offsetof(HitRef, u) == 0 && sizeof(HitRef::u) == 4, "Hit
 static_assert(__builtin_offsetof(HitRef, v) == 4 && sizeof(HitRef::v) == 4, "HitRef.v: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, instance) == 8 && sizeof(HitRef::instance) == 4, "HitRef.instance: offset or size differs from Rust");
 static_assert(__builtin_offsetof(HitRef, triangle) == 12 && sizeof(HitRef::triangle) == 4, "HitRef.triangle: offset or size differs from Rust");
-#endif
-static_assert(sizeof(CopySegment) == 24, "CopySegment: size differs from Rust");
-#ifdef ATOLL_CHECK_LAYOUT
-static_assert(__builtin_offsetof(CopySegment, src) == 0 && sizeof(CopySegment::src) == 8, "CopySegment.src: offset or size differs from Rust");
-static_assert(__builtin_offsetof(CopySegment, dst) == 8 && sizeof(CopySegment::dst) == 8, "CopySegment.dst: offset or size differs from Rust");
-static_assert(__builtin_offsetof(CopySegment, words) == 16 && sizeof(CopySegment::words) == 4, "CopySegment.words: offset or size differs from Rust");
-static_assert(__builtin_offsetof(CopySegment, add) == 20 && sizeof(CopySegment::add) == 4, "CopySegment.add: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuImage) == 32, "GpuImage: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -33,7 +33,6 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("common.cuh", include_str!("../kernels/common.cuh")),
     ("curve.cuh", include_str!("../kernels/curve.cuh")),
     ("environment.cuh", include_str!("../kernels/environment.cuh")),
-    ("gather.cu", include_str!("../kernels/gather.cu")),
     ("layout.cuh", include_str!("../kernels/layout.cuh")),
     ("layered.cuh", include_str!("../kernels/layered.cuh")),
     ("lens.cuh", include_str!("../kernels/lens.cuh")),

@@ -328,9 +328,6 @@ pub struct CudaDevice {
     wave_timer: Mutex<Option<Timer>>,
     /// Time each stage rather than whole waves ([`Device::time_stages`]).
     stage_timing: bool,
-    /// Meshes copied while the scene loads ([`Device::mesh_sink`]), for
-    /// the next prepare.
-    mesh_stream: Option<Arc<crate::scene::MeshStream>>,
 }
 
 impl CudaDevice {
@@ -350,7 +347,6 @@ impl CudaDevice {
             busy: Mutex::new(BusyTime::default()),
             wave_timer: Mutex::new(None),
             stage_timing: false,
-            mesh_stream: None,
         }
     }
 
@@ -510,8 +506,7 @@ impl CudaDevice {
         // its BVH is built, and before the clock of the first wave starts.
         gpu.compile_ahead(frame_modules(frame));
         let start = Instant::now();
-        let streamed = self.mesh_stream.take().and_then(|s| s.take());
-        let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes, streamed)?;
+        let gpu_scene = GpuScene::upload_part(&gpu, scene, part, self.memory_budget, frame_bytes)?;
         gpu.synchronize()?;
         let upload_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
@@ -988,12 +983,6 @@ impl Device for CudaDevice {
 
     fn set_memory_budget(&mut self, bytes: Option<u64>) {
         self.memory_budget = bytes;
-    }
-
-    fn mesh_sink(&mut self) -> Option<Arc<dyn atoll_scene::input::MeshSink>> {
-        let stream = Arc::new(crate::scene::MeshStream::new(self.gpu.clone(), self.memory_budget));
-        self.mesh_stream = Some(stream.clone());
-        Some(stream)
     }
 
     fn scene_sharing(&self) -> Option<Arc<dyn atoll_render::SceneSharing>> {

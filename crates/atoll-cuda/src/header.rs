@@ -233,10 +233,6 @@ pub(crate) fn layout_asserts() -> String {
     s += &assert_struct::<GpuInstance>("GpuInstance", GpuInstance::field_layout());
     s += &assert_struct::<crate::layout::GpuMotion>("GpuMotion", crate::layout::GpuMotion::field_layout());
     s += &assert_struct::<HitRef>("HitRef", HitRef::field_layout());
-    s += &assert_struct::<crate::layout::CopySegment>(
-        "CopySegment",
-        crate::layout::CopySegment::field_layout(),
-    );
     s += &assert_struct::<GpuImage>("GpuImage", GpuImage::field_layout());
     s += &const_uint("unsigned int", "WORK_SLOTS", WORK_SLOTS as u64);
     s += &const_uint("unsigned int", "WORK_CLAIMS", WORK_CLAIMS as u64);

@@ -259,26 +259,6 @@ impl GpuInstance {
     }
 }
 
-/// One piece of a table made on the device from arrays already there
-/// (`scene::gather`): `words` 32-bit words from device address `src` to
-/// table word `dst`, `add` added to each (a triangle's vertex offset);
-/// from `src` 0, `add` alone (a mesh's row number, or zeros).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq, Eq)]
-pub struct CopySegment {
-    pub src: u64,
-    pub dst: u64,
-    pub words: u32,
-    pub add: u32,
-}
-
-impl CopySegment {
-    #[cfg(test)]
-    pub(crate) fn field_layout() -> FieldLayout {
-        field_layout!(CopySegment { src, dst, words, add })
-    }
-}
-
 impl HitRef {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
@@ -291,7 +271,6 @@ const _: () = {
     assert!(std::mem::size_of::<GpuObject>() == 16);
     assert!(std::mem::size_of::<GpuInstance>() == 144);
     assert!(std::mem::size_of::<HitRef>() == 16);
-    assert!(std::mem::size_of::<CopySegment>() == 24);
     assert!(std::mem::size_of::<GpuCurve>() == atoll_scene::curve::CURVE_RECORD_BYTES);
 };
 
@@ -316,7 +295,7 @@ impl GpuRecord {
     }
 }
 
-// SAFETY (all of them): plain-old-data `#[repr(C)]`/transparent structs (Pod),
+// SAFETY (all six): plain-old-data `#[repr(C)]`/transparent structs (Pod),
 // so any bit pattern, including all zeros, is a valid value and they can be
 // copied to and from the device byte for byte.
 unsafe impl cudarc::driver::DeviceRepr for GpuRecord {}
@@ -335,6 +314,5 @@ unsafe impl cudarc::driver::DeviceRepr for GpuMotion {}
 unsafe impl cudarc::driver::ValidAsZeroBits for GpuMotion {}
 unsafe impl cudarc::driver::DeviceRepr for HitRef {}
 unsafe impl cudarc::driver::ValidAsZeroBits for HitRef {}
-unsafe impl cudarc::driver::DeviceRepr for CopySegment {}
 
 const _: () = assert!(std::mem::size_of::<GpuRecord>() == 128);

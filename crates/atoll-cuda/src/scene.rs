@@ -10,9 +10,7 @@
 //! through one mesh in several objects, so this costs nothing in practice.
 //! Meshes no object uses are not uploaded (no ray can reach them).
 
-mod gather;
 pub(crate) mod rows;
-mod streamed;
 
 use std::sync::Arc;
 
@@ -28,7 +26,6 @@ use crate::layout::{
     image_format, mesh_flags, GpuCurve, GpuImage, GpuInstance, GpuMesh, GpuMotion, GpuObject, NO_MOTION,
 };
 use rows::RowTable;
-pub use streamed::{MeshStream, StreamedMeshes};
 
 /// The scene tables in host memory, exactly as they go to the device.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -377,81 +374,6 @@ pub(crate) fn make_tables<E>(
     sink(Table::Objects(plan.objects))
 }
 
-/// The five large tables of a part, made on the device
-/// ([`gathered_tables`]).
-struct GatheredTables {
-    vertices: CudaSlice<f32>,
-    normals: CudaSlice<f32>,
-    uvs: CudaSlice<f32>,
-    triangles: CudaSlice<u32>,
-    triangle_mesh: CudaSlice<u32>,
-}
-
-/// The large tables of `part`, made on the device from the meshes
-/// `streamed` holds; meshes it lacks go up first, each on its own.
-fn gathered_tables(
-    gpu: &Arc<Gpu>,
-    scene: &Scene,
-    part: &ScenePart,
-    streamed: &StreamedMeshes,
-) -> Result<GatheredTables, CudaError> {
-    use cudarc::driver::DevicePtr;
-    let counts = TableCounts::of_part(scene, part);
-    let plan = TablePlan::of(scene, part);
-    let mut found: Vec<Option<gather::MeshAddresses>> =
-        scene.meshes.par_iter().map(|m| streamed.find(m)).collect();
-    // Meshes the arena lacks: their arrays, kept until the tables are made.
-    let mut lacking: Vec<CudaSlice<u32>> = Vec::new();
-    let mut up = Uploader::new(gpu);
-    let mut put = |words: &[u32], lacking: &mut Vec<CudaSlice<u32>>| -> Result<u64, CudaError> {
-        let copy = up.upload(words, "a mesh's array")?;
-        let at = copy.device_ptr(&gpu.stream).0;
-        lacking.push(copy);
-        Ok(at)
-    };
-    for &m in &plan.vertex_blocks {
-        if found[m as usize].is_some() {
-            continue;
-        }
-        let mesh = &scene.meshes[m as usize];
-        let mut optional = |values: &[u32], rows: usize| -> Result<Option<(u64, usize)>, CudaError> {
-            Ok(if rows == 0 { None } else { Some((put(values, &mut lacking)?, rows)) })
-        };
-        let normals = optional(bytemuck::cast_slice(&mesh.normals), mesh.normals.len())?;
-        let uvs = optional(bytemuck::cast_slice(&mesh.uvs), mesh.uvs.len())?;
-        found[m as usize] = Some(gather::MeshAddresses {
-            positions: put(bytemuck::cast_slice(&mesh.positions), &mut lacking)?,
-            normals,
-            uvs,
-            indices: put(bytemuck::cast_slice(&mesh.indices), &mut lacking)?,
-        });
-    }
-    let (streamed_meshes, missed) = streamed.counts();
-    tracing::info!(
-        "{}: tables made on the device from {streamed_meshes} meshes copied during the load \
-         ({missed} had no room there; {} arrays uploaded now)",
-        gpu.label(),
-        lacking.len()
-    );
-    let segments = gather::table_segments(scene, &plan, counts.has_normals, counts.has_uvs, |m| {
-        found[m as usize].expect("every mesh of the plan is found or uploaded")
-    });
-    let vertices = counts.vertices as usize;
-    let triangles = counts.triangles as usize;
-    Ok(GatheredTables {
-        vertices: gather::copy_segments(gpu, &segments.vertices, 3 * vertices, "vertices")?,
-        normals: gather::copy_segments(
-            gpu,
-            &segments.normals,
-            3 * vertices * counts.has_normals as usize,
-            "normals",
-        )?,
-        uvs: gather::copy_segments(gpu, &segments.uvs, 2 * vertices * counts.has_uvs as usize, "uvs")?,
-        triangles: gather::copy_segments(gpu, &segments.triangles, 3 * triangles, "triangles")?,
-        triangle_mesh: gather::copy_segments(gpu, &segments.triangle_mesh, triangles, "triangle meshes")?,
-    })
-}
-
 /// The scene's motions on the device, each with the world box it sweeps
 /// the objects of its instances through.
 fn motion_table(scene: &Scene) -> Vec<GpuMotion> {
@@ -708,42 +630,20 @@ impl GpuScene {
         budget: Option<u64>,
         frame_bytes: u64,
     ) -> Result<GpuScene, CudaError> {
-        Self::upload_part(gpu, scene, &ScenePart::whole(scene), budget, frame_bytes, None)
+        Self::upload_part(gpu, scene, &ScenePart::whole(scene), budget, frame_bytes)
     }
 
-    /// [`GpuScene::upload`] whose large tables are made on the device from
-    /// `streamed` (meshes copied while the scene loaded).
-    pub fn upload_streamed(
-        gpu: &Arc<Gpu>,
-        scene: &Scene,
-        streamed: StreamedMeshes,
-        budget: Option<u64>,
-        frame_bytes: u64,
-    ) -> Result<GpuScene, CudaError> {
-        Self::upload_part(gpu, scene, &ScenePart::whole(scene), budget, frame_bytes, Some(streamed))
-    }
-
-    /// [`GpuScene::upload`] of `part` of the scene; its large tables made
-    /// on the device from `streamed`, the meshes copied while it loaded,
-    /// where there are such (their arena is freed after).
+    /// [`GpuScene::upload`] of `part` of the scene.
     pub(crate) fn upload_part(
         gpu: &Arc<Gpu>,
         scene: &Scene,
         part: &ScenePart,
         budget: Option<u64>,
         frame_bytes: u64,
-        streamed: Option<StreamedMeshes>,
     ) -> Result<GpuScene, CudaError> {
         let plan = MemoryPlan { queues: frame_bytes, ..part_plan(scene, part) };
-        let free = gpu.free_memory()?;
-        // The arena is freed before the BVH is built: the plan has its room.
-        plan.check(&gpu.label(), budget, free + streamed.as_ref().map_or(0, |s| s.bytes()))?;
+        plan.check(&gpu.label(), budget, gpu.free_memory()?)?;
         let start = std::time::Instant::now();
-        let mut gathered = match streamed {
-            // The tables are made beside the arena.
-            Some(s) if plan.scene_tables + HEADROOM <= free => Some(gathered_tables(gpu, scene, part, &s)?),
-            _ => None,
-        };
         let mut up = Uploader::new(gpu);
         // The small tables stay on the host too (BVH builds plan from them).
         let mut host = SceneTables::default();
@@ -753,9 +653,6 @@ impl GpuScene {
         let (mut curve_of, mut curves, mut motions) = (None, None, None);
         make_tables(scene, part, &mut |table| {
             match table {
-                Table::Vertices(_) | Table::Normals(_) | Table::Uvs(_) | Table::Triangles(_)
-                    if gathered.is_some() => {}
-                Table::TriangleMesh(_) if gathered.is_some() => {}
                 Table::Vertices(v) => vertices = Some(up.upload_rows(&v, "vertices")?),
                 Table::Normals(v) => normals = Some(up.upload_rows(&v, "normals")?),
                 Table::Uvs(v) => uvs = Some(up.upload_rows(&v, "uvs")?),
@@ -778,10 +675,6 @@ impl GpuScene {
             }
             Ok::<(), CudaError>(())
         })?;
-        if let Some(g) = gathered.take() {
-            (vertices, normals, uvs, triangles, triangle_mesh) =
-                (Some(g.vertices), Some(g.normals), Some(g.uvs), Some(g.triangles), Some(g.triangle_mesh));
-        }
         // What the tables hold (the host tests pin it to the built tables').
         let counts = TableCounts::of_part(scene, part);
         let made = "make_tables hands out every table";

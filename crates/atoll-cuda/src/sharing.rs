@@ -538,7 +538,7 @@ impl SceneSharing for CudaSharing {
                 Builder::Host => return laid_on_host(scene, chunk_bytes),
             }
             let whole = ScenePart::whole(scene);
-            let gpu_scene = GpuScene::upload_part(gpu, scene, &whole, None, 0, None)?;
+            let gpu_scene = GpuScene::upload_part(gpu, scene, &whole, None, 0)?;
             let bvh = GpuSceneBvh::build(gpu, &gpu_scene)?;
             gpu.synchronize()?;
             let tables = table_spans(&gpu_scene, &bvh)

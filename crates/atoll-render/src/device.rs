@@ -241,16 +241,6 @@ pub trait Device: Send {
     /// wave's time would count as work.
     fn time_stages(&mut self, _per_stage: bool) {}
 
-    /// Somewhere to copy a file scene's meshes as the load makes them,
-    /// so that the device's next [`Device::prepare`] of the whole scene
-    /// starts with them in place (a GPU uploads while the other files are
-    /// still read); `None` where the device gains nothing by it. The
-    /// device keeps what it is given until that prepare, or until it finds
-    /// it has no room for it.
-    fn mesh_sink(&mut self) -> Option<Arc<dyn atoll_scene::input::MeshSink>> {
-        None
-    }
-
     // --- Scene memory shared between devices ---
 
     /// The way devices of this kind share one chunked copy of the scene,

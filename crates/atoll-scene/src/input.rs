@@ -151,8 +151,6 @@ pub struct LoadBudget {
     phase_ends: [AtomicU64; 2],
     /// What the scene's sizes, known before its meshes are read, must pass.
     size_check: Option<SizeCheck>,
-    /// Where meshes go as soon as they are made ([`MeshSink`]).
-    mesh_sink: Option<Arc<dyn MeshSink>>,
     /// See [`allow_missing_files`].
     missing_files_allowed: bool,
 }
@@ -172,23 +170,6 @@ pub enum LoadPhase {
 /// `Err(why)` when the scene cannot fit where it is going.
 pub type SizeCheck = Box<dyn Fn(&crate::SceneSizes) -> Result<(), String> + Send + Sync>;
 
-/// Takes a file scene's meshes while the load is still under way, so that
-/// a device can copy each one as soon as it is made, overlapping its upload
-/// with the reading of the other mesh files.
-///
-/// [`MeshSink::begin`] comes once, with the sizes known before any mesh
-/// file is read (after the size check passes); then
-/// [`MeshSink::mesh_made`] once per mesh, on the loader's worker threads,
-/// in no particular order, each mesh final: the loader changes no array of
-/// it afterwards and moves it into the scene as it is (its arrays keep
-/// their addresses). Meshes the load makes otherwise (built-in shapes
-/// given as arrays in the text are among them) reach the sink too; a load
-/// that fails simply stops calling it.
-pub trait MeshSink: Send + Sync {
-    fn begin(&self, sizes: &crate::SceneSizes);
-    fn mesh_made(&self, mesh: &crate::TriangleMesh);
-}
-
 impl std::fmt::Debug for LoadBudget {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("LoadBudget")
@@ -196,7 +177,6 @@ impl std::fmt::Debug for LoadBudget {
             .field("files", &self.files())
             .field("triangles", &self.triangles())
             .field("size_check", &self.size_check.is_some())
-            .field("mesh_sink", &self.mesh_sink.is_some())
             .finish_non_exhaustive()
     }
 }
@@ -222,7 +202,6 @@ impl LoadBudget {
             started: std::time::Instant::now(),
             phase_ends: Default::default(),
             size_check: None,
-            mesh_sink: None,
             missing_files_allowed: false,
         }
     }
@@ -254,16 +233,6 @@ impl LoadBudget {
     /// Runs the size check, if any: `Err(why)` when the scene cannot fit.
     pub fn check_sizes(&self, sizes: &crate::SceneSizes) -> Result<(), String> {
         self.size_check.as_ref().map_or(Ok(()), |check| check(sizes))
-    }
-
-    /// The same budget, its load handing meshes to `sink` as they are made.
-    pub fn with_mesh_sink(self, sink: Arc<dyn MeshSink>) -> Self {
-        LoadBudget { mesh_sink: Some(sink), ..self }
-    }
-
-    /// The sink meshes go to as they are made, if any.
-    pub fn mesh_sink(&self) -> Option<&Arc<dyn MeshSink>> {
-        self.mesh_sink.as_ref()
     }
 
     /// The same budget allowing at most `max_files` file reads.

@@ -6,7 +6,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
-use atoll_scene::input::{LoadBudget, LoadPhase, MeshSink, SizeCheck};
+use atoll_scene::input::{LoadBudget, LoadPhase, SizeCheck};
 use atoll_scene::landscape::Landscape;
 use atoll_scene::Scene;
 
@@ -56,36 +56,24 @@ impl std::fmt::Display for LoadReport {
     }
 }
 
-/// What a file scene's load hands on before it is done.
-#[derive(Default)]
-pub struct LoadHooks {
-    /// What the scene's sizes must pass before its meshes are read.
-    pub size_check: Option<SizeCheck>,
-    /// Where its meshes go as they are made (a GPU copying them while the
-    /// other files are read).
-    pub mesh_sink: Option<Arc<dyn MeshSink>>,
-}
-
 /// Loads `path` (or the built-in Cornell box for `None`). Warnings have
 /// already been printed by the loader through `tracing`.
 pub fn load_scene(path: Option<&Path>) -> Result<Scene, CliError> {
-    load_scene_reporting(path, true, LoadHooks::default()).map(|(scene, _)| scene)
+    load_scene_reporting(path, true, None).map(|(scene, _)| scene)
 }
 
 /// [`load_scene`], showing what it reads as it goes (unless `quiet`) and
-/// reporting it; a file scene's load runs `hooks`.
+/// reporting it; a file scene's sizes pass `size_check` before its meshes
+/// are read.
 pub fn load_scene_reporting(
     path: Option<&Path>,
     quiet: bool,
-    hooks: LoadHooks,
+    size_check: Option<SizeCheck>,
 ) -> Result<(Scene, LoadReport), CliError> {
     let start = std::time::Instant::now();
     let mut budget = LoadBudget::from_settings();
-    if let Some(check) = hooks.size_check {
+    if let Some(check) = size_check {
         budget = budget.with_size_check(check);
-    }
-    if let Some(sink) = hooks.mesh_sink {
-        budget = budget.with_mesh_sink(sink);
     }
     let budget = Arc::new(budget);
     let done = AtomicBool::new(false);

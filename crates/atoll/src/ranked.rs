@@ -58,7 +58,7 @@ fn render_on_ranks(ranks: &Ranks, mut args: RenderArgs) -> Result<(), CliError> 
     // `auto` and `cuda:local` take the GPU of this rank's place on its node.
     args.device.local_rank = ranks.local_rank();
     let Frame { scene, mut options, output, load } =
-        together(ranks, load_frame(&args, Default::default()), "load the scene")?;
+        together(ranks, load_frame(&args, None), "load the scene")?;
     let RankDevices { mut devices, layout, description } =
         together(ranks, rank_devices(ranks.is_root(), &args, &scene, &mut options), "open their devices")?;
     let ring = together(ranks, rank_ring(ranks, &args, &scene, &options, &mut devices), "plan rings")?;

@@ -14,13 +14,14 @@ use glam::UVec2;
 use indicatif::{ProgressBar, ProgressState, ProgressStyle};
 
 use crate::device::{select, DeviceArgs};
-use crate::load::{load_scene_reporting, LoadHooks, LoadReport};
+use crate::load::{load_scene_reporting, LoadReport};
 use crate::multi::{
     self, parse_devices, parse_partitioning, parse_ring_order, parse_transport, DeviceList, DeviceSpec,
     MultiArgs, Partitioning,
 };
 use crate::preflight::Room;
 use crate::CliError;
+use atoll_scene::input::SizeCheck;
 
 /// How the wavefront loop is fed (shared by `render` and `bench`).
 #[derive(Args, Clone, Default)]
@@ -257,8 +258,8 @@ pub fn run(args: RenderArgs) -> Result<(), CliError> {
     if args.mpi {
         return run_ranked(args);
     }
-    let (opened, hooks) = open_before_loading(&args)?;
-    let Frame { scene, mut options, output, load } = load_frame(&args, hooks)?;
+    let (opened, size_check) = open_before_loading(&args)?;
+    let Frame { scene, mut options, output, load } = load_frame(&args, size_check)?;
     if let Some(DeviceList(specs)) = &args.devices {
         set_waves_for_devices(&args, specs, &mut options);
         let devices = match opened {
@@ -318,12 +319,12 @@ pub(crate) struct Frame {
 
 /// Loads the scene and applies the command line's overrides; refuses a bad
 /// output name before any render time is spent.
-/// A file scene's load runs `hooks`.
-pub(crate) fn load_frame(args: &RenderArgs, hooks: LoadHooks) -> Result<Frame, CliError> {
+/// A file scene's sizes pass `size_check` before its meshes are read.
+pub(crate) fn load_frame(args: &RenderArgs, size_check: Option<SizeCheck>) -> Result<Frame, CliError> {
     if let Some(output) = &args.output {
         check_output(output)?;
     }
-    let (scene, load) = load_scene_reporting(args.scene.as_deref(), args.quiet, hooks)?;
+    let (scene, load) = load_scene_reporting(args.scene.as_deref(), args.quiet, size_check)?;
     let mut options = RenderOptions::from_scene(&scene);
     if let Some(spp) = args.spp {
         options.spp = spp;
@@ -416,23 +417,18 @@ enum Opened {
 /// ([`crate::preflight`]): a generated scene's sizes are known now; a file
 /// scene's are checked by the loader once its text is read, before its
 /// meshes are (the check returned). Devices that together cannot hold the
-/// scene, however it is split, refuse it the same way. One device may also
-/// take a file scene's meshes as they are made (the hooks' mesh sink).
-fn open_before_loading(args: &RenderArgs) -> Result<(Option<Opened>, LoadHooks), CliError> {
-    let Some(source) = args.scene.as_deref() else { return Ok((None, LoadHooks::default())) };
+/// scene, however it is split, refuse it the same way.
+fn open_before_loading(args: &RenderArgs) -> Result<(Option<Opened>, Option<SizeCheck>), CliError> {
+    let Some(source) = args.scene.as_deref() else { return Ok((None, None)) };
     if let Some(output) = &args.output {
         check_output(output)?;
     }
     let known = crate::preflight::known_sizes(Some(source))?;
     let budget = args.device.device_memory;
-    let mut mesh_sink = None;
     let (opened, room) = match &args.devices {
         None => {
-            let mut selected = select(&args.device, args.threads)?;
+            let selected = select(&args.device, args.threads)?;
             let room = Room::of(selected.device.as_ref(), budget);
-            if known.is_none() {
-                mesh_sink = selected.device.mesh_sink();
-            }
             (Opened::One(selected), room)
         }
         Some(DeviceList(specs)) => {
@@ -443,12 +439,9 @@ fn open_before_loading(args: &RenderArgs) -> Result<(Option<Opened>, LoadHooks),
             (Opened::Many(devices), room)
         }
     };
-    let Some(counts) = known else {
-        let hooks = LoadHooks { size_check: room.map(Room::size_check), mesh_sink };
-        return Ok((Some(opened), hooks));
-    };
+    let Some(counts) = known else { return Ok((Some(opened), room.map(Room::size_check))) };
     crate::preflight::check_fits(source, &counts, room.as_ref())?;
-    Ok((Some(opened), LoadHooks::default()))
+    Ok((Some(opened), None))
 }
 
 /// The further wavefronts `--streams` asks for beside `device` (on a GPU:

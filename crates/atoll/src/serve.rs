@@ -57,7 +57,7 @@ pub fn run(args: ServeArgs) -> Result<(), CliError> {
         .map_err(|e| CliError::Runtime(format!("listening on {address}: {e}")))?;
     let address = listener.local_addr().map_err(|e| CliError::Runtime(e.to_string()))?;
 
-    let Frame { scene, mut options, output, .. } = load_frame(&args.render, Default::default())?;
+    let Frame { scene, mut options, output, .. } = load_frame(&args.render, None)?;
     let (multi::Placed { mut devices, layout, partition }, description) =
         open_for_serving(&args.render, &scene, &mut options)?;
     let target_samples = options.spp;

@@ -4,7 +4,7 @@ use atoll_scene::{AreaEmission, Instance, Object, Scene, TriangleMesh};
 use glam::{Affine3A, Quat, Vec3};
 
 use super::*;
-use crate::layout::{mesh_flags, CopySegment};
+use crate::layout::mesh_flags;
 
 fn quad(material: u32) -> TriangleMesh {
     TriangleMesh {
@@ -227,100 +227,4 @@ fn memory_plan_refuses_before_allocating() {
     // Free memory binds when it is the smaller.
     let e = plan.check("cuda:0", Some(u64::MAX), 1 << 20).unwrap_err();
     assert!(e.to_string().contains("only 1.00 MiB"), "{e}");
-}
-
-/// The tables the device makes from streamed meshes ([`gather`]) equal
-/// the host's, word for word: the segments run on the host over fake
-/// device addresses (array `a` of mesh `m` at `(m + 1) << 40 | a << 36`),
-/// for the whole scene, a part with a range, and interleaved ranges; a
-/// mesh with fewer uvs than vertices, one with uvs and one with neither.
-#[test]
-fn tables_gathered_from_mesh_arrays_equal_the_host_tables() {
-    let mut scene = instanced_scene();
-    scene.meshes[2].uvs = vec![glam::Vec2::new(0.25, 0.5); 3];
-    scene.meshes[1].uvs = vec![glam::Vec2::new(0.75, 1.0); 4];
-    let address = |m: u32, array: u64| ((m as u64 + 1) << 40) | (array << 36);
-    let read = |at: u64| -> u32 {
-        let mesh = &scene.meshes[((at >> 40) - 1) as usize];
-        let word = ((at & ((1 << 36) - 1)) / 4) as usize;
-        let words: &[u32] = match (at >> 36) & 0xf {
-            0 => bytemuck::cast_slice(&mesh.positions),
-            1 => bytemuck::cast_slice(&mesh.normals),
-            2 => bytemuck::cast_slice(&mesh.uvs),
-            _ => bytemuck::cast_slice(&mesh.indices),
-        };
-        words[word]
-    };
-    let locate = |m: u32| {
-        let mesh = &scene.meshes[m as usize];
-        let optional = |rows: usize, array| (rows > 0).then_some((address(m, array), rows));
-        gather::MeshAddresses {
-            positions: address(m, 0),
-            normals: optional(mesh.normals.len(), 1),
-            uvs: optional(mesh.uvs.len(), 2),
-            indices: address(m, 3),
-        }
-    };
-    let parts = [
-        ScenePart::whole(&scene),
-        ScenePart {
-            instances: vec![0, 1],
-            object_subsets: vec![(1, vec![MeshRange { mesh: 2, triangles: 1..3 }])],
-        },
-        ScenePart {
-            instances: vec![0],
-            object_subsets: vec![(
-                1,
-                vec![MeshRange { mesh: 2, triangles: 0..1 }, MeshRange { mesh: 2, triangles: 2..3 }],
-            )],
-        },
-    ];
-    for part in &parts {
-        let host = SceneTables::build_part(&scene, part);
-        let counts = host.counts();
-        let plan = TablePlan::of(&scene, part);
-        let s = gather::table_segments(&scene, &plan, counts.has_normals, counts.has_uvs, locate);
-        let as_words = |v: &[f32]| -> Vec<u32> { v.iter().map(|x| x.to_bits()).collect() };
-        let run = |segments: &[CopySegment], words: usize| gather::run_on_host(segments, words, read);
-        assert_eq!(run(&s.vertices, host.vertices.len()), as_words(&host.vertices));
-        assert_eq!(run(&s.normals, host.normals.len()), as_words(&host.normals));
-        assert_eq!(run(&s.uvs, host.uvs.len()), as_words(&host.uvs));
-        assert_eq!(run(&s.triangles, host.triangles.len()), host.triangles);
-        assert_eq!(run(&s.triangle_mesh, host.triangle_mesh.len()), host.triangle_mesh);
-    }
-    let whole = SceneTables::build(&scene);
-    assert!(!whole.uvs.is_empty() && !whole.normals.is_empty(), "the optional tables are tested");
-}
-
-/// Long arrays are cut into pieces a thread block each, which together
-/// copy exactly the array.
-#[test]
-fn long_arrays_are_copied_in_pieces() {
-    let mut scene = Scene::default();
-    let n = 70_000u32;
-    let mesh = TriangleMesh {
-        name: "strip".into(),
-        positions: (0..n + 2).map(|i| Vec3::new(i as f32, (i % 2) as f32, 0.0)).collect(),
-        indices: (0..n).map(|i| [i, i + 1, i + 2]).collect(),
-        ..Default::default()
-    };
-    let m = scene.add_mesh(mesh);
-    let o = scene.add_object(Object { name: "strip".into(), meshes: vec![m] });
-    scene.instances.push(Instance::new(o, Affine3A::IDENTITY));
-    let plan = TablePlan::of(&scene, &ScenePart::whole(&scene));
-    let at = gather::MeshAddresses { positions: 1 << 40, normals: None, uvs: None, indices: 3 << 40 };
-    let s = gather::table_segments(&scene, &plan, false, false, |_| at);
-    assert!(s.triangles.len() > 1 && s.vertices.len() > 1, "split");
-    let read = |a: u64| -> u32 {
-        let words: &[u32] = match a >> 40 {
-            1 => bytemuck::cast_slice(&scene.meshes[0].positions),
-            _ => bytemuck::cast_slice(&scene.meshes[0].indices),
-        };
-        words[((a & ((1 << 40) - 1)) / 4) as usize]
-    };
-    let host = SceneTables::build(&scene);
-    assert_eq!(gather::run_on_host(&s.triangles, host.triangles.len(), read), host.triangles);
-    let vertices: Vec<u32> = host.vertices.iter().map(|x| x.to_bits()).collect();
-    assert_eq!(gather::run_on_host(&s.vertices, host.vertices.len(), read), vertices);
-    assert!(s.normals.is_empty() && s.uvs.is_empty());
 }

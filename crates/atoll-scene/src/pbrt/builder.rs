@@ -257,10 +257,8 @@ impl Builder {
     /// on the sizes the scene will have, before any mesh file is read: a
     /// scene that cannot fit is refused without reading it. Not fitting is
     /// not bad input: the error is of kind out-of-memory.
-    /// A mesh sink ([`crate::input::MeshSink`]) then learns the sizes.
     fn check_sizes(&self, main: &FileLoc) -> Result<(), SceneError> {
-        let sink = crate::input::on_budget(|b| b.mesh_sink().cloned());
-        if !crate::input::on_budget(|b| b.has_size_check()) && sink.is_none() {
+        if !crate::input::on_budget(|b| b.has_size_check()) {
             return Ok(());
         }
         let objects = self.objects.len() as u64 + 1;
@@ -269,11 +267,7 @@ impl Builder {
         crate::input::on_budget(|b| b.check_sizes(&sizes)).map_err(|why| {
             let cause = std::io::Error::new(std::io::ErrorKind::OutOfMemory, why.clone());
             SceneError::caused_by(main, why, cause)
-        })?;
-        if let Some(sink) = sink {
-            sink.begin(&sizes);
-        }
-        Ok(())
+        })
     }
 
     fn warn(&mut self, loc: &FileLoc, msg: impl Into<String>) {

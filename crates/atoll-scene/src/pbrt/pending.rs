@@ -54,21 +54,13 @@ pub(super) struct MadeShape {
 /// Makes every pending shape, in parallel (reads count against the scene
 /// load's budget on every thread); the first error in directive order
 /// wins, so errors do not depend on timing either.
-/// Each mesh made goes to the load's mesh sink at once, if it has one.
 pub(super) fn make_all(pending: Vec<PendingShape>) -> Result<Vec<MadeShape>, SceneError> {
     let budget = crate::input::current_budget();
-    let sink = budget.as_ref().and_then(|b| b.mesh_sink().cloned());
     pending
         .into_par_iter()
-        .map(|p| {
-            let made = match &budget {
-                Some(b) => crate::input::with_budget(b.clone(), || p.make()),
-                None => p.make(),
-            };
-            if let (Some(sink), Ok(MadeShape { mesh: Some(mesh), .. })) = (&sink, &made) {
-                sink.mesh_made(mesh);
-            }
-            made
+        .map(|p| match &budget {
+            Some(b) => crate::input::with_budget(b.clone(), || p.make()),
+            None => p.make(),
         })
         .collect::<Vec<_>>()
         .into_iter()

@@ -568,59 +568,6 @@ mod tests {
         }
     }
 
-    /// A mesh as handed to a sink: its array addresses and contents.
-    type Handed = (usize, usize, Vec<Vec3>, Vec<[u32; 3]>);
-
-    /// Records what a load hands its mesh sink.
-    #[derive(Default)]
-    struct Recorder {
-        sizes: std::sync::Mutex<Option<atoll_scene::SceneSizes>>,
-        meshes: std::sync::Mutex<Vec<Handed>>,
-        before_begin: std::sync::atomic::AtomicBool,
-    }
-
-    impl atoll_scene::input::MeshSink for Recorder {
-        fn begin(&self, sizes: &atoll_scene::SceneSizes) {
-            self.sizes.lock().unwrap().replace(*sizes);
-        }
-
-        fn mesh_made(&self, mesh: &atoll_scene::TriangleMesh) {
-            if self.sizes.lock().unwrap().is_none() {
-                self.before_begin.store(true, std::sync::atomic::Ordering::Relaxed);
-            }
-            let (p, i) = (mesh.positions.as_ptr() as usize, mesh.indices.as_ptr() as usize);
-            self.meshes.lock().unwrap().push((p, i, mesh.positions.clone(), mesh.indices.clone()));
-        }
-    }
-
-    /// A load's mesh sink learns the sizes before any mesh file is read,
-    /// then gets every mesh of the scene once, as the scene holds it: the
-    /// same contents in the same arrays (a device finds them again by
-    /// their addresses).
-    #[test]
-    fn a_mesh_sink_gets_every_mesh_as_the_scene_holds_it() {
-        for instanced in [false, true] {
-            let dir = tempfile::tempdir().unwrap();
-            write_to(dir.path(), instanced, false);
-            let recorder = std::sync::Arc::new(Recorder::default());
-            let budget = atoll_scene::input::LoadBudget::from_settings().with_mesh_sink(recorder.clone());
-            let scene = atoll_scene::input::with_budget(std::sync::Arc::new(budget), || load(dir.path()));
-            let sizes = recorder.sizes.lock().unwrap().expect("begun");
-            assert!(!recorder.before_begin.load(std::sync::atomic::Ordering::Relaxed));
-            let vertices: u64 = scene.meshes.iter().map(|m| m.positions.len() as u64).sum();
-            let triangles: u64 = scene.meshes.iter().map(|m| m.indices.len() as u64).sum();
-            assert_eq!((sizes.vertices, sizes.triangles), (vertices, triangles), "instanced: {instanced}");
-            let meshes = recorder.meshes.lock().unwrap();
-            assert_eq!(meshes.len(), scene.meshes.len());
-            for mesh in &scene.meshes {
-                let (p, i) = (mesh.positions.as_ptr() as usize, mesh.indices.as_ptr() as usize);
-                let handed: Vec<_> = meshes.iter().filter(|m| (m.0, m.1) == (p, i)).collect();
-                assert_eq!(handed.len(), 1, "{}", mesh.name);
-                assert!(handed[0].2 == mesh.positions && handed[0].3 == mesh.indices, "{}", mesh.name);
-            }
-        }
-    }
-
     #[test]
     fn bad_outputs_are_refused() {
         let dir = tempfile::tempdir().unwrap();
