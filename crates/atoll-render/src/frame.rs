@@ -109,6 +109,8 @@ fn image_of(film: &FilmSettings) -> (UVec2, Option<[f32; 4]>) {
 pub struct FrameContext {
     pub options: RenderOptions,
     pub camera: CameraRays,
+    /// What textures need to estimate a hit's footprint.
+    pub footprint: crate::footprint::CameraFootprint,
     /// The pixel filter, prepared for sampling camera rays.
     pub filter: FilterTable,
     pub lights: LightSet,
@@ -131,8 +133,10 @@ impl FrameContext {
     pub fn new(scene: &Scene, options: RenderOptions) -> Self {
         let materials: Vec<PackedMaterial> = scene.materials.iter().map(PackedMaterial::pack).collect();
         let kinds: Vec<_> = materials.iter().map(|m| m.kind).collect();
+        let camera = CameraRays::for_options(&scene.settings.camera, &options);
         FrameContext {
-            camera: CameraRays::for_options(&scene.settings.camera, &options),
+            footprint: crate::footprint::CameraFootprint::new(&camera, options.spp),
+            camera,
             filter: FilterTable::new(&options.filter),
             lights: LightSet::new(scene, options.light_sampler),
             textures: TextureTables::new(scene, &kinds),

@@ -11,6 +11,7 @@ pub mod device;
 pub mod environment;
 pub mod film;
 pub mod filter;
+pub mod footprint;
 pub mod frame;
 pub mod integrator;
 pub mod light_bvh;

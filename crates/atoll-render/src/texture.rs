@@ -20,7 +20,7 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, ImageId, Material, Noise, Scene, TexInput, TexMapping, Texture, TextureBinding,
+    AlphaMode, Channel, ImageFilter, ImageId, Material, Noise, Scene, TexInput, TexMapping, Texture, TextureBinding,
     TextureId, TextureImage, TexturedParam, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
@@ -80,12 +80,25 @@ pub mod op {
 }
 
 /// Where a texture program runs: the hit's texture coordinates, its point
-/// (for 3D mappings) and its unit geometric normal (for `directionmix`).
+/// (for 3D mappings) and its unit geometric normal (for `directionmix`),
+/// and its footprint: how the point and the uv change from one pixel to
+/// the next in x and y (pbrt-v4's `dpdx`, `dudx`, ...; zero where no
+/// footprint is known, which picks the finest MIP level).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct TexPoint {
     pub uv: Vec2,
     pub position: Vec3,
     pub normal: Vec3,
+    pub footprint: Footprint,
+}
+
+/// pbrt-v4's `dpdx`, `dpdy`, and the uv's `(dudx, dvdx)`, `(dudy, dvdy)`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Footprint {
+    pub dpdx: Vec3,
+    pub dpdy: Vec3,
+    pub duvdx: Vec2,
+    pub duvdy: Vec2,
 }
 
 impl TexPoint {
@@ -107,6 +120,12 @@ pub mod projection {
     /// `q` itself, a point for the noise textures.
     pub const POINT: u32 = 3;
 }
+
+/// Where an [`op::IMAGE`]'s `b` holds its [`atoll_scene::ImageFilter`]
+/// (3 bits) and its number of MIP levels (6 bits; its images are `a`
+/// onwards).
+pub const IMAGE_FILTER_SHIFT: u32 = 17;
+pub const IMAGE_LEVELS_SHIFT: u32 = 25;
 
 /// Set in `b` of an [`op::IMAGE`], [`op::CHECKERBOARD`], [`op::DOTS`] or
 /// [`op::BILERP`]: it pops its
@@ -403,15 +422,17 @@ fn compile(
         Texture::Facing { direction } => {
             out.push(TexOp { code: op::FACING, f: direction.extend(0.0).to_array(), ..Default::default() })
         }
-        Texture::Image { image, mapping, wrap, channel, scale, invert } => {
-            if *image as usize >= textures.images.len() {
+        Texture::Image { image, mapping, wrap, channel, scale, invert, filter, levels } => {
+            let last = (*image as usize).saturating_add(*levels as usize);
+            if last > textures.images.len() || !(1..64).contains(levels) {
                 return Err(TextureCompileError::NoImage(*image));
             }
             let (f, projected) = mapping_ops(mapping, out, depth)?;
+            let filtering = (*filter as u32) << IMAGE_FILTER_SHIFT | levels << IMAGE_LEVELS_SHIFT;
             out.push(TexOp {
                 code: op::IMAGE,
                 a: *image,
-                b: *wrap as u32 | (*channel as u32) << 8 | (*invert as u32) << 16 | projected,
+                b: *wrap as u32 | (*channel as u32) << 8 | (*invert as u32) << 16 | projected | filtering,
                 c: scale.to_bits(),
                 f,
             })
@@ -524,25 +545,47 @@ fn rows_of(a: &glam::Affine3A) -> [[f32; 4]; 3] {
 }
 
 /// What the [`op::PROJECT`] at `ops[k]` pushes for the hit point
-/// `position`: `(s, t, 0)`, or the point itself for [`projection::POINT`].
-fn project(ops: &[TexOp], k: usize, position: Vec3) -> Vec3 {
+/// `position`: `(s, t, 0)`, or the point itself for [`projection::POINT`];
+/// and the derivatives of `(s, t)` in x and y over `footprint` (pbrt-v4's
+/// `TextureMapping2D::Map`; none for a point).
+fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (Vec3, [Vec2; 2]) {
+    use std::f32::consts::{PI, TAU};
     let row = |i: usize| glam::Vec4::from_array(ops[k + i].f);
     let p = position.extend(1.0);
     let q = Vec3::new(row(0).dot(p), row(1).dot(p), row(2).dot(p));
+    // The footprint in the texture's space.
+    let linear = |d: Vec3| Vec3::new(row(0).truncate().dot(d), row(1).truncate().dot(d), row(2).truncate().dot(d));
+    let (dqdx, dqdy) = (linear(footprint.dpdx), linear(footprint.dpdy));
+    let along = |dsdq: Vec3, dtdq: Vec3| {
+        [Vec2::new(dsdq.dot(dqdx), dtdq.dot(dqdx)), Vec2::new(dsdq.dot(dqdy), dtdq.dot(dqdy))]
+    };
+    let x2y2 = q.x * q.x + q.y * q.y;
     match ops[k].a {
         projection::SPHERICAL => {
             let d = q.normalize_or_zero();
             let theta = d.z.clamp(-1.0, 1.0).acos();
             let phi = d.y.atan2(d.x);
-            let phi = if phi < 0.0 { phi + std::f32::consts::TAU } else { phi };
-            Vec3::new(theta * std::f32::consts::FRAC_1_PI, phi / std::f32::consts::TAU, 0.0)
+            let phi = if phi < 0.0 { phi + TAU } else { phi };
+            let r = x2y2.sqrt();
+            let dsdq = Vec3::new(-q.y, q.x, 0.0) / (2.0 * PI * x2y2);
+            let dtdq = Vec3::new(q.x * q.z / r, q.y * q.z / r, -r) / (PI * (x2y2 + q.z * q.z));
+            // As pbrt-v4 has them (its `dsdp` is φ's; a footprint's width
+            // takes the largest of the four, whichever is whose).
+            (Vec3::new(theta * std::f32::consts::FRAC_1_PI, phi / TAU, 0.0), finite(along(dsdq, dtdq)))
         }
         projection::CYLINDRICAL => {
-            Vec3::new((std::f32::consts::PI + q.y.atan2(q.x)) / std::f32::consts::TAU, q.z, 0.0)
+            let dsdq = Vec3::new(-q.y, q.x, 0.0) / (2.0 * PI * x2y2);
+            let st = Vec3::new((PI + q.y.atan2(q.x)) / TAU, q.z, 0.0);
+            (st, finite(along(dsdq, Vec3::Z)))
         }
-        projection::POINT => q,
-        _ => Vec3::new(q.x, q.y, 0.0),
+        projection::POINT => (q, [Vec2::ZERO; 2]),
+        _ => (Vec3::new(q.x, q.y, 0.0), along(Vec3::X, Vec3::Y)),
     }
+}
+
+/// Derivatives with NaN or infinite parts (on a mapping's axis) as zero.
+fn finite(d: [Vec2; 2]) -> [Vec2; 2] {
+    d.map(|v| if v.is_finite() { v } else { Vec2::ZERO })
 }
 
 /// Where a textured parameter goes in the coefficients of a material kind
@@ -633,9 +676,11 @@ pub fn run_program(
     at: TexPoint,
     coeffs: &mut [f16; MATERIAL_COEFFS],
 ) -> Vec3 {
-    let TexPoint { uv, position, normal } = at;
+    let TexPoint { uv, position, normal, footprint } = at;
     let mut stack = [Vec3::ZERO; TEXTURE_STACK];
     let mut sp = 0usize;
+    // The (s, t) derivatives of the last projection (its consumer follows it).
+    let mut projected_derivatives = [Vec2::ZERO; 2];
     // An op's (s, t) before its own mapping: projected ones pop theirs.
     let coords = |o: &TexOp, stack: &[Vec3], sp: &mut usize| {
         if o.b & PROJECTED == 0 {
@@ -644,6 +689,14 @@ pub fn run_program(
         *sp -= 1;
         stack[*sp].truncate()
     };
+    // Their derivatives in x and y.
+    let derivatives = |o: &TexOp, projected: [Vec2; 2]| {
+        if o.b & PROJECTED == 0 {
+            [footprint.duvdx, footprint.duvdy]
+        } else {
+            projected
+        }
+    };
     for (k, o) in ops.iter().enumerate() {
         match o.code {
             op::CONSTANT => {
@@ -651,7 +704,7 @@ pub fn run_program(
                 sp += 1;
             }
             op::PROJECT => {
-                stack[sp] = project(ops, k, position);
+                (stack[sp], projected_derivatives) = project(ops, k, position, &footprint);
                 sp += 1;
             }
             op::NOISE => {
@@ -687,7 +740,7 @@ pub fn run_program(
             }
             op::IMAGE => {
                 let st = coords(o, &stack, &mut sp);
-                stack[sp] = image_lookup(o, images, st);
+                stack[sp] = image_lookup(o, images, st, derivatives(o, projected_derivatives));
                 sp += 1;
             }
             op::CHECKERBOARD => {
@@ -784,33 +837,46 @@ fn apply_mapping(f: [f32; 4], uv: Vec2) -> Vec2 {
     Vec2::new(f[0] * uv.x + f[2], f[1] * uv.y + f[3])
 }
 
-/// Bilinear lookup of an [`op::IMAGE`] op.
-fn image_lookup(o: &TexOp, images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
-    let image = &images[o.a as usize];
+/// An [`op::IMAGE`]'s lookup at `uv` (before its mapping), whose
+/// derivatives in x and y are `duv`: pbrt-v4's `MIPMap::Filter` for
+/// filtered images, bilinear in the image itself otherwise.
+fn image_lookup(o: &TexOp, images: &[Arc<TextureImage>], uv: Vec2, duv: [Vec2; 2]) -> Vec3 {
     let wrap = o.b & 0xff;
     let channel = (o.b >> 8) & 0xff;
     let invert = (o.b >> 16) & 1 != 0;
+    let filter = (o.b >> IMAGE_FILTER_SHIFT) & 0x7;
+    let levels = (o.b >> IMAGE_LEVELS_SHIFT) & 0x3f;
     let scale = f32::from_bits(o.c);
     let st = apply_mapping(o.f, uv);
-    let (w, h) = (image.width as i32, image.height as i32);
-    let x = st.x * w as f32 - 0.5;
-    let y = (1.0 - st.y) * h as f32 - 0.5;
-    let (xf, yf) = (x.floor(), y.floor());
-    let (dx, dy) = (x - xf, y - yf);
-    // Far outside the image every wrap mode is periodic or constant:
-    // clamping keeps the integer conversion in range.
-    let (x0, y0) = (xf.clamp(-1e8, 1e8) as i32, yf.clamp(-1e8, 1e8) as i32);
-    let texel = |x: i32, y: i32| -> [f32; 4] {
-        match (wrap_coord(x, w, wrap), wrap_coord(y, h, wrap)) {
-            (Some(x), Some(y)) => image.texel(x as u32, y as u32),
-            _ => [0.0; 4],
+    let [dx, dy] = duv.map(|d| Vec2::new(o.f[0] * d.x, o.f[1] * d.y));
+    let level = |l: u32| &*images[(o.a + l) as usize];
+    let px = match filter {
+        f if f == ImageFilter::None as u32 => bilerp(level(0), st, wrap),
+        _ => {
+            let width = 2.0 * dx.abs().max(dy.abs()).max_element();
+            let n = levels as f32;
+            let lod = n - 1.0 + width.max(1e-8).log2();
+            if lod >= n - 1.0 {
+                texel(level(levels - 1), 0, 0, wrap)
+            } else {
+                let i = lod.floor().max(0.0) as u32;
+                match filter {
+                    f if f == ImageFilter::Point as u32 => {
+                        let image = level(i);
+                        let x = (st.x * image.width as f32 - 0.5).round();
+                        let y = ((1.0 - st.y) * image.height as f32 - 0.5).round();
+                        texel(image, x.clamp(-1e8, 1e8) as i32, y.clamp(-1e8, 1e8) as i32, wrap)
+                    }
+                    f if f == ImageFilter::Bilinear as u32 || i == 0 => bilerp(level(i), st, wrap),
+                    _ => {
+                        let (a, b) = (bilerp(level(i), st, wrap), bilerp(level(i + 1), st, wrap));
+                        let t = lod - i as f32;
+                        std::array::from_fn(|c| (1.0 - t) * a[c] + t * b[c])
+                    }
+                }
+            }
         }
     };
-    let (t00, t10, t01, t11) = (texel(x0, y0), texel(x0 + 1, y0), texel(x0, y0 + 1), texel(x0 + 1, y0 + 1));
-    let mut px = [0f32; 4];
-    for c in 0..4 {
-        px[c] = ((1.0 - dx) * t00[c] + dx * t10[c]) * (1.0 - dy) + ((1.0 - dx) * t01[c] + dx * t11[c]) * dy;
-    }
     let v = channel_value(px, channel) * scale;
     if invert {
         (Vec3::ONE - v).max(Vec3::ZERO)
@@ -819,21 +885,36 @@ fn image_lookup(o: &TexOp, images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
     }
 }
 
+/// Texel `(x, y)` of `image` under wrap mode `wrap` (black outside for
+/// [`Wrap::Black`]).
+fn texel(image: &TextureImage, x: i32, y: i32, wrap: u32) -> [f32; 4] {
+    match (wrap_coord(x, image.width as i32, wrap), wrap_coord(y, image.height as i32, wrap)) {
+        (Some(x), Some(y)) => image.texel(x as u32, y as u32),
+        _ => [0.0; 4],
+    }
+}
+
+/// Bilinear lookup of `image` at `st`, pbrt-v4's texel addressing.
+fn bilerp(image: &TextureImage, st: Vec2, wrap: u32) -> [f32; 4] {
+    let (w, h) = (image.width as i32, image.height as i32);
+    let x = st.x * w as f32 - 0.5;
+    let y = (1.0 - st.y) * h as f32 - 0.5;
+    let (xf, yf) = (x.floor(), y.floor());
+    let (dx, dy) = (x - xf, y - yf);
+    // Far outside the image every wrap mode is periodic or constant:
+    // clamping keeps the integer conversion in range.
+    let (x0, y0) = (xf.clamp(-1e8, 1e8) as i32, yf.clamp(-1e8, 1e8) as i32);
+    let t = |x, y| texel(image, x, y, wrap);
+    let (t00, t10, t01, t11) = (t(x0, y0), t(x0 + 1, y0), t(x0, y0 + 1), t(x0 + 1, y0 + 1));
+    std::array::from_fn(|c| {
+        ((1.0 - dx) * t00[c] + dx * t10[c]) * (1.0 - dy) + ((1.0 - dx) * t01[c] + dx * t11[c]) * dy
+    })
+}
+
 /// The texel a coordinate addresses under a wrap mode; `None`: black.
 #[inline]
 fn wrap_coord(i: i32, n: i32, wrap: u32) -> Option<i32> {
-    if (0..n).contains(&i) {
-        return Some(i);
-    }
-    match wrap {
-        w if w == Wrap::Clamp as u32 => Some(i.clamp(0, n - 1)),
-        w if w == Wrap::Black as u32 => None,
-        w if w == Wrap::Mirror as u32 => {
-            let period = i.rem_euclid(2 * n);
-            Some(if period < n { period } else { 2 * n - 1 - period })
-        }
-        _ => Some(i.rem_euclid(n)),
-    }
+    Wrap::texel_of(wrap, i as i64, n as i64).map(|i| i as i32)
 }
 
 fn channel_value(px: [f32; 4], channel: u32) -> Vec3 {
@@ -909,7 +990,9 @@ impl SceneTextures<'_> {
         }
         let ops = self.ops(bend.program);
         crate::bump::bent_normal(bend.kind, surface, |uv, p| {
-            let at = TexPoint { uv, position: p, normal: surface.ng };
+            // pbrt-v4 bumps with the hit's footprint; not yet here (the
+            // finest level, and its fixed step).
+            let at = TexPoint { uv, position: p, normal: surface.ng, footprint: Footprint::default() };
             run_program(ops, &self.scene.textures.images, at, &mut [f16::ZERO; MATERIAL_COEFFS])
         })
     }
@@ -939,7 +1022,8 @@ impl HitFilter for SceneTextures<'_> {
         // The point where traversal sees the hit: world space, except inside
         // instances (object space there; pbrt's 3D mappings take the world's).
         // No normal: a `directionmix` in an alpha mask takes its second texture.
-        let at = TexPoint { uv, position: Vec3::from(origin + dir * t), normal: Vec3::ZERO };
+        // No footprint either: pbrt-v4 tests alpha at the finest level.
+        let at = TexPoint { uv, position: Vec3::from(origin + dir * t), ..Default::default() };
         let alpha = run_program(self.ops(program.program), &self.scene.textures.images, at, &mut scratch).x;
         alpha_keeps(program, alpha, origin, dir, t)
     }
@@ -957,7 +1041,7 @@ mod tests {
         let (f, flag) = mapping_ops(&mapping, &mut ops, 0).unwrap();
         assert_eq!((f, flag, ops.len()), ([1.0, 1.0, 0.0, 0.0], PROJECTED, 3));
         assert_eq!(ops.iter().map(|o| o.code).collect::<Vec<_>>(), [op::PROJECT, op::DATA, op::DATA]);
-        project(&ops, 0, position).truncate()
+        project(&ops, 0, position, &Footprint::default()).0.truncate()
     }
 
     /// pbrt-v4's spherical, cylindrical and planar mappings, in the
@@ -1069,6 +1153,50 @@ mod tests {
 
     fn eval(ops: &[TexOp], images: &[Arc<TextureImage>], uv: Vec2) -> Vec3 {
         run_program(ops, images, TexPoint::uv(uv), &mut [f16::ZERO; MATERIAL_COEFFS])
+    }
+
+    /// A filtered image picks the MIP level pbrt-v4 picks for the
+    /// footprint: `n - 1 + log2(2 · widest derivative)` for an image of `n`
+    /// levels, the coarsest past the last, blended between two for
+    /// trilinear filtering.
+    #[test]
+    fn footprints_pick_mip_levels_as_pbrt() {
+        // An 8×8 image of x + 10 y: levels 8, 4, 2 and 1 texels wide.
+        let base = image((0..64).map(|i| [(i % 8) as f32 + 10.0 * (i / 8) as f32, 0.0, 0.0, 1.0]).collect(), 8, 8);
+        let mut textures = atoll_scene::Textures::default();
+        let (first, levels) = textures.add_pyramid(&base, Wrap::Repeat);
+        assert_eq!((first, levels), (0, 4));
+        let images = textures.images;
+        let op = |filter: ImageFilter| TexOp {
+            b: image_op(Wrap::Repeat, Channel::Red, 1.0, false).b
+                | (filter as u32) << IMAGE_FILTER_SHIFT
+                | levels << IMAGE_LEVELS_SHIFT,
+            ..image_op(Wrap::Repeat, Channel::Red, 1.0, false)
+        };
+        let uv = Vec2::new(0.3, 0.6);
+        let at = |d: f32| TexPoint {
+            uv,
+            footprint: Footprint { duvdx: Vec2::new(d, 0.0), duvdy: Vec2::new(0.0, d / 2.0), ..Default::default() },
+            ..Default::default()
+        };
+        let run = |f: ImageFilter, d: f32| {
+            run_program(&[op(f)], &images, at(d), &mut [f16::ZERO; MATERIAL_COEFFS]).x
+        };
+        let level = |l: usize, uv: Vec2| bilerp(&images[l], uv, Wrap::Repeat as u32)[0];
+        // Width 2/16 = 1/8: level 3 + log2(1/8) = 0; 1/4: level 1.
+        assert_eq!(run(ImageFilter::Bilinear, 1.0 / 16.0), level(0, uv));
+        assert_eq!(run(ImageFilter::Bilinear, 1.0 / 8.0), level(1, uv));
+        // Past the last level: the one texel, the image's mean.
+        assert_eq!(run(ImageFilter::Bilinear, 0.5), 38.5);
+        // Trilinear: a third of the way from level 1 to 2.
+        let d = 2f32.powf(1.0 / 3.0) / 8.0;
+        let blend = level(1, uv) + (level(2, uv) - level(1, uv)) * (1.0 / 3.0);
+        assert!((run(ImageFilter::Trilinear, d) - blend).abs() < 1e-4);
+        // No footprint, or no filter: the finest level, bilinearly.
+        assert_eq!(run(ImageFilter::Trilinear, 0.0), level(0, uv));
+        assert_eq!(eval(&[image_op(Wrap::Repeat, Channel::Red, 1.0, false)], &images, uv).x, level(0, uv));
+        // Point: level 1's nearest texel (x 1, row 1 from the top).
+        assert_eq!(run(ImageFilter::Point, 1.0 / 8.0), images[1].texel(1, 1)[0]);
     }
 
     /// Texel centres return the texel; halfway between two, their mean;

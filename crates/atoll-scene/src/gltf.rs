@@ -700,7 +700,16 @@ pub fn convert_material(m: &::gltf::Material) -> Material {
 
 /// An image texture node with no inversion.
 fn image_node(image: ImageId, mapping: UvMapping, wrap: Wrap, channel: Channel, scale: f32) -> Texture {
-    Texture::Image { image, mapping: mapping.into(), wrap, channel, scale, invert: false }
+    Texture::Image {
+        image,
+        mapping: mapping.into(),
+        wrap,
+        channel,
+        scale,
+        invert: false,
+        filter: crate::ImageFilter::None,
+        levels: 1,
+    }
 }
 
 fn wrap_mode(m: ::gltf::texture::WrappingMode) -> Wrap {

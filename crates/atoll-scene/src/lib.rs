@@ -24,6 +24,7 @@ pub mod material;
 pub mod measured;
 pub mod medium;
 pub mod mesh;
+pub mod mipmap;
 pub mod motion;
 pub mod obj;
 pub mod off;
@@ -58,7 +59,7 @@ pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use motion::{Decomposed, Motion};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{
-    AlphaMode, Channel, ColorEncoding, ImageCache, ImageId, ImageLoadError, MeshAlpha, Noise, TexInput,
+    AlphaMode, Channel, ColorEncoding, ImageCache, ImageFilter, ImageId, ImageLoadError, MeshAlpha, Noise, TexInput,
     TexMapping, Texels, Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping,
     Wrap,
 };

@@ -364,6 +364,8 @@ impl MapSpec {
             channel,
             scale: 1.0,
             invert: false,
+            filter: crate::ImageFilter::None,
+            levels: 1,
         }
     }
 }

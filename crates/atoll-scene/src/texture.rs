@@ -9,6 +9,7 @@
 //! (`atoll_render::texture`) flattens these trees into one program that the
 //! CPU and the GPU both run.
 
+use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
@@ -301,10 +302,15 @@ impl TextureImage {
 
 /// Decodes each image file once per scene (per encoding), whichever
 /// textures and loaders name it: keyed by canonical path and encoding.
-/// Failures are remembered too, so a missing file is looked for once.
+/// Failures are remembered too, so a missing file is looked for once. An
+/// image is added to the scene once as it is and once per wrap mode as a
+/// MIP pyramid ([`crate::mipmap`]), as textures ask.
 #[derive(Debug, Default)]
 pub struct ImageCache {
-    loaded: std::collections::HashMap<(std::path::PathBuf, (u8, u32)), Result<ImageId, ImageLoadError>>,
+    decoded: HashMap<(PathBuf, (u8, u32)), Result<Arc<TextureImage>, ImageLoadError>>,
+    /// Added images: the first and how many (a pyramid's levels), by file,
+    /// encoding and the pyramid's wrap mode (`None`: the image as it is).
+    added: HashMap<(PathBuf, (u8, u32), Option<Wrap>), (ImageId, u32)>,
 }
 
 impl ImageCache {
@@ -315,14 +321,32 @@ impl ImageCache {
         path: &Path,
         encoding: ColorEncoding,
     ) -> Result<ImageId, ImageLoadError> {
+        self.load_levels(textures, path, encoding, None).map(|(first, _)| first)
+    }
+
+    /// The image of `path` in `textures` as it is (`pyramid_wrap` `None`),
+    /// or its MIP pyramid under that wrap mode: the first image and how
+    /// many follow it.
+    pub fn load_levels(
+        &mut self,
+        textures: &mut Textures,
+        path: &Path,
+        encoding: ColorEncoding,
+        pyramid_wrap: Option<Wrap>,
+    ) -> Result<(ImageId, u32), ImageLoadError> {
         // A path that does not resolve is its own key; decoding then reports why.
         let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
-        self.loaded
-            .entry((canonical, encoding.key()))
-            .or_insert_with(|| {
-                TextureImage::decode_encoded(path, encoding).map(|image| textures.add_image(image))
-            })
-            .clone()
+        let key = (canonical, encoding.key());
+        let decoded = self
+            .decoded
+            .entry(key.clone())
+            .or_insert_with(|| TextureImage::decode_encoded(path, encoding).map(Arc::new))
+            .clone()?;
+        let added = self.added.entry((key.0, key.1, pyramid_wrap)).or_insert_with(|| match pyramid_wrap {
+            None => (textures.add_shared_image(decoded), 1),
+            Some(wrap) => textures.add_pyramid(&decoded, wrap),
+        });
+        Ok(*added)
     }
 }
 
@@ -337,7 +361,7 @@ fn srgb8_to_linear_f32(c: f32) -> f32 {
 
 /// What an image lookup outside [0, 1) does (pbrt-v4's `wrap`; glTF's
 /// samplers add mirrored repeat).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[repr(u32)]
 pub enum Wrap {
     #[default]
@@ -349,6 +373,35 @@ pub enum Wrap {
 }
 
 impl Wrap {
+    /// The texel that coordinate `i` of a side of `n` texels addresses;
+    /// `None`: black.
+    #[inline]
+    pub fn texel(self, i: i64, n: i64) -> Option<i64> {
+        if (0..n).contains(&i) {
+            return Some(i);
+        }
+        match self {
+            Wrap::Clamp => Some(i.clamp(0, n - 1)),
+            Wrap::Black => None,
+            Wrap::Mirror => {
+                let period = i.rem_euclid(2 * n);
+                Some(if period < n { period } else { 2 * n - 1 - period })
+            }
+            Wrap::Repeat => Some(i.rem_euclid(n)),
+        }
+    }
+
+    /// [`Wrap::texel`] for a mode given as its number (the texture
+    /// programs'); unknown numbers repeat.
+    #[inline]
+    pub fn texel_of(mode: u32, i: i64, n: i64) -> Option<i64> {
+        let wrap = [Wrap::Repeat, Wrap::Clamp, Wrap::Black, Wrap::Mirror]
+            .into_iter()
+            .find(|w| *w as u32 == mode)
+            .unwrap_or(Wrap::Repeat);
+        wrap.texel(i, n)
+    }
+
     /// pbrt-v4's names (`octahedralsphere` is not supported).
     pub fn parse(s: &str) -> Option<Wrap> {
         Some(match s {
@@ -356,6 +409,39 @@ impl Wrap {
             "clamp" => Wrap::Clamp,
             "black" => Wrap::Black,
             "mirror" => Wrap::Mirror,
+            _ => return None,
+        })
+    }
+}
+
+/// pbrt-v4's image texture `filter`: how a lookup averages the texels a
+/// pixel's footprint covers, through the image's MIP pyramid.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[repr(u32)]
+pub enum ImageFilter {
+    /// The image itself, bilinearly, whatever the footprint: area lights'
+    /// images and normal maps, which pbrt-v4 reads so, and the textures of
+    /// glTF and OBJ files.
+    #[default]
+    None = 0,
+    /// The nearest texel of the level the footprint picks.
+    Point = 1,
+    /// Bilinear in the level the footprint picks (pbrt-v4's default).
+    Bilinear = 2,
+    /// Bilinear in the two levels about the footprint, blended.
+    Trilinear = 3,
+    /// pbrt-v4's elliptically weighted average (filtered trilinearly here).
+    Ewa = 4,
+}
+
+impl ImageFilter {
+    /// pbrt-v4's names.
+    pub fn parse(s: &str) -> Option<ImageFilter> {
+        Some(match s {
+            "point" => ImageFilter::Point,
+            "bilinear" => ImageFilter::Bilinear,
+            "trilinear" => ImageFilter::Trilinear,
+            "ewa" | "EWA" => ImageFilter::Ewa,
             _ => return None,
         })
     }
@@ -458,8 +544,10 @@ pub enum TexInput {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Texture {
     Constant(Rgb),
-    /// `v = scale * lookup(image, mapping(uv))`, bilinearly filtered, then
-    /// `max(0, 1 - v)` when `invert` (pbrt-v4's order).
+    /// `v = scale * lookup(image, mapping(uv))`, then `max(0, 1 - v)` when
+    /// `invert` (pbrt-v4's order). The lookup is bilinear in `image` for
+    /// [`ImageFilter::None`]; otherwise `image` is the first of `levels`
+    /// MIP levels that `filter` picks from by the hit's footprint.
     Image {
         image: ImageId,
         mapping: TexMapping,
@@ -467,6 +555,8 @@ pub enum Texture {
         channel: Channel,
         scale: f32,
         invert: bool,
+        filter: ImageFilter,
+        levels: u32,
     },
     /// `tex[0]` where `floor(s) + floor(t)` is even, else `tex[1]`.
     Checkerboard {
@@ -654,8 +744,25 @@ pub struct Textures {
 
 impl Textures {
     pub fn add_image(&mut self, image: TextureImage) -> ImageId {
-        self.images.push(Arc::new(image));
+        self.add_shared_image(Arc::new(image))
+    }
+
+    pub fn add_shared_image(&mut self, image: Arc<TextureImage>) -> ImageId {
+        self.images.push(image);
         (self.images.len() - 1) as ImageId
+    }
+
+    /// Adds `image`'s MIP pyramid under `wrap` ([`crate::mipmap`]): its
+    /// first level and how many there are (consecutive). A level equal to
+    /// the image (sides that are powers of two) shares its texels.
+    pub fn add_pyramid(&mut self, image: &Arc<TextureImage>, wrap: Wrap) -> (ImageId, u32) {
+        let levels = crate::mipmap::pyramid(image, wrap);
+        let first = self.images.len() as ImageId;
+        for (i, level) in levels.into_iter().enumerate() {
+            let same = i == 0 && level.width == image.width && level.height == image.height;
+            self.images.push(if same { image.clone() } else { Arc::new(level) });
+        }
+        (first, self.images.len() as u32 - first)
     }
 
     pub fn add(&mut self, texture: Texture) -> TextureId {

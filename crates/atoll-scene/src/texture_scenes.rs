@@ -94,6 +94,8 @@ pub fn cutout_scene(screen: Screen, eye: Vec3) -> Scene {
                 channel: Channel::Alpha,
                 scale: 1.0,
                 invert: false,
+                filter: crate::ImageFilter::None,
+                levels: 1,
             });
             let mut q = quad(-EXTENT, EXTENT, -EXTENT, EXTENT, SCREEN_HEIGHT, screen_material);
             q.alpha = Some(MeshAlpha { texture: mask, mode: AlphaMode::Cutoff(0.5) });
@@ -196,6 +198,8 @@ pub fn bent_plane_scene(bend: Bend) -> Scene {
             channel: Channel::Rgb,
             scale: 1.0,
             invert: false,
+            filter: crate::ImageFilter::None,
+            levels: 1,
         })
     };
     let bound = |scene: &mut Scene, param, texture| {

@@ -332,25 +332,33 @@ fn write_hit(
     };
     r.emission_scale =
         if r.light != NO_LIGHT { frame.lights.emission_scale(r.light, hit.u, hit.v) } else { 0 };
-    let at = || TexPoint { uv, position: p, normal: ng };
-    let (material, packed) = frame.material_at(mesh.material, r, at);
-    packed.store(r);
-    r.set_hit_media(mesh.media);
-    if !frame.textures.materials[material as usize].is_empty() {
-        textures.apply(material, at(), &mut r.coeffs);
-    }
-    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y));
-    // The partial derivatives, for a bump or normal map and for the BSDF
-    // frame's tangent.
-    let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;
-    if bends || wants_tangent(packed.kind, &r.coeffs) {
-        let (dpdu, dpdv) = match partials {
+    // The partial derivatives, for a texture's footprint, a bump or normal
+    // map and the BSDF frame's tangent; made once, when first needed.
+    let mut partials_once = None;
+    let mut partials = || {
+        *partials_once.get_or_insert_with(|| match partials {
             Partials::Known(dpdu, dpdv) => (dpdu, dpdv),
             Partials::Triangle(corners, to_world) => {
                 let world = corners.map(|c| to_world.transform_point3(c));
                 crate::bump::triangle_partials(world, textures.corner_uvs(hit.mesh, hit.triangle), ng)
             }
-        };
+        })
+    };
+    let at = || TexPoint { uv, position: p, normal: ng, ..Default::default() };
+    let (material, packed) = frame.material_at(mesh.material, r, at);
+    packed.store(r);
+    r.set_hit_media(mesh.media);
+    if !frame.textures.materials[material as usize].is_empty() {
+        let (dpdx, dpdy) = frame.footprint.dp_dxy(p, ng);
+        let (dpdu, dpdv) = partials();
+        let (duvdx, duvdy) = crate::footprint::uv_footprint(dpdx, dpdy, dpdu, dpdv);
+        let footprint = crate::texture::Footprint { dpdx, dpdy, duvdx, duvdy };
+        textures.apply(material, TexPoint { footprint, ..at() }, &mut r.coeffs);
+    }
+    store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y));
+    let bends = frame.textures.shading_normals[material as usize].kind != crate::bump::kind::NONE;
+    if bends || wants_tangent(packed.kind, &r.coeffs) {
+        let (dpdu, dpdv) = partials();
         let interpolated = surface.interpolated;
         let at = crate::bump::SurfaceAt { position: p, uv, ng, ns, dpdu, dpdv, interpolated };
         let bent = textures.shading_geometry(material, &at);

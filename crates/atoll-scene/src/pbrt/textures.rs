@@ -3,7 +3,7 @@
 //!
 //! | class | parameters (default) |
 //! |---|---|
-//! | `imagemap` | `filename`, `wrap` (repeat), `scale` (1), `invert` (false), `encoding` (sRGB for 8-bit files; pbrt-v3: `bool gamma`); `filter`, `maxanisotropy`, `trilinear` ignored (atoll filters bilinearly) |
+//! | `imagemap` | `filename`, `wrap` (repeat), `scale` (1), `invert` (false), `encoding` (sRGB for 8-bit files; pbrt-v3: `bool gamma`), `filter` (bilinear; pbrt-v3: `bool trilinear`, false meaning EWA): a MIP pyramid the hit's footprint picks levels from, EWA filtered trilinearly; `maxanisotropy` ignored |
 //! | `checkerboard` | `tex1` (1), `tex2` (0); `dimension` 2 (a 2D mapping) or 3 (the point in the texture's space) |
 //! | `bilerp` | `v00` (0), `v01` (1), `v10` (0), `v11` (1) over a 2D mapping |
 //! | `constant` | `value` (1) |
@@ -38,7 +38,7 @@ use std::path::Path;
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    ColorEncoding, ImageCache, ImageLoadError, Noise, Rgb, TexInput, TexMapping, Texture, TextureId,
+    ColorEncoding, ImageCache, ImageFilter, ImageLoadError, Noise, Rgb, TexInput, TexMapping, Texture, TextureId,
     TexturedParam, Textures, UvMapping, Wrap,
 };
 
@@ -252,10 +252,23 @@ impl NamedTextures {
         loc: &FileLoc,
         w: &mut WarningSink,
     ) -> Result<Result<Texture, String>, SceneError> {
-        // Filtering is bilinear whatever is asked: no warning for the hints.
-        p.find("filter", &[ParamType::String]);
+        // pbrt-v4's `filter`; pbrt-v3 asked for trilinear filtering with a
+        // bool (its other filter was EWA).
+        let filter = match (p.string("filter")?, p.bool("trilinear")?) {
+            (Some(f), _) => ImageFilter::parse(&f).ok_or_else(|| {
+                SceneError::at(
+                    loc,
+                    format!("{what}: unknown filter \"{f}\" (expected point, bilinear, trilinear or ewa)"),
+                )
+            })?,
+            (None, Some(true)) => ImageFilter::Trilinear,
+            (None, Some(false)) => ImageFilter::Ewa,
+            (None, None) => ImageFilter::Bilinear,
+        };
+        if filter == ImageFilter::Ewa {
+            w.warn(loc, format!("{what}: filter \"ewa\" is approximated by trilinear filtering (pbrt-v4's EWA is sharper along the footprint's short axis)"));
+        }
         p.find("maxanisotropy", &[ParamType::Float]);
-        p.find("trilinear", &[ParamType::Bool]);
         let wrap = match p.string("wrap")? {
             None => Wrap::Repeat,
             Some(s) if s == "octahedralsphere" => {
@@ -291,8 +304,8 @@ impl NamedTextures {
         };
         let image = crate::input::beside(site.base_dir, &file)
             .map_err(ImageLoadError::io(Path::new(&file)))
-            .and_then(|path| self.images.load(store, &path, encoding));
-        let image = match image {
+            .and_then(|path| self.images.load_levels(store, &path, encoding, Some(wrap)));
+        let (image, levels) = match image {
             Ok(id) => id,
             Err(e) => {
                 super::missing_file(loc, what, e.clone())?;
@@ -303,7 +316,7 @@ impl NamedTextures {
             TexKind::Float => crate::Channel::Average,
             TexKind::Spectrum => crate::Channel::Rgb,
         };
-        Ok(Ok(Texture::Image { image, mapping, wrap, channel, scale, invert }))
+        Ok(Ok(Texture::Image { image, mapping, wrap, channel, scale, invert, filter, levels }))
     }
 
     /// An area light's `filename`: the image as an RGB texture (sRGB for
@@ -347,6 +360,8 @@ impl NamedTextures {
             channel: crate::Channel::Rgb,
             scale: 1.0,
             invert: false,
+            filter: ImageFilter::None,
+            levels: 1,
         }))
     }
 
