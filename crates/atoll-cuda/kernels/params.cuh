@@ -66,6 +66,19 @@ struct FilterTable {
     float cdf[2 * FILTER_BINS];
 };
 
+/// Mirror of `params::GpuFootprint` (144 bytes): the camera's smallest
+/// one-pixel differentials (`atoll_render::footprint::CameraFootprint`),
+/// matrices row-major, x's then y's.
+struct GpuFootprint {
+    float camera_position[3];
+    float spp_scale;
+    float camera_from_world[9];
+    float world_from_camera[9];
+    float min_position[6];
+    float min_direction[6];
+    float pad[2];
+};
+
 /// Mirror of `params::GpuMedium`: a medium's coefficients (a grid's field
 /// scales), its grid's place (`grid_first` NO_GRID: the same coefficients
 /// everywhere) and where its fields come from (GRID_FIELD_CONSTANT, a
@@ -154,6 +167,8 @@ struct FrameParams {
     GpuMedium media[MEDIA_SLOTS];
     /// A moving camera's camera-to-world motion.
     GpuMotion camera_motion;
+    /// What textures need to estimate a hit's footprint (footprint.cuh).
+    GpuFootprint footprint;
 };
 
 /// Mirror of `params::SceneView`: device pointers of the GPU scene tables
@@ -267,7 +282,17 @@ static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(Gp
 static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2704, "FrameParams: size differs from Rust");
+static_assert(sizeof(GpuFootprint) == 144, "GpuFootprint: size differs from Rust");
+#ifdef ATOLL_CHECK_LAYOUT
+static_assert(__builtin_offsetof(GpuFootprint, camera_position) == 0 && sizeof(GpuFootprint::camera_position) == 12, "GpuFootprint.camera_position: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, spp_scale) == 12 && sizeof(GpuFootprint::spp_scale) == 4, "GpuFootprint.spp_scale: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, camera_from_world) == 16 && sizeof(GpuFootprint::camera_from_world) == 36, "GpuFootprint.camera_from_world: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, world_from_camera) == 52 && sizeof(GpuFootprint::world_from_camera) == 36, "GpuFootprint.world_from_camera: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, min_position) == 88 && sizeof(GpuFootprint::min_position) == 24, "GpuFootprint.min_position: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, min_direction) == 112 && sizeof(GpuFootprint::min_direction) == 24, "GpuFootprint.min_direction: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuFootprint, pad) == 136 && sizeof(GpuFootprint::pad) == 8, "GpuFootprint.pad: offset or size differs from Rust");
+#endif
+static_assert(sizeof(FrameParams) == 2848, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -317,6 +342,7 @@ static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FramePa
 static_assert(__builtin_offsetof(FrameParams, lens) == 600 && sizeof(FrameParams::lens) == 8, "FrameParams.lens: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, camera_motion) == 2528 && sizeof(FrameParams::camera_motion) == 176, "FrameParams.camera_motion: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, footprint) == 2704 && sizeof(FrameParams::footprint) == 144, "FrameParams.footprint: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 96, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

@@ -216,6 +216,21 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
             meta = mw[2];
         }
     }
+    // The surface's partial derivatives (world space), for a texture's
+    // footprint, a bump or normal map and the BSDF frame's tangent.
+    const auto partials = [&](float3* dpdu, float3* dpdv) {
+        *dpdu = curve_dpdu;
+        *dpdv = curve_dpdv;
+        if (curve) return;
+        float2 uv0 = make_float2(0.0f, 0.0f), uv1 = make_float2(1.0f, 0.0f), uv2 = make_float2(1.0f, 1.0f);
+        if (mesh.flags & MESH_HAS_UVS) {
+            uv0 = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
+            uv1 = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
+            uv2 = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
+        }
+        triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
+                          affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, dpdu, dpdv);
+    };
     // Textured parameters (texture.cuh): a non-mix material's program
     // range is in meta.y (start) and meta.z (length).
     if (ATOLL_WITH_TEXTURES && meta.z != 0u) {
@@ -226,7 +241,10 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
         ProgramRange range;
         range.start = meta.y;
         range.len = meta.z;
-        run_program(p, range, uv, position, ng, coeffs);
+        float3 dpdu, dpdv;
+        partials(&dpdu, &dpdv);
+        const TexFootprint fp = hit_footprint(p.footprint, position, ng, dpdu, dpdv);
+        run_program(p, range, uv, position, ng, coeffs, &fp);
         c0 = cw[0];
         c1 = cw[1];
     }
@@ -240,16 +258,8 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
     const bool bends = ATOLL_WITH_TEXTURES && meta.x != MATERIAL_MIX && meta.w != 0u;
     const int tangent_slot = wanted_tangent_slot(meta.x, c0, c1);
     if (bends || tangent_slot >= 0) {
-        float2 uv0 = make_float2(0.0f, 0.0f), uv1 = make_float2(1.0f, 0.0f), uv2 = make_float2(1.0f, 1.0f);
-        if (mesh.flags & MESH_HAS_UVS) {
-            uv0 = make_float2(s.uvs[2ull * i0], s.uvs[2ull * i0 + 1]);
-            uv1 = make_float2(s.uvs[2ull * i1], s.uvs[2ull * i1 + 1]);
-            uv2 = make_float2(s.uvs[2ull * i2], s.uvs[2ull * i2 + 1]);
-        }
-        float3 dpdu = curve_dpdu, dpdv = curve_dpdv;
-        if (!curve)
-            triangle_partials(affine_point(instance.object_to_world, p0), affine_point(instance.object_to_world, p1),
-                              affine_point(instance.object_to_world, p2), uv0, uv1, uv2, ng, &dpdu, &dpdv);
+        float3 dpdu, dpdv;
+        partials(&dpdu, &dpdv);
         if (bends) {
             ProgramRange range;
             range.start = (meta.w >> 8) & 0x3fffffu;

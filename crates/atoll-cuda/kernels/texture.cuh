@@ -3,6 +3,8 @@
 // textured hit gets the same coefficients on every device.
 #pragma once
 
+#include "footprint.cuh"
+
 #include "access_count.cuh"
 #include "common.cuh"
 #include "layout.cuh"
@@ -76,6 +78,11 @@ inline constexpr unsigned int CHANNEL_ALPHA = 2u;
 inline constexpr unsigned int CHANNEL_RED = 3u;
 inline constexpr unsigned int CHANNEL_GREEN = 4u;
 inline constexpr unsigned int CHANNEL_BLUE = 5u;
+inline constexpr unsigned int IMAGE_FILTER_SHIFT = 17u;
+inline constexpr unsigned int IMAGE_LEVELS_SHIFT = 25u;
+inline constexpr unsigned int FILTER_NONE = 0u;
+inline constexpr unsigned int FILTER_POINT = 1u;
+inline constexpr unsigned int FILTER_BILINEAR = 2u;
 inline constexpr float BUMP_STEP = 0.0005f;
 inline constexpr float EUMELANIN_SIGMA_A_R = 0.419f;
 inline constexpr float EUMELANIN_SIGMA_A_G = 0.697f;
@@ -180,14 +187,8 @@ __device__ __forceinline__ float3 max0(float3 v) {
     return make_float3(fmaxf(v.x, 0.0f), fmaxf(v.y, 0.0f), fmaxf(v.z, 0.0f));
 }
 
-/// `texture::image_lookup`: bilinear, pbrt-v4 texel addressing.
-__device__ float3 image_lookup(const FrameParams& p, const TexOp& o, float2 uv) {
-    count_access(p.images + o.a);
-    const GpuImage img = p.images[o.a];
-    const unsigned int wrap = o.b & 0xffu, channel = (o.b >> 8) & 0xffu;
-    const bool invert = ((o.b >> 16) & 1u) != 0u;
-    const float scale = __uint_as_float(o.c);
-    const float2 st = apply_mapping(o, uv);
+/// `texture::bilerp`: image `img` at `st`, pbrt-v4 texel addressing.
+__device__ float4 bilerp_image(const FrameParams& p, const GpuImage& img, float2 st, unsigned int wrap) {
     const float x = st.x * (float)img.width - 0.5f;
     const float y = (1.0f - st.y) * (float)img.height - 0.5f;
     const float xf = floorf(x), yf = floorf(y);
@@ -196,12 +197,59 @@ __device__ float3 image_lookup(const FrameParams& p, const TexOp& o, float2 uv) 
     const float4 t00 = wrapped_texel(p, img, x0, y0, wrap), t10 = wrapped_texel(p, img, x0 + 1, y0, wrap);
     const float4 t01 = wrapped_texel(p, img, x0, y0 + 1, wrap),
                  t11 = wrapped_texel(p, img, x0 + 1, y0 + 1, wrap);
-    float px[4];
     const float a00[4] = {t00.x, t00.y, t00.z, t00.w}, a10[4] = {t10.x, t10.y, t10.z, t10.w};
     const float a01[4] = {t01.x, t01.y, t01.z, t01.w}, a11[4] = {t11.x, t11.y, t11.z, t11.w};
+    float px[4];
 #pragma unroll
     for (int c = 0; c < 4; ++c)
         px[c] = ((1.0f - dx) * a00[c] + dx * a10[c]) * (1.0f - dy) + ((1.0f - dx) * a01[c] + dx * a11[c]) * dy;
+    return make_float4(px[0], px[1], px[2], px[3]);
+}
+
+/// Image `o.a + level` of an IMAGE op.
+__device__ __forceinline__ GpuImage image_level(const FrameParams& p, const TexOp& o, unsigned int level) {
+    count_access(p.images + o.a + level);
+    return p.images[o.a + level];
+}
+
+/// `texture::image_lookup`: pbrt-v4's `MIPMap::Filter` over the op's MIP
+/// levels by the derivatives `dx`, `dy` of `uv` (before its mapping), or
+/// bilinear in the image itself.
+__device__ float3 image_lookup(const FrameParams& p, const TexOp& o, float2 uv, float2 dx, float2 dy) {
+    const unsigned int wrap = o.b & 0xffu, channel = (o.b >> 8) & 0xffu;
+    const bool invert = ((o.b >> 16) & 1u) != 0u;
+    const unsigned int filter = (o.b >> IMAGE_FILTER_SHIFT) & 0x7u, levels = (o.b >> IMAGE_LEVELS_SHIFT) & 0x3fu;
+    const float scale = __uint_as_float(o.c);
+    const float2 st = apply_mapping(o, uv);
+    float4 t;
+    if (filter == FILTER_NONE) {
+        t = bilerp_image(p, image_level(p, o, 0), st, wrap);
+    } else {
+        const float w = 2.0f * fmaxf(fmaxf(fabsf(o.f[0] * dx.x), fabsf(o.f[1] * dx.y)),
+                                     fmaxf(fabsf(o.f[0] * dy.x), fabsf(o.f[1] * dy.y)));
+        const float n = (float)levels;
+        const float lod = n - 1.0f + log2f(fmaxf(w, 1e-8f));
+        if (lod >= n - 1.0f) {
+            t = wrapped_texel(p, image_level(p, o, levels - 1), 0, 0, wrap);
+        } else {
+            const unsigned int i = (unsigned int)fmaxf(floorf(lod), 0.0f);
+            const GpuImage img = image_level(p, o, i);
+            if (filter == FILTER_POINT) {
+                const float x = rintf(st.x * (float)img.width - 0.5f);
+                const float y = rintf((1.0f - st.y) * (float)img.height - 0.5f);
+                t = wrapped_texel(p, img, (int)clampf(x, -1e8f, 1e8f), (int)clampf(y, -1e8f, 1e8f), wrap);
+            } else if (filter == FILTER_BILINEAR || i == 0u) {
+                t = bilerp_image(p, img, st, wrap);
+            } else {
+                const float4 a = bilerp_image(p, img, st, wrap);
+                const float4 b = bilerp_image(p, image_level(p, o, i + 1), st, wrap);
+                const float f = lod - (float)i;
+                t = make_float4((1.0f - f) * a.x + f * b.x, (1.0f - f) * a.y + f * b.y, (1.0f - f) * a.z + f * b.z,
+                                (1.0f - f) * a.w + f * b.w);
+            }
+        }
+    }
+    const float px[4] = {t.x, t.y, t.z, t.w};
     float3 v;
     if (channel == CHANNEL_AVERAGE) {
         const float m = (px[0] + px[1] + px[2]) * (1.0f / 3.0f);
@@ -290,43 +338,78 @@ __device__ __forceinline__ bool odd_cell(float sum) {
 
 /// `texture::project`: (s, t, 0) of the hit point `position` under the
 /// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops
-/// after), or the point itself for PROJECT_POINT.
-__device__ float3 project(const TexOp* ops, unsigned int k, float3 position) {
+/// after), or the point itself for PROJECT_POINT; the derivatives of
+/// (s, t) over the footprint `fp` (null: none) in `*dx`, `*dy`.
+__device__ float3 project(const TexOp* ops, unsigned int k, float3 position, const TexFootprint* fp, float2* dx,
+                          float2* dy) {
     float q[3];
+    float3 dqdx = zero3(), dqdy = zero3();
 #pragma unroll
     for (int r = 0; r < 3; ++r) {
         const TexOp& row = ops[k + r];
         q[r] = row.f[0] * position.x + row.f[1] * position.y + row.f[2] * position.z + row.f[3];
     }
+    if (fp) {
+        const TexOp &r0 = ops[k], &r1 = ops[k + 1], &r2 = ops[k + 2];
+        const auto linear = [&](float3 d) {
+            return make_float3(r0.f[0] * d.x + r0.f[1] * d.y + r0.f[2] * d.z,
+                               r1.f[0] * d.x + r1.f[1] * d.y + r1.f[2] * d.z,
+                               r2.f[0] * d.x + r2.f[1] * d.y + r2.f[2] * d.z);
+        };
+        dqdx = linear(fp->dpdx);
+        dqdy = linear(fp->dpdy);
+    }
+    const auto along = [&](float3 dsdq, float3 dtdq) {
+        *dx = make_float2(dot3(dsdq, dqdx), dot3(dtdq, dqdx));
+        *dy = make_float2(dot3(dsdq, dqdy), dot3(dtdq, dqdy));
+        if (!isfinite(dx->x) || !isfinite(dx->y)) *dx = make_float2(0.0f, 0.0f);
+        if (!isfinite(dy->x) || !isfinite(dy->y)) *dy = make_float2(0.0f, 0.0f);
+    };
     const float pi = 3.14159265358979323846f, tau = 6.28318530717958647692f;
+    const float x2y2 = q[0] * q[0] + q[1] * q[1];
     if (ops[k].a == PROJECT_SPHERICAL) {
         const float3 d = normalize_or_zero3(make_float3(q[0], q[1], q[2]));
         const float theta = acosf(clampf(d.z, -1.0f, 1.0f));
         float phi = atan2f(d.y, d.x);
         if (phi < 0.0f) phi += tau;
+        const float r = sqrtf(x2y2);
+        along(make_float3(-q[1], q[0], 0.0f) * (1.0f / (2.0f * pi * x2y2)),
+              make_float3(q[0] * q[2] / r, q[1] * q[2] / r, -r) * (1.0f / (pi * (x2y2 + q[2] * q[2]))));
         return make_float3(theta * (1.0f / pi), phi / tau, 0.0f);
     }
-    if (ops[k].a == PROJECT_CYLINDRICAL) return make_float3((pi + atan2f(q[1], q[0])) / tau, q[2], 0.0f);
-    if (ops[k].a == PROJECT_POINT) return make_float3(q[0], q[1], q[2]);
+    if (ops[k].a == PROJECT_CYLINDRICAL) {
+        along(make_float3(-q[1], q[0], 0.0f) * (1.0f / (2.0f * pi * x2y2)), make_float3(0.0f, 0.0f, 1.0f));
+        return make_float3((pi + atan2f(q[1], q[0])) / tau, q[2], 0.0f);
+    }
+    if (ops[k].a == PROJECT_POINT) {
+        *dx = *dy = make_float2(0.0f, 0.0f);
+        return make_float3(q[0], q[1], q[2]);
+    }
+    along(make_float3(1.0f, 0.0f, 0.0f), make_float3(0.0f, 1.0f, 0.0f));
     return make_float3(q[0], q[1], 0.0f);
 }
 
-/// `texture::run_program` at the hit `TexPoint { uv, position, normal }`:
-/// stores go into `coeffs` (may be null for alpha programs); returns the
-/// top of the stack.
+/// `texture::run_program` at the hit `TexPoint { uv, position, normal,
+/// footprint }` (`fp` null: no footprint): stores go into `coeffs` (may be
+/// null for alpha programs); returns the top of the stack.
 __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange range, float2 uv, float3 position,
-                                           float3 normal, unsigned short* coeffs) {
+                                           float3 normal, unsigned short* coeffs, const TexFootprint* fp = nullptr) {
     float3 stack[TEXTURE_STACK];
     int sp = 0;
+    // The (s, t) derivatives of the last projection (its consumer follows it).
+    float2 projected_dx = make_float2(0.0f, 0.0f), projected_dy = make_float2(0.0f, 0.0f);
     const TexOp* ops = reinterpret_cast<const TexOp*>(p.texture_ops) + range.start;
     for (unsigned int k = 0; k < range.len; ++k) {
         const TexOp o = ops[k];
         // A projected op pops its (s, t); others map the hit's uv.
         float2 coords = uv;
+        float2 dx = fp ? fp->duvdx : make_float2(0.0f, 0.0f), dy = fp ? fp->duvdy : make_float2(0.0f, 0.0f);
         if ((o.code == TEX_IMAGE || o.code == TEX_CHECKERBOARD || o.code == TEX_DOTS || o.code == TEX_BILERP) &&
             (o.b & TEX_PROJECTED)) {
             --sp;
             coords = make_float2(stack[sp].x, stack[sp].y);
+            dx = projected_dx;
+            dy = projected_dy;
         }
         if (o.code == TEX_CONSTANT) {
             stack[sp++] = make_float3(o.f[0], o.f[1], o.f[2]);
@@ -334,7 +417,7 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             const float a = fabsf(dot3(normal, make_float3(o.f[0], o.f[1], o.f[2])));
             stack[sp++] = make_float3(a, a, a);
         } else if (o.code == TEX_PROJECT) {
-            stack[sp++] = project(ops, k, position);
+            stack[sp++] = project(ops, k, position, fp, &projected_dx, &projected_dy);
         } else if (o.code == TEX_NOISE) {
             stack[sp - 1] = noise_texture(o.a, stack[sp - 1], o.b, o.f[0], o.f[1], o.f[2]);
         } else if (o.code == TEX_SOLID_CHECKERBOARD) {
@@ -352,7 +435,7 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             --sp;
             if (!inside) stack[sp - 1] = stack[sp];
         } else if (o.code == TEX_IMAGE) {
-            stack[sp++] = image_lookup(p, o, coords);
+            stack[sp++] = image_lookup(p, o, coords, dx, dy);
         } else if (o.code == TEX_CHECKERBOARD) {
             const float2 st = apply_mapping(o, coords);
             --sp;

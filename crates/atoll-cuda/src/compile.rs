@@ -33,6 +33,7 @@ pub const KERNEL_FILES: &[(&str, &str)] = &[
     ("common.cuh", include_str!("../kernels/common.cuh")),
     ("curve.cuh", include_str!("../kernels/curve.cuh")),
     ("environment.cuh", include_str!("../kernels/environment.cuh")),
+    ("footprint.cuh", include_str!("../kernels/footprint.cuh")),
     ("layout.cuh", include_str!("../kernels/layout.cuh")),
     ("layered.cuh", include_str!("../kernels/layered.cuh")),
     ("lens.cuh", include_str!("../kernels/lens.cuh")),

@@ -295,6 +295,11 @@ pub(crate) fn texture_constants() -> String {
         ("CHANNEL_RED", atoll_scene::Channel::Red as u32),
         ("CHANNEL_GREEN", atoll_scene::Channel::Green as u32),
         ("CHANNEL_BLUE", atoll_scene::Channel::Blue as u32),
+        ("IMAGE_FILTER_SHIFT", atoll_render::texture::IMAGE_FILTER_SHIFT),
+        ("IMAGE_LEVELS_SHIFT", atoll_render::texture::IMAGE_LEVELS_SHIFT),
+        ("FILTER_NONE", atoll_scene::ImageFilter::None as u32),
+        ("FILTER_POINT", atoll_scene::ImageFilter::Point as u32),
+        ("FILTER_BILINEAR", atoll_scene::ImageFilter::Bilinear as u32),
     ] {
         s += &const_uint("unsigned int", name, value as u64);
     }
@@ -390,6 +395,10 @@ pub(crate) fn params_asserts() -> String {
     s += &const_uint("unsigned int", "NO_EMISSION_TEXTURE", NO_EMISSION_TEXTURE as u64);
     s += &assert_struct::<GpuEmissionTexture>("GpuEmissionTexture", GpuEmissionTexture::field_layout());
     s += &assert_struct::<GpuMedium>("GpuMedium", GpuMedium::field_layout());
+    s += &assert_struct::<crate::params::GpuFootprint>(
+        "GpuFootprint",
+        crate::params::GpuFootprint::field_layout(),
+    );
     s += &assert_struct::<FrameParams>("FrameParams", FrameParams::field_layout());
     s + &assert_struct::<SceneView>("SceneView", SceneView::field_layout())
 }
@@ -460,7 +469,7 @@ mod tests {
     /// struct (all shared structs carry explicit padding fields).
     #[test]
     fn header_layouts_cover_their_structs() {
-        let all: [(&str, usize, FieldLayout); 14] = [
+        let all: [(&str, usize, FieldLayout); 15] = [
             ("RayRecord", std::mem::size_of::<RayRecord>(), record::field_layout()),
             ("GpuMesh", std::mem::size_of::<GpuMesh>(), GpuMesh::field_layout()),
             ("GpuObject", std::mem::size_of::<GpuObject>(), GpuObject::field_layout()),
@@ -477,6 +486,11 @@ mod tests {
             ("GpuEmitter", std::mem::size_of::<GpuEmitter>(), GpuEmitter::field_layout()),
             ("GpuMaterial", std::mem::size_of::<GpuMaterial>(), GpuMaterial::field_layout()),
             ("GpuMedium", std::mem::size_of::<GpuMedium>(), GpuMedium::field_layout()),
+            (
+                "GpuFootprint",
+                std::mem::size_of::<crate::params::GpuFootprint>(),
+                crate::params::GpuFootprint::field_layout(),
+            ),
             ("FrameParams", std::mem::size_of::<FrameParams>(), FrameParams::field_layout()),
             ("SceneView", std::mem::size_of::<SceneView>(), SceneView::field_layout()),
         ];

@@ -112,6 +112,55 @@ pub(crate) mod grid_field {
     }
 }
 
+/// `atoll_render::footprint::CameraFootprint` on the device (144 bytes;
+/// matrices row-major).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuFootprint {
+    pub camera_position: [f32; 3],
+    pub spp_scale: f32,
+    pub camera_from_world: [f32; 9],
+    pub world_from_camera: [f32; 9],
+    /// x's then y's.
+    pub min_position: [f32; 6],
+    pub min_direction: [f32; 6],
+    pub pad: [f32; 2],
+}
+
+impl GpuFootprint {
+    pub(crate) fn new(f: &atoll_render::footprint::CameraFootprint) -> Self {
+        let rows = |m: glam::Mat3| m.transpose().to_cols_array();
+        let pair = |v: [glam::Vec3; 2]| {
+            let mut out = [0.0; 6];
+            out[..3].copy_from_slice(&v[0].to_array());
+            out[3..].copy_from_slice(&v[1].to_array());
+            out
+        };
+        GpuFootprint {
+            camera_position: f.camera_position.to_array(),
+            spp_scale: f.spp_scale,
+            camera_from_world: rows(f.camera_from_world),
+            world_from_camera: rows(f.world_from_camera),
+            min_position: pair(f.min_position),
+            min_direction: pair(f.min_direction),
+            pad: [0.0; 2],
+        }
+    }
+
+    #[cfg(test)]
+    pub(crate) fn field_layout() -> FieldLayout {
+        field_layout!(GpuFootprint {
+            camera_position,
+            spp_scale,
+            camera_from_world,
+            world_from_camera,
+            min_position,
+            min_direction,
+            pad
+        })
+    }
+}
+
 impl GpuMedium {
     #[cfg(test)]
     pub(crate) fn field_layout() -> FieldLayout {
@@ -440,6 +489,8 @@ pub struct FrameParams {
     pub media: [GpuMedium; MEDIA_SLOTS],
     /// A moving camera's camera-to-world motion (with `camera_moves`).
     pub camera_motion: GpuMotion,
+    /// What textures need to estimate a hit's footprint.
+    pub footprint: GpuFootprint,
 }
 
 impl FrameParams {
@@ -504,6 +555,7 @@ impl FrameParams {
             }
         }
         params.set_camera(&frame.camera);
+        params.footprint = GpuFootprint::new(&frame.footprint);
         params
     }
 
@@ -583,6 +635,7 @@ impl FrameParams {
             lens,
             media,
             camera_motion,
+            footprint,
         })
     }
 }
@@ -688,7 +741,9 @@ const _: () = {
                 + 40
                 + 120 * MEDIA_SLOTS
                 + std::mem::size_of::<GpuMotion>()
+                + std::mem::size_of::<GpuFootprint>()
     );
+    assert!(std::mem::size_of::<GpuFootprint>() == 144);
     assert!(std::mem::offset_of!(FrameParams, emitters) == 136);
     assert!(std::mem::size_of::<SceneView>() == 96);
 };

@@ -89,7 +89,7 @@ impl CameraFootprint {
 /// perspective and orthographic cameras, by a twentieth of a pixel and
 /// extrapolated for the others (`CameraBase::GenerateRayDifferential`).
 /// `None` where the lens blocks the ray.
-fn differentials(camera: &CameraRays, raster: Vec2) -> Option<(Vec3, Vec3, [(Vec3, Vec3); 2])> {
+fn differentials(camera: &CameraRays, raster: Vec2) -> Option<(Vec3, Vec3, [Ray; 2])> {
     let centre = Vec2::splat(0.5);
     let ray = |at: Vec2| {
         let r = camera.weighted_ray(at, centre);
@@ -100,7 +100,7 @@ fn differentials(camera: &CameraRays, raster: Vec2) -> Option<(Vec3, Vec3, [(Vec
         camera.projection(),
         atoll_scene::Projection::Perspective | atoll_scene::Projection::Orthographic
     );
-    let shifted = |step: Vec2| -> Option<(Vec3, Vec3)> {
+    let shifted = |step: Vec2| -> Option<Ray> {
         if exact {
             return ray(raster + step);
         }
@@ -111,6 +111,9 @@ fn differentials(camera: &CameraRays, raster: Vec2) -> Option<(Vec3, Vec3, [(Vec
     };
     Some((origin, direction, [shifted(Vec2::X)?, shifted(Vec2::Y)?]))
 }
+
+/// A ray's origin and direction.
+type Ray = (Vec3, Vec3);
 
 /// pbrt-v4's `Frame::FromZ` (its `CoordinateSystem`): axes x and y about `z`.
 fn frame_from_z(z: Vec3) -> (Vec3, Vec3, Vec3) {
@@ -177,11 +180,7 @@ mod tests {
 
     /// A pinhole camera at the origin looking down +z at a wall facing it.
     fn camera(fov: f32, width: u32) -> CameraRays {
-        let camera = Camera {
-            fov_degrees: fov,
-            camera_to_world: glam::Mat4::IDENTITY,
-            ..Camera::default()
-        };
+        let camera = Camera { fov_degrees: fov, camera_to_world: glam::Mat4::IDENTITY, ..Camera::default() };
         CameraRays::new(&camera, glam::UVec2::new(width, width))
     }
 
@@ -203,7 +202,10 @@ mod tests {
         let (far, _) = f.dp_dxy(Vec3::new(0.0, 0.0, 2.0 * distance), -Vec3::Z);
         assert!((far.length() / dpdx.length() - 2.0).abs() < 1e-3);
         let f16 = CameraFootprint::new(&camera(fov, width), 16);
-        assert!((f16.dp_dxy(Vec3::new(0.0, 0.0, distance), -Vec3::Z).0.length() / dpdx.length() - 0.25).abs() < 1e-4);
+        assert!(
+            (f16.dp_dxy(Vec3::new(0.0, 0.0, distance), -Vec3::Z).0.length() / dpdx.length() - 0.25).abs()
+                < 1e-4
+        );
         // A grazing wall stretches the footprint.
         let tilted = Vec3::new(0.0, -1.0, -0.2).normalize();
         let (gx, gy) = f.dp_dxy(Vec3::new(0.0, 0.0, distance), tilted);

@@ -20,8 +20,8 @@ use atoll_bvh::HitFilter;
 #[cfg(test)]
 use atoll_scene::Rgb;
 use atoll_scene::{
-    AlphaMode, Channel, ImageFilter, ImageId, Material, Noise, Scene, TexInput, TexMapping, Texture, TextureBinding,
-    TextureId, TextureImage, TexturedParam, Wrap,
+    AlphaMode, Channel, ImageFilter, ImageId, Material, Noise, Scene, TexInput, TexMapping, Texture,
+    TextureBinding, TextureId, TextureImage, TexturedParam, Wrap,
 };
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec2, Vec3, Vec3A};
@@ -554,7 +554,8 @@ fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (V
     let p = position.extend(1.0);
     let q = Vec3::new(row(0).dot(p), row(1).dot(p), row(2).dot(p));
     // The footprint in the texture's space.
-    let linear = |d: Vec3| Vec3::new(row(0).truncate().dot(d), row(1).truncate().dot(d), row(2).truncate().dot(d));
+    let linear =
+        |d: Vec3| Vec3::new(row(0).truncate().dot(d), row(1).truncate().dot(d), row(2).truncate().dot(d));
     let (dqdx, dqdy) = (linear(footprint.dpdx), linear(footprint.dpdy));
     let along = |dsdq: Vec3, dtdq: Vec3| {
         [Vec2::new(dsdq.dot(dqdx), dtdq.dot(dqdx)), Vec2::new(dsdq.dot(dqdy), dtdq.dot(dqdy))]
@@ -1162,7 +1163,8 @@ mod tests {
     #[test]
     fn footprints_pick_mip_levels_as_pbrt() {
         // An 8×8 image of x + 10 y: levels 8, 4, 2 and 1 texels wide.
-        let base = image((0..64).map(|i| [(i % 8) as f32 + 10.0 * (i / 8) as f32, 0.0, 0.0, 1.0]).collect(), 8, 8);
+        let base =
+            image((0..64).map(|i| [(i % 8) as f32 + 10.0 * (i / 8) as f32, 0.0, 0.0, 1.0]).collect(), 8, 8);
         let mut textures = atoll_scene::Textures::default();
         let (first, levels) = textures.add_pyramid(&base, Wrap::Repeat);
         assert_eq!((first, levels), (0, 4));
@@ -1176,7 +1178,11 @@ mod tests {
         let uv = Vec2::new(0.3, 0.6);
         let at = |d: f32| TexPoint {
             uv,
-            footprint: Footprint { duvdx: Vec2::new(d, 0.0), duvdy: Vec2::new(0.0, d / 2.0), ..Default::default() },
+            footprint: Footprint {
+                duvdx: Vec2::new(d, 0.0),
+                duvdy: Vec2::new(0.0, d / 2.0),
+                ..Default::default()
+            },
             ..Default::default()
         };
         let run = |f: ImageFilter, d: f32| {

@@ -59,9 +59,9 @@ pub use mesh::{MeshError, MeshId, TriangleMesh};
 pub use motion::{Decomposed, Motion};
 pub use scene::{Instance, Object, ObjectId, Scene, SceneSizes, SceneStats};
 pub use texture::{
-    AlphaMode, Channel, ColorEncoding, ImageCache, ImageFilter, ImageId, ImageLoadError, MeshAlpha, Noise, TexInput,
-    TexMapping, Texels, Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures, UvMapping,
-    Wrap,
+    AlphaMode, Channel, ColorEncoding, ImageCache, ImageFilter, ImageId, ImageLoadError, MeshAlpha, Noise,
+    TexInput, TexMapping, Texels, Texture, TextureBinding, TextureId, TextureImage, TexturedParam, Textures,
+    UvMapping, Wrap,
 };
 
 /// Linear-sRGB colour triple (radiance, reflectance, ...).

@@ -43,7 +43,8 @@ fn stored_like(image: &TextureImage, below: &[TextureImage], level: Level) -> Te
     let texels = match &image.texels {
         Texels::Rgba8 { srgb, .. } => {
             let colour = |v: f32| if *srgb { linear_to_srgb8(v) } else { linear_to_u8(v) };
-            let data = level.texels.iter().map(|&[r, g, b, a]| [colour(r), colour(g), colour(b), linear_to_u8(a)]);
+            let data =
+                level.texels.iter().map(|&[r, g, b, a]| [colour(r), colour(g), colour(b), linear_to_u8(a)]);
             Texels::Rgba8 { srgb: *srgb, data: data.collect() }
         }
         Texels::RgbaF32(_) => Texels::RgbaF32(level.texels),
@@ -80,7 +81,13 @@ struct Resample {
 /// over four source texels per output texel, normalised.
 fn resample_weights(old: u32, new: u32) -> Vec<Resample> {
     let windowed_sinc = |x: f32| {
-        let sinc = |x: f32| if x == 0.0 { 1.0 } else { (std::f32::consts::PI * x).sin() / (std::f32::consts::PI * x) };
+        let sinc = |x: f32| {
+            if x == 0.0 {
+                1.0
+            } else {
+                (std::f32::consts::PI * x).sin() / (std::f32::consts::PI * x)
+            }
+        };
         if x.abs() > 2.0 {
             0.0
         } else {

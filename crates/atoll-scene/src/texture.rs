@@ -307,11 +307,14 @@ impl TextureImage {
 /// MIP pyramid ([`crate::mipmap`]), as textures ask.
 #[derive(Debug, Default)]
 pub struct ImageCache {
-    decoded: HashMap<(PathBuf, (u8, u32)), Result<Arc<TextureImage>, ImageLoadError>>,
+    decoded: HashMap<ImageKey, Result<Arc<TextureImage>, ImageLoadError>>,
     /// Added images: the first and how many (a pyramid's levels), by file,
     /// encoding and the pyramid's wrap mode (`None`: the image as it is).
-    added: HashMap<(PathBuf, (u8, u32), Option<Wrap>), (ImageId, u32)>,
+    added: HashMap<(ImageKey, Option<Wrap>), (ImageId, u32)>,
 }
+
+/// An image file (canonical path) and its encoding ([`ColorEncoding::key`]).
+type ImageKey = (PathBuf, (u8, u32));
 
 impl ImageCache {
     /// The image of `path` in `textures`, decoded and added on first use.
@@ -342,7 +345,7 @@ impl ImageCache {
             .entry(key.clone())
             .or_insert_with(|| TextureImage::decode_encoded(path, encoding).map(Arc::new))
             .clone()?;
-        let added = self.added.entry((key.0, key.1, pyramid_wrap)).or_insert_with(|| match pyramid_wrap {
+        let added = self.added.entry((key, pyramid_wrap)).or_insert_with(|| match pyramid_wrap {
             None => (textures.add_shared_image(decoded), 1),
             Some(wrap) => textures.add_pyramid(&decoded, wrap),
         });

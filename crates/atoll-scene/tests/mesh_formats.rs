@@ -314,6 +314,8 @@ fn check_gltf_scene(loaded: &atoll_scene::LoadedScene) {
         channel,
         scale,
         invert: false,
+        filter: atoll_scene::ImageFilter::None,
+        levels: 1,
     };
     assert_eq!(t.textures[image as usize], node(Channel::Rgb, 1.0));
     // MASK: the image's alpha times the factor's (0.5) against the cutoff, on both

@@ -890,7 +890,22 @@ fn the_texture_scene_loads_cleanly() {
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let s = &loaded.scene;
     let t = &s.textures;
-    assert_eq!(t.images.len(), 3, "bricks, leaf, leaf mask (bricks decoded once for two uses)");
+    // Bricks, leaf and leaf mask as MIP pyramids (bricks made once for two
+    // uses), and the sign's emission image as it is: every image is one
+    // texture's, each range of images made once.
+    let ranges: std::collections::BTreeSet<_> = t
+        .textures
+        .iter()
+        .filter_map(|x| match *x {
+            atoll_scene::Texture::Image { image, levels, filter, .. } => {
+                Some((image, levels, filter != atoll_scene::ImageFilter::None))
+            }
+            _ => None,
+        })
+        .collect();
+    let filtered = ranges.iter().filter(|r| r.2).count();
+    assert_eq!((ranges.len(), filtered), (4, 3), "{ranges:?}");
+    assert_eq!(t.images.len() as u32, ranges.iter().map(|r| r.1).sum::<u32>());
     assert_eq!(s.meshes.iter().filter(|m| m.alpha.is_some()).count(), 4, "three leaves and the pane");
     assert_eq!(t.emission.len(), 1, "the glowing sign");
     let params: std::collections::HashSet<_> = t.bindings.iter().map(|b| b.param).collect();

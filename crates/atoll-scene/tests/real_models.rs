@@ -140,7 +140,7 @@ fn gltf_box_textured_in_three_packagings() {
         texels.push(image.texels.clone());
         let b: Vec<_> = t.bindings_of(0).collect();
         assert_eq!((b.len(), b[0].param), (1, TexturedParam::Reflectance), "{rel}");
-        let Texture::Image { image: 0, mapping, wrap, channel: Channel::Rgb, scale, invert: false } =
+        let Texture::Image { image: 0, mapping, wrap, channel: Channel::Rgb, scale, invert: false, .. } =
             t.textures[b[0].texture as usize]
         else {
             panic!("{rel}: {:?}", t.textures)

@@ -10,8 +10,8 @@ use std::path::Path;
 use atoll_scene::pbrt::{load_str, LoadedScene};
 use atoll_scene::texture::srgb8_to_linear;
 use atoll_scene::{
-    load_any, AlphaMode, Channel, CoatedDiffuseParams, Material, MeshAlpha, Rgb, TexInput, TexMapping,
-    Texels, Texture, TexturedParam, UvMapping, Wrap,
+    load_any, AlphaMode, Channel, CoatedDiffuseParams, ImageFilter, Material, MeshAlpha, Rgb, TexInput,
+    TexMapping, Texels, Texture, TexturedParam, UvMapping, Wrap,
 };
 use common::{allowing_missing, temp_dir, write};
 
@@ -47,7 +47,7 @@ fn texture_classes_with_values_and_nested_textures() {
     let l = load(
         &dir,
         "Texture \"grid\" \"spectrum\" \"imagemap\" \"string filename\" \"g.png\" \"string wrap\" \"clamp\" \
-           \"float scale\" 2 \"bool invert\" true \"string encoding\" \"linear\" \"string filter\" \"ewa\" \
+           \"float scale\" 2 \"bool invert\" true \"string encoding\" \"linear\" \"string filter\" \"trilinear\" \
            \"float uscale\" 2 \"float vscale\" 3 \"float udelta\" 0.5 \"float vdelta\" 0.25\n\
          Texture \"grey\" \"float\" \"imagemap\" \"string filename\" \"g.png\" \"string encoding\" \"gamma 2\"\n\
          Texture \"c\" \"spectrum\" \"constant\" \"rgb value\" [0.1 0.2 0.3]\n\
@@ -70,16 +70,19 @@ fn texture_classes_with_values_and_nested_textures() {
             wrap: Wrap::Clamp,
             channel: Channel::Rgb,
             scale: 2.0,
-            invert: true
+            invert: true,
+            filter: ImageFilter::Trilinear,
+            levels: 2,
         }
     );
     // A float image texture reads the colour's mean; "gamma 2" needs its own (float) decoding.
-    let Texture::Image { image: 1, channel: Channel::Average, wrap: Wrap::Repeat, .. } = t.textures[1] else {
+    let Texture::Image { image: 2, channel: Channel::Average, wrap: Wrap::Repeat, .. } = t.textures[1] else {
         panic!("{:?}", t.textures[1])
     };
     assert_eq!(t.images[0].texel(0, 0), [1.0, 128.0 / 255.0, 0.0, 1.0]);
-    assert_eq!(t.images[1].texel(0, 0), [1.0, (128.0f32 / 255.0).powi(2), 0.0, 1.0]);
-    assert!(matches!(t.images[1].texels, Texels::RgbaF32(_)));
+    // Images 0 and 1 are the first one's MIP pyramid, 2 and 3 the second's.
+    assert_eq!(t.images[2].texel(0, 0), [1.0, (128.0f32 / 255.0).powi(2), 0.0, 1.0]);
+    assert!(matches!(t.images[2].texels, Texels::RgbaF32(_)));
     assert_eq!(t.textures[2], Texture::Constant(Rgb::new(0.1, 0.2, 0.3)));
     assert_eq!(t.textures[3], Texture::Constant(Rgb::splat(0.25)));
     let mapping = UvMapping { su: 8.0, ..UvMapping::default() };
@@ -105,10 +108,11 @@ fn texture_classes_with_values_and_nested_textures() {
             amount: TexInput::Value(Rgb::splat(0.5))
         }
     );
-    // The third use of g.png is sRGB-decoded (the 8-bit default), the first linear: 3 images in all.
-    let Texture::Image { image: 2, .. } = t.textures[9] else { panic!("{:?}", t.textures[9]) };
-    assert_eq!(t.images.len(), 3);
-    assert_eq!(t.images[2].texel(0, 0)[1], srgb8_to_linear()[128]);
+    // The third use of g.png is sRGB-decoded (the 8-bit default), the first
+    // linear: 3 pyramids of 2 levels in all.
+    let Texture::Image { image: 4, .. } = t.textures[9] else { panic!("{:?}", t.textures[9]) };
+    assert_eq!(t.images.len(), 6);
+    assert_eq!(t.images[4].texel(0, 0)[1], srgb8_to_linear()[128]);
     assert!(t.bindings.is_empty());
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -336,7 +340,9 @@ fn obj_map_kd_map_d_and_dissolve() {
             wrap: Wrap::Repeat,
             channel: Channel::Rgb,
             scale: 1.0,
-            invert: false
+            invert: false,
+            filter: ImageFilter::None,
+            levels: 1,
         }
     );
     let Some(MeshAlpha { texture, mode: AlphaMode::Cutoff(c) }) = leaf.alpha else {

@@ -38,8 +38,8 @@ use std::path::Path;
 
 use crate::error::{FileLoc, SceneError};
 use crate::{
-    ColorEncoding, ImageCache, ImageFilter, ImageLoadError, Noise, Rgb, TexInput, TexMapping, Texture, TextureId,
-    TexturedParam, Textures, UvMapping, Wrap,
+    ColorEncoding, ImageCache, ImageFilter, ImageLoadError, Noise, Rgb, TexInput, TexMapping, Texture,
+    TextureId, TexturedParam, Textures, UvMapping, Wrap,
 };
 
 use super::entities::reflectance_rgb;
