@@ -41,7 +41,7 @@ __device__ void triangle_partials(float3 p0, float3 p1, float3 p2, float2 uv0, f
 /// `*dpdu_out` (`bump::Bent`); `ns` where the result is no direction.
 __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRange range, float3 position,
                               float2 uv, float3 ng, float3 ns, float3 dpdu, float3 dpdv, bool interpolated,
-                              float3* dpdu_out) {
+                              const TexFootprint& fp, float3* dpdu_out) {
     // SurfaceAt::shading_partials.
     float3 ss = dpdu, ts = dpdv;
     if (interpolated) {
@@ -55,16 +55,22 @@ __device__ float3 bent_normal(const FrameParams& p, unsigned int kind, ProgramRa
     float3 n = zero3();
     *dpdu_out = ss;
     if (kind == BUMP_BUMP) {
-        const float step = BUMP_STEP;
-        const float d = run_program(p, range, uv, position, ng, nullptr).x;
-        const float du = run_program(p, range, uv + make_float2(step, 0.0f), position + ss * step, ng, nullptr).x;
-        const float dv = run_program(p, range, uv + make_float2(0.0f, step), position + ts * step, ng, nullptr).x;
-        const float3 pu = ss + ns * ((du - d) / step);
-        const float3 pv = ts + ns * ((dv - d) / step);
+        // Half the footprint's uv change, BUMP_STEP where it is 0.
+        float step_u = 0.5f * (fabsf(fp.duvdx.x) + fabsf(fp.duvdy.x));
+        float step_v = 0.5f * (fabsf(fp.duvdx.y) + fabsf(fp.duvdy.y));
+        if (step_u == 0.0f) step_u = BUMP_STEP;
+        if (step_v == 0.0f) step_v = BUMP_STEP;
+        const float d = run_program(p, range, uv, position, ng, nullptr, &fp).x;
+        const float du =
+            run_program(p, range, uv + make_float2(step_u, 0.0f), position + ss * step_u, ng, nullptr, &fp).x;
+        const float dv =
+            run_program(p, range, uv + make_float2(0.0f, step_v), position + ts * step_v, ng, nullptr, &fp).x;
+        const float3 pu = ss + ns * ((du - d) / step_u);
+        const float3 pv = ts + ns * ((dv - d) / step_v);
         n = normalize_or_zero3(cross3(pu, pv));
         *dpdu_out = pu;
     } else if (kind == BUMP_NORMAL_MAP) {
-        const float3 c = run_program(p, range, uv, position, ng, nullptr);
+        const float3 c = run_program(p, range, uv, position, ng, nullptr, &fp);
         const float3 local = normalize_or_zero3(c * 2.0f - make_float3(1.0f, 1.0f, 1.0f));
         const float3 x = normalize_or_zero3(ss);
         const float3 y = cross3(ns, x);

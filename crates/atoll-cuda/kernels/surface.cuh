@@ -265,8 +265,9 @@ __device__ __noinline__ void write_surface(const FrameParams& p, const SceneView
             range.start = (meta.w >> 8) & 0x3fffffu;
             range.len = meta.w & 0xffu;
             float3 bent_dpdu;
-            ns = bent_normal(p, meta.w >> 30, range, position, surface_uv(), ng, ns, dpdu,
-                             dpdv, (mesh.flags & MESH_HAS_NORMALS) != 0u, &bent_dpdu);
+            const TexFootprint fp = hit_footprint(p.footprint, position, ng, dpdu, dpdv);
+            ns = bent_normal(p, meta.w >> 30, range, position, surface_uv(), ng, ns, dpdu, dpdv,
+                             (mesh.flags & MESH_HAS_NORMALS) != 0u, fp, &bent_dpdu);
             dpdu = bent_dpdu;
         }
         // material_coeffs::store_tangent.

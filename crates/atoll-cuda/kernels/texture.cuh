@@ -336,6 +336,16 @@ __device__ __forceinline__ bool odd_cell(float sum) {
     return parity != 0.0f;
 }
 
+/// `texture::filtered_checks`.
+__device__ __forceinline__ float filtered_checks(float x, float r) {
+    if (floorf(x - r) == floorf(x + r)) return 1.0f - 2.0f * (float)(((int)floorf(x)) & 1);
+    const auto d = [](float x) {
+        const float y = x / 2.0f - floorf(x / 2.0f) - 0.5f;
+        return x / 2.0f + y * (1.0f - 2.0f * fabsf(y));
+    };
+    return (d(x + r) - 2.0f * d(x) + d(x - r)) / (r * r);
+}
+
 /// `texture::project`: (s, t, 0) of the hit point `position` under the
 /// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops
 /// after), or the point itself for PROJECT_POINT; the derivatives of
@@ -439,7 +449,10 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
         } else if (o.code == TEX_CHECKERBOARD) {
             const float2 st = apply_mapping(o, coords);
             --sp;
-            if (odd_cell(floorf(st.x) + floorf(st.y))) stack[sp - 1] = stack[sp];
+            const float rs = 1.5f * fmaxf(fabsf(o.f[0] * dx.x), fabsf(o.f[0] * dy.x));
+            const float rt = 1.5f * fmaxf(fabsf(o.f[1] * dx.y), fabsf(o.f[1] * dy.y));
+            const float w = 0.5f - filtered_checks(st.x, rs) * filtered_checks(st.y, rt) / 2.0f;
+            if (w != 0.0f) stack[sp - 1] = stack[sp - 1] * (1.0f - w) + stack[sp] * w;
         } else if (o.code == TEX_SCALE) {
             --sp;
             stack[sp - 1] = stack[sp - 1] * stack[sp];

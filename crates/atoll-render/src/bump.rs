@@ -103,16 +103,29 @@ pub struct Bent {
 /// `kind`, its texture evaluated by `eval` at (uv, point); the unbent
 /// normal where the result is no direction. Faces the geometric normal's
 /// side (pbrt's `SetShadingGeometry`, orientation not authoritative).
-pub fn bent_normal(kind: u32, surface: &SurfaceAt, mut eval: impl FnMut(Vec2, Vec3) -> Vec3) -> Bent {
+///
+/// A bump map's finite differences step half the footprint's uv change
+/// (`duv`: its `(dudx, dvdx)` and `(dudy, dvdy)`), [`BUMP_STEP`] where that
+/// is 0, as pbrt-v4's `BumpMap` steps.
+pub fn bent_normal(
+    kind: u32,
+    surface: &SurfaceAt,
+    duv: [Vec2; 2],
+    mut eval: impl FnMut(Vec2, Vec3) -> Vec3,
+) -> Bent {
     let (ss, ts) = surface.shading_partials();
     let (n, dpdu) = match kind {
         kind::BUMP => {
             let d = eval(surface.uv, surface.position).x;
-            let step = BUMP_STEP;
-            let du = eval(surface.uv + Vec2::new(step, 0.0), surface.position + ss * step).x;
-            let dv = eval(surface.uv + Vec2::new(0.0, step), surface.position + ts * step).x;
-            let dpdu = ss + surface.ns * ((du - d) / step);
-            let dpdv = ts + surface.ns * ((dv - d) / step);
+            let step = |a: f32, b: f32| match 0.5 * (a.abs() + b.abs()) {
+                0.0 => BUMP_STEP,
+                s => s,
+            };
+            let (step_u, step_v) = (step(duv[0].x, duv[1].x), step(duv[0].y, duv[1].y));
+            let du = eval(surface.uv + Vec2::new(step_u, 0.0), surface.position + ss * step_u).x;
+            let dv = eval(surface.uv + Vec2::new(0.0, step_v), surface.position + ts * step_v).x;
+            let dpdu = ss + surface.ns * ((du - d) / step_u);
+            let dpdv = ts + surface.ns * ((dv - d) / step_v);
             (dpdu.cross(dpdv).normalize_or_zero(), dpdu)
         }
         kind::NORMAL_MAP => {
@@ -162,15 +175,16 @@ mod tests {
     fn bumps_tilt_the_normal_as_the_displaced_surface() {
         for interpolated in [false, true] {
             let s = flat(interpolated);
-            let tilted = bent_normal(kind::BUMP, &s, |uv, _| Vec3::splat(0.5 * uv.x));
+            let tilted = bent_normal(kind::BUMP, &s, [Vec2::ZERO; 2], |uv, _| Vec3::splat(0.5 * uv.x));
             let expected = Vec3::new(-0.5, 0.0, 1.0).normalize();
             assert!((tilted.normal - expected).length() < 1e-3, "{tilted:?}");
             // dp/du climbs the slope, perpendicular to the bent normal.
             assert!((tilted.dpdu - Vec3::new(1.0, 0.0, 0.5)).length() < 1e-3, "{tilted:?}");
-            assert_eq!(bent_normal(kind::BUMP, &s, |_, _| Vec3::splat(0.7)).normal, Vec3::Z);
+            assert_eq!(bent_normal(kind::BUMP, &s, [Vec2::ZERO; 2], |_, _| Vec3::splat(0.7)).normal, Vec3::Z);
         }
         // Read at the point as well as the uv: the same slope from p.
-        let by_point = bent_normal(kind::BUMP, &flat(false), |_, p| Vec3::splat(0.5 * p.x)).normal;
+        let by_point =
+            bent_normal(kind::BUMP, &flat(false), [Vec2::ZERO; 2], |_, p| Vec3::splat(0.5 * p.x)).normal;
         assert!((by_point - Vec3::new(-0.5, 0.0, 1.0).normalize()).length() < 1e-3, "{by_point}");
     }
 
@@ -179,13 +193,17 @@ mod tests {
         let s = flat(true);
         // (0.5, 0.5, 1) is the unbent normal; (1, 0.5, 0.5) points along +u.
         assert!(
-            (bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 1.0)).normal - Vec3::Z).length()
+            (bent_normal(kind::NORMAL_MAP, &s, [Vec2::ZERO; 2], |_, _| Vec3::new(0.5, 0.5, 1.0)).normal
+                - Vec3::Z)
+                .length()
                 < 1e-6
         );
-        let along_u = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(1.0, 0.5, 0.75)).normal;
+        let along_u =
+            bent_normal(kind::NORMAL_MAP, &s, [Vec2::ZERO; 2], |_, _| Vec3::new(1.0, 0.5, 0.75)).normal;
         assert!((along_u - Vec3::new(1.0, 0.0, 0.5).normalize()).length() < 1e-5, "{along_u}");
         // Never below the surface: flipped to the geometric normal's side.
-        let under = bent_normal(kind::NORMAL_MAP, &s, |_, _| Vec3::new(0.5, 0.5, 0.0)).normal;
+        let under =
+            bent_normal(kind::NORMAL_MAP, &s, [Vec2::ZERO; 2], |_, _| Vec3::new(0.5, 0.5, 0.0)).normal;
         assert!(under.dot(Vec3::Z) >= 0.0, "{under}");
     }
 }

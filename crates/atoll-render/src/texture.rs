@@ -10,9 +10,13 @@
 //! candidate hits ([`AlphaFilter`]) so cut-out geometry neither blocks
 //! shadow rays nor is found by closest-hit rays.
 //!
-//! Images are filtered bilinearly (no MIP-maps yet), with pbrt-v4's texel
-//! addressing: `(s, t)` → `(s * width - 0.5, (1 - t) * height - 0.5)`, row
-//! 0 at the top of the picture.
+//! Images are looked up with pbrt-v4's texel addressing: `(s, t)` →
+//! `(s * width - 0.5, (1 - t) * height - 0.5)`, row 0 at the top of the
+//! picture; filtered ones in the MIP level the hit's footprint picks
+//! ([`crate::footprint`]), as pbrt-v4's `MIPMap::Filter` picks it. The 2D
+//! checkerboard is box-filtered over the footprint and bump maps step by
+//! it, as in pbrt-v4; the noise textures and the 3D checkerboard are
+//! still evaluated at the point alone.
 
 use std::sync::Arc;
 
@@ -745,12 +749,15 @@ pub fn run_program(
                 sp += 1;
             }
             op::CHECKERBOARD => {
-                let st = coords(o, &stack, &mut sp);
-                let st = apply_mapping(o.f, st);
+                let [dx, dy] = derivatives(o, projected_derivatives);
+                let st = apply_mapping(o.f, coords(o, &stack, &mut sp));
                 sp -= 1;
-                // An even cell keeps `first` (below `second`).
-                if odd_cell(st.x.floor() + st.y.floor()) {
-                    stack[sp - 1] = stack[sp];
+                // pbrt-v4's checkerboard box-filtered over the footprint: the
+                // weight of `second` (above `first`); an even cell is 0.
+                let radius = |i: usize| 1.5 * (o.f[i] * dx[i]).abs().max((o.f[i] * dy[i]).abs());
+                let w = 0.5 - filtered_checks(st.x, radius(0)) * filtered_checks(st.y, radius(1)) / 2.0;
+                if w != 0.0 {
+                    stack[sp - 1] = stack[sp - 1] * (1.0 - w) + stack[sp] * w;
                 }
             }
             op::SCALE => {
@@ -824,6 +831,21 @@ fn store_value(v: Vec3, slot: usize, how: u32, coeffs: &mut [f16; MATERIAL_COEFF
         }
         _ => {}
     }
+}
+
+/// pbrt-v4's 1D checkerboard (+1 on even cells, −1 on odd ones) averaged
+/// over a triangle filter of radius `r` about `x` (`bf` in its
+/// `Checkerboard`); exact where the filter stays in one cell.
+fn filtered_checks(x: f32, r: f32) -> f32 {
+    if (x - r).floor() == (x + r).floor() {
+        return 1.0 - 2.0 * ((x.floor() as i32) & 1) as f32;
+    }
+    // The integral of the 1D checkerboard.
+    let d = |x: f32| {
+        let y = x / 2.0 - (x / 2.0).floor() - 0.5;
+        x / 2.0 + y * (1.0 - 2.0 * y.abs())
+    };
+    (d(x + r) - 2.0 * d(x) + d(x - r)) / (r * r)
 }
 
 /// Whether a checkerboard cell whose floored coordinates sum to `sum` is
@@ -982,18 +1004,23 @@ impl SceneTextures<'_> {
         }
     }
 
-    /// The shading normal and `dpdu` of `surface` with material `id`'s bump
-    /// or normal map; the surface's own where it has none.
-    pub fn shading_geometry(&self, id: u32, surface: &crate::bump::SurfaceAt) -> crate::bump::Bent {
+    /// The shading normal and `dpdu` of `surface` (whose footprint is
+    /// `footprint`) with material `id`'s bump or normal map; the surface's
+    /// own where it has none.
+    pub fn shading_geometry(
+        &self,
+        id: u32,
+        surface: &crate::bump::SurfaceAt,
+        footprint: Footprint,
+    ) -> crate::bump::Bent {
         let bend = self.tables.shading_normals[id as usize];
         if bend.kind == bump::NONE {
             return crate::bump::Bent { normal: surface.ns, dpdu: surface.dpdu };
         }
         let ops = self.ops(bend.program);
-        crate::bump::bent_normal(bend.kind, surface, |uv, p| {
-            // pbrt-v4 bumps with the hit's footprint; not yet here (the
-            // finest level, and its fixed step).
-            let at = TexPoint { uv, position: p, normal: surface.ng, footprint: Footprint::default() };
+        let duv = [footprint.duvdx, footprint.duvdy];
+        crate::bump::bent_normal(bend.kind, surface, duv, |uv, p| {
+            let at = TexPoint { uv, position: p, normal: surface.ng, footprint };
             run_program(ops, &self.scene.textures.images, at, &mut [f16::ZERO; MATERIAL_COEFFS])
         })
     }
@@ -1203,6 +1230,30 @@ mod tests {
         assert_eq!(eval(&[image_op(Wrap::Repeat, Channel::Red, 1.0, false)], &images, uv).x, level(0, uv));
         // Point: level 1's nearest texel (x 1, row 1 from the top).
         assert_eq!(run(ImageFilter::Point, 1.0 / 8.0), images[1].texel(1, 1)[0]);
+    }
+
+    /// pbrt-v4's filtered checkerboard is the ±1 checks averaged under a
+    /// triangle filter of the footprint's radius (checked by quadrature).
+    #[test]
+    fn checkerboards_are_box_filtered_over_the_footprint() {
+        let checks = |x: f32| if (x.floor() as i32) & 1 == 0 { 1.0 } else { -1.0 };
+        for (x, r) in [(0.3f32, 0.5f32), (1.9, 0.25), (-0.6, 1.7), (2.5, 4.0), (0.99, 0.02)] {
+            let n = 20_000;
+            let (mut sum, mut weights) = (0.0f64, 0.0f64);
+            for i in 0..n {
+                let t = -r + 2.0 * r * (i as f32 + 0.5) / n as f32;
+                let w = (1.0 - (t / r).abs()) as f64;
+                sum += w * checks(x + t);
+                weights += w;
+            }
+            let got = filtered_checks(x, r) as f64;
+            assert!((got - sum / weights).abs() < 2e-3, "x {x} r {r}: {got} against {}", sum / weights);
+        }
+        // Within one cell: the cell's sign, as without a footprint.
+        assert_eq!(
+            (filtered_checks(0.5, 0.1), filtered_checks(1.5, 0.1), filtered_checks(-0.5, 0.0)),
+            (1.0, -1.0, -1.0)
+        );
     }
 
     /// Texel centres return the texel; halfway between two, their mean;

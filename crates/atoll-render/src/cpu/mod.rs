@@ -344,15 +344,18 @@ fn write_hit(
             }
         })
     };
+    // The hit's texture footprint.
+    let footprint = |(dpdu, dpdv): (Vec3, Vec3)| {
+        let (dpdx, dpdy) = frame.footprint.dp_dxy(p, ng);
+        let (duvdx, duvdy) = crate::footprint::uv_footprint(dpdx, dpdy, dpdu, dpdv);
+        crate::texture::Footprint { dpdx, dpdy, duvdx, duvdy }
+    };
     let at = || TexPoint { uv, position: p, normal: ng, ..Default::default() };
     let (material, packed) = frame.material_at(mesh.material, r, at);
     packed.store(r);
     r.set_hit_media(mesh.media);
     if !frame.textures.materials[material as usize].is_empty() {
-        let (dpdx, dpdy) = frame.footprint.dp_dxy(p, ng);
-        let (dpdu, dpdv) = partials();
-        let (duvdx, duvdy) = crate::footprint::uv_footprint(dpdx, dpdy, dpdu, dpdv);
-        let footprint = crate::texture::Footprint { dpdx, dpdy, duvdx, duvdy };
+        let footprint = footprint(partials());
         textures.apply(material, TexPoint { footprint, ..at() }, &mut r.coeffs);
     }
     store_hair_offset(packed.kind, &mut r.coeffs, hair_offset_at(uv.y));
@@ -361,7 +364,7 @@ fn write_hit(
         let (dpdu, dpdv) = partials();
         let interpolated = surface.interpolated;
         let at = crate::bump::SurfaceAt { position: p, uv, ng, ns, dpdu, dpdv, interpolated };
-        let bent = textures.shading_geometry(material, &at);
+        let bent = textures.shading_geometry(material, &at, footprint((dpdu, dpdv)));
         r.shading_normal = to_f16x3(bent.normal);
         store_tangent(packed.kind, &mut r.coeffs, bent.dpdu);
     }
