@@ -70,24 +70,47 @@ __device__ float noise3(float3 p) {
     return noise_lerp(wz, noise_lerp(wy, x00, x10), noise_lerp(wy, x01, x11));
 }
 
-/// `noise::fbm` (ABS: `noise::turbulence`'s sum, without its allowance).
+/// `noise::octaves_for`.
+__device__ __forceinline__ float noise_octaves_for(float len2, unsigned int octaves) {
+    if (isnan(len2)) len2 = 0.0f;
+    return clampf(-1.0f - log2f(len2) / 2.0f, 0.0f, (float)min(octaves, NOISE_MAX_OCTAVES));
+}
+
+/// `noise::partial_weight`.
+__device__ __forceinline__ float noise_partial_weight(float x) {
+    const float t = clampf((x - 0.3f) / 0.4f, 0.0f, 1.0f);
+    return t * t * (3.0f - 2.0f * t);
+}
+
+/// `noise::fbm` (ABS: `noise::turbulence`).
 template <bool ABS>
-__device__ __forceinline__ float noise_octaves(float3 p, float omega, unsigned int octaves) {
+__device__ __forceinline__ float noise_octaves(float3 p, float len2, float omega, unsigned int octaves) {
+    octaves = min(octaves, NOISE_MAX_OCTAVES);
+    const float n = noise_octaves_for(len2, octaves);
+    const float whole = floorf(n);
+    const unsigned int kept = (unsigned int)whole;
     float sum = 0.0f, lambda = 1.0f, o = 1.0f;
-    const unsigned int n = min(octaves, NOISE_MAX_OCTAVES);
-    for (unsigned int i = 0; i < n; ++i) {
+    for (unsigned int i = 0; i < kept; ++i) {
         const float v = noise3(p * lambda);
         sum += o * (ABS ? fabsf(v) : v);
         lambda *= 1.99f;
         o *= omega;
     }
-    return ABS ? sum + o * 0.2f : sum;
+    const float partial = noise_partial_weight(n - whole);
+    if (!ABS) return sum + o * partial * noise3(p * lambda);
+    sum += o * ((1.0f - partial) * 0.2f + partial * fabsf(noise3(p * lambda)));
+    for (unsigned int i = kept; i < octaves; ++i) {
+        sum += o * 0.2f;
+        o *= omega;
+    }
+    return sum;
 }
 
 /// `noise::marble`.
-__device__ float3 noise_marble(float3 p, float omega, unsigned int octaves, float scale, float variation) {
+__device__ float3 noise_marble(float3 p, float len2, float omega, unsigned int octaves, float scale,
+                               float variation) {
     p = p * scale;
-    const float m = p.y + variation * noise_octaves<false>(p, omega, octaves);
+    const float m = p.y + variation * noise_octaves<false>(p, scale * scale * len2, omega, octaves);
     float t = 0.5f + 0.5f * sinf(m);
     const float colors[9][3] = {{0.58f, 0.58f, 0.6f}, {0.58f, 0.58f, 0.6f}, {0.58f, 0.58f, 0.6f},
                                 {0.5f, 0.5f, 0.5f},   {0.6f, 0.59f, 0.58f}, {0.58f, 0.58f, 0.6f},
@@ -108,21 +131,22 @@ __device__ float3 noise_marble(float3 p, float omega, unsigned int octaves, floa
 }
 
 /// `noise::evaluate`.
-__device__ __noinline__ float3 noise_texture(unsigned int kind, float3 p, unsigned int octaves, float omega,
-                                             float scale, float variation) {
+__device__ __noinline__ float3 noise_texture(unsigned int kind, float3 p, float len2, unsigned int octaves,
+                                             float omega, float scale, float variation) {
     if (kind == NOISE_FBM) {
-        const float v = noise_octaves<false>(p, omega, octaves);
+        const float v = noise_octaves<false>(p, len2, omega, octaves);
         return make_float3(v, v, v);
     }
     if (kind == NOISE_WRINKLED) {
-        const float v = noise_octaves<true>(p, omega, octaves);
+        const float v = noise_octaves<true>(p, len2, omega, octaves);
         return make_float3(v, v, v);
     }
     if (kind == NOISE_WINDY) {
-        const float v = fabsf(noise_octaves<false>(p * 0.1f, 0.5f, 3)) * noise_octaves<false>(p, 0.5f, 6);
+        const float v = fabsf(noise_octaves<false>(p * 0.1f, 0.01f * len2, 0.5f, 3)) *
+                        noise_octaves<false>(p, len2, 0.5f, 6);
         return make_float3(v, v, v);
     }
-    return noise_marble(p, omega, octaves, scale, variation);
+    return noise_marble(p, len2, omega, octaves, scale, variation);
 }
 
 /// `noise::inside_polka_dot`.

@@ -328,14 +328,6 @@ __device__ __forceinline__ void store_value(float3 v, unsigned int slot, unsigne
     }
 }
 
-/// `texture::odd_cell`: a checkerboard cell whose floored coordinates sum
-/// to `sum` takes the second input.
-__device__ __forceinline__ bool odd_cell(float sum) {
-    float parity = fmodf(sum, 2.0f);
-    if (parity < 0.0f) parity += 2.0f;  // Rust's rem_euclid
-    return parity != 0.0f;
-}
-
 /// `texture::filtered_checks`.
 __device__ __forceinline__ float filtered_checks(float x, float r) {
     if (floorf(x - r) == floorf(x + r)) return 1.0f - 2.0f * (float)(((int)floorf(x)) & 1);
@@ -349,9 +341,10 @@ __device__ __forceinline__ float filtered_checks(float x, float r) {
 /// `texture::project`: (s, t, 0) of the hit point `position` under the
 /// PROJECT op at `ops[k]` (its matrix rows in it and the two DATA ops
 /// after), or the point itself for PROJECT_POINT; the derivatives of
-/// (s, t) over the footprint `fp` (null: none) in `*dx`, `*dy`.
+/// (s, t) over the footprint `fp` (null: none) in `*dx`, `*dy`, and of the
+/// point in the texture's space in `dq[0]`, `dq[1]`.
 __device__ float3 project(const TexOp* ops, unsigned int k, float3 position, const TexFootprint* fp, float2* dx,
-                          float2* dy) {
+                          float2* dy, float3* dq) {
     float q[3];
     float3 dqdx = zero3(), dqdy = zero3();
 #pragma unroll
@@ -369,6 +362,8 @@ __device__ float3 project(const TexOp* ops, unsigned int k, float3 position, con
         dqdx = linear(fp->dpdx);
         dqdy = linear(fp->dpdy);
     }
+    dq[0] = dqdx;
+    dq[1] = dqdy;
     const auto along = [&](float3 dsdq, float3 dtdq) {
         *dx = make_float2(dot3(dsdq, dqdx), dot3(dtdq, dqdx));
         *dy = make_float2(dot3(dsdq, dqdy), dot3(dtdq, dqdy));
@@ -408,6 +403,7 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
     int sp = 0;
     // The (s, t) derivatives of the last projection (its consumer follows it).
     float2 projected_dx = make_float2(0.0f, 0.0f), projected_dy = make_float2(0.0f, 0.0f);
+    float3 point_d[2] = {zero3(), zero3()};
     const TexOp* ops = reinterpret_cast<const TexOp*>(p.texture_ops) + range.start;
     for (unsigned int k = 0; k < range.len; ++k) {
         const TexOp o = ops[k];
@@ -427,13 +423,18 @@ __device__ __noinline__ float3 run_program(const FrameParams& p, ProgramRange ra
             const float a = fabsf(dot3(normal, make_float3(o.f[0], o.f[1], o.f[2])));
             stack[sp++] = make_float3(a, a, a);
         } else if (o.code == TEX_PROJECT) {
-            stack[sp++] = project(ops, k, position, fp, &projected_dx, &projected_dy);
+            stack[sp++] = project(ops, k, position, fp, &projected_dx, &projected_dy, point_d);
         } else if (o.code == TEX_NOISE) {
-            stack[sp - 1] = noise_texture(o.a, stack[sp - 1], o.b, o.f[0], o.f[1], o.f[2]);
+            const float len2 = fmaxf(length_squared3(point_d[0]), length_squared3(point_d[1]));
+            stack[sp - 1] = noise_texture(o.a, stack[sp - 1], len2, o.b, o.f[0], o.f[1], o.f[2]);
         } else if (o.code == TEX_SOLID_CHECKERBOARD) {
             sp -= 2;
             const float3 q = stack[sp + 1];
-            if (odd_cell(floorf(q.x) + floorf(q.y) + floorf(q.z))) stack[sp - 1] = stack[sp];
+            const float3 dx = point_d[0], dy = point_d[1];
+            const float w = 0.5f - 0.5f * filtered_checks(q.x, 1.5f * fmaxf(fabsf(dx.x), fabsf(dy.x))) *
+                                       filtered_checks(q.y, 1.5f * fmaxf(fabsf(dx.y), fabsf(dy.y))) *
+                                       filtered_checks(q.z, 1.5f * fmaxf(fabsf(dx.z), fabsf(dy.z)));
+            if (w != 0.0f) stack[sp - 1] = stack[sp - 1] * (1.0f - w) + stack[sp] * w;
         } else if (o.code == TEX_BILERP) {
             const float2 st = apply_mapping(o, coords);
             sp -= 3;

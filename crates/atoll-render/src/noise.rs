@@ -90,32 +90,58 @@ fn noise2(x: f32, y: f32) -> f32 {
     noise(Vec3::new(x, y, 0.5))
 }
 
-/// Fractional Brownian motion: `sum_i omega^i noise(1.99^i p)` over `octaves`.
-pub fn fbm(p: Vec3, omega: f32, octaves: u32) -> f32 {
+/// How many octaves a noise sum keeps where the point moves by `len2`
+/// (squared) from pixel to pixel: pbrt-v4's antialiasing, fewer octaves
+/// the wider the footprint (all of them for none), the last in part.
+fn octaves_for(len2: f32, octaves: u32) -> f32 {
+    let len2 = if len2.is_nan() { 0.0 } else { len2 };
+    (-1.0 - len2.log2() / 2.0).clamp(0.0, octaves.min(MAX_OCTAVES) as f32)
+}
+
+/// pbrt's `SmoothStep(x, 0.3, 0.7)`: how much of a partial octave is kept.
+fn partial_weight(x: f32) -> f32 {
+    let t = ((x - 0.3) / 0.4).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Fractional Brownian motion: `sum_i omega^i noise(1.99^i p)` over
+/// `octaves`, as many as a footprint of `len2` (see [`octaves_for`]) keeps.
+pub fn fbm(p: Vec3, len2: f32, omega: f32, octaves: u32) -> f32 {
+    let n = octaves_for(len2, octaves);
+    let whole = n.floor();
     let (mut sum, mut lambda, mut o) = (0.0, 1.0, 1.0);
-    for _ in 0..octaves.min(MAX_OCTAVES) {
+    for _ in 0..whole as u32 {
         sum += o * noise(lambda * p);
         lambda *= 1.99;
+        o *= omega;
+    }
+    sum + o * partial_weight(n - whole) * noise(lambda * p)
+}
+
+/// Turbulence: fBm of the absolute noise, plus pbrt's allowance for the
+/// octaves past the last kept (0.2 times each one's weight).
+pub fn turbulence(p: Vec3, len2: f32, omega: f32, octaves: u32) -> f32 {
+    let octaves = octaves.min(MAX_OCTAVES);
+    let n = octaves_for(len2, octaves);
+    let whole = n.floor();
+    let (mut sum, mut lambda, mut o) = (0.0, 1.0, 1.0);
+    for _ in 0..whole as u32 {
+        sum += o * noise(lambda * p).abs();
+        lambda *= 1.99;
+        o *= omega;
+    }
+    let partial = partial_weight(n - whole);
+    sum += o * ((1.0 - partial) * 0.2 + partial * noise(lambda * p).abs());
+    for _ in whole as u32..octaves {
+        sum += o * 0.2;
         o *= omega;
     }
     sum
 }
 
-/// Turbulence: fBm of the absolute noise, plus pbrt's allowance for the
-/// octaves past the last (0.2 times the next weight).
-pub fn turbulence(p: Vec3, omega: f32, octaves: u32) -> f32 {
-    let (mut sum, mut lambda, mut o) = (0.0, 1.0, 1.0);
-    for _ in 0..octaves.min(MAX_OCTAVES) {
-        sum += o * noise(lambda * p).abs();
-        lambda *= 1.99;
-        o *= omega;
-    }
-    sum + o * 0.2
-}
-
 /// pbrt's `windy`: `|fbm(p / 10, 0.5, 3)| * fbm(p, 0.5, 6)`.
-pub fn windy(p: Vec3) -> f32 {
-    fbm(0.1 * p, 0.5, 3).abs() * fbm(p, 0.5, 6)
+pub fn windy(p: Vec3, len2: f32) -> f32 {
+    fbm(0.1 * p, 0.01 * len2, 0.5, 3).abs() * fbm(p, len2, 0.5, 6)
 }
 
 /// The control points of pbrt's marble spline.
@@ -133,9 +159,9 @@ const MARBLE_COLORS: [[f32; 3]; 9] = [
 
 /// pbrt's `marble` at `p` (scaled by `scale`): the cubic Bézier segment of
 /// [`MARBLE_COLORS`] picked by `0.5 + 0.5 sin(p.y + variation fbm(p))`, times 1.5.
-pub fn marble(p: Vec3, omega: f32, octaves: u32, scale: f32, variation: f32) -> Vec3 {
+pub fn marble(p: Vec3, len2: f32, omega: f32, octaves: u32, scale: f32, variation: f32) -> Vec3 {
     let p = p * scale;
-    let m = p.y + variation * fbm(p, omega, octaves);
+    let m = p.y + variation * fbm(p, scale * scale * len2, omega, octaves);
     let t = 0.5 + 0.5 * m.sin();
     const SEGMENTS: usize = MARBLE_COLORS.len() - 3;
     let first = ((t * SEGMENTS as f32).floor().max(0.0) as usize).min(SEGMENTS - 1);
@@ -162,14 +188,16 @@ pub fn inside_polka_dot(st: Vec2) -> bool {
     (st - Vec2::new(s_center, t_center)).length_squared() < RADIUS * RADIUS
 }
 
-/// The value of noise texture `kind` at `p` (texture space): `octaves`,
-/// `omega` (pbrt's `roughness`), and marble's `scale` and `variation`.
-pub fn evaluate(kind: u32, p: Vec3, octaves: u32, omega: f32, scale: f32, variation: f32) -> Vec3 {
+/// The value of noise texture `kind` at `p` (texture space), where `p`
+/// moves by at most `sqrt(len2)` from pixel to pixel (0: unknown, all
+/// octaves): `octaves`, `omega` (pbrt's `roughness`), and marble's `scale`
+/// and `variation`.
+pub fn evaluate(kind: u32, p: Vec3, len2: f32, octaves: u32, omega: f32, scale: f32, variation: f32) -> Vec3 {
     match kind {
-        kind::FBM => Vec3::splat(fbm(p, omega, octaves)),
-        kind::WRINKLED => Vec3::splat(turbulence(p, omega, octaves)),
-        kind::WINDY => Vec3::splat(windy(p)),
-        _ => marble(p, omega, octaves, scale, variation),
+        kind::FBM => Vec3::splat(fbm(p, len2, omega, octaves)),
+        kind::WRINKLED => Vec3::splat(turbulence(p, len2, omega, octaves)),
+        kind::WINDY => Vec3::splat(windy(p, len2)),
+        _ => marble(p, len2, omega, octaves, scale, variation),
     }
 }
 
@@ -215,15 +243,36 @@ mod tests {
     #[test]
     fn octave_sums_follow_their_definitions() {
         for p in points(200) {
-            assert_eq!(fbm(p, 0.5, 1), noise(p));
+            assert_eq!(fbm(p, 0.0, 0.5, 1), noise(p));
             let two = noise(p) + 0.3 * noise(1.99 * p);
-            assert!((fbm(p, 0.3, 2) - two).abs() < 1e-6);
+            assert!((fbm(p, 0.0, 0.3, 2) - two).abs() < 1e-6);
             let wrinkled = noise(p).abs() + 0.5 * 0.2;
-            assert!((turbulence(p, 0.5, 1) - wrinkled).abs() < 1e-6);
-            assert!(turbulence(p, 0.5, 8) >= 0.0);
-            assert_eq!(windy(p), fbm(0.1 * p, 0.5, 3).abs() * fbm(p, 0.5, 6));
+            assert!((turbulence(p, 0.0, 0.5, 1) - wrinkled).abs() < 1e-6);
+            assert!(turbulence(p, 0.0, 0.5, 8) >= 0.0);
+            assert_eq!(windy(p, 0.0), fbm(0.1 * p, 0.0, 0.5, 3).abs() * fbm(p, 0.0, 0.5, 6));
             // More octaves than the cap sum no further.
-            assert_eq!(fbm(p, 0.5, 1000), fbm(p, 0.5, MAX_OCTAVES));
+            assert_eq!(fbm(p, 0.0, 0.5, 1000), fbm(p, 0.0, 0.5, MAX_OCTAVES));
+        }
+    }
+
+    /// A wide footprint keeps fewer octaves, as pbrt-v4's antialiased
+    /// FBm does: `clamp(-1 - log2(len2) / 2, 0, octaves)` of them, the
+    /// last faded in between 0.3 and 0.7 of it.
+    #[test]
+    fn wide_footprints_keep_fewer_octaves() {
+        for p in points(100) {
+            // len2 = 2^-8: 3 whole octaves and none in part.
+            let three = fbm(p, 0.0, 0.5, 3);
+            assert_eq!(fbm(p, 2f32.powi(-8), 0.5, 8), three + 0.0 * noise(1.99f32.powi(3) * p));
+            // 3.5 octaves: half of the fourth (smoothstep(0.5) = 0.5).
+            let half = three + 0.125 * 0.5 * noise(1.99f32.powi(3) * p);
+            assert!((fbm(p, 2f32.powi(-9), 0.5, 8) - half).abs() < 1e-6);
+            // Turbulence keeps 0.2 for each octave dropped.
+            let t = turbulence(p, 2f32.powi(-8), 0.5, 5);
+            let kept: f32 = (0..3).map(|i| 0.5f32.powi(i) * noise(1.99f32.powi(i) * p).abs()).sum();
+            assert!((t - (kept + 0.2 * (0.125 + 0.125 + 0.0625))).abs() < 1e-5, "{t}");
+            // A footprint wider than the noise keeps nothing of fBm.
+            assert_eq!(fbm(p, 4.0, 0.5, 8), 0.0);
         }
     }
 
@@ -232,7 +281,7 @@ mod tests {
         let (lo, hi) = (1.5 * Vec3::new(0.2, 0.2, 0.33), 1.5 * Vec3::new(0.6, 0.59, 0.6));
         let mut dark = 0;
         for p in points(2000) {
-            let c = marble(p, 0.5, 8, 1.0, 0.2);
+            let c = marble(p, 0.0, 0.5, 8, 1.0, 0.2);
             assert!(c.cmpge(lo - 1e-5).all() && c.cmple(hi + 1e-5).all(), "{c}");
             dark += (c.x < 0.7) as usize;
         }

@@ -550,9 +550,10 @@ fn rows_of(a: &glam::Affine3A) -> [[f32; 4]; 3] {
 
 /// What the [`op::PROJECT`] at `ops[k]` pushes for the hit point
 /// `position`: `(s, t, 0)`, or the point itself for [`projection::POINT`];
-/// and the derivatives of `(s, t)` in x and y over `footprint` (pbrt-v4's
-/// `TextureMapping2D::Map`; none for a point).
-fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (Vec3, [Vec2; 2]) {
+/// and the derivatives in x and y over `footprint` of `(s, t)` (pbrt-v4's
+/// `TextureMapping2D::Map`; none for a point) and of the point in the
+/// texture's space (its `TextureMapping3D::Map`).
+fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (Vec3, [Vec2; 2], [Vec3; 2]) {
     use std::f32::consts::{PI, TAU};
     let row = |i: usize| glam::Vec4::from_array(ops[k + i].f);
     let p = position.extend(1.0);
@@ -565,7 +566,7 @@ fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (V
         [Vec2::new(dsdq.dot(dqdx), dtdq.dot(dqdx)), Vec2::new(dsdq.dot(dqdy), dtdq.dot(dqdy))]
     };
     let x2y2 = q.x * q.x + q.y * q.y;
-    match ops[k].a {
+    let (value, st_derivatives) = match ops[k].a {
         projection::SPHERICAL => {
             let d = q.normalize_or_zero();
             let theta = d.z.clamp(-1.0, 1.0).acos();
@@ -585,7 +586,8 @@ fn project(ops: &[TexOp], k: usize, position: Vec3, footprint: &Footprint) -> (V
         }
         projection::POINT => (q, [Vec2::ZERO; 2]),
         _ => (Vec3::new(q.x, q.y, 0.0), along(Vec3::X, Vec3::Y)),
-    }
+    };
+    (value, st_derivatives, [dqdx, dqdy])
 }
 
 /// Derivatives with NaN or infinite parts (on a mapping's axis) as zero.
@@ -684,8 +686,10 @@ pub fn run_program(
     let TexPoint { uv, position, normal, footprint } = at;
     let mut stack = [Vec3::ZERO; TEXTURE_STACK];
     let mut sp = 0usize;
-    // The (s, t) derivatives of the last projection (its consumer follows it).
+    // The (s, t) and point derivatives of the last projection (its
+    // consumer follows it).
     let mut projected_derivatives = [Vec2::ZERO; 2];
+    let mut point_derivatives = [Vec3::ZERO; 2];
     // An op's (s, t) before its own mapping: projected ones pop theirs.
     let coords = |o: &TexOp, stack: &[Vec3], sp: &mut usize| {
         if o.b & PROJECTED == 0 {
@@ -709,18 +713,23 @@ pub fn run_program(
                 sp += 1;
             }
             op::PROJECT => {
-                (stack[sp], projected_derivatives) = project(ops, k, position, &footprint);
+                (stack[sp], projected_derivatives, point_derivatives) = project(ops, k, position, &footprint);
                 sp += 1;
             }
             op::NOISE => {
                 let [omega, scale, variation, _] = o.f;
-                stack[sp - 1] = noise::evaluate(o.a, stack[sp - 1], o.b, omega, scale, variation);
+                let len2 = point_derivatives[0].length_squared().max(point_derivatives[1].length_squared());
+                stack[sp - 1] = noise::evaluate(o.a, stack[sp - 1], len2, o.b, omega, scale, variation);
             }
             op::SOLID_CHECKERBOARD => {
                 sp -= 2;
                 let q = stack[sp + 1];
-                if odd_cell(q.x.floor() + q.y.floor() + q.z.floor()) {
-                    stack[sp - 1] = stack[sp];
+                // pbrt-v4's 3D checkerboard, box-filtered over the footprint.
+                let [dx, dy] = point_derivatives;
+                let checks = |i: usize| filtered_checks(q[i], 1.5 * dx[i].abs().max(dy[i].abs()));
+                let w = 0.5 - 0.5 * checks(0) * checks(1) * checks(2);
+                if w != 0.0 {
+                    stack[sp - 1] = stack[sp - 1] * (1.0 - w) + stack[sp] * w;
                 }
             }
             op::BILERP => {
@@ -846,13 +855,6 @@ fn filtered_checks(x: f32, r: f32) -> f32 {
         x / 2.0 + y * (1.0 - 2.0 * y.abs())
     };
     (d(x + r) - 2.0 * d(x) + d(x - r)) / (r * r)
-}
-
-/// Whether a checkerboard cell whose floored coordinates sum to `sum` is
-/// an odd one (it takes the second input).
-#[inline]
-fn odd_cell(sum: f32) -> bool {
-    sum.rem_euclid(2.0) != 0.0
 }
 
 #[inline]
