@@ -96,9 +96,11 @@ __device__ __forceinline__ float noise_octaves(float3 p, float len2, float omega
         lambda *= 1.99f;
         o *= omega;
     }
+    // The partial octave, where there is one (its noise costs as much as
+    // a whole one's).
     const float partial = noise_partial_weight(n - whole);
-    if (!ABS) return sum + o * partial * noise3(p * lambda);
-    sum += o * ((1.0f - partial) * 0.2f + partial * fabsf(noise3(p * lambda)));
+    if (!ABS) return partial == 0.0f ? sum : sum + o * partial * noise3(p * lambda);
+    sum += partial == 0.0f ? o * 0.2f : o * ((1.0f - partial) * 0.2f + partial * fabsf(noise3(p * lambda)));
     for (unsigned int i = kept; i < octaves; ++i) {
         sum += o * 0.2f;
         o *= omega;

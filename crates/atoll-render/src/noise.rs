@@ -115,7 +115,12 @@ pub fn fbm(p: Vec3, len2: f32, omega: f32, octaves: u32) -> f32 {
         lambda *= 1.99;
         o *= omega;
     }
-    sum + o * partial_weight(n - whole) * noise(lambda * p)
+    // The partial octave, where there is one (its noise costs as much as
+    // a whole one's).
+    match partial_weight(n - whole) {
+        0.0 => sum,
+        w => sum + o * w * noise(lambda * p),
+    }
 }
 
 /// Turbulence: fBm of the absolute noise, plus pbrt's allowance for the
@@ -130,8 +135,10 @@ pub fn turbulence(p: Vec3, len2: f32, omega: f32, octaves: u32) -> f32 {
         lambda *= 1.99;
         o *= omega;
     }
-    let partial = partial_weight(n - whole);
-    sum += o * ((1.0 - partial) * 0.2 + partial * noise(lambda * p).abs());
+    sum += match partial_weight(n - whole) {
+        0.0 => o * 0.2,
+        w => o * ((1.0 - w) * 0.2 + w * noise(lambda * p).abs()),
+    };
     for _ in whole as u32..octaves {
         sum += o * 0.2;
         o *= omega;
