@@ -79,6 +79,7 @@ pub struct SceneStats {
     pub geometry_bytes: u64,
     /// Texture nodes and the decoded images they read.
     pub textures: usize,
+    /// Images, each MIP level of a filtered texture's pyramid counted.
     pub texture_images: usize,
     /// Bytes of image texels (every device holds all of them).
     pub texture_bytes: u64,

@@ -67,7 +67,12 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
     println!("emissive triangles {}", s.emissive_triangles);
     println!("lights             {} (plus area lights)", s.lights);
     println!("materials          {}", s.materials);
-    println!("textures           {} ({} images, {})", s.textures, s.texture_images, mib(s.texture_bytes));
+    println!(
+        "textures           {} ({} images, MIP levels counted, {})",
+        s.textures,
+        s.texture_images,
+        mib(s.texture_bytes)
+    );
     println!("media              {} ({})", s.media, mib(s.media_bytes));
     println!("bounds             {:?} .. {:?}", s.bounds_min.to_array(), s.bounds_max.to_array());
     let r = &scene.settings;

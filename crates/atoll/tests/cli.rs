@@ -114,7 +114,8 @@ fn info_reports_textures_and_warns_about_unreadable_images() {
     let out = atoll(&dir, &["info", "t.pbrt", "--allow-missing"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("textures           2 (1 images, 0.00 MiB)"), "{stdout}");
+    // The 4×2 image and its MIP levels, 2×1 and 1×1.
+    assert!(stdout.contains("textures           2 (3 images, MIP levels counted, 0.00 MiB)"), "{stdout}");
     assert!(stdout.contains("(geometry + BVH + textures and media)"), "{stdout}");
     assert!(stdout.contains("media              0 (0.00 MiB)"), "{stdout}");
     let err = stderr(&out);
