@@ -158,12 +158,13 @@ fn v3_textures_bind_to_the_mapped_materials() {
     let loaded = allowing_missing(|| load_str(&text, "t.pbrt", &dir)).unwrap();
     let s = &loaded.scene;
     let t = &s.textures;
-    // One file, decoded once per encoding: sRGB by default (pbrt-v3's `gamma` for PNG), linear for "raw".
-    assert_eq!(t.images.len(), 2);
+    // One file, decoded once per encoding: sRGB by default (pbrt-v3's
+    // `gamma` for PNG), linear for "raw"; each a MIP pyramid of 2 levels.
+    assert_eq!(t.images.len(), 4);
     assert_eq!(t.images[0].texel(1, 1), [1.0, srgb8_to_linear()[128], 0.0, 1.0]);
-    assert_eq!(t.images[1].texel(0, 0)[1], 128.0 / 255.0);
-    assert!(matches!(t.textures[0], Texture::Image { image: 0, channel: Channel::Rgb, .. }));
-    assert!(matches!(t.textures[1], Texture::Image { image: 1, .. }));
+    assert_eq!(t.images[2].texel(0, 0)[1], 128.0 / 255.0);
+    assert!(matches!(t.textures[0], Texture::Image { image: 0, channel: Channel::Rgb, levels: 2, .. }));
+    assert!(matches!(t.textures[1], Texture::Image { image: 2, levels: 2, .. }));
     // The missing bump map became a float constant 1 (allowed missing): a
     // displacement that bends nothing, bound as pbrt-v3's `bumpmap`.
     assert_eq!(t.textures[2], Texture::Constant(Rgb::ONE));
