@@ -1006,19 +1006,20 @@ impl SceneTextures<'_> {
         }
     }
 
-    /// The shading normal and `dpdu` of `surface` (whose footprint is
-    /// `footprint`) with material `id`'s bump or normal map; the surface's
-    /// own where it has none.
+    /// The shading normal and `dpdu` of `surface` (whose footprint
+    /// `footprint` makes, if it is needed) with material `id`'s bump or
+    /// normal map; the surface's own where it has none.
     pub fn shading_geometry(
         &self,
         id: u32,
         surface: &crate::bump::SurfaceAt,
-        footprint: Footprint,
+        footprint: impl FnOnce() -> Footprint,
     ) -> crate::bump::Bent {
         let bend = self.tables.shading_normals[id as usize];
         if bend.kind == bump::NONE {
             return crate::bump::Bent { normal: surface.ns, dpdu: surface.dpdu };
         }
+        let footprint = footprint();
         let ops = self.ops(bend.program);
         let duv = [footprint.duvdx, footprint.duvdy];
         crate::bump::bent_normal(bend.kind, surface, duv, |uv, p| {

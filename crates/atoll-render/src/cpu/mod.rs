@@ -344,11 +344,14 @@ fn write_hit(
             }
         })
     };
-    // The hit's texture footprint.
-    let footprint = |(dpdu, dpdv): (Vec3, Vec3)| {
-        let (dpdx, dpdy) = frame.footprint.dp_dxy(p, ng);
-        let (duvdx, duvdy) = crate::footprint::uv_footprint(dpdx, dpdy, dpdu, dpdv);
-        crate::texture::Footprint { dpdx, dpdy, duvdx, duvdy }
+    // The hit's texture footprint; made once, when first needed.
+    let mut footprint_once = None;
+    let mut footprint = |(dpdu, dpdv): (Vec3, Vec3)| {
+        *footprint_once.get_or_insert_with(|| {
+            let (dpdx, dpdy) = frame.footprint.dp_dxy(p, ng);
+            let (duvdx, duvdy) = crate::footprint::uv_footprint(dpdx, dpdy, dpdu, dpdv);
+            crate::texture::Footprint { dpdx, dpdy, duvdx, duvdy }
+        })
     };
     let at = || TexPoint { uv, position: p, normal: ng, ..Default::default() };
     let (material, packed) = frame.material_at(mesh.material, r, at);
@@ -364,7 +367,7 @@ fn write_hit(
         let (dpdu, dpdv) = partials();
         let interpolated = surface.interpolated;
         let at = crate::bump::SurfaceAt { position: p, uv, ng, ns, dpdu, dpdv, interpolated };
-        let bent = textures.shading_geometry(material, &at, footprint((dpdu, dpdv)));
+        let bent = textures.shading_geometry(material, &at, || footprint((dpdu, dpdv)));
         r.shading_normal = to_f16x3(bent.normal);
         store_tangent(packed.kind, &mut r.coeffs, bent.dpdu);
     }
