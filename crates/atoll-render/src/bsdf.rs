@@ -208,6 +208,10 @@ impl<'a> Bsdf<'a> {
             Material::Principled(params) => Some(Bsdf::Principled(Principled(params))),
             Material::Hair(params) => Some(Bsdf::Hair(Hair::new(&params))),
             Material::Measured { brdf } => Some(Bsdf::Measured(&measured[brdf as usize])),
+            // The boundary where paths enter.
+            Material::Subsurface(p) => {
+                Some(Bsdf::Dielectric { eta: p.eta, alpha_x: p.alpha_x, alpha_y: p.alpha_y })
+            }
         }
     }
 

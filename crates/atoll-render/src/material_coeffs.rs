@@ -10,7 +10,7 @@ use half::f16;
 use crate::bsdf::{Bsdf, Coated, CoatedBase, Frame, Hair, Principled};
 use crate::material_layout::{
     coated_conductor, coated_diffuse, conductor, dielectric, diffuse, diffuse_transmission, hair, measured,
-    principled, tangent_slot, thin_dielectric,
+    principled, subsurface, tangent_slot, thin_dielectric,
 };
 use crate::record::{MaterialKind, RayRecord, MATERIAL_COEFFS};
 
@@ -114,6 +114,13 @@ impl PackedMaterial {
                 c[measured::BRDF] = brdf as f32;
                 MaterialKind::Measured
             }
+            Material::Subsurface(p) => {
+                c[subsurface::ETA] = p.eta;
+                c[subsurface::ALPHA_X] = p.alpha_x;
+                c[subsurface::ALPHA_Y] = p.alpha_y;
+                c[subsurface::EXIT_NORMALISATION] = crate::bsdf::fresnel::diffuse_transmittance(p.eta);
+                MaterialKind::Subsurface
+            }
         };
         PackedMaterial { kind, coeffs: c.map(f16::from_f32), mix }
     }
@@ -195,6 +202,13 @@ pub fn bsdf_from_record<'a>(r: &RayRecord, brdfs: &'a [Arc<MeasuredBrdf>]) -> Op
             .with_offset(r.coeff(hair::OFFSET)),
         )),
         MaterialKind::Measured => brdfs.get(r.coeff(measured::BRDF) as usize).map(|m| Bsdf::Measured(m)),
+        // Where paths enter; where they leave, shading takes the exit lobe
+        // instead (`stages::shade`).
+        MaterialKind::Subsurface => Some(Bsdf::Dielectric {
+            eta: r.coeff(subsurface::ETA),
+            alpha_x: r.coeff(subsurface::ALPHA_X),
+            alpha_y: r.coeff(subsurface::ALPHA_Y),
+        }),
     }
 }
 
@@ -221,6 +235,7 @@ pub fn wants_tangent(kind: MaterialKind, coeffs: &[f16; MATERIAL_COEFFS]) -> boo
         MaterialKind::Hair | MaterialKind::Measured => true,
         MaterialKind::Conductor => anisotropic(conductor::ALPHA_X, conductor::ALPHA_Y),
         MaterialKind::Dielectric => anisotropic(dielectric::ALPHA_X, dielectric::ALPHA_Y),
+        MaterialKind::Subsurface => anisotropic(subsurface::ALPHA_X, subsurface::ALPHA_Y),
         MaterialKind::CoatedDiffuse => anisotropic(coated_diffuse::ALPHA_X, coated_diffuse::ALPHA_Y),
         _ => false,
     }

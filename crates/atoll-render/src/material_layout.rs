@@ -184,6 +184,21 @@ layouts! {
         /// [`conductor::TANGENT`]: super::conductor::TANGENT
         TANGENT: 1..4,
     }
+    /// [`MaterialKind::Subsurface`]: its boundary where paths enter,
+    /// as [`dielectric`]'s.
+    Subsurface => subsurface {
+        ETA: 0,
+        ALPHA_X: 1,
+        ALPHA_Y: 2,
+        /// As [`dielectric::TANGENT`].
+        ///
+        /// [`dielectric::TANGENT`]: super::dielectric::TANGENT
+        TANGENT: 3..6,
+        /// Where paths leave: the share of diffuse light from inside the
+        /// boundary lets out, which normalises the exit lobe
+        /// ([`crate::bsdf::fresnel::diffuse_transmittance`]).
+        EXIT_NORMALISATION: 6,
+    }
 }
 
 /// The first of the three slots where a kind's hit carries the surface's
@@ -198,6 +213,7 @@ pub const fn tangent_slot(kind: MaterialKind) -> Option<usize> {
         MaterialKind::CoatedDiffuse => Some(coated_diffuse::TANGENT),
         MaterialKind::Hair => Some(hair::TANGENT),
         MaterialKind::Measured => Some(measured::TANGENT),
+        MaterialKind::Subsurface => Some(subsurface::TANGENT),
         _ => None,
     }
 }

@@ -7,11 +7,14 @@
 //! homogeneous medium's emission along a segment is integrated in closed
 //! form; a grid's is estimated where the segment scatters.
 //!
-//! Distances are sampled as in Cycles' and pbrt-v4's spectral MIS, over the
-//! three RGB channels: a channel is picked uniformly, a distance drawn from
-//! its exponential, and the sample weighted by the mixture of the three
-//! channels' densities. In a grey medium this is plain exponential
-//! sampling; in a coloured one no channel's weight can blow up.
+//! Distances are sampled as in Cycles' spectral MIS, over the three RGB
+//! channels: a channel is picked with probability proportional to the
+//! path's throughput in it, a distance drawn from its exponential, and the
+//! sample weighted by the mixture of the channels' densities. In a grey
+//! medium this is plain exponential sampling; in a coloured one no
+//! channel's weight can blow up in one step, and weighting the choice by
+//! the throughput keeps long walks (subsurface scattering) from
+//! multiplying up channels the path has all but lost.
 
 use atoll_scene::{Medium, MediumIndex, Scene};
 use glam::Vec3;
@@ -32,6 +35,10 @@ pub struct MediumCoeffs {
     /// The grid the coefficients come from ([`MediumTable::grids`]), or
     /// `None` for the same everywhere.
     pub grid: Option<u32>,
+    /// The interior of a subsurface material ([`Medium::Subsurface`]):
+    /// paths walk it without light sampling, which its boundary always
+    /// blocks, and leave it by the exit lobe (`stages::shade`).
+    pub subsurface: bool,
 }
 
 /// A segment through a medium: where it ends, and the radiance the medium
@@ -60,19 +67,21 @@ impl MediumCoeffs {
         self.sigma_a + self.sigma_s
     }
 
-    /// Samples where a segment of `length` scatters, from one uniform number `u`.
-    pub fn sample_uniform_segment(&self, length: f32, u: f32) -> Segment {
+    /// Samples where a segment of `length` scatters, from one uniform
+    /// number `u`, picking channels with probabilities `channels`
+    /// ([`channel_probabilities`]).
+    pub fn sample_uniform_segment(&self, length: f32, u: f32, channels: Vec3) -> Segment {
         let sigma_t = self.sigma_t();
-        let (channel, target) = channel_and_depth(u);
+        let (channel, target) = channel_and_depth(u, channels);
         let depth = if sigma_t[channel] > 0.0 { target / sigma_t[channel] } else { f32::INFINITY };
         if depth < length {
             // The same σt at every point: T σs / mix(σt T).
             let transmittance = (-sigma_t * depth).exp();
-            let density = mean(sigma_t * transmittance);
+            let density = (sigma_t * transmittance).dot(channels);
             let weight = if density > 0.0 { transmittance * self.sigma_s / density } else { Vec3::ZERO };
             return Segment::Scatter { t: depth, weight };
         }
-        pass(transmittance(sigma_t, length))
+        pass(transmittance(sigma_t, length), channels)
     }
 
     /// The radiance the medium emits towards a segment's start over
@@ -99,24 +108,38 @@ impl MediumCoeffs {
     }
 }
 
-/// The channel a uniform number `u` picks (its leading third) and the
-/// optical depth the rest of it reaches in that channel, `-ln(1 - u')`.
-fn channel_and_depth(u: f32) -> (usize, f32) {
-    let scaled = u * 3.0;
-    let channel = (scaled as usize).min(2);
-    let u = (scaled - channel as f32).clamp(0.0, 1.0 - f32::EPSILON);
+/// The probabilities with which a segment picks each channel to sample its
+/// distance by: proportional to the magnitude of the path's throughput
+/// `beta` there (uniform where it has none).
+pub fn channel_probabilities(beta: Vec3) -> Vec3 {
+    let magnitude = beta.abs();
+    let sum = magnitude.x + magnitude.y + magnitude.z;
+    if sum > 0.0 && sum.is_finite() {
+        magnitude / sum
+    } else {
+        Vec3::splat(1.0 / 3.0)
+    }
+}
+
+/// The channel a uniform number `u` picks with probabilities `channels`
+/// (its leading share), and the optical depth the rest of it reaches in
+/// that channel, `-ln(1 - u')`.
+fn channel_and_depth(u: f32, channels: Vec3) -> (usize, f32) {
+    let (channel, start) = if u < channels.x || channels.y + channels.z == 0.0 {
+        (0, 0.0)
+    } else if u < channels.x + channels.y || channels.z == 0.0 {
+        (1, channels.x)
+    } else {
+        (2, channels.x + channels.y)
+    };
+    let u = ((u - start) / channels[channel]).clamp(0.0, 1.0 - f32::EPSILON);
     (channel, crate::sampling::sample_exponential(u, 1.0))
 }
 
-/// The mean of the three channels: the mixture over the channel picked.
-fn mean(v: Vec3) -> f32 {
-    v.dot(Vec3::splat(1.0 / 3.0))
-}
-
 /// A segment passing with `transmittance`, weighted by the mixture's
-/// probability of passing.
-fn pass(transmittance: Vec3) -> Segment {
-    let passing = mean(transmittance);
+/// probability of passing with channel probabilities `channels`.
+fn pass(transmittance: Vec3, channels: Vec3) -> Segment {
+    let passing = transmittance.dot(channels);
     Segment::Pass { weight: if passing > 0.0 { transmittance / passing } else { Vec3::ZERO } }
 }
 
@@ -156,9 +179,14 @@ impl MediumTable {
         let mut table = MediumTable { camera: scene.settings.camera_medium, ..Default::default() };
         for medium in &scene.media {
             table.media.push(match medium {
-                Medium::Homogeneous(h) => {
-                    MediumCoeffs { sigma_a: h.sigma_a, sigma_s: h.sigma_s, g: h.g, le: h.le, grid: None }
-                }
+                Medium::Homogeneous(h) | Medium::Subsurface(h) => MediumCoeffs {
+                    sigma_a: h.sigma_a,
+                    sigma_s: h.sigma_s,
+                    g: h.g,
+                    le: h.le,
+                    grid: None,
+                    subsurface: matches!(medium, Medium::Subsurface(_)),
+                },
                 Medium::Grid(g) => {
                     table.grids.push(DensityGrid::new(g));
                     MediumCoeffs {
@@ -167,6 +195,7 @@ impl MediumTable {
                         g: g.g,
                         le: g.le.scale,
                         grid: Some(table.grids.len() as u32 - 1),
+                        subsurface: false,
                     }
                 }
             });
@@ -216,8 +245,9 @@ impl MediumTable {
     }
 
     /// Where the segment `origin + t · dir`, `0 <= t < t_max`, through
-    /// medium `m` scatters, from one uniform number `u`, and what the
-    /// medium emits along it; a scattering distance is in world units.
+    /// medium `m` scatters, from one uniform number `u`, for a path of
+    /// throughput `beta`, and what the medium emits along it; a scattering
+    /// distance is in world units.
     pub fn sample_segment(
         &self,
         m: MediumIndex,
@@ -225,18 +255,20 @@ impl MediumTable {
         dir: Vec3,
         t_max: f32,
         u: f32,
+        beta: Vec3,
     ) -> SegmentSample {
         let coeffs = self.get(m);
         let scale = dir.length();
+        let channels = channel_probabilities(beta);
         let Some(g) = coeffs.grid else {
             let length = t_max * scale;
             return SegmentSample {
-                end: coeffs.sample_uniform_segment(length, u),
+                end: coeffs.sample_uniform_segment(length, u, channels),
                 emitted: coeffs.emission_over(length),
             };
         };
         let grid = &self.grids[g as usize];
-        let (channel, target) = channel_and_depth(u);
+        let (channel, target) = channel_and_depth(u, channels);
         // In units of t: the optical depth over |dir|.
         let target = target / scale;
         let total = grid.integral(origin, dir, 0.0, t_max);
@@ -246,7 +278,7 @@ impl MediumTable {
                 // medium scatters and emits there.
                 let at = grid.point(origin + dir * t);
                 let transmittance = (-depth * scale).exp();
-                let density = mean((at.sigma_a + at.sigma_s) * transmittance);
+                let density = ((at.sigma_a + at.sigma_s) * transmittance).dot(channels);
                 let (weight, emitted) = if density > 0.0 {
                     (transmittance * at.sigma_s / density, transmittance * at.emission / density)
                 } else {
@@ -255,7 +287,7 @@ impl MediumTable {
                 return SegmentSample { end: Segment::Scatter { t: t * scale, weight }, emitted };
             }
         }
-        SegmentSample { end: pass((-total * scale).exp()), emitted: Vec3::ZERO }
+        SegmentSample { end: pass((-total * scale).exp(), channels), emitted: Vec3::ZERO }
     }
 }
 
@@ -269,9 +301,16 @@ mod tests {
 
     /// The expected weight of passing plus scattering reproduces the
     /// transmittance and the scattered fraction, per channel, in a coloured
-    /// medium (the estimator is unbiased channel by channel).
+    /// medium (the estimator is unbiased channel by channel), whatever the
+    /// throughput the channels are picked by.
     #[test]
     fn segments_are_unbiased_per_channel() {
+        for beta in [Vec3::ONE, Vec3::new(0.9, 0.05, 0.3), Vec3::new(0.0, 2.0, 0.0)] {
+            segments_are_unbiased_with(channel_probabilities(beta));
+        }
+    }
+
+    fn segments_are_unbiased_with(channels: Vec3) {
         let m = MediumCoeffs {
             sigma_a: Vec3::new(0.2, 0.5, 1.0),
             sigma_s: Vec3::new(1.0, 0.3, 0.05),
@@ -281,7 +320,7 @@ mod tests {
         let n = 200_000;
         let (mut passed, mut scattered) = (Vec3::ZERO, Vec3::ZERO);
         for i in 0..n {
-            match m.sample_uniform_segment(length, (i as f32 + 0.5) / n as f32) {
+            match m.sample_uniform_segment(length, (i as f32 + 0.5) / n as f32, channels) {
                 Segment::Pass { weight } => passed += weight,
                 Segment::Scatter { t, weight } => {
                     assert!(t >= 0.0 && t < length);
@@ -294,6 +333,9 @@ mod tests {
         // ∫0^L T(t) σs dt = σs (1 - T(L)) / σt.
         let expected_scatter = m.sigma_s * (Vec3::ONE - expected_pass) / sigma_t;
         let (passed, scattered) = (passed / n as f32, scattered / n as f32);
+        // A channel never picked is estimated by the others' samples alone.
+        let (passed, expected_pass) = (passed * channels.signum(), expected_pass * channels.signum());
+        let (scattered, expected_scatter) = (scattered * channels.signum(), expected_scatter * channels.signum());
         assert!((passed - expected_pass).abs().max_element() < 2e-3, "{passed} vs {expected_pass}");
         assert!(
             (scattered - expected_scatter).abs().max_element() < 2e-3,
@@ -304,7 +346,8 @@ mod tests {
     #[test]
     fn grey_media_weigh_their_albedo() {
         let m = grey(0.25, 0.75);
-        match m.sample_uniform_segment(f32::INFINITY, 0.4) {
+        let uniform = Vec3::splat(1.0 / 3.0);
+        match m.sample_uniform_segment(f32::INFINITY, 0.4, uniform) {
             Segment::Scatter { weight, .. } => {
                 assert!((weight - Vec3::splat(0.75)).abs().max_element() < 1e-6)
             }
@@ -312,7 +355,7 @@ mod tests {
         }
         // Nothing escapes an endless medium; a vacuum channel always passes.
         let clear_red = MediumCoeffs { sigma_s: Vec3::new(0.0, 1.0, 1.0), ..Default::default() };
-        match clear_red.sample_uniform_segment(f32::INFINITY, 0.1) {
+        match clear_red.sample_uniform_segment(f32::INFINITY, 0.1, uniform) {
             Segment::Pass { weight } => assert_eq!(weight, Vec3::new(3.0, 0.0, 0.0)),
             other => panic!("{other:?}"),
         }
@@ -387,7 +430,7 @@ mod tests {
         let n = 200_000;
         let (mut pass_sum, mut scatter_sum, mut emission_sum) = (Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
         for i in 0..n {
-            let s = table.sample_segment(1, origin, dir, t_max, (i as f32 + 0.5) / n as f32);
+            let s = table.sample_segment(1, origin, dir, t_max, (i as f32 + 0.5) / n as f32, Vec3::ONE);
             emission_sum += s.emitted;
             match s.end {
                 Segment::Pass { weight } => pass_sum += weight,

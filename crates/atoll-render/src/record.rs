@@ -65,6 +65,10 @@ pub enum MaterialKind {
     CoatedConductor = 9,
     Hair = 10,
     Measured = 11,
+    /// A dielectric boundary around a scattering interior (the scene's
+    /// subsurface material); the interior is the inside medium of the
+    /// hit's interface.
+    Subsurface = 12,
 }
 
 impl MaterialKind {
@@ -81,6 +85,7 @@ impl MaterialKind {
             9 => MaterialKind::CoatedConductor,
             10 => MaterialKind::Hair,
             11 => MaterialKind::Measured,
+            12 => MaterialKind::Subsurface,
             _ => MaterialKind::None,
         }
     }

@@ -29,6 +29,11 @@ pub enum BounceDim {
 /// numbers as they were.
 pub const MEDIUM_DIMENSIONS: u32 = 1 << 24;
 
+/// Where the dimensions of decisions inside a subsurface medium start
+/// (hashed with where they are made): a walk there takes many steps within
+/// one path vertex, so its numbers cannot come from the vertex's block.
+pub const WALK_DIMENSIONS: u32 = 1 << 25;
+
 /// The dimension of a path's time within the shutter (motion blur): one
 /// below the media's, apart from every bounce's.
 pub const TIME_DIMENSION: u32 = MEDIUM_DIMENSIONS - 1;
@@ -73,6 +78,15 @@ impl SampleStream {
     #[inline]
     pub fn medium_distance(&self, depth: u32, origin: [f32; 3]) -> f32 {
         self.get(origin.iter().fold(MEDIUM_DIMENSIONS + depth, |h, c| pcg_hash(h ^ c.to_bits())))
+    }
+
+    /// Uniform float for decision `dim` at a point `at` of a walk through
+    /// a subsurface medium (a scattering point, or where the walk leaves)
+    /// within path vertex `depth`: the point tells the walk's steps apart.
+    #[inline]
+    pub fn walk(&self, depth: u32, at: [f32; 3], dim: BounceDim, offset: u32) -> f32 {
+        let start = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim as u32 + offset;
+        self.get(at.iter().fold(start, |h, c| pcg_hash(h ^ c.to_bits())))
     }
 }
 

@@ -600,7 +600,7 @@ fn finite(d: [Vec2; 2]) -> [Vec2; 2] {
 pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> Vec<(u32, u32)> {
     use crate::material_layout::{
         coated_conductor as cc, coated_diffuse as coated, conductor, dielectric, diffuse,
-        diffuse_transmission, principled,
+        diffuse_transmission, principled, subsurface,
     };
     use MaterialKind as K;
     use TexturedParam as P;
@@ -619,6 +619,9 @@ pub fn store_targets(kind: MaterialKind, param: TexturedParam, remap: bool) -> V
         (K::Dielectric, P::Roughness) => to(&[dielectric::ALPHA_X, dielectric::ALPHA_Y], roughness),
         (K::Dielectric, P::URoughness) => to(&[dielectric::ALPHA_X], roughness),
         (K::Dielectric, P::VRoughness) => to(&[dielectric::ALPHA_Y], roughness),
+        (K::Subsurface, P::Roughness) => to(&[subsurface::ALPHA_X, subsurface::ALPHA_Y], roughness),
+        (K::Subsurface, P::URoughness) => to(&[subsurface::ALPHA_X], roughness),
+        (K::Subsurface, P::VRoughness) => to(&[subsurface::ALPHA_Y], roughness),
         (K::CoatedDiffuse, P::Reflectance) => to(&[coated::REFLECTANCE], store::RGB),
         (K::CoatedDiffuse, P::Roughness) => to(&[coated::ALPHA_X, coated::ALPHA_Y], roughness),
         (K::CoatedDiffuse, P::URoughness) => to(&[coated::ALPHA_X], roughness),

@@ -33,7 +33,9 @@ pub mod ply;
 pub mod ply_write;
 pub mod procedural;
 pub mod progress;
+pub mod scattering;
 pub mod scene;
+pub mod subsurface;
 pub mod tensor;
 pub mod texture;
 pub mod texture_scenes;
@@ -48,7 +50,7 @@ pub use light::{AreaEmission, IntensityMap, Light, Portal, ProjectionImage};
 pub use load::{load_any, LoadedScene};
 pub use material::{
     CoatedConductorParams, CoatedDiffuseParams, Coating, HairParams, Material, MaterialId, MeasuredId,
-    PrincipledParams,
+    PrincipledParams, SubsurfaceParams,
 };
 pub use measured::MeasuredBrdf;
 pub use medium::{

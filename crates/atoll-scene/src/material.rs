@@ -58,6 +58,24 @@ pub enum Material {
     /// pbrt-v4's `measured`: a tabulated BRDF read from a `.bsdf` file,
     /// `Scene::measured[brdf]`.
     Measured { brdf: MeasuredId },
+    /// pbrt-v4's `subsurface`: a dielectric boundary around a scattering
+    /// interior. The scene gives the interior its own medium
+    /// ([`crate::Medium::Subsurface`], [`crate::Scene::attach_subsurface_interiors`]).
+    Subsurface(SubsurfaceParams),
+}
+
+/// A [`Material::Subsurface`]: its boundary, and the homogeneous medium
+/// inside it (coefficients per unit of world distance, pbrt's `scale`
+/// applied; no emission).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubsurfaceParams {
+    /// Relative index of refraction of the boundary (inside / outside).
+    pub eta: f32,
+    /// GGX roughness of the boundary along local x.
+    pub alpha_x: f32,
+    /// GGX roughness of the boundary along local y.
+    pub alpha_y: f32,
+    pub interior: crate::HomogeneousMedium,
 }
 
 /// Index of a measured BRDF in [`crate::Scene::measured`].

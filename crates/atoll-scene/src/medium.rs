@@ -12,6 +12,10 @@ pub enum Medium {
     /// pbrt-v4's `uniformgrid` and `rgbgrid`: coefficients interpolated
     /// from voxel samples.
     Grid(GridMedium),
+    /// The interior of a [`crate::Material::Subsurface`] surface: light
+    /// enters it only through that surface, so light sampling from inside
+    /// is always blocked and the renderer walks it without.
+    Subsurface(HomogeneousMedium),
 }
 
 /// A medium whose coefficients come from samples on a voxel grid,
@@ -78,7 +82,7 @@ impl Medium {
     /// Bytes of its data (a grid's samples).
     pub fn bytes(&self) -> u64 {
         match self {
-            Medium::Homogeneous(_) => std::mem::size_of::<HomogeneousMedium>() as u64,
+            Medium::Homogeneous(_) | Medium::Subsurface(_) => std::mem::size_of::<HomogeneousMedium>() as u64,
             Medium::Grid(g) => (g.values.len() * std::mem::size_of::<f32>()) as u64,
         }
     }

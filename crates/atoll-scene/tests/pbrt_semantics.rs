@@ -222,7 +222,7 @@ fn materials() {
          Material \"conductor\" \"rgb reflectance\" [0.5 0.5 0.5]\n{t}\n\
          Material \"dielectric\" \"spectrum eta\" \"glass-BK7\"\n{t}\n\
          Material \"interface\"\n{t}\nMaterial \"\"\n{t}\n\
-         Material \"subsurface\"\n{t}\n\
+         Material \"nonesuch\"\n{t}\n\
          NamedMaterial \"gold\"\n{t}\n\
          MakeNamedMaterial \"late\" \"string type\" \"diffuse\" \"rgb reflectance\" [0.1 0.2 0.3]\n\
          AttributeBegin\nMaterial \"dielectric\"\nAttributeEnd\n{t}",
@@ -245,7 +245,7 @@ fn materials() {
     assert_eq!(*m[7], Material::Conductor { eta: au.0, k: au.1, alpha_x: 0.5, alpha_y: 0.5 });
     // AttributeEnd restored the named material.
     assert_eq!(s.meshes[8].material, s.meshes[7].material);
-    assert!(loaded.warnings.iter().any(|w| w.message.contains("material \"subsurface\" is not supported")));
+    assert!(loaded.warnings.iter().any(|w| w.message.contains("material \"nonesuch\" is not supported")));
     assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
     // Materials are stored once however many shapes use them.
     assert_eq!(s.materials.len(), 8);
@@ -1388,4 +1388,74 @@ fn moving_lights_cameras_and_area_lights_follow_pbrt() {
     assert!(light.warnings[0].to_string().contains("a light cannot move"));
     let err = load_world("TransformTimes 2 1", "").unwrap_err();
     assert!(err.to_string().contains("TransformTimes"), "{err}");
+}
+
+/// pbrt-v4's `subsurface`: its four ways to give the interior, `scale`,
+/// and the interior each one's shapes get as the inside of their medium
+/// interface (one medium per distinct interior, kept under `path`, whose
+/// media pbrt-v4 drops).
+#[test]
+fn subsurface_materials_and_their_interiors() {
+    use atoll_scene::{HomogeneousMedium, Medium, MediumInterface, SubsurfaceParams};
+    let world = format!(
+        "MakeNamedMedium \"fog\" \"string type\" \"homogeneous\" \"string preset\" \"Wholemilk\" \"float scale\" 2\n\
+         Material \"subsurface\"\n{t}\n{t}\n\
+         Material \"subsurface\" \"string name\" \"Skin1\" \"float scale\" 50 \"float eta\" 1.5 \"float g\" 0.3\n{t}\n\
+         AttributeBegin\nMediumInterface \"\" \"fog\"\n\
+         Material \"subsurface\" \"rgb sigma_a\" [0.1 0.2 0.3] \"rgb sigma_s\" [1 2 3] \"float g\" 0.5 \"float roughness\" 0.1 \"bool remaproughness\" false\n{t}\nAttributeEnd\n\
+         Material \"subsurface\" \"rgb reflectance\" [0.5 0.5 0.5] \"float mfp\" 2 \"float scale\" 0.5\n{t}",
+        t = tri(UNIT_TRI)
+    );
+    let loaded = load_world("Integrator \"path\"", &world).unwrap();
+    let s = &loaded.scene;
+    let params = |mesh: usize| match s.materials[s.meshes[mesh].material as usize] {
+        Material::Subsurface(p) => p,
+        ref other => panic!("{other:?}"),
+    };
+    let milk = HomogeneousMedium {
+        sigma_a: Rgb::new(0.0011, 0.0024, 0.014),
+        sigma_s: Rgb::new(2.55, 3.21, 3.77),
+        g: 0.0,
+        le: Rgb::ZERO,
+    };
+    assert_eq!(params(0), SubsurfaceParams { eta: 1.33, alpha_x: 0.0, alpha_y: 0.0, interior: milk });
+    let skin = params(2);
+    assert_eq!((skin.eta, skin.interior.g), (1.5, 0.0));
+    assert_close(skin.interior.sigma_a, Rgb::new(0.032, 0.17, 0.48) * 50.0, 1e-5);
+    assert_close(skin.interior.sigma_s, Rgb::new(0.74, 0.88, 1.01) * 50.0, 1e-5);
+    assert!(loaded.warnings.iter().any(|w| w.message.contains("\"g\" 0.3 ignored with named coefficients")));
+    let given = params(3);
+    assert_eq!((given.alpha_x, given.alpha_y, given.interior.g), (0.1, 0.1, 0.5));
+    assert_eq!(given.interior.sigma_s, Rgb::new(1.0, 2.0, 3.0));
+    // From a diffuse reflectance: σt is 1 / (scale · mfp), the albedo high.
+    let diffuse = params(4).interior;
+    assert_close(diffuse.sigma_a + diffuse.sigma_s, Rgb::ONE, 1e-5);
+    assert!(diffuse.sigma_s.x > 0.9 && diffuse.sigma_s.x < 1.0, "{}", diffuse.sigma_s);
+    // `path` drops the fog but keeps the four interiors, each once.
+    assert_eq!(s.media.len(), 4);
+    let interior = |mesh: usize| match s.meshes[mesh].media {
+        Some(MediumInterface { inside, outside }) => (s.media[inside as usize - 1].clone(), outside),
+        None => panic!("mesh {mesh} has no interior"),
+    };
+    assert_eq!(interior(0), (Medium::Subsurface(milk), 0));
+    assert_eq!(s.meshes[1].media, s.meshes[0].media);
+    assert_ne!(s.meshes[2].media, s.meshes[0].media);
+    assert!(loaded.warnings.iter().any(|w| w.message.contains("1 media left out")), "{:?}", loaded.warnings);
+
+    // Under `volpath` the fog stays, with its preset's coefficients, and
+    // is the shape's outside.
+    let loaded = load_world("", &world).unwrap();
+    let s = &loaded.scene;
+    let Medium::Homogeneous(fog) = &s.media[0] else { panic!("{:?}", s.media[0]) };
+    assert_close(fog.sigma_s, Rgb::new(2.55, 3.21, 3.77) * 2.0, 1e-5);
+    assert_eq!(s.meshes[3].media.map(|m| m.outside), Some(1));
+    assert_eq!(s.media.len(), 5);
+
+    // Errors at the material's statement.
+    let error = |material: &str| {
+        load_world("", &format!("Material \"subsurface\" {material}\n{}", tri(UNIT_TRI))).unwrap_err().to_string()
+    };
+    assert!(error("\"string name\" \"Jam\"").contains("no measured scattering is named \"Jam\""));
+    assert!(error("\"rgb sigma_a\" [1 1 1]").contains("\"sigma_a\" given without \"sigma_s\""));
+    assert!(error("\"float g\" 1").contains("must be between -1 and 1"));
 }

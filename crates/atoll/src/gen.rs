@@ -340,6 +340,15 @@ fn material(out: &mut impl Write, id: usize, m: &Material, scene: &Scene) -> io:
             "\"string type\" \"measured\" \"string filename\" \"{}\"",
             scene.measured[*brdf as usize].filename
         ),
+        Material::Subsurface(p) => writeln!(
+            out,
+            "\"string type\" \"subsurface\" \"rgb sigma_a\" {} \"rgb sigma_s\" {} \"float g\" [ {} ] \"float eta\" [ {} ] {}",
+            rgb(p.interior.sigma_a),
+            rgb(p.interior.sigma_s),
+            p.interior.g,
+            p.eta,
+            rough(p.alpha_x, p.alpha_y)
+        ),
     }
 }
 

@@ -112,6 +112,26 @@ impl Complex {
     }
 }
 
+/// The share of light from a Lambertian (cosine-weighted) source inside a
+/// smooth boundary of relative index `eta` (inside / outside) that it lets
+/// out: 1 − 2 ∫₀¹ Fr(μ, η) μ dμ, with μ the cosine outside (Fresnel
+/// transmittance is the same both ways). It normalises pbrt-v4's
+/// `NormalizedFresnelBxDF`, the lobe light leaves a subsurface medium by;
+/// integrated here rather than taken from pbrt's polynomial fit of the
+/// moment, so that the lobe conserves energy exactly.
+pub fn diffuse_transmittance(eta: f32) -> f32 {
+    // The midpoint rule over x = μ², since 2 Fr(μ) μ dμ = Fr(√x) dx.
+    const STEPS: u32 = 256;
+    let reflected: f64 = (0..STEPS)
+        .map(|i| {
+            let mu2 = (i as f64 + 0.5) / STEPS as f64;
+            fr_dielectric(mu2.sqrt() as f32, eta) as f64
+        })
+        .sum::<f64>()
+        / STEPS as f64;
+    (1.0 - reflected) as f32
+}
+
 /// Unpolarised Fresnel reflectance of a conductor with complex index
 /// `eta + i k` (pbrt-v4 `FrComplex`); `cos_theta_i` is clamped to `[0, 1]`
 /// since conductors are opaque and seen from outside only. With `k = 0` it

@@ -7,15 +7,23 @@
 //! with the phase function for its BSDF (pbrt-v4's VolPathIntegrator for
 //! homogeneous media). Shadow rays carry the optical depth of the medium
 //! they start in; traversal adds that of the media boundaries they cross.
+//!
+//! A subsurface material is a dielectric boundary around a medium of its
+//! own. A path refracted in walks that medium (no light sampling: the
+//! boundary blocks it) until the walk reaches the boundary, where the light
+//! leaves by pbrt-v4's normalised Fresnel lobe, as from pbrt's BSSRDF
+//! probe point. Entry and exit count as one bounce, as in pbrt-v4.
 
 use atoll_scene::IntegratorSettings;
 use glam::{Vec2, Vec3};
 
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
+use crate::bsdf::fresnel::fr_dielectric;
 use crate::material_coeffs::{bsdf_from_record, shading_frame};
+use crate::material_layout::subsurface;
 use crate::medium::{MediumCoeffs, Segment};
-use crate::record::{flags, pack_eta_scale, RayRecord, NO_LIGHT};
+use crate::record::{flags, pack_eta_scale, MaterialKind, RayRecord, NO_LIGHT};
 use crate::rng::{BounceDim, SampleStream};
 use crate::sampling::{
     henyey_greenstein, power_heuristic, sample_cosine_hemisphere, sample_henyey_greenstein,
@@ -107,26 +115,41 @@ fn start_in_medium(ctx: &FrameContext, s: &mut RayRecord, medium: MediumIndex) {
 /// Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
 /// the throughput without the radiance scaling of refractions, which
 /// would otherwise end most paths inside glass. Its magnitude: a pixel
-/// filter's negative lobes make some throughputs negative. `None` when
-/// the path ends.
-fn russian_roulette(
-    ctx: &FrameContext,
-    rng: &SampleStream,
-    depth: u32,
-    beta: Vec3,
-    eta_scale: f32,
-) -> Option<Vec3> {
+/// filter's negative lobes make some throughputs negative. `u` is the
+/// vertex's uniform number for it. `None` when the path ends.
+fn russian_roulette(ctx: &FrameContext, u: f32, depth: u32, beta: Vec3, eta_scale: f32) -> Option<Vec3> {
     let mut beta = beta;
     if ctx.options.russian_roulette && depth >= 1 {
         let max = (beta * eta_scale).abs().max_element();
         if max < 1.0 {
             let q = (1.0 - max).max(0.0);
-            if rng.bounce(depth, BounceDim::RussianRoulette, 0) < q {
+            if u < q {
                 return None;
             }
             beta /= 1.0 - q;
         }
     }
+    beta.is_finite().then_some(beta)
+}
+
+/// The least probability with which a walk through a subsurface medium
+/// ends at each step: in a medium that absorbs nothing, the walk could
+/// otherwise go on as long as its boundary lets it (for ever in an open
+/// mesh). Survivors are weighted up, so the image stays unbiased.
+pub const WALK_END: f32 = 1.0 / 256.0;
+
+/// Russian roulette at a step of a subsurface walk: as
+/// [`russian_roulette`] at any depth, and at least [`WALK_END`].
+fn walk_roulette(ctx: &FrameContext, u: f32, beta: Vec3, eta_scale: f32) -> Option<Vec3> {
+    let q = if ctx.options.russian_roulette {
+        (1.0 - (beta * eta_scale).abs().max_element()).max(WALK_END)
+    } else {
+        WALK_END
+    };
+    if u < q {
+        return None;
+    }
+    let beta = beta / (1.0 - q);
     beta.is_finite().then_some(beta)
 }
 
@@ -154,7 +177,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
         let t_max = if r.has(flags::HIT) { r.t_max } else { f32::INFINITY };
         let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
         let u = rng.medium_distance(r.depth as u32, r.origin);
-        let segment = ctx.media.sample_segment(medium, r.origin(), dir, t_max, u);
+        let segment = ctx.media.sample_segment(medium, r.origin(), dir, t_max, u, beta);
         out.emitted += beta * segment.emitted;
         match segment.end {
             Segment::Scatter { t, weight } => {
@@ -200,9 +223,25 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
 
     let at = hit_point(r);
     let p = at.p;
-    // The medium on the side a direction leaves the surface into.
     let media = r.hit_media();
-    let medium_towards = |w: Vec3| media.map_or(medium, |m| m.towards(w.dot(at.normal)));
+    let subsurface_entry = r.material_kind() == MaterialKind::Subsurface;
+    if let Some(m) = media.filter(|m| subsurface_entry && m.inside == medium && ctx.media.get(medium).subsurface) {
+        return leave_subsurface(ctx, r, &at, m.outside, beta, out);
+    }
+    // The medium on the side a direction leaves the surface into; a
+    // subsurface boundary's inside is its interior, whichever way its
+    // normal points.
+    let medium_towards = |w: Vec3| match media {
+        Some(m) if subsurface_entry => {
+            if w.dot(at.normal) * dir.dot(at.normal) > 0.0 {
+                m.inside
+            } else {
+                medium
+            }
+        }
+        Some(m) => m.towards(w.dot(at.normal)),
+        None => medium,
+    };
     let Some(bsdf) = bsdf_from_record(r, &ctx.measured) else {
         // A surface that only bounds a medium: continue straight through.
         let mut next = continuation(r, &at, dir);
@@ -259,7 +298,8 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     if bs.transmission {
         eta_scale *= bs.eta * bs.eta;
     }
-    let Some(beta) = russian_roulette(ctx, &rng, depth, beta, eta_scale) else {
+    let u_roulette = rng.bounce(depth, BounceDim::RussianRoulette, 0);
+    let Some(beta) = russian_roulette(ctx, u_roulette, depth, beta, eta_scale) else {
         return out;
     };
     let wi = frame.from_local(bs.wi).normalize();
@@ -291,6 +331,9 @@ fn scatter_in_medium(
     max_depth: u32,
     mut out: ShadeOutcome,
 ) -> ShadeOutcome {
+    if m.subsurface {
+        return walk_subsurface(ctx, r, m, p, beta, out);
+    }
     let depth = r.depth as u32;
     if depth >= max_depth {
         return out;
@@ -319,7 +362,8 @@ fn scatter_in_medium(
         rng.bounce(depth, BounceDim::BsdfDirection, 1),
     );
     let (wi, pdf) = sample_henyey_greenstein(wo, m.g, u_dir);
-    let Some(beta) = russian_roulette(ctx, &rng, depth, beta, r.eta_scale()) else {
+    let u_roulette = rng.bounce(depth, BounceDim::RussianRoulette, 0);
+    let Some(beta) = russian_roulette(ctx, u_roulette, depth, beta, r.eta_scale()) else {
         return out;
     };
     let mut next = continuation(r, &at, wi);
@@ -328,6 +372,113 @@ fn scatter_in_medium(
     next.depth += 1;
     next.flags = 0;
     next.set_medium(r.medium());
+    out.next = Some(next);
+    out
+}
+
+/// A step of a walk through subsurface medium `m`: the segment `r`
+/// scatters at `p` with throughput `beta`. The walk is part of one path
+/// vertex, so the depth stays and its numbers come from where it
+/// scatters; it samples no light and ends by [`walk_roulette`] or at the
+/// boundary.
+fn walk_subsurface(
+    ctx: &FrameContext,
+    r: &RayRecord,
+    m: &MediumCoeffs,
+    p: Vec3,
+    beta: Vec3,
+    mut out: ShadeOutcome,
+) -> ShadeOutcome {
+    let depth = r.depth as u32;
+    let key = p.to_array();
+    let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+    let wo = -r.direction().normalize();
+    let u_dir = Vec2::new(
+        rng.walk(depth, key, BounceDim::BsdfDirection, 0),
+        rng.walk(depth, key, BounceDim::BsdfDirection, 1),
+    );
+    let (wi, pdf) = sample_henyey_greenstein(wo, m.g, u_dir);
+    let u_roulette = rng.walk(depth, key, BounceDim::RussianRoulette, 0);
+    let Some(beta) = walk_roulette(ctx, u_roulette, beta, r.eta_scale()) else {
+        return out;
+    };
+    let mut next = continuation(r, &SurfacePoint { p, normal: Vec3::ZERO, error: 0.0 }, wi);
+    next.throughput = beta.to_array();
+    next.bsdf_pdf = pdf;
+    next.flags = 0;
+    next.set_medium(r.medium());
+    out.next = Some(next);
+    out
+}
+
+/// Where a subsurface walk reaches its boundary `at`, from inside, with
+/// throughput `beta`: the light leaves into `outside` by pbrt-v4's
+/// `NormalizedFresnelBxDF`, cosine-weighted less what the boundary
+/// reflects and normalised to let all of it out (the walk accounted for
+/// the interior), and the radiance scaling of the entry's refraction is
+/// undone (pbrt's η² in radiance mode). It samples a light and a new
+/// direction with numbers from where it is, at the entry's depth, which
+/// the depth limit was checked against.
+fn leave_subsurface(
+    ctx: &FrameContext,
+    r: &RayRecord,
+    at: &SurfacePoint,
+    outside: MediumIndex,
+    beta: Vec3,
+    mut out: ShadeOutcome,
+) -> ShadeOutcome {
+    use std::f32::consts::PI;
+    let eta = r.coeff(subsurface::ETA);
+    let normalisation = r.coeff(subsurface::EXIT_NORMALISATION);
+    let lets_out = |cos: f32| (1.0 - fr_dielectric(cos, eta)) / normalisation;
+    // The side the walk was heading for, and the lobe's frame on it.
+    let dir = r.direction();
+    let n_out = if at.normal.dot(dir) < 0.0 { -at.normal } else { at.normal };
+    let ns = r.shading_normal().normalize_or_zero();
+    let ns = if ns == Vec3::ZERO { n_out } else if ns.dot(n_out) < 0.0 { -ns } else { ns };
+    let beta = beta * (eta * eta);
+    let eta_scale = r.eta_scale() / (eta * eta);
+    let depth = r.depth as u32;
+    let key = at.p.to_array();
+    let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
+    let u_light = Vec2::new(
+        rng.walk(depth, key, BounceDim::LightPosition, 0),
+        rng.walk(depth, key, BounceDim::LightPosition, 1),
+    );
+    if let Some(ls) = ctx.lights.sample(at.p, rng.walk(depth, key, BounceDim::LightSelect, 0), u_light) {
+        let cos = ls.wi.dot(ns);
+        if cos > 0.0 && ls.wi.dot(n_out) > 0.0 && ls.pdf > 0.0 && ls.radiance != Vec3::ZERO {
+            let pdf = cos / PI;
+            let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf) };
+            let contribution = beta * ls.radiance * (lets_out(cos) * pdf * w / ls.pdf);
+            let target = ls.distance.is_finite().then_some(&ls.target);
+            out.shadow = shadow_ray(r, at, target, ls.wi, f32::INFINITY, contribution).map(|mut s| {
+                start_in_medium(ctx, &mut s, outside);
+                s
+            });
+        }
+    }
+    let u_dir = Vec2::new(
+        rng.walk(depth, key, BounceDim::BsdfDirection, 0),
+        rng.walk(depth, key, BounceDim::BsdfDirection, 1),
+    );
+    let local = sample_cosine_hemisphere(u_dir);
+    let wi = Frame::from_z(ns).from_local(local).normalize();
+    if local.z <= 0.0 || wi.dot(n_out) <= 0.0 {
+        return out;
+    }
+    // f cos / pdf: the cosine and π cancel.
+    let beta = beta * lets_out(local.z);
+    let u_roulette = rng.walk(depth, key, BounceDim::RussianRoulette, 0);
+    let Some(beta) = russian_roulette(ctx, u_roulette, depth, beta, eta_scale) else {
+        return out;
+    };
+    let mut next = continuation(r, at, wi);
+    next.throughput = beta.to_array();
+    next.eta_scale = pack_eta_scale(eta_scale);
+    next.bsdf_pdf = local.z / PI;
+    next.flags = 0;
+    next.set_medium(outside);
     out.next = Some(next);
     out
 }

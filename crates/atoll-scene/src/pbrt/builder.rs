@@ -147,6 +147,9 @@ pub struct Builder {
     default_material: Option<MaterialId>,
     /// Meshes whose `NamedMaterial` was not defined yet when they were created.
     pending_materials: Vec<(MeshId, String, FileLoc)>,
+    /// The first subsurface material's place, for an error in giving the
+    /// subsurface materials their interiors.
+    subsurface_at: Option<FileLoc>,
     /// Shapes whose triangles are made at the end, in parallel.
     pending_shapes: Vec<PendingShape>,
     world_meshes: Vec<MeshId>,
@@ -208,6 +211,7 @@ impl Builder {
             named_materials: HashMap::new(),
             default_material: None,
             pending_materials: Vec::new(),
+            subsurface_at: None,
             pending_shapes: Vec::new(),
             world_meshes: Vec::new(),
             objects: Vec::new(),
@@ -735,6 +739,9 @@ impl Builder {
             Some(m) => m,
             None => entities::material(ty, p, loc, &mut self.warnings, &mut tex)?,
         };
+        if matches!(material, crate::Material::Subsurface(_)) {
+            self.subsurface_at.get_or_insert_with(|| loc.clone());
+        }
         let bump =
             if p.find("displacement", &[ParamType::Texture]).is_some() { "displacement" } else { "bumpmap" };
         let displacement = tex.float(p, bump, &what, loc, &mut self.warnings)?;
@@ -1386,6 +1393,11 @@ impl Builder {
             };
             let id = slot.id(&mut self.scene);
             self.scene.meshes[mesh as usize].material = id;
+        }
+        // After the media are dropped or kept: pbrt-v4's `path` renders
+        // subsurface scattering, though it renders no media.
+        if let Some(at) = self.subsurface_at.take() {
+            self.scene.attach_subsurface_interiors().map_err(|e| SceneError::at(&at, e))?;
         }
         if !self.world_meshes.is_empty() {
             let id = self

@@ -166,19 +166,79 @@ pub fn material(
         "coateddiffuse" => coated_diffuse(p, &what, "reflectance", (0.5, 0.0), loc, w, tex)?,
         "coatedconductor" => coated_conductor(p, &what, loc, w, tex)?,
         "hair" => hair(p, &what, loc, w, tex)?,
+        "subsurface" => subsurface(p, &what, loc, w, tex)?,
         _ => match super::v3::material(ty, p, loc, w, tex)? {
             Some(m) => m,
             None => {
                 p.mark_all_used();
-                let lacks = match ty {
-                    "subsurface" => "no light travels under its surface",
-                    _ => "its own look is lost",
-                };
-                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5 ({lacks})"));
+                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5 (its own look is lost)"));
                 Material::default_diffuse()
             }
         },
     })
+}
+
+/// pbrt-v4's `subsurface` (`SubsurfaceMaterial::Create`). Its interior
+/// comes from, in this order: a measured `name` (reduced coefficients, so
+/// `g` is 0), `sigma_a` with `sigma_s`, a diffuse `reflectance` with its
+/// mean free path `mfp` (1 by default; [`crate::subsurface::from_diffuse`]),
+/// or pbrt's default (whole milk's coefficients). `scale` multiplies the
+/// coefficients, or the mean free path; the boundary's `eta` is 1.33 and
+/// its roughness 0 by default. Coefficients are constants here: a texture
+/// in their place is warned about and the default used.
+fn subsurface(
+    p: &ParamList,
+    what: &str,
+    loc: &FileLoc,
+    w: &mut WarningSink,
+    tex: &mut TexCtx,
+) -> Result<Material, SceneError> {
+    let mut g = p.float_or("g", 0.0)?;
+    if !(g > -1.0 && g < 1.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
+    }
+    let scale = p.float_or("scale", 1.0)?;
+    if !(scale >= 0.0 && scale.is_finite()) {
+        return Err(SceneError::at(loc, format!("{what}: \"scale\" {scale} must be finite and not negative")));
+    }
+    let eta = p.float_or("eta", 1.33)?;
+    if !(eta > 0.0 && eta.is_finite()) {
+        return Err(SceneError::at(loc, format!("{what}: \"eta\" {eta} must be positive")));
+    }
+    let mut constant = |name: &str| -> Result<Option<Rgb>, SceneError> {
+        Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, what, loc, w)))
+    };
+    let name = p.string("name")?.filter(|n| !n.is_empty());
+    let (sigma_a, sigma_s) = if let Some(name) = name {
+        let Some((sigma_a, sigma_s)) = crate::scattering::measured(&name) else {
+            return Err(SceneError::at(loc, format!("{what}: no measured scattering is named \"{name}\"")));
+        };
+        if g != 0.0 {
+            w.warn(loc, format!("{what}: \"g\" {g} ignored with named coefficients (as in pbrt-v4)"));
+            g = 0.0;
+        }
+        (sigma_a * scale, sigma_s * scale)
+    } else {
+        match (constant("sigma_a")?, constant("sigma_s")?) {
+            (Some(sigma_a), Some(sigma_s)) => (sigma_a * scale, sigma_s * scale),
+            (Some(_), None) => {
+                return Err(SceneError::at(loc, format!("{what}: \"sigma_a\" given without \"sigma_s\"")))
+            }
+            (None, Some(_)) => {
+                return Err(SceneError::at(loc, format!("{what}: \"sigma_s\" given without \"sigma_a\"")))
+            }
+            (None, None) => match constant("reflectance")? {
+                Some(reflectance) => {
+                    let mfp = constant("mfp")?.unwrap_or(Rgb::ONE).max(Rgb::ZERO) * scale;
+                    crate::subsurface::from_diffuse(reflectance, mfp, eta, g)
+                }
+                None => (Rgb::new(0.0011, 0.0024, 0.014) * scale, Rgb::new(2.55, 3.21, 3.77) * scale),
+            },
+        }
+    };
+    let (alpha_x, alpha_y) = alphas(p, what, 0.0, "", loc, w, tex)?;
+    let interior = crate::HomogeneousMedium { sigma_a: sigma_a.max(Rgb::ZERO), sigma_s: sigma_s.max(Rgb::ZERO), g, le: Rgb::ZERO };
+    Ok(Material::Subsurface(crate::SubsurfaceParams { eta, alpha_x, alpha_y, interior }))
 }
 
 /// pbrt-v4's `conductor` (also pbrt-v3's `metal`, whose default roughness
@@ -865,17 +925,25 @@ pub fn medium(
         return rgb_grid_medium(&what, p, scale, g, ctm, loc).map(|g| Some(crate::Medium::Grid(g)));
     }
     let mut m = crate::HomogeneousMedium::pbrt_default();
-    if let Some(preset) = p.string("preset")? {
-        w.warn(
-            loc,
-            format!("{what}: preset \"{preset}\" is not supported; \"sigma_a\" and \"sigma_s\" are used"),
-        );
-    }
     let coefficient = |name: &str, default: Rgb, w: &mut WarningSink| -> Result<Rgb, SceneError> {
         Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, &what, loc, w)).unwrap_or(default))
     };
-    m.sigma_a = coefficient("sigma_a", m.sigma_a, w)? * scale;
-    m.sigma_s = coefficient("sigma_s", m.sigma_s, w)? * scale;
+    // A measured preset replaces both coefficients (pbrt-v4 warns about an
+    // unknown name and reads them from the parameters then).
+    let preset = if ty == "homogeneous" { p.string("preset")?.filter(|n| !n.is_empty()) } else { None };
+    match preset.as_deref().map(|n| (n, crate::scattering::measured(n))) {
+        Some((_, Some((sigma_a, sigma_s)))) => {
+            m.sigma_a = sigma_a * scale;
+            m.sigma_s = sigma_s * scale;
+        }
+        found => {
+            if let Some((name, None)) = found {
+                w.warn(loc, format!("{what}: no measured scattering is named \"{name}\"; \"sigma_a\" and \"sigma_s\" are used"));
+            }
+            m.sigma_a = coefficient("sigma_a", m.sigma_a, w)? * scale;
+            m.sigma_s = coefficient("sigma_s", m.sigma_s, w)? * scale;
+        }
+    }
     m.g = g;
     let le = match p.spectrum("Le", false)? {
         Some(le) => light_rgb(le, &what, loc, w)?,
