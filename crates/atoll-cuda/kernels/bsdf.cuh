@@ -345,6 +345,12 @@ __device__ __forceinline__ Bsdf bsdf_from_record(const RayRecord& r, const float
         b.eta = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ETA]);
         b.alpha_x = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_X]);
         b.alpha_y = f16_to_f32(r.coeffs[COEFF_DIELECTRIC_ALPHA_Y]);
+    } else if (kind == MATERIAL_SUBSURFACE) {
+        // Where paths enter; where they leave, shading takes the exit lobe.
+        b.kind = MATERIAL_DIELECTRIC;
+        b.eta = f16_to_f32(r.coeffs[COEFF_SUBSURFACE_ETA]);
+        b.alpha_x = f16_to_f32(r.coeffs[COEFF_SUBSURFACE_ALPHA_X]);
+        b.alpha_y = f16_to_f32(r.coeffs[COEFF_SUBSURFACE_ALPHA_Y]);
     } else if (kind == MATERIAL_DIFFUSE_TRANSMISSION) {
         b.a = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_REFLECTANCE]);
         b.b = load_f16x3(&r.coeffs[COEFF_DIFFUSE_TRANSMISSION_TRANSMITTANCE]);
@@ -846,6 +852,7 @@ __device__ __forceinline__ Frame shading_frame(const RayRecord& r) {
     float3 tangent = zero3();
     if (kind == MATERIAL_CONDUCTOR) tangent = load_f16x3(&r.coeffs[COEFF_CONDUCTOR_TANGENT]);
     if (kind == MATERIAL_DIELECTRIC) tangent = load_f16x3(&r.coeffs[COEFF_DIELECTRIC_TANGENT]);
+    if (kind == MATERIAL_SUBSURFACE) tangent = load_f16x3(&r.coeffs[COEFF_SUBSURFACE_TANGENT]);
     if (ATOLL_WITH_COATED && kind == MATERIAL_COATED_DIFFUSE) tangent = load_f16x3(&r.coeffs[COEFF_COATED_DIFFUSE_TANGENT]);
     if (ATOLL_WITH_HAIR && kind == MATERIAL_HAIR) tangent = load_f16x3(&r.coeffs[COEFF_HAIR_TANGENT]);
     if (ATOLL_WITH_MEASURED && kind == MATERIAL_MEASURED) tangent = load_f16x3(&r.coeffs[COEFF_MEASURED_TANGENT]);

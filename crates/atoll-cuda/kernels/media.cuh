@@ -341,15 +341,19 @@ struct MediumSegment {
     float3 weight;
 };
 
-/// Mirrors `medium::mean`.
-__device__ __forceinline__ float mean3(float3 v) {
+/// Mirrors `medium::channel_probabilities`: proportional to the magnitude
+/// of the throughput `beta` (uniform where it has none).
+__device__ __forceinline__ float3 medium_channel_probabilities(float3 beta) {
+    const float3 m = abs3(beta);
+    const float sum = m.x + m.y + m.z;
+    if (sum > 0.0f && is_finitef(sum)) return m / sum;
     const float third = 1.0f / 3.0f;
-    return dot3(v, make_float3(third, third, third));
+    return make_float3(third, third, third);
 }
 
 /// Mirrors `medium::pass`.
-__device__ __forceinline__ float3 medium_pass_weight(float3 tr) {
-    const float passing = mean3(tr);
+__device__ __forceinline__ float3 medium_pass_weight(float3 tr, float3 channels) {
+    const float passing = dot3(tr, channels);
     return passing > 0.0f ? tr / passing : zero3();
 }
 
@@ -369,19 +373,31 @@ __device__ __forceinline__ float3 medium_emission_over(const GpuMedium& m, float
 
 /// Mirrors `MediumTable::sample_segment` (with `channel_and_depth` and
 /// `MediumCoeffs::sample_uniform_segment`): a channel from the leading
-/// third of `u`, the optical depth to reach from the rest, found along the
-/// segment `o + t d`, 0 <= t < t_max, and weighted by the three channels'
+/// share of `u` (channels picked by the throughput `beta` before the
+/// segment), the optical depth to reach from the rest, found along the
+/// segment `o + t d`, 0 <= t < t_max, and weighted by the channels'
 /// mixture; a homogeneous medium's emission in closed form, a grid's where
-/// the segment scatters, added to `*emitted` times `beta` (the throughput
-/// before the segment). A scattering `t` is in world units.
+/// the segment scatters, added to `*emitted` times `beta`. A scattering
+/// `t` is in world units.
 __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p, unsigned int medium, float3 o,
                                                             float3 d, float t_max, float u, float3 beta,
                                                             float3* emitted) {
     const GpuMedium& m = p.media[medium];
     const float scale = length3(d);
-    const float scaled = u * 3.0f;
-    const unsigned int channel = min((unsigned int)scaled, 2u);
-    const float v = clampf(scaled - (float)channel, 0.0f, 1.0f - 1.1920929e-7f);
+    const float3 channels = medium_channel_probabilities(beta);
+    unsigned int channel;
+    float start;
+    if (u < channels.x || channels.y + channels.z == 0.0f) {
+        channel = 0u;
+        start = 0.0f;
+    } else if (u < channels.x + channels.y || channels.z == 0.0f) {
+        channel = 1u;
+        start = channels.x;
+    } else {
+        channel = 2u;
+        start = channels.x + channels.y;
+    }
+    const float v = clampf((u - start) / channel_of(channels, channel), 0.0f, 1.0f - 1.1920929e-7f);
     const float target = sample_exponential(v, 1.0f);
     MediumSegment s;
     s.scatter = false;
@@ -395,13 +411,13 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         if (depth < length) {
             const float3 tr =
                 make_float3(expf(-sigma_t.x * depth), expf(-sigma_t.y * depth), expf(-sigma_t.z * depth));
-            const float density = mean3(sigma_t * tr);
+            const float density = dot3(channels, sigma_t * tr);
             s.scatter = true;
             s.t = depth;
             s.weight = density > 0.0f ? tr * load3(m.sigma_s) / density : zero3();
             return s;
         }
-        s.weight = medium_pass_weight(medium_transmittance(sigma_t, length));
+        s.weight = medium_pass_weight(medium_transmittance(sigma_t, length), channels);
         return s;
     }
 #if !ATOLL_WITH_RGB_MEDIA
@@ -415,7 +431,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         if (depth < total && grid_density_invert(p, m, o, d, 0.0f, t_max, depth / scale, &t)) {
             const float3 tr =
                 make_float3(expf(-sigma_t.x * depth), expf(-sigma_t.y * depth), expf(-sigma_t.z * depth));
-            const float density = mean3(sigma_t * tr);
+            const float density = dot3(channels, sigma_t * tr);
             s.scatter = true;
             s.t = t * scale;
             if (density > 0.0f) {
@@ -429,7 +445,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
             }
             return s;
         }
-        s.weight = medium_pass_weight(medium_transmittance(sigma_t, total));
+        s.weight = medium_pass_weight(medium_transmittance(sigma_t, total), channels);
         return s;
     }
 #else
@@ -440,7 +456,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
     if (target_t < channel_of(total, channel) && grid_invert(p, m, o, d, 0.0f, t_max, channel, target_t, &t, &depth)) {
         const GridPoint at = grid_point(p, m, o + d * t);
         const float3 tr = make_float3(expf(-(depth.x * scale)), expf(-(depth.y * scale)), expf(-(depth.z * scale)));
-        const float density = mean3((at.sigma_a + at.sigma_s) * tr);
+        const float density = dot3(channels, (at.sigma_a + at.sigma_s) * tr);
         s.scatter = true;
         s.t = t * scale;
         s.weight = density > 0.0f ? tr * at.sigma_s / density : zero3();
@@ -448,7 +464,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         return s;
     }
     s.weight = medium_pass_weight(
-        make_float3(expf(-(total.x * scale)), expf(-(total.y * scale)), expf(-(total.z * scale))));
+        make_float3(expf(-(total.x * scale)), expf(-(total.y * scale)), expf(-(total.z * scale))), channels);
     return s;
 #endif
 }

@@ -93,6 +93,8 @@ struct GpuMedium {
     float world_to_lattice[12];
     unsigned int grid_plane;
     unsigned int grid_fields[3];
+    /// 1 for a subsurface material's interior (walked without light sampling).
+    unsigned int subsurface;
 };
 
 /// Mirror of `params::FrameParams`: everything shading needs, identical on
@@ -270,7 +272,7 @@ static_assert(__builtin_offsetof(GpuEmissionTexture, uv) == 0 && sizeof(GpuEmiss
 static_assert(__builtin_offsetof(GpuEmissionTexture, start) == 24 && sizeof(GpuEmissionTexture::start) == 4, "GpuEmissionTexture.start: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuEmissionTexture, len) == 28 && sizeof(GpuEmissionTexture::len) == 4, "GpuEmissionTexture.len: offset or size differs from Rust");
 #endif
-static_assert(sizeof(GpuMedium) == 120, "GpuMedium: size differs from Rust");
+static_assert(sizeof(GpuMedium) == 124, "GpuMedium: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(GpuMedium, sigma_a) == 0 && sizeof(GpuMedium::sigma_a) == 12, "GpuMedium.sigma_a: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, sigma_s) == 12 && sizeof(GpuMedium::sigma_s) == 12, "GpuMedium.sigma_s: offset or size differs from Rust");
@@ -281,6 +283,7 @@ static_assert(__builtin_offsetof(GpuMedium, grid_resolution) == 44 && sizeof(Gpu
 static_assert(__builtin_offsetof(GpuMedium, world_to_lattice) == 56 && sizeof(GpuMedium::world_to_lattice) == 48, "GpuMedium.world_to_lattice: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_plane) == 104 && sizeof(GpuMedium::grid_plane) == 4, "GpuMedium.grid_plane: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuMedium, grid_fields) == 108 && sizeof(GpuMedium::grid_fields) == 12, "GpuMedium.grid_fields: offset or size differs from Rust");
+static_assert(__builtin_offsetof(GpuMedium, subsurface) == 120 && sizeof(GpuMedium::subsurface) == 4, "GpuMedium.subsurface: offset or size differs from Rust");
 #endif
 static_assert(sizeof(GpuFootprint) == 144, "GpuFootprint: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
@@ -292,7 +295,7 @@ static_assert(__builtin_offsetof(GpuFootprint, min_position) == 88 && sizeof(Gpu
 static_assert(__builtin_offsetof(GpuFootprint, min_direction) == 112 && sizeof(GpuFootprint::min_direction) == 24, "GpuFootprint.min_direction: offset or size differs from Rust");
 static_assert(__builtin_offsetof(GpuFootprint, pad) == 136 && sizeof(GpuFootprint::pad) == 8, "GpuFootprint.pad: offset or size differs from Rust");
 #endif
-static_assert(sizeof(FrameParams) == 2848, "FrameParams: size differs from Rust");
+static_assert(sizeof(FrameParams) == 2912, "FrameParams: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT
 static_assert(__builtin_offsetof(FrameParams, camera_to_world) == 0 && sizeof(FrameParams::camera_to_world) == 48, "FrameParams.camera_to_world: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, window_min) == 48 && sizeof(FrameParams::window_min) == 8, "FrameParams.window_min: offset or size differs from Rust");
@@ -340,9 +343,9 @@ static_assert(__builtin_offsetof(FrameParams, media_pad) == 580 && sizeof(FrameP
 static_assert(__builtin_offsetof(FrameParams, media_grids) == 584 && sizeof(FrameParams::media_grids) == 8, "FrameParams.media_grids: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, measured) == 592 && sizeof(FrameParams::measured) == 8, "FrameParams.measured: offset or size differs from Rust");
 static_assert(__builtin_offsetof(FrameParams, lens) == 600 && sizeof(FrameParams::lens) == 8, "FrameParams.lens: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1920, "FrameParams.media: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, camera_motion) == 2528 && sizeof(FrameParams::camera_motion) == 176, "FrameParams.camera_motion: offset or size differs from Rust");
-static_assert(__builtin_offsetof(FrameParams, footprint) == 2704 && sizeof(FrameParams::footprint) == 144, "FrameParams.footprint: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, media) == 608 && sizeof(FrameParams::media) == 1984, "FrameParams.media: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, camera_motion) == 2592 && sizeof(FrameParams::camera_motion) == 176, "FrameParams.camera_motion: offset or size differs from Rust");
+static_assert(__builtin_offsetof(FrameParams, footprint) == 2768 && sizeof(FrameParams::footprint) == 144, "FrameParams.footprint: offset or size differs from Rust");
 #endif
 static_assert(sizeof(SceneView) == 96, "SceneView: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

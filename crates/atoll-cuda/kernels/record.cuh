@@ -90,6 +90,7 @@ inline constexpr unsigned int MATERIAL_PRINCIPLED = 8u;
 inline constexpr unsigned int MATERIAL_COATED_CONDUCTOR = 9u;
 inline constexpr unsigned int MATERIAL_HAIR = 10u;
 inline constexpr unsigned int MATERIAL_MEASURED = 11u;
+inline constexpr unsigned int MATERIAL_SUBSURFACE = 12u;
 inline constexpr float HAIR_OFFSET_FROM_NORMAL = 2.0f;
 static_assert(sizeof(RayRecord) == 128, "RayRecord: size differs from Rust");
 #ifdef ATOLL_CHECK_LAYOUT

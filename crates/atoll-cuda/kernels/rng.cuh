@@ -8,6 +8,7 @@ inline constexpr unsigned int CAMERA_DIMENSIONS = 4u;
 inline constexpr unsigned int DIMENSIONS_PER_BOUNCE = 8u;
 inline constexpr unsigned int MEDIUM_DIMENSIONS = 16777216u;
 inline constexpr unsigned int TIME_DIMENSION = 16777215u;
+inline constexpr unsigned int WALK_DIMENSIONS = 33554432u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_SELECT = 0u;
 inline constexpr unsigned int BOUNCE_DIM_LIGHT_POSITION = 1u;
 inline constexpr unsigned int BOUNCE_DIM_BSDF_LOBE = 3u;
@@ -57,5 +58,17 @@ __device__ __forceinline__ float stream_medium_distance(SampleStream s, unsigned
     h = pcg_hash(h ^ __float_as_uint(origin.x));
     h = pcg_hash(h ^ __float_as_uint(origin.y));
     h = pcg_hash(h ^ __float_as_uint(origin.z));
+    return stream_get(s, h);
+}
+
+/// Uniform float for decision `dim` at a point `at` of a walk through a
+/// subsurface medium within path vertex `depth` (the point tells the
+/// walk's steps apart). Mirrors `SampleStream::walk`.
+__device__ __forceinline__ float stream_walk(SampleStream s, unsigned int depth, float3 at, unsigned int dim,
+                                             unsigned int offset) {
+    unsigned int h = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset;
+    h = pcg_hash(h ^ __float_as_uint(at.x));
+    h = pcg_hash(h ^ __float_as_uint(at.y));
+    h = pcg_hash(h ^ __float_as_uint(at.z));
     return stream_get(s, h);
 }

@@ -95,6 +95,9 @@ __device__ __forceinline__ int wanted_tangent_slot(unsigned int kind, uint4 c0, 
     if (kind == MATERIAL_DIELECTRIC &&
         coeff_of(c0, c1, COEFF_DIELECTRIC_ALPHA_X) != coeff_of(c0, c1, COEFF_DIELECTRIC_ALPHA_Y))
         return COEFF_DIELECTRIC_TANGENT;
+    if (kind == MATERIAL_SUBSURFACE &&
+        coeff_of(c0, c1, COEFF_SUBSURFACE_ALPHA_X) != coeff_of(c0, c1, COEFF_SUBSURFACE_ALPHA_Y))
+        return COEFF_SUBSURFACE_TANGENT;
     if (kind == MATERIAL_COATED_DIFFUSE &&
         coeff_of(c0, c1, COEFF_COATED_DIFFUSE_ALPHA_X) != coeff_of(c0, c1, COEFF_COATED_DIFFUSE_ALPHA_Y))
         return COEFF_COATED_DIFFUSE_TANGENT;

@@ -266,15 +266,15 @@ __device__ __forceinline__ void start_in_medium(const FrameParams& p, ShadeOutco
     o.shadow_depth = medium_optical_depth(p, medium, o.shadow_origin, o.shadow_direction, 0.0f, o.shadow_t_max);
 }
 
-/// Mirrors shade.rs's `russian_roulette`: false when the path ends, else
-/// `*beta` rescaled.
-__device__ __forceinline__ bool russian_roulette(const FrameParams& params, SampleStream rng, unsigned int depth,
+/// Mirrors shade.rs's `russian_roulette` (`u`: the vertex's number for
+/// it): false when the path ends, else `*beta` rescaled.
+__device__ __forceinline__ bool russian_roulette(const FrameParams& params, float u, unsigned int depth,
                                                  float eta_scale, float3* beta) {
     if (params.russian_roulette && depth >= 1) {
         const float m = max_element3(abs3(*beta * eta_scale));
         if (m < 1.0f) {
             const float q = fmaxf(1.0f - m, 0.0f);
-            if (stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return false;
+            if (u < q) return false;
             *beta = *beta / (1.0f - q);
         }
     }
@@ -282,11 +282,94 @@ __device__ __forceinline__ bool russian_roulette(const FrameParams& params, Samp
 }
 
 #if ATOLL_WITH_MEDIA
+/// Mirrors shade.rs's `WALK_END`.
+inline constexpr float WALK_END = 1.0f / 256.0f;
+
+/// Mirrors shade.rs's `walk_subsurface`: a step of a walk through the
+/// subsurface medium `medium`, scattering at `p` with throughput `beta`.
+__device__ __noinline__ void walk_subsurface(const FrameParams& params, const RayRecord& r, unsigned int medium,
+                                             float3 p, float3 beta, ShadeOutcome& out) {
+    const unsigned int depth = r.depth;
+    const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+    const float3 wo = -normalize3(load3(r.direction));
+    const float2 u_dir = make_float2(stream_walk(rng, depth, p, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_walk(rng, depth, p, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    float pdf;
+    const float3 wi = sample_henyey_greenstein(wo, params.media[medium].g, u_dir, &pdf);
+    // shade.rs's `walk_roulette`.
+    const float eta_scale = unpack_eta_scale(r.eta_scale);
+    const float q = params.russian_roulette ? fmaxf(1.0f - max_element3(abs3(beta * eta_scale)), WALK_END) : WALK_END;
+    if (stream_walk(rng, depth, p, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
+    beta = beta / (1.0f - q);
+    if (!is_finite3(beta)) return;
+    SurfacePoint at;
+    at.p = p;
+    at.normal = zero3();
+    at.error = 0.0f;
+    set_continuation(out, r, at, wi);
+    out.next_throughput = beta;
+    out.next_pdf = pdf;
+    out.next_flags = (unsigned char)(medium << FLAG_MEDIUM_SHIFT);
+}
+
+/// Mirrors shade.rs's `leave_subsurface`: a walk reaches its boundary `at`
+/// from inside with throughput `beta` and leaves into `outside` by the
+/// normalised Fresnel lobe.
+__device__ __noinline__ void leave_subsurface(const FrameParams& params, const RayRecord& r, const SurfacePoint& at,
+                                              unsigned int outside, float3 beta, ShadeOutcome& out) {
+    const float eta = f16_to_f32(r.coeffs[COEFF_SUBSURFACE_ETA]);
+    const float normalisation = f16_to_f32(r.coeffs[COEFF_SUBSURFACE_EXIT_NORMALISATION]);
+    const float3 dir = load3(r.direction);
+    const float3 n_out = dot3(at.normal, dir) < 0.0f ? -at.normal : at.normal;
+    float3 ns = normalize_or_zero3(load_f16x3(r.shading_normal));
+    if (is_zero3(ns)) ns = n_out;
+    else if (dot3(ns, n_out) < 0.0f) ns = -ns;
+    beta = beta * (eta * eta);
+    const float eta_scale = unpack_eta_scale(r.eta_scale) / (eta * eta);
+    const unsigned int depth = r.depth;
+    const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
+    const float2 u_light = make_float2(stream_walk(rng, depth, at.p, BOUNCE_DIM_LIGHT_POSITION, 0),
+                                       stream_walk(rng, depth, at.p, BOUNCE_DIM_LIGHT_POSITION, 1));
+    LightSample ls;
+    if (light_sample(params, at.p, stream_walk(rng, depth, at.p, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
+        const float cosine = dot3(ls.wi, ns);
+        if (cosine > 0.0f && dot3(ls.wi, n_out) > 0.0f && ls.pdf > 0.0f && !is_zero3(ls.radiance)) {
+            const bool spawned = spawn_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity());
+            const float pdf = cosine * FRAC_1_PI;
+            const float w = ls.delta ? 1.0f : power_heuristic(ls.pdf, pdf);
+            if (spawned) {
+                out.has_shadow = true;
+                out.shadow_radiance =
+                    beta * ls.radiance * ((1.0f - fr_dielectric(cosine, eta)) / normalisation * pdf * w / ls.pdf);
+                start_in_medium(params, out, outside);
+            }
+        }
+    }
+    const float2 u_dir = make_float2(stream_walk(rng, depth, at.p, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_walk(rng, depth, at.p, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    const float3 local = sample_cosine_hemisphere(u_dir);
+    const float3 wi = normalize3(frame_from_local(frame_from_z(ns), local));
+    if (local.z <= 0.0f || dot3(wi, n_out) <= 0.0f) return;
+    beta = beta * ((1.0f - fr_dielectric(local.z, eta)) / normalisation);
+    if (!russian_roulette(params, stream_walk(rng, depth, at.p, BOUNCE_DIM_RUSSIAN_ROULETTE, 0), depth, eta_scale,
+                          &beta))
+        return;
+    set_continuation(out, r, at, wi);
+    out.next_throughput = beta;
+    out.next_eta_scale = pack_eta_scale(eta_scale);
+    out.next_pdf = local.z * FRAC_1_PI;
+    out.next_flags = (unsigned char)(outside << FLAG_MEDIUM_SHIFT);
+}
+
 /// Mirrors shade.rs's `scatter_in_medium`: the segment `r` scatters in
 /// medium `medium` at `p`, with throughput `beta`: next-event estimation
 /// and a new direction with the Henyey–Greenstein phase function.
 __device__ __noinline__ void scatter_in_medium(const FrameParams& params, const RayRecord& r, unsigned int medium,
                                                float3 p, float3 beta, ShadeOutcome& out) {
+    if (params.media[medium].subsurface) {
+        walk_subsurface(params, r, medium, p, beta, out);
+        return;
+    }
     const unsigned int depth = r.depth;
     if (depth >= params.max_depth) return;
     const float g = params.media[medium].g;
@@ -313,12 +396,26 @@ __device__ __noinline__ void scatter_in_medium(const FrameParams& params, const 
                                      stream_bounce(rng, depth, BOUNCE_DIM_BSDF_DIRECTION, 1));
     float pdf;
     const float3 wi = sample_henyey_greenstein(wo, g, u_dir, &pdf);
-    if (!russian_roulette(params, rng, depth, unpack_eta_scale(r.eta_scale), &beta)) return;
+    const float u_roulette = stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0);
+    if (!russian_roulette(params, u_roulette, depth, unpack_eta_scale(r.eta_scale), &beta)) return;
     set_continuation(out, r, at, wi);
     out.next_throughput = beta;
     out.next_pdf = pdf;
     out.next_depth = (unsigned short)(depth + 1);
     out.next_flags = (unsigned char)(medium << FLAG_MEDIUM_SHIFT);
+}
+#endif
+
+#if ATOLL_WITH_MEDIA
+/// Mirrors shade.rs's `medium_towards` closure: the medium on the side `w`
+/// leaves a hit (normal `n`, reached along `dir`) into, given its `media`
+/// word and the path's `medium`; a subsurface boundary's inside is its
+/// interior whichever way its normal points.
+__device__ __forceinline__ unsigned int medium_towards(unsigned int media, bool subsurface, unsigned int medium,
+                                                       float3 n, float3 dir, float3 w) {
+    if (!media) return medium;
+    if (subsurface) return dot3(w, n) * dot3(dir, n) > 0.0f ? media >> 4 : medium;
+    return media_towards(media, dot3(w, n));
 }
 #endif
 
@@ -379,6 +476,11 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
 #if ATOLL_WITH_MEDIA
     // The hit surface's media (inside << 4 | outside; 0 where it bounds none).
     const unsigned int media = r.material >> 8;
+    const bool subsurface_entry = (r.material & 0xffu) == MATERIAL_SUBSURFACE && media != 0u;
+    if (subsurface_entry && (media >> 4) == medium && params.media[medium].subsurface) {
+        leave_subsurface(params, r, at, media & 15u, beta, out);
+        return;
+    }
 #endif
     const Bsdf bsdf = bsdf_from_record(r, params.measured);
     if (bsdf.kind == MATERIAL_NONE) {
@@ -416,7 +518,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
                 out.shadow_radiance = beta * f * ls.radiance * (w / ls.pdf);
 #if ATOLL_WITH_MEDIA
                 if (params.media_count > 1u) {
-                    start_in_medium(params, out, media ? media_towards(media, dot3(ls.wi, at.normal)) : medium);
+                    start_in_medium(params, out, medium_towards(media, subsurface_entry, medium, at.normal, dir, ls.wi));
                 }
 #endif
             }
@@ -435,7 +537,9 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     // Russian roulette from the second bounce on (pbrt-v4's `depth > 1`), on
     // the magnitude of the throughput without the radiance scaling of
     // refractions (a pixel filter's negative lobes make some negative).
-    if (!russian_roulette(params, rng, depth, eta_scale, &next_beta)) return;
+    if (!russian_roulette(params, stream_bounce(rng, depth, BOUNCE_DIM_RUSSIAN_ROULETTE, 0), depth, eta_scale,
+                          &next_beta))
+        return;
     const float3 wi = normalize3(frame_from_local(frame, bs.wi));
     set_continuation(out, r, at, wi);
     out.next_throughput = next_beta;
@@ -446,7 +550,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     out.next_depth = (unsigned short)(r.depth + 1);
     out.next_flags = bs.delta ? FLAG_SPECULAR : 0;
 #if ATOLL_WITH_MEDIA
-    const unsigned int next = media ? media_towards(media, dot3(wi, at.normal)) : medium;
+    const unsigned int next = medium_towards(media, subsurface_entry, medium, at.normal, dir, wi);
     out.next_flags |= (unsigned char)(next << FLAG_MEDIUM_SHIFT);
 #endif
 }

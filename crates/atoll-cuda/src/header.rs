@@ -25,7 +25,7 @@ use atoll_render::light_bvh::{node_flags, LightNode, NO_NODE};
 use atoll_render::material_layout;
 use atoll_render::record::{self, flags, MaterialKind, RayRecord, MATERIAL_COEFFS, NO_LIGHT};
 use atoll_render::rng::{
-    BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, MEDIUM_DIMENSIONS, TIME_DIMENSION,
+    BounceDim, CAMERA_DIMENSIONS, DIMENSIONS_PER_BOUNCE, MEDIUM_DIMENSIONS, TIME_DIMENSION, WALK_DIMENSIONS,
 };
 use atoll_render::sampling::UNIFORM_SPHERE_PDF;
 use atoll_render::spawn::{gamma, SHADOW_EPSILON};
@@ -151,6 +151,7 @@ pub(crate) fn record_asserts() -> String {
         ("MATERIAL_COATED_CONDUCTOR", MaterialKind::CoatedConductor),
         ("MATERIAL_HAIR", MaterialKind::Hair),
         ("MATERIAL_MEASURED", MaterialKind::Measured),
+        ("MATERIAL_SUBSURFACE", MaterialKind::Subsurface),
     ] {
         s += &const_uint("unsigned int", name, kind as u64);
     }
@@ -183,6 +184,7 @@ pub(crate) fn rng_constants() -> String {
     s += &const_uint("unsigned int", "DIMENSIONS_PER_BOUNCE", DIMENSIONS_PER_BOUNCE as u64);
     s += &const_uint("unsigned int", "MEDIUM_DIMENSIONS", MEDIUM_DIMENSIONS as u64);
     s += &const_uint("unsigned int", "TIME_DIMENSION", TIME_DIMENSION as u64);
+    s += &const_uint("unsigned int", "WALK_DIMENSIONS", WALK_DIMENSIONS as u64);
     for (name, dim) in [
         ("BOUNCE_DIM_LIGHT_SELECT", BounceDim::LightSelect),
         ("BOUNCE_DIM_LIGHT_POSITION", BounceDim::LightPosition),

@@ -70,7 +70,7 @@ impl GpuEmissionTexture {
 
 /// A medium's coefficients (`atoll_render::medium::MediumCoeffs`: a grid
 /// medium's field scales) and its grid's place and fields
-/// (`atoll_render::density_grid::DensityGrid`), 120 bytes.
+/// (`atoll_render::density_grid::DensityGrid`), 124 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuMedium {
@@ -89,6 +89,9 @@ pub struct GpuMedium {
     pub grid_plane: u32,
     /// Where σa, σs and Le come from ([`grid_field`]).
     pub grid_fields: [u32; 3],
+    /// 1 for a subsurface material's interior
+    /// (`atoll_render::medium::MediumCoeffs::subsurface`), else 0.
+    pub subsurface: u32,
 }
 
 /// [`GpuMedium::grid_first`] of a medium without a grid.
@@ -173,7 +176,8 @@ impl GpuMedium {
             grid_resolution,
             world_to_lattice,
             grid_plane,
-            grid_fields
+            grid_fields,
+            subsurface
         })
     }
 }
@@ -540,6 +544,7 @@ impl FrameParams {
                 le: m.le.to_array(),
                 g: m.g,
                 grid_first: NO_GRID,
+                subsurface: m.subsurface as u32,
                 ..Zeroable::zeroed()
             };
             if let Some(g) = m.grid {
@@ -733,13 +738,13 @@ unsafe impl ValidAsZeroBits for SceneView {}
 const _: () = {
     assert!(std::mem::size_of::<GpuEmitter>() == 84);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
-    assert!(std::mem::size_of::<GpuMedium>() == 120);
+    assert!(std::mem::size_of::<GpuMedium>() == 124);
     assert!(
         std::mem::size_of::<FrameParams>()
             == 280
                 + std::mem::size_of::<atoll_render::filter::FilterTable>()
                 + 40
-                + 120 * MEDIA_SLOTS
+                + std::mem::size_of::<GpuMedium>() * MEDIA_SLOTS
                 + std::mem::size_of::<GpuMotion>()
                 + std::mem::size_of::<GpuFootprint>()
     );

@@ -598,6 +598,56 @@ fn shade_in_media_matches_the_cpu_stage() {
     }
 }
 
+/// Paths in and out of subsurface interiors: entering through the rough or
+/// smooth boundary, walking (no light sampling, the depth kept), and
+/// leaving by the exit lobe into the vacuum or a fog, with coloured
+/// interiors whose channels are picked by the throughput.
+#[test]
+#[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
+fn shade_in_subsurface_interiors_matches_the_cpu_stage() {
+    let Some(gpu) = gpu() else { return };
+    let m = module(&gpu, "wavefront.cu", false);
+    let (mut scene, frame) = test_frame(IntegratorSettings::Path { max_depth: 5 }, false);
+    let interior = |sigma_a, sigma_s, g| HomogeneousMedium { sigma_a, sigma_s, g, le: Rgb::ZERO };
+    scene.media.push(Medium::Homogeneous(interior(Rgb::splat(0.1), Rgb::new(0.5, 0.3, 0.2), 0.0)));
+    scene.media.push(Medium::Subsurface(interior(Rgb::new(0.1, 0.4, 1.2), Rgb::new(6.0, 4.0, 2.0), 0.3)));
+    scene.media.push(Medium::Subsurface(interior(Rgb::ZERO, Rgb::splat(3.0), 0.0)));
+    let frame = FrameContext::new(&scene, frame.options.clone());
+    let params = FrameParamsHost::new(&gpu, &frame).unwrap();
+    let boundaries = [
+        Material::Subsurface(atoll_scene::SubsurfaceParams {
+            eta: 1.4,
+            alpha_x: 0.0,
+            alpha_y: 0.0,
+            interior: interior(Rgb::ZERO, Rgb::ONE, 0.0),
+        }),
+        Material::Subsurface(atoll_scene::SubsurfaceParams {
+            eta: 1.33,
+            alpha_x: 0.2,
+            alpha_y: 0.3,
+            interior: interior(Rgb::ZERO, Rgb::ONE, 0.0),
+        }),
+    ]
+    .map(|m| PackedMaterial::pack(&m));
+    let mut paths = synthetic_paths(&frame, 3000);
+    for (i, r) in paths.iter_mut().enumerate() {
+        let i = i as u32;
+        // Half the paths walk an interior, the others arrive from outside.
+        let inside = [2u8, 3][(i % 2) as usize];
+        r.set_medium(if i % 4 < 2 { inside } else { i.is_multiple_of(3) as u8 });
+        if r.has(flags::HIT) && i % 3 != 2 {
+            boundaries[(i / 3 % 2) as usize].store(r);
+            let outside = (i / 5 % 2) as u8;
+            r.set_hit_media(MediumInterface::transition(inside, outside));
+        }
+    }
+    let cpu = shade_on_cpu(&frame, &paths);
+    let got = shade_on_gpu(&gpu, &m, &params, &frame, &paths);
+    let walking = cpu.next.iter().filter(|r| !r.has(flags::HIT) && r.medium() >= 2).count();
+    assert!(walking > 100, "{walking} paths walking interiors");
+    assert_no_mismatches("shade in subsurface interiors", &shade_mismatches(&cpu, &got));
+}
+
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn shade_with_production_options_mostly_agrees() {

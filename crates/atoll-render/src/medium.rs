@@ -335,7 +335,8 @@ mod tests {
         let (passed, scattered) = (passed / n as f32, scattered / n as f32);
         // A channel never picked is estimated by the others' samples alone.
         let (passed, expected_pass) = (passed * channels.signum(), expected_pass * channels.signum());
-        let (scattered, expected_scatter) = (scattered * channels.signum(), expected_scatter * channels.signum());
+        let (scattered, expected_scatter) =
+            (scattered * channels.signum(), expected_scatter * channels.signum());
         assert!((passed - expected_pass).abs().max_element() < 2e-3, "{passed} vs {expected_pass}");
         assert!(
             (scattered - expected_scatter).abs().max_element() < 2e-3,

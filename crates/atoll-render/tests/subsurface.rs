@@ -42,7 +42,11 @@ Shape "sphere" "float radius" [ 1 ]
 /// 8×8) and its standard error.
 fn middle(film: &Film) -> [(f64, f64); 3] {
     let pixels = film.pixels();
-    [0, 1, 2].map(|c| mean_and_stderr((4..12).flat_map(|y| (4..12).map(move |x| (x, y))).map(|(x, y)| pixels[y * 16 + x][c])))
+    [0, 1, 2].map(|c| {
+        mean_and_stderr(
+            (4..12).flat_map(|y| (4..12).map(move |x| (x, y))).map(|(x, y)| pixels[y * 16 + x][c]),
+        )
+    })
 }
 
 #[test]
@@ -65,7 +69,8 @@ fn a_white_interior_vanishes_in_a_uniform_sky() {
 /// entry only (the exit lobe lets all out): a few percent, never more light.
 #[test]
 fn a_rough_boundary_loses_only_its_microfacet_share() {
-    let film = sphere_in_the_sky(r#""rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 3 3 3 ] "float roughness" [ 0.3 ]"#, 2);
+    let film =
+        sphere_in_the_sky(r#""rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 3 3 3 ] "float roughness" [ 0.3 ]"#, 2);
     for (c, (mean, err)) in middle(&film).into_iter().enumerate() {
         assert!(mean < 1.0 + 4.0 * err && mean > 0.93, "channel {c}: {mean} ± {err}");
     }

@@ -56,10 +56,12 @@ pub struct TriangleMesh {
 
 impl TriangleMesh {
     /// Whether traversal must ask about each candidate hit on this mesh
-    /// (an alpha mask, or a boundary of media, which shadow rays cross
-    /// adding up their optical depth).
+    /// for the mesh's own sake: it has an alpha mask. (A surface that
+    /// only bounds media is asked about too, for shadow rays to cross it:
+    /// that depends on its material, [`crate::Scene::filters_hits`]. Any
+    /// other surface between media stops shadow rays like any surface.)
     pub fn filters_hits(&self) -> bool {
-        self.alpha.is_some() || self.media.is_some()
+        self.alpha.is_some()
     }
 
     pub fn triangle_count(&self) -> usize {

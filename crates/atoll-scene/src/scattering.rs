@@ -79,10 +79,7 @@ const MEASURED: &[Measured] = &[
 /// The measured absorption σa and (reduced) scattering σs of the material
 /// `name`, in mm⁻¹; `None` for a name not measured.
 pub fn measured(name: &str) -> Option<(Rgb, Rgb)> {
-    MEASURED
-        .iter()
-        .find(|m| m.name == name)
-        .map(|m| (Rgb::from(m.sigma_a), Rgb::from(m.sigma_prime_s)))
+    MEASURED.iter().find(|m| m.name == name).map(|m| (Rgb::from(m.sigma_a), Rgb::from(m.sigma_prime_s)))
 }
 
 #[cfg(test)]

@@ -87,6 +87,8 @@ pub struct SceneStats {
     /// holds all of them too).
     pub media: usize,
     pub media_bytes: u64,
+    /// Of [`SceneStats::media`], the interiors of subsurface materials.
+    pub subsurface_interiors: usize,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
 }
@@ -201,6 +203,11 @@ impl Scene {
             texture_images: self.textures.images.len(),
             texture_bytes: self.textures.memory_bytes(),
             media: self.media.len(),
+            subsurface_interiors: self
+                .media
+                .iter()
+                .filter(|m| matches!(m, crate::Medium::Subsurface(_)))
+                .count(),
             media_bytes: self.media.iter().map(|m| m.bytes()).sum(),
             bounds_min,
             bounds_max,

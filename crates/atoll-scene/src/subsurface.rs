@@ -10,7 +10,9 @@
 //! here; only `reflectance` is defined through that profile, so it is
 //! converted with the same model, as pbrt-v4 converts it.
 
-use crate::{HomogeneousMedium, Material, MaterialId, Medium, MediumIndex, MediumInterface, Rgb, Scene, VACUUM};
+use crate::{
+    HomogeneousMedium, Material, MaterialId, Medium, MediumIndex, MediumInterface, Rgb, Scene, VACUUM,
+};
 
 impl Scene {
     /// Gives every mesh whose material is (or mixes in) a subsurface
@@ -22,7 +24,7 @@ impl Scene {
     pub fn attach_subsurface_interiors(&mut self) -> Result<(), String> {
         let mut interiors: Vec<(HomogeneousMedium, MediumIndex)> = Vec::new();
         let mut by_material: Vec<Option<MediumIndex>> = vec![None; self.materials.len()];
-        for id in 0..self.materials.len() {
+        for (id, slot) in by_material.iter_mut().enumerate() {
             let Some(interior) = subsurface_interior(&self.materials, id as MaterialId, 0) else { continue };
             let index = match interiors.iter().find(|(m, _)| *m == interior) {
                 Some(&(_, index)) => index,
@@ -39,7 +41,7 @@ impl Scene {
                     index
                 }
             };
-            by_material[id] = Some(index);
+            *slot = Some(index);
         }
         for mesh in &mut self.meshes {
             if let Some(Some(inside)) = by_material.get(mesh.material as usize) {
@@ -197,7 +199,8 @@ fn multiple_scattering(sigma_s: f64, sigma_a: f64, g: f64, eta: f64, r: f64) -> 
         let dv = (r * r + zv * zv).sqrt();
         let (er, ev) = ((-sigma_tr * dr).exp(), (-sigma_tr * dv).exp());
         let phi = (er / dr - ev / dv) / (4.0 * PI * d_g);
-        let e_dn = (zr * (1.0 + sigma_tr * dr) * er / dr.powi(3) - zv * (1.0 + sigma_tr * dv) * ev / dv.powi(3))
+        let e_dn = (zr * (1.0 + sigma_tr * dr) * er / dr.powi(3)
+            - zv * (1.0 + sigma_tr * dv) * ev / dv.powi(3))
             / (4.0 * PI);
         let kappa = 1.0 - (-2.0 * sigmap_t * (dr + zr)).exp();
         sum += kappa * rhop * rhop * (phi * c_phi + e_dn * c_e);
@@ -248,10 +251,11 @@ fn integrate_catmull_rom(x: &[f64], f: &[f64]) -> f64 {
 /// reaches `target` (clamped to the ends), by Newton–bisection.
 fn invert_catmull_rom(x: &[f64], f: &[f64], target: f64) -> f64 {
     let n = x.len();
-    if !(target > f[0]) {
+    // NaN falls to the first end.
+    if target.is_nan() || target <= f[0] {
         return x[0];
     }
-    if !(target < f[n - 1]) {
+    if target >= f[n - 1] {
         return x[n - 1];
     }
     let i = f.partition_point(|&v| v <= target).clamp(1, n - 1) - 1;

@@ -1453,7 +1453,9 @@ fn subsurface_materials_and_their_interiors() {
 
     // Errors at the material's statement.
     let error = |material: &str| {
-        load_world("", &format!("Material \"subsurface\" {material}\n{}", tri(UNIT_TRI))).unwrap_err().to_string()
+        load_world("", &format!("Material \"subsurface\" {material}\n{}", tri(UNIT_TRI)))
+            .unwrap_err()
+            .to_string()
     };
     assert!(error("\"string name\" \"Jam\"").contains("no measured scattering is named \"Jam\""));
     assert!(error("\"rgb sigma_a\" [1 1 1]").contains("\"sigma_a\" given without \"sigma_s\""));

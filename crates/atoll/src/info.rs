@@ -73,7 +73,11 @@ pub fn run(args: InfoArgs) -> Result<(), CliError> {
         s.texture_images,
         mib(s.texture_bytes)
     );
-    println!("media              {} ({})", s.media, mib(s.media_bytes));
+    let interiors = match s.subsurface_interiors {
+        0 => String::new(),
+        n => format!(", {n} of them subsurface interiors"),
+    };
+    println!("media              {} ({}{interiors})", s.media, mib(s.media_bytes));
     println!("bounds             {:?} .. {:?}", s.bounds_min.to_array(), s.bounds_max.to_array());
     let r = &scene.settings;
     println!(

@@ -69,6 +69,12 @@ fn info_reports_counts() {
     let out = atoll(&dir, &["info", &motion.display().to_string()]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("instances          9 (8 moving over the shutter [0.0, 1.0])"), "{stdout}");
+    // Each distinct subsurface material has an interior of its own.
+    let subsurface = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../scenes/subsurface.pbrt");
+    let out = atoll(&dir, &["info", &subsurface.display().to_string()]);
+    assert!(out.status.success() && stderr(&out).is_empty(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("media              4 (0.00 MiB, 4 of them subsurface interiors)"), "{stdout}");
 }
 
 /// Output into a pipe whose reader is gone (`atoll info … | head -1`)

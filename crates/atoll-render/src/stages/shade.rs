@@ -17,9 +17,9 @@
 use atoll_scene::IntegratorSettings;
 use glam::{Vec2, Vec3};
 
+use crate::bsdf::fresnel::fr_dielectric;
 use crate::bsdf::Frame;
 use crate::frame::FrameContext;
-use crate::bsdf::fresnel::fr_dielectric;
 use crate::material_coeffs::{bsdf_from_record, shading_frame};
 use crate::material_layout::subsurface;
 use crate::medium::{MediumCoeffs, Segment};
@@ -225,7 +225,9 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
     let p = at.p;
     let media = r.hit_media();
     let subsurface_entry = r.material_kind() == MaterialKind::Subsurface;
-    if let Some(m) = media.filter(|m| subsurface_entry && m.inside == medium && ctx.media.get(medium).subsurface) {
+    if let Some(m) =
+        media.filter(|m| subsurface_entry && m.inside == medium && ctx.media.get(medium).subsurface)
+    {
         return leave_subsurface(ctx, r, &at, m.outside, beta, out);
     }
     // The medium on the side a direction leaves the surface into; a
@@ -435,7 +437,13 @@ fn leave_subsurface(
     let dir = r.direction();
     let n_out = if at.normal.dot(dir) < 0.0 { -at.normal } else { at.normal };
     let ns = r.shading_normal().normalize_or_zero();
-    let ns = if ns == Vec3::ZERO { n_out } else if ns.dot(n_out) < 0.0 { -ns } else { ns };
+    let ns = if ns == Vec3::ZERO {
+        n_out
+    } else if ns.dot(n_out) < 0.0 {
+        -ns
+    } else {
+        ns
+    };
     let beta = beta * (eta * eta);
     let eta_scale = r.eta_scale() / (eta * eta);
     let depth = r.depth as u32;

@@ -171,7 +171,10 @@ pub fn material(
             Some(m) => m,
             None => {
                 p.mark_all_used();
-                w.warn(loc, format!("material \"{ty}\" is not supported; using diffuse 0.5 (its own look is lost)"));
+                w.warn(
+                    loc,
+                    format!("material \"{ty}\" is not supported; using diffuse 0.5 (its own look is lost)"),
+                );
                 Material::default_diffuse()
             }
         },
@@ -199,7 +202,10 @@ fn subsurface(
     }
     let scale = p.float_or("scale", 1.0)?;
     if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(SceneError::at(loc, format!("{what}: \"scale\" {scale} must be finite and not negative")));
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: \"scale\" {scale} must be finite and not negative"),
+        ));
     }
     let eta = p.float_or("eta", 1.33)?;
     if !(eta > 0.0 && eta.is_finite()) {
@@ -237,7 +243,12 @@ fn subsurface(
         }
     };
     let (alpha_x, alpha_y) = alphas(p, what, 0.0, "", loc, w, tex)?;
-    let interior = crate::HomogeneousMedium { sigma_a: sigma_a.max(Rgb::ZERO), sigma_s: sigma_s.max(Rgb::ZERO), g, le: Rgb::ZERO };
+    let interior = crate::HomogeneousMedium {
+        sigma_a: sigma_a.max(Rgb::ZERO),
+        sigma_s: sigma_s.max(Rgb::ZERO),
+        g,
+        le: Rgb::ZERO,
+    };
     Ok(Material::Subsurface(crate::SubsurfaceParams { eta, alpha_x, alpha_y, interior }))
 }
 
