@@ -61,14 +61,14 @@ __device__ __forceinline__ float stream_medium_distance(SampleStream s, unsigned
     return stream_get(s, h);
 }
 
-/// Uniform float for decision `dim` at a point `at` of a walk through a
-/// subsurface medium within path vertex `depth` (the point tells the
-/// walk's steps apart). Mirrors `SampleStream::walk`.
-__device__ __forceinline__ float stream_walk(SampleStream s, unsigned int depth, float3 at, unsigned int dim,
+/// Uniform float for decision `dim` where a walk's segment from `origin`
+/// through a subsurface medium ends, within path vertex `depth`. Mirrors
+/// `SampleStream::walk`.
+__device__ __forceinline__ float stream_walk(SampleStream s, unsigned int depth, float3 origin, unsigned int dim,
                                              unsigned int offset) {
     unsigned int h = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset;
-    h = pcg_hash(h ^ __float_as_uint(at.x));
-    h = pcg_hash(h ^ __float_as_uint(at.y));
-    h = pcg_hash(h ^ __float_as_uint(at.z));
+    h = pcg_hash(h ^ __float_as_uint(origin.x));
+    h = pcg_hash(h ^ __float_as_uint(origin.y));
+    h = pcg_hash(h ^ __float_as_uint(origin.z));
     return stream_get(s, h);
 }

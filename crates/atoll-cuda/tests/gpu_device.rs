@@ -309,10 +309,12 @@ AttributeEnd
 }
 
 /// Subsurface scattering (`scenes/subsurface.pbrt`: measured, coloured,
-/// rough and reflectance-given interiors, a backlit slab): the walks take
-/// the same steps on both devices, so the images agree. Walks are long, so
-/// a rounding apart sends a few paths elsewhere: the means are held
-/// tighter than the pixels.
+/// rough and reflectance-given interiors, a backlit slab): the images
+/// agree in the mean. A walk's numbers come from where its segments start,
+/// which the devices round apart in the last bit after a step or two (the
+/// stage test holds each step to the CPU's): past that the walks differ,
+/// so pixels are not compared, and the means within the noise of 64
+/// samples.
 #[test]
 #[ignore = "needs a CUDA GPU (scripts/gpu-check runs these with --include-ignored)"]
 fn subsurface_matches_the_cpu_device() {
@@ -320,8 +322,8 @@ fn subsurface_matches_the_cpu_device() {
     let mut cuda = CudaDevice::on(gpu);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/subsurface.pbrt");
     let mut scene = atoll_scene::load_any(std::path::Path::new(path)).unwrap().scene;
-    scene.settings.spp = 16;
-    assert_devices_agree(&mut cuda, scene, "subsurface.pbrt", 5e-3, 10);
+    scene.settings.spp = 64;
+    assert_devices_agree(&mut cuda, scene, "subsurface.pbrt", 1.5e-2, 1);
 }
 
 /// Moving instances (`scenes/motion.pbrt`: a sliding ball, a box turning

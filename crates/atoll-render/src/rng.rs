@@ -80,13 +80,16 @@ impl SampleStream {
         self.get(origin.iter().fold(MEDIUM_DIMENSIONS + depth, |h, c| pcg_hash(h ^ c.to_bits())))
     }
 
-    /// Uniform float for decision `dim` at a point `at` of a walk through
-    /// a subsurface medium (a scattering point, or where the walk leaves)
-    /// within path vertex `depth`: the point tells the walk's steps apart.
+    /// Uniform float for decision `dim` where a segment of a walk through
+    /// a subsurface medium ends (a step, or the walk's exit) within path
+    /// vertex `depth`. The segment's `origin` tells the walk's segments
+    /// apart: each ends in one step or one exit. (The origin is what the
+    /// shading stage is given, so every device has its bits; where the
+    /// segment ends is computed, and may round differently.)
     #[inline]
-    pub fn walk(&self, depth: u32, at: [f32; 3], dim: BounceDim, offset: u32) -> f32 {
+    pub fn walk(&self, depth: u32, origin: [f32; 3], dim: BounceDim, offset: u32) -> f32 {
         let start = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim as u32 + offset;
-        self.get(at.iter().fold(start, |h, c| pcg_hash(h ^ c.to_bits())))
+        self.get(origin.iter().fold(start, |h, c| pcg_hash(h ^ c.to_bits())))
     }
 }
 

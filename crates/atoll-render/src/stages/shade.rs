@@ -380,9 +380,9 @@ fn scatter_in_medium(
 
 /// A step of a walk through subsurface medium `m`: the segment `r`
 /// scatters at `p` with throughput `beta`. The walk is part of one path
-/// vertex, so the depth stays and its numbers come from where it
-/// scatters; it samples no light and ends by [`walk_roulette`] or at the
-/// boundary.
+/// vertex, so the depth stays and its numbers come from the segment
+/// ([`SampleStream::walk`]); it samples no light and ends by
+/// [`walk_roulette`] or at the boundary.
 fn walk_subsurface(
     ctx: &FrameContext,
     r: &RayRecord,
@@ -392,7 +392,7 @@ fn walk_subsurface(
     mut out: ShadeOutcome,
 ) -> ShadeOutcome {
     let depth = r.depth as u32;
-    let key = p.to_array();
+    let key = r.origin;
     let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
     let wo = -r.direction().normalize();
     let u_dir = Vec2::new(
@@ -419,8 +419,8 @@ fn walk_subsurface(
 /// reflects and normalised to let all of it out (the walk accounted for
 /// the interior), and the radiance scaling of the entry's refraction is
 /// undone (pbrt's η² in radiance mode). It samples a light and a new
-/// direction with numbers from where it is, at the entry's depth, which
-/// the depth limit was checked against.
+/// direction with numbers from the walk's last segment, at the entry's
+/// depth, which the depth limit was checked against.
 fn leave_subsurface(
     ctx: &FrameContext,
     r: &RayRecord,
@@ -447,7 +447,7 @@ fn leave_subsurface(
     let beta = beta * (eta * eta);
     let eta_scale = r.eta_scale() / (eta * eta);
     let depth = r.depth as u32;
-    let key = at.p.to_array();
+    let key = r.origin;
     let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
     let u_light = Vec2::new(
         rng.walk(depth, key, BounceDim::LightPosition, 0),
