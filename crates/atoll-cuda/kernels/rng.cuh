@@ -50,25 +50,30 @@ __device__ __forceinline__ float stream_bounce(SampleStream s, unsigned int dept
     return stream_get(s, CAMERA_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset);
 }
 
-/// Uniform float for where a segment leaving vertex `depth` from `origin`
-/// scatters in a medium (the origin tells apart segments of one vertex).
-/// Mirrors `SampleStream::medium_distance`.
-__device__ __forceinline__ float stream_medium_distance(SampleStream s, unsigned int depth, float3 origin) {
-    unsigned int h = MEDIUM_DIMENSIONS + depth;
+/// `start` hashed with a segment's origin and throughput. Mirrors
+/// `rng::segment_key`.
+__device__ __forceinline__ unsigned int segment_key(unsigned int h, float3 origin, float3 beta) {
     h = pcg_hash(h ^ __float_as_uint(origin.x));
     h = pcg_hash(h ^ __float_as_uint(origin.y));
     h = pcg_hash(h ^ __float_as_uint(origin.z));
-    return stream_get(s, h);
+    h = pcg_hash(h ^ __float_as_uint(beta.x));
+    h = pcg_hash(h ^ __float_as_uint(beta.y));
+    h = pcg_hash(h ^ __float_as_uint(beta.z));
+    return h;
+}
+
+/// Uniform float for where a segment leaving vertex `depth` from `origin`
+/// with throughput `beta` scatters in a medium (the segment tells apart
+/// those of one vertex). Mirrors `SampleStream::medium_distance`.
+__device__ __forceinline__ float stream_medium_distance(SampleStream s, unsigned int depth, float3 origin,
+                                                        float3 beta) {
+    return stream_get(s, segment_key(MEDIUM_DIMENSIONS + depth, origin, beta));
 }
 
 /// Uniform float for decision `dim` where a walk's segment from `origin`
-/// through a subsurface medium ends, within path vertex `depth`. Mirrors
-/// `SampleStream::walk`.
-__device__ __forceinline__ float stream_walk(SampleStream s, unsigned int depth, float3 origin, unsigned int dim,
-                                             unsigned int offset) {
-    unsigned int h = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset;
-    h = pcg_hash(h ^ __float_as_uint(origin.x));
-    h = pcg_hash(h ^ __float_as_uint(origin.y));
-    h = pcg_hash(h ^ __float_as_uint(origin.z));
-    return stream_get(s, h);
+/// with throughput `beta` through a subsurface medium ends, within path
+/// vertex `depth`. Mirrors `SampleStream::walk`.
+__device__ __forceinline__ float stream_walk(SampleStream s, unsigned int depth, float3 origin, float3 beta,
+                                             unsigned int dim, unsigned int offset) {
+    return stream_get(s, segment_key(WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim + offset, origin, beta));
 }

@@ -291,16 +291,16 @@ __device__ __noinline__ void walk_subsurface(const FrameParams& params, const Ra
                                              float3 p, float3 beta, ShadeOutcome& out) {
     const unsigned int depth = r.depth;
     const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
-    const float3 key = load3(r.origin);
+    const float3 origin = load3(r.origin), throughput = load3(r.throughput);
     const float3 wo = -normalize3(load3(r.direction));
-    const float2 u_dir = make_float2(stream_walk(rng, depth, key, BOUNCE_DIM_BSDF_DIRECTION, 0),
-                                     stream_walk(rng, depth, key, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    const float2 u_dir = make_float2(stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_BSDF_DIRECTION, 1));
     float pdf;
     const float3 wi = sample_henyey_greenstein(wo, params.media[medium].g, u_dir, &pdf);
     // shade.rs's `walk_roulette`.
     const float eta_scale = unpack_eta_scale(r.eta_scale);
     const float q = params.russian_roulette ? fmaxf(1.0f - max_element3(abs3(beta * eta_scale)), WALK_END) : WALK_END;
-    if (stream_walk(rng, depth, key, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
+    if (stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_RUSSIAN_ROULETTE, 0) < q) return;
     beta = beta / (1.0f - q);
     if (!is_finite3(beta)) return;
     SurfacePoint at;
@@ -329,11 +329,11 @@ __device__ __noinline__ void leave_subsurface(const FrameParams& params, const R
     const float eta_scale = unpack_eta_scale(r.eta_scale) / (eta * eta);
     const unsigned int depth = r.depth;
     const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
-    const float3 key = load3(r.origin);
-    const float2 u_light = make_float2(stream_walk(rng, depth, key, BOUNCE_DIM_LIGHT_POSITION, 0),
-                                       stream_walk(rng, depth, key, BOUNCE_DIM_LIGHT_POSITION, 1));
+    const float3 origin = load3(r.origin), throughput = load3(r.throughput);
+    const float2 u_light = make_float2(stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_LIGHT_POSITION, 0),
+                                       stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_LIGHT_POSITION, 1));
     LightSample ls;
-    if (light_sample(params, at.p, stream_walk(rng, depth, key, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
+    if (light_sample(params, at.p, stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_LIGHT_SELECT, 0), u_light, &ls)) {
         const float cosine = dot3(ls.wi, ns);
         if (cosine > 0.0f && dot3(ls.wi, n_out) > 0.0f && ls.pdf > 0.0f && !is_zero3(ls.radiance)) {
             const bool spawned = spawn_shadow(out, at, is_finitef(ls.distance), ls.target, ls.wi, f32_infinity());
@@ -347,13 +347,13 @@ __device__ __noinline__ void leave_subsurface(const FrameParams& params, const R
             }
         }
     }
-    const float2 u_dir = make_float2(stream_walk(rng, depth, key, BOUNCE_DIM_BSDF_DIRECTION, 0),
-                                     stream_walk(rng, depth, key, BOUNCE_DIM_BSDF_DIRECTION, 1));
+    const float2 u_dir = make_float2(stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_BSDF_DIRECTION, 0),
+                                     stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_BSDF_DIRECTION, 1));
     const float3 local = sample_cosine_hemisphere(u_dir);
     const float3 wi = normalize3(frame_from_local(frame_from_z(ns), local));
     if (local.z <= 0.0f || dot3(wi, n_out) <= 0.0f) return;
     beta = beta * ((1.0f - fr_dielectric(local.z, eta)) / normalisation);
-    if (!russian_roulette(params, stream_walk(rng, depth, key, BOUNCE_DIM_RUSSIAN_ROULETTE, 0), depth, eta_scale,
+    if (!russian_roulette(params, stream_walk(rng, depth, origin, throughput, BOUNCE_DIM_RUSSIAN_ROULETTE, 0), depth, eta_scale,
                           &beta))
         return;
     set_continuation(out, r, at, wi);
@@ -436,7 +436,7 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
     if (medium != 0u) {
         const float t_max = (r.flags & FLAG_HIT) ? r.t_max : f32_infinity();
         const SampleStream rng = sample_stream(params.seed, r.pixel, r.sample);
-        const float u = stream_medium_distance(rng, r.depth, from);
+        const float u = stream_medium_distance(rng, r.depth, from, beta);
         // Its own local: the address of `out` would move all of it to local memory.
         float3 emitted = zero3();
         const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u, beta, &emitted);

@@ -46,6 +46,18 @@ pub fn pcg_hash(x: u32) -> u32 {
     (word >> 22) ^ word
 }
 
+/// `start` hashed with a path segment's origin and throughput: what tells
+/// apart the segments of one path vertex. Both are what shading is given,
+/// so every device has their bits (where a segment ends is computed, and
+/// may round differently). The throughput matters where a walk scatters
+/// again so close to where it was that the origin rounds to the same
+/// point: every step changes the throughput (by its weight and its
+/// roulette's), so the walk still draws new numbers.
+#[inline]
+pub fn segment_key(start: u32, origin: [f32; 3], beta: [f32; 3]) -> u32 {
+    origin.iter().chain(&beta).fold(start, |h, c| pcg_hash(h ^ c.to_bits()))
+}
+
 /// Where a path's random numbers come from.
 #[derive(Clone, Copy, Debug)]
 pub struct SampleStream {
@@ -72,24 +84,23 @@ impl SampleStream {
     }
 
     /// Uniform float for where a segment leaving vertex `depth` from
-    /// `origin` scatters in a medium. The origin is hashed in because
-    /// several segments may leave one vertex (crossing boundaries of media
-    /// is no vertex): each needs a number of its own.
+    /// `origin` with throughput `beta` scatters in a medium. The segment is
+    /// hashed in because several segments may leave one vertex (crossing
+    /// boundaries of media is no vertex, nor is a step of a subsurface
+    /// walk): each needs a number of its own ([`segment_key`]).
     #[inline]
-    pub fn medium_distance(&self, depth: u32, origin: [f32; 3]) -> f32 {
-        self.get(origin.iter().fold(MEDIUM_DIMENSIONS + depth, |h, c| pcg_hash(h ^ c.to_bits())))
+    pub fn medium_distance(&self, depth: u32, origin: [f32; 3], beta: [f32; 3]) -> f32 {
+        self.get(segment_key(MEDIUM_DIMENSIONS + depth, origin, beta))
     }
 
     /// Uniform float for decision `dim` where a segment of a walk through
     /// a subsurface medium ends (a step, or the walk's exit) within path
-    /// vertex `depth`. The segment's `origin` tells the walk's segments
-    /// apart: each ends in one step or one exit. (The origin is what the
-    /// shading stage is given, so every device has its bits; where the
-    /// segment ends is computed, and may round differently.)
+    /// vertex `depth`; the segment leaves `origin` with throughput `beta`
+    /// ([`segment_key`]). Each segment ends in one step or one exit.
     #[inline]
-    pub fn walk(&self, depth: u32, origin: [f32; 3], dim: BounceDim, offset: u32) -> f32 {
+    pub fn walk(&self, depth: u32, origin: [f32; 3], beta: [f32; 3], dim: BounceDim, offset: u32) -> f32 {
         let start = WALK_DIMENSIONS + depth * DIMENSIONS_PER_BOUNCE + dim as u32 + offset;
-        self.get(origin.iter().fold(start, |h, c| pcg_hash(h ^ c.to_bits())))
+        self.get(segment_key(start, origin, beta))
     }
 }
 

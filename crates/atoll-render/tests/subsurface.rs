@@ -121,3 +121,29 @@ AttributeEnd
         assert!(through[c].0 > 0.1, "channel {c}: {:?}", through[c]);
     }
 }
+
+/// Far from the origin, where many of a dense interior's steps are
+/// shorter than the spacing of floats there and end where they began, a
+/// walk still draws new numbers at each step (they come from the
+/// segment's throughput too), so it ends, and the white interior stays
+/// close to invisible.
+#[test]
+fn walks_far_from_the_origin_end() {
+    let film = render(
+        r#"
+LookAt 100000 0 -4  100000 0 0  0 1 0
+Camera "perspective" "float fov" [ 30 ]
+Sampler "independent" "integer pixelsamples" [ 16 ]
+Integrator "volpath" "integer maxdepth" [ 3 ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+WorldBegin
+LightSource "infinite" "rgb L" [ 1 1 1 ]
+Translate 100000 0 0
+Material "subsurface" "rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 16 16 16 ]
+Shape "sphere" "float radius" [ 1 ]
+"#,
+    );
+    for (c, (mean, err)) in middle(&film).into_iter().enumerate() {
+        assert!(mean > 0.85 && mean < 1.05 + 4.0 * err, "channel {c}: {mean} ± {err}");
+    }
+}

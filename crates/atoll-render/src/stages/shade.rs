@@ -176,7 +176,7 @@ fn shade_path(ctx: &FrameContext, r: &RayRecord, max_depth: u32) -> ShadeOutcome
         let m = ctx.media.get(medium);
         let t_max = if r.has(flags::HIT) { r.t_max } else { f32::INFINITY };
         let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
-        let u = rng.medium_distance(r.depth as u32, r.origin);
+        let u = rng.medium_distance(r.depth as u32, r.origin, r.throughput);
         let segment = ctx.media.sample_segment(medium, r.origin(), dir, t_max, u, beta);
         out.emitted += beta * segment.emitted;
         match segment.end {
@@ -392,15 +392,15 @@ fn walk_subsurface(
     mut out: ShadeOutcome,
 ) -> ShadeOutcome {
     let depth = r.depth as u32;
-    let key = r.origin;
+    let (origin, throughput) = (r.origin, r.throughput);
     let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
     let wo = -r.direction().normalize();
     let u_dir = Vec2::new(
-        rng.walk(depth, key, BounceDim::BsdfDirection, 0),
-        rng.walk(depth, key, BounceDim::BsdfDirection, 1),
+        rng.walk(depth, origin, throughput, BounceDim::BsdfDirection, 0),
+        rng.walk(depth, origin, throughput, BounceDim::BsdfDirection, 1),
     );
     let (wi, pdf) = sample_henyey_greenstein(wo, m.g, u_dir);
-    let u_roulette = rng.walk(depth, key, BounceDim::RussianRoulette, 0);
+    let u_roulette = rng.walk(depth, origin, throughput, BounceDim::RussianRoulette, 0);
     let Some(beta) = walk_roulette(ctx, u_roulette, beta, r.eta_scale()) else {
         return out;
     };
@@ -447,13 +447,15 @@ fn leave_subsurface(
     let beta = beta * (eta * eta);
     let eta_scale = r.eta_scale() / (eta * eta);
     let depth = r.depth as u32;
-    let key = r.origin;
+    let (origin, throughput) = (r.origin, r.throughput);
     let rng = SampleStream::new(ctx.options.seed, r.pixel, r.sample);
     let u_light = Vec2::new(
-        rng.walk(depth, key, BounceDim::LightPosition, 0),
-        rng.walk(depth, key, BounceDim::LightPosition, 1),
+        rng.walk(depth, origin, throughput, BounceDim::LightPosition, 0),
+        rng.walk(depth, origin, throughput, BounceDim::LightPosition, 1),
     );
-    if let Some(ls) = ctx.lights.sample(at.p, rng.walk(depth, key, BounceDim::LightSelect, 0), u_light) {
+    if let Some(ls) =
+        ctx.lights.sample(at.p, rng.walk(depth, origin, throughput, BounceDim::LightSelect, 0), u_light)
+    {
         let cos = ls.wi.dot(ns);
         if cos > 0.0 && ls.wi.dot(n_out) > 0.0 && ls.pdf > 0.0 && ls.radiance != Vec3::ZERO {
             let pdf = cos / PI;
@@ -467,8 +469,8 @@ fn leave_subsurface(
         }
     }
     let u_dir = Vec2::new(
-        rng.walk(depth, key, BounceDim::BsdfDirection, 0),
-        rng.walk(depth, key, BounceDim::BsdfDirection, 1),
+        rng.walk(depth, origin, throughput, BounceDim::BsdfDirection, 0),
+        rng.walk(depth, origin, throughput, BounceDim::BsdfDirection, 1),
     );
     let local = sample_cosine_hemisphere(u_dir);
     let wi = Frame::from_z(ns).from_local(local).normalize();
@@ -477,7 +479,7 @@ fn leave_subsurface(
     }
     // f cos / pdf: the cosine and π cancel.
     let beta = beta * lets_out(local.z);
-    let u_roulette = rng.walk(depth, key, BounceDim::RussianRoulette, 0);
+    let u_roulette = rng.walk(depth, origin, throughput, BounceDim::RussianRoulette, 0);
     let Some(beta) = russian_roulette(ctx, u_roulette, depth, beta, eta_scale) else {
         return out;
     };
