@@ -6,6 +6,8 @@
 //! each level is stored in the image's own format (8-bit sRGB images stay
 //! 8-bit sRGB), as pbrt stores them.
 
+use rayon::prelude::*;
+
 use crate::{Texels, TextureImage, Wrap};
 
 /// Linear RGBA texels, row 0 at the top.
@@ -15,41 +17,51 @@ struct Level {
     texels: Vec<[f32; 4]>,
 }
 
-/// The levels of `image`'s pyramid, the finest first; `wrap` says what
-/// lies beyond the edges for the resampling.
-pub fn pyramid(image: &TextureImage, wrap: Wrap) -> Vec<TextureImage> {
+/// `image`'s MIP pyramid: its finest level where that is not the image
+/// itself (an image whose sides are not powers of two is resized up
+/// first), and the coarser levels, finest first. `wrap` says what lies
+/// beyond the edges for the resizing. Each level's rows are made in
+/// parallel.
+pub struct Pyramid {
+    pub resized: Option<TextureImage>,
+    pub coarser: Vec<TextureImage>,
+}
+
+pub fn pyramid(image: &TextureImage, wrap: Wrap) -> Pyramid {
     let (w, h) = (image.width, image.height);
     let mut level = Level {
         width: w,
         height: h,
-        texels: (0..h).flat_map(|y| (0..w).map(move |x| image.texel(x, y))).collect(),
+        texels: (0..h).into_par_iter().flat_map_iter(|y| (0..w).map(move |x| image.texel(x, y))).collect(),
     };
+    let mut resized = None;
     if !w.is_power_of_two() || !h.is_power_of_two() {
         level = resize_up(&level, w.next_power_of_two(), h.next_power_of_two(), wrap);
+        resized = Some(stored_like(image, 0, &level));
     }
-    let count = 1 + level.width.max(level.height).ilog2();
-    let mut levels = Vec::with_capacity(count as usize);
-    for _ in 1..count {
-        let next = downsample(&level);
-        levels.push(stored_like(image, &levels, level));
-        level = next;
+    let count = level.width.max(level.height).ilog2();
+    let mut coarser = Vec::with_capacity(count as usize);
+    for i in 1..=count {
+        level = downsample(&level);
+        coarser.push(stored_like(image, i, &level));
     }
-    levels.push(stored_like(image, &levels, level));
-    levels
+    Pyramid { resized, coarser }
 }
 
-/// `level` stored in `image`'s format, named after it and its level.
-fn stored_like(image: &TextureImage, below: &[TextureImage], level: Level) -> TextureImage {
+/// `level` stored in `image`'s format, named after it and its `index`.
+fn stored_like(image: &TextureImage, index: u32, level: &Level) -> TextureImage {
     let texels = match &image.texels {
         Texels::Rgba8 { srgb, .. } => {
             let colour = |v: f32| if *srgb { linear_to_srgb8(v) } else { linear_to_u8(v) };
-            let data =
-                level.texels.iter().map(|&[r, g, b, a]| [colour(r), colour(g), colour(b), linear_to_u8(a)]);
+            let data = level
+                .texels
+                .par_iter()
+                .map(|&[r, g, b, a]| [colour(r), colour(g), colour(b), linear_to_u8(a)]);
             Texels::Rgba8 { srgb: *srgb, data: data.collect() }
         }
-        Texels::RgbaF32(_) => Texels::RgbaF32(level.texels),
+        Texels::RgbaF32(_) => Texels::RgbaF32(level.texels.clone()),
     };
-    let name = format!("{} (MIP level {})", image.name, below.len());
+    let name = format!("{} (MIP level {index})", image.name);
     TextureImage { name, width: level.width, height: level.height, texels }
 }
 
@@ -60,7 +72,8 @@ fn downsample(level: &Level) -> Level {
     let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
     let at = |x: u32, y: u32| level.texels[(y.min(h - 1) * w + x.min(w - 1)) as usize];
     let texels = (0..nh)
-        .flat_map(|y| {
+        .into_par_iter()
+        .flat_map_iter(|y| {
             (0..nw).map(move |x| {
                 let (x0, y0) = (2 * x, 2 * y);
                 let block = [at(x0, y0), at(x0 + 1, y0), at(x0, y0 + 1), at(x0 + 1, y0 + 1)];
@@ -119,6 +132,7 @@ fn resize_up(level: &Level, nw: u32, nh: u32, wrap: Wrap) -> Level {
     // Rows of the x pass, for every source row a y weight reaches.
     let (y_lo, y_hi) = (ys[0].first, ys[ys.len() - 1].first + 4);
     let rows: Vec<Vec<[f32; 4]>> = (y_lo..y_hi)
+        .into_par_iter()
         .map(|y| {
             xs.iter()
                 .map(|r| {
@@ -129,8 +143,8 @@ fn resize_up(level: &Level, nw: u32, nh: u32, wrap: Wrap) -> Level {
         })
         .collect();
     let texels = ys
-        .iter()
-        .flat_map(|r| {
+        .par_iter()
+        .flat_map_iter(|r| {
             let rows = &rows;
             (0..nw as usize).map(move |x| {
                 let row = |j: usize| rows[(r.first + j as i64 - y_lo) as usize][x];
@@ -162,6 +176,12 @@ fn linear_to_u8(v: f32) -> u8 {
 mod tests {
     use super::*;
 
+    /// Every level, the finest first (the image itself where not resized).
+    fn levels(image: &TextureImage, wrap: Wrap) -> Vec<TextureImage> {
+        let p = pyramid(image, wrap);
+        std::iter::once(p.resized.unwrap_or_else(|| image.clone())).chain(p.coarser).collect()
+    }
+
     fn image(w: u32, h: u32, texel: impl Fn(u32, u32) -> [f32; 4]) -> TextureImage {
         let texels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| texel(x, y)).collect();
         TextureImage::from_linear("test", w, h, texels)
@@ -170,10 +190,10 @@ mod tests {
     #[test]
     fn levels_halve_down_to_one_texel_averaging_blocks() {
         let img = image(8, 2, |x, y| [x as f32, y as f32, (x * y) as f32, 1.0]);
-        let levels = pyramid(&img, Wrap::Repeat);
+        assert!(pyramid(&img, Wrap::Repeat).resized.is_none(), "a power-of-two image is its own finest level");
+        let levels = levels(&img, Wrap::Repeat);
         let sizes: Vec<_> = levels.iter().map(|l| (l.width, l.height)).collect();
         assert_eq!(sizes, [(8, 2), (4, 1), (2, 1), (1, 1)]);
-        assert_eq!(levels[0], TextureImage { name: levels[0].name.clone(), ..img.clone() });
         // Level 1, texel 1: the block x 2..4, y 0..2.
         assert_eq!(levels[1].texel(1, 0), [2.5, 0.5, 1.25, 1.0]);
         // A side of one texel averages that texel with itself.
@@ -184,7 +204,7 @@ mod tests {
     fn sides_that_are_no_powers_of_two_are_resized_up_keeping_constants() {
         for wrap in [Wrap::Repeat, Wrap::Clamp, Wrap::Mirror] {
             let img = image(5, 3, |_, _| [0.25, 0.5, 1.0, 1.0]);
-            let levels = pyramid(&img, wrap);
+            let levels = levels(&img, wrap);
             assert_eq!((levels[0].width, levels[0].height), (8, 4));
             assert_eq!(levels.len(), 4);
             for l in &levels {
@@ -199,7 +219,7 @@ mod tests {
             }
         }
         // Black beyond the edges darkens the border texels.
-        let levels = pyramid(&image(3, 3, |_, _| [1.0; 4]), Wrap::Black);
+        let levels = levels(&image(3, 3, |_, _| [1.0; 4]), Wrap::Black);
         assert!(levels[0].texel(0, 0)[0] < levels[0].texel(1, 1)[0]);
     }
 
@@ -225,8 +245,7 @@ mod tests {
             height: 1,
             texels: Texels::Rgba8 { srgb: true, data: vec![[0, 0, 0, 255], [255, 255, 255, 255]] },
         };
-        let levels = pyramid(&img, Wrap::Repeat);
-        assert_eq!(levels[0].texels, img.texels);
+        let levels = levels(&img, Wrap::Repeat);
         // The mean of black and white is linear 0.5: sRGB byte 188.
         assert_eq!(levels[1].texels, Texels::Rgba8 { srgb: true, data: vec![[188, 188, 188, 255]] });
         for v in 0..=255u8 {

@@ -759,12 +759,10 @@ impl Textures {
     /// first level and how many there are (consecutive). A level equal to
     /// the image (sides that are powers of two) shares its texels.
     pub fn add_pyramid(&mut self, image: &Arc<TextureImage>, wrap: Wrap) -> (ImageId, u32) {
-        let levels = crate::mipmap::pyramid(image, wrap);
+        let pyramid = crate::mipmap::pyramid(image, wrap);
         let first = self.images.len() as ImageId;
-        for (i, level) in levels.into_iter().enumerate() {
-            let same = i == 0 && level.width == image.width && level.height == image.height;
-            self.images.push(if same { image.clone() } else { Arc::new(level) });
-        }
+        self.images.push(pyramid.resized.map_or_else(|| image.clone(), Arc::new));
+        self.images.extend(pyramid.coarser.into_iter().map(Arc::new));
         (first, self.images.len() as u32 - first)
     }
 
