@@ -373,18 +373,18 @@ __device__ __forceinline__ float3 medium_emission_over(const GpuMedium& m, float
 
 /// Mirrors `MediumTable::sample_segment` (with `channel_and_depth` and
 /// `MediumCoeffs::sample_uniform_segment`): a channel from the leading
-/// share of `u` (channels picked by the throughput `beta` before the
-/// segment), the optical depth to reach from the rest, found along the
-/// segment `o + t d`, 0 <= t < t_max, and weighted by the channels'
-/// mixture; a homogeneous medium's emission in closed form, a grid's where
-/// the segment scatters, added to `*emitted` times `beta`. A scattering
-/// `t` is in world units.
+/// share of `u` (with probabilities `channels`,
+/// `medium_channel_probabilities` of the throughput before the segment),
+/// the optical depth to reach from the rest, found along the segment
+/// `o + t d`, 0 <= t < t_max, and weighted by the channels' mixture; a
+/// homogeneous medium's emission in closed form, a grid's where the segment
+/// scatters, into `*emitted` (to be weighted by the throughput). A
+/// scattering `t` is in world units.
 __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p, unsigned int medium, float3 o,
-                                                            float3 d, float t_max, float u, float3 beta,
+                                                            float3 d, float t_max, float u, float3 channels,
                                                             float3* emitted) {
     const GpuMedium& m = p.media[medium];
     const float scale = length3(d);
-    const float3 channels = medium_channel_probabilities(beta);
     unsigned int channel;
     float start;
     if (u < channels.x || channels.y + channels.z == 0.0f) {
@@ -405,7 +405,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
     if (m.grid_first == NO_GRID) {
         const float3 sigma_t = medium_sigma_t(m);
         const float length = t_max * scale;
-        *emitted = *emitted + beta * medium_emission_over(m, length);
+        *emitted = medium_emission_over(m, length);
         const float st = channel_of(sigma_t, channel);
         const float depth = st > 0.0f ? target / st : f32_infinity();
         if (depth < length) {
@@ -438,7 +438,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
                 s.weight = tr * load3(m.sigma_s) / density;
                 if (!is_zero3(load3(m.le))) {
                     const float3 le = load3(m.le) * grid_le_scale_at(p, m, o + d * t);
-                    *emitted = *emitted + beta * (tr * load3(m.sigma_a) * le / density);
+                    *emitted = tr * load3(m.sigma_a) * le / density;
                 }
             } else {
                 s.weight = zero3();
@@ -460,7 +460,7 @@ __device__ __noinline__ MediumSegment medium_sample_segment(const FrameParams& p
         s.scatter = true;
         s.t = t * scale;
         s.weight = density > 0.0f ? tr * at.sigma_s / density : zero3();
-        if (density > 0.0f) *emitted = *emitted + beta * (tr * at.emission / density);
+        if (density > 0.0f) *emitted = tr * at.emission / density;
         return s;
     }
     s.weight = medium_pass_weight(

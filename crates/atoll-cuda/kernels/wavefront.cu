@@ -439,8 +439,9 @@ __device__ __forceinline__ void shade_path(const FrameParams& params, const RayR
         const float u = stream_medium_distance(rng, r.depth, from, beta);
         // Its own local: the address of `out` would move all of it to local memory.
         float3 emitted = zero3();
-        const MediumSegment seg = medium_sample_segment(params, medium, from, dir, t_max, u, beta, &emitted);
-        out.emitted = out.emitted + emitted;
+        const MediumSegment seg =
+            medium_sample_segment(params, medium, from, dir, t_max, u, medium_channel_probabilities(beta), &emitted);
+        out.emitted = out.emitted + beta * emitted;
         if (seg.scatter) {
             scatter_in_medium(params, r, medium, from + normalize3(dir) * seg.t, beta * seg.weight, out);
             return;

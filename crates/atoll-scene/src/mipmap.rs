@@ -190,7 +190,10 @@ mod tests {
     #[test]
     fn levels_halve_down_to_one_texel_averaging_blocks() {
         let img = image(8, 2, |x, y| [x as f32, y as f32, (x * y) as f32, 1.0]);
-        assert!(pyramid(&img, Wrap::Repeat).resized.is_none(), "a power-of-two image is its own finest level");
+        assert!(
+            pyramid(&img, Wrap::Repeat).resized.is_none(),
+            "a power-of-two image is its own finest level"
+        );
         let levels = levels(&img, Wrap::Repeat);
         let sizes: Vec<_> = levels.iter().map(|l| (l.width, l.height)).collect();
         assert_eq!(sizes, [(8, 2), (4, 1), (2, 1), (1, 1)]);

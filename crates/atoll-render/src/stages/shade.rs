@@ -368,14 +368,21 @@ fn scatter_in_medium(
     let Some(beta) = russian_roulette(ctx, u_roulette, depth, beta, r.eta_scale()) else {
         return out;
     };
-    let mut next = continuation(r, &at, wi);
-    next.throughput = beta.to_array();
-    next.bsdf_pdf = pdf;
+    let mut next = scattered(r, p, wi, beta, pdf);
     next.depth += 1;
-    next.flags = 0;
-    next.set_medium(r.medium());
     out.next = Some(next);
     out
+}
+
+/// The segment after `r` scatters at `p` in its medium towards `wi`
+/// (sampled with density `pdf`), with throughput `beta`.
+fn scattered(r: &RayRecord, p: Vec3, wi: Vec3, beta: Vec3, pdf: f32) -> RayRecord {
+    let mut next = continuation(r, &SurfacePoint { p, normal: Vec3::ZERO, error: 0.0 }, wi);
+    next.throughput = beta.to_array();
+    next.bsdf_pdf = pdf;
+    next.flags = 0;
+    next.set_medium(r.medium());
+    next
 }
 
 /// A step of a walk through subsurface medium `m`: the segment `r`
@@ -404,12 +411,7 @@ fn walk_subsurface(
     let Some(beta) = walk_roulette(ctx, u_roulette, beta, r.eta_scale()) else {
         return out;
     };
-    let mut next = continuation(r, &SurfacePoint { p, normal: Vec3::ZERO, error: 0.0 }, wi);
-    next.throughput = beta.to_array();
-    next.bsdf_pdf = pdf;
-    next.flags = 0;
-    next.set_medium(r.medium());
-    out.next = Some(next);
+    out.next = Some(scattered(r, p, wi, beta, pdf));
     out
 }
 

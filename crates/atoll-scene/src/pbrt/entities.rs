@@ -196,17 +196,8 @@ fn subsurface(
     w: &mut WarningSink,
     tex: &mut TexCtx,
 ) -> Result<Material, SceneError> {
-    let mut g = p.float_or("g", 0.0)?;
-    if !(g > -1.0 && g < 1.0) {
-        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
-    }
-    let scale = p.float_or("scale", 1.0)?;
-    if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(SceneError::at(
-            loc,
-            format!("{what}: \"scale\" {scale} must be finite and not negative"),
-        ));
-    }
+    let mut g = phase_asymmetry(p, what, loc)?;
+    let scale = coefficient_scale(p, what, loc)?;
     let eta = p.float_or("eta", 1.33)?;
     if !(eta > 0.0 && eta.is_finite()) {
         return Err(SceneError::at(loc, format!("{what}: \"eta\" {eta} must be positive")));
@@ -921,17 +912,8 @@ pub fn medium(
         w.warn(loc, format!("{what}: medium type {ty} is not supported; it is a vacuum: the image lacks its fog, smoke or scattering"));
         return Ok(None);
     }
-    let scale = p.float_or("scale", 1.0)?;
-    if !(scale >= 0.0 && scale.is_finite()) {
-        return Err(SceneError::at(
-            loc,
-            format!("{what}: \"scale\" {scale} must be finite and not negative"),
-        ));
-    }
-    let g = p.float_or("g", 0.0)?;
-    if !(g > -1.0 && g < 1.0) {
-        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
-    }
+    let scale = coefficient_scale(p, &what, loc)?;
+    let g = phase_asymmetry(p, &what, loc)?;
     if ty == "rgbgrid" {
         return rgb_grid_medium(&what, p, scale, g, ctm, loc).map(|g| Some(crate::Medium::Grid(g)));
     }
@@ -965,6 +947,27 @@ pub fn medium(
     }
     m.le = le * p.float_or("Lescale", 1.0)?.max(0.0);
     Ok(Some(crate::Medium::Homogeneous(m)))
+}
+
+/// A medium's `scale` of its coefficients (1 by default), finite and not negative.
+fn coefficient_scale(p: &ParamList, what: &str, loc: &FileLoc) -> Result<f32, SceneError> {
+    let scale = p.float_or("scale", 1.0)?;
+    if !(scale >= 0.0 && scale.is_finite()) {
+        return Err(SceneError::at(
+            loc,
+            format!("{what}: \"scale\" {scale} must be finite and not negative"),
+        ));
+    }
+    Ok(scale)
+}
+
+/// A medium's Henyey–Greenstein asymmetry `g` (0 by default), in (-1, 1).
+fn phase_asymmetry(p: &ParamList, what: &str, loc: &FileLoc) -> Result<f32, SceneError> {
+    let g = p.float_or("g", 0.0)?;
+    if !(g > -1.0 && g < 1.0) {
+        return Err(SceneError::at(loc, format!("{what}: \"g\" {g} must be between -1 and 1")));
+    }
+    Ok(g)
 }
 
 /// The samples per axis of a grid medium (`nx`, `ny`, `nz`, 1 each by default).
