@@ -11,8 +11,22 @@ use std::sync::Arc;
 use atoll_render::{Film, RenderOptions};
 use common::{assert_finite, mean_and_stderr, render_with};
 
-fn render(source: &str) -> Film {
-    let loaded = atoll_scene::pbrt::load_str(source, "subsurface.pbrt", std::path::Path::new(".")).unwrap();
+/// Renders, at 16×16 pixels and `spp` samples with paths of `max_depth`,
+/// the world `world` seen from 4 units before `at` (on -z) with a field of
+/// view of `fov` degrees.
+fn render(at: f64, fov: u32, spp: u32, max_depth: u32, world: &str) -> Film {
+    let source = format!(
+        r#"
+LookAt {at} 0 -4  {at} 0 0  0 1 0
+Camera "perspective" "float fov" [ {fov} ]
+Sampler "independent" "integer pixelsamples" [ {spp} ]
+Integrator "volpath" "integer maxdepth" [ {max_depth} ]
+Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
+WorldBegin
+{world}
+"#
+    );
+    let loaded = atoll_scene::pbrt::load_str(&source, "subsurface.pbrt", std::path::Path::new(".")).unwrap();
     assert!(loaded.warnings.is_empty(), "{:?}", loaded.warnings);
     let scene = Arc::new(loaded.scene);
     let film = render_with(&scene, RenderOptions::from_scene(&scene), None);
@@ -23,19 +37,12 @@ fn render(source: &str) -> Film {
 /// A unit sphere of `material` seen from 4 units away in a uniform sky of
 /// radiance 1, at 16×16 pixels and 64 samples, paths of `max_depth`.
 fn sphere_in_the_sky(material: &str, max_depth: u32) -> Film {
-    render(&format!(
-        r#"
-LookAt 0 0 -4  0 0 0  0 1 0
-Camera "perspective" "float fov" [ 30 ]
-Sampler "independent" "integer pixelsamples" [ 64 ]
-Integrator "volpath" "integer maxdepth" [ {max_depth} ]
-Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
-WorldBegin
-LightSource "infinite" "rgb L" [ 1 1 1 ]
+    let world = format!(
+        r#"LightSource "infinite" "rgb L" [ 1 1 1 ]
 Material "subsurface" {material}
-Shape "sphere" "float radius" [ 1 ]
-"#
-    ))
+Shape "sphere" "float radius" [ 1 ]"#
+    );
+    render(0.0, 30, 64, max_depth, &world)
 }
 
 /// Per channel: the mean over the pixels the sphere covers (the middle
@@ -96,23 +103,16 @@ fn absorption_darkens_by_colour() {
 #[test]
 fn light_shines_through_a_thin_slab() {
     let slab = |material: &str| {
-        render(&format!(
-            r#"
-LookAt 0 0 -4  0 0 0  0 1 0
-Camera "perspective" "float fov" [ 20 ]
-Sampler "independent" "integer pixelsamples" [ 32 ]
-Integrator "volpath" "integer maxdepth" [ 5 ]
-Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
-WorldBegin
-LightSource "distant" "point3 from" [ 0 0 1 ] "point3 to" [ 0 0 0 ] "rgb L" [ 3 3 3 ]
+        let world = format!(
+            r#"LightSource "distant" "point3 from" [ 0 0 1 ] "point3 to" [ 0 0 0 ] "rgb L" [ 3 3 3 ]
 Material {material}
 AttributeBegin
 Scale 2 2 0.05
 Shape "trianglemesh" "integer indices" [ 0 1 3  0 3 2  4 6 7  4 7 5  0 4 5  0 5 1  2 3 7  2 7 6  0 2 6  0 6 4  1 5 7  1 7 3 ]
   "point3 P" [ -1 -1 -1  1 -1 -1  -1 1 -1  1 1 -1  -1 -1 1  1 -1 1  -1 1 1  1 1 1 ]
-AttributeEnd
-"#
-        ))
+AttributeEnd"#
+        );
+        render(0.0, 20, 32, 5, &world)
     };
     let through = middle(&slab(r#""subsurface" "rgb sigma_a" [ 0.1 0.1 0.1 ] "rgb sigma_s" [ 20 20 20 ]"#));
     let diffuse = middle(&slab(r#""diffuse" "rgb reflectance" [ 0.8 0.8 0.8 ]"#));
@@ -129,20 +129,11 @@ AttributeEnd
 /// close to invisible.
 #[test]
 fn walks_far_from_the_origin_end() {
-    let film = render(
-        r#"
-LookAt 100000 0 -4  100000 0 0  0 1 0
-Camera "perspective" "float fov" [ 30 ]
-Sampler "independent" "integer pixelsamples" [ 16 ]
-Integrator "volpath" "integer maxdepth" [ 3 ]
-Film "rgb" "integer xresolution" [ 16 ] "integer yresolution" [ 16 ]
-WorldBegin
-LightSource "infinite" "rgb L" [ 1 1 1 ]
+    let world = r#"LightSource "infinite" "rgb L" [ 1 1 1 ]
 Translate 100000 0 0
 Material "subsurface" "rgb sigma_a" [ 0 0 0 ] "rgb sigma_s" [ 16 16 16 ]
-Shape "sphere" "float radius" [ 1 ]
-"#,
-    );
+Shape "sphere" "float radius" [ 1 ]"#;
+    let film = render(100_000.0, 30, 16, 3, world);
     for (c, (mean, err)) in middle(&film).into_iter().enumerate() {
         assert!(mean > 0.85 && mean < 1.05 + 4.0 * err, "channel {c}: {mean} ± {err}");
     }
