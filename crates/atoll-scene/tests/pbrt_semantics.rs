@@ -1461,3 +1461,38 @@ fn subsurface_materials_and_their_interiors() {
     assert!(error("\"rgb sigma_a\" [1 1 1]").contains("\"sigma_a\" given without \"sigma_s\""));
     assert!(error("\"float g\" 1").contains("must be between -1 and 1"));
 }
+
+/// Subsurface interiors share the 15 media with the scene's: one too many
+/// is an error at the first subsurface material, and a texture in place of
+/// a coefficient is warned about (the default is used).
+#[test]
+fn subsurface_interiors_count_towards_the_media() {
+    let fogs: String =
+        (0..14).map(|i| format!("MakeNamedMedium \"fog{i}\" \"string type\" \"homogeneous\"\n")).collect();
+    let subsurface =
+        |i: u32| format!("Material \"subsurface\" \"float scale\" {}\n{}\n", i + 1, tri(UNIT_TRI));
+    let fits = format!("{fogs}{}", subsurface(0));
+    let loaded = load_world("", &fits).unwrap();
+    assert_eq!(loaded.scene.media.len(), 15);
+    let too_many = format!("{fogs}{}{}", subsurface(0), subsurface(1));
+    let e = load_world("", &too_many).unwrap_err().to_string();
+    assert!(e.contains("need more than 15 media"), "{e}");
+    // `load_world` puts two lines before the world: the fogs take 14 more.
+    assert!(e.starts_with("test.pbrt:17:1:"), "the first subsurface material's statement: {e}");
+    let textured = format!(
+        "Texture \"t\" \"spectrum\" \"constant\" \"rgb value\" [0.5 0.5 0.5]\n\
+         Material \"subsurface\" \"texture sigma_a\" \"t\" \"rgb sigma_s\" [1 1 1]\n{}",
+        tri(UNIT_TRI)
+    );
+    let loaded = load_world("", &textured).unwrap();
+    assert!(
+        loaded.warnings.iter().any(|w| w.message.contains("textured \"sigma_a\" not supported")),
+        "{:?}",
+        loaded.warnings
+    );
+    assert_eq!(loaded.warnings.len(), 1, "{:?}", loaded.warnings);
+    let Material::Subsurface(p) = &loaded.scene.materials[loaded.scene.meshes[0].material as usize] else {
+        panic!("{:?}", loaded.scene.materials)
+    };
+    assert_eq!(p.interior.sigma_s, Rgb::new(2.55, 3.21, 3.77));
+}

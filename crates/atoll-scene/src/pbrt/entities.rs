@@ -181,6 +181,10 @@ pub fn material(
     })
 }
 
+/// pbrt-v4's default subsurface interior, (σa, σs) per millimetre: whole
+/// milk's measured coefficients.
+const DEFAULT_SUBSURFACE: (Rgb, Rgb) = (Rgb::new(0.0011, 0.0024, 0.014), Rgb::new(2.55, 3.21, 3.77));
+
 /// pbrt-v4's `subsurface` (`SubsurfaceMaterial::Create`). Its interior
 /// comes from, in this order: a measured `name` (reduced coefficients, so
 /// `g` is 0), `sigma_a` with `sigma_s`, a diffuse `reflectance` with its
@@ -188,7 +192,7 @@ pub fn material(
 /// or pbrt's default (whole milk's coefficients). `scale` multiplies the
 /// coefficients, or the mean free path; the boundary's `eta` is 1.33 and
 /// its roughness 0 by default. Coefficients are constants here: a texture
-/// in their place is warned about and the default used.
+/// in the place of any of them is warned about, and the default interior used.
 fn subsurface(
     p: &ParamList,
     what: &str,
@@ -202,11 +206,30 @@ fn subsurface(
     if !(eta > 0.0 && eta.is_finite()) {
         return Err(SceneError::at(loc, format!("{what}: \"eta\" {eta} must be positive")));
     }
+    // A textured coefficient would vary the interior from point to point;
+    // atoll's interior is one medium, so the default stands in for all.
+    let coefficients = ["sigma_a", "sigma_s", "reflectance", "mfp"];
+    let textured: Vec<&str> =
+        coefficients.into_iter().filter(|n| p.find(n, &[ParamType::Texture]).is_some()).collect();
+    if !textured.is_empty() {
+        for name in coefficients {
+            p.spectrum(name, true)?; // read, so that none is reported unused
+        }
+        w.warn(
+            loc,
+            format!(
+                "{what}: textured {} not supported (the interior is the same everywhere); pbrt-v4's default coefficients are used",
+                textured.iter().map(|n| format!("\"{n}\"")).collect::<Vec<_>>().join(", ")
+            ),
+        );
+    }
     let mut constant = |name: &str| -> Result<Option<Rgb>, SceneError> {
         Ok(p.spectrum(name, true)?.and_then(|sp| reflectance_rgb(sp, what, loc, w)))
     };
     let name = p.string("name")?.filter(|n| !n.is_empty());
-    let (sigma_a, sigma_s) = if let Some(name) = name {
+    let (sigma_a, sigma_s) = if !textured.is_empty() {
+        (DEFAULT_SUBSURFACE.0 * scale, DEFAULT_SUBSURFACE.1 * scale)
+    } else if let Some(name) = name {
         let Some((sigma_a, sigma_s)) = crate::scattering::measured(&name) else {
             return Err(SceneError::at(loc, format!("{what}: no measured scattering is named \"{name}\"")));
         };
@@ -229,7 +252,7 @@ fn subsurface(
                     let mfp = constant("mfp")?.unwrap_or(Rgb::ONE).max(Rgb::ZERO) * scale;
                     crate::subsurface::from_diffuse(reflectance, mfp, eta, g)
                 }
-                None => (Rgb::new(0.0011, 0.0024, 0.014) * scale, Rgb::new(2.55, 3.21, 3.77) * scale),
+                None => (DEFAULT_SUBSURFACE.0 * scale, DEFAULT_SUBSURFACE.1 * scale),
             },
         }
     };
